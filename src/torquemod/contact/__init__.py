@@ -1,0 +1,1 @@
+"""Wheel-rail contact models: Polach creep forces, Kalker coefficients, Hertz ellipse."""

@@ -1,0 +1,103 @@
+"""Polach's creep-force model.
+
+References
+----------
+O. Polach, "Creep forces in simulations of traction vehicles running on adhesion limit",
+Wear 258 (2005) 992-1000 (Eqs. 1-9 there; below "P05").
+O. Polach, "A fast wheel-rail forces calculation computer code", Vehicle System Dynamics 33
+Suppl. (1999) 728-739 ("P99").
+
+All functions are pure and vectorised over numpy arrays (scalars work too); SI units.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def friction_coefficient(slip_velocity_m_s, *, mu0: float, a_ratio: float, b_s_m: float):
+    """Friction falling with slip velocity, P05 Eq. (9): ``mu = mu0*((1-A)*exp(-B*w) + A)``.
+
+    ``slip_velocity_m_s`` w [m/s] (magnitude), ``a_ratio`` A = mu_inf/mu0 [-],
+    ``b_s_m`` B [s/m]. With B = 0 or A = 1 the friction is constant, mu0.
+    """
+    w = np.abs(slip_velocity_m_s)
+    return mu0 * ((1.0 - a_ratio) * np.exp(-b_s_m * w) + a_ratio)
+
+
+def kalker_stiffness(xi_x, xi_y, *, c11: float, c22: float):
+    """Combined Kalker coefficient, P05 Eq. (4): ``c_jj = sqrt((c11*xi_x/xi)^2+(c22*xi_y/xi)^2)``.
+
+    At zero total creepage the longitudinal value c11 is returned.
+    """
+    xi_x = np.asarray(xi_x, dtype=float)
+    xi_y = np.asarray(xi_y, dtype=float)
+    xi = np.hypot(xi_x, xi_y)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cjj = np.hypot(c11 * xi_x / xi, c22 * xi_y / xi)
+    return np.where(xi > 0, cjj, c11)
+
+
+def stress_gradient(xi, *, shear_modulus_pa: float, a_m: float, b_m: float, c_jj,
+                    normal_load_n: float, mu):
+    """Gradient of the tangential stress, P05 Eq. (3) with Eq. (5):
+    ``eps = (2/3)*C*pi*a^2*b*xi/(Q*mu)``, ``C = 3/8*G/a*c_jj``, i.e.
+    ``eps = pi*G*a*b*c_jj*xi/(4*Q*mu)``. ``xi`` total creepage [-], ``a_m``, ``b_m`` contact
+    ellipse semi-axes (longitudinal, lateral) [m], ``normal_load_n`` Q [N]."""
+    return np.pi * shear_modulus_pa * a_m * b_m * c_jj * np.abs(xi) / (4.0 * normal_load_n * mu)
+
+
+def force_function(eps, *, k_a: float, k_s: float):
+    """Normalised creep force F/(Q*mu), P05 Eq. (8) (P99 Eq. 9 with reduction factors):
+    ``(2/pi)*(kA*eps/(1+(kA*eps)^2) + arctan(kS*eps))``.
+
+    ``k_a`` kA reduces the initial slope in the adhesion area, ``k_s`` kS in the slip area.
+    With kA = kS = 1 the initial slope is Kalker's linear theory.
+    """
+    ke = k_a * eps
+    return (2.0 / np.pi) * (ke / (1.0 + ke * ke) + np.arctan(k_s * eps))
+
+
+def creep_force(xi_x, xi_y, *, normal_load_n: float, speed_m_s: float, a_m: float, b_m: float,
+                c11: float, c22: float, shear_modulus_pa: float, mu0: float, a_ratio: float,
+                b_s_m: float, k_a: float, k_s: float):
+    """Longitudinal and lateral creep forces (Fx, Fy) [N], P05 Eqs. (1)-(9), no spin.
+
+    ``xi_x``, ``xi_y`` creepages [-] (signed), ``speed_m_s`` rolling speed V [m/s] (the slip
+    velocity is ``w = xi*V``). The forces have the sign of the creepages: ``F_x = F*xi_x/xi``.
+    """
+    xi_x = np.asarray(xi_x, dtype=float)
+    xi_y = np.asarray(xi_y, dtype=float)
+    xi = np.hypot(xi_x, xi_y)
+    mu = friction_coefficient(xi * speed_m_s, mu0=mu0, a_ratio=a_ratio, b_s_m=b_s_m)
+    cjj = kalker_stiffness(xi_x, xi_y, c11=c11, c22=c22)
+    eps = stress_gradient(xi, shear_modulus_pa=shear_modulus_pa, a_m=a_m, b_m=b_m, c_jj=cjj,
+                          normal_load_n=normal_load_n, mu=mu)
+    f = normal_load_n * mu * force_function(eps, k_a=k_a, k_s=k_s)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fx = np.where(xi > 0, f * xi_x / xi, 0.0)
+        fy = np.where(xi > 0, f * xi_y / xi, 0.0)
+    return fx, fy
+
+
+def adhesion_curve(xi, *, mu: float, k_a: float, k_s: float, stiffness: float):
+    """Coefficient of adhesion against creepage, the lumped form used for fitting.
+
+    ``CoA(xi) = mu*force_function(stiffness*|xi|/mu)*sign(xi)`` where
+    ``stiffness = pi*G*a*b*c11/(4*Q)`` [-] lumps the contact geometry, so that
+    ``eps = stiffness*xi/mu`` (P05 Eq. 3) and the initial slope is
+    ``dCoA/dxi(0) = 2*(kA + kS)*stiffness/pi``. Constant friction (velocity dependence off).
+    """
+    xi = np.asarray(xi, dtype=float)
+    eps = stiffness * np.abs(xi) / mu
+    return np.sign(xi) * mu * force_function(eps, k_a=k_a, k_s=k_s)
+
+
+def adhesion_slope(xi, *, mu: float, k_a: float, k_s: float, stiffness: float):
+    """Creep coefficient dCoA/dxi [-] of :func:`adhesion_curve` (analytic derivative)."""
+    xi = np.asarray(xi, dtype=float)
+    eps = stiffness * np.abs(xi) / mu
+    ke = k_a * eps
+    d_f_d_eps = (2.0 / np.pi) * (k_a * (1.0 - ke * ke) / (1.0 + ke * ke) ** 2
+                                 + k_s / (1.0 + (k_s * eps) ** 2))
+    return stiffness * d_f_d_eps

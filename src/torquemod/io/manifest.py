@@ -1,0 +1,147 @@
+"""The experiment manifest ``experiment.toml`` (format in docs/format.md).
+
+The format is written by hand by users: keys are checked and every mistake is reported with the
+file, the key and what to do.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+
+import tomli_w
+
+from ..data import Experiment, RecordingEntry, Rig, TestSetup
+from ..errors import ManifestError
+
+_RIG_KEYS = ("wheel_radius_m", "platform_radius_m")
+_TEST_KEYS = ("normal_load_n", "modulation_frequency_hz", "modulation_amplitude_nm")
+
+
+def _positive_float(table: dict, key: str, section: str, path: Path) -> float:
+    if key not in table:
+        raise ManifestError(f"missing key '{section}.{key}'", path=path,
+                            hint=f"add '{key} = <value>' under [{section}]")
+    value = table[key]
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ManifestError(f"'{section}.{key}' must be a number, got {value!r}", path=path)
+    value = float(value)
+    if not math.isfinite(value) or value <= 0:
+        raise ManifestError(f"'{section}.{key}' must be a positive finite number, got {value}",
+                            path=path)
+    return value
+
+
+def _load_toml(path: Path) -> dict:
+    if not path.exists():
+        raise ManifestError("experiment manifest not found", path=path,
+                            hint="give the path of an experiment.toml")
+    if path.is_dir():
+        candidate = path / "experiment.toml"
+        if candidate.exists():
+            path = candidate
+        else:
+            raise ManifestError("is a folder without experiment.toml", path=path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ManifestError(f"cannot read the manifest ({exc})", path=path) from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        # tomllib's message already says "(at line L, column C)"
+        raise ManifestError(f"TOML syntax error: {exc}", path=path,
+                            hint="fix the line named") from None
+
+
+def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEntry:
+    where = f"recording #{i + 1}"
+    if not isinstance(rec, dict):
+        raise ManifestError(f"{where} is not a table", path=path)
+    for key in ("step", "dc_torque_nm", "file"):
+        if key not in rec:
+            raise ManifestError(f"{where} has no '{key}'", path=path,
+                                hint="each [[recording]] needs step, dc_torque_nm and file")
+    step, cycle = rec["step"], rec.get("cycle")
+    if isinstance(step, bool) or not isinstance(step, int) or step < 1:
+        raise ManifestError(f"{where}: 'step' must be a positive integer, got {step!r}", path=path)
+    if cycle is not None and (isinstance(cycle, bool) or not isinstance(cycle, int) or cycle < 1):
+        raise ManifestError(f"{where}: 'cycle' must be a positive integer, got {cycle!r}",
+                            path=path)
+    dc = rec["dc_torque_nm"]
+    if isinstance(dc, bool) or not isinstance(dc, int | float) or not math.isfinite(dc):
+        raise ManifestError(f"{where}: 'dc_torque_nm' must be a finite number, got {dc!r}",
+                            path=path)
+    file = rec["file"]
+    if not isinstance(file, str) or not file.strip():
+        raise ManifestError(f"{where}: 'file' must be a non-empty string", path=path)
+    resolved = (folder / file).resolve()
+    if not resolved.is_relative_to(folder.resolve()):
+        raise ManifestError(f"{where}: file '{file}' points outside the experiment folder",
+                            path=path, hint="copy the recording into the experiment folder")
+    group = rec.get("group")
+    if group is not None and not isinstance(group, str):
+        raise ManifestError(f"{where}: 'group' must be a string", path=path)
+    return RecordingEntry(step=step, cycle=cycle, dc_torque_nm=float(dc), path=resolved,
+                          group=group, index=i)
+
+
+def read_experiment(path: str | Path) -> Experiment:
+    """Parse and validate an ``experiment.toml``; recordings are not opened here."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / "experiment.toml"
+    doc = _load_toml(path)
+    for section in ("rig", "test"):
+        if not isinstance(doc.get(section), dict):
+            raise ManifestError(f"missing section [{section}]", path=path,
+                                hint="see docs/format.md for the manifest layout")
+    rig_t, test_t = doc["rig"], doc["test"]
+    rig = Rig(**{k: _positive_float(rig_t, k, "rig", path) for k in _RIG_KEYS},
+              extra={k: v for k, v in rig_t.items() if k not in _RIG_KEYS})
+    test = TestSetup(**{k: _positive_float(test_t, k, "test", path) for k in _TEST_KEYS},
+                     extra={k: v for k, v in test_t.items() if k not in _TEST_KEYS})
+    recs = doc.get("recording", [])
+    if not isinstance(recs, list) or not recs:
+        raise ManifestError("the experiment lists no [[recording]]", path=path,
+                            hint="add one [[recording]] table per recorded file")
+    folder = path.parent
+    entries = tuple(_recording_entry(i, r, folder, path) for i, r in enumerate(recs))
+    seen: dict[tuple, int] = {}
+    for e in entries:
+        key = (e.step, e.cycle, e.path, e.group)
+        if e.cycle is not None:
+            key = (e.step, e.cycle)
+        if key in seen:
+            what = f"step {e.step} cycle {e.cycle}" if e.cycle else f"step {e.step} file {e.path}"
+            raise ManifestError(f"{what} is listed twice (recordings #{seen[key] + 1} and "
+                                f"#{e.index + 1})", path=path, hint="remove the duplicate")
+        seen[key] = e.index
+    dc_by_step: dict[int, float] = {}
+    for e in entries:
+        if e.step in dc_by_step and not math.isclose(dc_by_step[e.step], e.dc_torque_nm,
+                                                     rel_tol=1e-9, abs_tol=1e-9):
+            raise ManifestError(f"step {e.step} has different dc_torque_nm values "
+                                f"({dc_by_step[e.step]} and {e.dc_torque_nm})", path=path)
+        dc_by_step.setdefault(e.step, e.dc_torque_nm)
+    channel_map = doc.get("channels", {})
+    if not isinstance(channel_map, dict):
+        raise ManifestError("[channels] must be a table", path=path)
+    return Experiment(manifest_path=path.resolve(), rig=rig, test=test, recordings=entries,
+                      channel_map=channel_map)
+
+
+def write_manifest(path: str | Path, *, rig: dict, test: dict, recordings: list[dict],
+                   extra: dict | None = None) -> Path:
+    """Write an ``experiment.toml`` from plain dicts (the inverse of :func:`read_experiment`).
+
+    ``recordings`` are dicts with ``step``, optional ``cycle``, ``dc_torque_nm``, ``file``.
+    """
+    path = Path(path)
+    doc = {"rig": dict(rig), "test": dict(test)}
+    if extra:
+        doc.update(extra)
+    doc["recording"] = [dict(r) for r in recordings]
+    path.write_text(tomli_w.dumps(doc), encoding="utf-8")
+    return path
