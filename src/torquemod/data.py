@@ -52,7 +52,9 @@ class TestSetup:
 @dataclass(frozen=True)
 class RecordingEntry:
     """One ``[[recording]]`` of the manifest. ``cycle`` is None when the file may span several
-    platform revolutions; ``group`` selects a group inside an HDF5 file."""
+    platform revolutions; ``group`` selects a group inside an HDF5 file (a TDMS group, a .mat
+    struct); ``sample_rate_hz`` [Hz], when given, is the recording's sample rate and replaces
+    the file's time base."""
 
     step: int
     dc_torque_nm: float
@@ -60,6 +62,7 @@ class RecordingEntry:
     cycle: int | None = None
     group: str | None = None
     index: int = 0  # position in the manifest, for messages
+    sample_rate_hz: float | None = None
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,7 @@ class Experiment:
     test: TestSetup
     recordings: tuple[RecordingEntry, ...]
     channel_map: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)  # other top-level tables, e.g. [processing]
 
     @property
     def folder(self) -> Path:

@@ -13,7 +13,8 @@ from pathlib import Path
 import tomli_w
 
 from ..data import Experiment, RecordingEntry, Rig, TestSetup
-from ..errors import ManifestError
+from ..errors import InputError, ManifestError
+from .channels import resolve_channel_map
 
 _RIG_KEYS = ("wheel_radius_m", "platform_radius_m")
 _TEST_KEYS = ("normal_load_n", "modulation_frequency_hz", "modulation_amplitude_nm")
@@ -83,8 +84,14 @@ def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEn
     group = rec.get("group")
     if group is not None and not isinstance(group, str):
         raise ManifestError(f"{where}: 'group' must be a string", path=path)
+    fs = rec.get("sample_rate_hz")
+    if fs is not None and (isinstance(fs, bool) or not isinstance(fs, int | float)
+                           or not math.isfinite(fs) or fs <= 0):
+        raise ManifestError(f"{where}: 'sample_rate_hz' must be a positive number, got {fs!r}",
+                            path=path, hint="give the recording's sample rate in Hz")
     return RecordingEntry(step=step, cycle=cycle, dc_torque_nm=float(dc), path=resolved,
-                          group=group, index=i)
+                          group=group, index=i,
+                          sample_rate_hz=None if fs is None else float(fs))
 
 
 def read_experiment(path: str | Path) -> Experiment:
@@ -128,8 +135,17 @@ def read_experiment(path: str | Path) -> Experiment:
     channel_map = doc.get("channels", {})
     if not isinstance(channel_map, dict):
         raise ManifestError("[channels] must be a table", path=path)
+    try:  # checked here so a mistake in [channels] shows before any recording is read
+        cmap = resolve_channel_map(channel_map, path)
+        for e in entries:
+            cmap.with_sample_rate(e.sample_rate_hz, path=path)
+    except InputError as exc:  # same text, raised as a manifest error
+        err = ManifestError(str(exc))
+        err.path, err.channel, err.hint = exc.path, exc.channel, exc.hint
+        raise err from None
+    extra = {k: v for k, v in doc.items() if k not in ("rig", "test", "recording", "channels")}
     return Experiment(manifest_path=path.resolve(), rig=rig, test=test, recordings=entries,
-                      channel_map=channel_map)
+                      channel_map=channel_map, extra=extra)
 
 
 def write_manifest(path: str | Path, *, rig: dict, test: dict, recordings: list[dict],

@@ -1,0 +1,218 @@
+"""The ``torquemod`` command line. The only module that parses arguments or prints.
+
+Every :class:`~torquemod.errors.TorquemodError` ends as one line on stderr and exit code 2;
+anything else is a bug: one line, exit code 3, and ``--debug`` shows the traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import warnings
+from pathlib import Path
+
+from ._version import __version__
+from .errors import TorquemodError, TorquemodWarning
+
+EXIT_BAD_INPUT = 2
+EXIT_INTERNAL = 3
+
+
+def _fmt(x: object, spec: str) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return format(x, spec)
+
+
+def _print_steps(steps) -> None:
+    print(f"{'step':>4} {'DC [N*m]':>9} {'phase [deg]':>12} {'std':>6} {'creepage':>10} "
+          f"{'CoA':>7} {'cycles':>6}")
+    for r in steps.itertuples():
+        print(f"{r.step:>4} {r.dc_torque_nm:>9.2f} {_fmt(r.phase_deg, '12.3f')} "
+              f"{_fmt(r.phase_std_deg, '6.3f')} {_fmt(r.creepage, '10.3e')} "
+              f"{_fmt(r.coa, '7.4f')} {r.n_cycles:>6}")
+
+
+def _post_stages(args: argparse.Namespace):
+    """The fit and report stages run on a results folder (before it is published)."""
+    if getattr(args, "no_fit", False):
+        return None
+
+    def post(folder: Path) -> None:
+        from .analysis import fit_results_folder
+        from .report import write_report
+        fit_results_folder(folder)
+        write_report(folder)
+    return post
+
+
+def cmd_process(args: argparse.Namespace) -> int:
+    from .config import ProcessingConfig
+    from .fsutil import check_output_dir
+    from .io import read_experiment
+    from .pipeline import process_experiment, write_results
+
+    check_output_dir(args.out, force=args.force)
+    exp = read_experiment(args.experiment)
+    base = ProcessingConfig()
+    proc_table = exp.extra.get("processing")
+    if proc_table:
+        base = ProcessingConfig.from_dict(proc_table, source=str(exp.manifest_path))
+    cfg = base.with_phase_method(args.phase_method)
+    if args.nan_policy:
+        import dataclasses
+        cfg = dataclasses.replace(cfg, nan_policy=args.nan_policy)
+    result = process_experiment(exp, config=cfg, progress=not args.quiet)
+    write_results(result, args.out, force=args.force, command=sys.argv,
+                  post=_post_stages(args))
+    for w in result.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    _print_steps(result.steps)
+    print(f"results in {args.out} (read {result.timing_s['read_s']:.2f} s, "
+          f"compute {result.timing_s['compute_s']:.2f} s)")
+    return 0
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from . import simulate
+    if args.print_config:
+        sys.stdout.write(simulate.default_config_text())
+        return 0
+    if args.out is None:
+        raise _usage_error("simulate needs --out DIR (or --print-config)")
+    config = simulate.load_config(args.config)
+    truth = simulate.run_simulation(config, Path(args.out), seed=args.seed, fmt=args.format,
+                                    progress=not args.quiet, force=args.force)
+    print(f"experiment written to {args.out}/experiment.toml")
+    for st in truth.get("steps", []):
+        flag = "  SLIP" if st.get("slipped") else ""
+        print(f"  step {st['step']}: DC {st['dc_torque_nm']:.2f} N*m, creepage "
+              f"{_fmt(st.get('creepage'), '.3e')}, CoA {_fmt(st.get('coa'), '.4f')}, theory "
+              f"phase {_fmt(st.get('phase_theory_deg'), '.2f')} deg{flag}")
+    return 0
+
+
+def cmd_fit(args: argparse.Namespace) -> int:
+    from .analysis import fit_results_folder
+    summary = fit_results_folder(Path(args.results))
+    _print_summary(summary)
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from .report import write_report
+    path = write_report(Path(args.results))
+    print(f"report written to {path}")
+    return 0
+
+
+def _print_summary(summary: dict) -> None:
+    for key, value in summary.items():
+        if isinstance(value, dict | list):
+            continue
+        print(f"{key}: {value}")
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from .demo import run_demo
+    out = run_demo(Path(args.out), config_path=args.config, seed=args.seed, force=args.force,
+                   progress=not args.quiet, quick=args.quick)
+    _print_summary(out)
+    return 0
+
+
+def cmd_convert(args: argparse.Namespace) -> int:
+    from . import convert
+    if args.manifest:
+        path = convert.convert_experiment(Path(args.manifest), Path(args.out))
+    else:
+        path = convert.convert_file(Path(args.input), Path(args.out))
+    print(f"written {path}")
+    return 0
+
+
+class _UsageError(TorquemodError):
+    pass
+
+
+def _usage_error(msg: str) -> _UsageError:
+    return _UsageError(msg)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="torquemod", description=(
+        "Torque-modulation measurement of the wheel-rail coefficient of friction."))
+    p.add_argument("--version", action="version", version=f"torquemod {__version__}")
+    p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    q = sub.add_parser("process", help="run the processing chain on an experiment")
+    q.add_argument("experiment", help="experiment.toml (or its folder)")
+    q.add_argument("--out", required=True, help="results folder to create")
+    q.add_argument("--phase-method", choices=["paper", "sinefit"], default=None,
+                   help="phase estimator (default: paper)")
+    q.add_argument("--nan-policy", choices=["raise", "interpolate", "drop-cycle"],
+                   default=None, help="what to do with NaN/inf samples (default: raise)")
+    q.add_argument("--force", action="store_true", help="replace an existing results folder")
+    q.add_argument("--no-fit", action="store_true", help="skip the fit and report stages")
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.set_defaults(func=cmd_process)
+
+    s = sub.add_parser("simulate", help="simulate the V-Track experiment (digital twin)")
+    s.add_argument("config", nargs="?", default=None, help="simulation config TOML")
+    s.add_argument("--out", default=None, help="experiment folder to create")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--format", choices=["csv", "hdf5"], default="csv")
+    s.add_argument("--print-config", action="store_true", help="print the default config")
+    s.add_argument("--force", action="store_true", help="replace an existing folder")
+    s.add_argument("--quiet", action="store_true")
+    s.set_defaults(func=cmd_simulate)
+
+    f = sub.add_parser("fit", help="(re)fit the creep curve of a results folder")
+    f.add_argument("results")
+    f.set_defaults(func=cmd_fit)
+
+    r = sub.add_parser("report", help="(re)write figures and report.html of a results folder")
+    r.add_argument("results")
+    r.set_defaults(func=cmd_report)
+
+    d = sub.add_parser("demo", help="simulate, process, fit and report the V-Track default")
+    d.add_argument("--out", default="demo-output")
+    d.add_argument("--config", default=None, help="simulation config TOML")
+    d.add_argument("--seed", type=int, default=0)
+    d.add_argument("--quick", action="store_true", help="a shortened experiment")
+    d.add_argument("--force", action="store_true")
+    d.add_argument("--quiet", action="store_true")
+    d.set_defaults(func=cmd_demo)
+
+    c = sub.add_parser("convert", help="write a recording (or experiment) as HDF5")
+    c.add_argument("input", nargs="?", help="recording file")
+    c.add_argument("--manifest", default=None, help="convert a whole experiment instead")
+    c.add_argument("--out", required=True)
+    c.set_defaults(func=cmd_convert)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    warnings.simplefilter("ignore", TorquemodWarning)  # collected and printed by commands
+    try:
+        return int(args.func(args) or 0)
+    except TorquemodError as exc:
+        print(f"torquemod: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("torquemod: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # a bug: say so in one line unless asked for the traceback
+        if args.debug:
+            raise
+        print(f"torquemod: internal error: {type(exc).__name__}: {exc} (rerun with --debug "
+              "and report it)", file=sys.stderr)
+        return EXIT_INTERNAL
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Signal-processing steps of the chain: numpy arrays in, numpy arrays out, ``fs`` in Hz."""

@@ -1,0 +1,179 @@
+"""Steps 2-5 of the V-Track chain: resampling, notch, high-pass and band-pass filters.
+
+Design is kept apart from application (as in scipy.signal). Every filter is applied forward
+and backward (zero phase) with Gustafsson's initial conditions, ``filtfilt(method="gust")``,
+so it shifts no phase and its edge transients are small: with the default padding
+``sosfiltfilt`` left ±0.1-0.3 deg of phase-difference error in the middle periods of a 6.5 s
+record, Gustafsson's method 0.004 deg (FACTS.md §4).
+"""
+
+from __future__ import annotations
+
+import functools
+from fractions import Fraction
+
+import numpy as np
+from scipy import signal
+
+
+def resample_ratio(fs_in_hz: float, fs_target_hz: float, *, max_denominator: int = 1000
+                   ) -> tuple[int, int]:
+    """Integers (up, down) with ``fs_in*up/down`` closest to ``fs_target`` (16 670 Hz to
+    53.344 Hz gives exactly 2/625)."""
+    frac = Fraction(fs_target_hz / fs_in_hz).limit_denominator(max_denominator)
+    if frac.numerator == 0:
+        raise ValueError(f"cannot resample {fs_in_hz} Hz to {fs_target_hz} Hz")
+    return frac.numerator, frac.denominator
+
+
+@functools.lru_cache(maxsize=16)
+def _resampling_fir(up: int, down: int, kaiser_beta: float) -> np.ndarray:
+    """The FIR ``resample_poly`` designs (10 zero crossings either side, Kaiser window)."""
+    max_rate = max(up, down)
+    half_len = 10 * max_rate
+    h = signal.firwin(2 * half_len + 1, 1.0 / max_rate, window=("kaiser", kaiser_beta))
+    return h  # resample_poly scales a given FIR by up itself
+
+
+def resample(x: np.ndarray, up: int, down: int, *, kaiser_beta: float = 5.0) -> np.ndarray:
+    """Polyphase resampling by ``up/down`` along the last axis (MATLAB ``resample``
+    equivalent, Kaiser beta 5; the FIR is designed once per ratio and cached).
+
+    Each row's mean is removed before and restored after, and the ends are padded along a
+    line, so a DC offset or slow trend does not ring at the edges (FACTS.md §4).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    m = x.mean(axis=-1, keepdims=True)
+    y = signal.resample_poly(x - m, up, down, axis=-1,
+                             window=_resampling_fir(up, down, float(kaiser_beta)),
+                             padtype="line")
+    return y + m
+
+
+def design_notch(f0_hz: float, q: float, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Second-order IIR notch at ``f0_hz`` with quality factor ``q`` (bandwidth f0/q)."""
+    return signal.iirnotch(f0_hz, q, fs=fs_hz)
+
+
+def design_highpass(cutoff_hz: float, order: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Butterworth high-pass of ``order`` (applied twice by :func:`zero_phase`)."""
+    return signal.butter(order, cutoff_hz, "highpass", fs=fs_hz)
+
+
+def design_bandpass(center_hz: float, width_hz: float, order: int, fs_hz: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Butterworth band-pass from ``center-width/2`` to ``center+width/2`` [Hz]; ``order`` is
+    the prototype's, the band-pass has twice that (scipy's convention)."""
+    lo, hi = center_hz - width_hz / 2, center_hz + width_hz / 2
+    if lo <= 0 or hi >= fs_hz / 2:
+        raise ValueError(f"band-pass {lo:.3f}-{hi:.3f} Hz does not fit in 0..{fs_hz / 2} Hz")
+    return signal.butter(order, [lo, hi], "bandpass", fs=fs_hz)
+
+
+def zero_phase(ba: tuple[np.ndarray, np.ndarray], x: np.ndarray, *, method: str = "gust"
+               ) -> np.ndarray:
+    """Apply a filter forward and backward: ``method="gust"`` uses Gustafsson's initial
+    conditions; ``"none"`` filters the record as it is, for records already padded (see
+    :func:`model_padded`)."""
+    b, a = ba
+    if method == "none":
+        return signal.filtfilt(b, a, x, padlen=0)
+    return signal.filtfilt(b, a, x, method="gust")
+
+
+def notch_frequencies(rotation_hz: float, harmonics: tuple[int, ...], fs_hz: float
+                      ) -> list[float]:
+    """The harmonics of a rotation frequency that lie strictly below Nyquist."""
+    return [h * rotation_hz for h in harmonics if 0 < h * rotation_hz < fs_hz / 2]
+
+
+def apply_notches(x: np.ndarray, freqs_hz: list[float], q: float, fs_hz: float) -> np.ndarray:
+    """Zero-phase notch at each frequency in turn."""
+    y = np.asarray(x, dtype=np.float64)
+    for f0 in freqs_hz:
+        y = zero_phase(design_notch(f0, q, fs_hz), y)
+    return y
+
+
+def settling_samples(ba: tuple[np.ndarray, np.ndarray], *, tol: float = 1e-6,
+                     max_samples: int = 1_000_000) -> int:
+    """Samples after which the filter's impulse response stays below ``tol`` times its peak
+    (derived from the design; used as the padding length)."""
+    b, a = ba
+    n = 256
+    while n <= max_samples:
+        h = signal.lfilter(b, a, np.r_[1.0, np.zeros(n - 1)])
+        above = np.flatnonzero(np.abs(h) > tol * np.abs(h).max())
+        if above[-1] < n - n // 4:
+            return int(above[-1]) + 1
+        n *= 2
+    return max_samples
+
+
+def resampler_edge_samples(up: int, down: int) -> int:
+    """Output samples at each end touched by the zero padding of :func:`resample`'s FIR
+    (``resample_poly`` uses ``10*max(up, down)`` taps either side of the centre)."""
+    half_taps = 10 * max(up, down)
+    return int(np.ceil(half_taps * up / down)) + 1
+
+
+def fit_line_and_tones(x: np.ndarray, fs_hz: float, tones_hz: list[float]
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares ``x ~ c0 + c1*t + sum(a_k cos + b_k sin)(2 pi f_k t)``; returns the
+    coefficients and the tone frequencies kept (those below Nyquist, one resolution apart)."""
+    n = x.size
+    res = fs_hz / n
+    kept: list[float] = []
+    for f in tones_hz:
+        if 0 < f < fs_hz / 2 and all(abs(f - g) > res for g in kept):
+            kept.append(f)
+    t = np.arange(n) / fs_hz
+    cols = [np.ones(n), t - t.mean()]
+    for f in kept:
+        cols += [np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)]
+    coef, *_ = np.linalg.lstsq(np.column_stack(cols), x, rcond=None)
+    return coef, np.asarray(kept)
+
+
+def model_padded(x: np.ndarray, fs_hz: float, tones_hz: list[float], pad: int
+                 ) -> tuple[np.ndarray, float, float]:
+    """``x`` less its least-squares line, extended by ``pad`` samples at each end with the
+    least-squares model of its stationary tones (:func:`fit_line_and_tones`).
+
+    A zero-phase filter run over the padded record starts and ends its transients in the
+    padding, where the signal continues smoothly, instead of inside the data. Returns the
+    padded record, the line's mean value and slope [per s] (to restore it later).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    n = x.size
+    coef, kept = fit_line_and_tones(x, fs_hz, tones_hz)
+    t = np.arange(-pad, n + pad) / fs_hz
+    t_mid = (n - 1) / (2 * fs_hz)
+    out = np.zeros(n + 2 * pad)
+    for k, f in enumerate(kept):
+        out += coef[2 + 2 * k] * np.cos(2 * np.pi * f * t)
+        out += coef[3 + 2 * k] * np.sin(2 * np.pi * f * t)
+    out[pad:pad + n] = x - coef[0] - coef[1] * (t[pad:pad + n] - t_mid)
+    return out, float(coef[0]), float(coef[1])
+
+
+def tone_free_mean(x: np.ndarray, fs_hz: float, tones_hz: list[float]) -> float:
+    """Mean of ``x`` with the given tones removed: the constant term of a least-squares fit
+    ``c0 + sum(a_k cos + b_k sin)(2 pi f_k t)``.
+
+    This is the value a notch at each tone followed by averaging converges to, without a
+    notch's edge transients and also when the record is shorter than the tones' beat period
+    (a notch at the platform's 1st and 2nd rotation harmonics cannot separate them within one
+    revolution). Over whole periods of every tone it equals the plain mean.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    tones = [f for f in tones_hz if 0 < f < fs_hz / 2]
+    if not tones:
+        return float(x.mean())
+    t = np.arange(x.size) / fs_hz
+    m = x.mean()
+    cols = [np.ones(x.size)]
+    for f in tones:
+        cols += [np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)]
+    coef, *_ = np.linalg.lstsq(np.column_stack(cols), x - m, rcond=None)
+    return float(coef[0] + m)

@@ -1,0 +1,201 @@
+"""Step 7 of the V-Track chain: the phase lag of the wheel angular velocity behind the torque.
+
+Two estimators:
+
+* :func:`peak_valley_phase`, the paper's: paired peaks and valleys of the band-passed signals,
+  each located to a fraction of a sample by a parabola through the three highest samples,
+  ``phi_pair = 360*f_mod*dt_pair`` (Eq. 2 of the V-Track paper), averaged.
+* :func:`sinefit_phase`: a linear least-squares fit of ``c*cos(wt) + s*sin(wt)`` plus nuisance
+  terms at the common frequency over whole modulation periods, time referenced to the window
+  centre (IEEE Std 1057 three-parameter fit, extended). It reaches the Cramér-Rao bound
+  ``var(dphi) = (1/N)(1/eta1 + 1/eta2)`` (FACTS.md §5).
+
+Sign convention of the project: the phase is positive when the wheel speed lags the torque.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal
+
+from ..errors import ProcessingError
+
+
+def parabolic_vertex(y_m1: np.ndarray, y_0: np.ndarray, y_p1: np.ndarray) -> np.ndarray:
+    """Offset in samples (-0.5..0.5) of the vertex of the parabola through three samples."""
+    den = y_m1 - 2.0 * y_0 + y_p1
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = 0.5 * (y_m1 - y_p1) / den
+    return np.where(den != 0, np.clip(d, -0.5, 0.5), 0.0)
+
+
+def extrema_times(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Times [s from the first sample] of the local maxima and minima of ``x``, refined by
+    parabolic interpolation (whole-sample peaks at 53 Hz are 13.5 deg apart at 2 Hz)."""
+    x = np.asarray(x, dtype=np.float64)
+    out = []
+    for sgn in (1.0, -1.0):
+        idx, _ = signal.find_peaks(sgn * x)
+        idx = idx[(idx > 0) & (idx < x.size - 1)]
+        d = parabolic_vertex(sgn * x[idx - 1], sgn * x[idx], sgn * x[idx + 1])
+        out.append((idx + d) / fs_hz)
+    return out[0], out[1]
+
+
+def _closest(times: np.ndarray, center_s: float, count: int) -> np.ndarray:
+    order = np.argsort(np.abs(times - center_s))[:count]
+    return np.sort(times[order])
+
+
+@dataclass(frozen=True)
+class PeakValleyResult:
+    """Per-pair time differences [s] and phases [deg] and their mean phase [deg]."""
+
+    phase_deg: float
+    pair_phases_deg: np.ndarray
+    torque_times_s: np.ndarray
+    wheel_times_s: np.ndarray
+
+
+def peak_valley_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz: float, *,
+                      center_s: float, n_periods: int = 3) -> PeakValleyResult:
+    """The paper's estimator (step 7, Eq. 2): the ``n_periods`` torque peaks and valleys
+    nearest ``center_s`` [s], each paired with the wheel-speed extremum of the same kind
+    nearest to it (within half a period), ``phi = 360*f_mod*(t_wheel - t_torque)``, averaged.
+    """
+    t_pk, t_vl = extrema_times(torque, fs_hz)
+    w_pk, w_vl = extrema_times(wheel, fs_hz)
+    period = 1.0 / f_mod_hz
+    t_sel, w_sel = [], []
+    for t_all, w_all, kind in ((t_pk, w_pk, "peaks"), (t_vl, w_vl, "valleys")):
+        if t_all.size < n_periods or w_all.size == 0:
+            raise ProcessingError(f"fewer than {n_periods} torque {kind} in the cycle")
+        for t in _closest(t_all, center_s, n_periods):
+            j = int(np.argmin(np.abs(w_all - t)))
+            if abs(w_all[j] - t) > period / 2:
+                raise ProcessingError(f"no wheel-speed extremum within half a period of the "
+                                      f"torque extremum at {t:.3f} s")
+            t_sel.append(t)
+            w_sel.append(w_all[j])
+    t_sel, w_sel = np.asarray(t_sel), np.asarray(w_sel)
+    pair = 360.0 * f_mod_hz * (w_sel - t_sel)
+    return PeakValleyResult(float(pair.mean()), pair, t_sel, w_sel)
+
+
+@dataclass(frozen=True)
+class SineFitResult:
+    """Phase lag [deg] with its standard error [deg]; amplitudes and phases of both fits."""
+
+    phase_deg: float
+    phase_stderr_deg: float
+    torque_amplitude: float
+    wheel_amplitude: float
+    torque_phase_rad: float
+    wheel_phase_rad: float
+    n_samples: int
+    window_s: tuple[float, float]
+
+
+def whole_period_window(n_samples: int, fs_hz: float, f_hz: float, center_s: float | None = None
+                        ) -> tuple[int, int]:
+    """Index range [start, stop) of the largest whole number of periods of ``f_hz`` that fits
+    in the record, centred on ``center_s`` (default the record's middle) as far as it can be."""
+    duration = n_samples / fs_hz
+    n_per = int(np.floor(duration * f_hz + 1e-9))
+    if n_per < 1:
+        raise ProcessingError("record shorter than one modulation period")
+    length = round(n_per * fs_hz / f_hz)
+    length = min(length, n_samples)
+    c = n_samples / 2 if center_s is None else center_s * fs_hz
+    start = round(c - length / 2)
+    start = min(max(start, 0), n_samples - length)
+    return start, start + length
+
+
+def _design(t: np.ndarray, f_hz: float, nuisance_hz: tuple[float, ...], trend: bool
+            ) -> np.ndarray:
+    cols = [np.cos(2 * np.pi * f_hz * t), np.sin(2 * np.pi * f_hz * t), np.ones_like(t)]
+    if trend:
+        cols.append(t)
+    for fn in nuisance_hz:
+        cols += [np.cos(2 * np.pi * fn * t), np.sin(2 * np.pi * fn * t)]
+    return np.column_stack(cols)
+
+
+def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz: float, *,
+                  nuisance_hz: tuple[float, ...] = (), trend: bool = True,
+                  center_s: float | None = None, noise_from: tuple[np.ndarray, np.ndarray]
+                  | None = None) -> SineFitResult:
+    """Least-squares sine fit at the common frequency over whole modulation periods.
+
+    Model per channel: ``c*cos(w t) + s*sin(w t) + d (+ e*t) + sum(nuisance tones)`` with t
+    from the window centre; phase ``phi = atan2(-s, c)``; lag ``phi_T - phi_W`` wrapped to
+    (-180, 180] deg. Nuisance tones closer than one frequency resolution to ``f_mod_hz``
+    are dropped (they would alias the signal). The standard error propagates the residual
+    is ``sqrt(S1/(A1^2 T) + S2/(A2^2 T))`` (FACTS.md §5) with each channel's one-sided noise
+    density S_i near ``f_mod_hz`` taken from the fit's residual (:func:`local_noise_psd`), so
+    unmodelled lines far from f_mod (vibration) do not inflate it; ``noise_from`` gives other
+    versions of the two channels (e.g. before a band-pass) whose residual is used instead.
+    """
+    torque = np.asarray(torque, dtype=np.float64)
+    wheel = np.asarray(wheel, dtype=np.float64)
+    start, stop = whole_period_window(torque.size, fs_hz, f_mod_hz, center_s)
+    n = stop - start
+    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    resolution = fs_hz / n
+    keep = tuple(f for f in nuisance_hz if abs(f - f_mod_hz) > resolution)
+    design = _design(t, f_mod_hz, keep, trend)
+    y = np.column_stack([torque[start:stop], wheel[start:stop]])
+    coef, _, rank, _ = np.linalg.lstsq(design, y, rcond=None)
+    if rank < design.shape[1]:
+        raise ProcessingError("sine-fit design matrix is rank deficient (nuisance tones "
+                              "coincide)")
+    if noise_from is None:
+        resid = y - design @ coef
+    else:
+        y_n = np.column_stack([np.asarray(noise_from[0])[start:stop],
+                               np.asarray(noise_from[1])[start:stop]])
+        c_n, *_ = np.linalg.lstsq(design, y_n, rcond=None)
+        resid = y_n - design @ c_n
+    t_win = n / fs_hz
+    phases, amps, var_phi = [], [], 0.0
+    for ch in range(2):
+        c, s = coef[0, ch], coef[1, ch]
+        a2 = c * c + s * s
+        if a2 == 0:
+            raise ProcessingError("zero amplitude at the modulation frequency")
+        # var(phi_i) = S_i/(A_i^2 T) with S_i the one-sided noise density at f_mod (§5)
+        psd = local_noise_psd(resid[:, ch], fs_hz, f_mod_hz)
+        var_phi += psd / (a2 * t_win)
+        phases.append(float(np.arctan2(-s, c)))
+        amps.append(float(np.sqrt(a2)))
+    lag = np.angle(np.exp(1j * (phases[0] - phases[1])))
+    return SineFitResult(float(np.degrees(lag)), float(np.degrees(np.sqrt(var_phi))), amps[0],
+                         amps[1], phases[0], phases[1], n, (start / fs_hz, stop / fs_hz))
+
+
+def phase_crb_deg(amplitude_1: float, amplitude_2: float, noise_std_1: float, noise_std_2: float,
+                  n_samples: int) -> float:
+    """Cramér-Rao bound on the standard deviation [deg] of a phase difference between two
+    sinusoids of a common known frequency in white noise: ``var = (1/N)(1/eta1 + 1/eta2)``,
+    ``eta_i = A_i^2/(2 sigma_i^2)`` (FACTS.md §5)."""
+    eta1 = amplitude_1 ** 2 / (2 * noise_std_1 ** 2)
+    eta2 = amplitude_2 ** 2 / (2 * noise_std_2 ** 2)
+    return float(np.degrees(np.sqrt((1 / eta1 + 1 / eta2) / n_samples)))
+
+
+def local_noise_psd(residual: np.ndarray, fs_hz: float, f_hz: float, *,
+                    half_width_hz: float = 0.75) -> float:
+    """One-sided noise power spectral density [unit^2/Hz] of ``residual`` near ``f_hz``: the
+    mean of its Hann-windowed periodogram over ``f_hz +- half_width_hz``, leaving out the
+    two bins nearest ``f_hz`` (where a fitted line's remainder would sit)."""
+    r = np.asarray(residual, dtype=np.float64)
+    f, p = signal.periodogram(r - r.mean(), fs_hz, window="hann", detrend=False,
+                              scaling="density")
+    df = f[1] - f[0]
+    sel = (np.abs(f - f_hz) <= half_width_hz) & (np.abs(f - f_hz) > 1.5 * df)
+    if sel.sum() < 2:
+        return float(np.mean(p[1:]))
+    return float(np.mean(p[sel]))

@@ -1,0 +1,212 @@
+"""The orchestrator: experiment in, per-cycle and per-step results out.
+
+``process_experiment`` reads every recording, splits files that span several platform
+revolutions into cycles, runs the chain of :mod:`torquemod.chain` on each cycle, aligns the
+cycles of a step and measures their phase, then aggregates per step. ``write_results`` writes
+``cycles.csv``, ``steps.csv``, ``provenance.json`` and ``traces.npz`` atomically.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from . import chain
+from .config import ProcessingConfig
+from .cycles import revolution_bounds
+from .data import Experiment, Recording, RecordingEntry
+from .errors import InputError, ProcessingError, TorquemodWarning
+from .io import read_experiment, read_recording
+from .io.validate import check_finite
+from .results import write_results
+
+__all__ = ["ProcessResult", "ProcessingConfig", "process_experiment", "write_results"]
+
+CYCLE_COLUMNS = ["step", "cycle", "torque_peak_hz", "wheel_peak_hz", "modulation_hz",
+                 "phase_deg", "creepage", "coa"]
+STEP_COLUMNS = ["step", "dc_torque_nm", "phase_deg", "phase_std_deg", "creepage",
+                "creepage_std", "coa", "coa_std", "n_cycles"]
+#: Raw signals are subsampled to at most this many points for the figures' traces.
+TRACE_POINTS = 20_000
+
+
+@dataclass
+class ProcessResult:
+    """Everything ``process`` produced: tables, per-cycle details, traces and provenance."""
+
+    experiment: Experiment
+    config: ProcessingConfig
+    cycles: pd.DataFrame
+    steps: pd.DataFrame
+    cycle_details: list[dict]
+    traces: dict[str, np.ndarray]
+    warnings: list[str]
+    timing_s: dict = field(default_factory=dict)
+    nan_actions: list[str] = field(default_factory=list)
+
+
+def _fill_nan(rec: Recording, where: str) -> list[str]:
+    """Linear interpolation over NaN/inf samples, channel by channel (in place on copies)."""
+    notes = []
+    for name, x in rec.channels.items():
+        bad = ~np.isfinite(x)
+        if bad.any():
+            if bad.all():
+                raise InputError("channel holds no finite value", path=where, channel=name)
+            good = np.flatnonzero(~bad)
+            y = x.copy()
+            y[bad] = np.interp(np.flatnonzero(bad), good, x[good])
+            rec.channels[name] = y
+            notes.append(f"{where}: channel '{name}': interpolated {int(bad.sum())} NaN/inf "
+                         "samples")
+    return notes
+
+
+def _cycles_of(entry: RecordingEntry, rec: Recording, where: str
+               ) -> list[tuple[int, Recording, tuple[int, int]]]:
+    """(cycle number, samples, index range) of a recording: the whole file when the manifest names its
+    cycle, else one per whole platform revolution."""
+    if entry.cycle is not None:
+        return [(entry.cycle, rec, (0, rec.n_samples))]
+    bounds = revolution_bounds(rec.channels["platform_speed_rad_s"], rec.fs_hz)
+    if not bounds:
+        raise InputError("recording spans less than one platform revolution", path=where,
+                         channel="platform_speed_rad_s",
+                         hint="give its 'cycle' in the manifest or record a whole revolution")
+    tail = rec.n_samples - bounds[-1][1]
+    if tail > 0:
+        warnings.warn(f"{where}: dropped a trailing part of {tail / rec.fs_hz:.3f} s shorter "
+                      "than a platform revolution", TorquemodWarning, stacklevel=2)
+    return [(k + 1, rec.slice(a, b), (a, b)) for k, (a, b) in enumerate(bounds)]
+
+
+def _subsample(x: np.ndarray) -> np.ndarray:
+    stride = max(1, int(np.ceil(x.size / TRACE_POINTS)))
+    return x[::stride]
+
+
+def process_experiment(experiment: Experiment | str | Path, *,
+                       config: ProcessingConfig | None = None, progress: bool = False
+                       ) -> ProcessResult:
+    """Run the whole chain on an experiment (a parsed manifest or its path)."""
+    exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
+    cfg = config or ProcessingConfig()
+    rig, f_nom = exp.rig, exp.test.modulation_frequency_hz
+    caught: list[str] = []
+    nan_actions: list[str] = []
+    per_step: dict[int, list[tuple[int, chain.CycleSignals, dict]]] = {}
+    traces: dict[str, np.ndarray] = {}
+    t_read = t_compute = 0.0
+    with warnings.catch_warnings(record=True) as wlist:
+        warnings.simplefilter("always", TorquemodWarning)
+        bar = tqdm(exp.recordings, desc="processing", unit="rec", disable=not progress,
+                   leave=False)
+        for entry in bar:
+            where = str(entry.path) + (f":{entry.group}" if entry.group else "")
+            t0 = time.perf_counter()
+            rec = read_recording(entry.path, group=entry.group, channel_map=exp.channel_map)
+            t1 = time.perf_counter()
+            t_read += t1 - t0
+            bad = None
+            if cfg.nan_policy == "raise":
+                check_finite(rec, path=where)
+            else:
+                bad = np.zeros(rec.n_samples, dtype=bool)
+                for x in rec.channels.values():
+                    bad |= ~np.isfinite(x)
+                if not bad.any():
+                    bad = None
+                elif cfg.nan_policy == "drop-cycle" and entry.cycle is not None:
+                    nan_actions.append(f"{where}: dropped step {entry.step} cycle "
+                                       f"{entry.cycle} (NaN/inf samples)")
+                    continue
+                else:  # interpolate; drop-cycle also fills so the file can be split
+                    nan_actions += _fill_nan(rec, where)
+            for cyc, seg, (a, b) in _cycles_of(entry, rec, where):
+                cwhere = f"{where} (step {entry.step} cycle {cyc})"
+                if cfg.nan_policy == "drop-cycle" and bad is not None and bad[a:b].any():
+                    nan_actions.append(f"{cwhere}: dropped (NaN/inf samples)")
+                    continue
+                chain.check_cycle_length(seg.n_samples, seg.fs_hz, f_nom, cfg, where=cwhere)
+                sig = chain.process_cycle(seg, rig, cfg, where=cwhere)
+                info = {"step": entry.step, "cycle": cyc, "dc_torque_nm": entry.dc_torque_nm,
+                        "source": where, "n_samples": seg.n_samples, "fs_hz": seg.fs_hz,
+                        "t0_s": seg.t0_s}
+                per_step.setdefault(entry.step, []).append((cyc, sig, info))
+                key = f"s{entry.step}c{cyc}__"
+                traces[key + "t_raw_s"] = _subsample(seg.time_s() - seg.t0_s)
+                traces[key + "torque_raw_nm"] = _subsample(seg.channels["torque_nm"])
+                traces[key + "wheel_speed_raw_rad_s"] = _subsample(
+                    seg.channels["wheel_speed_rad_s"])
+            t_compute += time.perf_counter() - t1
+        t1 = time.perf_counter()
+        rows, details = [], []
+        for step in sorted(per_step):
+            items = sorted(per_step[step], key=lambda it: it[0])
+            cycles_seen = [c for c, _, _ in items]
+            if len(set(cycles_seen)) != len(cycles_seen):
+                raise InputError(f"step {step} has cycle numbers {cycles_seen} more than once "
+                                 "(a file spanning cycles and single-cycle files overlap)",
+                                 path=exp.manifest_path, hint="give each cycle once")
+            sigs = [s for _, s, _ in items]
+            lags = chain.align_lags(sigs, cfg)
+            n_ref = sigs[0].torque_filtered.size
+            for (cyc, sig, info), lag in zip(items, lags, strict=True):
+                try:
+                    phase, stderr, window = chain.cycle_phase(sig, cfg,
+                                                              center_index=n_ref / 2 + lag)
+                except ProcessingError as exc:
+                    raise InputError(f"phase not measurable: {exc}", path=info["source"],
+                                     hint="check the modulation in both channels") from None
+                rows.append({"step": step, "cycle": cyc, "torque_peak_hz": sig.torque_peak_hz,
+                             "wheel_peak_hz": sig.wheel_peak_hz,
+                             "modulation_hz": sig.modulation_hz, "phase_deg": phase,
+                             "creepage": sig.creepage, "coa": sig.coa})
+                speed = sig.means["platform_speed_rad_s"] * exp.rig.platform_radius_m
+                details.append({**info, "phase_stderr_deg": stderr,
+                                "align_lag_samples": lag, "align_lag_s": lag / sig.fs_hz,
+                                "phase_window_s": list(window),
+                                "resampled_hz": sig.fs_hz,
+                                "wheel_rotation_hz": sig.wheel_rotation_hz,
+                                "platform_rotation_hz": sig.platform_rotation_hz,
+                                "notches_hz": sig.notches_hz, "speed_m_s": speed, **sig.means})
+                key = f"s{step}c{cyc}__"
+                traces[key + "t_s"] = np.arange(sig.torque_filtered.size) / sig.fs_hz
+                traces[key + "torque_resampled_nm"] = sig.torque_resampled
+                traces[key + "wheel_speed_resampled_rad_s"] = sig.wheel_resampled
+                traces[key + "torque_filtered_nm"] = sig.torque_filtered
+                traces[key + "wheel_speed_filtered_rad_s"] = sig.wheel_filtered
+                traces[key + "phase_window_s"] = np.asarray(window)
+        t_compute += time.perf_counter() - t1
+        caught = [str(w.message) for w in wlist if issubclass(w.category, TorquemodWarning)]
+    if not rows:
+        raise InputError("no cycle could be processed", path=exp.manifest_path,
+                         hint="every cycle was dropped; see --nan-policy")
+    cycles = pd.DataFrame(rows, columns=CYCLE_COLUMNS)
+    dc = {e.step: e.dc_torque_nm for e in exp.recordings}
+    steps = aggregate_steps(cycles, dc)
+    return ProcessResult(exp, cfg, cycles, steps, details, traces, caught + nan_actions,
+                         {"read_s": t_read, "compute_s": t_compute}, nan_actions)
+
+
+def aggregate_steps(cycles: pd.DataFrame, dc_torque_nm: dict[int, float]) -> pd.DataFrame:
+    """Mean and sample standard deviation (ddof = 1, NaN for a single cycle) per step."""
+    g = cycles.groupby("step", sort=True)
+    out = pd.DataFrame({
+        "step": list(g.groups),
+        "phase_deg": g["phase_deg"].mean().to_numpy(),
+        "phase_std_deg": g["phase_deg"].std(ddof=1).to_numpy(),
+        "creepage": g["creepage"].mean().to_numpy(),
+        "creepage_std": g["creepage"].std(ddof=1).to_numpy(),
+        "coa": g["coa"].mean().to_numpy(),
+        "coa_std": g["coa"].std(ddof=1).to_numpy(),
+        "n_cycles": g.size().to_numpy(),
+    })
+    out.insert(1, "dc_torque_nm", [dc_torque_nm[s] for s in out["step"]])
+    return out[STEP_COLUMNS]
