@@ -12,6 +12,9 @@ All functions are pure and vectorised over numpy arrays (scalars work too); SI u
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
 
@@ -101,3 +104,33 @@ def adhesion_slope(xi, *, mu: float, k_a: float, k_s: float, stiffness: float):
     d_f_d_eps = (2.0 / np.pi) * (k_a * (1.0 - ke * ke) / (1.0 + ke * ke) ** 2
                                  + k_s / (1.0 + (k_s * eps) ** 2))
     return stiffness * d_f_d_eps
+
+
+# --------------------------------------------------------------------------------------------
+# Scalar kernel for compiled integrators (added for the digital twin, issue 3)
+# --------------------------------------------------------------------------------------------
+
+def creep_force_scalar(xi_x: float, xi_y: float, normal_load_n: float, speed_m_s: float,
+                       stiffness_x_n: float, stiffness_y_n: float, mu0: float, a_ratio: float,
+                       b_s_m: float, k_a: float, k_s: float) -> tuple[float, float]:
+    """Scalar (Fx, Fy) [N] of :func:`creep_force`, written for ``numba.njit``.
+
+    Same model (P05 Eqs. 1-9), with the contact geometry lumped into
+    ``stiffness_x_n = pi*G*a*b*c11/4`` and ``stiffness_y_n = pi*G*a*b*c22/4`` [N] so that
+    ``eps = sqrt((stiffness_x*xi_x)^2 + (stiffness_y*xi_y)^2)/(Q*mu)`` (P05 Eqs. 3-5).
+    Plain Python floats in and out; use :data:`creep_force_kernel` for the compiled version.
+    """
+    xi = math.sqrt(xi_x * xi_x + xi_y * xi_y)
+    if xi <= 0.0 or normal_load_n <= 0.0:
+        return 0.0, 0.0
+    mu = mu0 * ((1.0 - a_ratio) * math.exp(-b_s_m * xi * abs(speed_m_s)) + a_ratio)
+    sx = stiffness_x_n * xi_x
+    sy = stiffness_y_n * xi_y
+    eps = math.sqrt(sx * sx + sy * sy) / (normal_load_n * mu)
+    ke = k_a * eps
+    f = normal_load_n * mu * (2.0 / math.pi) * (ke / (1.0 + ke * ke) + math.atan(k_s * eps))
+    return f * xi_x / xi, f * xi_y / xi
+
+
+#: ``numba.njit`` compiled :func:`creep_force_scalar` (callable from other jitted code).
+creep_force_kernel = numba.njit(cache=True, fastmath=False)(creep_force_scalar)

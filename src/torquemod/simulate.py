@@ -1,0 +1,411 @@
+"""``torquemod simulate``: run the V-Track digital twin and write an experiment folder.
+
+Public entry points (the CLI in :mod:`torquemod.cli` only parses arguments and calls these):
+
+* :func:`default_config_text` -- the commented default TOML (package data
+  ``torquemod/data/vtrack_default.toml``),
+* :func:`load_config` -- default config, optionally overridden by a user TOML file,
+* :func:`run_simulation` -- simulate the procedure and write ``experiment.toml``, one file per
+  recording and ``truth.json`` (the simulated ground truth per step).
+
+Recordings of a step in which the wheel slips are *not* written; the step appears in
+``truth.json`` with ``slipped = true`` and the procedure stops there (as the paper's test did).
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+import tomllib
+from dataclasses import asdict
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .contact.hertz import hertz_ellipse
+from .contact.kalker import kalker_coefficients
+from .contact.presets import polach_preset
+from .data import Recording
+from .errors import InputError, OutputError
+from .io import write_manifest, write_recording
+from .rig.dynamics import OUT_COLUMNS, initial_state, integrate, pack_parameters
+from .rig.params import (
+    ContactParams,
+    DisturbanceParams,
+    ModulationParams,
+    ProcedureParams,
+    RigParams,
+    SensorParams,
+    SimConfig,
+)
+from .rig.sensors import measure
+from .theory import creep_curve_peak, operating_point, predicted_phase_deg, rigid_wheel_phase_deg
+
+_POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
+_COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
+_SUFFIX = {"csv": ".csv", "hdf5": ".h5"}
+
+
+# --------------------------------------------------------------------------------------------
+# Configuration
+# --------------------------------------------------------------------------------------------
+
+def default_config_text() -> str:
+    """The default configuration (V-Track) as commented TOML text."""
+    return (resources.files("torquemod") / "data" / "vtrack_default.toml").read_text("utf-8")
+
+
+def _parse(text: str, where: str) -> dict:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:  # the message names line and column
+        raise InputError(f"TOML syntax error: {exc}", path=where,
+                         hint="fix the line named") from None
+
+
+def _check_and_merge(default: dict, user: dict, where: str) -> dict:
+    merged = copy.deepcopy(default)
+    for section, table in user.items():
+        if section not in default:
+            raise InputError(f"unknown section [{section}]", path=where,
+                             hint=f"known sections: {', '.join(default)}")
+        if not isinstance(table, dict):
+            raise InputError(f"'{section}' must be a table", path=where)
+        for key, value in table.items():
+            if key not in default[section]:
+                raise InputError(f"unknown key '{section}.{key}'", path=where,
+                                 hint=f"known keys in [{section}]: "
+                                      f"{', '.join(default[section])}")
+            ref = default[section][key]
+            ok = (isinstance(value, bool) if isinstance(ref, bool)
+                  else isinstance(value, str) if isinstance(ref, str)
+                  else isinstance(value, list) if isinstance(ref, list)
+                  else isinstance(value, int | float) and not isinstance(value, bool))
+            if isinstance(ref, int) and not isinstance(ref, bool) and ok:
+                ok = isinstance(value, int)
+            if not ok:
+                raise InputError(f"'{section}.{key}' has the wrong type ({value!r}); the "
+                                 f"default is {ref!r}", path=where)
+            merged[section][key] = value
+    # a preset chosen by the user fills the Polach values it does not give itself
+    if "preset" in user.get("contact", {}):
+        vals = polach_preset(user["contact"]["preset"]).as_dict()
+        for k in _POLACH_KEYS:
+            merged["contact"][k] = user["contact"].get(k, vals[k])
+    return merged
+
+
+def _positive(doc: dict, section: str, key: str, where: str, *, allow_zero=False) -> float:
+    v = float(doc[section][key])
+    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        need = "non-negative" if allow_zero else "positive"
+        raise InputError(f"'{section}.{key}' must be {need}, got {v}", path=where)
+    return v
+
+
+def _contact(doc: dict, rig: dict, where: str) -> ContactParams:
+    c = doc["contact"]
+    e_mod = _positive(doc, "contact", "youngs_modulus_pa", where)
+    nu = float(c["poisson_ratio"])
+    a, b = float(c["semi_axis_a_m"]), float(c["semi_axis_b_m"])
+    if a > 0 and b > 0:
+        pass
+    elif a == 0 and b == 0:
+        rw_t = _positive(doc, "contact", "wheel_transverse_radius_m", where, allow_zero=True)
+        rr_t = _positive(doc, "contact", "rail_transverse_radius_m", where, allow_zero=True)
+        ky = (1.0 / rw_t if rw_t > 0 else 0.0) + (1.0 / rr_t if rr_t > 0 else 0.0)
+        if ky <= 0:
+            raise InputError("the contact needs a lateral curvature: give "
+                             "rail_transverse_radius_m or wheel_transverse_radius_m > 0",
+                             path=where)
+        el = hertz_ellipse(float(rig["normal_load_n"]),
+                           curvature_x_1_m=1.0 / float(rig["wheel_radius_m"]),
+                           curvature_y_1_m=ky, youngs_modulus_pa=e_mod, poisson_ratio=nu)
+        a, b = el.a_m, el.b_m
+    else:
+        raise InputError("give both contact.semi_axis_a_m and semi_axis_b_m (> 0) or neither",
+                         path=where)
+    kc = kalker_coefficients(a / b, nu)
+    for k in _POLACH_KEYS:
+        _positive(doc, "contact", k, where, allow_zero=(k == "b_s_m"))
+    return ContactParams(mu0=float(c["mu0"]), a_ratio=float(c["a_ratio"]),
+                         b_s_m=float(c["b_s_m"]), k_a=float(c["k_a"]), k_s=float(c["k_s"]),
+                         shear_modulus_pa=e_mod / (2.0 * (1.0 + nu)), a_m=a, b_m=b,
+                         c11=kc.c11, c22=kc.c22, lateral_creepage=float(c["lateral_creepage"]),
+                         preset=str(c["preset"]))
+
+
+def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
+    """Build a :class:`SimConfig` from a complete (merged) configuration dict."""
+    r = doc["rig"]
+    for key in r:
+        _positive(doc, "rig", key, where)
+    rig = RigParams(
+        wheel_radius_m=float(r["wheel_radius_m"]), platform_radius_m=float(r["platform_radius_m"]),
+        speed_m_s=float(r["speed_km_h"]) / 3.6, normal_load_n=float(r["normal_load_n"]),
+        wheel_inertia_kg_m2=float(r["wheel_inertia_kg_m2"]),
+        drive_inertia_kg_m2=float(r["drive_inertia_kg_m2"]),
+        shaft_stiffness_nm_rad=float(r["shaft_stiffness_nm_rad"]),
+        shaft_damping_nm_s_rad=float(r["shaft_damping_nm_s_rad"]),
+        platform_inertia_kg_m2=float(r["platform_inertia_kg_m2"]),
+        platform_kp_nm_s_rad=float(r["platform_kp_nm_s_rad"]),
+        platform_ki_nm_rad=float(r["platform_ki_nm_rad"]),
+        rolling_resistance_nm=float(r["rolling_resistance_nm"]),
+        contact=_contact(doc, r, where))
+    m = doc["modulation"]
+    modulation = ModulationParams(amplitude_nm=float(m["amplitude_nm"]),
+                                  frequency_hz=_positive(doc, "modulation", "frequency_hz", where),
+                                  frequency_offset=float(m["frequency_offset"]),
+                                  random_phase=bool(m["random_phase"]))
+    d = dict(doc["disturbances"])
+    dist = DisturbanceParams(**{k: (v if isinstance(v, bool | int) else float(v))
+                                for k, v in d.items()})
+    for key in doc["sensors"]:
+        _positive(doc, "sensors", key, where, allow_zero=(key != "sample_rate_hz"))
+    sensors = SensorParams(**{k: float(v) for k, v in doc["sensors"].items()})
+    p = doc["procedure"]
+    torques = p["dc_torques_nm"]
+    if not torques or not all(isinstance(x, int | float) and not isinstance(x, bool)
+                              and math.isfinite(x) for x in torques):
+        raise InputError("'procedure.dc_torques_nm' must be a non-empty list of numbers",
+                         path=where)
+    if p["cycles_per_step"] < 1 or p["substeps"] < 1:
+        raise InputError("'procedure.cycles_per_step' and 'substeps' must be >= 1", path=where)
+    procedure = ProcedureParams(dc_torques_nm=tuple(float(x) for x in torques),
+                                cycles_per_step=int(p["cycles_per_step"]),
+                                settle_s=_positive(doc, "procedure", "settle_s", where,
+                                                   allow_zero=True),
+                                ramp_s=_positive(doc, "procedure", "ramp_s", where,
+                                                 allow_zero=True),
+                                slip_creepage=_positive(doc, "procedure", "slip_creepage", where),
+                                substeps=int(p["substeps"]))
+    return SimConfig(rig=rig, modulation=modulation, disturbances=dist, sensors=sensors,
+                     procedure=procedure)
+
+
+def load_config(path: str | Path | None = None, *, overrides: dict | None = None) -> SimConfig:
+    """The default configuration, overridden by the TOML file ``path`` (any subset of keys)
+    and then by ``overrides`` (a dict of the same layout, for programs and tests).
+
+    Unknown sections or keys and TOML syntax errors raise :class:`InputError` naming the key
+    or the line.
+    """
+    default = _parse(default_config_text(), "vtrack_default.toml")
+    merged = default
+    where = "<default>"
+    if path is not None:
+        path = Path(path)
+        where = str(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"cannot read the configuration ({exc})", path=path) from None
+        merged = _check_and_merge(default, _parse(text, where), where)
+    if overrides:
+        merged = _check_and_merge(merged, overrides, "<overrides>")
+    return config_from_dict(merged, where=where)
+
+
+# --------------------------------------------------------------------------------------------
+# Simulation
+# --------------------------------------------------------------------------------------------
+
+def _cycle_bounds(theta: np.ndarray, start: int, cycles: int) -> list[int]:
+    """Sample indices where the platform angle has advanced by whole revolutions from
+    ``theta[start]``: ``[start, i1, ..., i_cycles]``."""
+    th0 = theta[start]
+    targets = th0 + 2.0 * np.pi * np.arange(1, cycles + 1)
+    idx = start + np.searchsorted(theta[start:], targets)
+    if idx[-1] >= theta.size:
+        raise RuntimeError("simulated segment too short for the requested revolutions")
+    return [start, *(int(i) for i in idx)]
+
+
+def sine_fit_phase_deg(torque: np.ndarray, speed: np.ndarray, fs_hz: float,
+                       frequency_hz: float) -> float:
+    """Phase [deg] of ``speed`` behind ``torque`` at ``frequency_hz`` by a least-squares fit
+    of cos, sin and DC to each signal over the largest whole number of periods (IEEE Std 1057
+    three-parameter fit, FACTS.md §5). Positive when the speed lags."""
+    n = int(np.floor(torque.size / fs_hz * frequency_hz) * fs_hz / frequency_hz)
+    t = np.arange(n) / fs_hz
+    w = 2.0 * np.pi * frequency_hz * t
+    basis = np.column_stack([np.cos(w), np.sin(w), np.ones(n)])
+    coef = np.linalg.lstsq(basis, np.column_stack([torque[:n], speed[:n]]), rcond=None)[0]
+    ang = np.angle(coef[0] - 1j * coef[1])  # x = A cos(w + phi) -> a = A cos phi, b = -A sin phi
+    return float((np.degrees(ang[0] - ang[1]) + 180.0) % 360.0 - 180.0)
+
+
+def _step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None,
+                slipped: bool) -> dict:
+    rig, f = config.rig, config.modulation.actual_frequency_hz
+    op = operating_point(dc, rig)
+    k = op.creep_coefficient
+    entry = {"step": i_step, "dc_torque_nm": dc, "slipped": bool(slipped),
+             "slipped_steady_state": op.slipped}
+    if op.slipped:
+        entry.update(creepage=None, coa=None, creep_coefficient=None, dcoa_dxi=None,
+                     phase_theory_deg=None, phase_rigid_deg=None)
+    else:
+        entry.update(
+            creepage=op.creepage, coa=op.coa, creep_coefficient=k, dcoa_dxi=op.dcoa_dxi,
+            fx_n=op.fx_n, fy_n=op.fy_n,
+            phase_theory_deg=float(predicted_phase_deg(k, rig, f, creepage=op.creepage)),
+            phase_rigid_deg=float(rigid_wheel_phase_deg(
+                k, inertia_kg_m2=rig.wheel_inertia_kg_m2, speed_m_s=rig.speed_m_s,
+                wheel_radius_m=rig.wheel_radius_m, normal_load_n=rig.normal_load_n,
+                frequency_hz=f)))
+    if raw is not None and not slipped:
+        fx, fy = raw[:, _COL["fx_n"]].mean(), raw[:, _COL["fy_n"]].mean()
+        fz = raw[:, _COL["fz_n"]].mean()
+        entry["simulated"] = {"creepage_mean": float(raw[:, _COL["creepage"]].mean()),
+                              "coa_mean": float(np.hypot(fx, fy) / fz),
+                              "torque_mean_nm": float(raw[:, _COL["torque_nm"]].mean()),
+                              "fx_mean_n": float(fx), "fy_mean_n": float(fy),
+                              "fz_mean_n": float(fz),
+                              "phase_deg": sine_fit_phase_deg(
+                                  raw[:, _COL["torque_nm"]], raw[:, _COL["wheel_speed_rad_s"]],
+                                  config.sensors.sample_rate_hz, f)}
+    return entry
+
+
+def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress: bool,
+              files_per_cycle: bool) -> dict:
+    from tqdm import tqdm
+
+    rig, mod, proc = config.rig, config.modulation, config.procedure
+    fs = config.sensors.sample_rate_hz
+    dt = 1.0 / fs
+    rng = np.random.default_rng(seed)
+    params = pack_parameters(rig, config.disturbances)
+    torques = proc.dc_torques_nm
+    op0 = operating_point(torques[0], rig)
+    if op0.slipped:
+        op0 = operating_point(0.0, rig)
+        t_start = 0.0
+    else:
+        t_start = torques[0]
+    y = initial_state(rig, creepage=op0.creepage, dc_torque_nm=t_start, contact_fx_n=op0.fx_n)
+    omega_mod = 2.0 * np.pi * mod.actual_frequency_hz
+    n_settle = round(proc.settle_s * fs)
+    n_rec = math.ceil((proc.cycles_per_step * rig.revolution_s * 1.01 + 0.1) * fs)
+    t, dc_prev = 0.0, t_start
+    steps, recordings = [], []
+    slip_step = None
+    bar = tqdm(total=len(torques), desc="simulate", unit="step", file=sys.stderr,
+               disable=not progress)
+    for i_step, dc in enumerate(torques, start=1):
+        phase = float(rng.uniform(0.0, 2.0 * np.pi)) if mod.random_phase else 0.0
+        out = np.empty((n_settle + n_rec, len(OUT_COLUMNS)))
+        n_done, slipped = integrate(y, t, n_settle + n_rec, dt, proc.substeps, params, dc_prev,
+                                    dc, t, proc.ramp_s, mod.amplitude_nm, omega_mod, phase, t,
+                                    proc.slip_creepage, out)
+        t_step = t
+        t += n_done * dt
+        dc_prev = dc
+        bar.update(1)
+        if slipped:
+            steps.append(_step_truth(i_step, dc, config, None, True))
+            steps[-1]["slip_time_s"] = t
+            slip_step = i_step
+            break
+        bounds = _cycle_bounds(out[:n_done, _COL["platform_angle_rad"]], n_settle,
+                               proc.cycles_per_step)
+        raw = out[bounds[0]:bounds[-1]]
+        steps.append(_step_truth(i_step, dc, config, raw, False))
+        channels = measure(raw, disturbances=config.disturbances, sensors=config.sensors,
+                           rng=rng)
+        spans = (list(itertools.pairwise(bounds)) if files_per_cycle
+                 else [(bounds[0], bounds[-1])])
+        for j, (a, b) in enumerate(spans, start=1):
+            sl = slice(a - bounds[0], b - bounds[0])
+            rec = Recording({k: v[sl] for k, v in channels.items()}, fs_hz=fs,
+                            t0_s=t_step + a * dt, source="torquemod simulate")
+            name = (f"step{i_step:02d}_cycle{j}" if files_per_cycle else f"step{i_step:02d}")
+            file = name + _SUFFIX[fmt]
+            if fmt == "hdf5":
+                write_recording(folder / file, rec, fmt=fmt, write_time=True)
+            else:
+                write_recording(folder / file, rec, fmt=fmt)
+            entry = {"step": i_step, "dc_torque_nm": dc, "file": file}
+            if files_per_cycle:
+                entry["cycle"] = j
+            recordings.append(entry)
+    bar.close()
+    xi_peak, t_peak = creep_curve_peak(rig)
+    truth = {
+        "generator": "torquemod simulate", "version": __version__, "seed": seed,
+        "format": fmt, "modulation_frequency_actual_hz": mod.actual_frequency_hz,
+        "sample_rate_hz": fs, "slip_step": slip_step,
+        "creep_curve_peak": {"creepage": xi_peak, "torque_nm": t_peak,
+                             "coa": t_peak / (rig.wheel_radius_m * rig.normal_load_n)},
+        "steps": steps, "parameters": asdict(config),
+    }
+    write_manifest(
+        folder / "experiment.toml",
+        rig={"wheel_radius_m": rig.wheel_radius_m, "platform_radius_m": rig.platform_radius_m},
+        test={"normal_load_n": rig.normal_load_n, "modulation_frequency_hz": mod.frequency_hz,
+              "modulation_amplitude_nm": mod.amplitude_nm},
+        recordings=recordings,
+        extra={"simulation": {"generator": "torquemod simulate", "version": __version__,
+                              "seed": seed, "slip_step": slip_step or 0,
+                              "truth": "truth.json"}})
+    (folder / "truth.json").write_text(json.dumps(truth, indent=2, default=_json_default),
+                                       encoding="utf-8")
+    return truth
+
+
+def _json_default(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, tuple):
+        return list(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def run_simulation(config: SimConfig, out_dir: Path, *, seed: int = 0, fmt: str = "csv",
+                   progress: bool = True, files_per_cycle: bool = True,
+                   force: bool = False) -> dict:
+    """Simulate ``config`` and write the experiment folder ``out_dir``; return the truth dict.
+
+    The folder is written into a temporary sibling and renamed into place at the end, so an
+    interrupted run leaves no half-written experiment. An existing non-empty ``out_dir``
+    raises :class:`~torquemod.errors.OutputError` unless ``force`` (then it is replaced).
+    Deterministic for a given ``seed``.
+    """
+    if fmt not in _SUFFIX:
+        raise InputError(f"unknown output format '{fmt}'", hint="use csv or hdf5")
+    out_dir = Path(out_dir)
+    if out_dir.exists():
+        if not out_dir.is_dir():
+            raise OutputError(f"{out_dir}: exists and is not a folder")
+        if any(out_dir.iterdir()) and not force:
+            raise OutputError(f"{out_dir}: folder exists and is not empty; choose another "
+                              "--out or allow overwriting (force)")
+    parent = out_dir.resolve().parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=parent))
+    except OSError as exc:
+        raise OutputError(f"{out_dir}: cannot create the output folder ({exc})") from None
+    try:
+        truth = _simulate(config, tmp, seed=seed, fmt=fmt, progress=progress,
+                          files_per_cycle=files_per_cycle)
+        if out_dir.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old-", dir=parent))
+            os.replace(out_dir, old / "x")
+            os.replace(tmp, out_dir)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, out_dir)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return truth

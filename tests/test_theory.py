@@ -1,0 +1,150 @@
+"""Small-signal theory: rigid-wheel formula, drive-line response, steady state."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import curve_fit
+
+from torquemod.contact.polach import adhesion_curve
+from torquemod.errors import InputError
+from torquemod.rig.dynamics import N_STATES, _deriv, initial_state, pack_parameters
+from torquemod.simulate import load_config
+from torquemod.theory import (
+    creep_coefficient_from_phase,
+    creep_coefficient_from_predicted_phase,
+    creep_curve_peak,
+    drive_line_response,
+    operating_point,
+    predicted_phase_deg,
+    rigid_wheel_phase_deg,
+)
+
+TABLE1 = (0.23, 22.84, 44.47, 55.22, 60.45, 65.82)
+RIGID = dict(inertia_kg_m2=1.5, speed_m_s=7 / 3.6, wheel_radius_m=0.0675, normal_load_n=4200.0,
+             frequency_hz=2.0)
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    return load_config(overrides={"disturbances": {"enabled": False}})
+
+
+def test_rigid_phase_formula_by_hand():
+    k = 20.0
+    tan = 2 * math.pi * 2.0 * 1.5 * (7 / 3.6) / (0.0675**2 * 4200 * k)
+    assert rigid_wheel_phase_deg(k, **RIGID) == pytest.approx(math.degrees(math.atan(tan)))
+    assert rigid_wheel_phase_deg(0.0, **RIGID) == pytest.approx(90.0)
+    ks = np.array([1.0, 10.0, 100.0])
+    ph = rigid_wheel_phase_deg(ks, **RIGID)
+    assert ph.shape == (3,) and np.all(np.diff(ph) < 0)
+
+
+def test_rigid_inverse_round_trip():
+    ks = np.array([0.5, 3.0, 30.0, 300.0])
+    back = creep_coefficient_from_phase(rigid_wheel_phase_deg(ks, **RIGID), **RIGID)
+    np.testing.assert_allclose(back, ks, rtol=1e-10)
+    with pytest.raises(InputError):
+        creep_coefficient_from_phase(-3.0, **RIGID)
+
+
+def test_full_model_reduces_to_rigid_for_stiff_platform(cfg):
+    rig = dataclasses.replace(cfg.rig, platform_kp_nm_s_rad=1e15, platform_ki_nm_rad=0.0)
+    ks = np.array([0.3, 3.0, 30.0])
+    ref = rigid_wheel_phase_deg(ks, inertia_kg_m2=rig.wheel_inertia_kg_m2,
+                                speed_m_s=rig.speed_m_s, wheel_radius_m=rig.wheel_radius_m,
+                                normal_load_n=rig.normal_load_n, frequency_hz=2.0)
+    np.testing.assert_allclose(predicted_phase_deg(ks, rig, 2.0), ref, atol=1e-6)
+
+
+def test_phase_does_not_depend_on_what_is_upstream_of_the_sensor(cfg):
+    """The sensor measures the shaft torque and its encoder turns with the wheel, so motor
+    inertia and shaft stiffness change amplitudes but not the phase between them."""
+    ks = np.array([0.5, 5.0, 25.0])
+    base = predicted_phase_deg(ks, cfg.rig, 2.0)
+    other = dataclasses.replace(cfg.rig, drive_inertia_kg_m2=5.0, shaft_stiffness_nm_rad=3e3,
+                                shaft_damping_nm_s_rad=1.0)
+    np.testing.assert_allclose(predicted_phase_deg(ks, other, 2.0), base, atol=1e-9)
+    h1 = drive_line_response(ks, cfg.rig, 2.0)[0]
+    h2 = drive_line_response(ks, other, 2.0)[0]
+    assert not np.allclose(h1, h2)
+
+
+def test_predicted_phase_monotone_and_inverse(cfg):
+    # over the creep coefficients the contact model can take (initial slope ~30); far beyond,
+    # the stiff contact locks the wheel to the platform and the platform drive sets the phase
+    ks = np.geomspace(0.05, 50, 40)
+    ph = predicted_phase_deg(ks, cfg.rig, 2.0)
+    assert np.all(np.diff(ph) < 0) and ph[0] < 90 and ph[-1] > 0
+    for k in (0.2, 5.0, 40.0):
+        phase = float(predicted_phase_deg(k, cfg.rig, 2.0))
+        assert creep_coefficient_from_predicted_phase(phase, cfg.rig, 2.0) == pytest.approx(
+            k, rel=1e-8)
+
+
+def _jacobian_response(cfg, dc, freq):
+    """Transfer functions from the numerical Jacobian of the simulator's own equations."""
+    rig = cfg.rig
+    op = operating_point(dc, rig)
+    p = pack_parameters(rig, cfg.disturbances)
+    y0 = initial_state(rig, creepage=op.creepage, dc_torque_nm=dc, contact_fx_n=op.fx_n)
+    f = np.empty(4)
+
+    def rhs(y, tm=dc):
+        dy = np.empty(N_STATES)
+        _deriv(y, tm, p, dy, f)
+        return dy
+
+    a = np.zeros((N_STATES, N_STATES))
+    for j in range(N_STATES):
+        h = 1e-7 * max(1.0, abs(y0[j]))
+        e = np.zeros(N_STATES)
+        e[j] = h
+        a[:, j] = (rhs(y0 + e) - rhs(y0 - e)) / (2 * h)
+    b = (rhs(y0, dc + 1.0) - rhs(y0, dc - 1.0)) / 2.0
+    s = 2j * np.pi * freq
+    x = np.linalg.solve(s * np.eye(N_STATES) - a, b)
+    torque = rig.shaft_stiffness_nm_rad * x[0] + rig.shaft_damping_nm_s_rad * (x[1] - x[2])
+    return op, torque, x[2]
+
+
+@pytest.mark.parametrize("dc", [22.84, 55.22, 65.82])
+def test_theory_matches_linearised_simulator_equations(cfg, dc):
+    op, h_t, h_w = _jacobian_response(cfg, dc, 2.0)
+    th_t, th_w = drive_line_response(op.creep_coefficient, cfg.rig, 2.0, creepage=op.creepage)
+    assert abs(h_t / th_t - 1) < 2e-3 and abs(h_w / th_w - 1) < 2e-3
+    ph_jac = math.degrees(np.angle(h_t / h_w))
+    assert ph_jac == pytest.approx(
+        float(predicted_phase_deg(op.creep_coefficient, cfg.rig, 2.0, creepage=op.creepage)),
+        abs=0.02)
+
+
+def test_operating_point_balances_torque(cfg):
+    for dc in TABLE1:
+        op = operating_point(dc, cfg.rig)
+        assert not op.slipped
+        assert op.fx_n * cfg.rig.wheel_radius_m == pytest.approx(dc, rel=1e-9, abs=1e-12)
+        assert op.creep_coefficient > 0
+    assert operating_point(72.0, cfg.rig).slipped
+    xi_peak, t_peak = creep_curve_peak(cfg.rig)
+    assert 65.82 < t_peak < 72.0 and 0 < xi_peak < 0.05
+
+
+def test_default_run_reproduces_the_papers_shape(cfg):
+    """Phase about flat over steps 1-3, a sharp rise at step 4, no slip at step 6, and a
+    Polach fit (no velocity dependence) of the steady-state points giving mu near 0.24."""
+    ops = [operating_point(dc, cfg.rig) for dc in TABLE1]
+    ph = [float(predicted_phase_deg(o.creep_coefficient, cfg.rig, 2.0)) for o in ops]
+    assert max(ph[:3]) / min(ph[:3]) < 1.8
+    assert ph[3] / ph[2] > 1.5
+    assert 1.0 < ph[0] < 10.0 and 20.0 < ph[5] < 80.0
+    xi = np.array([o.creepage for o in ops])
+    coa = np.array([o.coa for o in ops])
+    popt, _ = curve_fit(lambda x, mu, ka, ks, st: adhesion_curve(x, mu=mu, k_a=ka, k_s=ks,
+                                                                  stiffness=st),
+                        xi, coa, p0=[0.25, 0.3, 0.3, 100.0],
+                        bounds=([0.05, 0.01, 0.001, 1.0], [1.0, 10.0, 10.0, 1e4]))
+    assert popt[0] == pytest.approx(0.24, abs=0.01)
