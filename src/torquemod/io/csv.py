@@ -1,6 +1,8 @@
 """CSV recordings: a header row, ``time_s`` plus the method's channels, any column order.
 
-Parsed with pandas' pyarrow engine (multi-threaded C++), not ``np.loadtxt``.
+Column names and units can be mapped with the manifest's ``[channels]`` table
+(:mod:`torquemod.io.channels`). Parsed with pandas' pyarrow engine (multi-threaded C++), not
+``np.loadtxt``.
 """
 
 from __future__ import annotations
@@ -9,12 +11,21 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+from pyarrow import csv as pa_csv
 
 from ..data import CHANNELS, Recording
 from ..errors import InputError
-from .validate import sample_rate_from_time
+from .channels import (
+    TIME,
+    ChannelMap,
+    RawChannel,
+    assemble_recording,
+    library_error,
+    resolve_channel_map,
+)
 
-TIME_COLUMN = "time_s"
+TIME_COLUMN = TIME
 
 
 def _header(path: Path) -> list[str]:
@@ -29,35 +40,53 @@ def _header(path: Path) -> list[str]:
     return [c.strip().strip('"') for c in line.rstrip("\r\n").split(",")]
 
 
-def read_csv(path: Path, *, group: str | None = None, channel_map: dict | None = None
-             ) -> Recording:
+def read_csv(path: Path, *, group: str | None = None,
+             channel_map: ChannelMap | dict | None = None) -> Recording:
     """Read a CSV recording (docs/format.md). ``group`` is not used for CSV."""
+    path = Path(path)
+    cmap = resolve_channel_map(channel_map, path)
     header = _header(path)
-    wanted = [TIME_COLUMN, *CHANNELS]
-    missing = [c for c in wanted if c not in header]
+    by_name = {cmap.spec(c).name: c for c in CHANNELS}
+    if cmap.sample_rate_hz is None:
+        by_name.setdefault(cmap.time.name, TIME)
+    wanted = list(by_name)
+    missing = [n for n in wanted if n not in header]
     if missing:
+        rate = (" (or set sample_rate_hz instead of a time column)"
+                if TIME in map(by_name.get, missing) else "")
         raise InputError(f"missing column(s) {', '.join(missing)}", path=path,
-                         channel=missing[0],
-                         hint=f"the header must contain {', '.join(wanted)}")
+                         channel=by_name[missing[0]],
+                         hint=f"the header must contain {', '.join(wanted)}, or map the "
+                              f"columns in the manifest's [channels]{rate}")
     try:
-        df = pd.read_csv(path, engine="pyarrow", usecols=wanted)
+        # single-threaded parse: the pipeline already reads recordings in parallel threads
+        table = pa_csv.read_csv(
+            path, read_options=pa_csv.ReadOptions(use_threads=False, block_size=1 << 24),
+            convert_options=pa_csv.ConvertOptions(include_columns=wanted))
     except Exception as exc:  # pyarrow raises its own error types for malformed text
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(f"cannot parse as CSV ({msg})", path=path,
-                         hint="check for truncated lines or text in numeric columns") from None
-    channels = {}
-    for name in wanted:
-        col = df[name]
-        if not pd.api.types.is_numeric_dtype(col.dtype):
-            bad = pd.to_numeric(col, errors="coerce")
-            row = int(np.flatnonzero(bad.isna() & col.notna())[0]) if len(col) else 0
-            raise InputError(f"non-numeric value {col.iloc[row]!r} at data row {row + 1}",
-                             path=path, channel=name, hint="fix or remove that row")
-        channels[name] = col.to_numpy(dtype=np.float64, na_value=np.nan)
-    if len(df) < 2:
+        raise library_error(exc, path=path, what="cannot parse as CSV",
+                            hint="check for truncated lines or text in numeric columns"
+                            ) from None
+    if table.num_rows < 2:
         raise InputError("fewer than two data rows", path=path)
-    fs, t0 = sample_rate_from_time(channels.pop(TIME_COLUMN), path=path)
-    return Recording(channels, fs, t0, str(path))
+
+    def lookup(name: str) -> RawChannel | None:
+        if name not in table.column_names:
+            return None
+        col = table.column(name)
+        if not (pa.types.is_floating(col.type) or pa.types.is_integer(col.type)
+                or pa.types.is_null(col.type)):
+            values = col.to_pylist()
+            bad = pd.to_numeric(pd.Series(values), errors="coerce")
+            rows = np.flatnonzero(bad.isna().to_numpy() & pd.Series(values).notna().to_numpy())
+            row = int(rows[0]) if rows.size else 0
+            raise InputError(f"non-numeric value {values[row]!r} at data row {row + 1}",
+                             path=path, channel=by_name.get(name, name),
+                             hint="fix or remove that row")
+        return RawChannel(col.to_numpy(zero_copy_only=False).astype(np.float64))
+
+    return assemble_recording(cmap, lookup, path=path, source=str(path),
+                              available=lambda: header)
 
 
 def write_csv(path: Path, rec: Recording, *, float_format: str = "%.9g") -> Path:

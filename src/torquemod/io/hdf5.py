@@ -3,8 +3,9 @@
 A recording is an HDF5 group (the file's root unless the manifest names ``group``) holding one
 1-D float64 dataset per channel, named as in the CSV format (``torque_nm``, ...), and either a
 ``time_s`` dataset or a ``sample_rate_hz`` attribute on the group (with optional ``t0_s``).
-Each dataset carries a ``unit`` attribute. One file may hold a whole experiment, one group per
-recording.
+Each dataset carries a ``unit`` attribute (honoured when reading). One file may hold a whole
+experiment, one group per recording. Other layouts are read through the manifest's
+``[channels]`` table, whose names may be paths below the group (``"daq/torque"``).
 """
 
 from __future__ import annotations
@@ -16,49 +17,96 @@ import numpy as np
 
 from ..data import CHANNEL_UNITS, CHANNELS, Recording
 from ..errors import InputError
-from .validate import sample_rate_from_time
+from .channels import (
+    ChannelMap,
+    RawChannel,
+    assemble_recording,
+    library_error,
+    resolve_channel_map,
+    source_name,
+)
 
 LAYOUT_VERSION = 1
 
 
-def read_hdf5(path: Path, *, group: str | None = None, channel_map: dict | None = None
-              ) -> Recording:
-    """Read one recording group of the project's HDF5 layout."""
+def _attr_text(value: object) -> str | None:
+    if isinstance(value, bytes):
+        return value.decode("utf-8", errors="replace")
+    if isinstance(value, np.ndarray) and value.size == 1:
+        return _attr_text(value.reshape(-1)[0])
+    return value if isinstance(value, str) else None
+
+
+def _group_rate(g: h5py.Group, path: Path) -> tuple[float, float] | None:
+    try:
+        if "sample_rate_hz" not in g.attrs:
+            return None
+        fs = float(np.asarray(g.attrs["sample_rate_hz"]).reshape(-1)[0])
+        t0 = float(np.asarray(g.attrs.get("t0_s", 0.0)).reshape(-1)[0])
+    except Exception as exc:  # h5py/numpy on an unreadable or non-numeric attribute
+        raise library_error(exc, path=path, what="cannot read attribute sample_rate_hz",
+                            hint="it must be a number [Hz]") from None
+    if not np.isfinite(fs) or fs <= 0:
+        raise InputError(f"attribute sample_rate_hz={fs} is not a positive number",
+                         path=path)
+    return fs, t0
+
+
+def _dataset(g: h5py.Group, name: str, path: Path, *, unit_attr: str = "unit"
+             ) -> RawChannel | None:
+    """The dataset ``name`` (a path below ``g``) as a :class:`RawChannel`, None if absent."""
+    try:
+        obj = g.get(name)
+        if obj is None:
+            return None
+        if not isinstance(obj, h5py.Dataset):
+            raise InputError(f"'{name}' is a group, not a dataset", path=path,
+                             hint="map a dataset in [channels]")
+        values = obj[()]
+        unit = _attr_text(obj.attrs.get(unit_attr)) if unit_attr in obj.attrs else None
+    except InputError:
+        raise
+    except Exception as exc:  # h5py raises OSError/KeyError/ValueError... on damaged files
+        raise library_error(exc, path=path, what=f"cannot read dataset '{name}'",
+                            hint="is the file complete?") from None
+    return RawChannel(np.asarray(values), unit)
+
+
+def _names(g: h5py.Group) -> list[str]:
+    out: list[str] = []
+    try:
+        g.visititems(lambda n, o: out.append(n) if isinstance(o, h5py.Dataset) else None)
+    except Exception:  # a damaged file: the list is only used in a message
+        pass
+    return out
+
+
+def read_hdf5(path: Path, *, group: str | None = None,
+              channel_map: ChannelMap | dict | None = None) -> Recording:
+    """Read one recording group of the project's HDF5 layout (or a mapped foreign layout)."""
+    path = Path(path)
+    cmap = resolve_channel_map(channel_map, path)
     try:
         fh = h5py.File(path, "r")
-    except OSError as exc:
-        raise InputError(f"cannot open as HDF5 ({exc})", path=path,
-                         hint="is the file complete and really HDF5?") from None
+    except Exception as exc:  # OSError for non-HDF5 or truncated files
+        raise library_error(exc, path=path, what="cannot open as HDF5",
+                            hint="is the file complete and really HDF5?") from None
     with fh:
         where = group or "/"
-        if where not in fh:
+        try:
+            g = fh.get(where)
+        except Exception as exc:  # damaged object headers
+            raise library_error(exc, path=path, what=f"cannot open group '{where}'",
+                                hint="is the file complete?") from None
+        if g is None:
             raise InputError(f"no group '{where}' in the file", path=path,
                              hint="check the 'group' entry in the manifest")
-        g = fh[where]
         if not isinstance(g, h5py.Group):
             raise InputError(f"'{where}' is a dataset, not a group", path=path)
-        channels = {}
-        for name in CHANNELS:
-            if name not in g:
-                raise InputError(f"missing dataset in group '{where}'", path=path, channel=name,
-                                 hint=f"the group must hold {', '.join(CHANNELS)}")
-            try:
-                channels[name] = np.asarray(g[name][()], dtype=np.float64).reshape(-1)
-            except (OSError, ValueError, TypeError) as exc:
-                raise InputError(f"cannot read dataset ({exc})", path=path, channel=name) from None
-        if "time_s" in g:
-            fs, t0 = sample_rate_from_time(np.asarray(g["time_s"][()], dtype=np.float64),
-                                           path=f"{path}:{where}")
-        elif "sample_rate_hz" in g.attrs:
-            fs = float(g.attrs["sample_rate_hz"])
-            t0 = float(g.attrs.get("t0_s", 0.0))
-            if not np.isfinite(fs) or fs <= 0:
-                raise InputError(f"attribute sample_rate_hz={fs} is not a positive number",
-                                 path=path)
-        else:
-            raise InputError(f"group '{where}' has neither a time_s dataset nor a "
-                             "sample_rate_hz attribute", path=path, channel="time_s")
-    return Recording(channels, fs, t0, f"{path}" + (f":{group}" if group else ""))
+        native = _group_rate(g, path)
+        return assemble_recording(cmap, lambda name: _dataset(g, name, path), path=path,
+                                  source=source_name(path, group), native_rate=native,
+                                  available=lambda: _names(g))
 
 
 def write_hdf5(path: Path, rec: Recording, *, group: str | None = None,

@@ -4,10 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..data import Recording
+from ..data import Experiment, Recording, RecordingEntry
 from ..errors import InputError
 from . import csv as csv_io
 from . import hdf5 as hdf5_io
+from . import matlab as matlab_io
+from . import mdf as mdf_io
+from . import parquet as parquet_io
+from . import tdms as tdms_io
+from .channels import ChannelMap, resolve_channel_map
 from .validate import check_channels
 
 _READERS = {
@@ -15,6 +20,12 @@ _READERS = {
     ".txt": csv_io.read_csv,
     ".h5": hdf5_io.read_hdf5,
     ".hdf5": hdf5_io.read_hdf5,
+    ".tdms": tdms_io.read_tdms,
+    ".mf4": mdf_io.read_mdf,
+    ".mdf": mdf_io.read_mdf,
+    ".mat": matlab_io.read_mat,
+    ".parquet": parquet_io.read_parquet,
+    ".pq": parquet_io.read_parquet,
 }
 _WRITERS = {
     "csv": csv_io.write_csv,
@@ -23,13 +34,28 @@ _WRITERS = {
 
 
 def register_reader(suffix: str, reader) -> None:
-    """Make ``reader(path, *, group=None, channel_map=None) -> Recording`` handle ``suffix``."""
+    """Make ``reader(path, *, group=None, channel_map=None) -> Recording`` handle ``suffix``.
+
+    ``channel_map`` reaches the reader as a :class:`~torquemod.io.channels.ChannelMap`
+    (already checked); :func:`~torquemod.io.channels.assemble_recording` does the mapping,
+    unit conversion and time base for it.
+    """
     _READERS[suffix.lower()] = reader
 
 
+def supported_suffixes() -> list[str]:
+    """File suffixes :func:`read_recording` can read."""
+    return sorted(_READERS)
+
+
 def read_recording(path: str | Path, *, group: str | None = None,
-                   channel_map: dict | None = None) -> Recording:
+                   channel_map: ChannelMap | dict | None = None,
+                   sample_rate_hz: float | None = None) -> Recording:
     """Read one recording file; the format is chosen by the file's suffix.
+
+    ``channel_map`` is the manifest's ``[channels]`` table (raw or resolved); None reads the
+    method's channel names in SI units. ``sample_rate_hz`` [Hz] overrides the time base of
+    the file and of the map (the per-recording manifest key).
 
     Raises :class:`~torquemod.errors.InputError` naming the file and channel on any problem.
     Finite values are *not* checked here (the NaN policy is the pipeline's).
@@ -38,14 +64,24 @@ def read_recording(path: str | Path, *, group: str | None = None,
     if not path.exists():
         raise InputError("recording file not found", path=path,
                          hint="check the 'file' entry in the manifest")
+    if path.is_dir():
+        raise InputError("is a folder, not a recording file", path=path)
     reader = _READERS.get(path.suffix.lower())
     if reader is None:
         known = ", ".join(sorted(_READERS))
         raise InputError(f"unknown recording format '{path.suffix}'", path=path,
                          hint=f"use one of {known}")
-    rec = reader(path, group=group, channel_map=channel_map)
+    cmap = resolve_channel_map(channel_map, path).with_sample_rate(sample_rate_hz, path=path)
+    rec = reader(path, group=group, channel_map=cmap)
     check_channels(rec, path=path)
     return rec
+
+
+def read_entry(experiment: Experiment, entry: RecordingEntry) -> Recording:
+    """Read one ``[[recording]]`` of ``experiment`` with its group, the experiment's
+    ``[channels]`` map and the entry's own ``sample_rate_hz``."""
+    return read_recording(entry.path, group=entry.group, channel_map=experiment.channel_map,
+                          sample_rate_hz=entry.sample_rate_hz)
 
 
 def write_recording(path: str | Path, rec: Recording, *, fmt: str = "csv", **kwargs) -> Path:

@@ -1,0 +1,100 @@
+"""Parquet recordings: one numeric column per channel, named as in the CSV format or mapped
+in the manifest's ``[channels]`` table, read with ``pyarrow``.
+
+Units come from the manifest, else from a ``unit`` entry in the column's field metadata.
+Without a time column the sample rate comes from the file's key-value metadata
+``sample_rate_hz`` [Hz] (with optional ``t0_s`` [s]).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from ..data import Recording
+from ..errors import InputError
+from .channels import (
+    ChannelMap,
+    RawChannel,
+    assemble_recording,
+    library_error,
+    resolve_channel_map,
+)
+
+_HINT = "is the file complete and really Parquet?"
+
+
+def _meta_text(meta: dict | None, key: str) -> str | None:
+    if not meta or key.encode() not in meta:
+        return None
+    return meta[key.encode()].decode("utf-8", errors="replace")
+
+
+def _native_rate(meta: dict | None, path: Path) -> tuple[float, float] | None:
+    text = _meta_text(meta, "sample_rate_hz")
+    if text is None:
+        return None
+    try:
+        fs = float(text)
+        t0 = float(_meta_text(meta, "t0_s") or 0.0)
+    except ValueError:
+        raise InputError(f"metadata sample_rate_hz={text!r} is not a number", path=path,
+                         hint="write the sample rate in Hz") from None
+    if not math.isfinite(fs) or fs <= 0 or not math.isfinite(t0):
+        raise InputError(f"metadata sample_rate_hz={text!r} is not a positive number",
+                         path=path)
+    return fs, t0
+
+
+def _column_values(column: pa.ChunkedArray, path: Path, name: str) -> np.ndarray:
+    kind = column.type
+    if not (pa.types.is_integer(kind) or pa.types.is_floating(kind)
+            or pa.types.is_boolean(kind) or pa.types.is_timestamp(kind)
+            or pa.types.is_duration(kind)):
+        raise InputError(f"column '{name}' is not numeric (type {kind})", path=path,
+                         hint="map a numeric column")
+    if column.null_count:  # nulls become NaN (the NaN policy is the pipeline's)
+        column = column.cast(pa.float64()) if not pa.types.is_temporal(kind) else column
+    return np.asarray(column.to_numpy())
+
+
+def read_parquet(path: Path, *, group: str | None = None,
+                 channel_map: ChannelMap | dict | None = None) -> Recording:
+    """Read a Parquet recording. ``group`` is not used for Parquet (must be None)."""
+    path = Path(path)
+    cmap = resolve_channel_map(channel_map, path)
+    if group is not None:
+        raise InputError(f"'group' ({group!r}) has no meaning for a Parquet file", path=path,
+                         hint="remove 'group' from the recording's entry")
+    try:
+        schema = pq.read_schema(path)
+        names = list(schema.names)
+    except Exception as exc:  # pyarrow raises ArrowInvalid/OSError on damaged files
+        raise library_error(exc, path=path, what="cannot open as Parquet", hint=_HINT) from None
+    wanted = [n for n in dict.fromkeys([*cmap.names(), cmap.time.name]) if n in names]
+    try:
+        table = pq.read_table(path, columns=wanted)
+    except Exception as exc:  # damaged pages, bad compression, ...
+        raise library_error(exc, path=path, what="cannot read the Parquet data",
+                            hint=_HINT) from None
+
+    def lookup(name: str) -> RawChannel | None:
+        if name not in table.column_names:
+            return None
+        field = table.schema.field(name)
+        try:
+            values = _column_values(table.column(name), path, name)
+        except InputError:
+            raise
+        except Exception as exc:  # pyarrow conversion of damaged or odd columns
+            raise library_error(exc, path=path, what=f"cannot convert column '{name}'",
+                                hint=_HINT) from None
+        return RawChannel(values, _meta_text(field.metadata, "unit"))
+
+    return assemble_recording(cmap, lookup, path=path, source=str(path),
+                              native_rate=_native_rate(schema.metadata, path),
+                              available=lambda: names)
