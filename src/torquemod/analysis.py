@@ -1,0 +1,271 @@
+"""Fit stage on a results folder: creep points -> Polach fit -> theory check -> onset.
+
+:func:`fit_results_folder` reads ``steps.csv``, ``cycles.csv`` and ``provenance.json`` written by
+``torquemod process``, writes ``fit.json`` and rewrites ``steps.csv`` with three more columns
+(original columns first, atomically):
+
+* ``torque_pct_saturation`` DC torque as % of ``Ts = mu*N*Rw`` (NaN if mu is undetermined),
+* ``creep_coefficient`` dCoA/dxi of the fitted curve at the step's creepage [-],
+* ``phase_theory_deg`` the rigid-wheel phase ``atan(C/k)`` [deg] (see :mod:`torquemod.creep`).
+
+Rig keys read from ``provenance.json`` ``experiment.rig``: ``wheel_radius_m``,
+``platform_radius_m``, and optionally ``wheel_inertia_kg_m2`` (J [kg m^2], the inertia of
+everything turning with the wheel, referred to the wheel axis) and ``contact_stiffness``
+(the lumped ``pi*G*a*b*c11/(4*Q)`` [-] of :func:`torquemod.fit.fit_polach`). With J the theory
+constant ``C = 2*pi*f_mod*J*V/(R^2*N)`` is computed per step (f_mod the mean measured modulation
+frequency, V the mean speed, N the mean measured normal load of the step, falling back to the
+nominal test values); without it, one C is fitted across the steps.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import tempfile
+from collections.abc import Mapping
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ._version import __version__
+from .creep import creep_points, saturation_onset, theory_check, theory_constant
+from .errors import InputError, OutputError
+from .fit import _jsonable, fit_polach
+from .theory import rigid_wheel_phase_deg
+
+__all__ = ["ADDED_STEP_COLUMNS", "FitOptions", "fit_results_folder", "read_json",
+           "write_json_atomic"]
+
+ADDED_STEP_COLUMNS = ("torque_pct_saturation", "creep_coefficient", "phase_theory_deg")
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """Options of the fit stage (all recorded in fit.json).
+
+    ``velocity_dependent`` fits P05 Eq. (9) too (needs differing speeds); ``stiffness``
+    overrides ``rig.contact_stiffness``; ``inertia_kg_m2`` overrides ``rig.wheel_inertia_kg_m2``;
+    ``theory_constant`` forces C; ``weighted`` uses the steps' standard errors; ``onset_*`` are
+    the arguments of :func:`torquemod.creep.saturation_onset`.
+    """
+
+    velocity_dependent: bool = False
+    n_starts: int = 12
+    seed: int = 0
+    weighted: bool = True
+    sigma_floor: float = 1e-4
+    max_rel_stderr: float = 0.10
+    min_saturation_fraction: float = 0.5
+    min_peak_fraction: float = 0.9
+    creepage_limit: float = 0.1
+    stiffness: float | None = None
+    inertia_kg_m2: float | None = None
+    theory_constant: float | None = None
+    onset_criterion: str = "phase"
+    onset_k_sigma: float = 3.0
+    onset_min_jump_deg: float = 5.0
+    onset_rel_k_drop: float = 0.5
+
+    @classmethod
+    def coerce(cls, options) -> FitOptions:
+        if options is None:
+            return cls()
+        if isinstance(options, cls):
+            return options
+        if isinstance(options, Mapping):
+            names = {f.name for f in dataclasses.fields(cls)}
+            unknown = set(options) - names
+            if unknown:
+                raise InputError(f"unknown fit option(s) {sorted(unknown)}; "
+                                 f"known: {sorted(names)}")
+            return cls(**options)
+        raise InputError(f"fit options must be FitOptions or a mapping, got {type(options)}")
+
+
+def read_json(path: Path) -> dict:
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError as exc:
+        raise InputError("file not found", path=path,
+                         hint="run 'torquemod process' on the experiment first") from exc
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not valid JSON ({exc})", path=path) from exc
+
+
+def _atomic_write(path: Path, write) -> None:
+    path = Path(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+                write(fh)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc}") from exc
+
+
+def write_json_atomic(path: Path, data: dict) -> None:
+    """Write ``data`` as strict JSON (NaN/inf -> null) via a temporary file and os.replace."""
+    text = json.dumps(_jsonable(data), indent=2, allow_nan=False)
+    _atomic_write(path, lambda fh: fh.write(text + "\n"))
+
+
+def _per_step(prov: dict, cycles: pd.DataFrame | None, steps: np.ndarray) -> dict:
+    """Mean speed [m/s], normal load [N] and modulation frequency [Hz] per step."""
+    exp = prov.get("experiment", {})
+    rig, test = exp.get("rig", {}), exp.get("test", {})
+    out = {"speed_m_s": np.full(steps.size, np.nan), "fz_n": np.full(steps.size, np.nan),
+           "freq_hz": np.full(steps.size, np.nan)}
+    pc = pd.DataFrame(prov.get("cycles") or [])
+    if not pc.empty and "step" in pc:
+        if "speed_m_s" not in pc and "platform_speed_rad_s" in pc and "platform_radius_m" in rig:
+            pc["speed_m_s"] = pc["platform_speed_rad_s"].abs() * float(rig["platform_radius_m"])
+        g = pc.groupby("step").mean(numeric_only=True)
+        for key, col in (("speed_m_s", "speed_m_s"), ("fz_n", "fz_n")):
+            if col in g:
+                out[key] = g[col].reindex(steps).to_numpy(float)
+    if cycles is not None and "modulation_hz" in cycles:
+        out["freq_hz"] = cycles.groupby("step")["modulation_hz"].mean().reindex(steps).to_numpy(
+            float)
+    for key, default in (("fz_n", test.get("normal_load_n")),
+                         ("freq_hz", test.get("modulation_frequency_hz"))):
+        if default is not None:
+            out[key] = np.where(np.isfinite(out[key]), out[key], float(default))
+    out["fz_n"] = np.abs(out["fz_n"])
+    return out
+
+
+def fit_results_folder(results_dir, *, options=None) -> dict:
+    """Fit the creep curve of a processed experiment and write ``fit.json`` + ``steps.csv``.
+
+    Returns a summary: ``mu``, ``mu_stderr``, ``mu_determined``, ``mu_lower_bound``,
+    ``saturation_torque_nm``, ``onset_step``, ``theory_rms_deg``, ``theory_max_deg``,
+    ``steps`` (per-step list), ``warnings``, ``fit_json`` and ``steps_csv`` paths (str); the
+    summary is JSON-serialisable (NaN -> None).
+    """
+    opts = FitOptions.coerce(options)
+    results_dir = Path(results_dir)
+    steps_path = results_dir / "steps.csv"
+    if not steps_path.is_file():
+        raise InputError("steps.csv not found", path=results_dir,
+                         hint="run 'torquemod process' first")
+    steps_df = pd.read_csv(steps_path)
+    steps_df = steps_df.drop(columns=[c for c in ADDED_STEP_COLUMNS if c in steps_df.columns])
+    prov = read_json(results_dir / "provenance.json")
+    cycles_path = results_dir / "cycles.csv"
+    cycles = pd.read_csv(cycles_path) if cycles_path.is_file() else None
+    exp = prov.get("experiment", {})
+    rig, test = exp.get("rig", {}), exp.get("test", {})
+    warnings: list[str] = []
+
+    pts = creep_points(steps_df)
+    per = _per_step(prov, cycles, pts.step)
+    stiffness = opts.stiffness if opts.stiffness is not None else rig.get("contact_stiffness")
+    use_w = opts.weighted and np.any(np.isfinite(pts.coa_se))
+    fit = fit_polach(
+        pts.creepage, pts.coa,
+        xi_std=pts.creepage_se if use_w else None, coa_std=pts.coa_se if use_w else None,
+        velocity_dependent=opts.velocity_dependent,
+        speeds_m_s=per["speed_m_s"] if opts.velocity_dependent else None,
+        stiffness=None if stiffness is None else float(stiffness), n_starts=opts.n_starts,
+        seed=opts.seed, sigma_floor=opts.sigma_floor, max_rel_stderr=opts.max_rel_stderr,
+        min_saturation_fraction=opts.min_saturation_fraction,
+        min_peak_fraction=opts.min_peak_fraction, creepage_limit=opts.creepage_limit)
+    warnings += fit.warnings
+
+    # saturation torque Ts = mu*N*Rw (paper, Section 3)
+    radius = rig.get("wheel_radius_m")
+    n_nom = test.get("normal_load_n")
+    if n_nom is None and np.any(np.isfinite(per["fz_n"])):
+        n_nom = float(np.nanmean(per["fz_n"]))
+    ts = ts_se = None
+    if fit.mu is not None and radius and n_nom:
+        ts = fit.mu * float(n_nom) * float(radius)
+        ts_se = fit.mu_stderr * float(n_nom) * float(radius)
+    pct = 100.0 * pts.dc_torque_nm / ts if ts else np.full(len(pts), np.nan)
+
+    k = fit.slope(pts.creepage, per["speed_m_s"] if fit.velocity_dependent else None)
+    inertia = opts.inertia_kg_m2 if opts.inertia_kg_m2 is not None \
+        else rig.get("wheel_inertia_kg_m2")
+    constant = opts.theory_constant
+    rig_args = None
+    if constant is None and inertia is not None:
+        if radius and np.all(np.isfinite(per["speed_m_s"])) and np.all(
+                np.isfinite(per["fz_n"])) and np.all(np.isfinite(per["freq_hz"])):
+            rig_args = {"inertia_kg_m2": float(inertia), "speed_m_s": per["speed_m_s"],
+                        "wheel_radius_m": float(radius), "normal_load_n": per["fz_n"],
+                        "frequency_hz": per["freq_hz"]}
+            constant = theory_constant(**rig_args)
+        else:
+            warnings.append("wheel inertia given but speed, load or frequency per step is "
+                            "missing: the theory constant is fitted instead")
+    tc = theory_check(pts.phase_deg, k, constant=constant)
+    phase_theory = tc.phase_theory_deg
+    if rig_args is not None:  # the project's rigid-wheel formula (torquemod.theory)
+        phase_theory = np.asarray(rigid_wheel_phase_deg(k, **rig_args), dtype=float)
+    if tc.mode == "fitted" and tc.n_used < 2:
+        warnings.append("too few usable steps to fit the theory constant")
+
+    onset = saturation_onset(pts.step, pts.phase_deg, pts.phase_std_deg, k,
+                             criterion=opts.onset_criterion, k_sigma=opts.onset_k_sigma,
+                             min_jump_deg=opts.onset_min_jump_deg,
+                             rel_k_drop=opts.onset_rel_k_drop)
+    if onset.step is None:
+        warnings.append("no saturation onset found by the criterion: " + onset.describe())
+
+    # extended steps.csv: original columns first, same row order as read
+    extra = pd.DataFrame({"step": pts.step, "torque_pct_saturation": pct,
+                          "creep_coefficient": k, "phase_theory_deg": phase_theory})
+    out_df = steps_df.merge(extra, on="step", how="left")
+    _atomic_write(steps_path, lambda fh: out_df.to_csv(fh, index=False, lineterminator="\n"))
+
+    per_step = [{"step": int(s), "dc_torque_nm": float(t), "creepage": float(x),
+                 "coa": float(c), "phase_deg": float(p), "phase_std_deg": float(ps),
+                 "phase_theory_deg": float(pt), "creep_coefficient": float(kk),
+                 "torque_pct_saturation": float(q)}
+                for s, t, x, c, p, ps, pt, kk, q in zip(
+                    pts.step, pts.dc_torque_nm, pts.creepage, pts.coa, pts.phase_deg,
+                    pts.phase_std_deg, phase_theory, k, pct, strict=True)]
+    fit_dict = fit.to_dict()
+    theory = tc.to_dict()
+    if rig_args is not None:
+        theory["rig"] = {"wheel_inertia_kg_m2": float(inertia), "wheel_radius_m": float(radius)}
+    diff = pts.phase_deg - phase_theory
+    okd = np.isfinite(diff)
+    theory["rms_difference_deg"] = float(np.sqrt(np.mean(diff[okd] ** 2))) if okd.any() else None
+    theory["max_abs_difference_deg"] = float(np.max(np.abs(diff[okd]))) if okd.any() else None
+    doc = {
+        **fit_dict,
+        "saturation_torque_nm": ts, "saturation_torque_stderr_nm": ts_se,
+        "normal_load_n": n_nom, "wheel_radius_m": radius,
+        "theory": theory, "onset": onset.to_dict(), "steps": per_step,
+        "warnings": warnings,
+        "fit_options": dataclasses.asdict(opts),
+        "torquemod_version": __version__,
+        "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "source": {"results_dir": str(results_dir),
+                   "processed_with": prov.get("torquemod_version"),
+                   "processed_utc": prov.get("created_utc"),
+                   "manifest": exp.get("manifest")},
+        "identifiability": "only mu, kA*s and kS*s are identifiable (s = pi*G*a*b*c11/(4*Q)); "
+                           + ("kA, kS reported with the given s" if stiffness is not None
+                              else "the products are reported"),
+    }
+    write_json_atomic(results_dir / "fit.json", doc)
+    return _jsonable({
+        "mu": fit.mu, "mu_stderr": fit.mu_stderr, "mu_determined": fit.mu_determined,
+        "mu_lower_bound": fit.mu_lower_bound, "curve_peak_coa": fit.curve_peak_coa,
+        "saturation_torque_nm": ts,
+        "saturation_torque_stderr_nm": ts_se, "onset_step": onset.step,
+        "theory_mode": tc.mode, "theory_rms_deg": theory["rms_difference_deg"],
+        "theory_max_deg": theory["max_abs_difference_deg"], "converged": fit.converged,
+        "steps": per_step, "warnings": warnings,
+        "fit_json": str(results_dir / "fit.json"), "steps_csv": str(steps_path),
+    })

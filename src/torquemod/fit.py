@@ -1,0 +1,473 @@
+"""Least-squares fit of Polach's creep-force model to measured creep-curve points.
+
+The model is the lumped form of :func:`torquemod.contact.polach.adhesion_curve`
+(Polach 2005, Eqs. 3 and 8, "P05" below)::
+
+    CoA(xi) = mu * (2/pi) * [kA*eps/(1 + (kA*eps)^2) + arctan(kS*eps)],   eps = s*|xi|/mu
+
+with ``s = pi*G*a*b*c11/(4*Q)`` [-] lumping the contact geometry. CoA is a magnitude (Eq. 4 of
+the V-Track paper), so the model uses ``|xi|``.
+
+Identifiability
+---------------
+``kA`` and ``kS`` enter only as the products ``kA*s`` and ``kS*s``; with ``s`` unknown only
+``mu``, ``kA*s`` and ``kS*s`` are identifiable. :func:`fit_polach` therefore always fits
+``(mu, kA*s, kS*s)``. When the caller knows ``s`` (``stiffness=``, e.g. from a Hertz/Kalker
+calculation of the rig) the reported parameters are ``mu, k_a, k_s`` (products divided by
+``s``, standard errors likewise); otherwise they are reported as ``k_a_stiffness`` and
+``k_s_stiffness``. The initial slope ``2*(kA*s + kS*s)/pi`` is always identifiable.
+
+When is mu determined?
+----------------------
+If the points lie on the near-linear part of the curve, the data fix the initial slope but not
+the friction level: the optimiser drifts to the upper bound of ``mu`` or returns a value with a
+huge standard error. ``mu_determined`` is True only when all of these hold (thresholds are
+keyword options of :func:`fit_polach`):
+
+* the optimiser converged and the covariance has full rank,
+* ``mu`` is not at (within 1 % of) its upper bound,
+* ``mu_stderr / mu <= max_rel_stderr`` (default 0.10),
+* the largest measured CoA reaches ``min_saturation_fraction * mu`` (default 0.5),
+* the fitted curve itself reaches ``min_peak_fraction * mu`` (default 0.9) for creepages up to
+  ``creepage_limit`` (default 0.1). With ``kS << kA`` Polach's curve has a hump whose maximum
+  lies well below ``mu``, or it creeps up to ``mu`` only at creepages no wheel reaches; ``mu``
+  is then a shape parameter, not the saturation level the method needs (``Ts = mu*N*Rw``).
+  This happens when the points bend more sharply than the constant-friction model can (e.g.
+  friction falling with slip velocity). The curve's maximum over that range is always reported
+  as ``curve_peak_coa``.
+
+Otherwise ``mu`` is None, ``mu_lower_bound`` is the largest measured CoA (adhesion cannot
+exceed friction) and a warning says so.
+
+Weights
+-------
+Residuals are divided by the standard error of each point, ``sigma_i``. With creepage errors
+the effective-variance method is used: ``sigma_i^2 = se_CoA^2 + (k_i*se_xi)^2`` with ``k_i``
+the slope of a first unweighted-in-xi pass. Every sigma is floored at
+``max(sigma_floor, 0.1*median(sigma))`` so that one lucky point with a tiny spread cannot
+dominate. The covariance is ``(J^T J)^-1 * max(1, chi2_red)`` (conservative: scaled up when the
+scatter exceeds the stated errors, never scaled down).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .contact.polach import force_function, friction_coefficient
+from .errors import InputError, ProcessingError
+
+__all__ = ["MU_BOUNDS", "PolachFit", "fit_polach", "polach_coa", "polach_slope"]
+
+#: Bounds of the friction coefficient in the fit [-].
+MU_BOUNDS: tuple[float, float] = (1e-3, 2.0)
+#: Upper bound of B [s/m] in the velocity-dependent fit.
+B_MAX_S_M = 50.0
+
+
+def polach_coa(xi, theta, *, speed_m_s=None):
+    """CoA of the lumped Polach model for the internal parameter vector ``theta``.
+
+    ``theta = (mu, kA*s, kS*s)`` (constant friction) or ``(mu0, kA*s, kS*s, A, B[s/m])``
+    (P05 Eq. 9, slip velocity ``w = |xi|*V`` with ``speed_m_s`` V [m/s]).
+    """
+    xi = np.abs(np.asarray(xi, dtype=float))
+    mu = theta[0]
+    if len(theta) == 5:
+        if speed_m_s is None:
+            raise InputError("the velocity-dependent model needs speed_m_s")
+        mu = friction_coefficient(xi * np.asarray(speed_m_s, dtype=float), mu0=theta[0],
+                                  a_ratio=theta[3], b_s_m=theta[4])
+    mu = np.maximum(mu, 1e-12)
+    return mu * force_function(xi / mu, k_a=theta[1], k_s=theta[2])
+
+
+def polach_slope(xi, theta, *, speed_m_s=None):
+    """Creep coefficient dCoA/dxi [-] of :func:`polach_coa` at ``|xi|``.
+
+    Analytic for constant friction; central difference for the velocity-dependent model.
+    """
+    xi = np.abs(np.asarray(xi, dtype=float))
+    if len(theta) == 3:
+        mu, a, s = (float(v) for v in theta)
+        eps = xi / mu
+        ae = a * eps
+        return (2.0 / np.pi) * (a * (1.0 - ae * ae) / (1.0 + ae * ae) ** 2
+                                + s / (1.0 + (s * eps) ** 2))
+    h = np.maximum(1e-7, 1e-4 * xi)
+    lo = np.maximum(xi - h, 0.0)
+    hi = xi + h
+    f_hi = polach_coa(hi, theta, speed_m_s=speed_m_s)
+    f_lo = polach_coa(lo, theta, speed_m_s=speed_m_s)
+    return (f_hi - f_lo) / (hi - lo)
+
+
+def _clean(name, x, n=None):
+    if x is None:
+        return None
+    arr = np.asarray(x, dtype=float).ravel()
+    if n is not None and arr.size != n:
+        raise InputError(f"{name} has {arr.size} values, expected {n}")
+    return arr
+
+
+@dataclass
+class PolachFit:
+    """Result of :func:`fit_polach` (lmfit-like). Units: CoA and creepage dimensionless,
+    ``b_s_m`` in s/m, speeds in m/s."""
+
+    model: str
+    param_names: tuple[str, ...]
+    params: dict[str, float]
+    stderr: dict[str, float]
+    covariance: np.ndarray
+    correlation: np.ndarray
+    theta: np.ndarray  # internal vector (mu, kA*s, kS*s[, A, B])
+    residuals: np.ndarray  # model - data, CoA units
+    weighted_residuals: np.ndarray
+    sigma: np.ndarray  # standard error used per point (CoA units)
+    xi: np.ndarray
+    coa: np.ndarray
+    speeds_m_s: np.ndarray | None
+    converged: bool
+    status: int
+    message: str
+    nfev: int
+    chi2: float
+    reduced_chi2: float
+    dof: int
+    mu_estimate: float
+    mu_stderr_estimate: float
+    mu_determined: bool
+    mu_lower_bound: float
+    curve_peak_coa: float
+    stiffness: float | None
+    weighted: bool
+    starts: list[dict] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    options: dict = field(default_factory=dict)
+
+    @property
+    def mu(self) -> float | None:
+        """Fitted friction coefficient [-] (mu0 when velocity-dependent); None when the points
+        do not determine it (see the module docstring)."""
+        return self.mu_estimate if self.mu_determined else None
+
+    @property
+    def mu_stderr(self) -> float | None:
+        return self.mu_stderr_estimate if self.mu_determined else None
+
+    @property
+    def velocity_dependent(self) -> bool:
+        return len(self.theta) == 5
+
+    @property
+    def initial_slope(self) -> float:
+        """dCoA/dxi at xi = 0, ``2*(kA + kS)*s/pi`` [-]."""
+        return float(2.0 * (self.theta[1] + self.theta[2]) / np.pi)
+
+    def _speed(self, xi, speed_m_s):
+        if not self.velocity_dependent:
+            return None
+        if speed_m_s is None:
+            speed_m_s = float(np.mean(self.speeds_m_s))
+        return np.broadcast_to(np.asarray(speed_m_s, dtype=float), np.shape(xi))
+
+    def curve(self, xi, speed_m_s=None):
+        """Fitted CoA at creepage ``xi`` [-] (speed defaults to the mean of the data)."""
+        return polach_coa(xi, self.theta, speed_m_s=self._speed(xi, speed_m_s))
+
+    def slope(self, xi, speed_m_s=None):
+        """Creep coefficient dCoA/dxi of the fitted curve at ``xi`` [-]."""
+        return polach_slope(xi, self.theta, speed_m_s=self._speed(xi, speed_m_s))
+
+    def report(self) -> str:
+        """Plain-text summary of the fit."""
+        lines = [f"[[Polach fit]] model={self.model}  points={self.xi.size}  dof={self.dof}",
+                 f"  converged={self.converged}  status={self.status}  nfev={self.nfev}",
+                 f"  message: {self.message}",
+                 f"  chi2={self.chi2:.4g}  reduced chi2={self.reduced_chi2:.4g}  "
+                 f"weighted={self.weighted}"]
+        if self.mu_determined:
+            lines.append(f"  mu = {self.mu_estimate:.4f} +/- {self.mu_stderr_estimate:.4f}")
+        else:
+            lines.append(f"  mu NOT determined by these points; mu >= {self.mu_lower_bound:.4f}")
+        lines.append(f"  maximum of the fitted curve (creepage <= "
+                     f"{self.options.get('creepage_limit')}): CoA = {self.curve_peak_coa:.4f}")
+        lines.append("[[Parameters]]")
+        for name in self.param_names:
+            lines.append(f"  {name:16s} = {self.params[name]:12.6g} +/- {self.stderr[name]:.3g}")
+        lines.append(f"  initial slope 2(kA+kS)s/pi = {self.initial_slope:.6g}")
+        for w in self.warnings:
+            lines.append(f"  WARNING: {w}")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """JSON-ready dictionary (non-finite numbers become None)."""
+        return _jsonable({
+            "model": self.model,
+            "mu": self.mu,
+            "mu_stderr": self.mu_stderr,
+            "mu_determined": self.mu_determined,
+            "mu_lower_bound": self.mu_lower_bound,
+            "curve_peak_coa": self.curve_peak_coa,
+            "mu_estimate_unreliable": None if self.mu_determined else self.mu_estimate,
+            "parameters": dict(self.params),
+            "stderr": dict(self.stderr),
+            "initial_slope": self.initial_slope,
+            "theta_internal": {"names": ["mu", "k_a*stiffness", "k_s*stiffness"]
+                               + (["a_ratio", "b_s_m"] if self.velocity_dependent else []),
+                               "values": self.theta.tolist()},
+            "stiffness": self.stiffness,
+            "covariance": {"names": list(self.param_names),
+                           "matrix": self.covariance.tolist()},
+            "correlation": self.correlation.tolist(),
+            "data": {"creepage": self.xi.tolist(), "coa": self.coa.tolist(),
+                     "sigma_coa": self.sigma.tolist(),
+                     "speed_m_s": None if self.speeds_m_s is None
+                     else self.speeds_m_s.tolist()},
+            "residuals": self.residuals.tolist(),
+            "weighted_residuals": self.weighted_residuals.tolist(),
+            "chi2": self.chi2, "reduced_chi2": self.reduced_chi2, "dof": self.dof,
+            "converged": self.converged, "status": self.status, "message": self.message,
+            "nfev": self.nfev, "weighted": self.weighted,
+            "starts": self.starts, "warnings": list(self.warnings), "options": self.options,
+        })
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, bool | np.bool_):
+        return bool(obj)
+    if isinstance(obj, int | np.integer):
+        return int(obj)
+    if isinstance(obj, float | np.floating):
+        return float(obj) if math.isfinite(obj) else None
+    return obj
+
+
+def _covariance(jac, scale):
+    """``(J^T J)^-1 * scale`` via SVD; NaN-filled and ``full_rank=False`` if rank deficient."""
+    _, s, vt = np.linalg.svd(jac, full_matrices=False)
+    tol = np.finfo(float).eps * max(jac.shape) * (s[0] if s.size else 0.0)
+    p = jac.shape[1]
+    if s.size < p or np.any(s <= tol):
+        return np.full((p, p), np.nan), False
+    cov = (vt.T / s**2) @ vt * scale
+    return cov, True
+
+
+def _starts(xi, coa, n_starts, rng, velocity):
+    """Deterministic grid of starting points plus random ones, internal parameters."""
+    order = np.argsort(np.abs(xi))
+    low = order[: max(1, len(order) // 2)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.abs(coa[low]) / np.abs(xi[low])
+    ratio = ratio[np.isfinite(ratio) & (ratio > 0)]
+    k0 = float(np.median(ratio)) if ratio.size else 100.0
+    sum_ks = np.pi * k0 / 2.0  # initial slope = 2*(a + s)/pi
+    cmax = float(np.max(np.abs(coa)))
+    grid = []
+    for mf in (1.05, 1.25, 1.6, 2.5):
+        for frac in (0.7, 0.4, 0.9):
+            grid.append([min(mf * cmax, 0.9 * MU_BOUNDS[1]), frac * sum_ks,
+                         (1 - frac) * sum_ks])
+    while len(grid) < n_starts:
+        frac = rng.uniform(0.05, 0.95)
+        grid.append([min(cmax * rng.uniform(1.01, 3.0), 0.9 * MU_BOUNDS[1]),
+                     frac * sum_ks * rng.uniform(0.5, 2.0),
+                     (1 - frac) * sum_ks * rng.uniform(0.5, 2.0)])
+    grid = np.array(grid[:n_starts], dtype=float)
+    if velocity:
+        grid = np.column_stack([grid, np.full(len(grid), 0.5), np.full(len(grid), 0.5)])
+    return grid
+
+
+def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool = False,
+               speeds_m_s=None, stiffness: float | None = None, n_starts: int = 12,
+               seed: int = 0, sigma_floor: float = 1e-4, max_rel_stderr: float = 0.10,
+               min_saturation_fraction: float = 0.5, min_peak_fraction: float = 0.9,
+               creepage_limit: float = 0.1, max_nfev: int = 2000) -> PolachFit:
+    """Fit Polach's model (P05 Eqs. 3, 8; Eq. 9 when velocity-dependent) to creep points.
+
+    Parameters
+    ----------
+    xi, coa : array_like
+        Creepage [-] and coefficient of adhesion [-] per point (e.g. per torque step).
+    xi_std, coa_std : array_like, optional
+        Standard errors of each point (e.g. cycle standard deviation / sqrt(n_cycles)).
+        Without both, the fit is unweighted (sigma = 1).
+    velocity_dependent : bool
+        Off by default, as in the V-Track paper (low speed, low creepage). When on, fits
+        ``mu0, A, B`` of P05 Eq. (9) too and needs ``speeds_m_s`` [m/s] per point.
+    stiffness : float, optional
+        Lumped contact stiffness ``s = pi*G*a*b*c11/(4*Q)`` [-]; when given, ``k_a`` and
+        ``k_s`` are reported instead of the identifiable products.
+    n_starts, seed : int
+        Number of starting points (a fixed grid, then random ones from ``seed``).
+    sigma_floor, max_rel_stderr, min_saturation_fraction, min_peak_fraction, creepage_limit
+        See the module docstring.
+
+    Returns
+    -------
+    PolachFit
+
+    Raises
+    ------
+    InputError
+        Too few points, non-finite values, or missing speeds.
+    ProcessingError
+        No start converged.
+    """
+    xi = _clean("xi", xi)
+    coa = _clean("coa", coa, xi.size)
+    xi_std = _clean("xi_std", xi_std, xi.size)
+    coa_std = _clean("coa_std", coa_std, xi.size)
+    speeds = _clean("speeds_m_s", speeds_m_s, xi.size)
+    n_par = 5 if velocity_dependent else 3
+    if xi.size < n_par + 1:
+        raise InputError(f"the Polach fit needs at least {n_par + 1} points, got {xi.size}",
+                         hint="measure more torque steps or fix parameters")
+    if not (np.all(np.isfinite(xi)) and np.all(np.isfinite(coa))):
+        raise InputError("creepage and CoA must be finite", hint="drop the failed steps first")
+    if velocity_dependent and (speeds is None or not np.all(np.isfinite(speeds))):
+        raise InputError("velocity_dependent=True needs finite speeds_m_s for every point")
+    if stiffness is not None and not (stiffness > 0):
+        raise InputError(f"stiffness must be positive, got {stiffness}")
+    if np.max(np.abs(coa)) <= 0:
+        raise InputError("all CoA values are zero; nothing to fit")
+
+    weighted = coa_std is not None
+    if weighted:
+        sig_coa = np.where(np.isfinite(coa_std), np.abs(coa_std), np.nan)
+        if np.all(np.isnan(sig_coa)):
+            weighted = False
+    sig_xi = None if xi_std is None else np.where(np.isfinite(xi_std), np.abs(xi_std), 0.0)
+    spd = speeds if velocity_dependent else None
+
+    def floor(sig):
+        sig = np.where(np.isfinite(sig), sig, np.nanmedian(sig))
+        return np.maximum(sig, max(sigma_floor, 0.1 * float(np.median(sig))))
+
+    sigma = floor(np.where(np.isnan(sig_coa), np.nanmedian(sig_coa), sig_coa)) if weighted \
+        else np.ones_like(coa)
+
+    lo = [MU_BOUNDS[0], 0.0, 0.0] + ([0.0, 0.0] if velocity_dependent else [])
+    hi = [MU_BOUNDS[1], np.inf, np.inf] + ([1.0, B_MAX_S_M] if velocity_dependent else [])
+
+    def run(sig, starts):
+        def resid(th):
+            return (polach_coa(xi, th, speed_m_s=spd) - coa) / sig
+        results = []
+        for x0 in starts:
+            x0 = np.clip(x0, lo, np.where(np.isfinite(hi), hi, x0))
+            try:
+                r = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", method="trf",
+                                  max_nfev=max_nfev, xtol=1e-12, ftol=1e-12, gtol=1e-12)
+            except (ValueError, FloatingPointError) as exc:  # pragma: no cover - defensive
+                results.append((np.inf, None, str(exc), x0))
+                continue
+            results.append((float(r.cost) if r.status > 0 else np.inf, r, r.message, x0))
+        return results
+
+    rng = np.random.default_rng(seed)
+    starts = _starts(xi, coa, n_starts, rng, velocity_dependent)
+    results = run(sigma, starts)
+    best = min(results, key=lambda t: t[0])
+    if best[1] is None or not np.isfinite(best[0]):
+        raise ProcessingError(f"the Polach fit did not converge from any of {len(starts)} "
+                              f"starting points (last message: {results[-1][2]})")
+    if weighted and sig_xi is not None and np.any(sig_xi > 0):
+        # effective variance with the slope of the first pass, then refit from its solution
+        k = polach_slope(xi, best[1].x, speed_m_s=spd)
+        sigma = floor(np.sqrt(sigma**2 + (k * sig_xi) ** 2))
+        results2 = run(sigma, [best[1].x, *starts[:3]])
+        best = min(results2, key=lambda t: t[0])
+        results = results2 + results
+
+    res = best[1]
+    theta = res.x.copy()
+    wres = res.fun
+    n = xi.size
+    dof = n - n_par
+    chi2 = float(np.sum(wres**2))
+    red = chi2 / dof if dof > 0 else np.nan
+    scale = max(1.0, red) if weighted else (red if np.isfinite(red) else np.nan)
+    cov_int, full_rank = _covariance(res.jac, scale)
+
+    # reported parameters: products, or kA, kS when the stiffness is given
+    names = ["mu", "k_a_stiffness", "k_s_stiffness"]
+    conv = np.ones(n_par)
+    if stiffness is not None:
+        names = ["mu", "k_a", "k_s"]
+        conv[1:3] = 1.0 / stiffness
+    if velocity_dependent:
+        names += ["a_ratio", "b_s_m"]
+    values = theta * conv
+    cov = cov_int * np.outer(conv, conv)
+    se = np.sqrt(np.abs(np.diag(cov)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(se, se)
+
+    mu_est, mu_se = float(theta[0]), float(se[0])
+    cmax = float(np.max(np.abs(coa)))
+    warn = []
+    reasons = []
+    if not full_rank:
+        reasons.append("the Jacobian is rank deficient")
+    if mu_est >= 0.99 * MU_BOUNDS[1]:
+        reasons.append(f"mu ran to its upper bound {MU_BOUNDS[1]}")
+    if not np.isfinite(mu_se) or mu_se > max_rel_stderr * mu_est:
+        reasons.append(f"its relative standard error exceeds {max_rel_stderr:.0%}")
+    if cmax < min_saturation_fraction * mu_est:
+        reasons.append(f"the highest CoA is below {min_saturation_fraction:.0%} of the "
+                       "fitted mu (points on the near-linear part of the curve)")
+    grid = np.concatenate([[0.0], np.geomspace(1e-7, creepage_limit, 4000)])
+    spd_grid = None if not velocity_dependent else np.full(grid.size, float(np.mean(speeds)))
+    peak = float(np.max(polach_coa(grid, theta, speed_m_s=spd_grid)))
+    if peak < min_peak_fraction * mu_est:
+        reasons.append(f"the fitted curve reaches only CoA = {peak:.3g} for creepages up to "
+                       f"{creepage_limit:g}, below {min_peak_fraction:.0%} of its mu = "
+                       f"{mu_est:.3g}: mu is a shape parameter far beyond the points, not the "
+                       "saturation level (the points bend more sharply than the "
+                       "constant-friction model allows)")
+    determined = bool(res.status > 0 and not reasons)
+    if not determined:
+        warn.append("the creep points do not determine the friction coefficient ("
+                    + "; ".join(reasons) + f"); only a lower bound mu >= {cmax:.4g} is "
+                    "reported. Measure closer to saturation.")
+    if determined and np.isfinite(red) and weighted and red > 10:
+        warn.append(f"reduced chi2 = {red:.3g}: the scatter exceeds the stated errors; "
+                    "standard errors were scaled up accordingly")
+
+    return PolachFit(
+        model="polach_velocity" if velocity_dependent else "polach",
+        param_names=tuple(names),
+        params={k: float(v) for k, v in zip(names, values, strict=True)},
+        stderr={k: float(v) for k, v in zip(names, se, strict=True)},
+        covariance=cov, correlation=corr, theta=theta,
+        residuals=polach_coa(xi, theta, speed_m_s=spd) - coa, weighted_residuals=wres,
+        sigma=sigma, xi=xi, coa=coa, speeds_m_s=speeds,
+        converged=bool(res.status > 0), status=int(res.status), message=str(res.message),
+        nfev=int(res.nfev), chi2=chi2, reduced_chi2=float(red), dof=int(dof),
+        mu_estimate=mu_est, mu_stderr_estimate=mu_se, mu_determined=determined,
+        mu_lower_bound=cmax, curve_peak_coa=peak, stiffness=stiffness, weighted=weighted,
+        starts=[{"x0": [float(v) for v in t[3]], "cost": t[0] if np.isfinite(t[0]) else None}
+                for t in results],
+        warnings=warn,
+        options={"velocity_dependent": velocity_dependent, "n_starts": n_starts, "seed": seed,
+                 "sigma_floor": sigma_floor, "max_rel_stderr": max_rel_stderr,
+                 "min_saturation_fraction": min_saturation_fraction,
+                 "min_peak_fraction": min_peak_fraction, "creepage_limit": creepage_limit,
+                 "max_nfev": max_nfev,
+                 "stiffness": stiffness, "mu_bounds": list(MU_BOUNDS),
+                 "covariance_scale": "max(1, reduced chi2)" if weighted else "reduced chi2"},
+    )

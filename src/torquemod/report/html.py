@@ -1,0 +1,209 @@
+"""Self-contained HTML report: inline CSS, figures as base64 PNG, every text escaped.
+
+No external resources (stylesheets, scripts, fonts, images) are referenced, so the file reads
+the same offline. :func:`render_report` is a pure function from the loaded results to a string.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import math
+from html import escape
+
+__all__ = ["render_report", "table"]
+
+CSS = """
+body{font-family:system-ui,-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;margin:2em auto;
+max-width:1100px;padding:0 1em;color:#222;line-height:1.45}
+h1{font-size:1.6em;border-bottom:2px solid #444}h2{font-size:1.25em;margin-top:1.8em;
+border-bottom:1px solid #bbb}table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
+th,td{border:1px solid #bbb;padding:.25em .6em;text-align:right}th{background:#eee}
+td.l,th.l{text-align:left}caption{caption-side:top;text-align:left;font-weight:bold;
+padding:.3em 0}figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}
+figcaption{font-size:.9em;color:#444}.warn{background:#fff4e0;border-left:4px solid #e0a000;
+padding:.4em .8em}.ok{color:#176317}.bad{color:#a00000}pre{background:#f6f6f6;padding:.6em;
+overflow-x:auto;font-size:.8em}dl.kv{display:grid;grid-template-columns:max-content auto;
+gap:.2em 1em}dl.kv dt{font-weight:bold}dl.kv dd{margin:0}
+"""
+
+
+def fmt(value, digits: int = 4) -> str:
+    """Number to text with ``digits`` significant figures; None/NaN as an em dash."""
+    if value is None:
+        return "—"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return "—" if not math.isfinite(value) else f"{value:.{digits}g}"
+    return str(value)
+
+
+def table(headers, rows, *, caption: str | None = None, left: int = 0) -> str:
+    """An escaped HTML table; the first ``left`` columns are left-aligned."""
+    out = ["<table>"]
+    if caption:
+        out.append(f"<caption>{escape(caption)}</caption>")
+    cls = [' class="l"' if i < left else "" for i in range(len(headers))]
+    out.append("<thead><tr>" + "".join(f"<th{c}>{escape(str(h))}</th>"
+                                       for c, h in zip(cls, headers, strict=True))
+               + "</tr></thead><tbody>")
+    for row in rows:
+        out.append("<tr>" + "".join(f"<td{c}>{escape(v if isinstance(v, str) else fmt(v))}</td>"
+                                    for c, v in zip(cls, row, strict=True)) + "</tr>")
+    out.append("</tbody></table>")
+    return "\n".join(out)
+
+
+def _img(png: bytes, alt: str, caption: str) -> str:
+    data = base64.b64encode(png).decode("ascii")
+    return (f'<figure><img alt="{escape(alt)}" src="data:image/png;base64,{data}">'
+            f"<figcaption>{escape(caption)}</figcaption></figure>")
+
+
+def _kv(pairs) -> str:
+    return '<dl class="kv">' + "".join(
+        f"<dt>{escape(str(k))}</dt><dd>{escape(v if isinstance(v, str) else fmt(v))}</dd>"
+        for k, v in pairs) + "</dl>"
+
+
+def _pm(value, err, digits=4) -> str:
+    if value is None:
+        return "—"
+    return f"{fmt(value, digits)} ± {fmt(err, 2)}" if err is not None else fmt(value, digits)
+
+
+def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
+                  figures: list[dict], warnings: list[str]) -> str:
+    """HTML text of the report.
+
+    ``fit`` is fit.json, ``steps``/``cycles`` DataFrames of the extended steps.csv and
+    cycles.csv (``cycles`` may be None), ``figures`` dicts with ``png`` (bytes), ``alt`` and
+    ``caption``; ``warnings`` plain strings.
+    """
+    exp = provenance.get("experiment", {})
+    theory = fit.get("theory") or {}
+    onset = fit.get("onset") or {}
+    mu_text = (_pm(fit.get("mu"), fit.get("mu_stderr"))
+               if fit.get("mu_determined")
+               else f"not determined by the points (μ ≥ {fmt(fit.get('mu_lower_bound'))})")
+    summary = _kv([
+        ("Coefficient of friction μ", mu_text),
+        ("Maximum CoA of the fitted curve", fmt(fit.get("curve_peak_coa"))),
+        ("Saturation torque Ts = μ·N·Rw [N·m]",
+         _pm(fit.get("saturation_torque_nm"), fit.get("saturation_torque_stderr_nm"))),
+        ("Saturation onset", f"step {onset['step']}" if onset.get("step") is not None
+         else "not detected"),
+        ("Onset criterion", onset.get("description", "—")),
+        ("Theory check",
+         f"{theory.get('mode', '—')} constant C = {fmt(_scalar(theory.get('constant')))}; "
+         f"RMS difference {fmt(theory.get('rms_difference_deg'), 3)}°, "
+         f"max |difference| {fmt(theory.get('max_abs_difference_deg'), 3)}°"),
+        ("Fit converged", f"{fmt(fit.get('converged'))} (status {fit.get('status')}: "
+                          f"{fit.get('message', '')})"),
+        ("Steps / cycles", f"{len(steps)} / {0 if cycles is None else len(cycles)}"),
+        ("Manifest", str(exp.get("manifest", "—"))),
+    ])
+
+    s_cols = [("step", "Step"), ("dc_torque_nm", "DC applied torque [N·m]"),
+              ("torque_pct_saturation", "DC torque [% Ts]"), ("creepage", "Creepage ξx [-]"),
+              ("creepage_std", "std ξx [-]"), ("coa", "CoA [-]"), ("coa_std", "std CoA [-]"),
+              ("phase_deg", "Phase φ [deg]"), ("phase_std_deg", "std φ [deg]"),
+              ("phase_theory_deg", "Theory φ [deg]"), ("creep_coefficient", "dCoA/dξx [-]"),
+              ("n_cycles", "Cycles")]
+    s_cols = [(k, h) for k, h in s_cols if k in steps.columns]
+    t1 = table([h for _, h in s_cols],
+               [[_py(r[k]) for k, _ in s_cols] for _, r in steps.iterrows()],
+               caption="Table 1: DC torque steps and their creep-curve and phase results")
+    if cycles is not None:
+        c_cols = [("step", "Step"), ("cycle", "Cycle"),
+                  ("torque_peak_hz", "Peak frequency torque [Hz]"),
+                  ("wheel_peak_hz", "Peak frequency wheel angular velocity [Hz]"),
+                  ("modulation_hz", "Common modulation frequency [Hz]")]
+        c_cols = [(k, h) for k, h in c_cols if k in cycles.columns]
+        t2 = table([h for _, h in c_cols],
+                   [[_py(r[k], 6) for k, _ in c_cols] for _, r in cycles.iterrows()],
+                   caption="Table 2: modulation frequencies from the FFT per cycle and their "
+                           "average (common modulation frequency)")
+    else:
+        t2 = "<p>Table 2: cycles.csv not found.</p>"
+
+    names = list(fit.get("parameters", {}))
+    tp = table(["Parameter", "Value", "Standard error"],
+               [[n, fit["parameters"][n], (fit.get("stderr") or {}).get(n)] for n in names],
+               caption="Polach fit parameters (lumped form; see the identifiability note)",
+               left=1)
+    corr = fit.get("correlation") or []
+    tc = table(["", *names], [[n, *row] for n, row in zip(names, corr, strict=False)],
+               caption="Parameter correlation matrix", left=1) if corr else ""
+    fit_kv = _kv([("Model", fit.get("model", "—")),
+                  ("μ determined", fmt(fit.get("mu_determined"))),
+                  ("χ² / dof / reduced χ²", f"{fmt(fit.get('chi2'))} / {fit.get('dof')} / "
+                                             f"{fmt(fit.get('reduced_chi2'))}"),
+                  ("Weighted by standard errors", fmt(fit.get("weighted"))),
+                  ("Initial slope 2(kA+kS)s/π", fmt(fit.get("initial_slope"))),
+                  ("Function evaluations", fmt(fit.get("nfev"))),
+                  ("Identifiability", fit.get("identifiability", "—")),
+                  ("Fit options", json.dumps(fit.get("fit_options", {}), sort_keys=True))])
+    res = fit.get("residuals") or []
+    tr = table(["Step", "Residual CoA (model − data)", "Weighted residual"],
+               [[s, r, w] for s, r, w in zip(steps["step"].tolist() if "step" in steps else [],
+                                             res, fit.get("weighted_residuals") or res,
+                                             strict=False)],
+               caption="Fit residuals")
+
+    warn_html = ("".join(f'<p class="warn">{escape(w)}</p>' for w in warnings)
+                 if warnings else '<p class="ok">No warnings.</p>')
+    inputs = provenance.get("inputs") or []
+    t_in = table(["File", "SHA-256", "Step", "Cycle"],
+                 [[str(i.get("file")), str(i.get("sha256")), _py(i.get("step")),
+                   _py(i.get("cycle"))] for i in inputs], caption="Input files", left=2)
+    prov_small = {k: v for k, v in provenance.items() if k not in ("inputs", "cycles")}
+    parts = [
+        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>{escape(title)}</title><style>{CSS}</style></head><body>",
+        f"<h1>{escape(title)}</h1>",
+        f"<p>torquemod {escape(str(fit.get('torquemod_version', '')))}, fit created "
+        f"{escape(str(fit.get('created_utc', '')))}; processing by torquemod "
+        f"{escape(str(provenance.get('torquemod_version', '')))} at "
+        f"{escape(str(provenance.get('created_utc', '')))}.</p>",
+        "<h2>Summary</h2>", summary,
+        "<h2>Figures</h2>", *[_img(f["png"], f["alt"], f["caption"]) for f in figures],
+        "<h2>Tables</h2>", t1, t2,
+        "<h2>Polach fit</h2>", fit_kv, tp, tc, tr,
+        "<h2>Theory check and saturation onset</h2>",
+        _kv([("Mode", theory.get("mode", "—")), ("Formula", theory.get("formula", "—")),
+             ("C", fmt(_scalar(theory.get("constant")))),
+             ("C standard error", fmt(theory.get("constant_stderr"))),
+             ("RMS difference [deg]", fmt(theory.get("rms_difference_deg"))),
+             ("Max |difference| [deg]", fmt(theory.get("max_abs_difference_deg"))),
+             ("Onset", onset.get("description", "—"))]),
+        "<h2>Warnings</h2>", warn_html,
+        "<h2>Provenance</h2>", t_in,
+        "<details><summary>provenance.json (without inputs and cycles)</summary><pre>"
+        + escape(json.dumps(prov_small, indent=2, default=str)) + "</pre></details>",
+        "<details><summary>Per-cycle details</summary><pre>"
+        + escape(json.dumps(provenance.get("cycles", []), indent=1, default=str))
+        + "</pre></details>",
+        "</body></html>",
+    ]
+    return "\n".join(parts) + "\n"
+
+
+def _scalar(c):
+    if isinstance(c, list):
+        vals = [v for v in c if v is not None]
+        return sum(vals) / len(vals) if vals else None
+    return c
+
+
+def _py(v, digits: int = 4):
+    """Numpy scalar to a Python one, then to text via :func:`fmt`."""
+    if v is None:
+        return "—"
+    if hasattr(v, "item"):
+        v = v.item()
+    return fmt(v, digits)
