@@ -6,7 +6,6 @@ Pure functions over one cycle's samples; the orchestration over an experiment is
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -17,7 +16,7 @@ from .dsp import filters
 from .dsp.align import alignment_lag
 from .dsp.phase import peak_valley_phase, sinefit_phase
 from .dsp.spectrum import peak_frequency
-from .errors import InputError, ProcessingError, TorquemodWarning
+from .errors import InputError, ProcessingError
 
 
 @dataclass
@@ -26,6 +25,7 @@ class CycleSignals:
     at ``fs_hz`` [Hz], the peak frequencies [Hz] and the creep-curve point."""
 
     fs_hz: float
+    t0_s: float  # time of the first resampled sample after the cycle start [s]
     torque_peak_hz: float
     wheel_peak_hz: float
     modulation_hz: float
@@ -41,6 +41,7 @@ class CycleSignals:
     coa: float
     means: dict = field(default_factory=dict)
     notches_hz: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)  # warnings for the user and provenance
 
 
 def creepage_coa(wheel_speed_rad_s: float, platform_speed_rad_s: float, fx_n: float, fy_n: float,
@@ -64,6 +65,16 @@ def check_cycle_length(n_samples: int, fs_hz: float, f_nominal_hz: float,
                          f"modulation periods after trimming {cfg.phase.edge_trim_periods} "
                          f"period(s) at each end (needs {need:.2f} s)", path=where,
                          hint="record longer cycles")
+
+
+def _rotation_frequency(speed_rad_s: np.ndarray, fs_hz: float, harmonics: tuple[int, ...]
+                        ) -> float:
+    """Rotation frequency [Hz] = mean angular speed / 2 pi, the mean taken free of the
+    encoder's own eccentricity tones (one refinement of the plain mean, whose bias from a
+    large tone over a non-integer number of revolutions would misplace the notches)."""
+    f0 = float(np.mean(speed_rad_s)) / (2 * np.pi)
+    tones = [h * abs(f0) for h in harmonics]
+    return filters.tone_free_mean(speed_rad_s, fs_hz, tones) / (2 * np.pi)
 
 
 def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str) -> CycleSignals:
@@ -90,9 +101,9 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                          path=where, hint="the recording is too short")
     # Step 1: modulation frequency = mean of the torque's and wheel speed's peaks. The wheel's
     # rotation tones are removed before its spectrum (see spectrum.peak_frequency).
-    f_wheel = float(np.mean(ch["wheel_speed_rad_s"])) / (2 * np.pi)
-    f_plat = float(np.mean(ch["platform_speed_rad_s"])) / (2 * np.pi)
     nq = cfg.notch
+    f_wheel = _rotation_frequency(wh, fs_r, nq.wheel_harmonics)
+    f_plat = _rotation_frequency(pl, fs_r, nq.platform_harmonics)
     wheel_notches = filters.notch_frequencies(abs(f_wheel), nq.wheel_harmonics, fs_r)
     plat_notches = filters.notch_frequencies(abs(f_plat), nq.platform_harmonics, fs_r)
     fp = cfg.frequency
@@ -109,11 +120,9 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     f_t, f_w = peaks["torque_nm"], peaks["wheel_speed_rad_s"]
     f_mod = 0.5 * (f_t + f_w)
     # Step 3: notches at the wheel's rotation harmonics, zero phase (platform: see step 8).
-    for f0 in wheel_notches:
-        if abs(f0 - f_mod) < nq.warn_within_hz:
-            warnings.warn(f"{where}: wheel-speed notch at {f0:.3f} Hz lies within "
-                          f"{nq.warn_within_hz} Hz of the modulation frequency {f_mod:.3f} Hz; "
-                          "it also attenuates the modulation", TorquemodWarning, stacklevel=2)
+    notes = [f"{where}: wheel-speed notch at {f0:.3f} Hz lies within {nq.warn_within_hz} Hz "
+             f"of the modulation frequency {f_mod:.3f} Hz; it also attenuates the modulation"
+             for f0 in wheel_notches if abs(f0 - f_mod) < nq.warn_within_hz]
     hp = filters.design_highpass(cfg.highpass.cutoff_hz, cfg.highpass.order, fs_r)
     bp = filters.design_bandpass(f_mod, cfg.bandpass.width_hz, cfg.bandpass.order, fs_r)
     notch_ba = {f0: filters.design_notch(f0, nq.q, fs_r) for f0 in wheel_notches}
@@ -149,9 +158,9 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                            means["fx_n"], means["fy_n"], means["fz_n"],
                            wheel_radius_m=rig.wheel_radius_m,
                            platform_radius_m=rig.platform_radius_m)
-    return CycleSignals(fs_r, f_t, f_w, f_mod, abs(f_wheel), abs(f_plat), tq, wh, tq_n, wh_n,
-                        tq_f, wh_f, xi, coa, means,
-                        {"wheel": wheel_notches, "platform": plat_notches})
+    return CycleSignals(fs_r, edge / fs_r, f_t, f_w, f_mod, abs(f_wheel), abs(f_plat), tq, wh,
+                        tq_n, wh_n, tq_f, wh_f, xi, coa, means,
+                        {"wheel": wheel_notches, "platform": plat_notches}, notes)
 
 
 def align_lags(cycles: list[CycleSignals], cfg: ProcessingConfig) -> list[int]:

@@ -69,8 +69,10 @@ def cmd_process(args: argparse.Namespace) -> int:
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     _print_steps(result.steps)
-    print(f"results in {args.out} (read {result.timing_s['read_s']:.2f} s, "
-          f"compute {result.timing_s['compute_s']:.2f} s)")
+    t = result.timing_s
+    print(f"results in {args.out} ({len(result.cycles)} cycles in {t['wall_s']:.2f} s with "
+          f"{t['workers']} threads: read {t['read_thread_s']:.2f} s, compute "
+          f"{t['compute_thread_s']:.2f} s, summed over threads)")
     return 0
 
 

@@ -76,7 +76,7 @@ class PhaseParams:
     method: str = "paper"
     n_periods: int = 3
     edge_trim_periods: float = 1.0
-    sinefit_input: str = "notched"  # "notched" (measured best) or "bandpassed"
+    sinefit_input: str = "bandpassed"  # or "notched"; band-passed is robust to vibration
     sinefit_trend: bool = True
 
 

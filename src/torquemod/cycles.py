@@ -12,18 +12,22 @@ def revolution_bounds(platform_speed_rad_s: np.ndarray, fs_hz: float) -> list[tu
     """Index ranges [start, stop) of whole platform revolutions.
 
     The platform angle is the cumulative trapezoidal integral of the angular velocity
-    [rad/s]; revolution k ends at the first sample whose angle reaches ``2*pi*k`` (the nearer
-    of the two samples around the crossing). A trailing part shorter than a revolution is
-    not returned.
+    [rad/s]; revolution k ends at the sample boundary nearest to where the angle reaches
+    ``2*pi*k``. A trailing part shorter than a revolution is not returned.
     """
     omega = np.asarray(platform_speed_rad_s, dtype=np.float64)
+    # angle at the sample instants, plus the end of the last sample's interval: a record of
+    # exactly one revolution of samples ends at 2*pi one sample period after its last stamp
     angle = integrate.cumulative_trapezoid(omega, dx=1.0 / fs_hz, initial=0.0)
-    if angle[-1] < 2 * np.pi:
+    angle = np.append(angle, angle[-1] + omega[-1] / fs_hz)
+    # a revolution short by less than one sample's angle (noise integrated over the record)
+    # is complete to the resolution of the data
+    one_sample = abs(omega[-1]) / fs_hz
+    n_rev = int(np.floor((angle[-1] + one_sample) / (2 * np.pi)))
+    if n_rev < 1:
         return []
-    n_rev = int(np.floor(angle[-1] / (2 * np.pi)))
     targets = 2 * np.pi * np.arange(1, n_rev + 1)
-    idx = np.searchsorted(angle, targets)
-    idx = np.minimum(idx, angle.size - 1)
+    idx = np.minimum(np.searchsorted(angle, targets), angle.size - 1)
     before = np.maximum(idx - 1, 0)
     nearer = np.where(np.abs(angle[before] - targets) < np.abs(angle[idx] - targets), before, idx)
     edges = np.concatenate([[0], nearer])

@@ -8,8 +8,10 @@ cycles of a step and measures their phase, then aggregates per step. ``write_res
 
 from __future__ import annotations
 
+import os
 import time
-import warnings
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,8 +23,9 @@ from . import chain
 from .config import ProcessingConfig
 from .cycles import revolution_bounds
 from .data import Experiment, Recording, RecordingEntry
-from .errors import InputError, ProcessingError, TorquemodWarning
-from .io import read_experiment, read_recording
+from .errors import InputError, ProcessingError
+from .fsutil import sha256_file
+from .io import read_entry, read_experiment
 from .io.validate import check_finite
 from .results import write_results
 
@@ -49,6 +52,7 @@ class ProcessResult:
     warnings: list[str]
     timing_s: dict = field(default_factory=dict)
     nan_actions: list[str] = field(default_factory=list)
+    input_sha256: dict[str, str] = field(default_factory=dict)  # file path -> digest
 
 
 def _fill_nan(rec: Recording, where: str) -> list[str]:
@@ -68,10 +72,10 @@ def _fill_nan(rec: Recording, where: str) -> list[str]:
     return notes
 
 
-def _cycles_of(entry: RecordingEntry, rec: Recording, where: str
+def _cycles_of(entry: RecordingEntry, rec: Recording, where: str, notes: list[str]
                ) -> list[tuple[int, Recording, tuple[int, int]]]:
-    """(cycle number, samples, index range) of a recording: the whole file when the manifest names its
-    cycle, else one per whole platform revolution."""
+    """(cycle number, samples, index range) of a recording: the whole file when the manifest
+    names its cycle, else one per whole platform revolution."""
     if entry.cycle is not None:
         return [(entry.cycle, rec, (0, rec.n_samples))]
     bounds = revolution_bounds(rec.channels["platform_speed_rad_s"], rec.fs_hz)
@@ -81,118 +85,176 @@ def _cycles_of(entry: RecordingEntry, rec: Recording, where: str
                          hint="give its 'cycle' in the manifest or record a whole revolution")
     tail = rec.n_samples - bounds[-1][1]
     if tail > 0:
-        warnings.warn(f"{where}: dropped a trailing part of {tail / rec.fs_hz:.3f} s shorter "
-                      "than a platform revolution", TorquemodWarning, stacklevel=2)
+        notes.append(f"{where}: dropped a trailing part of {tail / rec.fs_hz:.3f} s shorter "
+                     "than a platform revolution")
     return [(k + 1, rec.slice(a, b), (a, b)) for k, (a, b) in enumerate(bounds)]
 
 
 def _subsample(x: np.ndarray) -> np.ndarray:
+    """Every k-th sample, at most TRACE_POINTS of them, as float32 (for plotting only)."""
     stride = max(1, int(np.ceil(x.size / TRACE_POINTS)))
-    return x[::stride]
+    return x[::stride].astype(np.float32)
+
+
+def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig
+                      ) -> tuple[float, float, list[str], list]:
+    """Read one recording, apply the NaN policy, split it into cycles and run steps 1-5 and 8
+    on each. Runs in a worker thread, so it reports by return value, not by warnings:
+    (read s, compute s, sha256, NaN actions, notes, cycles)."""
+    where = str(entry.path) + (f":{entry.group}" if entry.group else "")
+    t0 = time.perf_counter()
+    rec = read_entry(exp, entry)
+    digest = sha256_file(entry.path)
+    t1 = time.perf_counter()
+    actions: list[str] = []
+    notes: list[str] = []
+    bad = None
+    if cfg.nan_policy == "raise":
+        check_finite(rec, path=where)
+    else:
+        bad = np.zeros(rec.n_samples, dtype=bool)
+        for x in rec.channels.values():
+            bad |= ~np.isfinite(x)
+        if not bad.any():
+            bad = None
+        elif cfg.nan_policy == "drop-cycle" and entry.cycle is not None:
+            actions.append(f"{where}: dropped step {entry.step} cycle {entry.cycle} "
+                           "(NaN/inf samples)")
+            return t1 - t0, time.perf_counter() - t1, digest, actions, notes, []
+        else:  # interpolate; drop-cycle also fills so that the file can be split
+            actions += _fill_nan(rec, where)
+    out = []
+    for cyc, seg, (a, b) in _cycles_of(entry, rec, where, notes):
+        cwhere = f"{where} (step {entry.step} cycle {cyc})"
+        if cfg.nan_policy == "drop-cycle" and bad is not None and bad[a:b].any():
+            actions.append(f"{cwhere}: dropped (NaN/inf samples)")
+            continue
+        chain.check_cycle_length(seg.n_samples, seg.fs_hz, exp.test.modulation_frequency_hz,
+                                 cfg, where=cwhere)
+        sig = chain.process_cycle(seg, exp.rig, cfg, where=cwhere)
+        notes += sig.notes
+        info = {"step": entry.step, "cycle": cyc, "dc_torque_nm": entry.dc_torque_nm,
+                "source": where, "n_samples": seg.n_samples, "fs_hz": seg.fs_hz,
+                "t0_s": seg.t0_s}
+        raw = {"t_raw_s": _subsample(seg.time_s() - seg.t0_s),
+               "torque_raw_nm": _subsample(seg.channels["torque_nm"]),
+               "wheel_speed_raw_rad_s": _subsample(seg.channels["wheel_speed_rad_s"])}
+        out.append((cyc, sig, info, raw))
+    return t1 - t0, time.perf_counter() - t1, digest, actions, notes, out
+
+
+def _prefetched(exp: Experiment, cfg: ProcessingConfig, workers: int):
+    """Yield (entry, result of :func:`_load_and_process`) in manifest order, with at most
+    ``workers + 1`` recordings in flight so memory stays bounded on long experiments."""
+    entries = list(exp.recordings)
+    if workers <= 1:
+        for e in entries:
+            yield e, _load_and_process(e, exp, cfg)
+        return
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        pending: deque = deque()
+        it = iter(entries)
+        for e in it:
+            pending.append((e, pool.submit(_load_and_process, e, exp, cfg)))
+            if len(pending) > workers:
+                break
+        while pending:
+            e, fut = pending.popleft()
+            nxt = next(it, None)
+            if nxt is not None:
+                pending.append((nxt, pool.submit(_load_and_process, nxt, exp, cfg)))
+            try:
+                yield e, fut.result()
+            except BaseException:
+                for _, f in pending:
+                    f.cancel()
+                raise
 
 
 def process_experiment(experiment: Experiment | str | Path, *,
-                       config: ProcessingConfig | None = None, progress: bool = False
-                       ) -> ProcessResult:
-    """Run the whole chain on an experiment (a parsed manifest or its path)."""
+                       config: ProcessingConfig | None = None, progress: bool = False,
+                       workers: int | None = None) -> ProcessResult:
+    """Run the whole chain on an experiment (a parsed manifest or its path).
+
+    Recordings are read and put through steps 1-5 and 8 by ``workers`` threads (default:
+    the number of CPUs, at most 4; numpy, scipy and pyarrow release the GIL), then each
+    step's cycles are aligned and their phases measured in order.
+    """
+    workers = workers if workers is not None else min(4, os.cpu_count() or 1)
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
     cfg = config or ProcessingConfig()
-    rig, f_nom = exp.rig, exp.test.modulation_frequency_hz
-    caught: list[str] = []
+    notes: list[str] = []
     nan_actions: list[str] = []
     per_step: dict[int, list[tuple[int, chain.CycleSignals, dict]]] = {}
     traces: dict[str, np.ndarray] = {}
+    hashes: dict[str, str] = {}
     t_read = t_compute = 0.0
-    with warnings.catch_warnings(record=True) as wlist:
-        warnings.simplefilter("always", TorquemodWarning)
-        bar = tqdm(exp.recordings, desc="processing", unit="rec", disable=not progress,
-                   leave=False)
-        for entry in bar:
-            where = str(entry.path) + (f":{entry.group}" if entry.group else "")
-            t0 = time.perf_counter()
-            rec = read_recording(entry.path, group=entry.group, channel_map=exp.channel_map)
-            t1 = time.perf_counter()
-            t_read += t1 - t0
-            bad = None
-            if cfg.nan_policy == "raise":
-                check_finite(rec, path=where)
-            else:
-                bad = np.zeros(rec.n_samples, dtype=bool)
-                for x in rec.channels.values():
-                    bad |= ~np.isfinite(x)
-                if not bad.any():
-                    bad = None
-                elif cfg.nan_policy == "drop-cycle" and entry.cycle is not None:
-                    nan_actions.append(f"{where}: dropped step {entry.step} cycle "
-                                       f"{entry.cycle} (NaN/inf samples)")
-                    continue
-                else:  # interpolate; drop-cycle also fills so the file can be split
-                    nan_actions += _fill_nan(rec, where)
-            for cyc, seg, (a, b) in _cycles_of(entry, rec, where):
-                cwhere = f"{where} (step {entry.step} cycle {cyc})"
-                if cfg.nan_policy == "drop-cycle" and bad is not None and bad[a:b].any():
-                    nan_actions.append(f"{cwhere}: dropped (NaN/inf samples)")
-                    continue
-                chain.check_cycle_length(seg.n_samples, seg.fs_hz, f_nom, cfg, where=cwhere)
-                sig = chain.process_cycle(seg, rig, cfg, where=cwhere)
-                info = {"step": entry.step, "cycle": cyc, "dc_torque_nm": entry.dc_torque_nm,
-                        "source": where, "n_samples": seg.n_samples, "fs_hz": seg.fs_hz,
-                        "t0_s": seg.t0_s}
-                per_step.setdefault(entry.step, []).append((cyc, sig, info))
-                key = f"s{entry.step}c{cyc}__"
-                traces[key + "t_raw_s"] = _subsample(seg.time_s() - seg.t0_s)
-                traces[key + "torque_raw_nm"] = _subsample(seg.channels["torque_nm"])
-                traces[key + "wheel_speed_raw_rad_s"] = _subsample(
-                    seg.channels["wheel_speed_rad_s"])
-            t_compute += time.perf_counter() - t1
-        t1 = time.perf_counter()
-        rows, details = [], []
-        for step in sorted(per_step):
-            items = sorted(per_step[step], key=lambda it: it[0])
-            cycles_seen = [c for c, _, _ in items]
-            if len(set(cycles_seen)) != len(cycles_seen):
-                raise InputError(f"step {step} has cycle numbers {cycles_seen} more than once "
-                                 "(a file spanning cycles and single-cycle files overlap)",
-                                 path=exp.manifest_path, hint="give each cycle once")
-            sigs = [s for _, s, _ in items]
-            lags = chain.align_lags(sigs, cfg)
-            n_ref = sigs[0].torque_filtered.size
-            for (cyc, sig, info), lag in zip(items, lags, strict=True):
-                try:
-                    phase, stderr, window = chain.cycle_phase(sig, cfg,
-                                                              center_index=n_ref / 2 + lag)
-                except ProcessingError as exc:
-                    raise InputError(f"phase not measurable: {exc}", path=info["source"],
-                                     hint="check the modulation in both channels") from None
-                rows.append({"step": step, "cycle": cyc, "torque_peak_hz": sig.torque_peak_hz,
-                             "wheel_peak_hz": sig.wheel_peak_hz,
-                             "modulation_hz": sig.modulation_hz, "phase_deg": phase,
-                             "creepage": sig.creepage, "coa": sig.coa})
-                speed = sig.means["platform_speed_rad_s"] * exp.rig.platform_radius_m
-                details.append({**info, "phase_stderr_deg": stderr,
-                                "align_lag_samples": lag, "align_lag_s": lag / sig.fs_hz,
-                                "phase_window_s": list(window),
-                                "resampled_hz": sig.fs_hz,
-                                "wheel_rotation_hz": sig.wheel_rotation_hz,
-                                "platform_rotation_hz": sig.platform_rotation_hz,
-                                "notches_hz": sig.notches_hz, "speed_m_s": speed, **sig.means})
-                key = f"s{step}c{cyc}__"
-                traces[key + "t_s"] = np.arange(sig.torque_filtered.size) / sig.fs_hz
-                traces[key + "torque_resampled_nm"] = sig.torque_resampled
-                traces[key + "wheel_speed_resampled_rad_s"] = sig.wheel_resampled
-                traces[key + "torque_filtered_nm"] = sig.torque_filtered
-                traces[key + "wheel_speed_filtered_rad_s"] = sig.wheel_filtered
-                traces[key + "phase_window_s"] = np.asarray(window)
-        t_compute += time.perf_counter() - t1
-        caught = [str(w.message) for w in wlist if issubclass(w.category, TorquemodWarning)]
+    t_start = time.perf_counter()
+    bar = tqdm(total=len(exp.recordings), desc="processing", unit="rec", disable=not progress,
+               leave=False)
+    for entry, loaded in _prefetched(exp, cfg, workers):
+        read_s, compute_s, digest, actions, rec_notes, cycles_out = loaded
+        hashes[str(entry.path)] = digest
+        t_read += read_s
+        t_compute += compute_s
+        nan_actions += actions
+        notes += rec_notes
+        for cyc, sig, info, raw in cycles_out:
+            per_step.setdefault(entry.step, []).append((cyc, sig, info))
+            key = f"s{entry.step}c{cyc}__"
+            for name, x in raw.items():
+                traces[key + name] = x
+        bar.update()
+    bar.close()
+    t1 = time.perf_counter()
+    rows, details = [], []
+    for step in sorted(per_step):
+        items = sorted(per_step[step], key=lambda it: it[0])
+        cycles_seen = [c for c, _, _ in items]
+        if len(set(cycles_seen)) != len(cycles_seen):
+            raise InputError(f"step {step} has cycle numbers {cycles_seen} more than once "
+                             "(a file spanning cycles and single-cycle files overlap)",
+                             path=exp.manifest_path, hint="give each cycle once")
+        sigs = [s for _, s, _ in items]
+        lags = chain.align_lags(sigs, cfg)
+        n_ref = sigs[0].torque_filtered.size
+        for (cyc, sig, info), lag in zip(items, lags, strict=True):
+            try:
+                phase, stderr, window = chain.cycle_phase(sig, cfg,
+                                                          center_index=n_ref / 2 + lag)
+            except ProcessingError as exc:
+                raise InputError(f"phase not measurable: {exc}", path=info["source"],
+                                 hint="check the modulation in both channels") from None
+            rows.append({"step": step, "cycle": cyc, "torque_peak_hz": sig.torque_peak_hz,
+                         "wheel_peak_hz": sig.wheel_peak_hz,
+                         "modulation_hz": sig.modulation_hz, "phase_deg": phase,
+                         "creepage": sig.creepage, "coa": sig.coa})
+            speed = sig.means["platform_speed_rad_s"] * exp.rig.platform_radius_m
+            details.append({**info, "phase_stderr_deg": stderr,
+                            "align_lag_samples": lag, "align_lag_s": lag / sig.fs_hz,
+                            "phase_window_s": [sig.t0_s + w for w in window],
+                            "resampled_hz": sig.fs_hz,
+                            "wheel_rotation_hz": sig.wheel_rotation_hz,
+                            "platform_rotation_hz": sig.platform_rotation_hz,
+                            "notches_hz": sig.notches_hz, "speed_m_s": speed, **sig.means})
+            key = f"s{step}c{cyc}__"
+            traces[key + "t_s"] = sig.t0_s + np.arange(sig.torque_filtered.size) / sig.fs_hz
+            traces[key + "torque_resampled_nm"] = sig.torque_resampled
+            traces[key + "wheel_speed_resampled_rad_s"] = sig.wheel_resampled
+            traces[key + "torque_filtered_nm"] = sig.torque_filtered
+            traces[key + "wheel_speed_filtered_rad_s"] = sig.wheel_filtered
+            traces[key + "phase_window_s"] = sig.t0_s + np.asarray(window)
+    t_compute += time.perf_counter() - t1
     if not rows:
         raise InputError("no cycle could be processed", path=exp.manifest_path,
                          hint="every cycle was dropped; see --nan-policy")
     cycles = pd.DataFrame(rows, columns=CYCLE_COLUMNS)
     dc = {e.step: e.dc_torque_nm for e in exp.recordings}
     steps = aggregate_steps(cycles, dc)
-    return ProcessResult(exp, cfg, cycles, steps, details, traces, caught + nan_actions,
-                         {"read_s": t_read, "compute_s": t_compute}, nan_actions)
+    timing = {"wall_s": time.perf_counter() - t_start, "read_thread_s": t_read,
+              "compute_thread_s": t_compute, "workers": workers}
+    return ProcessResult(exp, cfg, cycles, steps, details, traces, notes + nan_actions,
+                         timing, nan_actions, hashes)
 
 
 def aggregate_steps(cycles: pd.DataFrame, dc_torque_nm: dict[int, float]) -> pd.DataFrame:

@@ -59,7 +59,7 @@ def provenance(result: ProcessResult, *, command: list[str] | None = None) -> di
     inputs, hashed = [], {}
     for e in exp.recordings:
         if e.path not in hashed:
-            hashed[e.path] = sha256_file(e.path)
+            hashed[e.path] = result.input_sha256.get(str(e.path)) or sha256_file(e.path)
         inputs.append({"file": str(e.path), "group": e.group, "sha256": hashed[e.path],
                        "step": e.step, "cycle": e.cycle, "dc_torque_nm": e.dc_torque_nm})
     return {
@@ -99,7 +99,7 @@ def write_results(result: ProcessResult, out_dir: str | Path, *, force: bool = F
         result.cycles.to_csv(tmp / "cycles.csv", index=False, float_format="%.10g")
         result.steps.to_csv(tmp / "steps.csv", index=False, float_format="%.10g")
         (tmp / "provenance.json").write_text(dump_json(prov), encoding="utf-8")
-        np.savez_compressed(tmp / "traces.npz", **result.traces)
+        np.savez(tmp / "traces.npz", **result.traces)
         if post is not None:
             post(tmp)
     return Path(out_dir)

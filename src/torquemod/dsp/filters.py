@@ -111,10 +111,14 @@ def settling_samples(ba: tuple[np.ndarray, np.ndarray], *, tol: float = 1e-6,
 
 
 def resampler_edge_samples(up: int, down: int) -> int:
-    """Output samples at each end touched by the zero padding of :func:`resample`'s FIR
-    (``resample_poly`` uses ``10*max(up, down)`` taps either side of the centre)."""
+    """Output samples at each end touched by the zero padding of :func:`resample`'s FIR.
+
+    ``resample_poly`` uses ``10*max(up, down)`` taps either side of the centre at the
+    upsampled rate; one output sample is ``down`` upsampled samples, so the FIR reaches
+    ``ceil(10*max(up, down)/down)`` output samples into the padding (plus one of margin).
+    """
     half_taps = 10 * max(up, down)
-    return int(np.ceil(half_taps * up / down)) + 1
+    return int(np.ceil(half_taps / down)) + 1
 
 
 def fit_line_and_tones(x: np.ndarray, fs_hz: float, tones_hz: list[float]

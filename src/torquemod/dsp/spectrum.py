@@ -22,7 +22,8 @@ def windowed_dtft(x: np.ndarray, fs_hz: float, f_hz: float, window: np.ndarray) 
 
 def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] = (1.5, 2.5),
                    window: str = "hann", detrend: str = "linear", zero_pad: int = 8,
-                   xtol_hz: float = 1e-6, remove_tones_hz: tuple[float, ...] = ()) -> float:
+                   xtol_hz: float = 1e-6, remove_tones_hz: tuple[float, ...] = (),
+                   min_peak_to_floor: float = 30.0) -> float:
     """Frequency [Hz] of the largest spectral peak of ``x`` inside ``band_hz``.
 
     ``detrend`` is ``"linear"`` or ``"constant"`` (mean removal, as the paper's FFT step
@@ -30,21 +31,27 @@ def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] 
     is ``fs/(zero_pad*N)``; the refinement maximises ``|X_w(f)|`` within one coarse cell either
     side. ``remove_tones_hz`` are known lines outside the band (e.g. encoder eccentricity
     at the rotation harmonics) removed by least squares first, so that their window leakage,
-    100 times the modulation in size, cannot pull the peak. Raises :class:`ProcessingError`
-    when the band holds no interior maximum (no line).
+    100 times the modulation in size, cannot pull the peak (they are fitted together with
+    the line that ``detrend`` removes).
+
+    Raises :class:`ProcessingError` when the band holds no spectral line: the maximum is at a
+    band edge, or its power is less than ``min_peak_to_floor`` times the band's floor (the
+    median power of the band outside the peak's main lobe), as for noise, drift or the
+    sidelobes of a line outside the band; or a stronger line lies within two main-lobe widths
+    of it just outside the band (the maximum is that line's leakage).
     """
     x = np.asarray(x, dtype=np.float64)
     n = x.size
     lo, hi = band_hz
     if not 0 <= lo < hi <= fs_hz / 2:
         raise ValueError(f"band {band_hz} Hz must lie within 0..fs/2 = {fs_hz / 2} Hz")
-    xd = signal.detrend(x, type=detrend)
     tones = [f for f in remove_tones_hz if not lo - 0.5 <= f <= hi + 0.5 and 0 < f < fs_hz / 2]
-    if tones:
-        t = np.arange(n) / fs_hz
-        cols = np.column_stack([g(2 * np.pi * f * t) for f in tones for g in (np.cos, np.sin)])
-        coef, *_ = np.linalg.lstsq(cols, xd, rcond=None)
-        xd = xd - cols @ coef
+    t = np.arange(n) / fs_hz
+    cols = [np.ones(n)] + ([t - t.mean()] if detrend == "linear" else [])
+    cols += [g(2 * np.pi * f * t) for f in tones for g in (np.cos, np.sin)]
+    design = np.column_stack(cols)
+    coef, *_ = np.linalg.lstsq(design, x, rcond=None)
+    xd = x - design @ coef
     w = signal.get_window(window, n, fftbins=False)
     nfft = int(2 ** np.ceil(np.log2(zero_pad * n)))
     spec = np.abs(np.fft.rfft(xd * w, nfft))
@@ -58,6 +65,20 @@ def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] 
         raise ProcessingError(f"no spectral peak inside {lo}-{hi} Hz (the largest value is at "
                               f"the band edge, {freqs[k]:.4f} Hz)")
     df = freqs[1] - freqs[0]
+    lobe = 2.0 * fs_hz / n  # Hann main-lobe half-width: 2 bins of the unpadded record
+    near = np.flatnonzero(np.abs(freqs - freqs[k]) <= 2 * lobe)
+    j = int(near[np.argmax(spec[near])])
+    if spec[j] > spec[k]:
+        raise ProcessingError(f"no spectral line inside {lo}-{hi} Hz (the largest value, at "
+                              f"{freqs[k]:.4f} Hz, is leakage from a stronger line at "
+                              f"{freqs[j]:.4f} Hz outside the band)")
+    floor_sel = idx[np.abs(freqs[idx] - freqs[k]) > lobe]
+    if floor_sel.size:
+        floor = float(np.median(spec[floor_sel] ** 2))
+        if floor > 0 and spec[k] ** 2 < min_peak_to_floor * floor:
+            raise ProcessingError(f"no spectral line inside {lo}-{hi} Hz (the largest peak, at "
+                                  f"{freqs[k]:.4f} Hz, is only {spec[k] ** 2 / floor:.1f} times "
+                                  f"the band's median power; needs {min_peak_to_floor:g})")
 
     def neg_mag(f: float) -> float:
         return -abs(windowed_dtft(xd, fs_hz, f, w))
