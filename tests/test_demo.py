@@ -28,6 +28,10 @@ THETA = np.array([MU, 250.0, 100.0])  # mu, kA*s, kS*s
 R_W, N_LOAD, SPEED, J = 0.0675, 4200.0, 7.0 / 3.6, 4.0
 
 
+def _true_creepages(fractions=(0.01, 0.3, 0.55, 0.7, 0.8, 0.9)) -> list[float]:
+    return [brentq(lambda x, f=f: polach_coa(x, THETA) - f * MU, 0.0, 1.0) for f in fractions]
+
+
 def _experiment(folder: Path, fractions=(0.01, 0.3, 0.55, 0.7, 0.8, 0.9), n_cycles=2) -> Path:
     """Recordings whose creepage, CoA and phase follow a known Polach curve and the
     rigid-wheel phase law; returns the manifest path."""
@@ -68,7 +72,9 @@ def test_process_fit_report_chain_integration(tmp_path):
     assert summary["saturation_torque_nm"] == pytest.approx(MU * N_LOAD * R_W, rel=0.02)
     assert summary["theory_mode"] == "rig"
     assert summary["theory_rms_deg"] < 3.0
-    assert summary["onset_step"] == 4
+    # Eq. (1): onset where the true creep coefficient has halved (tan_ratio = 2)
+    k_true = np.array([polach_slope(x, THETA) for x in _true_creepages()])
+    assert summary["onset_step"] == 1 + int(np.flatnonzero(k_true < k_true[0] / 2)[0])
     report = write_report(tmp_path / "results")
     text = report.read_text(encoding="utf-8")
     assert text.count("data:image/png;base64,") == 3

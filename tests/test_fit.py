@@ -190,16 +190,37 @@ def test_saturation_onset_criteria():
     phase = [10.0, 10.5, 11.0, 25.0, 27.0, 28.0]
     std = [0.5] * 6
     k = [200.0, 190.0, 170.0, 40.0, 30.0, 25.0]
-    on = saturation_onset(steps, phase, std, k)
+    on = saturation_onset(steps, phase, std, k, criterion="phase")
     assert on.step == 4 and on.threshold_deg == pytest.approx(5.0)
     assert saturation_onset(steps, phase, std, k, criterion="creep_coefficient").step == 4
-    assert saturation_onset(steps, phase, std, k, min_jump_deg=20.0).step is None
+    assert saturation_onset(steps, phase, std, k, criterion="phase",
+                            min_jump_deg=20.0).step is None
     # k_sigma * pooled std dominates
-    assert saturation_onset(steps, phase, [6.0] * 6, k, k_sigma=3.0).step is None
+    assert saturation_onset(steps, phase, [6.0] * 6, k, k_sigma=3.0,
+                            criterion="phase").step is None
     assert saturation_onset(steps, phase, std, k, criterion="both").step == 4
     assert "step 4" in on.describe()
     with pytest.raises(InputError):
         saturation_onset(steps, phase, std, k, criterion="bogus")
+
+
+def test_saturation_onset_tan_ratio_is_the_default_and_follows_eq1():
+    steps = [1, 2, 3, 4, 5, 6]
+    std = [0.5] * 6
+    # a sharp jump: tan(25 deg)/tan(10.25 deg) = 2.6 >= 2 at step 4
+    on = saturation_onset(steps, [10.0, 10.5, 11.0, 25.0, 27.0, 28.0], std)
+    assert on.criterion == "tan_ratio" and on.step == 4
+    base = np.median(np.tan(np.radians([10.0, 10.5])))
+    assert on.tan_ratios[3] == pytest.approx(np.tan(np.radians(25.0)) / base)
+    # a gradual rise (as a Polach curve gives): phases from k halving only at step 4
+    k = np.array([22.9, 22.9, 14.3, 8.4, 5.3, 2.2])
+    phase = np.degrees(np.arctan(4.6 / k))
+    assert saturation_onset(steps, phase, std).step == 4
+    # the same rise in noisier phases: flagged only where it clears 3 x the pooled std
+    assert saturation_onset(steps, phase, [8.0] * 6).step == 5  # 29.6 deg > 24 deg
+    assert saturation_onset(steps, phase, [25.0] * 6).step is None
+    # a stricter ratio moves the onset later
+    assert saturation_onset(steps, phase, std, tan_ratio=4.0).step == 5
 
 
 # --- the fit stage on a results folder -----------------------------------------------------
@@ -215,7 +236,9 @@ def test_fit_results_folder_rig_mode(tmp_path):
     assert summary["saturation_torque_nm"] == pytest.approx(ts)
     assert summary["theory_mode"] == "rig"
     assert summary["theory_rms_deg"] < 2.0
-    assert summary["onset_step"] == 4
+    # Eq. (1): the true creep coefficient (kA = 1, kS = 0.4) falls to 27 % of its low-torque
+    # value at step 3 (55 % of saturation), so the tan-ratio onset (factor 2) is step 3
+    assert summary["onset_step"] == 3
     json.dumps(summary, allow_nan=False)
 
     doc = json.loads((d / "fit.json").read_text())

@@ -120,7 +120,7 @@ def test_report_contains_every_figure_and_table(results):
     for key in ("Coefficient of friction μ", "Saturation torque", "Saturation onset",
                 "RMS difference", "Provenance", "Warnings"):
         assert key in text
-    assert "step 4" in text  # the onset of the synthetic data
+    assert "step 3" in text  # the onset of the synthetic data (true k halved at step 3)
     n_cycles = len(pd.read_csv(results / "cycles.csv"))
     assert text.count("<tr>") >= n_cycles + 6
 

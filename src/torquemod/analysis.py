@@ -54,6 +54,7 @@ class FitOptions:
     """
 
     velocity_dependent: bool = False
+    lateral: bool = True  # model CoA = sqrt(f(xi)^2 + (Fy/Fz)^2) with the measured Fy/Fz
     n_starts: int = 12
     seed: int = 0
     weighted: bool = True
@@ -65,10 +66,12 @@ class FitOptions:
     stiffness: float | None = None
     inertia_kg_m2: float | None = None
     theory_constant: float | None = None
-    onset_criterion: str = "phase"
+    onset_criterion: str = "tan_ratio"
     onset_k_sigma: float = 3.0
     onset_min_jump_deg: float = 5.0
     onset_rel_k_drop: float = 0.5
+    onset_tan_ratio: float = 2.0
+    onset_baseline_steps: int = 2
 
     @classmethod
     def coerce(cls, options) -> FitOptions:
@@ -118,17 +121,21 @@ def write_json_atomic(path: Path, data: dict) -> None:
 
 
 def _per_step(prov: dict, cycles: pd.DataFrame | None, steps: np.ndarray) -> dict:
-    """Mean speed [m/s], normal load [N] and modulation frequency [Hz] per step."""
+    """Mean speed [m/s], normal load [N], modulation frequency [Hz] and lateral share of the
+    CoA, |Fy|/Fz [-], per step."""
     exp = prov.get("experiment", {})
     rig, test = exp.get("rig", {}), exp.get("test", {})
     out = {"speed_m_s": np.full(steps.size, np.nan), "fz_n": np.full(steps.size, np.nan),
-           "freq_hz": np.full(steps.size, np.nan)}
+           "freq_hz": np.full(steps.size, np.nan), "lateral_coa": np.full(steps.size, np.nan)}
     pc = pd.DataFrame(prov.get("cycles") or [])
     if not pc.empty and "step" in pc:
         if "speed_m_s" not in pc and "platform_speed_rad_s" in pc and "platform_radius_m" in rig:
             pc["speed_m_s"] = pc["platform_speed_rad_s"].abs() * float(rig["platform_radius_m"])
+        if "fy_n" in pc and "fz_n" in pc:
+            pc["lateral_coa"] = (pc["fy_n"] / pc["fz_n"]).abs()
         g = pc.groupby("step").mean(numeric_only=True)
-        for key, col in (("speed_m_s", "speed_m_s"), ("fz_n", "fz_n")):
+        for key, col in (("speed_m_s", "speed_m_s"), ("fz_n", "fz_n"),
+                         ("lateral_coa", "lateral_coa")):
             if col in g:
                 out[key] = g[col].reindex(steps).to_numpy(float)
     if cycles is not None and "modulation_hz" in cycles:
@@ -174,6 +181,8 @@ def fit_results_folder(results_dir, *, options=None) -> dict:
         xi_std=pts.creepage_se if use_w else None, coa_std=pts.coa_se if use_w else None,
         velocity_dependent=opts.velocity_dependent,
         speeds_m_s=per["speed_m_s"] if opts.velocity_dependent else None,
+        lateral_coa=per["lateral_coa"] if opts.lateral and np.all(
+            np.isfinite(per["lateral_coa"])) else None,
         stiffness=None if stiffness is None else float(stiffness), n_starts=opts.n_starts,
         seed=opts.seed, sigma_floor=opts.sigma_floor, max_rel_stderr=opts.max_rel_stderr,
         min_saturation_fraction=opts.min_saturation_fraction,
@@ -216,7 +225,9 @@ def fit_results_folder(results_dir, *, options=None) -> dict:
     onset = saturation_onset(pts.step, pts.phase_deg, pts.phase_std_deg, k,
                              criterion=opts.onset_criterion, k_sigma=opts.onset_k_sigma,
                              min_jump_deg=opts.onset_min_jump_deg,
-                             rel_k_drop=opts.onset_rel_k_drop)
+                             rel_k_drop=opts.onset_rel_k_drop,
+                             tan_ratio=opts.onset_tan_ratio,
+                             baseline_steps=opts.onset_baseline_steps)
     if onset.step is None:
         warnings.append("no saturation onset found by the criterion: " + onset.describe())
 

@@ -29,7 +29,7 @@ __all__ = [
 ]
 
 REQUIRED_COLUMNS = ("step", "creepage", "coa")
-ONSET_CRITERIA = ("phase", "creep_coefficient", "either", "both")
+ONSET_CRITERIA = ("tan_ratio", "phase", "creep_coefficient", "either", "both")
 
 
 @dataclass(frozen=True)
@@ -180,6 +180,7 @@ class OnsetResult:
     phase_jumps_deg: list = field(default_factory=list)
     creep_coefficient_ratios: list = field(default_factory=list)
     parameters: dict = field(default_factory=dict)
+    tan_ratios: list = field(default_factory=list)
 
     def describe(self) -> str:
         p = self.parameters
@@ -187,8 +188,12 @@ class OnsetResult:
                 f"{self.pooled_phase_std_deg:.3g} deg, {p['min_jump_deg']:g} deg) = "
                 f"{self.threshold_deg:.3g} deg")
         krule = (f"creep coefficient below {1 - p['rel_k_drop']:.0%} of the previous step's")
-        text = {"phase": rule, "creep_coefficient": krule, "either": f"{rule}, or {krule}",
-                "both": f"{rule}, and {krule}"}[self.criterion]
+        trule = (f"tan(phase) at least {p.get('tan_ratio', 2.0):g} x its low-torque value "
+                 f"(the median over the first {p.get('baseline_steps', 2)} steps), i.e. the "
+                 "creep coefficient (Eq. 1) fallen by that factor, and the rise above "
+                 f"{p['k_sigma']:g} x the pooled phase std")
+        text = {"tan_ratio": trule, "phase": rule, "creep_coefficient": krule,
+                "either": f"{rule}, or {krule}", "both": f"{rule}, and {krule}"}[self.criterion]
         where = f"step {self.step}" if self.step is not None else "no step"
         return f"saturation onset: {where} (criterion: {text})"
 
@@ -198,16 +203,22 @@ class OnsetResult:
                 "pooled_phase_std_deg": self.pooled_phase_std_deg,
                 "phase_jumps_deg": self.phase_jumps_deg,
                 "creep_coefficient_ratios": self.creep_coefficient_ratios,
+                "tan_ratios": self.tan_ratios,
                 "parameters": self.parameters, "description": self.describe()}
 
 
 def saturation_onset(step, phase_deg, phase_std_deg=None, creep_coefficient=None, *,
-                     criterion: str = "phase", k_sigma: float = 3.0,
-                     min_jump_deg: float = 5.0, rel_k_drop: float = 0.5) -> OnsetResult:
+                     criterion: str = "tan_ratio", k_sigma: float = 3.0,
+                     min_jump_deg: float = 5.0, rel_k_drop: float = 0.5,
+                     tan_ratio: float = 2.0, baseline_steps: int = 2) -> OnsetResult:
     """First step at which the phase rises sharply (the onset of friction saturation).
 
     Steps are taken in the given (DC-torque) order. Step i (i >= 1) is flagged by
 
+    * ``"tan_ratio"`` (default): ``tan(phi_i) >= tan_ratio * tan(phi_0)`` with ``tan(phi_0)``
+      the median over the first ``baseline_steps`` steps, and ``phi_i - phi_0 >
+      k_sigma * s_pooled``. By Eq. (1) of the V-Track paper (tan(phi) ~ 1/k) this is where the
+      creep coefficient has fallen to ``1/tan_ratio`` of its low-torque (linear) value;
     * ``"phase"``: ``phi_i - phi_{i-1} > max(k_sigma * s_pooled, min_jump_deg)`` where
       ``s_pooled = sqrt(mean(phase_std^2))`` over the steps (0 when unknown);
     * ``"creep_coefficient"``: ``k_i < (1 - rel_k_drop) * k_{i-1}`` (slope of the fitted curve);
@@ -227,15 +238,24 @@ def saturation_onset(step, phase_deg, phase_std_deg=None, creep_coefficient=None
     if creep_coefficient is None:
         k_hit = np.zeros(phi.shape, dtype=bool)
         ratios = np.full(max(phi.size - 1, 0), np.nan)
-        if criterion != "phase":
+        if criterion not in ("phase", "tan_ratio"):
             raise InputError(f"criterion {criterion!r} needs the creep coefficients")
     else:
         k = np.asarray(creep_coefficient, dtype=float)
         with np.errstate(invalid="ignore", divide="ignore"):
             ratios = k[1:] / k[:-1]
         k_hit = np.concatenate([[False], np.nan_to_num(ratios, nan=np.inf) < 1 - rel_k_drop])
-    hit = {"phase": phase_hit, "creep_coefficient": k_hit, "either": phase_hit | k_hit,
-           "both": phase_hit & k_hit}[criterion]
+    nb = int(min(max(baseline_steps, 1), phi.size))
+    tan_phi = np.tan(np.radians(phi))
+    base_tan = float(np.median(tan_phi[:nb])) if phi.size else np.nan
+    base_phi = float(np.median(phi[:nb])) if phi.size else np.nan
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t_ratios = tan_phi / base_tan if base_tan > 0 else np.full(phi.shape, np.nan)
+    tan_hit = (np.nan_to_num(t_ratios, nan=-np.inf) >= tan_ratio) & (
+        np.nan_to_num(phi - base_phi, nan=-np.inf) > k_sigma * pooled)
+    tan_hit[:nb] = False
+    hit = {"tan_ratio": tan_hit, "phase": phase_hit, "creep_coefficient": k_hit,
+           "either": phase_hit | k_hit, "both": phase_hit & k_hit}[criterion]
     idx = np.flatnonzero(hit)
     i = int(idx[0]) if idx.size else None
     return OnsetResult(
@@ -243,4 +263,6 @@ def saturation_onset(step, phase_deg, phase_std_deg=None, creep_coefficient=None
         threshold_deg=float(threshold), pooled_phase_std_deg=pooled,
         phase_jumps_deg=[None if not np.isfinite(v) else float(v) for v in jumps],
         creep_coefficient_ratios=[None if not np.isfinite(v) else float(v) for v in ratios],
-        parameters={"k_sigma": k_sigma, "min_jump_deg": min_jump_deg, "rel_k_drop": rel_k_drop})
+        parameters={"k_sigma": k_sigma, "min_jump_deg": min_jump_deg, "rel_k_drop": rel_k_drop,
+                    "tan_ratio": tan_ratio, "baseline_steps": baseline_steps},
+        tan_ratios=[None if not np.isfinite(v) else float(v) for v in t_ratios])

@@ -295,7 +295,8 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
                speeds_m_s=None, stiffness: float | None = None, n_starts: int = 12,
                seed: int = 0, sigma_floor: float = 1e-4, max_rel_stderr: float = 0.10,
                min_saturation_fraction: float = 0.5, min_peak_fraction: float = 0.9,
-               creepage_limit: float = 0.1, max_nfev: int = 2000) -> PolachFit:
+               creepage_limit: float = 0.1, max_nfev: int = 2000,
+               lateral_coa=None) -> PolachFit:
     """Fit Polach's model (P05 Eqs. 3, 8; Eq. 9 when velocity-dependent) to creep points.
 
     Parameters
@@ -313,6 +314,11 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
         ``k_s`` are reported instead of the identifiable products.
     n_starts, seed : int
         Number of starting points (a fixed grid, then random ones from ``seed``).
+    lateral_coa : array_like, optional
+        Measured ``|Fy|/Fz`` [-] per point. ``coa`` is then taken as Eq. (4) of the V-Track
+        paper, ``sqrt(Fx^2 + Fy^2)/Fz``, and modelled as ``sqrt(f(xi)^2 + lateral^2)`` with f
+        the longitudinal Polach curve: at low torque the lateral force dominates the CoA and
+        would otherwise be read as a steep creep curve.
     sigma_floor, max_rel_stderr, min_saturation_fraction, min_peak_fraction, creepage_limit
         See the module docstring.
 
@@ -332,6 +338,8 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
     xi_std = _clean("xi_std", xi_std, xi.size)
     coa_std = _clean("coa_std", coa_std, xi.size)
     speeds = _clean("speeds_m_s", speeds_m_s, xi.size)
+    lateral = _clean("lateral_coa", lateral_coa, xi.size)
+    lateral = np.zeros(xi.size) if lateral is None else np.abs(np.nan_to_num(lateral))
     n_par = 5 if velocity_dependent else 3
     if xi.size < n_par + 1:
         raise InputError(f"the Polach fit needs at least {n_par + 1} points, got {xi.size}",
@@ -363,9 +371,12 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
     lo = [MU_BOUNDS[0], 0.0, 0.0] + ([0.0, 0.0] if velocity_dependent else [])
     hi = [MU_BOUNDS[1], np.inf, np.inf] + ([1.0, B_MAX_S_M] if velocity_dependent else [])
 
+    def model(th):
+        return np.hypot(polach_coa(xi, th, speed_m_s=spd), lateral)
+
     def run(sig, starts):
         def resid(th):
-            return (polach_coa(xi, th, speed_m_s=spd) - coa) / sig
+            return (model(th) - coa) / sig
         results = []
         for x0 in starts:
             x0 = np.clip(x0, lo, np.where(np.isfinite(hi), hi, x0))
@@ -387,7 +398,9 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
                               f"starting points (last message: {results[-1][2]})")
     if weighted and sig_xi is not None and np.any(sig_xi > 0):
         # effective variance with the slope of the first pass, then refit from its solution
-        k = polach_slope(xi, best[1].x, speed_m_s=spd)
+        f = polach_coa(xi, best[1].x, speed_m_s=spd)
+        k = polach_slope(xi, best[1].x, speed_m_s=spd) * np.abs(f) / np.maximum(
+            np.hypot(f, lateral), 1e-300)
         sigma = floor(np.sqrt(sigma**2 + (k * sig_xi) ** 2))
         results2 = run(sigma, [best[1].x, *starts[:3]])
         best = min(results2, key=lambda t: t[0])
@@ -454,7 +467,7 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
         params={k: float(v) for k, v in zip(names, values, strict=True)},
         stderr={k: float(v) for k, v in zip(names, se, strict=True)},
         covariance=cov, correlation=corr, theta=theta,
-        residuals=polach_coa(xi, theta, speed_m_s=spd) - coa, weighted_residuals=wres,
+        residuals=model(theta) - coa, weighted_residuals=wres,
         sigma=sigma, xi=xi, coa=coa, speeds_m_s=speeds,
         converged=bool(res.status > 0), status=int(res.status), message=str(res.message),
         nfev=int(res.nfev), chi2=chi2, reduced_chi2=float(red), dof=int(dof),
@@ -467,7 +480,7 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
                  "sigma_floor": sigma_floor, "max_rel_stderr": max_rel_stderr,
                  "min_saturation_fraction": min_saturation_fraction,
                  "min_peak_fraction": min_peak_fraction, "creepage_limit": creepage_limit,
-                 "max_nfev": max_nfev,
+                 "max_nfev": max_nfev, "lateral_coa": bool(np.any(lateral > 0)),
                  "stiffness": stiffness, "mu_bounds": list(MU_BOUNDS),
                  "covariance_scale": "max(1, reduced chi2)" if weighted else "reduced chi2"},
     )
