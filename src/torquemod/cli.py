@@ -34,17 +34,32 @@ def _print_steps(steps) -> None:
               f"{_fmt(r.coa, '7.4f')} {r.n_cycles:>6}")
 
 
-def _post_stages(args: argparse.Namespace):
-    """The fit and report stages run on a results folder (before it is published)."""
+def _post_stages(args: argparse.Namespace, summary: dict):
+    """The fit and report stages run on a results folder (before it is published); the
+    fit's summary is stored into ``summary``."""
     if getattr(args, "no_fit", False):
         return None
 
     def post(folder: Path) -> None:
         from .analysis import fit_results_folder
         from .report import write_report
-        fit_results_folder(folder)
+        summary.update(fit_results_folder(folder))
         write_report(folder)
     return post
+
+
+def _print_fit(summary: dict) -> None:
+    if not summary:
+        return
+    if summary.get("mu_determined"):
+        print(f"Polach fit: mu = {summary['mu']:.4f} +- {summary['mu_stderr']:.4f}, "
+              f"saturation torque Ts = {summary['saturation_torque_nm']:.2f} N*m")
+    else:
+        print(f"Polach fit: mu not determined by these points; mu >= "
+              f"{_fmt(summary.get('mu_lower_bound'), '.4f')}")
+    onset = summary.get("onset_step")
+    print(f"saturation onset: {'step ' + str(onset) if onset is not None else 'not reached'}; "
+          f"theory vs measured phase: RMS {_fmt(summary.get('theory_rms_deg'), '.2f')} deg")
 
 
 def cmd_process(args: argparse.Namespace) -> int:
@@ -64,11 +79,13 @@ def cmd_process(args: argparse.Namespace) -> int:
         import dataclasses
         cfg = dataclasses.replace(cfg, nan_policy=args.nan_policy)
     result = process_experiment(exp, config=cfg, progress=not args.quiet)
+    fit_summary: dict = {}
     write_results(result, args.out, force=args.force, command=sys.argv,
-                  post=_post_stages(args))
+                  post=_post_stages(args, fit_summary))
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     _print_steps(result.steps)
+    _print_fit(fit_summary)
     t = result.timing_s
     print(f"results in {args.out} ({len(result.cycles)} cycles in {t['wall_s']:.2f} s with "
           f"{t['workers']} threads: read {t['read_thread_s']:.2f} s, compute "
