@@ -8,6 +8,9 @@
 * ``creep_coefficient`` dCoA/dxi of the fitted curve at the step's creepage [-],
 * ``phase_theory_deg`` the rigid-wheel phase ``atan(C/k)`` [deg] (see :mod:`torquemod.creep`).
 
+Steps whose ``slip`` column is true (wheel slip found by ``torquemod process``) keep their
+rows but are left out of the Polach fit, with a warning in ``fit.json``.
+
 Rig keys read from ``provenance.json`` ``experiment.rig``: ``wheel_radius_m``,
 ``platform_radius_m``, and optionally ``wheel_inertia_kg_m2`` (J [kg m^2], the inertia of
 everything turning with the wheel, referred to the wheel axis) and ``contact_stiffness``
@@ -149,6 +152,30 @@ def _per_step(prov: dict, cycles: pd.DataFrame | None, steps: np.ndarray) -> dic
     return out
 
 
+def _slip_flags(steps_df: pd.DataFrame) -> dict[int, bool]:
+    """step -> slip flag from the ``slip`` column of steps.csv (absent: no step flagged)."""
+    if "slip" not in steps_df.columns:
+        return {}
+    flags = steps_df["slip"].map(lambda v: str(v).strip().lower() in ("true", "1", "1.0"))
+    return {int(s): bool(f) for s, f in zip(steps_df["step"], flags, strict=True)}
+
+
+def _fit(opts: FitOptions, pts, per: dict, use: np.ndarray, use_w: bool,
+         lateral: np.ndarray, stiffness):
+    """The Polach fit over the steps in ``use``."""
+    return fit_polach(
+        pts.creepage[use], pts.coa[use],
+        xi_std=pts.creepage_se[use] if use_w else None,
+        coa_std=pts.coa_se[use] if use_w else None,
+        velocity_dependent=opts.velocity_dependent,
+        speeds_m_s=per["speed_m_s"][use] if opts.velocity_dependent else None,
+        lateral_coa=lateral if opts.lateral and np.all(np.isfinite(lateral)) else None,
+        stiffness=None if stiffness is None else float(stiffness), n_starts=opts.n_starts,
+        seed=opts.seed, sigma_floor=opts.sigma_floor, max_rel_stderr=opts.max_rel_stderr,
+        min_saturation_fraction=opts.min_saturation_fraction,
+        min_peak_fraction=opts.min_peak_fraction, creepage_limit=opts.creepage_limit)
+
+
 def fit_results_folder(results_dir, *, options=None) -> dict:
     """Fit the creep curve of a processed experiment and write ``fit.json`` + ``steps.csv``.
 
@@ -174,19 +201,23 @@ def fit_results_folder(results_dir, *, options=None) -> dict:
 
     pts = creep_points(steps_df)
     per = _per_step(prov, cycles, pts.step)
+    # steps flagged as slipping by `torquemod process` stay in the tables but not in the fit
+    slip_by_step = _slip_flags(steps_df)
+    use = np.array([not slip_by_step.get(int(s), False) for s in pts.step], dtype=bool)
+    if not use.all():
+        warnings.append(f"step(s) {[int(s) for s in pts.step[~use]]} flagged as slipping "
+                        "(steps.csv 'slip'; see provenance.json warnings) are left out of the "
+                        "Polach fit")
     stiffness = opts.stiffness if opts.stiffness is not None else rig.get("contact_stiffness")
-    use_w = opts.weighted and np.any(np.isfinite(pts.coa_se))
-    fit = fit_polach(
-        pts.creepage, pts.coa,
-        xi_std=pts.creepage_se if use_w else None, coa_std=pts.coa_se if use_w else None,
-        velocity_dependent=opts.velocity_dependent,
-        speeds_m_s=per["speed_m_s"] if opts.velocity_dependent else None,
-        lateral_coa=per["lateral_coa"] if opts.lateral and np.all(
-            np.isfinite(per["lateral_coa"])) else None,
-        stiffness=None if stiffness is None else float(stiffness), n_starts=opts.n_starts,
-        seed=opts.seed, sigma_floor=opts.sigma_floor, max_rel_stderr=opts.max_rel_stderr,
-        min_saturation_fraction=opts.min_saturation_fraction,
-        min_peak_fraction=opts.min_peak_fraction, creepage_limit=opts.creepage_limit)
+    use_w = opts.weighted and np.any(np.isfinite(pts.coa_se[use]))
+    lateral = per["lateral_coa"][use]
+    try:
+        fit = _fit(opts, pts, per, use, use_w, lateral, stiffness)
+    except InputError as exc:
+        if use.all():
+            raise
+        raise InputError(f"{exc} ({int((~use).sum())} step(s) flagged as slipping were left "
+                         "out)") from None
     warnings += fit.warnings
 
     # saturation torque Ts = mu*N*Rw (paper, Section 3)
@@ -240,10 +271,10 @@ def fit_results_folder(results_dir, *, options=None) -> dict:
     per_step = [{"step": int(s), "dc_torque_nm": float(t), "creepage": float(x),
                  "coa": float(c), "phase_deg": float(p), "phase_std_deg": float(ps),
                  "phase_theory_deg": float(pt), "creep_coefficient": float(kk),
-                 "torque_pct_saturation": float(q)}
-                for s, t, x, c, p, ps, pt, kk, q in zip(
+                 "torque_pct_saturation": float(q), "slip": not bool(u)}
+                for s, t, x, c, p, ps, pt, kk, q, u in zip(
                     pts.step, pts.dc_torque_nm, pts.creepage, pts.coa, pts.phase_deg,
-                    pts.phase_std_deg, phase_theory, k, pct, strict=True)]
+                    pts.phase_std_deg, phase_theory, k, pct, use, strict=True)]
     fit_dict = fit.to_dict()
     theory = tc.to_dict()
     if rig_args is not None:

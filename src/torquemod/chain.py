@@ -42,6 +42,7 @@ class CycleSignals:
     means: dict = field(default_factory=dict)
     notches_hz: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)  # warnings for the user and provenance
+    creepage_drift: float = float("nan")  # creepage change over the cycle [-] (slip check)
 
 
 def creepage_coa(wheel_speed_rad_s: float, platform_speed_rad_s: float, fx_n: float, fy_n: float,
@@ -65,6 +66,29 @@ def check_cycle_length(n_samples: int, fs_hz: float, f_nominal_hz: float,
                          f"modulation periods after trimming {cfg.phase.edge_trim_periods} "
                          f"period(s) at each end (needs {need:.2f} s)", path=where,
                          hint="record longer cycles")
+
+
+def check_operating_point(means: dict[str, float], platform_std_rad_s: float, *,
+                          where: str) -> None:
+    """Refuse a cycle whose means make Eq. (3) and (4) meaningless: a platform that does not
+    turn (its mean speed [rad/s] within its own scatter), wheel and platform turning in
+    opposite directions, or a normal force [N] that is not positive."""
+    w_p, w_w, fz = (means["platform_speed_rad_s"], means["wheel_speed_rad_s"], means["fz_n"])
+    if not abs(w_p) > platform_std_rad_s:
+        raise InputError(f"the platform is not turning (mean speed {w_p:.3g} rad/s, scatter "
+                         f"{platform_std_rad_s:.3g} rad/s)", path=where,
+                         channel="platform_speed_rad_s",
+                         hint="record while the platform runs, or check the channel mapping "
+                         "and unit in [channels]")
+    if w_w * w_p < 0:
+        raise InputError(f"wheel and platform speeds have opposite signs (mean {w_w:.4g} and "
+                         f"{w_p:.4g} rad/s)", path=where, channel="wheel_speed_rad_s",
+                         hint="flip the sign of one speed channel so both are positive "
+                         "when rolling forward")
+    if not fz > 0:
+        raise InputError(f"mean normal force is {fz:.4g} N; it must be positive (compression)",
+                         path=where, channel="fz_n",
+                         hint="check the channel mapping, its unit and the load cell's sign")
 
 
 def _rotation_frequency(speed_rad_s: np.ndarray, fs_hz: float, harmonics: tuple[int, ...]
@@ -151,16 +175,46 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
         "fz_n": float(np.mean(ch["fz_n"])),
         "torque_nm": float(np.mean(ch["torque_nm"])),
     }
-    if means["platform_speed_rad_s"] == 0 or means["fz_n"] == 0:
-        raise InputError("mean platform speed or normal force is zero", path=where,
-                         hint="check the platform_speed_rad_s and fz_n channels")
+    check_operating_point(means, float(np.std(pl)), where=where)
     xi, coa = creepage_coa(means["wheel_speed_rad_s"], means["platform_speed_rad_s"],
                            means["fx_n"], means["fy_n"], means["fz_n"],
                            wheel_radius_m=rig.wheel_radius_m,
                            platform_radius_m=rig.platform_radius_m)
+    drift = creepage_drift(wh, pl, fs_r, wheel_tones_hz=tones,
+                           platform_tones_hz=[f_mod, *plat_notches],
+                           wheel_radius_m=rig.wheel_radius_m,
+                           platform_radius_m=rig.platform_radius_m)
     return CycleSignals(fs_r, edge / fs_r, f_t, f_w, f_mod, abs(f_wheel), abs(f_plat), tq, wh,
                         tq_n, wh_n, tq_f, wh_f, xi, coa, means,
-                        {"wheel": wheel_notches, "platform": plat_notches}, notes)
+                        {"wheel": wheel_notches, "platform": plat_notches}, notes,
+                        creepage_drift=drift)
+
+
+def creepage_drift(wheel_rad_s: np.ndarray, platform_rad_s: np.ndarray, fs_hz: float, *,
+                   wheel_tones_hz: list[float], platform_tones_hz: list[float],
+                   wheel_radius_m: float, platform_radius_m: float) -> float:
+    """Change of the creepage of Eq. (3) from the start to the end of a record [-], from the
+    lines fitted jointly with the given tones [Hz] (modulation, rotation harmonics) to the
+    wheel and platform speeds [rad/s]: ``T * Rw/Rp * (w'/W - w*W'/W^2)``. A wheel that starts
+    to slip shows as a creepage rising within the cycle."""
+    def level_slope(x: np.ndarray, tones: list[float]) -> tuple[float, float]:
+        # every tone is kept, however close (the platform's 1st and 2nd harmonics are one
+        # resolution apart over a revolution, and either left out would tilt the line)
+        t = np.arange(x.size) / fs_hz
+        t = t - t.mean()
+        cols = [np.ones(x.size), t]
+        for f in tones:
+            if 0 < f < fs_hz / 2:
+                cols += [np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)]
+        coef, *_ = np.linalg.lstsq(np.column_stack(cols), np.asarray(x, float), rcond=None)
+        return float(coef[0]), float(coef[1])
+
+    duration = wheel_rad_s.size / fs_hz
+    w, dw = level_slope(wheel_rad_s, wheel_tones_hz)
+    p, dp = level_slope(platform_rad_s, platform_tones_hz)
+    if p == 0:
+        return float("nan")
+    return float(duration * wheel_radius_m / platform_radius_m * (dw / p - w * dp / p**2))
 
 
 def align_lags(cycles: list[CycleSignals], cfg: ProcessingConfig) -> list[int]:

@@ -9,6 +9,7 @@ none (filter orders, notch Q, high-pass cut-off) the choice is ours and says so.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 from .errors import InputError
@@ -81,6 +82,32 @@ class PhaseParams:
 
 
 @dataclass(frozen=True)
+class SlipParams:
+    """Slip detection per step (values ours; see :func:`torquemod.pipeline.detect_slip`).
+
+    A step is flagged as slipping when one of its cycles shows
+
+    * a creepage jump: its creepage exceeds the median of the step's other cycles by more than
+      ``creepage_jump_abs`` [-] and by more than ``creepage_jump_k`` robust standard
+      deviations (1.4826 MAD) of those others;
+    * a falling CoA: from the previous cycle the CoA falls by more than ``coa_drop_abs`` [-]
+      while the creepage rises by more than ``creepage_rise_abs`` [-] (the falling branch of
+      the creep curve);
+    * a creepage drift within the cycle: the line fitted to the notched wheel speed rises by
+      more than ``within_cycle_abs`` [-] of creepage from the cycle's start to its end.
+
+    Flagged steps stay in ``steps.csv`` (column ``slip``) and are left out of the Polach fit.
+    """
+
+    enabled: bool = True
+    creepage_jump_abs: float = 2e-3
+    creepage_jump_k: float = 5.0
+    coa_drop_abs: float = 5e-3
+    creepage_rise_abs: float = 5e-4
+    within_cycle_abs: float = 2e-3
+
+
+@dataclass(frozen=True)
 class ProcessingConfig:
     """All parameters of the chain; ``nan_policy`` is "raise", "interpolate" or "drop-cycle"."""
 
@@ -92,8 +119,13 @@ class ProcessingConfig:
     align: AlignParams = field(default_factory=AlignParams)
     phase: PhaseParams = field(default_factory=PhaseParams)
     nan_policy: str = "raise"
+    slip: SlipParams = field(default_factory=SlipParams)
 
     def __post_init__(self) -> None:
+        problems = _range_problems(self)
+        if problems:
+            raise InputError(f"[processing] {problems[0]}", hint="see torquemod.config for "
+                             "the meaning and the default of each parameter")
         if self.phase.method not in ("paper", "sinefit"):
             raise InputError(f"unknown phase method '{self.phase.method}'",
                              hint="use 'paper' or 'sinefit'")
@@ -112,28 +144,105 @@ class ProcessingConfig:
     def from_dict(cls, doc: dict, *, source: str = "[processing]") -> ProcessingConfig:
         """Build from nested dicts, e.g. a manifest's ``[processing]`` table; unknown keys
         raise :class:`InputError` naming them."""
+        if not isinstance(doc, dict):
+            raise InputError("[processing] must be a table", path=source)
         kwargs = {}
         fields = {f.name: f for f in dataclasses.fields(cls)}
+        defaults = cls()
         for key, value in doc.items():
             if key not in fields:
                 raise InputError(f"unknown processing key '{key}'", path=source,
                                  hint=f"known keys: {', '.join(fields)}")
-            sub = fields[key].default_factory() if isinstance(value, dict) else None
-            if sub is None:
-                kwargs[key] = value
+            sub = getattr(defaults, key)
+            if not dataclasses.is_dataclass(sub):
+                kwargs[key] = _typed(value, sub, key, source)
                 continue
+            if not isinstance(value, dict):
+                raise InputError(f"'processing.{key}' must be a table, got {value!r}",
+                                 path=source, hint=f"write [processing.{key}] with its keys")
             sub_fields = {f.name for f in dataclasses.fields(sub)}
             unknown = set(value) - sub_fields
             if unknown:
                 raise InputError(f"unknown key(s) {', '.join(sorted(unknown))} in "
                                  f"'{key}'", path=source,
                                  hint=f"known keys: {', '.join(sorted(sub_fields))}")
-            conv = {k: tuple(v) if isinstance(v, list) else v for k, v in value.items()}
+            conv = {k: _typed(v, getattr(sub, k), f"{key}.{k}", source)
+                    for k, v in value.items()}
             kwargs[key] = dataclasses.replace(sub, **conv)
-        return cls(**kwargs)
+        try:
+            return cls(**kwargs)
+        except InputError as exc:
+            raise InputError(str(exc), path=source) from None
 
     def with_phase_method(self, method: str | None) -> ProcessingConfig:
         """A copy with another phase method (None keeps this one)."""
         if method is None:
             return self
         return dataclasses.replace(self, phase=dataclasses.replace(self.phase, method=method))
+
+
+def _typed(value: object, default: object, key: str, source: str) -> object:
+    """``value`` as the type of ``default`` (int -> float, list -> tuple), or an
+    :class:`InputError` naming the key."""
+    def bad(kind: str) -> InputError:
+        return InputError(f"'processing.{key}' must be {kind}, got {value!r}", path=source)
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise bad("true or false")
+        return value
+    if isinstance(default, int):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise bad("an integer")
+        return value
+    if isinstance(default, float):
+        if isinstance(value, bool) or not isinstance(value, int | float) \
+                or not math.isfinite(value):
+            raise bad("a finite number")
+        return float(value)
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise bad("a string")
+        return value
+    if isinstance(default, tuple):
+        if not isinstance(value, list | tuple):
+            raise bad("a list")
+        item = default[0] if default else 0.0
+        return tuple(_typed(v, item, key, source) for v in value)
+    return value
+
+
+def _range_problems(cfg: ProcessingConfig) -> list[str]:
+    """Values outside their meaningful range, as messages (empty when all is well)."""
+    out = []
+    band = cfg.frequency.band_hz
+    if len(band) != 2 or not 0 < band[0] < band[1]:
+        out.append(f"frequency.band_hz must be [low, high] with 0 < low < high, got {band}")
+    positive = {"frequency.zero_pad": cfg.frequency.zero_pad,
+                "resample.target_hz": cfg.resample.target_hz,
+                "resample.max_denominator": cfg.resample.max_denominator,
+                "notch.q": cfg.notch.q, "highpass.cutoff_hz": cfg.highpass.cutoff_hz,
+                "highpass.order": cfg.highpass.order, "bandpass.width_hz": cfg.bandpass.width_hz,
+                "bandpass.order": cfg.bandpass.order,
+                "align.max_lag_periods": cfg.align.max_lag_periods,
+                "phase.n_periods": cfg.phase.n_periods}
+    out += [f"{k} must be positive, got {v}" for k, v in positive.items()
+            if not (isinstance(v, int | float) and v > 0)]
+    non_negative = {"phase.edge_trim_periods": cfg.phase.edge_trim_periods,
+                    "notch.warn_within_hz": cfg.notch.warn_within_hz,
+                    **{f"slip.{f.name}": getattr(cfg.slip, f.name)
+                       for f in dataclasses.fields(cfg.slip) if f.name != "enabled"}}
+    out += [f"{k} must be zero or positive, got {v}" for k, v in non_negative.items()
+            if not (isinstance(v, int | float) and v >= 0)]
+    for key, harmonics in (("notch.wheel_harmonics", cfg.notch.wheel_harmonics),
+                           ("notch.platform_harmonics", cfg.notch.platform_harmonics)):
+        if any(isinstance(h, bool) or not isinstance(h, int) or h < 1 for h in harmonics):
+            out.append(f"{key} must be positive integers, got {harmonics}")
+    try:
+        from scipy.signal import get_window
+        get_window(cfg.frequency.window, 8)
+    except (ValueError, TypeError):
+        out.append(f"frequency.window '{cfg.frequency.window}' is not a scipy window name")
+    if cfg.frequency.detrend not in ("linear", "constant"):
+        out.append(f"frequency.detrend must be 'linear' or 'constant', got "
+                   f"{cfg.frequency.detrend!r}")
+    return out

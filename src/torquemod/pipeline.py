@@ -20,7 +20,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from . import chain
-from .config import ProcessingConfig
+from .config import ProcessingConfig, SlipParams
 from .cycles import revolution_bounds
 from .data import Experiment, Recording, RecordingEntry
 from .errors import InputError, ProcessingError
@@ -29,12 +29,13 @@ from .io import read_entry, read_experiment
 from .io.validate import check_finite
 from .results import write_results
 
-__all__ = ["ProcessResult", "ProcessingConfig", "process_experiment", "write_results"]
+__all__ = ["ProcessResult", "ProcessingConfig", "detect_slip", "process_experiment",
+           "write_results"]
 
 CYCLE_COLUMNS = ["step", "cycle", "torque_peak_hz", "wheel_peak_hz", "modulation_hz",
                  "phase_deg", "creepage", "coa"]
 STEP_COLUMNS = ["step", "dc_torque_nm", "phase_deg", "phase_std_deg", "creepage",
-                "creepage_std", "coa", "coa_std", "n_cycles"]
+                "creepage_std", "coa", "coa_std", "n_cycles", "slip"]
 #: Raw signals are subsampled to at most this many points for the figures' traces.
 TRACE_POINTS = 20_000
 
@@ -62,7 +63,8 @@ def _fill_nan(rec: Recording, where: str) -> list[str]:
         bad = ~np.isfinite(x)
         if bad.any():
             if bad.all():
-                raise InputError("channel holds no finite value", path=where, channel=name)
+                raise InputError("channel holds no finite value", path=where, channel=name,
+                                 hint="nothing to interpolate from; repair or remove the file")
             good = np.flatnonzero(~bad)
             y = x.copy()
             y[bad] = np.interp(np.flatnonzero(bad), good, x[good])
@@ -103,6 +105,13 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
     (read s, compute s, sha256, NaN actions, notes, cycles)."""
     where = str(entry.path) + (f":{entry.group}" if entry.group else "")
     t0 = time.perf_counter()
+    if entry.path.is_file():  # an unreadable file is named here, whatever reads it later
+        try:
+            with open(entry.path, "rb") as fh:
+                fh.read(1)
+        except OSError as exc:
+            raise InputError(f"cannot read the recording ({exc.strerror})", path=where,
+                             hint="check the file's permissions") from None
     rec = read_entry(exp, entry)
     digest = sha256_file(entry.path)
     t1 = time.perf_counter()
@@ -206,8 +215,19 @@ def process_experiment(experiment: Experiment | str | Path, *,
                 traces[key + name] = x
         bar.update()
     bar.close()
+    if not per_step:
+        raise InputError("no cycle could be processed", path=exp.manifest_path,
+                         hint="every cycle was dropped; see --nan-policy")
+    emptied = [s for s in exp.steps if s not in per_step]
+    if emptied:
+        raise InputError(f"step {emptied[0]} has no cycle left after --nan-policy drop-cycle "
+                         f"(every cycle held NaN/inf samples; steps without cycles: "
+                         f"{emptied})", path=exp.manifest_path,
+                         hint="repair the files, use --nan-policy interpolate, or remove the "
+                         "step from the manifest")
     t1 = time.perf_counter()
     rows, details = [], []
+    slipped: dict[int, bool] = {}
     for step in sorted(per_step):
         items = sorted(per_step[step], key=lambda it: it[0])
         cycles_seen = [c for c, _, _ in items]
@@ -218,7 +238,14 @@ def process_experiment(experiment: Experiment | str | Path, *,
         sigs = [s for _, s, _ in items]
         lags = chain.align_lags(sigs, cfg)
         n_ref = sigs[0].torque_filtered.size
-        for (cyc, sig, info), lag in zip(items, lags, strict=True):
+        slip = detect_slip([s.creepage for s in sigs], [s.coa for s in sigs],
+                           [s.creepage_drift for s in sigs], cfg.slip)
+        slipped[step] = any(slip)
+        for (cyc, _, _), why in zip(items, slip, strict=True):
+            if why:
+                notes.append(f"step {step}: slip detected in cycle {cyc} ({why}); the step is "
+                             "flagged in steps.csv 'slip' and left out of the creep-curve fit")
+        for (cyc, sig, info), lag, why in zip(items, lags, slip, strict=True):
             try:
                 phase, stderr, window = chain.cycle_phase(sig, cfg,
                                                           center_index=n_ref / 2 + lag)
@@ -236,7 +263,8 @@ def process_experiment(experiment: Experiment | str | Path, *,
                             "resampled_hz": sig.fs_hz,
                             "wheel_rotation_hz": sig.wheel_rotation_hz,
                             "platform_rotation_hz": sig.platform_rotation_hz,
-                            "notches_hz": sig.notches_hz, "speed_m_s": speed, **sig.means})
+                            "notches_hz": sig.notches_hz, "speed_m_s": speed,
+                            "creepage_drift": sig.creepage_drift, "slip": why, **sig.means})
             key = f"s{step}c{cyc}__"
             traces[key + "t_s"] = sig.t0_s + np.arange(sig.torque_filtered.size) / sig.fs_hz
             traces[key + "torque_resampled_nm"] = sig.torque_resampled
@@ -250,15 +278,51 @@ def process_experiment(experiment: Experiment | str | Path, *,
                          hint="every cycle was dropped; see --nan-policy")
     cycles = pd.DataFrame(rows, columns=CYCLE_COLUMNS)
     dc = {e.step: e.dc_torque_nm for e in exp.recordings}
-    steps = aggregate_steps(cycles, dc)
+    steps = aggregate_steps(cycles, dc, slipped)
     timing = {"wall_s": time.perf_counter() - t_start, "read_thread_s": t_read,
               "compute_thread_s": t_compute, "workers": workers}
     return ProcessResult(exp, cfg, cycles, steps, details, traces, notes + nan_actions,
                          timing, nan_actions, hashes)
 
 
-def aggregate_steps(cycles: pd.DataFrame, dc_torque_nm: dict[int, float]) -> pd.DataFrame:
-    """Mean and sample standard deviation (ddof = 1, NaN for a single cycle) per step."""
+def detect_slip(creepage, coa, drift, params: SlipParams) -> list[str | None]:
+    """Slip check of one step's cycles (in time order): for each cycle the reason it looks
+    like wheel slip, or None. The rules and thresholds are those of
+    :class:`~torquemod.config.SlipParams`: a creepage jump above the step's other cycles
+    (beyond an absolute threshold and k robust standard deviations of the others), a CoA
+    falling from the previous cycle while the creepage rises, a creepage rising within the
+    cycle."""
+    xi = np.asarray(creepage, dtype=float)
+    c = np.asarray(coa, dtype=float)
+    d = np.asarray(drift, dtype=float)
+    out: list[str | None] = [None] * xi.size
+    if not params.enabled:
+        return out
+    for i in range(xi.size):
+        why = []
+        others = np.delete(xi, i)
+        if others.size:
+            med = float(np.median(others))
+            scatter = 1.4826 * float(np.median(np.abs(others - med))) if others.size > 1 else 0.0
+            jump = xi[i] - med
+            if jump > max(params.creepage_jump_abs, params.creepage_jump_k * scatter):
+                why.append(f"creepage {xi[i]:.4g} is {jump:.3g} above the median {med:.4g} of "
+                           "the step's other cycles")
+        if i > 0:
+            rise, drop = xi[i] - xi[i - 1], c[i - 1] - c[i]
+            if rise > params.creepage_rise_abs and drop > params.coa_drop_abs:
+                why.append(f"CoA fell by {drop:.3g} from the previous cycle while the creepage "
+                           f"rose by {rise:.3g}")
+        if d[i] > params.within_cycle_abs:
+            why.append(f"creepage rose by {d[i]:.3g} within the cycle")
+        out[i] = "; ".join(why) or None
+    return out
+
+
+def aggregate_steps(cycles: pd.DataFrame, dc_torque_nm: dict[int, float],
+                    slip: dict[int, bool] | None = None) -> pd.DataFrame:
+    """Mean and sample standard deviation (ddof = 1, NaN for a single cycle) per step;
+    ``slip`` (step -> flagged) fills the ``slip`` column (False when not given)."""
     g = cycles.groupby("step", sort=True)
     out = pd.DataFrame({
         "step": list(g.groups),
@@ -271,4 +335,5 @@ def aggregate_steps(cycles: pd.DataFrame, dc_torque_nm: dict[int, float]) -> pd.
         "n_cycles": g.size().to_numpy(),
     })
     out.insert(1, "dc_torque_nm", [dc_torque_nm[s] for s in out["step"]])
+    out["slip"] = [bool((slip or {}).get(s, False)) for s in out["step"]]
     return out[STEP_COLUMNS]

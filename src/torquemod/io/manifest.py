@@ -52,8 +52,11 @@ def _load_toml(path: Path) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         # tomllib's message already says "(at line L, column C)"
-        raise ManifestError(f"TOML syntax error: {exc}", path=path,
-                            hint="fix the line named") from None
+        text = str(exc)
+        hint = "fix the line named"
+        if text.startswith(("Cannot overwrite a value", "Cannot declare")):
+            hint = "a key or table is given twice; keep one of them"
+        raise ManifestError(f"TOML syntax error: {text}", path=path, hint=hint) from None
 
 
 def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEntry:
@@ -125,12 +128,22 @@ def read_experiment(path: str | Path) -> Experiment:
             raise ManifestError(f"{what} is listed twice (recordings #{seen[key] + 1} and "
                                 f"#{e.index + 1})", path=path, hint="remove the duplicate")
         seen[key] = e.index
+    files: dict[tuple, int] = {}
+    for e in entries:  # one file (group) read twice would count its cycles twice
+        if (e.path, e.group) in files:
+            what = f"file '{e.path.name}'" + (f" group '{e.group}'" if e.group else "")
+            raise ManifestError(f"{what} is listed twice (recordings #{files[e.path, e.group] + 1}"
+                                f" and #{e.index + 1})", path=path,
+                                hint="give each recorded file (or group) once")
+        files[e.path, e.group] = e.index
     dc_by_step: dict[int, float] = {}
     for e in entries:
         if e.step in dc_by_step and not math.isclose(dc_by_step[e.step], e.dc_torque_nm,
                                                      rel_tol=1e-9, abs_tol=1e-9):
             raise ManifestError(f"step {e.step} has different dc_torque_nm values "
-                                f"({dc_by_step[e.step]} and {e.dc_torque_nm})", path=path)
+                                f"({dc_by_step[e.step]} and {e.dc_torque_nm})", path=path,
+                                hint="give every recording of a step the same DC torque, or "
+                                "number the steps apart")
         dc_by_step.setdefault(e.step, e.dc_torque_nm)
     channel_map = doc.get("channels", {})
     if not isinstance(channel_map, dict):

@@ -31,7 +31,8 @@ def sample_rate_from_time(time_s: np.ndarray, *, path: object) -> tuple[float, f
     if np.any(dt <= 0):
         bad = int(np.flatnonzero(dt <= 0)[0])
         raise InputError(f"time is not strictly increasing at row {bad + 2} "
-                         f"({t[bad]!r} then {t[bad + 1]!r})", path=path, channel="time_s",
+                         f"({float(t[bad])!r} then {float(t[bad + 1])!r})", path=path,
+                         channel="time_s",
                          hint="sort the recording or cut it at the jump")
     n = np.arange(t.size, dtype=np.float64)
     n_c = n - n.mean()
@@ -73,4 +74,5 @@ def check_channels(rec: Recording, *, path: object) -> None:
             n = x.size
         elif x.size != n:
             raise InputError(f"has {x.size} samples, other channels have {n}", path=path,
-                             channel=name)
+                             channel=name, hint="all channels must be sampled together; "
+                             "export them again or cut them to one length")

@@ -1,0 +1,158 @@
+"""Peak memory of ``torquemod process`` on one long recording.
+
+Writes a synthetic HDF5 recording of ``--minutes`` minutes at 16 670 Hz (7 channels: time
+base as attributes, 6 float64 datasets, one file spanning many platform revolutions, no
+``cycle`` in the manifest), then processes it in a fresh Python process and reports
+
+* the size of one copy of the recording (7 float64 channels, time included),
+* peak RSS (``resource.getrusage``, max resident set) minus the RSS after the imports,
+* the peak of numpy's allocations traced by ``tracemalloc`` (``--tracemalloc``; slower),
+
+and both scaled to one recorded hour. The recording is generated one revolution at a time so
+that the generator's own memory does not enter the figure.
+
+    python benchmarks/memory.py [--minutes 15] [--workdir DIR] [--workers N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+FS_HZ = 16_670.0
+N_CHANNELS = 7  # time + the 6 method channels
+
+
+def generate(folder: Path, minutes: float) -> dict:
+    """One HDF5 file of ``minutes`` of synthetic data, written revolution by revolution."""
+    import h5py
+    import numpy as np
+
+    from torquemod.data import CHANNEL_UNITS, CHANNELS
+    from torquemod.io import write_manifest
+    from torquemod.testing import SyntheticSpec, synthetic_recording
+
+    folder.mkdir(parents=True, exist_ok=True)
+    base = SyntheticSpec(fs_hz=FS_HZ)
+    rev_s = 2 * np.pi / base.platform_speed_rad_s
+    n_rev = max(1, int(minutes * 60 / rev_s))
+    path = folder / "long.h5"
+    with h5py.File(path, "w") as fh:
+        fh.attrs["torquemod_layout"] = 1
+        fh.attrs["sample_rate_hz"] = FS_HZ
+        fh.attrs["t0_s"] = 0.0
+        ds = {c: fh.create_dataset(c, shape=(0,), maxshape=(None,), dtype="f8",
+                                   chunks=(1 << 16,)) for c in CHANNELS}
+        for c in CHANNELS:
+            ds[c].attrs["unit"] = CHANNEL_UNITS[c]
+        n = 0
+        for k in range(n_rev):
+            rec = synthetic_recording(dataclasses.replace(
+                base, n_revolutions=1.0, seed=k, modulation_phase_rad=0.37 * k))
+            m = rec.n_samples
+            for c in CHANNELS:
+                ds[c].resize((n + m,))
+                ds[c][n:n + m] = rec.channels[c]
+            n += m
+    write_manifest(folder / "experiment.toml",
+                   rig={"wheel_radius_m": base.wheel_radius_m,
+                        "platform_radius_m": base.platform_radius_m},
+                   test={"normal_load_n": base.normal_load_n, "modulation_frequency_hz": 2.0,
+                         "modulation_amplitude_nm": base.modulation_amplitude_nm},
+                   recordings=[{"step": 1, "dc_torque_nm": base.dc_torque_nm,
+                                "file": "long.h5"}])
+    return {"n_samples": n, "revolutions": n_rev, "duration_s": n / FS_HZ}
+
+
+def _rss_peak_bytes() -> int:
+    """Max resident set size of this process so far [bytes] (ru_maxrss is KiB on Linux)."""
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak if sys.platform == "darwin" else peak * 1024
+
+
+def _rss_now_bytes() -> int:
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * resource.getpagesize()
+
+
+def measure(folder: Path, workers: int, trace: bool, out_dir: Path) -> dict:
+    """Process the experiment in this (fresh) process; memory figures in bytes."""
+    import tracemalloc
+
+    import numpy  # noqa: F401  (imports count as baseline)
+    import pandas  # noqa: F401
+    import scipy.signal  # noqa: F401
+
+    from torquemod.cli import _post_stages  # noqa: F401
+    from torquemod.pipeline import process_experiment, write_results
+
+    base_now = _rss_now_bytes()
+    base_peak = _rss_peak_bytes()
+    if trace:
+        tracemalloc.start()
+    t0 = time.perf_counter()
+    res = process_experiment(folder / "experiment.toml", workers=workers)
+    write_results(res, out_dir, force=True)
+    wall = time.perf_counter() - t0
+    traced = tracemalloc.get_traced_memory()[1] if trace else None
+    return {"baseline_rss": base_now, "baseline_peak_rss": base_peak,
+            "peak_rss": _rss_peak_bytes(), "traced_peak": traced, "wall_s": wall,
+            "n_cycles": len(res.cycles)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--minutes", type=float, default=15.0)
+    ap.add_argument("--workdir", default=None)
+    ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--tracemalloc", action="store_true")
+    ap.add_argument("--_generate", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--_measure", default=None, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args._generate:
+        print(json.dumps(generate(Path(args._generate), args.minutes)))
+        return
+    if args._measure:
+        folder = Path(args._measure)
+        print(json.dumps(measure(folder, args.workers or 2, args.tracemalloc,
+                                 folder.parent / "results")))
+        return
+    with tempfile.TemporaryDirectory(dir=args.workdir) as tmp:
+        folder = Path(tmp) / "experiment"
+        here = [sys.executable, __file__, "--minutes", str(args.minutes)]
+        gen = json.loads(subprocess.run([*here, "--_generate", str(folder)], check=True,
+                                        capture_output=True, text=True).stdout)
+        cmd = [*here, "--_measure", str(folder)]
+        if args.workers:
+            cmd += ["--workers", str(args.workers)]
+        if args.tracemalloc:
+            cmd += ["--tracemalloc"]
+        m = json.loads(subprocess.run(cmd, check=True, capture_output=True,
+                                      text=True).stdout)
+    hours = gen["duration_s"] / 3600
+    one_copy = gen["n_samples"] * N_CHANNELS * 8
+    used = m["peak_rss"] - m["baseline_rss"]
+    mib = 2**20
+    print(f"recording: {gen['duration_s'] / 60:.1f} min at {FS_HZ:.0f} Hz, "
+          f"{gen['n_samples']:,} samples, {gen['revolutions']} revolutions "
+          f"({m['n_cycles']} cycles processed in {m['wall_s']:.1f} s)")
+    print(f"one copy (7 x float64):      {one_copy / mib:8.0f} MiB "
+          f"= {one_copy / hours / 2**30:.2f} GiB per recorded hour")
+    print(f"peak RSS above baseline:     {used / mib:8.0f} MiB "
+          f"= {used / hours / 2**30:.2f} GiB per recorded hour "
+          f"= {used / one_copy:.2f} copies (baseline {m['baseline_rss'] / mib:.0f} MiB)")
+    if m["traced_peak"] is not None:
+        tr = m["traced_peak"]
+        print(f"peak traced allocations:     {tr / mib:8.0f} MiB "
+              f"= {tr / hours / 2**30:.2f} GiB per recorded hour = {tr / one_copy:.2f} copies")
+
+
+if __name__ == "__main__":
+    main()
