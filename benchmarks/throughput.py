@@ -81,29 +81,45 @@ for path in sorted(glob.glob(sys.argv[1] + "/*.csv")):
 '''
 
 
+def _run_process(manifest: Path, out: Path, *extra: str) -> tuple[float, str]:
+    exe = Path(sys.executable).with_name("torquemod")
+    cmd = [str(exe), "process", str(manifest), "--out", str(out), "--force", "--quiet", *extra]
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    return time.perf_counter() - t0, proc.stdout.strip().splitlines()[-1]
+
+
 def end_to_end(workdir: Path) -> None:
     exp = workdir / "experiment"
     if not (exp / "experiment.toml").exists():
         print("writing the 18-recording CSV experiment ...", flush=True)
         write_synthetic_experiment(exp, n_steps=6, n_cycles=3)
+    exp_h5 = workdir / "experiment_h5"
+    if not (exp_h5 / "experiment.toml").exists():
+        write_synthetic_experiment(exp_h5, n_steps=6, n_cycles=3, fmt="hdf5")
     size = sum(p.stat().st_size for p in exp.glob("*.csv"))
-    out = workdir / "results"
-    exe = Path(sys.executable).with_name("torquemod")
-    cmd = [str(exe), "process", str(exp / "experiment.toml"), "--out", str(out), "--force",
-           "--quiet", "--no-fit"]
-    t0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
-    t_proc = time.perf_counter() - t0
-    tail = proc.stdout.strip().splitlines()[-1]
+    t_import = best_of(lambda: subprocess.run(
+        [sys.executable, "-c", "import torquemod.pipeline"], check=True), repeat=3)
+    t_proc, tail = _run_process(exp / "experiment.toml", workdir / "results", "--no-fit")
+    t_full, _ = _run_process(exp / "experiment.toml", workdir / "results_full")
+    t_h5, tail_h5 = _run_process(exp_h5 / "experiment.toml", workdir / "results_h5", "--no-fit")
     base = workdir / "baseline.py"
     base.write_text(BASELINE)
     t0 = time.perf_counter()
     subprocess.run([sys.executable, str(base), str(exp)], check=True)
     t_base = time.perf_counter() - t0
-    print(f"end to end, 18 CSV recordings, {size / 1e6:.0f} MB:")
-    print(f"  torquemod process: {t_proc:6.2f} s wall (incl. interpreter start-up); {tail}")
-    print(f"  np.loadtxt + scipy script: {t_base:6.2f} s wall")
-    print(f"  speed-up: {t_base / t_proc:.1f}x")
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", "import numpy, scipy.signal"], check=True)
+    t_base_import = time.perf_counter() - t0
+    print(f"end to end, 18 recordings (6 steps x 3 cycles, 16 670 Hz), CSV {size / 1e6:.0f} MB:")
+    print(f"  interpreter + import torquemod.pipeline: {t_import:6.2f} s")
+    print(f"  torquemod process --no-fit (CSV):  {t_proc:6.2f} s wall; {tail}")
+    print(f"  torquemod process (CSV, with fit and report): {t_full:6.2f} s wall")
+    print(f"  torquemod process --no-fit (HDF5): {t_h5:6.2f} s wall; {tail_h5}")
+    print(f"  np.loadtxt + scipy script (CSV):   {t_base:6.2f} s wall "
+          f"(of which interpreter + numpy/scipy import {t_base_import:.2f} s)")
+    print(f"  speed-up over the script: CSV {t_base / t_proc:.2f}x, HDF5 {t_base / t_h5:.2f}x; "
+          f"excluding start-up: CSV {(t_base - t_base_import) / (t_proc - t_import):.2f}x")
 
 
 def main() -> None:

@@ -31,7 +31,8 @@ def _print_steps(steps) -> None:
     for r in steps.itertuples():
         print(f"{r.step:>4} {r.dc_torque_nm:>9.2f} {_fmt(r.phase_deg, '12.3f')} "
               f"{_fmt(r.phase_std_deg, '6.3f')} {_fmt(r.creepage, '10.3e')} "
-              f"{_fmt(r.coa, '7.4f')} {r.n_cycles:>6}")
+              f"{_fmt(r.coa, '7.4f')} {r.n_cycles:>6}"
+              + ("  SLIP (not fitted)" if getattr(r, "slip", False) else ""))
 
 
 def _post_stages(args: argparse.Namespace, summary: dict):
@@ -137,7 +138,22 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
     out = run_demo(Path(args.out), config_path=args.config, seed=args.seed, force=args.force,
                    progress=not args.quiet, quick=args.quick)
-    _print_summary(out)
+    print(f"simulated experiment: {out['manifest']}")
+    print(f"results:              {out['results']}")
+    print(f"report:               {out['report']}")
+    print()
+    print(f"{'step':>4} {'DC [N*m]':>9} {'% of Ts':>8} {'phase [deg]':>12} {'theory [deg]':>13}")
+    for st in out.get("steps", []):
+        print(f"{st['step']:>4} {st['dc_torque_nm']:>9.2f} "
+              f"{_fmt(st.get('torque_pct_saturation'), '8.1f')} "
+              f"{_fmt(st.get('phase_deg'), '12.2f')} {_fmt(st.get('phase_theory_deg'), '13.2f')}")
+    print()
+    _print_fit(out)
+    truth = out.get("truth") or {}
+    if truth.get("peak_coa") is not None:
+        print(f"simulator truth: creep-curve peak CoA {truth['peak_coa']:.4f} at "
+              f"{_fmt(truth.get('peak_torque_nm'), '.2f')} N*m; slip at step "
+              f"{truth.get('slip_step')}")
     return 0
 
 

@@ -150,7 +150,8 @@ def unit_factor(unit: str, quantity: str, *, radius_m: float | None = None,
 def convert_units(values: object, unit: str | None, quantity: str, *,
                   radius_m: float | None = None, path: object | None = None,
                   channel: str | None = None) -> np.ndarray:
-    """``values`` given in ``unit`` as a new float64 array in the SI unit of ``quantity``.
+    """``values`` given in ``unit`` as a float64 array in the SI unit of ``quantity`` (the
+    input itself when it is float64 in the SI unit already).
 
     ``unit`` None or empty means the values are in the SI unit already. Times given as
     ``datetime64``/``timedelta64`` become seconds since the first sample. The input is never
@@ -167,13 +168,13 @@ def convert_units(values: object, unit: str | None, quantity: str, *,
     if arr.dtype.kind not in "biuf":
         raise InputError(f"values are not numeric (type {arr.dtype})", path=path,
                          channel=channel, hint="map a numeric channel")
-    out = arr.astype(np.float64)  # always a copy
+    # no copy when the values are float64 in the SI unit already (a reader's fresh array,
+    # so a recording never exists twice in memory); a scaled result is a new array
+    out = arr.astype(np.float64, copy=False)
     if unit is None or not str(unit).strip():
         return out
     factor = unit_factor(unit, quantity, radius_m=radius_m, path=path, channel=channel)
-    if factor != 1.0:
-        out *= factor
-    return out
+    return out * factor if factor != 1.0 else out
 
 
 @dataclass(frozen=True)

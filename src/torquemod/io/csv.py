@@ -30,7 +30,7 @@ TIME_COLUMN = TIME
 
 def _header(path: Path) -> list[str]:
     try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
             line = fh.readline()
     except OSError as exc:
         raise InputError(f"cannot open ({exc.strerror})", path=path) from None
@@ -50,7 +50,18 @@ def read_csv(path: Path, *, group: str | None = None,
     if cmap.sample_rate_hz is None:
         by_name.setdefault(cmap.time.name, TIME)
     wanted = list(by_name)
+    twice = [n for n in wanted if header.count(n) > 1]
+    if twice:
+        raise InputError(f"column(s) {', '.join(twice)} appear more than once in the header",
+                         path=path, channel=by_name[twice[0]],
+                         hint="rename or remove the duplicate columns")
     missing = [n for n in wanted if n not in header]
+    if missing and len(header) == 1:
+        for sep, word in ((";", "';'"), ("\t", "tabs"), ("|", "'|'"), (" ", "spaces")):
+            if sep in header[0].strip():
+                raise InputError(f"the header row has one column; the file seems separated by "
+                                 f"{word}", path=path, hint="torquemod reads comma-separated "
+                                 "files with '.' as decimal point; convert the file")
     if missing:
         rate = (" (or set sample_rate_hz instead of a time column)"
                 if TIME in map(by_name.get, missing) else "")
@@ -68,7 +79,8 @@ def read_csv(path: Path, *, group: str | None = None,
                             hint="check for truncated lines or text in numeric columns"
                             ) from None
     if table.num_rows < 2:
-        raise InputError("fewer than two data rows", path=path)
+        raise InputError("fewer than two data rows", path=path,
+                         hint="the file holds no recording; export the data again")
 
     def lookup(name: str) -> RawChannel | None:
         if name not in table.column_names:
@@ -83,15 +95,31 @@ def read_csv(path: Path, *, group: str | None = None,
             raise InputError(f"non-numeric value {values[row]!r} at data row {row + 1}",
                              path=path, channel=by_name.get(name, name),
                              hint="fix or remove that row")
-        return RawChannel(col.to_numpy(zero_copy_only=False).astype(np.float64))
+        return RawChannel(col.to_numpy(zero_copy_only=False).astype(np.float64, copy=False))
 
     return assemble_recording(cmap, lookup, path=path, source=str(path),
                               available=lambda: header)
 
 
-def write_csv(path: Path, rec: Recording, *, float_format: str = "%.9g") -> Path:
-    """Write ``rec`` as a CSV recording with a ``time_s`` column."""
+def _round_significant(x: np.ndarray, digits: int) -> np.ndarray:
+    """``x`` rounded to ``digits`` significant digits of its largest magnitude (one decimal
+    position for the whole column, so the sample spacing of a time column stays uniform)."""
+    peak = float(np.max(np.abs(x))) if x.size else 0.0
+    if peak == 0.0 or not np.isfinite(peak):
+        return x
+    return np.round(x, digits - 1 - int(np.floor(np.log10(peak))))
+
+
+def write_csv(path: Path, rec: Recording, *, significant_digits: int = 9) -> Path:
+    """Write ``rec`` as a CSV recording with a ``time_s`` column, each column rounded to
+    ``significant_digits`` (pyarrow prints the shortest decimal that reads back exactly)."""
     data = {TIME_COLUMN: rec.time_s()}
     data.update({k: rec.channels[k] for k in CHANNELS})
-    pd.DataFrame(data).to_csv(path, index=False, float_format=float_format)
+    table = pa.table({k: _round_significant(np.asarray(v, dtype=np.float64), significant_digits)
+                      for k, v in data.items()})
+    try:
+        pa_csv.write_csv(table, path, write_options=pa_csv.WriteOptions(
+            quoting_style="none", quoting_header="none", batch_size=1 << 16))
+    except OSError as exc:
+        raise InputError(f"cannot write ({exc})", path=path) from None
     return path
