@@ -16,7 +16,7 @@ from torquemod.rig.dynamics import (
     pack_parameters,
 )
 from torquemod.rig.sensors import encoder_speed, measure
-from torquemod.simulate import load_config
+from torquemod.simulate import load_config, stiffest_rate
 from torquemod.theory import operating_point
 
 COL = {n: i for i, n in enumerate(OUT_COLUMNS)}
@@ -33,17 +33,30 @@ def noisy():
     return load_config()
 
 
-def run(cfg, dc, seconds, *, amp=0.0, substeps=1, dc_from=None, phase=0.3):
+def run(cfg, dc, seconds, *, amp=0.0, substeps=1, samples_per_step=None, dc_from=None,
+        phase=0.3, ramp_s=0.5, final_state=False):
+    """Integrate from the steady state at ``dc_from`` (default ``dc``) with the configured
+    step unless ``samples_per_step`` is given."""
     rig = cfg.rig
+    m = cfg.procedure.samples_per_step if samples_per_step is None else samples_per_step
     op = operating_point(dc if dc_from is None else dc_from, rig)
     y = initial_state(rig, creepage=op.creepage, dc_torque_nm=op.dc_torque_nm,
                       contact_fx_n=op.fx_n)
     p = pack_parameters(rig, cfg.disturbances)
     n = int(seconds * FS)
     out = np.empty((n, len(OUT_COLUMNS)))
-    done, slipped = integrate(y, 0.0, n, 1 / FS, substeps, p, op.dc_torque_nm, dc, 0.0, 0.5,
-                              amp, 2 * np.pi * 2.0, phase, 0.0, 0.05, out)
-    return out[:done], slipped
+    done, slipped = integrate(y, 0.0, n, 1 / FS, substeps, p, op.dc_torque_nm, dc, 0.0,
+                              ramp_s, amp, 2 * np.pi * 2.0, phase, 0.0, 0.05, out, m)
+    return (out[:done], slipped, y) if final_state else (out[:done], slipped)
+
+
+def test_default_step():
+    """The configured step spans two samples (h = 2/16670 s), well inside RK4's stability
+    region for the stiffest mode (the platform's PI loop, lambda ~ 3300 1/s)."""
+    cfg = load_config()
+    assert (cfg.procedure.samples_per_step, cfg.procedure.substeps) == (2, 1)
+    assert stiffest_rate(cfg.rig) == pytest.approx(3333.3, rel=1e-3)
+    assert stiffest_rate(cfg.rig) * 2 / FS == pytest.approx(0.4, rel=1e-3)
 
 
 def test_normal_load_disturbances(quiet, noisy):
@@ -99,15 +112,59 @@ def test_dc_torque_balances_creep_moment(quiet):
     assert np.mean(tail[:, COL["fx_n"]]) * rw == pytest.approx(t_mean, abs=0.02)
 
 
-def test_halving_the_step_changes_nothing(noisy):
-    """RK4 at 1/16670 s vs 1/33340 s, disturbances on, 8 N*m modulation, near saturation.
-    Tolerance: 1e-6 relative on wheel speed and 1e-3 N*m on torque."""
-    a, _ = run(noisy, 60.45, 2.0, amp=8.0, substeps=1, dc_from=55.22)
-    b, _ = run(noisy, 60.45, 2.0, amp=8.0, substeps=2, dc_from=55.22)
+def _max_diff(a, b):
+    """Largest differences: wheel speed (relative), torque [N*m], Fx [N], creepage."""
     w = COL["wheel_speed_rad_s"]
-    assert np.max(np.abs(a[:, w] - b[:, w]) / a[:, w]) < 1e-6
-    assert np.max(np.abs(a[:, COL["torque_nm"]] - b[:, COL["torque_nm"]])) < 1e-3
-    assert np.max(np.abs(a[:, COL["fx_n"]] - b[:, COL["fx_n"]])) < 1e-2
+    return (np.max(np.abs(a[:, w] - b[:, w]) / a[:, w]),
+            np.max(np.abs(a[:, COL["torque_nm"]] - b[:, COL["torque_nm"]])),
+            np.max(np.abs(a[:, COL["fx_n"]] - b[:, COL["fx_n"]])),
+            np.max(np.abs(a[:, COL["creepage"]] - b[:, COL["creepage"]])))
+
+
+def test_halving_the_step_changes_nothing(noisy):
+    """Default step (RK4 at h = 2/16670 s, every second sample cubic-Hermite interpolated)
+    against the halved step (h = 1/16670 s, every sample a step end) and the quartered one,
+    disturbances on (rail-joint kinks in the load), 8 N*m modulation, near saturation, an
+    odd number of samples (the last block is one sample). Tolerance as for the step before
+    it was doubled: 1e-6 relative on wheel speed, 1e-3 N*m on torque, 1e-2 N on Fx (the
+    differences are ~3e-9, 5e-6 N*m, 1.5e-4 N) -- far below the sensors' noise."""
+    a, _, ya = run(noisy, 60.45, 2.0001, amp=8.0, dc_from=55.22, final_state=True)
+    for m, s in ((1, 1), (1, 2)):
+        b, _, yb = run(noisy, 60.45, 2.0001, amp=8.0, dc_from=55.22, samples_per_step=m,
+                       substeps=s, final_state=True)
+        assert a.shape == b.shape and a.shape[0] % 2 == 1
+        dw, dt, dfx, dxi = _max_diff(a, b)
+        assert dw < 1e-6 and dt < 1e-3 and dfx < 1e-2 and dxi < 1e-6
+        # the state handed on is the one at t0 + n*dt in both
+        np.testing.assert_allclose(ya, yb, rtol=1e-8, atol=1e-9)
+
+
+def test_integrator_converges_at_fourth_order(quiet):
+    """Smooth forcing (no DC ramp, no load disturbances, 8 N*m modulation): halving the step
+    shrinks the difference 16-fold (classical RK4 and the cubic Hermite samples are both
+    O(h^4)), so Richardson's estimate of the default step's own error, 16/15 of its
+    difference to the halved step, is tiny: < 1e-10 relative on wheel speed and 1e-6 N*m on
+    torque (measured ~7e-13 and ~1.5e-8)."""
+    runs = {m: run(quiet, 55.22, 2.0, amp=8.0, ramp_s=0.0, samples_per_step=m)[0]
+            for m in (4, 2, 1)}
+    d42, d21 = _max_diff(runs[4], runs[2]), _max_diff(runs[2], runs[1])
+    for coarse, fine in zip(d42[:2], d21[:2], strict=True):
+        assert 10.0 < coarse / fine < 25.0  # 2**4 = 16
+    assert d21[0] * 16 / 15 < 1e-10
+    assert d21[1] * 16 / 15 < 1e-6
+
+
+def test_step_blocks_and_interpolated_slip(quiet):
+    """Samples land on the same time grid whatever the step: two calls of 3 and 4 samples
+    per block give the same record (to the method's error); a slip found on an interpolated
+    sample stops there with that sample's state."""
+    a, _ = run(quiet, 44.47, 0.3, amp=8.0, samples_per_step=3)
+    b, _ = run(quiet, 44.47, 0.3, amp=8.0, samples_per_step=4)
+    dw, dt, dfx, _ = _max_diff(a, b)
+    assert dw < 1e-9 and dt < 1e-5 and dfx < 1e-3
+    out, slipped, y = run(quiet, 72.0, 8.0, dc_from=65.82, final_state=True)
+    assert slipped
+    assert y[2] == out[-1, COL["wheel_speed_rad_s"]] and y[4] == out[-1, COL["platform_angle_rad"]]
 
 
 def test_slip_is_detected_from_the_state(quiet):
@@ -131,3 +188,32 @@ def test_measure_noise_and_switch_off(quiet, noisy):
     assert set(dirty) == {"torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n",
                           "fy_n", "fz_n"}
     assert math.isclose(np.mean(dirty["fz_n"]), quiet.rig.normal_load_n, rel_tol=1e-3)
+
+
+def test_measured_encoder_speed_matches_the_formula(quiet, noisy):
+    """measure()'s compiled encoder model (rotation from sample to sample) reproduces
+    :func:`encoder_speed` to rounding; noise drawn per channel, deterministic for a seed."""
+    raw, _ = run(quiet, 22.84, 0.3, amp=8.0)
+    no_noise = dataclasses.replace(noisy.sensors, torque_noise_nm=0.0,
+                                   wheel_speed_noise_rad_s=0.0, platform_speed_noise_rad_s=0.0,
+                                   force_noise_n=0.0)
+    ch = measure(raw, disturbances=noisy.disturbances, sensors=no_noise,
+                 rng=np.random.default_rng(0))
+    d = noisy.disturbances
+    for name, angle, ecc in (
+            ("wheel_speed_rad_s", "wheel_angle_rad",
+             (d.wheel_encoder_ecc1_rad, d.wheel_encoder_ecc2_rad, d.wheel_encoder_phase1_rad,
+              d.wheel_encoder_phase2_rad)),
+            ("platform_speed_rad_s", "platform_angle_rad",
+             (d.platform_encoder_ecc1_rad, d.platform_encoder_ecc2_rad,
+              d.platform_encoder_phase1_rad, d.platform_encoder_phase2_rad))):
+        ref = encoder_speed(raw[:, COL[name]], raw[:, COL[angle]], ecc1_rad=ecc[0],
+                            ecc2_rad=ecc[1], phase1_rad=ecc[2], phase2_rad=ecc[3])
+        np.testing.assert_allclose(ch[name], ref, rtol=1e-13)
+    np.testing.assert_array_equal(ch["fz_n"], raw[:, COL["fz_n"]])
+    runs = [measure(raw, disturbances=noisy.disturbances, sensors=noisy.sensors,
+                    rng=np.random.default_rng(s)) for s in (1, 1, 2)]
+    for name in runs[0]:
+        np.testing.assert_array_equal(runs[0][name], runs[1][name])
+        assert runs[0][name].flags.c_contiguous
+    assert not np.array_equal(runs[0]["torque_nm"], runs[2]["torque_nm"])

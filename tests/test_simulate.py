@@ -190,3 +190,17 @@ def test_mean_creepage_matches_steady_state(oracle_run):
         assert xi == pytest.approx(step["creepage"], rel=0.01, abs=2e-6), entry.step
         fx, fy, fz = (np.mean(rec.channels[c][:n]) for c in ("fx_n", "fy_n", "fz_n"))
         assert np.hypot(fx, fy) / fz == pytest.approx(step["coa"], rel=0.01)
+
+
+def test_integrator_step_is_configurable_and_checked():
+    """``procedure.samples_per_step`` (default 2) is validated, and a step too long for the
+    rig's fastest mode (RK4 stability) is refused with a hint."""
+    assert load_config(overrides={"procedure": {"samples_per_step": 1}}
+                       ).procedure.samples_per_step == 1
+    with pytest.raises(InputError, match="samples_per_step"):
+        load_config(overrides={"procedure": {"samples_per_step": 0}})
+    stiff = {"rig": {"platform_kp_nm_s_rad": 1.0e8}}  # lambda = 33 000 1/s
+    with pytest.raises(InputError, match=r"lambda\*h = 4\.00"):
+        load_config(overrides=stiff)
+    cfg = load_config(overrides={**stiff, "procedure": {"samples_per_step": 1, "substeps": 2}})
+    assert cfg.procedure.substeps == 2

@@ -27,6 +27,7 @@ from dataclasses import asdict
 from importlib import resources
 from pathlib import Path
 
+import numba
 import numpy as np
 
 from . import __version__
@@ -177,8 +178,9 @@ def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
                               and math.isfinite(x) for x in torques):
         raise InputError("'procedure.dc_torques_nm' must be a non-empty list of numbers",
                          path=where)
-    if p["cycles_per_step"] < 1 or p["substeps"] < 1:
-        raise InputError("'procedure.cycles_per_step' and 'substeps' must be >= 1", path=where)
+    if p["cycles_per_step"] < 1 or p["substeps"] < 1 or p["samples_per_step"] < 1:
+        raise InputError("'procedure.cycles_per_step', 'substeps' and 'samples_per_step' must "
+                         "be >= 1", path=where)
     procedure = ProcedureParams(dc_torques_nm=tuple(float(x) for x in torques),
                                 cycles_per_step=int(p["cycles_per_step"]),
                                 settle_s=_positive(doc, "procedure", "settle_s", where,
@@ -186,9 +188,38 @@ def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
                                 ramp_s=_positive(doc, "procedure", "ramp_s", where,
                                                  allow_zero=True),
                                 slip_creepage=_positive(doc, "procedure", "slip_creepage", where),
-                                substeps=int(p["substeps"]))
+                                substeps=int(p["substeps"]),
+                                samples_per_step=int(p["samples_per_step"]))
+    _check_step(rig, sensors, procedure, where)
     return SimConfig(rig=rig, modulation=modulation, disturbances=dist, sensors=sensors,
                      procedure=procedure)
+
+
+#: largest |lambda*h| accepted for the integrator (RK4 is stable to 2.78 on the real axis)
+MAX_LAMBDA_H = 2.0
+
+
+def stiffest_rate(rig: RigParams) -> float:
+    """Estimate [1/s] of the fastest eigenvalue of the twin's equations: the platform's PI
+    loop ``Kp/Jp``, the torsional mode ``sqrt(k/J) + c/J`` (``1/J = 1/Jm + 1/Jw``) or the
+    creep-force damping ``(Rw^2/Jw + Rp^2/Jp)*dFx/dxi/V`` at zero creepage."""
+    c = rig.contact
+    inv_j = 1.0 / rig.drive_inertia_kg_m2 + 1.0 / rig.wheel_inertia_kg_m2
+    torsion = math.sqrt(rig.shaft_stiffness_nm_rad * inv_j) + rig.shaft_damping_nm_s_rad * inv_j
+    kx = 2.0 * (c.k_a + c.k_s) * c.stiffness_x_n / math.pi  # dFx/dxi at 0, P05 Eq. (8)
+    contact = (rig.wheel_radius_m ** 2 / rig.wheel_inertia_kg_m2
+               + rig.platform_radius_m ** 2 / rig.platform_inertia_kg_m2) * kx / rig.speed_m_s
+    return max(rig.platform_kp_nm_s_rad / rig.platform_inertia_kg_m2, torsion, contact)
+
+
+def _check_step(rig: RigParams, sensors: SensorParams, proc: ProcedureParams,
+                where: str) -> None:
+    h = proc.samples_per_step / (proc.substeps * sensors.sample_rate_hz)
+    lam_h = stiffest_rate(rig) * h
+    if lam_h > MAX_LAMBDA_H:
+        raise InputError(f"integrator step {h:.3g} s too long for the rig's fastest mode "
+                         f"(lambda*h = {lam_h:.2f} > {MAX_LAMBDA_H})", path=where,
+                         hint="lower procedure.samples_per_step or raise procedure.substeps")
 
 
 def load_config(path: str | Path | None = None, *, overrides: dict | None = None) -> SimConfig:
@@ -229,16 +260,52 @@ def _cycle_bounds(theta: np.ndarray, start: int, cycles: int) -> list[int]:
     return [start, *(int(i) for i in idx)]
 
 
+@numba.njit(cache=True)
+def _sine_fit_sums(x, y, n, dw, gram, rhs):
+    """Normal equations of the fit of ``cos(k*dw)``, ``sin(k*dw)``, 1 to ``x[:n]`` and
+    ``y[:n]``: ``gram`` (3, 3) and ``rhs`` (3, 2). The basis is rotated sample by sample
+    (exact sin/cos every 1024 samples); each signal is taken relative to its first sample
+    (absorbed by the DC term) to keep the sums well conditioned."""
+    cr, sr = math.cos(dw), math.sin(dw)
+    gram[:] = 0.0
+    rhs[:] = 0.0
+    c, s = 1.0, 0.0
+    x0, y0 = x[0], y[0]
+    for k in range(n):
+        if k % 1024 == 0:
+            c, s = math.cos(k * dw), math.sin(k * dw)
+        gram[0, 0] += c * c
+        gram[0, 1] += c * s
+        gram[0, 2] += c
+        gram[1, 1] += s * s
+        gram[1, 2] += s
+        u, v = x[k] - x0, y[k] - y0
+        rhs[0, 0] += u * c
+        rhs[1, 0] += u * s
+        rhs[2, 0] += u
+        rhs[0, 1] += v * c
+        rhs[1, 1] += v * s
+        rhs[2, 1] += v
+        c, s = c * cr - s * sr, s * cr + c * sr
+    gram[1, 0] = gram[0, 1]
+    gram[2, 0] = gram[0, 2]
+    gram[2, 1] = gram[1, 2]
+    gram[2, 2] = n
+
+
 def sine_fit_phase_deg(torque: np.ndarray, speed: np.ndarray, fs_hz: float,
                        frequency_hz: float) -> float:
     """Phase [deg] of ``speed`` behind ``torque`` at ``frequency_hz`` by a least-squares fit
     of cos, sin and DC to each signal over the largest whole number of periods (IEEE Std 1057
-    three-parameter fit, FACTS.md §5). Positive when the speed lags."""
+    three-parameter fit, FACTS.md §5; solved by its 3x3 normal equations). Positive when the
+    speed lags."""
     n = int(np.floor(torque.size / fs_hz * frequency_hz) * fs_hz / frequency_hz)
-    t = np.arange(n) / fs_hz
-    w = 2.0 * np.pi * frequency_hz * t
-    basis = np.column_stack([np.cos(w), np.sin(w), np.ones(n)])
-    coef = np.linalg.lstsq(basis, np.column_stack([torque[:n], speed[:n]]), rcond=None)[0]
+    if n < 3 or speed.size < n:
+        raise ValueError("sine fit needs one whole period of both signals")
+    gram, rhs = np.empty((3, 3)), np.empty((3, 2))
+    _sine_fit_sums(np.asarray(torque, dtype=np.float64), np.asarray(speed, dtype=np.float64),
+                   n, 2.0 * np.pi * frequency_hz / fs_hz, gram, rhs)
+    coef = np.linalg.solve(gram, rhs)
     ang = np.angle(coef[0] - 1j * coef[1])  # x = A cos(w + phi) -> a = A cos phi, b = -A sin phi
     return float((np.degrees(ang[0] - ang[1]) + 180.0) % 360.0 - 180.0)
 
@@ -301,12 +368,12 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     slip_step = None
     bar = tqdm(total=len(torques), desc="simulate", unit="step", file=sys.stderr,
                disable=not progress)
+    out = np.empty((n_settle + n_rec, len(OUT_COLUMNS)))  # reused: each step copies out
     for i_step, dc in enumerate(torques, start=1):
         phase = float(rng.uniform(0.0, 2.0 * np.pi)) if mod.random_phase else 0.0
-        out = np.empty((n_settle + n_rec, len(OUT_COLUMNS)))
         n_done, slipped = integrate(y, t, n_settle + n_rec, dt, proc.substeps, params, dc_prev,
                                     dc, t, proc.ramp_s, mod.amplitude_nm, omega_mod, phase, t,
-                                    proc.slip_creepage, out)
+                                    proc.slip_creepage, out, proc.samples_per_step)
         t_step = t
         t += n_done * dt
         dc_prev = dc

@@ -22,6 +22,13 @@ Equations (derived for this model; the contact force is quasi-static, Polach 200
     F_x, F_y  = Polach(xi_x, xi_y, N(th_p), V = W_p*R_p)
 
 The motor torque is ``T_m = T_dc(t) + A*sin(2*pi*f*(t - t_gen) + phi)`` with a DC ramp.
+
+Integration (:func:`integrate`): classical RK4 at a fixed step of ``samples_per_step`` output
+samples (default 2, configured in ``[procedure]``); samples inside a step are the cubic
+Hermite interpolant of the step's end states and slopes, with the contact forces evaluated
+at that state. The work per step is trimmed without changing the equations: the modulation
+sine is rotated from step to step, the normal load's sines from a per-step anchor (above
+:func:`_load_near`), and the states are kept in registers (:func:`_rhs_s`).
 """
 
 from __future__ import annotations
@@ -93,22 +100,141 @@ def normal_load(th_p: float, p: np.ndarray) -> float:
     return n
 
 
+# ---- normal load near an anchor angle ---------------------------------------------------
+# Within one RK4 step the platform turns by ~1e-4 rad, so every evaluation of the normal load
+# in the step is written as its sines and decay at the step's start angle (the "anchor")
+# rotated/decayed by the small increment, whose sin, cos and exp are Taylor polynomials
+# accurate to rounding for |u| <= _SMALL. The anchor itself is advanced the same way from
+# step to step and evaluated exactly every _ANCHOR_EXACT steps. Larger increments, and a rail
+# joint between anchor and angle, fall back to the exact :func:`normal_load`.
+_SMALL = 0.05
+# anchor vector: angle, sin/cos of the sleeper argument, joint phase, joint decay, sin/cos
+A_TH, A_SS, A_SC, A_PHI, A_JE, A_JS, A_JC = range(7)
+N_ANCHOR = 7
+
+
 @numba.njit(**_FAST)
-def _forces(y: np.ndarray, p: np.ndarray):
+def _sin_small(u):
+    # |u| <= 0.05: truncation below u**11/11! < 2e-22
+    v = u * u
+    return u * (1.0 - v / 6.0 * (1.0 - v / 20.0 * (1.0 - v / 42.0 * (1.0 - v / 72.0
+                                                                         * (1.0 - v / 110.0)))))
+
+
+@numba.njit(**_FAST)
+def _cos_small(u):
+    # |u| <= 0.05: truncation below u**12/12! < 1e-24
+    v = u * u
+    return 1.0 - v / 2.0 * (1.0 - v / 12.0 * (1.0 - v / 30.0 * (1.0 - v / 56.0
+                                                                  * (1.0 - v / 90.0))))
+
+
+@numba.njit(**_FAST)
+def _exp_small(x):
+    # |x| <= 0.05: truncation below x**9/9! < 6e-18 relative to 1 (0.05 ulp)
+    return 1.0 + x * (1.0 + x / 2.0 * (1.0 + x / 3.0 * (1.0 + x / 4.0 * (
+        1.0 + x / 5.0 * (1.0 + x / 6.0 * (1.0 + x / 7.0 * (1.0 + x / 8.0)))))))
+
+
+@numba.njit(**_FAST)
+def _load_anchor(th_p: float, p: np.ndarray, a: np.ndarray) -> float:
+    """Set the anchor ``a`` at ``th_p`` and return the normal load there (= normal_load)."""
+    a[A_TH] = th_p
+    n = p[P_N0]
+    if p[P_SLEEP_A] != 0.0:
+        u = p[P_SLEEP_N] * th_p
+        a[A_SS] = math.sin(u)
+        a[A_SC] = math.cos(u)
+        n += p[P_SLEEP_A] * a[A_SS]
+    if p[P_JOINT_A] != 0.0:
+        pitch = 2.0 * math.pi / p[P_JOINT_N]
+        phi = (th_p - 0.5 * pitch) % pitch
+        t = phi / p[P_WREF]
+        a[A_PHI] = phi
+        a[A_JE] = math.exp(-p[P_JOINT_Z] * t)
+        a[A_JS] = math.sin(p[P_JOINT_W] * t)
+        a[A_JC] = math.cos(p[P_JOINT_W] * t)
+        n += p[P_JOINT_A] * a[A_JE] * a[A_JS]
+    return n
+
+
+@numba.njit(**_FAST)
+def _load_near(th_p: float, p: np.ndarray, a: np.ndarray) -> float:
+    """:func:`normal_load` at ``th_p`` from the anchor ``a`` set nearby (see above)."""
+    d = th_p - a[A_TH]
+    n = p[P_N0]
+    if p[P_SLEEP_A] != 0.0:
+        u = p[P_SLEEP_N] * d
+        if abs(u) <= _SMALL:
+            n += p[P_SLEEP_A] * (a[A_SS] * _cos_small(u) + a[A_SC] * _sin_small(u))
+        else:
+            n += p[P_SLEEP_A] * math.sin(p[P_SLEEP_N] * th_p)
+    if p[P_JOINT_A] != 0.0:
+        pitch = 2.0 * math.pi / p[P_JOINT_N]
+        phi = a[A_PHI] + d
+        tau = d / p[P_WREF]
+        x = p[P_JOINT_Z] * tau
+        u = p[P_JOINT_W] * tau
+        if 0.0 <= phi < pitch and abs(u) <= _SMALL and abs(x) <= _SMALL:
+            n += p[P_JOINT_A] * a[A_JE] * _exp_small(-x) * (
+                a[A_JS] * _cos_small(u) + a[A_JC] * _sin_small(u))
+        else:
+            phi = (th_p - 0.5 * pitch) % pitch
+            t = phi / p[P_WREF]
+            n += p[P_JOINT_A] * math.exp(-p[P_JOINT_Z] * t) * math.sin(p[P_JOINT_W] * t)
+    return n
+
+
+@numba.njit(**_FAST)
+def _load_advance(th_p: float, p: np.ndarray, a: np.ndarray, b: np.ndarray, exact: bool
+                  ) -> float:
+    """Set the anchor ``b`` at ``th_p`` by advancing the anchor ``a`` set nearby (the sines
+    rotated, the decay multiplied, as in :func:`_load_near`), or exactly (:func:`_load_anchor`)
+    if ``exact``, across a rail joint or for a large increment; return the normal load."""
+    if exact:
+        return _load_anchor(th_p, p, b)
+    d = th_p - a[A_TH]
+    sa = p[P_SLEEP_A] != 0.0
+    u = p[P_SLEEP_N] * d
+    if sa and not abs(u) <= _SMALL:
+        return _load_anchor(th_p, p, b)
+    ja = p[P_JOINT_A] != 0.0
+    phi = a[A_PHI] + d
+    tau = d / p[P_WREF]
+    x = p[P_JOINT_Z] * tau
+    v = p[P_JOINT_W] * tau
+    if ja and not (0.0 <= phi < 2.0 * math.pi / p[P_JOINT_N] and abs(v) <= _SMALL
+                   and abs(x) <= _SMALL):
+        return _load_anchor(th_p, p, b)
+    b[A_TH] = th_p
+    n = p[P_N0]
+    if sa:
+        cu, su = _cos_small(u), _sin_small(u)
+        b[A_SS] = a[A_SS] * cu + a[A_SC] * su
+        b[A_SC] = a[A_SC] * cu - a[A_SS] * su
+        n += p[P_SLEEP_A] * b[A_SS]
+    if ja:
+        cv, sv = _cos_small(v), _sin_small(v)
+        b[A_PHI] = phi
+        b[A_JE] = a[A_JE] * _exp_small(-x)
+        b[A_JS] = a[A_JS] * cv + a[A_JC] * sv
+        b[A_JC] = a[A_JC] * cv - a[A_JS] * sv
+        n += p[P_JOINT_A] * b[A_JE] * b[A_JS]
+    return n
+
+
+#: RK4 steps between exact evaluations of the load anchor (advanced by rotation in between)
+_ANCHOR_EXACT = 64
+
+
+@numba.njit(**_FAST)
+def _rhs(y: np.ndarray, t_m: float, n: float, p: np.ndarray, dy: np.ndarray):
+    """Right-hand side at state ``y``, motor torque ``t_m`` and normal load ``n`` into ``dy``;
+    returns the contact values (Fx, Fy, xi_x) so that the caller can record them."""
     v = y[5] * p[P_RP]
-    xi_x = (y[2] * p[P_RW] - v) / v
-    n = normal_load(y[4], p)
-    fx, fy = _creep_force(xi_x, p[P_XIY], n, v, p[P_SX], p[P_SY], p[P_MU0], p[P_A],
-                                p[P_B], p[P_KA], p[P_KS])
-    return fx, fy, n, xi_x
-
-
-@numba.njit(**_FAST)
-def _deriv(y: np.ndarray, t_m: float, p: np.ndarray, dy: np.ndarray, f: np.ndarray) -> None:
-    """Right-hand side at state ``y`` and motor torque ``t_m``; contact values into ``f``
-    (Fx, Fy, N, xi_x) so that the caller can record them without recomputing."""
-    fx, fy, n, xi = _forces(y, p)
-    f[0], f[1], f[2], f[3] = fx, fy, n, xi
+    xi = (y[2] * p[P_RW] - v) / v
+    fx, fy = _creep_force(xi, p[P_XIY], n, v, p[P_SX], p[P_SY], p[P_MU0], p[P_A], p[P_B],
+                          p[P_KA], p[P_KS])
     t_sh = p[P_KT] * y[0] + p[P_CT] * (y[1] - y[2])
     err = p[P_WREF] - y[5]
     dy[0] = y[1] - y[2]
@@ -118,64 +244,193 @@ def _deriv(y: np.ndarray, t_m: float, p: np.ndarray, dy: np.ndarray, f: np.ndarr
     dy[4] = y[5]
     dy[5] = (p[P_KP] * err + p[P_KI] * y[6] + p[P_RP] * fx - p[P_TRR]) / p[P_JP]
     dy[6] = err
+    return fx, fy, xi
 
 
 @numba.njit(**_FAST)
-def _motor_torque(t, dc_from, dc_to, t_step, ramp_s, amp, omega, phase, t_gen):
+def _deriv(y: np.ndarray, t_m: float, p: np.ndarray, dy: np.ndarray, f: np.ndarray) -> None:
+    """Right-hand side at state ``y`` and motor torque ``t_m`` into ``dy``, contact values
+    (Fx, Fy, N, xi_x) into ``f`` -- the plain form of what :func:`integrate` evaluates."""
+    n = normal_load(y[4], p)
+    fx, fy, xi = _rhs(y, t_m, n, p, dy)
+    f[0], f[1], f[2], f[3] = fx, fy, n, xi
+
+
+@numba.njit(**_FAST)
+def _ramp(t, dc_from, dc_to, t_step, ramp_s):
     r = 1.0 if ramp_s <= 0.0 else min(max((t - t_step) / ramp_s, 0.0), 1.0)
-    return dc_from + (dc_to - dc_from) * r + amp * math.sin(omega * (t - t_gen) + phase)
+    return dc_from + (dc_to - dc_from) * r
+
+
+@numba.njit(**_FAST)
+def _rhs_s(y0, y1, y2, y5, y6, t_m, n, c):
+    """:func:`_rhs` on scalars (the states the right-hand side reads; ``th_w' = w_w`` and
+    ``th_p' = W_p`` need no evaluation) with the constants ``c`` of :func:`_constants`.
+    Returns the derivatives of ``twist, w_m, w_w, W_p, i_pi`` and ``(Fx, Fy, xi_x)``."""
+    rw, rp, wref, ijm, ijw, ijp, kt, ct, kp, ki, trr, xiy, sx, sy, mu0, a, b, ka, ks = c
+    v = y5 * rp
+    xi = (y2 * rw - v) / v
+    fx, fy = _creep_force(xi, xiy, n, v, sx, sy, mu0, a, b, ka, ks)
+    t_sh = kt * y0 + ct * (y1 - y2)
+    err = wref - y5
+    return (y1 - y2, (t_m - t_sh) * ijm, (t_sh - rw * fx) * ijw,
+            (kp * err + ki * y6 + rp * fx - trr) * ijp, err, fx, fy, xi)
+
+
+@numba.njit(**_FAST)
+def _constants(p):
+    return (p[P_RW], p[P_RP], p[P_WREF], 1.0 / p[P_JM], 1.0 / p[P_JW], 1.0 / p[P_JP], p[P_KT],
+            p[P_CT], p[P_KP], p[P_KI], p[P_TRR], p[P_XIY], p[P_SX], p[P_SY], p[P_MU0], p[P_A],
+            p[P_B], p[P_KA], p[P_KS])
+
+
+@numba.njit(**_FAST)
+def _put(out, i, kt, ct, y0, y1, y2, y3, y4, y5, fx, fy, n, xi):
+    out[i, 0] = kt * y0 + ct * (y1 - y2)
+    out[i, 1] = y2
+    out[i, 2] = y5
+    out[i, 3] = fx
+    out[i, 4] = fy
+    out[i, 5] = n
+    out[i, 6] = y3
+    out[i, 7] = y4
+    out[i, 8] = xi
+
+
+#: RK4 steps between exact re-evaluations of the modulation's sine (rotated in between)
+_RESYNC = 1024
 
 
 @numba.njit(**_FAST)
 def integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s, amp, omega,
-              phase, t_gen, slip_creepage, out):
-    """Advance state ``y`` (modified in place) by ``n_samples`` output samples of ``dt`` [s],
-    each split into ``substeps`` classical RK4 steps; write :data:`OUT_COLUMNS` to ``out``.
+              phase, t_gen, slip_creepage, out, samples_per_step=1):
+    """Advance state ``y`` (modified in place) by ``n_samples`` output samples of ``dt`` [s]
+    and write :data:`OUT_COLUMNS` to ``out`` (sample ``i`` is the state at ``t0 + i*dt``).
+
+    The time axis is cut into blocks of ``samples_per_step`` samples, each integrated by
+    ``substeps`` classical RK4 steps (step ``h = samples_per_step*dt/substeps``; a shorter
+    last block takes the remaining samples). A sample that falls inside an RK4 step is the
+    cubic Hermite interpolant of the step's end states and derivatives (error O(h^4), as
+    the method's), with the contact forces evaluated at that interpolated state.
+    ``samples_per_step = substeps = 1`` is one RK4 step per sample.
 
     Returns ``(n_written, slipped)``: integration stops at the first sample whose creepage
-    exceeds ``slip_creepage`` (or is not finite), which counts as wheel slip.
+    exceeds ``slip_creepage`` (or is not finite), which counts as wheel slip; ``y`` is then
+    the state of that sample.
     """
-    h = dt / substeps
-    k1 = np.empty(N_STATES)
-    k2 = np.empty(N_STATES)
-    k3 = np.empty(N_STATES)
-    k4 = np.empty(N_STATES)
-    yt = np.empty(N_STATES)
-    f0 = np.empty(4)
-    fs = np.empty(4)
-    t = t0
-    for i in range(n_samples):
-        for sub in range(substeps):
-            tm0 = _motor_torque(t, dc_from, dc_to, t_step, ramp_s, amp, omega, phase, t_gen)
-            _deriv(y, tm0, p, k1, f0)
-            if sub == 0:  # record the sample at the start of its interval
-                xi = f0[3]
-                out[i, 0] = p[P_KT] * y[0] + p[P_CT] * (y[1] - y[2])
-                out[i, 1] = y[2]
-                out[i, 2] = y[5]
-                out[i, 3] = f0[0]
-                out[i, 4] = f0[1]
-                out[i, 5] = f0[2]
-                out[i, 6] = y[3]
-                out[i, 7] = y[4]
-                out[i, 8] = xi
-                if not (xi < slip_creepage) or not math.isfinite(xi):
-                    return i + 1, True
-            tmh = _motor_torque(t + 0.5 * h, dc_from, dc_to, t_step, ramp_s, amp, omega, phase,
-                                t_gen)
-            tm1 = _motor_torque(t + h, dc_from, dc_to, t_step, ramp_s, amp, omega, phase, t_gen)
-            for j in range(N_STATES):
-                yt[j] = y[j] + 0.5 * h * k1[j]
-            _deriv(yt, tmh, p, k2, fs)
-            for j in range(N_STATES):
-                yt[j] = y[j] + 0.5 * h * k2[j]
-            _deriv(yt, tmh, p, k3, fs)
-            for j in range(N_STATES):
-                yt[j] = y[j] + h * k3[j]
-            _deriv(yt, tm1, p, k4, fs)
-            for j in range(N_STATES):
-                y[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-            t += h
+    m = samples_per_step
+    s_n = substeps
+    c = _constants(p)
+    kt, ct = p[P_KT], p[P_CT]
+    anc = np.zeros(N_ANCHOR)
+    anc_n = np.zeros(N_ANCHOR)
+    # the modulation sin(omega*(t - t_gen) + phase) by rotation between exact re-evaluations
+    use_mod = amp != 0.0
+    ang0 = omega * (t0 - t_gen) + phase
+    ms, mc = math.sin(ang0), math.cos(ang0)
+    y0, y1, y2, y3, y4, y5, y6 = y[0], y[1], y[2], y[3], y[4], y[5], y[6]
+    # derivative and contact at the first sample
+    n0 = _load_anchor(y4, p, anc)
+    tm = _ramp(t0, dc_from, dc_to, t_step, ramp_s) + amp * ms
+    a0, a1, a2, a5, a6, fx0, fy0, xi0 = _rhs_s(y0, y1, y2, y5, y6, tm, n0, c)
+    i = 0
+    h_prev = -1.0
+    rc = rs = 1.0
+    n_steps = 0
+    while i < n_samples:
+        mb = min(m, n_samples - i)  # samples in this block
+        hb = mb * dt / s_n
+        if hb != h_prev:  # rotation of the modulation phase by half a step
+            h_prev = hb
+            rc, rs = math.cos(0.5 * omega * hb), math.sin(0.5 * omega * hb)
+        tb = t0 + i * dt
+        hh = 0.5 * hb
+        for jj in range(s_n):
+            ta = tb + jj * hb
+            # the sample at the start of this RK step, if any
+            if (jj * mb) % s_n == 0:
+                k = i + (jj * mb) // s_n
+                _put(out, k, kt, ct, y0, y1, y2, y3, y4, y5, fx0, fy0, n0, xi0)
+                if not (xi0 < slip_creepage) or not math.isfinite(xi0):
+                    y[0], y[1], y[2], y[3], y[4], y[5], y[6] = y0, y1, y2, y3, y4, y5, y6
+                    return k + 1, True
+            # modulation at ta + h/2 and ta + h
+            if use_mod:
+                hs = ms * rc + mc * rs
+                hc = mc * rc - ms * rs
+                es = hs * rc + hc * rs
+                ec = hc * rc - hs * rs
+                if n_steps % _RESYNC == 0:
+                    ang = omega * (ta + hb - t_gen) + phase
+                    es, ec = math.sin(ang), math.cos(ang)
+                else:
+                    g = 1.5 - 0.5 * (es * es + ec * ec)  # keep on the unit circle
+                    es *= g
+                    ec *= g
+            else:
+                hs = es = 0.0
+                ec = 1.0
+            n_steps += 1
+            tmh = _ramp(ta + hh, dc_from, dc_to, t_step, ramp_s) + amp * hs
+            tm1 = _ramp(ta + hb, dc_from, dc_to, t_step, ramp_s) + amp * es
+            # classical RK4; k_i = (b0, b1, b2, w_w, W_p, b5, b6) of stage i
+            s2, s5 = y2 + hh * a2, y5 + hh * a5
+            s4 = y4 + hh * y5
+            b0, b1, b2, b5, b6, _, _, _ = _rhs_s(y0 + hh * a0, y1 + hh * a1, s2, s5,
+                                                 y6 + hh * a6, tmh, _load_near(s4, p, anc), c)
+            u2, u5 = y2 + hh * b2, y5 + hh * b5
+            u4 = y4 + hh * s5
+            c0, c1, c2, c5, c6, _, _, _ = _rhs_s(y0 + hh * b0, y1 + hh * b1, u2, u5,
+                                                 y6 + hh * b6, tmh, _load_near(u4, p, anc), c)
+            v2, v5 = y2 + hb * c2, y5 + hb * c5
+            v4 = y4 + hb * u5
+            d0, d1, d2, d5, d6, _, _, _ = _rhs_s(y0 + hb * c0, y1 + hb * c1, v2, v5,
+                                                 y6 + hb * c6, tm1, _load_near(v4, p, anc), c)
+            h6 = hb / 6.0
+            z0 = y0 + h6 * (a0 + 2.0 * (b0 + c0) + d0)
+            z1 = y1 + h6 * (a1 + 2.0 * (b1 + c1) + d1)
+            z2 = y2 + h6 * (a2 + 2.0 * (b2 + c2) + d2)
+            z3 = y3 + h6 * (y2 + 2.0 * (s2 + u2) + v2)
+            z4 = y4 + h6 * (y5 + 2.0 * (s5 + u5) + v5)
+            z5 = y5 + h6 * (a5 + 2.0 * (b5 + c5) + d5)
+            z6 = y6 + h6 * (a6 + 2.0 * (b6 + c6) + d6)
+            # derivative at the step's end: the next step's k1 and the interpolation's slope
+            nn = _load_advance(z4, p, anc, anc_n, n_steps % _ANCHOR_EXACT == 0)
+            e0, e1, e2, e5, e6, fxn, fyn, xin = _rhs_s(z0, z1, z2, z5, z6, tm1, nn, c)
+            # samples strictly inside this step: cubic Hermite interpolation
+            for k in range(mb):
+                q = k * s_n - jj * mb
+                if 0 < q < mb:
+                    th = q / mb
+                    r = 1.0 - th
+                    w00 = (1.0 + 2.0 * th) * r * r
+                    w10 = th * r * r * hb
+                    w01 = th * th * (3.0 - 2.0 * th)
+                    w11 = -th * th * r * hb
+                    q0 = w00 * y0 + w10 * a0 + w01 * z0 + w11 * e0
+                    q1 = w00 * y1 + w10 * a1 + w01 * z1 + w11 * e1
+                    q2 = w00 * y2 + w10 * a2 + w01 * z2 + w11 * e2
+                    q3 = w00 * y3 + w10 * y2 + w01 * z3 + w11 * z2
+                    q4 = w00 * y4 + w10 * y5 + w01 * z4 + w11 * z5
+                    q5 = w00 * y5 + w10 * a5 + w01 * z5 + w11 * e5
+                    q6 = w00 * y6 + w10 * a6 + w01 * z6 + w11 * e6
+                    ni = _load_near(q4, p, anc)
+                    v = q5 * c[1]
+                    xi = (q2 * c[0] - v) / v
+                    fx, fy = _creep_force(xi, c[11], ni, v, c[12], c[13], c[14], c[15], c[16],
+                                          c[17], c[18])
+                    _put(out, i + k, kt, ct, q0, q1, q2, q3, q4, q5, fx, fy, ni, xi)
+                    if not (xi < slip_creepage) or not math.isfinite(xi):
+                        y[0], y[1], y[2], y[3], y[4], y[5], y[6] = q0, q1, q2, q3, q4, q5, q6
+                        return i + k + 1, True
+            y0, y1, y2, y3, y4, y5, y6 = z0, z1, z2, z3, z4, z5, z6
+            a0, a1, a2, a5, a6 = e0, e1, e2, e5, e6
+            for j in range(N_ANCHOR):
+                anc[j] = anc_n[j]
+            fx0, fy0, n0, xi0 = fxn, fyn, nn, xin
+            ms, mc = es, ec
+        i += mb
+    y[0], y[1], y[2], y[3], y[4], y[5], y[6] = y0, y1, y2, y3, y4, y5, y6
     return n_samples, False
 
 

@@ -146,7 +146,9 @@ class SensorParams:
 class ProcedureParams:
     """Test procedure: DC torque steps [N*m], platform revolutions recorded per step,
     settling time after each step change [s], ramp time of the DC change [s], the creepage
-    above which the wheel counts as slipping [-], and integrator sub-steps per sample."""
+    above which the wheel counts as slipping [-], and the integrator's step: ``substeps``
+    classical RK4 steps per ``samples_per_step`` output samples (samples inside a step are
+    interpolated, see :func:`torquemod.rig.dynamics.integrate`)."""
 
     dc_torques_nm: tuple[float, ...] = (0.23, 22.84, 44.47, 55.22, 60.45, 65.82)
     cycles_per_step: int = 3
@@ -154,6 +156,7 @@ class ProcedureParams:
     ramp_s: float = 0.5
     slip_creepage: float = 0.05
     substeps: int = 1
+    samples_per_step: int = 2
 
 
 @dataclass(frozen=True)

@@ -7,51 +7,87 @@ once and twice the shaft's rotation frequency, proportional to the speed.
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
-from .dynamics import OUT_COLUMNS
+from .dynamics import _FLAGS, OUT_COLUMNS, _cos_small, _sin_small
 from .params import DisturbanceParams, SensorParams
 
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
+#: the recorded channels, in the order their noise is drawn
+_NOISY = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", "fy_n", "fz_n")
+#: speed channel -> the angle its encoder reads
+_ENCODER = {"wheel_speed_rad_s": "wheel_angle_rad", "platform_speed_rad_s": "platform_angle_rad"}
 
 
 def encoder_speed(speed_rad_s: np.ndarray, angle_rad: np.ndarray, *, ecc1_rad: float,
                   ecc2_rad: float, phase1_rad: float, phase2_rad: float) -> np.ndarray:
-    """Speed [rad/s] seen by an eccentric encoder (derivative of the angle error above)."""
+    """Speed [rad/s] seen by an eccentric encoder (derivative of the angle error above).
+    :func:`measure` evaluates the same formula sample by sample (``_encoder_kernel``)."""
     err = ecc1_rad * np.cos(angle_rad + phase1_rad) + 2.0 * ecc2_rad * np.cos(
         2.0 * angle_rad + phase2_rad)
     return speed_rad_s * (1.0 + err)
+
+
+@numba.njit(cache=True, fastmath=_FLAGS)
+def _encoder_kernel(speed, angle, e1, e2, ph1, ph2, out):
+    """:func:`encoder_speed` sample by sample. ``cos(angle + ph1)`` is carried along by rotating
+    through each sample's small angle increment (exact sin/cos every 256 samples and after
+    any jump larger than 0.05 rad); the second harmonic follows from the double angle."""
+    cd, sd = math.cos(ph2 - 2.0 * ph1), math.sin(ph2 - 2.0 * ph1)
+    c = 1.0
+    s = 0.0
+    prev = 0.0
+    for k in range(speed.size):
+        a = angle[k]
+        d = a - prev
+        if k % 256 == 0 or not abs(d) <= 0.05:
+            c, s = math.cos(a + ph1), math.sin(a + ph1)
+        else:
+            cr, sr = _cos_small(d), _sin_small(d)
+            c, s = c * cr - s * sr, s * cr + c * sr
+        prev = a
+        # cos(2*a + ph2) = cos(2*(a + ph1) + (ph2 - 2*ph1))
+        c2 = (2.0 * c * c - 1.0) * cd - 2.0 * s * c * sd
+        out[k] = speed[k] * (1.0 + e1 * c + 2.0 * e2 * c2)
 
 
 def measure(raw: np.ndarray, *, disturbances: DisturbanceParams, sensors: SensorParams,
             rng: np.random.Generator) -> dict[str, np.ndarray]:
     """Sensor channels (names of :data:`torquemod.data.CHANNELS`) from the true signals
     ``raw`` (columns :data:`torquemod.rig.dynamics.OUT_COLUMNS`). Forces keep the contact
-    sign convention: ``fx_n`` > 0 is traction for positive drive torque."""
+    sign convention: ``fx_n`` > 0 is traction for positive drive torque.
+
+    The channels are the contiguous rows of one new float64 array. The noise is drawn channel
+    by channel in the order of :data:`_NOISY`, one ``standard_normal`` call per channel with
+    noise (the same numbers as ``rng.normal(0, sd, n)``)."""
     d, s = disturbances, sensors
     n = raw.shape[0]
-    ch = {
-        "torque_nm": raw[:, _COL["torque_nm"]].copy(),
-        "wheel_speed_rad_s": raw[:, _COL["wheel_speed_rad_s"]].copy(),
-        "platform_speed_rad_s": raw[:, _COL["platform_speed_rad_s"]].copy(),
-        "fx_n": raw[:, _COL["fx_n"]].copy(),
-        "fy_n": raw[:, _COL["fy_n"]].copy(),
-        "fz_n": raw[:, _COL["fz_n"]].copy(),
-    }
+    block = np.empty((len(_NOISY), n))
+    ch = {}
+    for k, name in enumerate(_NOISY):
+        ch[name] = block[k]
+        if not (d.enabled and name in _ENCODER):
+            block[k] = raw[:, _COL[name]]
     if not d.enabled:
         return ch
-    ch["wheel_speed_rad_s"] = encoder_speed(
-        ch["wheel_speed_rad_s"], raw[:, _COL["wheel_angle_rad"]], ecc1_rad=d.wheel_encoder_ecc1_rad,
-        ecc2_rad=d.wheel_encoder_ecc2_rad, phase1_rad=d.wheel_encoder_phase1_rad,
-        phase2_rad=d.wheel_encoder_phase2_rad)
-    ch["platform_speed_rad_s"] = encoder_speed(
-        ch["platform_speed_rad_s"], raw[:, _COL["platform_angle_rad"]],
-        ecc1_rad=d.platform_encoder_ecc1_rad, ecc2_rad=d.platform_encoder_ecc2_rad,
-        phase1_rad=d.platform_encoder_phase1_rad, phase2_rad=d.platform_encoder_phase2_rad)
+    encs = {"wheel_speed_rad_s": (d.wheel_encoder_ecc1_rad, d.wheel_encoder_ecc2_rad,
+                                  d.wheel_encoder_phase1_rad, d.wheel_encoder_phase2_rad),
+            "platform_speed_rad_s": (d.platform_encoder_ecc1_rad, d.platform_encoder_ecc2_rad,
+                                     d.platform_encoder_phase1_rad,
+                                     d.platform_encoder_phase2_rad)}
+    for name, ecc in encs.items():
+        _encoder_kernel(raw[:, _COL[name]], raw[:, _COL[_ENCODER[name]]], *ecc, ch[name])
     sigma = {"torque_nm": s.torque_noise_nm, "wheel_speed_rad_s": s.wheel_speed_noise_rad_s,
              "platform_speed_rad_s": s.platform_speed_noise_rad_s, "fx_n": s.force_noise_n,
              "fy_n": s.force_noise_n, "fz_n": s.force_noise_n}
-    for name, sd in sigma.items():
+    buf = np.empty(n)
+    for name in _NOISY:
+        sd = sigma[name]
         if sd > 0:
-            ch[name] = ch[name] + rng.normal(0.0, sd, n)
+            rng.standard_normal(out=buf)
+            buf *= sd
+            ch[name] += buf
     return ch
