@@ -17,10 +17,10 @@ def check_output_dir(out_dir: str | Path, *, force: bool) -> Path:
     """Refuse an existing non-empty ``out_dir`` unless ``force`` (checked before any work)."""
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
-        raise OutputError(f"{out}: exists and is not a folder", )
+        raise OutputError(f"{out}: exists and is not a folder")
     if out.is_dir() and any(out.iterdir()) and not force:
-        raise OutputError(f"{out}: results folder already exists; use --force to replace it "
-                          "whole or choose another --out")
+        raise OutputError(f"{out}: folder already exists and is not empty; use --force to "
+                          "replace it whole or choose another --out")
     return out
 
 

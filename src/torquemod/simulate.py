@@ -18,10 +18,7 @@ import copy
 import itertools
 import json
 import math
-import os
-import shutil
 import sys
-import tempfile
 import tomllib
 from dataclasses import asdict
 from importlib import resources
@@ -35,7 +32,8 @@ from .contact.hertz import hertz_ellipse
 from .contact.kalker import kalker_coefficients
 from .contact.presets import polach_preset
 from .data import Recording
-from .errors import InputError, OutputError
+from .errors import InputError
+from .fsutil import atomic_dir
 from .io import write_manifest, write_recording
 from .rig.dynamics import OUT_COLUMNS, initial_state, integrate, pack_parameters
 from .rig.params import (
@@ -48,7 +46,13 @@ from .rig.params import (
     SimConfig,
 )
 from .rig.sensors import measure
-from .theory import creep_curve_peak, operating_point, predicted_phase_deg, rigid_wheel_phase_deg
+from .theory import (
+    creep_curve_peak,
+    large_signal_phase_deg,
+    operating_point,
+    predicted_phase_deg,
+    rigid_wheel_phase_deg,
+)
 
 _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
@@ -310,6 +314,14 @@ def sine_fit_phase_deg(torque: np.ndarray, speed: np.ndarray, fs_hz: float,
     return float((np.degrees(ang[0] - ang[1]) + 180.0) % 360.0 - 180.0)
 
 
+def _large_signal(dc: float, config: SimConfig) -> float | None:
+    """Phase [deg] at the actual modulation amplitude (periodic steady state of the same
+    model, driven by the motor as in the simulation; :func:`large_signal_phase_deg`)."""
+    res = large_signal_phase_deg(dc, config.rig, config.modulation.actual_frequency_hz,
+                                 config.modulation.amplitude_nm, drive="motor")
+    return None if res.slipped else float(res.phase_deg)
+
+
 def _step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None,
                 slipped: bool) -> dict:
     rig, f = config.rig, config.modulation.actual_frequency_hz
@@ -319,12 +331,14 @@ def _step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | Non
              "slipped_steady_state": op.slipped}
     if op.slipped:
         entry.update(creepage=None, coa=None, creep_coefficient=None, dcoa_dxi=None,
-                     phase_theory_deg=None, phase_rigid_deg=None)
+                     phase_theory_deg=None, phase_rigid_deg=None,
+                     phase_large_signal_deg=None)
     else:
         entry.update(
             creepage=op.creepage, coa=op.coa, creep_coefficient=k, dcoa_dxi=op.dcoa_dxi,
             fx_n=op.fx_n, fy_n=op.fy_n,
             phase_theory_deg=float(predicted_phase_deg(k, rig, f, creepage=op.creepage)),
+            phase_large_signal_deg=_large_signal(dc, config),
             phase_rigid_deg=float(rigid_wheel_phase_deg(
                 k, inertia_kg_m2=rig.wheel_inertia_kg_m2, speed_m_s=rig.speed_m_s,
                 wheel_radius_m=rig.wheel_radius_m, normal_load_n=rig.normal_load_n,
@@ -417,7 +431,9 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     }
     write_manifest(
         folder / "experiment.toml",
-        rig={"wheel_radius_m": rig.wheel_radius_m, "platform_radius_m": rig.platform_radius_m},
+        rig={"wheel_radius_m": rig.wheel_radius_m, "platform_radius_m": rig.platform_radius_m,
+             # inertia between the torque sensor and the contact: sets the theory constant
+             "wheel_inertia_kg_m2": rig.wheel_inertia_kg_m2},
         test={"normal_load_n": rig.normal_load_n, "modulation_frequency_hz": mod.frequency_hz,
               "modulation_amplitude_nm": mod.amplitude_nm},
         recordings=recordings,
@@ -450,29 +466,7 @@ def run_simulation(config: SimConfig, out_dir: Path, *, seed: int = 0, fmt: str 
     if fmt not in _SUFFIX:
         raise InputError(f"unknown output format '{fmt}'", hint="use csv or hdf5")
     out_dir = Path(out_dir)
-    if out_dir.exists():
-        if not out_dir.is_dir():
-            raise OutputError(f"{out_dir}: exists and is not a folder")
-        if any(out_dir.iterdir()) and not force:
-            raise OutputError(f"{out_dir}: folder exists and is not empty; choose another "
-                              "--out or allow overwriting (force)")
-    parent = out_dir.resolve().parent
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=parent))
-    except OSError as exc:
-        raise OutputError(f"{out_dir}: cannot create the output folder ({exc})") from None
-    try:
+    with atomic_dir(out_dir, force=force) as tmp:
         truth = _simulate(config, tmp, seed=seed, fmt=fmt, progress=progress,
                           files_per_cycle=files_per_cycle)
-        if out_dir.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old-", dir=parent))
-            os.replace(out_dir, old / "x")
-            os.replace(tmp, out_dir)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out_dir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return truth
