@@ -24,9 +24,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
-import tempfile
-from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -35,9 +32,12 @@ import numpy as np
 import pandas as pd
 
 from ._version import __version__
+from .config import coerce_options
 from .creep import creep_points, saturation_onset, theory_check, theory_constant
-from .errors import InputError, OutputError
-from .fit import _jsonable, fit_polach
+from .errors import InputError
+from .fit import fit_polach
+from .fsutil import write_atomic
+from .jsonutil import dump_json, to_jsonable
 from .theory import rigid_wheel_phase_deg
 
 __all__ = ["ADDED_STEP_COLUMNS", "FitOptions", "fit_results_folder", "read_json",
@@ -78,18 +78,7 @@ class FitOptions:
 
     @classmethod
     def coerce(cls, options) -> FitOptions:
-        if options is None:
-            return cls()
-        if isinstance(options, cls):
-            return options
-        if isinstance(options, Mapping):
-            names = {f.name for f in dataclasses.fields(cls)}
-            unknown = set(options) - names
-            if unknown:
-                raise InputError(f"unknown fit option(s) {sorted(unknown)}; "
-                                 f"known: {sorted(names)}")
-            return cls(**options)
-        raise InputError(f"fit options must be FitOptions or a mapping, got {type(options)}")
+        return coerce_options(cls, options, "fit")
 
 
 def read_json(path: Path) -> dict:
@@ -102,25 +91,10 @@ def read_json(path: Path) -> dict:
         raise InputError(f"not valid JSON ({exc})", path=path) from exc
 
 
-def _atomic_write(path: Path, write) -> None:
-    path = Path(path)
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-                write(fh)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc}") from exc
-
-
 def write_json_atomic(path: Path, data: dict) -> None:
     """Write ``data`` as strict JSON (NaN/inf -> null) via a temporary file and os.replace."""
-    text = json.dumps(_jsonable(data), indent=2, allow_nan=False)
-    _atomic_write(path, lambda fh: fh.write(text + "\n"))
+    text = dump_json(data)
+    write_atomic(path, lambda fh: fh.write(text + "\n"))
 
 
 def _per_step(prov: dict, cycles: pd.DataFrame | None, steps: np.ndarray) -> dict:
@@ -266,7 +240,7 @@ def fit_results_folder(results_dir, *, options=None) -> dict:
     extra = pd.DataFrame({"step": pts.step, "torque_pct_saturation": pct,
                           "creep_coefficient": k, "phase_theory_deg": phase_theory})
     out_df = steps_df.merge(extra, on="step", how="left")
-    _atomic_write(steps_path, lambda fh: out_df.to_csv(fh, index=False, lineterminator="\n"))
+    write_atomic(steps_path, lambda fh: out_df.to_csv(fh, index=False, lineterminator="\n"))
 
     per_step = [{"step": int(s), "dc_torque_nm": float(t), "creepage": float(x),
                  "coa": float(c), "phase_deg": float(p), "phase_std_deg": float(ps),
@@ -301,7 +275,7 @@ def fit_results_folder(results_dir, *, options=None) -> dict:
                               else "the products are reported"),
     }
     write_json_atomic(results_dir / "fit.json", doc)
-    return _jsonable({
+    return to_jsonable({
         "mu": fit.mu, "mu_stderr": fit.mu_stderr, "mu_determined": fit.mu_determined,
         "mu_lower_bound": fit.mu_lower_bound, "curve_peak_coa": fit.curve_peak_coa,
         "saturation_torque_nm": ts,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from .errors import InputError
@@ -246,3 +247,20 @@ def _range_problems(cfg: ProcessingConfig) -> list[str]:
         out.append(f"frequency.detrend must be 'linear' or 'constant', got "
                    f"{cfg.frequency.detrend!r}")
     return out
+
+
+def coerce_options(cls, options, what: str):
+    """``options`` as an instance of the dataclass ``cls``: None gives the defaults, an
+    instance passes through, a mapping is checked for unknown keys (lists become tuples)."""
+    if options is None:
+        return cls()
+    if isinstance(options, cls):
+        return options
+    if isinstance(options, Mapping):
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = set(options) - names
+        if unknown:
+            raise InputError(f"unknown {what} option(s) {sorted(unknown)}; "
+                             f"known: {sorted(names)}")
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in options.items()})
+    raise InputError(f"{what} options must be {cls.__name__} or a mapping, got {type(options)}")

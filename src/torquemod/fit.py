@@ -51,7 +51,6 @@ scatter exceeds the stated errors, never scaled down).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,6 +58,7 @@ from scipy.optimize import least_squares
 
 from .contact.polach import force_function, friction_coefficient
 from .errors import InputError, ProcessingError
+from .jsonutil import to_jsonable
 
 __all__ = ["MU_BOUNDS", "PolachFit", "fit_polach", "polach_coa", "polach_slope"]
 
@@ -207,7 +207,7 @@ class PolachFit:
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (non-finite numbers become None)."""
-        return _jsonable({
+        return to_jsonable({
             "model": self.model,
             "mu": self.mu,
             "mu_stderr": self.mu_stderr,
@@ -236,22 +236,6 @@ class PolachFit:
             "nfev": self.nfev, "weighted": self.weighted,
             "starts": self.starts, "warnings": list(self.warnings), "options": self.options,
         })
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, bool | np.bool_):
-        return bool(obj)
-    if isinstance(obj, int | np.integer):
-        return int(obj)
-    if isinstance(obj, float | np.floating):
-        return float(obj) if math.isfinite(obj) else None
-    return obj
 
 
 def _covariance(jac, scale):

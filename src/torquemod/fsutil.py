@@ -7,8 +7,9 @@ import hashlib
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TextIO
 
 from .errors import OutputError
 
@@ -49,18 +50,21 @@ def atomic_dir(out_dir: str | Path, *, force: bool = False) -> Iterator[Path]:
         raise
 
 
-def write_text_atomic(path: str | Path, text: str) -> Path:
-    """Write a text file via a temporary file and ``os.replace``."""
+def write_atomic(path: str | Path, write: Callable[[TextIO], object]) -> Path:
+    """Write a text file through ``write(fh)`` into a temporary file beside ``path`` and move
+    it into place with ``os.replace``: readers see the old file or the new one, never half."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+                write(fh)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write ({exc.strerror or exc})") from None
     return path
 
 

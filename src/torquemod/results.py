@@ -8,7 +8,6 @@ parameter, inputs with SHA-256, warnings, per-cycle details, timing) and ``trace
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import platform
 import sys
 from collections.abc import Callable
@@ -19,28 +18,10 @@ import numpy as np
 
 from ._version import __version__
 from .fsutil import atomic_dir, sha256_file
+from .jsonutil import dump_json
 
 if TYPE_CHECKING:
     from .pipeline import ProcessResult
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    if isinstance(obj, Path):
-        return str(obj)
-    return obj
-
-
-def dump_json(obj) -> str:
-    """JSON text with NaN/inf as null and numpy scalars as Python numbers."""
-    return json.dumps(_jsonable(obj), indent=2, allow_nan=False)
 
 
 def software_versions() -> dict:

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import copy
 import itertools
-import json
 import math
 import sys
 import tomllib
@@ -35,6 +34,7 @@ from .data import Recording
 from .errors import InputError
 from .fsutil import atomic_dir
 from .io import write_manifest, write_recording
+from .jsonutil import dump_json
 from .rig.dynamics import OUT_COLUMNS, initial_state, integrate, pack_parameters
 from .rig.params import (
     ContactParams,
@@ -440,17 +440,8 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         extra={"simulation": {"generator": "torquemod simulate", "version": __version__,
                               "seed": seed, "slip_step": slip_step or 0,
                               "truth": "truth.json"}})
-    (folder / "truth.json").write_text(json.dumps(truth, indent=2, default=_json_default),
-                                       encoding="utf-8")
+    (folder / "truth.json").write_text(dump_json(truth), encoding="utf-8")
     return truth
-
-
-def _json_default(obj):
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, tuple):
-        return list(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
 def run_simulation(config: SimConfig, out_dir: Path, *, seed: int = 0, fmt: str = "csv",

@@ -22,8 +22,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..analysis import _atomic_write, fit_results_folder, read_json
+from ..analysis import fit_results_folder, read_json
+from ..config import coerce_options
 from ..errors import InputError
+from ..fsutil import write_atomic
 from .figures import (
     available_cycles,
     creep_curve_figure,
@@ -56,21 +58,7 @@ class ReportOptions:
 
     @classmethod
     def coerce(cls, options) -> ReportOptions:
-        if options is None:
-            return cls()
-        if isinstance(options, cls):
-            return options
-        if isinstance(options, Mapping):
-            names = {f.name for f in dataclasses.fields(cls)}
-            unknown = set(options) - names
-            if unknown:
-                raise InputError(f"unknown report option(s) {sorted(unknown)}; "
-                                 f"known: {sorted(names)}")
-            opts = dict(options)
-            if "formats" in opts:
-                opts["formats"] = tuple(opts["formats"])
-            return cls(**opts)
-        raise InputError(f"report options must be ReportOptions or a mapping, got {type(options)}")
+        return coerce_options(cls, options, "report")
 
 
 def _png_bytes(fig, dpi: int) -> bytes:
@@ -137,5 +125,5 @@ def write_report(results_dir, *, options=None) -> Path:
     text = render_report(title=title, fit=fit, steps=steps, cycles=cycles, provenance=prov,
                          figures=figures, warnings=warnings)
     out = results_dir / "report.html"
-    _atomic_write(out, lambda fh: fh.write(text))
+    write_atomic(out, lambda fh: fh.write(text))
     return out

@@ -1,0 +1,34 @@
+"""JSON for result files: numpy values as Python numbers, NaN/inf as null (strict JSON)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+
+def to_jsonable(obj):
+    """``obj`` with dicts, sequences, numpy arrays and scalars and paths made JSON-ready;
+    non-finite floats become None so that the file is valid JSON."""
+    if isinstance(obj, dict):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, bool | np.bool_):
+        return bool(obj)
+    if isinstance(obj, int | np.integer):
+        return int(obj)
+    if isinstance(obj, float | np.floating):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def dump_json(obj) -> str:
+    """Indented strict JSON text of :func:`to_jsonable` ``(obj)``."""
+    return json.dumps(to_jsonable(obj), indent=2, allow_nan=False)
