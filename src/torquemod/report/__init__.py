@@ -13,9 +13,7 @@ first with ``options.fit_options``.
 
 from __future__ import annotations
 
-import dataclasses
 import io
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,7 +22,6 @@ import pandas as pd
 
 from ..analysis import fit_results_folder, read_json
 from ..config import coerce_options
-from ..errors import InputError
 from ..fsutil import write_atomic
 from .figures import (
     available_cycles,
