@@ -17,6 +17,7 @@ named unit into the method's SI unit; :func:`assemble_recording` builds a
 
 from __future__ import annotations
 
+import importlib
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -490,3 +491,13 @@ def library_error(exc: BaseException, *, path: object, what: str, hint: str) -> 
     text = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else ""
     detail = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
     return InputError(f"{what} ({detail})", path=path, hint=hint)
+
+
+def import_optional(module: str, *, what: str, extra: str, path: object):
+    """Import the optional library ``module`` a reader needs, or raise :class:`InputError`
+    naming the extra that installs it (``pip install torquemod[extra]``)."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise InputError(f"reading {what} files needs the optional package {module}",
+                         path=path, hint=f"install torquemod[{extra}]") from None

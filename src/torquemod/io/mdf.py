@@ -22,6 +22,7 @@ from .channels import (
     ChannelMap,
     RawChannel,
     assemble_recording,
+    import_optional,
     library_error,
     resolve_channel_map,
     source_name,
@@ -35,12 +36,7 @@ _VIRTUAL_TYPES = (3, 6)  # MDF4 virtual (master) channels: no bytes in the recor
 
 
 def _import_asammdf(path: Path):
-    try:
-        import asammdf
-    except ImportError:
-        raise InputError("reading MDF files needs the optional package asammdf", path=path,
-                         hint="install torquemod[mdf]") from None
-    return asammdf
+    return import_optional("asammdf", what="MDF", extra="mdf", path=path)
 
 
 def _group_index(group: str | None, n_groups: int, path: Path) -> int | None:

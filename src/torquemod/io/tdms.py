@@ -21,6 +21,7 @@ from .channels import (
     ChannelMap,
     RawChannel,
     assemble_recording,
+    import_optional,
     library_error,
     resolve_channel_map,
     source_name,
@@ -31,12 +32,7 @@ _HINT = "is the file complete and really TDMS?"
 
 
 def _import_nptdms(path: Path):
-    try:
-        import nptdms
-    except ImportError:
-        raise InputError("reading TDMS files needs the optional package nptdms", path=path,
-                         hint="install torquemod[tdms]") from None
-    return nptdms
+    return import_optional("nptdms", what="TDMS", extra="tdms", path=path)
 
 
 def _wf_rate(props: dict, path: Path, name: str) -> tuple[float | None, float]:
