@@ -20,6 +20,7 @@ import numpy as np
 from torquemod import chain
 from torquemod.config import ProcessingConfig
 from torquemod.data import Recording, Rig
+from torquemod.errors import InputError
 from torquemod.dsp.phase import phase_crb_deg
 
 FS = 16_670.0
@@ -54,7 +55,12 @@ def run(method: str, eta: float, trials: int, seed: int, sinefit_input: str
     rng = np.random.default_rng(seed)
     est, se = [], []
     for _ in range(trials):
-        sig = chain.process_cycle(trial(rng, eta), RIG, cfg, where="benchmark")
+        try:
+            sig = chain.process_cycle(trial(rng, eta), RIG, cfg, where="benchmark")
+        except InputError:  # "no modulation found": counted as a rejected cycle
+            est.append(np.nan)
+            se.append(np.nan)
+            continue
         phase, stderr, _ = chain.cycle_phase(sig, cfg, center_index=sig.torque_filtered.size / 2)
         est.append(phase)
         se.append(stderr)
@@ -71,7 +77,7 @@ def main() -> None:
     print(f"record: N = {N} samples at {FS:.0f} Hz ({N / FS:.2f} s), lag {LAG_DEG} deg, "
           f"{args.trials} trials per row, sine fit on the {args.sinefit_input} signals")
     print(f"{'eta [dB]':>8} {'CRB [deg]':>10} | {'method':>8} {'bias':>8} {'std':>8} "
-          f"{'std/CRB':>8} {'mean se/std':>11} {'ms/cycle':>9}")
+          f"{'std/CRB':>8} {'mean se/std':>11} {'ms/cycle':>9} {'no line':>9}")
     for eta_db in (-25.0, -15.0, -5.0, 5.0):
         eta = 10 ** (eta_db / 10)
         crb = phase_crb_deg(1.0, 1.0, 1 / np.sqrt(2 * eta), 1 / np.sqrt(2 * eta), N)
@@ -80,11 +86,13 @@ def main() -> None:
             est, se = run(method, eta, args.trials, args.seed + int(eta_db * 10) + 1000,
                           args.sinefit_input)
             ms = 1e3 * (time.perf_counter() - t0) / args.trials
-            err = est - LAG_DEG
+            rejected = int(np.isnan(est).sum())
+            err = est[np.isfinite(est)] - LAG_DEG
             std = err.std(ddof=1)
-            se_ratio = f"{np.nanmean(se) / std:11.2f}" if np.isfinite(se).any() else f"{'-':>11}"
+            se_ratio = (f"{np.nanmean(se) / std:11.2f}" if np.isfinite(se).any()
+                        else f"{'-':>11}")
             print(f"{eta_db:8.1f} {crb:10.4f} | {method:>8} {err.mean():8.4f} {std:8.4f} "
-                  f"{std / crb:8.3f} {se_ratio} {ms:9.1f}")
+                  f"{std / crb:8.3f} {se_ratio} {ms:9.1f} {rejected:9d}")
 
 
 if __name__ == "__main__":
