@@ -20,8 +20,8 @@ import numpy as np
 from torquemod import chain
 from torquemod.config import ProcessingConfig
 from torquemod.data import Recording, Rig
-from torquemod.errors import InputError
 from torquemod.dsp.phase import phase_crb_deg
+from torquemod.errors import InputError
 
 FS = 16_670.0
 RIG = Rig(0.0675, 2.0)
