@@ -159,3 +159,22 @@ def test_results_folder_and_provenance(noisy_experiment, tmp_path):
     assert "s1c1__torque_filtered_nm" in traces and "s3c3__t_raw_s" in traces
     # no temporary folders left beside the results
     assert [p.name for p in tmp_path.iterdir()] == ["res"]
+
+
+def test_published_results_have_the_umask_permissions(noisy_experiment, tmp_path):
+    """mkdtemp/mkstemp create private (0700/0600) entries; published results must be
+    readable as a plain mkdir/open would have made them."""
+    import os
+    import stat
+
+    from torquemod.fsutil import write_atomic
+    mask = os.umask(0o022)
+    try:
+        folder, _ = noisy_experiment
+        res = process_experiment(folder / "experiment.toml")
+        out = write_results(res, tmp_path / "res")
+        assert stat.S_IMODE(out.stat().st_mode) == 0o755
+        report = write_atomic(out / "report.html", lambda fh: fh.write("<html></html>"))
+        assert stat.S_IMODE(report.stat().st_mode) == 0o644
+    finally:
+        os.umask(mask)

@@ -14,6 +14,18 @@ from typing import TextIO
 from .errors import OutputError
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _publishable(path: Path, mode: int) -> None:
+    """Give a temporary file or folder (created private by ``mkstemp``/``mkdtemp``) the
+    permissions a plain ``open``/``mkdir`` would have given it under the current umask."""
+    os.chmod(path, mode & ~_umask())
+
+
 def check_output_dir(out_dir: str | Path, *, force: bool) -> Path:
     """Refuse an existing non-empty ``out_dir`` unless ``force`` (checked before any work)."""
     out = Path(out_dir)
@@ -38,6 +50,7 @@ def atomic_dir(out_dir: str | Path, *, force: bool = False) -> Iterator[Path]:
         raise OutputError(f"{out}: cannot create the results folder ({exc.strerror})") from None
     try:
         yield tmp
+        _publishable(tmp, 0o777)
         if out.exists():
             trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
             os.replace(out, trash / out.name)
@@ -59,6 +72,7 @@ def write_atomic(path: str | Path, write: Callable[[TextIO], object]) -> Path:
         try:
             with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
                 write(fh)
+            _publishable(Path(tmp), 0o666)
             os.replace(tmp, path)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
