@@ -91,6 +91,10 @@ def check_operating_point(means: dict[str, float], platform_std_rad_s: float, *,
                          hint="check the channel mapping, its unit and the load cell's sign")
 
 
+#: Channels resampled in step 2 (the forces for their step-8 means).
+_RESAMPLED = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", "fy_n", "fz_n")
+
+
 def _rotation_frequency(speed_rad_s: np.ndarray, fs_hz: float, harmonics: tuple[int, ...]
                         ) -> float:
     """Rotation frequency [Hz] = mean angular speed / 2 pi, the mean taken free of the
@@ -116,10 +120,10 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # anti-alias filter is flat across the search band, and costs 300x less there). The
     # output samples the FIR's zero padding touches are cut off.
     edge = filters.resampler_edge_samples(up, down)
-    stacked = np.vstack([ch["torque_nm"], ch["wheel_speed_rad_s"], ch["platform_speed_rad_s"]])
+    stacked = np.vstack([ch[k] for k in _RESAMPLED])
     resampled = filters.resample(stacked, up, down,
                                  kaiser_beta=cfg.resample.kaiser_beta)[:, edge:-edge]
-    tq, wh, pl = resampled
+    tq, wh, pl, fx, fy, fz = resampled
     if tq.size < 8:
         raise InputError(f"only {tq.size} samples after resampling to {fs_r:.4g} Hz",
                          path=where, hint="the recording is too short")
@@ -163,16 +167,19 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
 
     wh_n, wh_f = chain_3_to_5(wh, wheel_notches)
     tq_n, tq_f = chain_3_to_5(tq, [])
-    # Step 8: creepage and CoA from means. The speeds' means are taken free of the rotation
-    # tones the notches remove (filters.tone_free_mean: the value the notched signal averages
-    # to, without edge transients; the platform's 1st and 2nd harmonics cannot be notched
-    # apart within one revolution). Forces: plain means over the cycle.
+    # Step 8: creepage and CoA from means. Each mean is the constant term of a least-squares
+    # fit with the modulation and the rotation harmonics (filters.tone_free_mean): the value
+    # the notched signal averages to, without edge transients, and free of the partial
+    # modulation period a cycle holds (12.9 periods at V-Track: a 0.1 rad/s wheel-speed or
+    # 100 N creep-force answer to the modulation would otherwise bias the creepage by 5e-5
+    # and the CoA by 3e-4). The platform's 1st and 2nd harmonics cannot be notched apart
+    # within one revolution; the fit separates them.
+    rotation = [*wheel_notches, *plat_notches]
     means = {
-        "wheel_speed_rad_s": filters.tone_free_mean(wh, fs_r, wheel_notches),
-        "platform_speed_rad_s": filters.tone_free_mean(pl, fs_r, plat_notches),
-        "fx_n": float(np.mean(ch["fx_n"])),
-        "fy_n": float(np.mean(ch["fy_n"])),
-        "fz_n": float(np.mean(ch["fz_n"])),
+        "wheel_speed_rad_s": filters.tone_free_mean(wh, fs_r, [f_mod, *wheel_notches]),
+        "platform_speed_rad_s": filters.tone_free_mean(pl, fs_r, [f_mod, *plat_notches]),
+        **{k: filters.tone_free_mean(x, fs_r, [f_mod, *rotation])
+           for k, x in (("fx_n", fx), ("fy_n", fy), ("fz_n", fz))},
         "torque_nm": float(np.mean(ch["torque_nm"])),
     }
     check_operating_point(means, float(np.std(pl)), where=where)

@@ -49,6 +49,7 @@ class SyntheticSpec:
     torque_vibration_nm: float = 0.5
     wheel_vibration_rad_s: float = 1e-3
     sleeper_force_n: float = 60.0
+    force_mod_amplitude_n: float = 0.0  # creep-force answer to the modulation, in phase [N]
     seed: int = 0
 
     @property
@@ -94,7 +95,8 @@ def synthetic_recording(spec: SyntheticSpec) -> Recording:
         "torque_nm": torque + vib_t + spec.torque_noise_nm * rng.standard_normal(n),
         "wheel_speed_rad_s": wheel + vib_w + spec.wheel_noise_rad_s * rng.standard_normal(n),
         "platform_speed_rad_s": platform + spec.platform_noise_rad_s * rng.standard_normal(n),
-        "fx_n": fx + 0.2 * sleeper + spec.force_noise_n * rng.standard_normal(n),
+        "fx_n": fx + spec.force_mod_amplitude_n * np.cos(arg) + 0.2 * sleeper
+        + spec.force_noise_n * rng.standard_normal(n),
         "fy_n": spec.lateral_force_n + spec.force_noise_n * rng.standard_normal(n),
         "fz_n": spec.normal_load_n + sleeper + spec.force_noise_n * rng.standard_normal(n),
     }
