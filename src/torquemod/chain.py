@@ -207,13 +207,9 @@ def creepage_drift(wheel_rad_s: np.ndarray, platform_rad_s: np.ndarray, fs_hz: f
     def level_slope(x: np.ndarray, tones: list[float]) -> tuple[float, float]:
         # every tone is kept, however close (the platform's 1st and 2nd harmonics are one
         # resolution apart over a revolution, and either left out would tilt the line)
-        t = np.arange(x.size) / fs_hz
-        t = t - t.mean()
-        cols = [np.ones(x.size), t]
-        for f in tones:
-            if 0 < f < fs_hz / 2:
-                cols += [np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)]
-        coef, *_ = np.linalg.lstsq(np.column_stack(cols), np.asarray(x, float), rcond=None)
+        kept = [f for f in tones if 0 < f < fs_hz / 2]
+        design = filters.tone_design(np.arange(x.size) / fs_hz, kept, line=True)
+        coef, *_ = np.linalg.lstsq(design, np.asarray(x, float), rcond=None)
         return float(coef[0]), float(coef[1])
 
     duration = wheel_rad_s.size / fs_hz

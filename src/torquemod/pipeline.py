@@ -99,19 +99,12 @@ def _subsample(x: np.ndarray) -> np.ndarray:
 
 
 def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig
-                      ) -> tuple[float, float, list[str], list]:
+                      ) -> tuple[float, float, str, list[str], list[str], list]:
     """Read one recording, apply the NaN policy, split it into cycles and run steps 1-5 and 8
     on each. Runs in a worker thread, so it reports by return value, not by warnings:
     (read s, compute s, sha256, NaN actions, notes, cycles)."""
     where = str(entry.path) + (f":{entry.group}" if entry.group else "")
     t0 = time.perf_counter()
-    if entry.path.is_file():  # an unreadable file is named here, whatever reads it later
-        try:
-            with open(entry.path, "rb") as fh:
-                fh.read(1)
-        except OSError as exc:
-            raise InputError(f"cannot read the recording ({exc.strerror})", path=where,
-                             hint="check the file's permissions") from None
     rec = read_entry(exp, entry)
     digest = sha256_file(entry.path)
     t1 = time.perf_counter()

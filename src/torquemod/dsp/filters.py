@@ -87,14 +87,6 @@ def notch_frequencies(rotation_hz: float, harmonics: tuple[int, ...], fs_hz: flo
     return [h * rotation_hz for h in harmonics if 0 < h * rotation_hz < fs_hz / 2]
 
 
-def apply_notches(x: np.ndarray, freqs_hz: list[float], q: float, fs_hz: float) -> np.ndarray:
-    """Zero-phase notch at each frequency in turn."""
-    y = np.asarray(x, dtype=np.float64)
-    for f0 in freqs_hz:
-        y = zero_phase(design_notch(f0, q, fs_hz), y)
-    return y
-
-
 def settling_samples(ba: tuple[np.ndarray, np.ndarray], *, tol: float = 1e-6,
                      max_samples: int = 1_000_000) -> int:
     """Samples after which the filter's impulse response stays below ``tol`` times its peak
@@ -121,6 +113,17 @@ def resampler_edge_samples(up: int, down: int) -> int:
     return int(np.ceil(half_taps / down)) + 1
 
 
+def tone_design(t_s: np.ndarray, tones_hz, *, line: bool = False) -> np.ndarray:
+    """Least-squares design matrix ``[1, (t - mean t), cos(2 pi f_k t), sin(2 pi f_k t), ...]``
+    over sample times ``t_s`` [s] for the tones ``tones_hz`` [Hz] (the caller chooses which
+    tones to keep); the column of ones comes first, then the line when ``line``."""
+    t = np.asarray(t_s, dtype=np.float64)
+    cols = [np.ones(t.size)] + ([t - t.mean()] if line else [])
+    for f in tones_hz:
+        cols += [np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)]
+    return np.column_stack(cols)
+
+
 def fit_line_and_tones(x: np.ndarray, fs_hz: float, tones_hz: list[float]
                        ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares ``x ~ c0 + c1*t + sum(a_k cos + b_k sin)(2 pi f_k t)``; returns the
@@ -131,11 +134,8 @@ def fit_line_and_tones(x: np.ndarray, fs_hz: float, tones_hz: list[float]
     for f in tones_hz:
         if 0 < f < fs_hz / 2 and all(abs(f - g) > res for g in kept):
             kept.append(f)
-    t = np.arange(n) / fs_hz
-    cols = [np.ones(n), t - t.mean()]
-    for f in kept:
-        cols += [np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)]
-    coef, *_ = np.linalg.lstsq(np.column_stack(cols), x, rcond=None)
+    design = tone_design(np.arange(n) / fs_hz, kept, line=True)
+    coef, *_ = np.linalg.lstsq(design, x, rcond=None)
     return coef, np.asarray(kept)
 
 
@@ -174,10 +174,7 @@ def tone_free_mean(x: np.ndarray, fs_hz: float, tones_hz: list[float]) -> float:
     tones = [f for f in tones_hz if 0 < f < fs_hz / 2]
     if not tones:
         return float(x.mean())
-    t = np.arange(x.size) / fs_hz
     m = x.mean()
-    cols = [np.ones(x.size)]
-    for f in tones:
-        cols += [np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)]
-    coef, *_ = np.linalg.lstsq(np.column_stack(cols), x - m, rcond=None)
+    coef, *_ = np.linalg.lstsq(tone_design(np.arange(x.size) / fs_hz, tones), x - m,
+                               rcond=None)
     return float(coef[0] + m)

@@ -21,6 +21,7 @@ import numpy as np
 from scipy import signal
 
 from ..errors import ProcessingError
+from .filters import tone_design
 
 
 def parabolic_vertex(y_m1: np.ndarray, y_0: np.ndarray, y_p1: np.ndarray) -> np.ndarray:
@@ -116,12 +117,9 @@ def whole_period_window(n_samples: int, fs_hz: float, f_hz: float, center_s: flo
 
 def _design(t: np.ndarray, f_hz: float, nuisance_hz: tuple[float, ...], trend: bool
             ) -> np.ndarray:
-    cols = [np.cos(2 * np.pi * f_hz * t), np.sin(2 * np.pi * f_hz * t), np.ones_like(t)]
-    if trend:
-        cols.append(t)
-    for fn in nuisance_hz:
-        cols += [np.cos(2 * np.pi * fn * t), np.sin(2 * np.pi * fn * t)]
-    return np.column_stack(cols)
+    """Columns cos and sin at ``f_hz`` first (the fitted signal), then the nuisance terms."""
+    signal_cols = np.column_stack([np.cos(2 * np.pi * f_hz * t), np.sin(2 * np.pi * f_hz * t)])
+    return np.column_stack([signal_cols, tone_design(t, nuisance_hz, line=trend)])
 
 
 def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz: float, *,

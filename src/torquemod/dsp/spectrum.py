@@ -12,6 +12,7 @@ import numpy as np
 from scipy import optimize, signal
 
 from ..errors import ProcessingError
+from .filters import tone_design
 
 
 def windowed_dtft(x: np.ndarray, fs_hz: float, f_hz: float, window: np.ndarray) -> complex:
@@ -51,10 +52,7 @@ def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] 
     if not 0 <= lo < hi <= fs_hz / 2:
         raise ValueError(f"band {band_hz} Hz must lie within 0..fs/2 = {fs_hz / 2} Hz")
     tones = [f for f in remove_tones_hz if not lo - 0.5 <= f <= hi + 0.5 and 0 < f < fs_hz / 2]
-    t = np.arange(n) / fs_hz
-    cols = [np.ones(n)] + ([t - t.mean()] if detrend == "linear" else [])
-    cols += [g(2 * np.pi * f * t) for f in tones for g in (np.cos, np.sin)]
-    design = np.column_stack(cols)
+    design = tone_design(np.arange(n) / fs_hz, tones, line=detrend == "linear")
     coef, *_ = np.linalg.lstsq(design, x, rcond=None)
     xd = x - design @ coef
     w = signal.get_window(window, n, fftbins=False)

@@ -66,6 +66,12 @@ def read_recording(path: str | Path, *, group: str | None = None,
                          hint="check the 'file' entry in the manifest")
     if path.is_dir():
         raise InputError("is a folder, not a recording file", path=path)
+    try:  # an unreadable file is named here, whatever library reads it later
+        with open(path, "rb") as fh:
+            fh.read(1)
+    except OSError as exc:
+        raise InputError(f"cannot read the recording ({exc.strerror})", path=path,
+                         hint="check the file's permissions") from None
     reader = _READERS.get(path.suffix.lower())
     if reader is None:
         known = ", ".join(sorted(_READERS))
