@@ -672,3 +672,12 @@ def test_slip_detection_can_be_switched_off(slip_experiment, tmp_path, capsys):
     assert rc == 0, cap.err
     assert not pd.read_csv(tmp_path / "out" / "steps.csv")["slip"].any()
     assert "slip" not in cap.err
+
+
+def test_convert_without_input_is_a_usage_error(tmp_path, capsys):
+    rc = main(["convert", "--out", str(tmp_path / "x.h5")])
+    cap = capsys.readouterr()
+    assert rc == 2
+    assert cap.err.strip().splitlines() == [
+        "torquemod: error: convert needs an INPUT recording or --manifest EXPERIMENT.toml"]
+    assert not (tmp_path / "x.h5").exists()

@@ -100,7 +100,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         sys.stdout.write(simulate.default_config_text())
         return 0
     if args.out is None:
-        raise _usage_error("simulate needs --out DIR (or --print-config)")
+        raise _UsageError("simulate needs --out DIR (or --print-config)")
     config = simulate.load_config(args.config)
     truth = simulate.run_simulation(config, Path(args.out), seed=args.seed, fmt=args.format,
                                     progress=not args.quiet, force=args.force)
@@ -161,6 +161,8 @@ def cmd_convert(args: argparse.Namespace) -> int:
     from . import convert
     if args.manifest:
         path = convert.convert_experiment(Path(args.manifest), Path(args.out))
+    elif args.input is None:
+        raise _UsageError("convert needs an INPUT recording or --manifest EXPERIMENT.toml")
     else:
         path = convert.convert_file(Path(args.input), Path(args.out))
     print(f"written {path}")
@@ -168,11 +170,7 @@ def cmd_convert(args: argparse.Namespace) -> int:
 
 
 class _UsageError(TorquemodError):
-    pass
-
-
-def _usage_error(msg: str) -> _UsageError:
-    return _UsageError(msg)
+    """A command line that cannot be carried out (exit code 2, like bad input)."""
 
 
 def build_parser() -> argparse.ArgumentParser:
