@@ -22,7 +22,6 @@ from scipy.optimize import brentq
 
 from ._version import __version__
 from .creep import phase_from_constant_deg, theory_constant
-from .errors import OutputError
 from .fit import polach_coa, polach_slope
 
 __all__ = ["SYNTHETIC_TRUTH", "run_demo", "write_synthetic_results"]
@@ -160,7 +159,7 @@ def run_demo(out_dir, *, config_path=None, seed: int = 0, force: bool = False,
         config = _quick_config(config)
     sim = simulate.run_simulation(config, out / "experiment", seed=seed, fmt="csv",
                                   progress=progress, force=force)
-    manifest = _manifest_path(sim, out / "experiment")
+    manifest = out / "experiment" / "experiment.toml"  # run_simulation writes it there
     result = pipeline.process_experiment(manifest, config=pipeline.ProcessingConfig(),
                                          progress=progress)
     pipeline.write_results(result, out / "results", force=force)
@@ -180,42 +179,19 @@ def run_demo(out_dir, *, config_path=None, seed: int = 0, force: bool = False,
             "warnings": summary["warnings"], "truth": _truth_headline(sim)}
 
 
-def _truth_headline(sim) -> dict:
-    """The simulator's ground truth worth comparing with (peak of its creep curve, slip)."""
-    if not isinstance(sim, dict):
-        return {}
-    peak = sim.get("creep_curve_peak") or {}
-    return {"peak_coa": peak.get("coa"), "peak_torque_nm": peak.get("torque_nm"),
-            "slip_step": sim.get("slip_step"),
-            "phase_theory_deg": [s.get("phase_theory_deg") for s in sim.get("steps", [])]}
+def _truth_headline(truth: dict) -> dict:
+    """The simulator's ground truth (``run_simulation``'s truth dict) worth comparing with:
+    the peak of its creep curve, the slip step and the theory phases."""
+    peak = truth["creep_curve_peak"]
+    return {"peak_coa": peak["coa"], "peak_torque_nm": peak["torque_nm"],
+            "slip_step": truth["slip_step"],
+            "phase_theory_deg": [s["phase_theory_deg"] for s in truth["steps"]]}
 
-
-def _manifest_path(sim, experiment_dir: Path) -> Path:
-    """The manifest written by the simulator, whatever shape its return value has."""
-    if isinstance(sim, str | Path) and Path(sim).is_file():
-        return Path(sim)
-    for attr in ("manifest_path", "manifest"):
-        val = getattr(sim, attr, None) if not isinstance(sim, dict) else sim.get(attr)
-        if isinstance(val, str | Path) and Path(val).is_file():
-            return Path(val)
-    found = sorted(Path(experiment_dir).glob("*.toml"))
-    if not found:
-        raise OutputError(f"the simulator wrote no manifest (*.toml) in {experiment_dir}")
-    return found[0]
 
 
 def _quick_config(config):
     """A shortened simulation: at most 2 cycles per step and at most 1.5 s of run-in after
-    each step change (``procedure.cycles_per_step``, ``procedure.settle_s`` of the simulator's
-    frozen config). Configurations without a ``procedure`` are returned unchanged."""
-    proc = getattr(config, "procedure", None)
-    if proc is None or not dataclasses.is_dataclass(proc):
-        return config
-    changes = {}
-    if getattr(proc, "cycles_per_step", 0) > 2:
-        changes["cycles_per_step"] = 2
-    if getattr(proc, "settle_s", 0.0) > 1.5:
-        changes["settle_s"] = 1.5
-    if not changes:
-        return config
-    return dataclasses.replace(config, procedure=dataclasses.replace(proc, **changes))
+    each step change (``procedure.cycles_per_step``, ``procedure.settle_s``)."""
+    proc = config.procedure
+    return dataclasses.replace(config, procedure=dataclasses.replace(
+        proc, cycles_per_step=min(proc.cycles_per_step, 2), settle_s=min(proc.settle_s, 1.5)))
