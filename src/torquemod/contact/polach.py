@@ -134,3 +134,52 @@ def creep_force_scalar(xi_x: float, xi_y: float, normal_load_n: float, speed_m_s
 
 #: ``numba.njit`` compiled :func:`creep_force_scalar` (callable from other jitted code).
 creep_force_kernel = numba.njit(cache=True, fastmath=False)(creep_force_scalar)
+
+
+# --------------------------------------------------------------------------------------------
+# Averages over the creepage swing of the torque modulation (issue 8)
+# --------------------------------------------------------------------------------------------
+
+def swing_nodes(n_nodes: int = 32) -> np.ndarray:
+    """``cos(theta_k)`` at ``n_nodes`` equally spaced phases ``theta_k = 2*pi*(k + 1/2)/n``.
+
+    The mean of a smooth periodic function over these nodes is its average over one period
+    (the trapezoidal rule, exact for trigonometric polynomials of degree < n_nodes)."""
+    return np.cos(2.0 * np.pi * (np.arange(n_nodes) + 0.5) / n_nodes)
+
+
+def swing_average(curve, xi, swing, *, n_nodes: int = 32):
+    """Period average ``<f(xi + a*cos(theta))>`` of a creep curve over a sinusoidal creepage
+    swing of amplitude ``swing`` a [-] about ``xi`` [-].
+
+    ``curve`` is a vectorised callable of the *signed* creepage returning the signed
+    longitudinal CoA (for a magnitude-only curve pass ``lambda x: sign(x)*g(abs(x))``). The
+    result is the mean CoA that a wheel whose creepage swings by ``a`` shows on a static curve
+    (the modulation's own bias of the mean creep-curve points). ``a = 0`` gives ``f(xi)``.
+    """
+    c = swing_nodes(n_nodes)
+    xi = np.asarray(xi, dtype=float)[..., None]
+    a = np.abs(np.asarray(swing, dtype=float))[..., None]
+    return np.mean(curve(xi + a * c), axis=-1)
+
+
+def swing_slope(curve, xi, swing, *, n_nodes: int = 32, slope=None):
+    """Describing-function creep coefficient [-]: the first-harmonic gain
+    ``(1/(pi*a)) * integral_0^2pi f(xi + a*cos(theta))*cos(theta) dtheta`` of the creep curve
+    for a sinusoidal creepage swing of amplitude ``swing`` a [-] about ``xi`` [-].
+
+    This is the creep coefficient that the modulation actually sees (Eq. 1 of the V-Track
+    paper then holds with it at large swing). For ``a -> 0`` it tends to ``f'(xi)``; below
+    ``a = 1e-9`` the analytic ``slope`` callable is used when given (else a central
+    difference).
+    """
+    c = swing_nodes(n_nodes)
+    xi = np.asarray(xi, dtype=float)
+    a = np.abs(np.asarray(swing, dtype=float))
+    a_b, xi_b = np.broadcast_arrays(a, xi)
+    small = a_b < 1e-9
+    a_safe = np.where(small, 1e-9, a_b)
+    gain = 2.0 * np.mean(curve(xi_b[..., None] + a_safe[..., None] * c) * c, axis=-1) / a_safe
+    if np.any(small) and slope is not None:
+        gain = np.where(small, slope(xi_b), gain)
+    return gain
