@@ -43,6 +43,9 @@ class CycleSignals:
     notches_hz: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)  # warnings for the user and provenance
     creepage_drift: float = float("nan")  # creepage change over the cycle [-] (slip check)
+    #: torque_amplitude_nm, wheel_amplitude_rad_s, creepage_swing [-], speed_m_s [m/s],
+    #: coa_torque [-], coa_source ("forces" or "torque")
+    extra: dict = field(default_factory=dict)
 
 
 def creepage_coa(wheel_speed_rad_s: float, platform_speed_rad_s: float, fx_n: float, fy_n: float,
@@ -72,41 +75,143 @@ def check_operating_point(means: dict[str, float], platform_std_rad_s: float, *,
                           where: str) -> None:
     """Refuse a cycle whose means make Eq. (3) and (4) meaningless: a platform that does not
     turn (its mean speed [rad/s] within its own scatter), wheel and platform turning in
-    opposite directions, or a normal force [N] that is not positive."""
-    w_p, w_w, fz = (means["platform_speed_rad_s"], means["wheel_speed_rad_s"], means["fz_n"])
-    if not abs(w_p) > platform_std_rad_s:
-        raise InputError(f"the platform is not turning (mean speed {w_p:.3g} rad/s, scatter "
-                         f"{platform_std_rad_s:.3g} rad/s)", path=where,
-                         channel="platform_speed_rad_s",
-                         hint="record while the platform runs, or check the channel mapping "
-                         "and unit in [channels]")
-    if w_w * w_p < 0:
-        raise InputError(f"wheel and platform speeds have opposite signs (mean {w_w:.4g} and "
-                         f"{w_p:.4g} rad/s)", path=where, channel="wheel_speed_rad_s",
-                         hint="flip the sign of one speed channel so both are positive "
-                         "when rolling forward")
-    if not fz > 0:
+    opposite directions, or a normal force [N] that is not positive. Absent optional channels
+    (platform speed, forces) are not checked."""
+    w_w = means["wheel_speed_rad_s"]
+    if "platform_speed_rad_s" in means:
+        w_p = means["platform_speed_rad_s"]
+        if not abs(w_p) > platform_std_rad_s:
+            raise InputError(f"the platform is not turning (mean speed {w_p:.3g} rad/s, "
+                             f"scatter {platform_std_rad_s:.3g} rad/s)", path=where,
+                             channel="platform_speed_rad_s",
+                             hint="record while the platform runs, or check the channel "
+                             "mapping and unit in [channels]")
+        if w_w * w_p < 0:
+            raise InputError(f"wheel and platform speeds have opposite signs (mean {w_w:.4g} "
+                             f"and {w_p:.4g} rad/s)", path=where, channel="wheel_speed_rad_s",
+                             hint="flip the sign of one speed channel so both are positive "
+                             "when rolling forward")
+    elif not w_w:
+        raise InputError("the wheel is not turning (mean speed 0 rad/s)", path=where,
+                         channel="wheel_speed_rad_s", hint="record while the wheel rolls")
+    fz = means.get("fz_n")
+    if fz is not None and not fz > 0:
         raise InputError(f"mean normal force is {fz:.4g} N; it must be positive (compression)",
                          path=where, channel="fz_n",
                          hint="check the channel mapping, its unit and the load cell's sign")
 
 
-#: Channels resampled in step 2 (the forces for their step-8 means).
+#: Channels resampled in step 2 when present (the forces for their step-8 means).
 _RESAMPLED = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", "fy_n", "fz_n")
 
 
-def _rotation_frequency(speed_rad_s: np.ndarray, fs_hz: float, harmonics: tuple[int, ...]
-                        ) -> float:
-    """Rotation frequency [Hz] = mean angular speed / 2 pi, the mean taken free of the
-    encoder's own eccentricity tones (one refinement of the plain mean, whose bias from a
-    large tone over a non-integer number of revolutions would misplace the notches)."""
-    f0 = float(np.mean(speed_rad_s)) / (2 * np.pi)
-    tones = [h * abs(f0) for h in harmonics]
-    return filters.tone_free_mean(speed_rad_s, fs_hz, tones) / (2 * np.pi)
+@dataclass(frozen=True)
+class SpeedModel:
+    """The joint least-squares model of one cycle (ours, issue 8): for every channel
+    ``x = modulation + slow + orders + residual`` with the modulation ``c*cos + s*sin`` at
+    ``modulation_hz``, the slow part in :func:`~torquemod.dsp.filters.slow_basis` and the
+    rotation orders in :func:`~torquemod.dsp.filters.order_design`. One design serves every
+    channel, so any linear functional of it (the step-8 mean) treats a speed variation that
+    wheel and platform share alike, and it cancels in the creepage of Eq. (3)."""
+
+    modulation_hz: float
+    design: np.ndarray  # (n, 2 + n_slow + n_orders)
+    n_slow: int
+    coef: np.ndarray  # (columns, channels)
+    names: tuple[str, ...]
+
+    def part(self, name: str, which: str) -> np.ndarray:
+        """``"modulation"``, ``"slow"`` or ``"orders"`` part of channel ``name``."""
+        j = self.names.index(name)
+        sl = {"modulation": slice(0, 2), "slow": slice(2, 2 + self.n_slow),
+              "orders": slice(2 + self.n_slow, None)}[which]
+        return self.design[:, sl] @ self.coef[sl, j]
+
+    def amplitude(self, name: str) -> float:
+        """Amplitude of the fitted modulation of channel ``name`` [its unit]."""
+        c, s = self.coef[:2, self.names.index(name)]
+        return float(np.hypot(c, s))
+
+    def mean(self, name: str) -> float:
+        """Step-8 mean: the record's mean less the fitted modulation and rotation orders (the
+        mean of the slow part; the residual has zero mean since the constant is fitted)."""
+        return float(np.mean(self.part(name, "slow")))
 
 
-def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str) -> CycleSignals:
-    """Steps 1-5 and 8 on one cycle of a recording."""
+def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz: float,
+                    slow: np.ndarray, orders: np.ndarray) -> SpeedModel:
+    """Least-squares fit of :class:`SpeedModel` to every channel at once (time referenced to
+    the record's middle so the modulation's phase is decoupled from its frequency)."""
+    names = tuple(channels)
+    n = slow.shape[0]
+    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    w = 2 * np.pi * modulation_hz
+    design = np.column_stack([np.cos(w * t), np.sin(w * t), slow, orders])
+    y = np.column_stack([channels[k] for k in names])
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    return SpeedModel(modulation_hz, design, slow.shape[1], coef, names)
+
+
+def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
+                   harmonics: tuple[int, ...], *, above_hz: float, avoid_hz: float,
+                   modulation_hz: float | None = None) -> tuple[np.ndarray, float]:
+    """Columns of an encoder's eccentricity at the rotation orders ``harmonics`` that lie above
+    the slow band (``above_hz``), below 0.45 x the sample rate and clear of the modulation at
+    ``avoid_hz`` [Hz]; and the mean rotation frequency [Hz].
+
+    An eccentric encoder reads ``w*(1 + e(theta))``: its error follows the angle and scales
+    with the speed. The columns are ``(w_s/mean w_s)*cos(k*theta)``, ``... sin(k*theta)``
+    with ``w_s`` the slow part of the speed (least squares on ``slow`` jointly with the
+    modulation at ``modulation_hz``, which then cannot leak into it) and ``theta`` its
+    integral, so they follow a wobble or a ramp (order tracking) and do not carry the
+    modulation's own phase wobble into the angle.
+    """
+    base = slow
+    if modulation_hz is not None:
+        t = np.arange(speed_rad_s.size) / fs_hz
+        w = 2 * np.pi * modulation_hz
+        base = np.column_stack([slow, np.cos(w * t), np.sin(w * t)])
+    resolution = fs_hz / speed_rad_s.size
+    cols = np.empty((speed_rad_s.size, 0))
+    f_rot = float("nan")
+    for _ in range(2):  # the slow part is refitted with the first pass's orders
+        coef, *_ = np.linalg.lstsq(np.column_stack([base, cols]), speed_rad_s, rcond=None)
+        w_s = slow @ coef[:slow.shape[1]]
+        mean = float(np.mean(w_s))
+        f_rot = abs(mean) / (2 * np.pi)
+        kept = [h for h in harmonics if above_hz < h * f_rot < 0.45 * fs_hz
+                and abs(h * f_rot - avoid_hz) > 2 * resolution]
+        if not kept or mean == 0:
+            return np.empty((speed_rad_s.size, 0)), f_rot
+        cols = filters.order_design(filters.unwrapped_angle(w_s, fs_hz), kept) \
+            * (w_s / mean)[:, None]
+    return cols, f_rot
+
+
+def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
+                     normal_load_n: float | None, inertia_kg_m2: float | None) -> float:
+    """The adhesion the drive uses, ``(T_dc - J*dw/dt)/(N*Rw)`` [-]: the mean torque less
+    the torque that accelerated the wheel over the cycle (J [kg m^2] when the rig gives it;
+    the slow part's change of speed over the record), over N [N] times Rw [m]. It ignores
+    bearing and rolling losses and the lateral share (see docs/format.md)."""
+    if not normal_load_n:
+        return float("nan")
+    w_slow = model.part("wheel_speed_rad_s", "slow")
+    accel = (w_slow[-1] - w_slow[0]) / (w_slow.size / fs_hz)
+    torque = model.mean("torque_nm") - (inertia_kg_m2 or 0.0) * accel
+    return float(torque / (normal_load_n * wheel_radius_m))
+
+
+def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str,
+                  nominal_hz: float | None = None, normal_load_n: float | None = None
+                  ) -> CycleSignals:
+    """Steps 1-5 and 8 on one cycle of a recording.
+
+    ``nominal_hz`` [Hz] is the manifest's modulation frequency (a starting value for step 1;
+    default the middle of the search band); ``normal_load_n`` [N] the nominal load for the
+    torque-based CoA. Optional channels (platform speed, forces) may be absent: without the
+    platform speed no creepage is measured, without forces the CoA is the torque-based one.
+    """
     fs = rec.fs_hz
     up, down = filters.resample_ratio(fs, cfg.resample.target_hz,
                                       max_denominator=cfg.resample.max_denominator)
@@ -116,38 +221,62 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                          f"{cfg.resample.target_hz} Hz", path=where, channel="time_s",
                          hint="record at a higher rate or lower [processing] resample.target_hz")
     ch = rec.channels
+    names = [k for k in _RESAMPLED if k in ch]
     # Step 2 (done first: step 1's spectral peak is the same on the resampled record, whose
     # anti-alias filter is flat across the search band, and costs 300x less there). The
     # output samples the FIR's zero padding touches are cut off.
     edge = filters.resampler_edge_samples(up, down)
-    stacked = np.vstack([ch[k] for k in _RESAMPLED])
+    stacked = np.vstack([ch[k] for k in names])
     resampled = filters.resample(stacked, up, down,
                                  kaiser_beta=cfg.resample.kaiser_beta)[:, edge:-edge]
-    tq, wh, pl, fx, fy, fz = resampled
-    if tq.size < 8:
-        raise InputError(f"only {tq.size} samples after resampling to {fs_r:.4g} Hz",
+    sig = dict(zip(names, resampled, strict=True))
+    n = resampled.shape[1]
+    if n < 8:
+        raise InputError(f"only {n} samples after resampling to {fs_r:.4g} Hz",
                          path=where, hint="the recording is too short")
-    # Step 1: modulation frequency = mean of the torque's and wheel speed's peaks. The wheel's
-    # rotation tones are removed before its spectrum (see spectrum.peak_frequency).
-    nq = cfg.notch
-    f_wheel = _rotation_frequency(wh, fs_r, nq.wheel_harmonics)
-    f_plat = _rotation_frequency(pl, fs_r, nq.platform_harmonics)
-    wheel_notches = filters.notch_frequencies(abs(f_wheel), nq.wheel_harmonics, fs_r)
-    plat_notches = filters.notch_frequencies(abs(f_plat), nq.platform_harmonics, fs_r)
-    fp = cfg.frequency
-    peaks = {}
-    for name, x in (("torque_nm", tq), ("wheel_speed_rad_s", wh)):
-        try:
-            peaks[name] = peak_frequency(x, fs_r, band_hz=fp.band_hz, window=fp.window,
-                                         detrend=fp.detrend, zero_pad=fp.zero_pad,
-                                         remove_tones_hz=tuple(wheel_notches))
-        except ProcessingError as exc:
-            raise InputError(f"no modulation found: {exc}", path=where, channel=name,
-                             hint="check the modulation was on and [processing] "
-                             "frequency.band_hz") from None
+    tq, wh = sig["torque_nm"], sig["wheel_speed_rad_s"]
+    pl = sig.get("platform_speed_rad_s")
+    nq, fp = cfg.notch, cfg.frequency
+    # The speed model (ours): slow variation, rotation orders that follow the integrated
+    # angles, and the modulation, fitted jointly (SpeedModel).
+    max_hz = cfg.slow.max_hz if cfg.slow.enabled else 0.0
+    slow = filters.slow_basis(n, fs_r, max_hz, extra=cfg.slow.extra_sequences,
+                              degree=cfg.slow.polynomial_degree)
+    f_start = nominal_hz if nominal_hz is not None else 0.5 * sum(fp.band_hz)
+    cols = []
+    for speed, harmonics in ((wh, nq.wheel_harmonics), (pl, nq.platform_harmonics)):
+        if speed is not None:
+            cols.append(tracked_orders(speed, fs_r, slow, harmonics, above_hz=max_hz,
+                                       avoid_hz=f_start, modulation_hz=f_start)[0])
+    orders = np.column_stack(cols)
+    # Step 1: modulation frequency = mean of the torque's and wheel speed's peaks, taken on
+    # the records less their slow part and rotation orders (their leakage would pull the
+    # peak); twice, since the model's modulation term starts from the nominal frequency.
+    f_mod = f_start
+    peaks: dict[str, float] = {}
+    for _ in range(2):
+        model = fit_speed_model({"torque_nm": tq, "wheel_speed_rad_s": wh}, fs_r, f_mod,
+                                slow, orders)
+        for name in ("torque_nm", "wheel_speed_rad_s"):
+            x = sig[name] - model.part(name, "slow") - model.part(name, "orders")
+            try:
+                peaks[name] = peak_frequency(x, fs_r, band_hz=fp.band_hz, window=fp.window,
+                                             detrend=fp.detrend, zero_pad=fp.zero_pad)
+            except ProcessingError as exc:
+                raise InputError(f"no modulation found: {exc}", path=where, channel=name,
+                                 hint="check the modulation was on and [processing] "
+                                 "frequency.band_hz") from None
+        f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
+    model = fit_speed_model(sig, fs_r, f_mod, slow, orders)
     f_t, f_w = peaks["torque_nm"], peaks["wheel_speed_rad_s"]
-    f_mod = 0.5 * (f_t + f_w)
-    # Step 3: notches at the wheel's rotation harmonics, zero phase (platform: see step 8).
+    f_wheel = abs(model.mean("wheel_speed_rad_s")) / (2 * np.pi)
+    f_plat = abs(model.mean("platform_speed_rad_s")) / (2 * np.pi) if pl is not None \
+        else float("nan")
+    wheel_notches = filters.notch_frequencies(f_wheel, nq.wheel_harmonics, fs_r)
+    plat_notches = filters.notch_frequencies(f_plat, nq.platform_harmonics, fs_r) \
+        if pl is not None else []
+    # Step 3: notches at the wheel's rotation harmonics, zero phase (platform: see step 8),
+    # on the records less their slow part and orders.
     notes = [f"{where}: wheel-speed notch at {f0:.3f} Hz lies within {nq.warn_within_hz} Hz "
              f"of the modulation frequency {f_mod:.3f} Hz; it also attenuates the modulation"
              for f0 in wheel_notches if abs(f0 - f_mod) < nq.warn_within_hz]
@@ -157,67 +286,81 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     pad = max(filters.settling_samples(ba) for ba in [hp, bp, *notch_ba.values()])
     tones = [f_mod, *wheel_notches]
 
-    def chain_3_to_5(x: np.ndarray, freqs: list[float]) -> tuple[np.ndarray, np.ndarray]:
-        xp, level, slope = filters.model_padded(x, fs_r, tones, pad)
+    def chain_3_to_5(name: str, freqs: list[float]) -> tuple[np.ndarray, np.ndarray]:
+        x = sig[name] - model.part(name, "slow") - model.part(name, "orders")
+        xp, level, _ = filters.model_padded(x, fs_r, tones, pad)
         for f0 in freqs:
             xp = filters.zero_phase(notch_ba[f0], xp, method="none")
         xf = filters.zero_phase(bp, filters.zero_phase(hp, xp, method="none"), method="none")
-        t = np.arange(x.size) / fs_r
-        return xp[pad:pad + x.size] + level + slope * (t - t.mean()), xf[pad:pad + x.size]
+        return xp[pad:pad + n] + level + model.mean(name), xf[pad:pad + n]
 
-    wh_n, wh_f = chain_3_to_5(wh, wheel_notches)
-    tq_n, tq_f = chain_3_to_5(tq, [])
-    # Step 8: creepage and CoA from means. Each mean is the constant term of a least-squares
-    # fit with the modulation and the rotation harmonics (filters.tone_free_mean): the value
-    # the notched signal averages to, without edge transients, and free of the partial
-    # modulation period a cycle holds (12.9 periods at V-Track: a 0.1 rad/s wheel-speed or
-    # 100 N creep-force answer to the modulation would otherwise bias the creepage by 5e-5
-    # and the CoA by 3e-4). The platform's 1st and 2nd harmonics cannot be notched apart
-    # within one revolution; the fit separates them.
-    rotation = [*wheel_notches, *plat_notches]
-    means = {
-        "wheel_speed_rad_s": filters.tone_free_mean(wh, fs_r, [f_mod, *wheel_notches]),
-        "platform_speed_rad_s": filters.tone_free_mean(pl, fs_r, [f_mod, *plat_notches]),
-        **{k: filters.tone_free_mean(x, fs_r, [f_mod, *rotation])
-           for k, x in (("fx_n", fx), ("fy_n", fy), ("fz_n", fz))},
-        "torque_nm": float(np.mean(ch["torque_nm"])),
-    }
-    check_operating_point(means, float(np.std(pl)), where=where)
-    xi, coa = creepage_coa(means["wheel_speed_rad_s"], means["platform_speed_rad_s"],
-                           means["fx_n"], means["fy_n"], means["fz_n"],
-                           wheel_radius_m=rig.wheel_radius_m,
-                           platform_radius_m=rig.platform_radius_m)
-    drift = creepage_drift(wh, pl, fs_r, wheel_tones_hz=tones,
-                           platform_tones_hz=[f_mod, *plat_notches],
-                           wheel_radius_m=rig.wheel_radius_m,
-                           platform_radius_m=rig.platform_radius_m)
-    return CycleSignals(fs_r, edge / fs_r, f_t, f_w, f_mod, abs(f_wheel), abs(f_plat), tq, wh,
-                        tq_n, wh_n, tq_f, wh_f, xi, coa, means,
-                        {"wheel": wheel_notches, "platform": plat_notches}, notes,
-                        creepage_drift=drift)
+    wh_n, wh_f = chain_3_to_5("wheel_speed_rad_s", wheel_notches)
+    tq_n, tq_f = chain_3_to_5("torque_nm", [])
+    # Step 8: creepage and CoA from means, each the mean of the channel less its fitted
+    # modulation and rotation orders (SpeedModel.mean): the value the notched signal averages
+    # to, free of the partial modulation period a cycle holds and of edge transients, and
+    # taken through one model for every channel.
+    means = {k: model.mean(k) for k in names}
+    means["torque_nm"] = float(np.mean(ch["torque_nm"]))
+    check_operating_point(means, float(np.std(pl)) if pl is not None else 0.0, where=where)
+    has_forces = all(k in sig for k in ("fx_n", "fz_n"))
+    inertia = rig.extra.get("wheel_inertia_kg_m2") if isinstance(rig.extra, dict) else None
+    coa_t = _coa_from_torque(model, fs_r, wheel_radius_m=rig.wheel_radius_m,
+                             normal_load_n=normal_load_n, inertia_kg_m2=inertia)
+    if pl is not None:
+        xi, drift = creepage_and_drift(model, fs_r, wheel_radius_m=rig.wheel_radius_m,
+                                       platform_radius_m=rig.platform_radius_m,
+                                       platform_harmonics=nq.platform_harmonics)
+        speed = abs(means["platform_speed_rad_s"]) * rig.platform_radius_m
+    else:
+        xi, drift = float("nan"), float("nan")
+        speed = abs(means["wheel_speed_rad_s"]) * rig.wheel_radius_m
+    coa = float(np.hypot(means["fx_n"], means.get("fy_n", 0.0)) / means["fz_n"]) \
+        if has_forces else coa_t
+    wheel_amp = model.amplitude("wheel_speed_rad_s")
+    out = CycleSignals(fs_r, edge / fs_r, f_t, f_w, f_mod, f_wheel, f_plat, tq, wh,
+                       tq_n, wh_n, tq_f, wh_f, xi, coa, means,
+                       {"wheel": wheel_notches, "platform": plat_notches}, notes,
+                       creepage_drift=drift)
+    out.extra.update({"torque_amplitude_nm": model.amplitude("torque_nm"),
+                      "wheel_amplitude_rad_s": wheel_amp,
+                      "creepage_swing": wheel_amp * rig.wheel_radius_m / speed,
+                      "speed_m_s": speed, "coa_torque": coa_t,
+                      "coa_source": "forces" if has_forces else "torque"})
+    return out
 
 
-def creepage_drift(wheel_rad_s: np.ndarray, platform_rad_s: np.ndarray, fs_hz: float, *,
-                   wheel_tones_hz: list[float], platform_tones_hz: list[float],
-                   wheel_radius_m: float, platform_radius_m: float) -> float:
-    """Change of the creepage of Eq. (3) from the start to the end of a record [-], from the
-    lines fitted jointly with the given tones [Hz] (modulation, rotation harmonics) to the
-    wheel and platform speeds [rad/s]: ``T * Rw/Rp * (w'/W - w*W'/W^2)``. A wheel that starts
-    to slip shows as a creepage rising within the cycle."""
-    def level_slope(x: np.ndarray, tones: list[float]) -> tuple[float, float]:
-        # every tone is kept, however close (the platform's 1st and 2nd harmonics are one
-        # resolution apart over a revolution, and either left out would tilt the line)
-        kept = [f for f in tones if 0 < f < fs_hz / 2]
-        design = filters.tone_design(np.arange(x.size) / fs_hz, kept, line=True)
-        coef, *_ = np.linalg.lstsq(design, np.asarray(x, float), rcond=None)
-        return float(coef[0]), float(coef[1])
+def creepage_and_drift(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
+                       platform_radius_m: float, platform_harmonics: tuple[int, ...]
+                       ) -> tuple[float, float]:
+    """Creepage of Eq. (3) [-] and its change over the record [-], from the slow parts of the
+    wheel and platform speeds (:class:`SpeedModel`).
 
-    duration = wheel_rad_s.size / fs_hz
-    w, dw = level_slope(wheel_rad_s, wheel_tones_hz)
-    p, dp = level_slope(platform_rad_s, platform_tones_hz)
-    if p == 0:
-        return float("nan")
-    return float(duration * wheel_radius_m / platform_radius_m * (dw / p - w * dp / p**2))
+    The ratio ``q(t) = W(t)*Rp/(w(t)*Rw) = (1 + e(theta_p))/(1 + xi(t))`` is free of any speed
+    variation that wheel and platform share; the platform encoder's eccentricity ``e`` (at its
+    revolution harmonics, inside the slow band, inseparable from a real once-per-revolution
+    wobble in the platform channel alone) enters it linearly. A least-squares fit
+    ``q ~ c0 + c1*(t - mean t) + sum(a_k cos + b_k sin)(k*theta_p)`` gives
+    ``xi = 1/c0 - 1`` and the drift ``-c1*T/c0^2``: a wheel that follows a moving platform
+    keeps its creepage; a wheel that starts to slip shows a creepage rising within the cycle.
+    """
+    w = model.part("wheel_speed_rad_s", "slow")
+    p = model.part("platform_speed_rad_s", "slow")
+    if np.any(w == 0):
+        return float("nan"), float("nan")
+    q = p * platform_radius_m / (w * wheel_radius_m)
+    n = q.size
+    t = np.arange(n) / fs_hz
+    c0 = float(np.mean(q))
+    for _ in range(2):
+        # the platform's true angle from the wheel's speed (free of the platform encoder's
+        # own error, whose square would otherwise bias c0 by e^2/2)
+        theta = filters.unwrapped_angle(w * c0 * wheel_radius_m / platform_radius_m, fs_hz)
+        kept = [k for k in platform_harmonics if k * abs(theta[-1]) / (2 * np.pi) > 0.5]
+        design = np.column_stack([np.ones(n), t - t.mean(), filters.order_design(theta, kept)])
+        coef, *_ = np.linalg.lstsq(design, q, rcond=None)
+        c0, c1 = float(coef[0]), float(coef[1])
+    return 1.0 / c0 - 1.0, -c1 * (n / fs_hz) / c0**2
 
 
 def align_lags(cycles: list[CycleSignals], cfg: ProcessingConfig) -> list[int]:

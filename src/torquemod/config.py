@@ -36,6 +36,24 @@ class ResampleParams:
 
 
 @dataclass(frozen=True)
+class SlowParams:
+    """Ours (issue 8): the rolling speed of every rig and train moves. Speed variation below
+    ``max_hz`` [Hz] (a speed loop's wobble, the platform's revolution harmonics, a ramp) is
+    modelled by Legendre polynomials up to ``polynomial_degree`` and Slepian sequences
+    (:func:`torquemod.dsp.filters.slow_basis`, ``extra_sequences`` beyond twice the
+    time-bandwidth product) and the encoders' eccentricity by rotation orders that
+    follow the integrated angle; both are fitted jointly with the modulation and removed
+    before steps 1 and 3-5, and step 8 takes every channel's mean through the same model, so a
+    speed variation that wheel and platform share cancels in the creepage. ``enabled = false``
+    gives the previous chain (a line and fixed-frequency tones)."""
+
+    enabled: bool = True
+    max_hz: float = 1.4
+    extra_sequences: int = 2
+    polynomial_degree: int = 5
+
+
+@dataclass(frozen=True)
 class NotchParams:
     """Step 3: zero-phase notches at rotation harmonics (paper: 1st and 2nd)."""
 
@@ -121,6 +139,7 @@ class ProcessingConfig:
     phase: PhaseParams = field(default_factory=PhaseParams)
     nan_policy: str = "raise"
     slip: SlipParams = field(default_factory=SlipParams)
+    slow: SlowParams = field(default_factory=SlowParams)
 
     def __post_init__(self) -> None:
         problems = _range_problems(self)
@@ -225,11 +244,13 @@ def _range_problems(cfg: ProcessingConfig) -> list[str]:
                 "highpass.order": cfg.highpass.order, "bandpass.width_hz": cfg.bandpass.width_hz,
                 "bandpass.order": cfg.bandpass.order,
                 "align.max_lag_periods": cfg.align.max_lag_periods,
-                "phase.n_periods": cfg.phase.n_periods}
+                "phase.n_periods": cfg.phase.n_periods, "slow.max_hz": cfg.slow.max_hz}
     out += [f"{k} must be positive, got {v}" for k, v in positive.items()
             if not (isinstance(v, int | float) and v > 0)]
     non_negative = {"phase.edge_trim_periods": cfg.phase.edge_trim_periods,
                     "notch.warn_within_hz": cfg.notch.warn_within_hz,
+                    "slow.extra_sequences": cfg.slow.extra_sequences,
+                    "slow.polynomial_degree": cfg.slow.polynomial_degree,
                     **{f"slip.{f.name}": getattr(cfg.slip, f.name)
                        for f in dataclasses.fields(cfg.slip) if f.name != "enabled"}}
     out += [f"{k} must be zero or positive, got {v}" for k, v in non_negative.items()

@@ -133,7 +133,9 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
             continue
         chain.check_cycle_length(seg.n_samples, seg.fs_hz, exp.test.modulation_frequency_hz,
                                  cfg, where=cwhere)
-        sig = chain.process_cycle(seg, exp.rig, cfg, where=cwhere)
+        sig = chain.process_cycle(seg, exp.rig, cfg, where=cwhere,
+                                  nominal_hz=exp.test.modulation_frequency_hz,
+                                  normal_load_n=exp.test.normal_load_n)
         notes += sig.notes
         info = {"step": entry.step, "cycle": cyc, "dc_torque_nm": entry.dc_torque_nm,
                 "source": where, "n_samples": seg.n_samples, "fs_hz": seg.fs_hz,

@@ -1,10 +1,16 @@
 """Synthetic recordings with a known truth, for tests, benchmarks and the example experiment.
 
 The signals are written down directly (no dynamics): the torque is a DC level plus the
-modulation; the wheel speed carries the modulation delayed by a chosen phase lag; encoders
-multiply the true speeds by once- and twice-per-revolution eccentricity errors; forces carry
-the sleeper-passing tone; every channel gets vibration tones and white noise. What the chain
-must recover (phase, creepage, CoA, modulation frequency) is therefore known exactly.
+modulation plus the torque that accelerates the wheel's inertia; the wheel speed carries the
+modulation delayed by a chosen phase lag; encoders multiply the true speeds by once- and
+twice-per-revolution eccentricity errors (of the true, integrated angles); forces carry the
+sleeper-passing tone; every channel gets vibration tones and white noise.
+
+The rolling speed moves as on a real rig or train: a slow wobble of the speed loop (a few
+sinusoids below 1.2 Hz plus terms at once and twice the platform revolution) and an optional
+ramp ``acceleration_m_s2``; the wheel follows the platform kinematically, so the creepage stays
+exactly ``creepage`` throughout. What the chain must recover (phase, creepage, CoA, modulation
+frequency) is therefore known exactly.
 """
 
 from __future__ import annotations
@@ -50,6 +56,14 @@ class SyntheticSpec:
     wheel_vibration_rad_s: float = 1e-3
     sleeper_force_n: float = 60.0
     force_mod_amplitude_n: float = 0.0  # creep-force answer to the modulation, in phase [N]
+    #: slow speed variation: (relative amplitude [-], frequency [Hz], phase [rad]) per term;
+    #: the default is 0.2 % RMS in all (assumed, within the 0.1-0.3 % a rig's loop shows)
+    speed_wobble: tuple[tuple[float, float, float], ...] = (
+        (2.0e-3, 0.27, 0.4), (1.2e-3, 0.55, 2.1), (0.8e-3, 0.9, 4.0))
+    #: terms at once and twice the platform revolution (relative amplitude [-], phase [rad])
+    speed_wobble_rev: tuple[tuple[float, float], ...] = ((1.0e-3, 0.8), (0.5e-3, 2.6))
+    acceleration_m_s2: float = 0.0  # speed ramp through the nominal middle [m/s^2]
+    inertia_kg_m2: float = 4.0  # wheel-side inertia whose acceleration torque is in the torque
     seed: int = 0
 
     @property
@@ -66,20 +80,55 @@ class SyntheticSpec:
         return float(np.hypot(fx, self.lateral_force_n) / self.normal_load_n)
 
 
+def speed_profile(spec: SyntheticSpec, t: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                                  np.ndarray]:
+    """Relative rolling speed ``v(t)/V`` [-], its time derivative [1/s] and integral [s]
+    (from t = 0) of ``spec``'s wobble and ramp, analytic (no numerical integration).
+
+    The revolution terms are taken at the nominal platform angle ``Omega*t`` (their
+    frequencies are once and twice the nominal revolution)."""
+    t = np.asarray(t, dtype=np.float64)
+    rel = np.ones_like(t)
+    d_rel = np.zeros_like(t)
+    integral = t.copy()
+    t_mid = spec.n_revolutions * np.pi / spec.platform_speed_rad_s  # nominal middle [s]
+    terms = [(a, f, ph) for a, f, ph in spec.speed_wobble]
+    f_rev = spec.platform_speed_rad_s / (2 * np.pi)
+    terms += [(a, (k + 1) * f_rev, ph) for k, (a, ph) in enumerate(spec.speed_wobble_rev)]
+    for a, f, ph in terms:
+        w = 2 * np.pi * f
+        rel += a * np.cos(w * t + ph)
+        d_rel -= a * w * np.sin(w * t + ph)
+        integral += a * (np.sin(w * t + ph) - np.sin(ph)) / w
+    acc = spec.acceleration_m_s2 / spec.speed_m_s
+    rel += acc * (t - t_mid)
+    d_rel += acc
+    integral += acc * (0.5 * t * t - t_mid * t)
+    return rel, d_rel, integral
+
+
 def synthetic_recording(spec: SyntheticSpec) -> Recording:
     """A recording that follows ``spec`` exactly (see the module docstring)."""
     rng = np.random.default_rng(spec.seed)
     omega_p = spec.platform_speed_rad_s
     duration = spec.n_revolutions * 2 * np.pi / omega_p
+    if spec.n_revolutions > 1:  # long enough that the moving platform completes them all
+        grid = np.linspace(0.0, 2.0 * duration, 200_001)
+        turned = omega_p * speed_profile(spec, grid)[2]
+        duration = float(grid[np.searchsorted(turned, spec.n_revolutions * 2 * np.pi)]) \
+            + 0.05 * duration / spec.n_revolutions
     n = round(duration * spec.fs_hz)
     t = np.arange(n) / spec.fs_hz
+    rel, d_rel, integral = speed_profile(spec, t)
     w_mod = 2 * np.pi * spec.modulation_hz
     arg = w_mod * t + spec.modulation_phase_rad
-    torque = spec.dc_torque_nm + spec.modulation_amplitude_nm * np.cos(arg)
-    omega_w = spec.wheel_speed_rad_s + spec.wheel_mod_amplitude_rad_s * np.cos(
+    torque = (spec.dc_torque_nm + spec.modulation_amplitude_nm * np.cos(arg)
+              + spec.inertia_kg_m2 * spec.wheel_speed_rad_s * d_rel)
+    omega_w = spec.wheel_speed_rad_s * rel + spec.wheel_mod_amplitude_rad_s * np.cos(
         arg - np.radians(spec.phase_lag_deg))
-    theta_w = spec.wheel_speed_rad_s * t + 0.7
-    theta_p = omega_p * t + 1.1
+    omega_p = omega_p * rel
+    theta_w = spec.wheel_speed_rad_s * integral + 0.7
+    theta_p = spec.platform_speed_rad_s * integral + 1.1
     e1, e2 = spec.wheel_eccentricity
     wheel = omega_w * (1 + e1 * np.cos(theta_w) + e2 * np.cos(2 * theta_w + 0.4))
     p1, p2 = spec.platform_eccentricity
@@ -133,9 +182,13 @@ def write_synthetic_experiment(folder, *, n_steps: int = 6, n_cycles: int = 3,
                       modulation_hz=base.modulation_hz + float(rng.uniform(-4e-3, 4e-3)))
         chunks = range(1, n_cycles + 1) if files_per_cycle else [None]
         for cyc in chunks:
+            wobble = tuple((a, f, float(rng.uniform(0, 2 * np.pi)))
+                           for a, f, _ in base.speed_wobble)
+            rev = tuple((a, float(rng.uniform(0, 2 * np.pi))) for a, _ in base.speed_wobble_rev)
             spec = SyntheticSpec(**{**base.__dict__, **common,
                                     "n_revolutions": 1.0 if cyc else float(n_cycles),
                                     "modulation_phase_rad": float(rng.uniform(0, 2 * np.pi)),
+                                    "speed_wobble": wobble, "speed_wobble_rev": rev,
                                     "seed": int(rng.integers(2**31))})
             rec = synthetic_recording(spec)
             name = f"step{step}_cycle{cyc}.{suffix}" if cyc else f"step{step}.{suffix}"
