@@ -373,27 +373,36 @@ def align_lags(cycles: list[CycleSignals], cfg: ProcessingConfig) -> list[int]:
                   for c in cycles[1:]]
 
 
+#: The paper's peak/valley estimator scatters 1.21-1.32 times the Cramér-Rao bound where the
+#: sine fit reaches 0.97-1.07 of it (benchmarks/phase_accuracy.py): its standard error is
+#: taken as this factor times the sine fit's on the same data.
+PAPER_SE_FACTOR = 1.3
+
+
 def cycle_phase(c: CycleSignals, cfg: ProcessingConfig, *, center_index: float
                 ) -> tuple[float, float, tuple[float, float]]:
-    """Step 7: (phase [deg], standard error [deg] or NaN, window [s]) of one cycle.
+    """Step 7: (phase [deg], standard error [deg], window [s]) of one cycle.
 
     ``center_index`` is where the phase window is centred (the aligned middle).
     """
     n = c.torque_filtered.size
     period_n = c.fs_hz / c.modulation_hz
-    if cfg.phase.method == "paper":
-        half = (cfg.phase.n_periods / 2 + cfg.phase.edge_trim_periods) * period_n
-        center = min(max(center_index, half), n - half)
-        res = peak_valley_phase(c.torque_filtered, c.wheel_filtered, c.fs_hz, c.modulation_hz,
-                                center_s=center / c.fs_hz, n_periods=cfg.phase.n_periods)
-        hw = cfg.phase.n_periods / 2 / c.modulation_hz
-        return res.phase_deg, float("nan"), (center / c.fs_hz - hw, center / c.fs_hz + hw)
     nuisance = tuple(c.notches_hz["wheel"]) + tuple(c.notches_hz["platform"])
     if cfg.phase.sinefit_input == "bandpassed":
-        res = sinefit_phase(c.torque_filtered, c.wheel_filtered, c.fs_hz, c.modulation_hz,
+        fit = sinefit_phase(c.torque_filtered, c.wheel_filtered, c.fs_hz, c.modulation_hz,
                             nuisance_hz=nuisance, trend=cfg.phase.sinefit_trend,
                             noise_from=(c.torque_notched, c.wheel_notched))
     else:
-        res = sinefit_phase(c.torque_notched, c.wheel_notched, c.fs_hz, c.modulation_hz,
+        fit = sinefit_phase(c.torque_notched, c.wheel_notched, c.fs_hz, c.modulation_hz,
                             nuisance_hz=nuisance, trend=cfg.phase.sinefit_trend)
-    return res.phase_deg, res.phase_stderr_deg, res.window_s
+    if cfg.phase.method == "sinefit":
+        return fit.phase_deg, fit.phase_stderr_deg, fit.window_s
+    half = (cfg.phase.n_periods / 2 + cfg.phase.edge_trim_periods) * period_n
+    center = min(max(center_index, half), n - half)
+    res = peak_valley_phase(c.torque_filtered, c.wheel_filtered, c.fs_hz, c.modulation_hz,
+                            center_s=center / c.fs_hz, n_periods=cfg.phase.n_periods)
+    hw = cfg.phase.n_periods / 2 / c.modulation_hz
+    # the peak/valley window holds n_periods of the sine fit's whole periods
+    se = PAPER_SE_FACTOR * fit.phase_stderr_deg * np.sqrt(
+        fit.n_samples / (cfg.phase.n_periods * period_n))
+    return res.phase_deg, float(se), (center / c.fs_hz - hw, center / c.fs_hz + hw)

@@ -33,9 +33,16 @@ __all__ = ["ProcessResult", "ProcessingConfig", "detect_slip", "process_experime
            "write_results"]
 
 CYCLE_COLUMNS = ["step", "cycle", "torque_peak_hz", "wheel_peak_hz", "modulation_hz",
-                 "phase_deg", "creepage", "coa"]
+                 "phase_deg", "creepage", "coa", "phase_se_deg", "coa_torque", "coa_source",
+                 "speed_m_s", "torque_amplitude_nm", "wheel_amplitude_rad_s", "creepage_swing",
+                 "creepage_drift"]
 STEP_COLUMNS = ["step", "dc_torque_nm", "phase_deg", "phase_std_deg", "creepage",
-                "creepage_std", "coa", "coa_std", "n_cycles", "slip"]
+                "creepage_std", "coa", "coa_std", "n_cycles", "slip", "phase_se_deg",
+                "coa_torque", "coa_source", "speed_m_s", "torque_amplitude_nm",
+                "wheel_amplitude_rad_s", "creepage_swing"]
+#: Per-cycle quantities averaged per step (mean over the step's cycles).
+_STEP_MEANS = ("coa_torque", "speed_m_s", "torque_amplitude_nm", "wheel_amplitude_rad_s",
+               "creepage_swing")
 #: Raw signals are subsampled to at most this many points for the figures' traces.
 TRACE_POINTS = 20_000
 
@@ -80,13 +87,17 @@ def _cycles_of(entry: RecordingEntry, rec: Recording, where: str, notes: list[st
     names its cycle, else one per whole platform revolution."""
     if entry.cycle is not None:
         return [(entry.cycle, rec, (0, rec.n_samples))]
+    if "platform_speed_rad_s" not in rec.channels:
+        notes.append(f"{where}: no platform speed to split the file by revolutions; the whole "
+                     "file is cycle 1")
+        return [(1, rec, (0, rec.n_samples))]
     bounds = revolution_bounds(rec.channels["platform_speed_rad_s"], rec.fs_hz)
     if not bounds:
         raise InputError("recording spans less than one platform revolution", path=where,
                          channel="platform_speed_rad_s",
                          hint="give its 'cycle' in the manifest or record a whole revolution")
     tail = rec.n_samples - bounds[-1][1]
-    if tail > 0:
+    if tail > 1:
         notes.append(f"{where}: dropped a trailing part of {tail / rec.fs_hz:.3f} s shorter "
                      "than a platform revolution")
     return [(k + 1, rec.slice(a, b), (a, b)) for k, (a, b) in enumerate(bounds)]
@@ -250,8 +261,9 @@ def process_experiment(experiment: Experiment | str | Path, *,
             rows.append({"step": step, "cycle": cyc, "torque_peak_hz": sig.torque_peak_hz,
                          "wheel_peak_hz": sig.wheel_peak_hz,
                          "modulation_hz": sig.modulation_hz, "phase_deg": phase,
-                         "creepage": sig.creepage, "coa": sig.coa})
-            speed = sig.means["platform_speed_rad_s"] * exp.rig.platform_radius_m
+                         "creepage": sig.creepage, "coa": sig.coa, "phase_se_deg": stderr,
+                         "creepage_drift": sig.creepage_drift, **sig.extra})
+            speed = sig.extra["speed_m_s"]
             details.append({**info, "phase_stderr_deg": stderr,
                             "align_lag_samples": lag, "align_lag_s": lag / sig.fs_hz,
                             "phase_window_s": [sig.t0_s + w for w in window],
@@ -319,6 +331,12 @@ def aggregate_steps(cycles: pd.DataFrame, dc_torque_nm: dict[int, float],
     """Mean and sample standard deviation (ddof = 1, NaN for a single cycle) per step;
     ``slip`` (step -> flagged) fills the ``slip`` column (False when not given)."""
     g = cycles.groupby("step", sort=True)
+    n = g.size().to_numpy()
+    # standard error of the step's mean phase: from the cycles' own standard errors when the
+    # estimator gives them (sine fit), else from the cycles' scatter (NaN for one cycle)
+    se_model = np.sqrt(g["phase_se_deg"].apply(
+        lambda s: float(np.sum(s.to_numpy(float) ** 2))).to_numpy()) / n
+    se_scatter = g["phase_deg"].std(ddof=1).to_numpy() / np.sqrt(n)
     out = pd.DataFrame({
         "step": list(g.groups),
         "phase_deg": g["phase_deg"].mean().to_numpy(),
@@ -327,8 +345,12 @@ def aggregate_steps(cycles: pd.DataFrame, dc_torque_nm: dict[int, float],
         "creepage_std": g["creepage"].std(ddof=1).to_numpy(),
         "coa": g["coa"].mean().to_numpy(),
         "coa_std": g["coa"].std(ddof=1).to_numpy(),
-        "n_cycles": g.size().to_numpy(),
+        "n_cycles": n,
     })
     out.insert(1, "dc_torque_nm", [dc_torque_nm[s] for s in out["step"]])
     out["slip"] = [bool((slip or {}).get(s, False)) for s in out["step"]]
+    out["phase_se_deg"] = np.where(np.isfinite(se_model), se_model, se_scatter)
+    for col in _STEP_MEANS:
+        out[col] = g[col].mean().to_numpy()
+    out["coa_source"] = g["coa_source"].first().to_numpy()
     return out[STEP_COLUMNS]

@@ -64,6 +64,10 @@ class SyntheticSpec:
     speed_wobble_rev: tuple[tuple[float, float], ...] = ((1.0e-3, 0.8), (0.5e-3, 2.6))
     acceleration_m_s2: float = 0.0  # speed ramp through the nominal middle [m/s^2]
     inertia_kg_m2: float = 4.0  # wheel-side inertia whose acceleration torque is in the torque
+    #: wheel slip: the creepage runs away at this rate through the nominal middle [1/s] and
+    #: the creep force falls by ``slip_force_drop`` (relative) over the record
+    creepage_rate_per_s: float = 0.0
+    slip_force_drop: float = 0.0
     seed: int = 0
 
     @property
@@ -119,15 +123,21 @@ def synthetic_recording(spec: SyntheticSpec) -> Recording:
             + 0.05 * duration / spec.n_revolutions
     n = round(duration * spec.fs_hz)
     t = np.arange(n) / spec.fs_hz
-    rel, d_rel, integral = speed_profile(spec, t)
+    rel, _, integral = speed_profile(spec, t)
     w_mod = 2 * np.pi * spec.modulation_hz
     arg = w_mod * t + spec.modulation_phase_rad
+    t_mid = spec.n_revolutions * np.pi / spec.platform_speed_rad_s
+    xi_extra = spec.creepage_rate_per_s * (t - t_mid) / (1 + spec.creepage)
+    kin = spec.wheel_speed_rad_s * rel * (1 + xi_extra)  # kinematic wheel speed [rad/s]
     torque = (spec.dc_torque_nm + spec.modulation_amplitude_nm * np.cos(arg)
-              + spec.inertia_kg_m2 * spec.wheel_speed_rad_s * d_rel)
-    omega_w = spec.wheel_speed_rad_s * rel + spec.wheel_mod_amplitude_rad_s * np.cos(
-        arg - np.radians(spec.phase_lag_deg))
+              + spec.inertia_kg_m2 * np.gradient(kin, 1 / spec.fs_hz))
+    omega_w = kin + spec.wheel_mod_amplitude_rad_s * np.cos(arg - np.radians(spec.phase_lag_deg))
     omega_p = omega_p * rel
-    theta_w = spec.wheel_speed_rad_s * integral + 0.7
+    if spec.creepage_rate_per_s:
+        theta_w = np.concatenate([[0.0], np.cumsum(0.5 * (kin[1:] + kin[:-1]))]) / spec.fs_hz
+        theta_w += 0.7
+    else:
+        theta_w = spec.wheel_speed_rad_s * integral + 0.7
     theta_p = spec.platform_speed_rad_s * integral + 1.1
     e1, e2 = spec.wheel_eccentricity
     wheel = omega_w * (1 + e1 * np.cos(theta_w) + e2 * np.cos(2 * theta_w + 0.4))
@@ -139,7 +149,8 @@ def synthetic_recording(spec: SyntheticSpec) -> Recording:
         vib_t += spec.torque_vibration_nm * np.cos(2 * np.pi * f * t + 0.5 * k)
         vib_w += spec.wheel_vibration_rad_s * np.cos(2 * np.pi * f * t + 1.5 * k)
     sleeper = spec.sleeper_force_n * np.cos(100 * theta_p)
-    fx = spec.dc_torque_nm / spec.wheel_radius_m
+    fx = spec.dc_torque_nm / spec.wheel_radius_m * (
+        1 - spec.slip_force_drop * (t - t_mid) / (2 * t_mid))
     channels = {
         "torque_nm": torque + vib_t + spec.torque_noise_nm * rng.standard_normal(n),
         "wheel_speed_rad_s": wheel + vib_w + spec.wheel_noise_rad_s * rng.standard_normal(n),
