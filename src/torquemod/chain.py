@@ -132,6 +132,25 @@ class SpeedModel:
         c, s = self.coef[:2, self.names.index(name)]
         return float(np.hypot(c, s))
 
+    def variance_factor(self) -> float:
+        """Variance of the modulation's coefficients in this joint model over their variance
+        with the modulation fitted alone (>= 1): the price in phase noise of separating the
+        modulation from the slow part and the orders, at the Cramér-Rao bound of the joint
+        model (white noise)."""
+        d = self.design
+        m = d[:, :2]
+        alone = np.linalg.inv(m.T @ m)
+        # (D'D)^-1 restricted to the modulation is (M'(I - P_B)M)^-1, P_B the projection on
+        # the other columns (the Schur complement)
+        other = d[:, 2:]
+        if other.shape[1]:
+            c_o, _ = filters.lstsq(other, m)
+            m_res = m - other @ c_o
+        else:
+            m_res = m
+        joint = np.linalg.inv(m_res.T @ m_res)
+        return float(max(1.0, np.trace(joint) / np.trace(alone)))
+
     def mean(self, name: str) -> float:
         """Step-8 mean: the record's mean less the fitted modulation and rotation orders (the
         mean of the slow part; the residual has zero mean since the constant is fitted)."""
@@ -148,7 +167,7 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     w = 2 * np.pi * modulation_hz
     design = np.column_stack([np.cos(w * t), np.sin(w * t), slow, orders])
     y = np.column_stack([channels[k] for k in names])
-    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    coef, _ = filters.lstsq(design, y)
     return SpeedModel(modulation_hz, design, slow.shape[1], coef, names)
 
 
@@ -175,7 +194,7 @@ def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
     cols = np.empty((speed_rad_s.size, 0))
     f_rot = float("nan")
     for _ in range(2):  # the slow part is refitted with the first pass's orders
-        coef, *_ = np.linalg.lstsq(np.column_stack([base, cols]), speed_rad_s, rcond=None)
+        coef, _ = filters.lstsq(np.column_stack([base, cols]), speed_rad_s)
         w_s = slow @ coef[:slow.shape[1]]
         mean = float(np.mean(w_s))
         f_rot = abs(mean) / (2 * np.pi)
@@ -322,7 +341,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                        tq_n, wh_n, tq_f, wh_f, xi, coa, means,
                        {"wheel": wheel_notches, "platform": plat_notches}, notes,
                        creepage_drift=drift)
-    out.extra.update({"torque_amplitude_nm": model.amplitude("torque_nm"),
+    out.extra.update({"variance_factor": model.variance_factor(),
+                      "torque_amplitude_nm": model.amplitude("torque_nm"),
                       "wheel_amplitude_rad_s": wheel_amp,
                       "creepage_swing": wheel_amp * rig.wheel_radius_m / speed,
                       "speed_m_s": speed, "coa_torque": coa_t,
@@ -358,7 +378,7 @@ def creepage_and_drift(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float
         theta = filters.unwrapped_angle(w * c0 * wheel_radius_m / platform_radius_m, fs_hz)
         kept = [k for k in platform_harmonics if k * abs(theta[-1]) / (2 * np.pi) > 0.5]
         design = np.column_stack([np.ones(n), t - t.mean(), filters.order_design(theta, kept)])
-        coef, *_ = np.linalg.lstsq(design, q, rcond=None)
+        coef, _ = filters.lstsq(design, q)
         c0, c1 = float(coef[0]), float(coef[1])
     return 1.0 / c0 - 1.0, -c1 * (n / fs_hz) / c0**2
 
@@ -395,14 +415,16 @@ def cycle_phase(c: CycleSignals, cfg: ProcessingConfig, *, center_index: float
     else:
         fit = sinefit_phase(c.torque_notched, c.wheel_notched, c.fs_hz, c.modulation_hz,
                             nuisance_hz=nuisance, trend=cfg.phase.sinefit_trend)
+    # the speed model's removal costs the modulation this much variance (SpeedModel)
+    se_fit = fit.phase_stderr_deg * np.sqrt(c.extra.get("variance_factor", 1.0))
     if cfg.phase.method == "sinefit":
-        return fit.phase_deg, fit.phase_stderr_deg, fit.window_s
+        return fit.phase_deg, float(se_fit), fit.window_s
     half = (cfg.phase.n_periods / 2 + cfg.phase.edge_trim_periods) * period_n
     center = min(max(center_index, half), n - half)
     res = peak_valley_phase(c.torque_filtered, c.wheel_filtered, c.fs_hz, c.modulation_hz,
                             center_s=center / c.fs_hz, n_periods=cfg.phase.n_periods)
     hw = cfg.phase.n_periods / 2 / c.modulation_hz
     # the peak/valley window holds n_periods of the sine fit's whole periods
-    se = PAPER_SE_FACTOR * fit.phase_stderr_deg * np.sqrt(
+    se = PAPER_SE_FACTOR * se_fit * np.sqrt(
         fit.n_samples / (cfg.phase.n_periods * period_n))
     return res.phase_deg, float(se), (center / c.fs_hz - hw, center / c.fs_hz + hw)

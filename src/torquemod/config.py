@@ -48,7 +48,7 @@ class SlowParams:
     gives the previous chain (a line and fixed-frequency tones)."""
 
     enabled: bool = True
-    max_hz: float = 1.4
+    max_hz: float = 1.2
     extra_sequences: int = 2
     polynomial_degree: int = 5
 

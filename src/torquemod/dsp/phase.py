@@ -21,7 +21,7 @@ import numpy as np
 from scipy import signal
 
 from ..errors import ProcessingError
-from .filters import tone_design
+from .filters import lstsq, tone_design
 
 
 def parabolic_vertex(y_m1: np.ndarray, y_0: np.ndarray, y_p1: np.ndarray) -> np.ndarray:
@@ -146,7 +146,7 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
     keep = tuple(f for f in nuisance_hz if abs(f - f_mod_hz) > resolution)
     design = _design(t, f_mod_hz, keep, trend)
     y = np.column_stack([torque[start:stop], wheel[start:stop]])
-    coef, _, rank, _ = np.linalg.lstsq(design, y, rcond=None)
+    coef, rank = lstsq(design, y)
     if rank < design.shape[1]:
         raise ProcessingError("sine-fit design matrix is rank deficient (nuisance tones "
                               "coincide)")
@@ -155,7 +155,7 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
     else:
         y_n = np.column_stack([np.asarray(noise_from[0])[start:stop],
                                np.asarray(noise_from[1])[start:stop]])
-        c_n, *_ = np.linalg.lstsq(design, y_n, rcond=None)
+        c_n, _ = lstsq(design, y_n)
         resid = y_n - design @ c_n
     t_win = n / fs_hz
     phases, amps, var_phi = [], [], 0.0

@@ -12,7 +12,7 @@ import numpy as np
 from scipy import optimize, signal
 
 from ..errors import ProcessingError
-from .filters import tone_design
+from .filters import lstsq, tone_design
 
 
 def windowed_dtft(x: np.ndarray, fs_hz: float, f_hz: float, window: np.ndarray) -> complex:
@@ -53,7 +53,7 @@ def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] 
         raise ValueError(f"band {band_hz} Hz must lie within 0..fs/2 = {fs_hz / 2} Hz")
     tones = [f for f in remove_tones_hz if not lo - 0.5 <= f <= hi + 0.5 and 0 < f < fs_hz / 2]
     design = tone_design(np.arange(n) / fs_hz, tones, line=detrend == "linear")
-    coef, *_ = np.linalg.lstsq(design, x, rcond=None)
+    coef, _ = lstsq(design, x)
     xd = x - design @ coef
     w = signal.get_window(window, n, fftbins=False)
     nfft = int(2 ** np.ceil(np.log2(zero_pad * n)))
