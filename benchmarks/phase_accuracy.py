@@ -71,7 +71,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=300)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--sinefit-input", choices=["bandpassed", "notched"],
+    ap.add_argument("--sinefit-input", choices=["bandpassed", "notched", "model"],
                     default=ProcessingConfig().phase.sinefit_input)
     args = ap.parse_args()
     print(f"record: N = {N} samples at {FS:.0f} Hz ({N / FS:.2f} s), lag {LAG_DEG} deg, "

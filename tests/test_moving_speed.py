@@ -148,3 +148,26 @@ def test_slip_rules_do_not_flag_a_moving_speed_but_flag_a_runaway():
     flags = detect_slip([base.creepage, base.creepage, sig.creepage], [base.coa] * 3,
                         [*drifts[:2], sig.creepage_drift], ProcessingConfig().slip)
     assert flags[:2] == [None, None] and flags[2] and "within the cycle" in flags[2]
+
+
+@pytest.mark.parametrize("fs_hz", [10_000.0, 25_600.0])
+def test_logger_rates_and_16_bit_quantization(fs_hz):
+    """Other logger rates (10 and 25.6 kHz resample to 53.33 Hz, not exactly 53.344) and
+    16-bit quantization over a +-100 N*m / +-50 rad/s / +-5 rad/s / +-10 kN range (steps of
+    3e-3 N*m, 1.5e-3 and 1.5e-4 rad/s, 0.3 N: at or below the default noise)."""
+    spec = SyntheticSpec(fs_hz=fs_hz, phase_lag_deg=40.0, wheel_mod_amplitude_rad_s=0.05,
+                         acceleration_m_s2=0.02)
+    rec = synthetic_recording(spec)
+    full = {"torque_nm": 100.0, "wheel_speed_rad_s": 50.0, "platform_speed_rad_s": 5.0,
+            "fx_n": 1e4, "fy_n": 1e4, "fz_n": 1e4}
+    rec.channels = {k: np.round(v / full[k] * 32767) * full[k] / 32767
+                    for k, v in rec.channels.items()}
+    for method, tol in (("sinefit", 0.1), ("paper", 0.3)):
+        cfg = ProcessingConfig().with_phase_method(method)
+        sig = chain.process_cycle(rec, Rig(spec.wheel_radius_m, 2.0), cfg, where="t",
+                                  nominal_hz=2.0, normal_load_n=4200.0)
+        phase, _, _ = chain.cycle_phase(sig, cfg, center_index=sig.torque_filtered.size / 2)
+        assert abs(sig.fs_hz - 53.344) < 0.05
+        assert abs(phase - 40.0) < tol
+        assert abs(sig.creepage - spec.creepage) < 1e-5
+        assert abs(sig.modulation_hz - spec.modulation_hz) < 5e-4

@@ -9,12 +9,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.signal import get_window
 
 from .config import ProcessingConfig
 from .data import Recording, Rig
 from .dsp import filters
 from .dsp.align import alignment_lag
-from .dsp.phase import peak_valley_phase, sinefit_phase
+from .dsp.phase import SineFitResult, local_noise_psd, peak_valley_phase, sinefit_phase
 from .dsp.spectrum import peak_frequency
 from .errors import InputError, ProcessingError
 
@@ -115,6 +116,7 @@ class SpeedModel:
     wheel and platform share alike, and it cancels in the creepage of Eq. (3)."""
 
     modulation_hz: float
+    fs_hz: float
     design: np.ndarray  # (n, 2 + n_slow + n_orders)
     n_slow: int
     coef: np.ndarray  # (columns, channels)
@@ -151,6 +153,30 @@ class SpeedModel:
         joint = np.linalg.inv(m_res.T @ m_res)
         return float(max(1.0, np.trace(joint) / np.trace(alone)))
 
+    def noise_depletion(self, *, half_width_hz: float = 0.75) -> float:
+        """Fraction (<= 1) of white noise's power near the modulation that the model's
+        residual keeps, averaged over the bins :func:`~torquemod.dsp.phase.local_noise_psd`
+        reads: ``1 - |Q^H v_f|^2/|v_f|^2`` for the Hann-windowed Fourier vector ``v_f`` of each
+        bin and Q an orthonormal basis of the design. The slow basis overlaps the modulation's
+        neighbourhood, so its residual understates the noise density there; dividing by this
+        restores it (E[r r^T] = sigma^2 (I - H) for least squares)."""
+        d = self.design
+        n = d.shape[0]
+        scale = np.sqrt(np.einsum("ij,ij->j", d, d))
+        dn = d / scale
+        chol = np.linalg.cholesky(dn.T @ dn)
+        q = np.linalg.solve(chol, dn.T).T  # D L^-T: orthonormal columns spanning D
+        df = self.fs_hz / n
+        k = np.arange(n // 2 + 1)
+        off = np.abs(k * df - self.modulation_hz)
+        sel = k[(off <= half_width_hz) & (off > 1.5 * df)]
+        if sel.size < 2:
+            return 1.0
+        v = get_window("hann", n)[:, None] * np.exp(-2j * np.pi * np.outer(np.arange(n), sel)
+                                                     / n)
+        kept = 1.0 - np.sum(np.abs(q.T @ v) ** 2, axis=0) / np.sum(np.abs(v) ** 2, axis=0)
+        return float(np.clip(np.mean(kept), 0.05, 1.0))
+
     def mean(self, name: str) -> float:
         """Step-8 mean: the record's mean less the fitted modulation and rotation orders (the
         mean of the slow part; the residual has zero mean since the constant is fitted)."""
@@ -168,7 +194,7 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     design = np.column_stack([np.cos(w * t), np.sin(w * t), slow, orders])
     y = np.column_stack([channels[k] for k in names])
     coef, _ = filters.lstsq(design, y)
-    return SpeedModel(modulation_hz, design, slow.shape[1], coef, names)
+    return SpeedModel(modulation_hz, fs_hz, design, slow.shape[1], coef, names)
 
 
 def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
@@ -341,7 +367,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                        tq_n, wh_n, tq_f, wh_f, xi, coa, means,
                        {"wheel": wheel_notches, "platform": plat_notches}, notes,
                        creepage_drift=drift)
-    out.extra.update({"variance_factor": model.variance_factor(),
+    out.extra.update({"speed_model": model, "variance_factor": model.variance_factor(),
+                      "noise_kept": model.noise_depletion(),
                       "torque_amplitude_nm": model.amplitude("torque_nm"),
                       "wheel_amplitude_rad_s": wheel_amp,
                       "creepage_swing": wheel_amp * rig.wheel_radius_m / speed,
@@ -393,6 +420,25 @@ def align_lags(cycles: list[CycleSignals], cfg: ProcessingConfig) -> list[int]:
                   for c in cycles[1:]]
 
 
+def model_phase(model: SpeedModel, torque: np.ndarray, wheel: np.ndarray, fs_hz: float
+                ) -> SineFitResult:
+    """The sine fit as the joint speed model itself (the least-squares estimate of the
+    modulation beside the slow part and the orders): lag ``phi_T - phi_W`` [deg] with the
+    standard error of :func:`~torquemod.dsp.phase.sinefit_phase` from the model's residual."""
+    n = model.design.shape[0]
+    phases, amps, var = [], [], 0.0
+    for name, x in (("torque_nm", torque), ("wheel_speed_rad_s", wheel)):
+        j = model.names.index(name)
+        c, s = model.coef[:2, j]
+        resid = x - model.design @ model.coef[:, j]
+        var += local_noise_psd(resid, fs_hz, model.modulation_hz) / ((c * c + s * s) * n / fs_hz)
+        phases.append(float(np.arctan2(-s, c)))
+        amps.append(float(np.hypot(c, s)))
+    lag = float(np.degrees(np.angle(np.exp(1j * (phases[0] - phases[1])))))
+    return SineFitResult(lag, float(np.degrees(np.sqrt(var))), amps[0], amps[1], phases[0],
+                         phases[1], n, (0.0, n / fs_hz))
+
+
 #: The paper's peak/valley estimator scatters 1.21-1.32 times the Cramér-Rao bound where the
 #: sine fit reaches 0.97-1.07 of it (benchmarks/phase_accuracy.py): its standard error is
 #: taken as this factor times the sine fit's on the same data.
@@ -408,15 +454,20 @@ def cycle_phase(c: CycleSignals, cfg: ProcessingConfig, *, center_index: float
     n = c.torque_filtered.size
     period_n = c.fs_hz / c.modulation_hz
     nuisance = tuple(c.notches_hz["wheel"]) + tuple(c.notches_hz["platform"])
-    if cfg.phase.sinefit_input == "bandpassed":
+    if cfg.phase.sinefit_input == "model" and "speed_model" in c.extra:
+        fit = model_phase(c.extra["speed_model"], c.torque_resampled, c.wheel_resampled,
+                          c.fs_hz)
+    elif cfg.phase.sinefit_input == "bandpassed":
         fit = sinefit_phase(c.torque_filtered, c.wheel_filtered, c.fs_hz, c.modulation_hz,
                             nuisance_hz=nuisance, trend=cfg.phase.sinefit_trend,
                             noise_from=(c.torque_notched, c.wheel_notched))
     else:
         fit = sinefit_phase(c.torque_notched, c.wheel_notched, c.fs_hz, c.modulation_hz,
                             nuisance_hz=nuisance, trend=cfg.phase.sinefit_trend)
-    # the speed model's removal costs the modulation this much variance (SpeedModel)
-    se_fit = fit.phase_stderr_deg * np.sqrt(c.extra.get("variance_factor", 1.0))
+    # the speed model's removal costs the modulation this much variance, and its fitted
+    # columns leave the residual's noise density near the modulation too small (SpeedModel)
+    se_fit = fit.phase_stderr_deg * np.sqrt(c.extra.get("variance_factor", 1.0)
+                                            / c.extra.get("noise_kept", 1.0))
     if cfg.phase.method == "sinefit":
         return fit.phase_deg, float(se_fit), fit.window_s
     half = (cfg.phase.n_periods / 2 + cfg.phase.edge_trim_periods) * period_n
@@ -424,7 +475,5 @@ def cycle_phase(c: CycleSignals, cfg: ProcessingConfig, *, center_index: float
     res = peak_valley_phase(c.torque_filtered, c.wheel_filtered, c.fs_hz, c.modulation_hz,
                             center_s=center / c.fs_hz, n_periods=cfg.phase.n_periods)
     hw = cfg.phase.n_periods / 2 / c.modulation_hz
-    # the peak/valley window holds n_periods of the sine fit's whole periods
-    se = PAPER_SE_FACTOR * se_fit * np.sqrt(
-        fit.n_samples / (cfg.phase.n_periods * period_n))
+    se = PAPER_SE_FACTOR * se_fit
     return res.phase_deg, float(se), (center / c.fs_hz - hw, center / c.fs_hz + hw)

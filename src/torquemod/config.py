@@ -149,9 +149,9 @@ class ProcessingConfig:
         if self.phase.method not in ("paper", "sinefit"):
             raise InputError(f"unknown phase method '{self.phase.method}'",
                              hint="use 'paper' or 'sinefit'")
-        if self.phase.sinefit_input not in ("bandpassed", "notched"):
+        if self.phase.sinefit_input not in ("bandpassed", "notched", "model"):
             raise InputError(f"unknown sinefit_input '{self.phase.sinefit_input}'",
-                             hint="use 'bandpassed' or 'notched'")
+                             hint="use 'bandpassed', 'notched' or 'model'")
         if self.nan_policy not in ("raise", "interpolate", "drop-cycle"):
             raise InputError(f"unknown NaN policy '{self.nan_policy}'",
                              hint="use raise, interpolate or drop-cycle")
