@@ -648,7 +648,7 @@ def test_slip_is_flagged_per_step_and_left_out_of_the_fit(slip_experiment, tmp_p
     assert rc == 0, cap.err
     steps = pd.read_csv(out / "steps.csv")
     assert list(steps.columns) == STEP_COLUMNS + list(ADDED_STEP_COLUMNS)
-    assert STEP_COLUMNS[-1] == "slip"
+    assert "slip" in STEP_COLUMNS
     assert steps.set_index("step")["slip"].to_dict() == {1: False, 2: True, 3: False, 4: True,
                                                          5: False, 6: False}
     assert "step 4: slip detected in cycle 2" in cap.err
