@@ -120,7 +120,8 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
     digest = sha256_file(entry.path)
     t1 = time.perf_counter()
     actions: list[str] = []
-    notes: list[str] = []
+    # what the reader did to the time bases (offsets, other rates), for provenance
+    notes: list[str] = [f"{where}: {n}" for n in getattr(rec, "notes", [])]
     bad = None
     if cfg.nan_policy == "raise":
         check_finite(rec, path=where)
