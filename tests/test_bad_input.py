@@ -9,6 +9,7 @@ traceback reaches the terminal.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -545,18 +546,27 @@ def test_failure_with_force_leaves_old_results_whole(base_experiment, tmp_path, 
     capsys.readouterr()
 
 
-def test_failure_in_fit_stage_publishes_nothing(base_experiment, tmp_path, capsys):
-    """Two steps are too few for the Polach fit: the fit stage fails inside the temporary
-    folder, so no results folder appears."""
+def test_too_few_steps_for_the_fit_never_sink_the_experiment(base_experiment, tmp_path,
+                                                              capsys):
+    """Two steps are too few for the Polach fit (issue 8): the processed results are written,
+    the fit is skipped with one warning line on stderr, and the report says why."""
     d = tmp_path / "exp"
     shutil.copytree(base_experiment, d)
     _edit_manifest(d, lambda doc: doc.__setitem__(
         "recording", [r for r in doc["recording"] if r["step"] <= 2]))
-    rc = main(["process", str(d), "--out", str(tmp_path / "out"), "--quiet"])
+    out = tmp_path / "out"
+    rc = main(["process", str(d), "--out", str(out), "--quiet"])
     cap = capsys.readouterr()
-    assert rc == 2
-    _assert_one_line(cap.err, ("Polach fit",))
-    _assert_no_output(tmp_path)
+    assert rc == 0
+    skipped = [line for line in cap.err.splitlines() if "Polach fit skipped" in line]
+    assert len(skipped) == 1 and "at least 4 points" in skipped[0]
+    for name in ("steps.csv", "cycles.csv", "fit.json", "provenance.json", "report.html"):
+        assert (out / name).is_file()
+    doc = json.loads((out / "fit.json").read_text(encoding="utf-8"))
+    assert doc["mu"] is None and "at least 4 points" in doc["fit_skipped"]
+    assert "no force fit" in (out / "report.html").read_text(encoding="utf-8")
+    assert main(["report", str(out)]) == 0
+    capsys.readouterr()
 
 
 def test_valid_base_experiment_processes(base_experiment, tmp_path, capsys):

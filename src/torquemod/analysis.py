@@ -23,6 +23,7 @@ nominal test values); without it, one C is fitted across the steps.
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import json
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -34,7 +35,7 @@ import pandas as pd
 from ._version import __version__
 from .config import coerce_options
 from .creep import creep_points, saturation_onset, theory_check, theory_constant
-from .errors import InputError
+from .errors import InputError, ProcessingError
 from .fit import fit_polach
 from .fsutil import write_atomic
 from .jsonutil import dump_json, to_jsonable
@@ -43,7 +44,8 @@ from .theory import rigid_wheel_phase_deg
 __all__ = ["ADDED_STEP_COLUMNS", "FitOptions", "fit_results_folder", "read_json",
            "write_json_atomic"]
 
-ADDED_STEP_COLUMNS = ("torque_pct_saturation", "creep_coefficient", "phase_theory_deg")
+ADDED_STEP_COLUMNS = ("torque_pct_saturation", "creep_coefficient", "phase_theory_deg",
+                      "phase_fit_deg", "utilisation_phase")
 
 
 @dataclass(frozen=True)
@@ -135,8 +137,12 @@ def _slip_flags(steps_df: pd.DataFrame) -> dict[int, bool]:
 
 
 def _fit(opts: FitOptions, pts, per: dict, use: np.ndarray, use_w: bool,
-         lateral: np.ndarray, stiffness):
-    """The Polach fit over the steps in ``use``."""
+         lateral: np.ndarray, stiffness, swing: np.ndarray | None = None):
+    """The Polach fit over the steps in ``use`` (the swing-averaged curve when the fit
+    supports it and the steps carry their creepage swing)."""
+    extra = {}
+    if swing is not None and "creepage_swing" in inspect.signature(fit_polach).parameters:
+        extra["creepage_swing"] = np.nan_to_num(swing[use])
     return fit_polach(
         pts.creepage[use], pts.coa[use],
         xi_std=pts.creepage_se[use] if use_w else None,
@@ -147,7 +153,55 @@ def _fit(opts: FitOptions, pts, per: dict, use: np.ndarray, use_w: bool,
         stiffness=None if stiffness is None else float(stiffness), n_starts=opts.n_starts,
         seed=opts.seed, sigma_floor=opts.sigma_floor, max_rel_stderr=opts.max_rel_stderr,
         min_saturation_fraction=opts.min_saturation_fraction,
-        min_peak_fraction=opts.min_peak_fraction, creepage_limit=opts.creepage_limit)
+        min_peak_fraction=opts.min_peak_fraction, creepage_limit=opts.creepage_limit, **extra)
+
+
+def _phase_keys(pfit) -> dict:
+    """The four fit.json keys of mu from the phase (issue 8); a lower bound as the interval's
+    low end when mu is not determined."""
+    if pfit is None:
+        return {"mu_from_phase": None, "mu_from_phase_stderr": None,
+                "mu_from_phase_interval_95": [None, None], "mu_from_phase_determined": False}
+    lo, hi = pfit.mu_interval_95
+    return {"mu_from_phase": pfit.mu if pfit.mu_determined else None,
+            "mu_from_phase_stderr": pfit.mu_stderr if pfit.mu_determined else None,
+            "mu_from_phase_interval_95": [lo, hi if pfit.mu_determined else None],
+            "mu_from_phase_determined": bool(pfit.mu_determined)}
+
+
+def _step_column(steps_df: pd.DataFrame, name: str) -> np.ndarray | None:
+    """A numeric column of steps.csv as floats, or None when absent."""
+    if name not in steps_df.columns:
+        return None
+    return pd.to_numeric(steps_df[name], errors="coerce").to_numpy(float)
+
+
+def _phase_fit(steps_df: pd.DataFrame, pts, use: np.ndarray, constant) -> tuple[object, str]:
+    """mu from the phase progression (:mod:`torquemod.phasefit`) over the steps in ``use``:
+    (result or None, reason it was skipped or "")."""
+    try:
+        from .phasefit import fit_mu_from_phase
+    except ImportError:  # pragma: no cover - the module ships with the package
+        return None, "the phase fit is not available"
+    coa = _step_column(steps_df, "coa_torque")
+    if coa is None or not np.all(np.isfinite(coa[use])):
+        coa = pts.coa
+    se = _step_column(steps_df, "phase_se_deg")
+    fallback = pts.phase_std_deg / np.sqrt(np.maximum(pts.n_cycles, 1))
+    if se is None:
+        se = fallback
+    se = np.where(np.isfinite(se) & (se > 0), se, fallback)
+    se = np.where(np.isfinite(se) & (se > 0), se, 0.1)  # one cycle, no sine fit: 0.1 deg
+    swing = _step_column(steps_df, "creepage_swing")
+    c = None if constant is None else np.asarray(constant, dtype=float)
+    if c is not None and c.ndim:
+        c = float(np.nanmean(c[use]))
+    try:
+        res = fit_mu_from_phase(coa[use], pts.phase_deg[use], se[use], constant=c,
+                                creepage_swing=None if swing is None else swing[use])
+    except (InputError, ProcessingError) as exc:
+        return None, str(exc)
+    return res, ""
 
 
 def fit_results_folder(results_dir, *, options=None) -> dict:
@@ -185,14 +239,20 @@ def fit_results_folder(results_dir, *, options=None) -> dict:
     stiffness = opts.stiffness if opts.stiffness is not None else rig.get("contact_stiffness")
     use_w = opts.weighted and np.any(np.isfinite(pts.coa_se[use]))
     lateral = per["lateral_coa"][use]
-    try:
-        fit = _fit(opts, pts, per, use, use_w, lateral, stiffness)
-    except InputError as exc:
-        if use.all():
-            raise
-        raise InputError(f"{exc} ({int((~use).sum())} step(s) flagged as slipping were left "
-                         "out)") from None
-    warnings += fit.warnings
+    swing = _step_column(steps_df, "creepage_swing")
+    fit, skipped = None, None
+    if not np.all(np.isfinite(pts.creepage[use])):
+        skipped = "no creepage was measured (no platform speed channel)"
+    else:
+        try:
+            fit = _fit(opts, pts, per, use, use_w, lateral, stiffness, swing)
+        except InputError as exc:
+            skipped = str(exc) + (f" ({int((~use).sum())} step(s) flagged as slipping were "
+                                  "left out)" if not use.all() else "")
+    if skipped:
+        warnings.append(f"the Polach fit of the creep curve was skipped: {skipped}")
+    else:
+        warnings += fit.warnings
 
     # saturation torque Ts = mu*N*Rw (paper, Section 3)
     radius = rig.get("wheel_radius_m")
@@ -200,12 +260,11 @@ def fit_results_folder(results_dir, *, options=None) -> dict:
     if n_nom is None and np.any(np.isfinite(per["fz_n"])):
         n_nom = float(np.nanmean(per["fz_n"]))
     ts = ts_se = None
-    if fit.mu is not None and radius and n_nom:
+    if fit is not None and fit.mu is not None and radius and n_nom:
         ts = fit.mu * float(n_nom) * float(radius)
         ts_se = fit.mu_stderr * float(n_nom) * float(radius)
     pct = 100.0 * pts.dc_torque_nm / ts if ts else np.full(len(pts), np.nan)
 
-    k = fit.slope(pts.creepage, per["speed_m_s"] if fit.velocity_dependent else None)
     inertia = opts.inertia_kg_m2 if opts.inertia_kg_m2 is not None \
         else rig.get("wheel_inertia_kg_m2")
     constant = opts.theory_constant
@@ -220,6 +279,26 @@ def fit_results_folder(results_dir, *, options=None) -> dict:
         else:
             warnings.append("wheel inertia given but speed, load or frequency per step is "
                             "missing: the theory constant is fitted instead")
+    # mu from the phase progression (runs whether or not forces were recorded)
+    pfit, p_skipped = _phase_fit(steps_df, pts, use, constant)
+    if pfit is None:
+        warnings.append(f"mu from the phase was not estimated: {p_skipped}")
+    else:
+        warnings += [f"mu from the phase: {w}" for w in pfit.warnings]
+    coa_phase = _step_column(steps_df, "coa_torque")
+    if coa_phase is None or not np.all(np.isfinite(coa_phase[use])):
+        coa_phase = pts.coa
+    phase_fit_deg = np.asarray(pfit.phase_curve(coa_phase), float) if pfit is not None \
+        else np.full(len(pts), np.nan)
+    util_phase = coa_phase / pfit.mu if pfit is not None and pfit.mu else \
+        np.full(len(pts), np.nan)
+
+    if fit is not None:
+        k = fit.slope(pts.creepage, per["speed_m_s"] if fit.velocity_dependent else None)
+    elif pfit is not None:
+        k = np.asarray(pfit.creep_coefficient(coa_phase), float)
+    else:
+        k = np.full(len(pts), np.nan)
     tc = theory_check(pts.phase_deg, k, constant=constant)
     phase_theory = tc.phase_theory_deg
     if rig_args is not None:  # the project's rigid-wheel formula (torquemod.theory)
@@ -238,18 +317,29 @@ def fit_results_folder(results_dir, *, options=None) -> dict:
 
     # extended steps.csv: original columns first, same row order as read
     extra = pd.DataFrame({"step": pts.step, "torque_pct_saturation": pct,
-                          "creep_coefficient": k, "phase_theory_deg": phase_theory})
+                          "creep_coefficient": k, "phase_theory_deg": phase_theory,
+                          "phase_fit_deg": phase_fit_deg, "utilisation_phase": util_phase})
     out_df = steps_df.merge(extra, on="step", how="left")
     write_atomic(steps_path, lambda fh: out_df.to_csv(fh, index=False, lineterminator="\n"))
 
     per_step = [{"step": int(s), "dc_torque_nm": float(t), "creepage": float(x),
                  "coa": float(c), "phase_deg": float(p), "phase_std_deg": float(ps),
                  "phase_theory_deg": float(pt), "creep_coefficient": float(kk),
-                 "torque_pct_saturation": float(q), "slip": not bool(u)}
-                for s, t, x, c, p, ps, pt, kk, q, u in zip(
+                 "torque_pct_saturation": float(q), "slip": not bool(u),
+                 "phase_fit_deg": float(pf), "utilisation_phase": float(up)}
+                for s, t, x, c, p, ps, pt, kk, q, u, pf, up in zip(
                     pts.step, pts.dc_torque_nm, pts.creepage, pts.coa, pts.phase_deg,
-                    pts.phase_std_deg, phase_theory, k, pct, use, strict=True)]
-    fit_dict = fit.to_dict()
+                    pts.phase_std_deg, phase_theory, k, pct, use, phase_fit_deg, util_phase,
+                    strict=True)]
+    if fit is not None:
+        fit_dict = fit.to_dict()
+    else:
+        finite = pts.coa[use][np.isfinite(pts.coa[use])]
+        fit_dict = {"mu": None, "mu_stderr": None, "mu_determined": False,
+                    "mu_lower_bound": float(finite.max()) if finite.size else None,
+                    "converged": None}
+    fit_dict["fit_skipped"] = skipped
+    fit_dict.update(_phase_keys(pfit))
     theory = tc.to_dict()
     if rig_args is not None:
         theory["rig"] = {"wheel_inertia_kg_m2": float(inertia), "wheel_radius_m": float(radius)}
@@ -276,12 +366,16 @@ def fit_results_folder(results_dir, *, options=None) -> dict:
     }
     write_json_atomic(results_dir / "fit.json", doc)
     return to_jsonable({
-        "mu": fit.mu, "mu_stderr": fit.mu_stderr, "mu_determined": fit.mu_determined,
-        "mu_lower_bound": fit.mu_lower_bound, "curve_peak_coa": fit.curve_peak_coa,
+        "mu": fit_dict["mu"], "mu_stderr": fit_dict["mu_stderr"],
+        "mu_determined": fit_dict["mu_determined"],
+        "mu_lower_bound": fit_dict["mu_lower_bound"],
+        "curve_peak_coa": fit_dict.get("curve_peak_coa"), "fit_skipped": skipped,
+        **_phase_keys(pfit),
         "saturation_torque_nm": ts,
         "saturation_torque_stderr_nm": ts_se, "onset_step": onset.step,
         "theory_mode": tc.mode, "theory_rms_deg": theory["rms_difference_deg"],
-        "theory_max_deg": theory["max_abs_difference_deg"], "converged": fit.converged,
+        "theory_max_deg": theory["max_abs_difference_deg"],
+        "converged": fit_dict.get("converged"),
         "steps": per_step, "warnings": warnings,
         "fit_json": str(results_dir / "fit.json"), "steps_csv": str(steps_path),
     })

@@ -52,12 +52,20 @@ def _post_stages(args: argparse.Namespace, summary: dict):
 def _print_fit(summary: dict) -> None:
     if not summary:
         return
-    if summary.get("mu_determined"):
+    if summary.get("fit_skipped"):
+        print(f"warning: Polach fit skipped: {summary['fit_skipped']}", file=sys.stderr)
+    elif summary.get("mu_determined"):
         print(f"Polach fit: mu = {summary['mu']:.4f} +- {summary['mu_stderr']:.4f}, "
               f"saturation torque Ts = {summary['saturation_torque_nm']:.2f} N*m")
     else:
         print(f"Polach fit: mu not determined by these points; mu >= "
               f"{_fmt(summary.get('mu_lower_bound'), '.4f')}")
+    lo, hi = summary.get("mu_from_phase_interval_95") or (None, None)
+    if summary.get("mu_from_phase_determined"):
+        print(f"mu from the phase: {summary['mu_from_phase']:.4f} "
+              f"(95 % interval {_fmt(lo, '.4f')} .. {_fmt(hi, '.4f')})")
+    elif lo is not None:
+        print(f"mu from the phase: not determined by these steps; mu >= {lo:.4f}")
     onset = summary.get("onset_step")
     print(f"saturation onset: {'step ' + str(onset) if onset is not None else 'not reached'}; "
           f"theory vs measured phase: RMS {_fmt(summary.get('theory_rms_deg'), '.2f')} deg")
@@ -116,7 +124,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 def cmd_fit(args: argparse.Namespace) -> int:
     from .analysis import fit_results_folder
     summary = fit_results_folder(Path(args.results))
-    _print_summary(summary)
+    for w in summary.get("warnings") or []:
+        print(f"warning: {w}", file=sys.stderr)
+    _print_fit(summary)
+    print(f"fit written to {summary['fit_json']} (steps.csv updated; run 'torquemod report "
+          f"{args.results}' to redraw the report)")
     return 0
 
 
@@ -125,13 +137,6 @@ def cmd_report(args: argparse.Namespace) -> int:
     path = write_report(Path(args.results))
     print(f"report written to {path}")
     return 0
-
-
-def _print_summary(summary: dict) -> None:
-    for key, value in summary.items():
-        if isinstance(value, dict | list):
-            continue
-        print(f"{key}: {value}")
 
 
 def cmd_demo(args: argparse.Namespace) -> int:

@@ -86,13 +86,28 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
     exp = provenance.get("experiment", {})
     theory = fit.get("theory") or {}
     onset = fit.get("onset") or {}
-    mu_text = (_pm(fit.get("mu"), fit.get("mu_stderr"))
-               if fit.get("mu_determined")
-               else f"not determined by the points (μ ≥ {fmt(fit.get('mu_lower_bound'))})")
+    if fit.get("fit_skipped"):
+        mu_text = f"no force fit: {fit['fit_skipped']}"
+    elif fit.get("mu_determined"):
+        mu_text = _pm(fit.get("mu"), fit.get("mu_stderr"))
+    else:
+        mu_text = f"not determined by the points (μ ≥ {fmt(fit.get('mu_lower_bound'))})"
+    lo, hi = fit.get("mu_from_phase_interval_95") or [None, None]
+    n_r = (fit.get("normal_load_n") or 0) * (fit.get("wheel_radius_m") or 0)
+    if fit.get("mu_from_phase_determined"):
+        phase_text = (f"{fmt(fit.get('mu_from_phase'))} (95 % interval {fmt(lo)} – {fmt(hi)}; "
+                      f"Ts = {fmt(fit['mu_from_phase'] * n_r)} N·m)")
+    elif lo is not None:
+        phase_text = f"not determined by the steps (μ ≥ {fmt(lo)})"
+    else:
+        phase_text = "not estimated (see the warnings)"
     summary = _kv([
-        ("Coefficient of friction μ", mu_text),
+        ("Coefficient of friction μ from the forces (Polach fit of CoA against creepage)",
+         mu_text),
+        ("Coefficient of friction μ from the phase (fit of tan φ = C/k(CoA), no forces used)",
+         phase_text),
         ("Maximum CoA of the fitted curve", fmt(fit.get("curve_peak_coa"))),
-        ("Saturation torque Ts = μ·N·Rw [N·m]",
+        ("Saturation torque Ts = μ·N·Rw [N·m] (forces)",
          _pm(fit.get("saturation_torque_nm"), fit.get("saturation_torque_stderr_nm"))),
         ("Saturation onset", f"step {onset['step']}" if onset.get("step") is not None
          else "not detected"),
@@ -112,6 +127,8 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
               ("creepage_std", "std ξx [-]"), ("coa", "CoA [-]"), ("coa_std", "std CoA [-]"),
               ("phase_deg", "Phase φ [deg]"), ("phase_std_deg", "std φ [deg]"),
               ("phase_theory_deg", "Theory φ [deg]"), ("creep_coefficient", "dCoA/dξx [-]"),
+              ("phase_fit_deg", "Phase fit φ [deg]"),
+              ("utilisation_phase", "Utilisation CoA/μ (phase) [-]"),
               ("n_cycles", "Cycles")]
     s_cols = [(k, h) for k, h in s_cols if k in steps.columns]
     t1 = table([h for _, h in s_cols],
