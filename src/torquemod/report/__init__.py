@@ -5,6 +5,7 @@
     figures/fig2_signals.{png,svg}      paper Figure 2 (one step and cycle, raw and filtered)
     figures/fig3_creep_curve.{png,svg}  paper Figure 3 (creep curve, error bars, Polach fit)
     figures/fig4_phase.{png,svg}        paper Figure 4 (phase vs DC torque % Ts, theory)
+    figures/fig5_mu_from_phase.{png,svg} phase vs utilised adhesion with the fitted C/k(CoA)
     report.html                         summary, figures, Tables 1-2, fit, warnings, provenance
 
 If ``fit.json`` is missing the fit stage (:func:`torquemod.analysis.fit_results_folder`) runs
@@ -27,6 +28,7 @@ from .figures import (
     available_cycles,
     creep_curve_figure,
     phase_figure,
+    phase_fit_figure,
     save_figure,
     signals_figure,
 )
@@ -118,9 +120,39 @@ def write_report(results_dir, *, options=None) -> Path:
         "torque as a percentage of the saturation torque (error bars: standard deviation over "
         "cycles), with the rigid-wheel theory tan φ = C/k from the fitted curve's slope.")
 
+    pfig = _phase_fit_panel(steps, fit)
+    if pfig is not None:
+        add(pfig, "fig5_mu_from_phase", "Phase progression with the fit that gives mu",
+            "Figure 5: phase difference against the utilised adhesion (the drive's, from the "
+            "torque), with the fit tan φ = C/k(CoA) over the Polach family that gives μ from "
+            "the phase alone; labels: step (utilisation CoA/μ).")
+
     title = opts.title or f"torquemod report: {prov.get('experiment', {}).get('manifest', '')}"
     text = render_report(title=title, fit=fit, steps=steps, cycles=cycles, provenance=prov,
                          figures=figures, warnings=warnings)
     out = results_dir / "report.html"
     write_atomic(out, lambda fh: fh.write(text))
     return out
+
+
+def _phase_fit_panel(steps: pd.DataFrame, fit: dict):
+    """Figure 5 from steps.csv: the phase fit is recomputed (deterministic) so that its curve
+    can be drawn; None when it cannot run."""
+    from ..analysis import _phase_fit, _slip_flags
+    from ..creep import creep_points
+    try:
+        pts = creep_points(steps)
+    except Exception:  # a damaged table is reported by the fit stage, not here
+        return None
+    slip = _slip_flags(steps)
+    use = np.array([not slip.get(int(s), False) for s in pts.step], dtype=bool)
+    theory = fit.get("theory") or {}
+    constant = theory.get("constant") if theory.get("mode") == "rig" else None
+    pfit, _ = _phase_fit(steps, pts, use, constant)
+    coa = steps["coa_torque"] if "coa_torque" in steps else steps["coa"]
+    coa = np.asarray(coa, dtype=float)
+    if not np.all(np.isfinite(coa)):
+        coa = pts.coa
+    se = steps["phase_se_deg"] if "phase_se_deg" in steps else steps.get("phase_std_deg")
+    return phase_fit_figure(coa[use], pts.phase_deg[use], np.asarray(se, float)[use],
+                            pts.step[use], pfit, mu_forces=fit.get("mu"))

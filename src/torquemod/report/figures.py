@@ -16,8 +16,8 @@ from ..creep import phase_from_constant_deg
 from ..errors import InputError
 from ..fit import polach_coa, polach_slope
 
-__all__ = ["available_cycles", "creep_curve_figure", "phase_figure", "save_figure",
-           "signals_figure"]
+__all__ = ["available_cycles", "creep_curve_figure", "phase_figure", "phase_fit_figure",
+           "save_figure", "signals_figure"]
 
 TRACE_NAMES = ("t_raw_s", "torque_raw_nm", "wheel_speed_raw_rad_s", "t_s",
                "torque_resampled_nm", "wheel_speed_resampled_rad_s", "torque_filtered_nm",
@@ -161,6 +161,51 @@ def phase_figure(steps, fit_doc: dict | None = None, *, speed_m_s: float | None 
                     fontsize=8)
     ax.set_xlabel("DC torque [% of Ts]" if ts else "DC torque [N·m] (Ts undetermined)")
     ax.set_ylabel("Phase difference φ [deg]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", fontsize=8)
+    return fig
+
+
+def phase_fit_figure(coa, phase_deg, phase_se_deg, steps, pfit=None, *,
+                     mu_forces: float | None = None, ax=None):
+    """The phase progression against the utilised adhesion CoA [-] (mu from the phase, issue
+    8): measured phase per step (bars: 2 standard errors), the fitted ``tan phi = C/k(CoA)``
+    curve of ``pfit`` (:func:`torquemod.phasefit.fit_mu_from_phase`), its mu with the 95 %
+    interval (or lower bound) and the force fit's mu when given; each step is labelled with
+    its utilisation CoA/mu. Draws on ``ax`` when given; returns the Figure."""
+    if ax is None:
+        fig = Figure(figsize=(7.0, 5.0), layout="constrained")
+        ax = fig.subplots()
+    else:
+        fig = ax.figure
+    coa = np.asarray(coa, dtype=float)
+    phase = np.asarray(phase_deg, dtype=float)
+    ax.errorbar(coa, phase, yerr=2 * np.nan_to_num(np.asarray(phase_se_deg, float)), fmt="o",
+                color="C0", capsize=3, label="measured (bars: 2 standard errors)")
+    mu = getattr(pfit, "mu", None) if pfit is not None and pfit.mu_determined else None
+    if pfit is not None:
+        top = mu if mu else 1.15 * float(np.nanmax(coa))
+        grid = np.linspace(0.0, 0.995 * top, 300)[1:]
+        with np.errstate(all="ignore"):
+            curve = np.asarray(pfit.phase_curve(grid), float)
+        ax.plot(grid, curve, "k--", lw=1.2,
+                label=f"fit tan φ = C/k(CoA), C = {float(np.mean(pfit.constant)):.3g}")
+        lo, hi = pfit.mu_interval_95
+        if mu:
+            ax.axvline(mu, color="C3", lw=1.0, label=f"μ from the phase = {mu:.3f}")
+            if lo is not None and hi is not None:
+                ax.axvspan(lo, hi, color="C3", alpha=0.12, label="its 95 % interval")
+        elif lo is not None:
+            ax.axvline(lo, color="C3", lw=1.0, ls=":", label=f"μ ≥ {lo:.3f} (not determined)")
+    if mu_forces:
+        ax.axvline(mu_forces, color="C2", lw=1.0, ls="--",
+                   label=f"μ from the forces = {mu_forces:.3f}")
+    for s, x, y in zip(steps, coa, phase, strict=True):
+        text = f"{int(s)}" + (f" ({100 * x / mu:.0f} %)" if mu else "")
+        ax.annotate(text, (x, y), textcoords="offset points", xytext=(5, 5), fontsize=8)
+    ax.set_xlabel("Utilised adhesion CoA [-] (label: step (CoA/μ))")
+    ax.set_ylabel("Phase difference φ [deg]")
+    ax.set_xlim(left=0)
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left", fontsize=8)
     return fig
