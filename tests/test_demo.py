@@ -77,7 +77,7 @@ def test_process_fit_report_chain_integration(tmp_path):
     assert summary["onset_step"] == 1 + int(np.flatnonzero(k_true < k_true[0] / 2)[0])
     report = write_report(tmp_path / "results")
     text = report.read_text(encoding="utf-8")
-    assert text.count("data:image/png;base64,") == 3
+    assert text.count("data:image/png;base64,") == 4
     steps = pd.read_csv(tmp_path / "results" / "steps.csv")
     assert {"torque_pct_saturation", "creep_coefficient", "phase_theory_deg"} <= set(steps)
 
@@ -116,5 +116,5 @@ def test_run_demo_end_to_end_integration(tmp_path):
     fit = json.loads(Path(out["fit_json"]).read_text())
     assert fit["converged"] is True
     text = Path(out["report"]).read_text(encoding="utf-8")
-    assert text.count("data:image/png;base64,") == 3
+    assert text.count("data:image/png;base64,") == 4
     json.dumps(out, allow_nan=False)

@@ -106,7 +106,7 @@ def test_report_contains_every_figure_and_table(results):
             assert (results / "figures" / f"{name}.{ext}").stat().st_size > 1000
     p = parse(path)
     imgs = [v for t, k, v in p.attrs if t == "img" and k == "src"]
-    assert len(imgs) == 3
+    assert len(imgs) == 4  # Figures 2-4 and 5 (mu from the phase)
     assert all(v.startswith("data:image/png;base64,") for v in imgs)
     for h in TABLE1_HEADERS + TABLE2_HEADERS + ("Parameter", "Standard error"):
         assert h in p.headers, h
@@ -148,7 +148,7 @@ def test_report_options_and_fallbacks(results):
         ReportOptions.coerce({"colour": "red"})
     (results / "traces.npz").unlink()
     p = parse(write_report(results, options={"refit": True}))
-    assert sum(1 for t, k, _ in p.attrs if t == "img" and k == "src") == 2
+    assert sum(1 for t, k, _ in p.attrs if t == "img" and k == "src") == 3
 
 
 def test_report_when_mu_undetermined(tmp_path):
@@ -157,4 +157,4 @@ def test_report_when_mu_undetermined(tmp_path):
     text = write_report(d).read_text(encoding="utf-8")
     assert "not determined" in text
     assert "do not determine the friction coefficient" in text
-    assert text.count("data:image/png;base64,") == 3
+    assert text.count("data:image/png;base64,") == 4
