@@ -203,7 +203,7 @@ def c_unknown_suffix(d):
 
 
 def c_missing_column(d):
-    _edit_csv(_first_file(d), lambda df: df.drop(columns=["fz_n"]))
+    _edit_csv(_first_file(d), lambda df: df.drop(columns=["wheel_speed_rad_s"]))
     return [], None
 
 
@@ -405,7 +405,8 @@ CASES: list[tuple[str, Callable, tuple[str, ...]]] = [
     ("file_missing", c_file_missing, ("step1_cycle1.csv", "not found", "'file'")),
     ("file_is_directory", c_file_is_directory, ("adir.csv", "folder")),
     ("unknown_suffix", c_unknown_suffix, ("rec.xyz", "unknown recording format")),
-    ("missing_column", c_missing_column, ("step1_cycle1.csv", "fz_n", "missing column")),
+    ("missing_column", c_missing_column, ("step1_cycle1.csv", "wheel_speed_rad_s",
+                                          "missing column")),
     ("wrong_unit", c_wrong_unit, ("channel 'torque_nm'", "unit 'N'", "torque")),
     ("unknown_unit", c_unknown_unit, ("'furlong'",)),
     ("unknown_processing_key", c_unknown_processing_key, ("bandpas", "known keys")),

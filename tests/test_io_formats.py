@@ -268,13 +268,13 @@ def test_bad_channel_tables(table, pattern):
 def test_missing_channel_names_file_channel_and_mapped_name(fmt, reference, tmp_path,
                                                             write_columns):
     columns = {"time_s": _time(reference), **reference.channels}
-    del columns["fy_n"]
+    del columns["fz_n"]  # forces are optional, but Fx without Fz is no force measurement
     kw = {"fs_hz": FS_HZ} if fmt == "mdf" else {}
     path = _write(write_columns, tmp_path, fmt, columns, **kw)
     with pytest.raises(InputError) as info:
         read_recording(path)
     text = str(info.value)
-    assert path.name in text and "channel 'fy_n'" in text
+    assert path.name in text and "channel 'fz_n'" in text
     with pytest.raises(InputError, match=r"channel 'torque_nm'.*Drehmoment") as info:
         read_recording(path, channel_map={"torque": "Drehmoment"})
     assert path.name in str(info.value)
@@ -294,9 +294,15 @@ def test_wrong_unit_for_a_channel_names_file_channel_and_unit(fmt, reference, tm
 
 def test_csv_missing_column_message_unchanged(reference, tmp_path, write_columns):
     columns = {"time_s": _time(reference), **reference.channels}
-    del columns["fz_n"], columns["fx_n"]
+    del columns["torque_nm"], columns["wheel_speed_rad_s"]
     path = _write(write_columns, tmp_path, "csv", columns)
-    with pytest.raises(InputError, match=r"channel 'fx_n': missing column\(s\) fx_n, fz_n"):
+    with pytest.raises(InputError, match=r"channel 'torque_nm': missing column\(s\) "
+                                         r"torque_nm, wheel_speed_rad_s"):
+        read_recording(path)
+    del columns["fz_n"], columns["fx_n"]  # Fy alone is no force measurement
+    columns["torque_nm"] = columns["wheel_speed_rad_s"] = columns["fy_n"]
+    path = _write(write_columns, tmp_path, "csv", columns)
+    with pytest.raises(InputError, match=r"channel 'fx_n'"):
         read_recording(path)
 
 
@@ -452,3 +458,24 @@ def test_convert_experiment_failure_leaves_nothing(reference, tmp_path, write_co
     with pytest.raises(InputError, match=r"bad\.csv"):
         convert_experiment(src / "experiment.toml", tmp_path / "converted")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["exp"]
+
+
+@pytest.mark.parametrize("fmt", ALL_FORMATS)
+@pytest.mark.parametrize("absent", [("fy_n",), ("fx_n", "fy_n", "fz_n"),
+                                    ("platform_speed_rad_s", "fx_n", "fy_n", "fz_n")])
+def test_optional_channels_may_be_absent(fmt, absent, reference, tmp_path, write_columns):
+    """Issue 8: the forces (all, or Fy alone) and the platform speed are optional; mapping an
+    absent optional channel explicitly is still an error."""
+    columns = {"time_s": _time(reference), **{k: v for k, v in reference.channels.items()
+                                              if k not in absent}}
+    kw = {"fs_hz": FS_HZ} if fmt == "mdf" else {}
+    path = _write(write_columns, tmp_path, fmt, columns, **kw)
+    rec = read_recording(path)
+    assert set(rec.channels) == set(reference.channels) - set(absent)
+    for k, v in rec.channels.items():
+        np.testing.assert_allclose(v, reference.channels[k], rtol=1e-12)
+    if absent == ("fy_n",):
+        assert any("|Fx|/Fz" in n for n in rec.notes)
+    with pytest.raises(InputError, match=absent[-1]):
+        read_recording(path, channel_map={absent[-1].rsplit("_", 1)[0]
+                                          .replace("_speed", "_speed"): absent[-1]})

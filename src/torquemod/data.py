@@ -16,6 +16,11 @@ CHANNELS: tuple[str, ...] = (
     "fy_n",
     "fz_n",
 )
+#: Channels every recording needs (the phase needs nothing else).
+REQUIRED_CHANNELS: tuple[str, ...] = ("torque_nm", "wheel_speed_rad_s")
+#: Channels that may be absent: without the platform speed no creepage is measured; without
+#: forces the CoA is the drive's adhesion from the torque. Forces come as fx, fz (+ fy).
+OPTIONAL_CHANNELS: tuple[str, ...] = ("platform_speed_rad_s", "fx_n", "fy_n", "fz_n")
 #: Units of :data:`CHANNELS` (and of the time column) as written in files and docs.
 CHANNEL_UNITS: dict[str, str] = {
     "time_s": "s",
@@ -89,7 +94,8 @@ class Experiment:
 class Recording:
     """Sampled channels of one recording, SI units, uniformly sampled at ``fs_hz`` [Hz].
 
-    ``channels`` maps the names of :data:`CHANNELS` to 1-D float64 arrays of equal length;
+    ``channels`` maps the names of :data:`CHANNELS` (at least :data:`REQUIRED_CHANNELS`) to
+    1-D float64 arrays of equal length;
     ``t0_s`` [s] is the time of the first sample.
     """
 
@@ -97,6 +103,8 @@ class Recording:
     fs_hz: float
     t0_s: float = 0.0
     source: str = ""
+    notes: list[str] = field(default_factory=list)  # what the reader did (time bases), for
+    # provenance
 
     @property
     def n_samples(self) -> int:
@@ -113,4 +121,4 @@ class Recording:
     def slice(self, start: int, stop: int) -> Recording:
         """Samples ``start:stop`` as a new recording (views, no copies)."""
         return Recording({k: v[start:stop] for k, v in self.channels.items()}, self.fs_hz,
-                         self.t0_s + start / self.fs_hz, self.source)
+                         self.t0_s + start / self.fs_hz, self.source, list(self.notes))

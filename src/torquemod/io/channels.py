@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data import CHANNELS, Recording
+from ..data import CHANNELS, OPTIONAL_CHANNELS, Recording
 from ..errors import InputError
 from .validate import sample_rate_from_time
 
@@ -416,22 +416,86 @@ def _time_base(cmap: ChannelMap, lookup: Callable[[str], RawChannel | None],
                           "[[recording]] (docs/format.md)")
 
 
-def _check_same_time_base(found: dict[str, RawChannel], path: object) -> None:
-    first = found[CHANNELS[0]]
+def _own_times(raw: RawChannel, n: int) -> np.ndarray | None:
+    """A channel's own sample times [s] (stamps, or a rate and start), None if it has none."""
+    if raw.time_s is not None:
+        return np.asarray(raw.time_s, dtype=np.float64).reshape(-1)
+    if raw.fs_hz is not None:
+        return raw.t0_s + np.arange(n) / raw.fs_hz
+    return None
+
+
+def _common_time_base(found: dict[str, RawChannel], channels: dict[str, np.ndarray],
+                      path: object) -> tuple[dict[str, np.ndarray], RawChannel, list[str]]:
+    """Put every channel on the torque channel's sample times (logger realities, issue 8).
+
+    A channel on its own time base (a TDMS ``wf_start_offset``, an MDF channel group with its
+    own master channel or rate) is interpolated linearly onto the torque's times; for the
+    chain's signals (< 30 Hz) sampled at >= 10 kHz that errs by < (2*pi*f/fs)^2/8 = 2e-4 of
+    the amplitude, less after the chain's resampling. All channels are cut to the span they
+    share; a channel that covers less than 90 % of the torque's span is refused. Returns the
+    channels, the torque's (trimmed) raw time base and notes for provenance."""
+    first_name = CHANNELS[0]
+    first = found[first_name]
+    n = channels[first_name].size
+    ref = _own_times(first, n)
+    notes: list[str] = []
+    if n < 2:  # refused later ("fewer than two samples")
+        return channels, first, notes
+    if ref is None:
+        for name, raw in found.items():
+            if _own_times(raw, channels[name].size) is not None:
+                raise InputError(f"has its own time base but {first_name} has none",
+                                 path=path, channel=name,
+                                 hint="map a common 'time' channel in [channels]")
+        return channels, first, notes
+    span = ref[-1] - ref[0]
+    lo, hi = ref[0], ref[-1]
+    timed: dict[str, np.ndarray] = {}
     for name, raw in found.items():
-        if raw.fs_hz is not None and first.fs_hz is not None \
-                and not math.isclose(raw.fs_hz, first.fs_hz, rel_tol=1e-9):
-            raise InputError(f"sampled at {raw.fs_hz} Hz, {CHANNELS[0]} at {first.fs_hz} Hz",
-                             path=path, channel=name,
-                             hint="resample the channels to one rate before processing")
-        if raw.time_s is not None and first.time_s is not None:
-            a, b = np.asarray(raw.time_s).reshape(-1), np.asarray(first.time_s).reshape(-1)
-            if a.shape != b.shape or not np.allclose(a, b, rtol=0, atol=1e-9 + 1e-6 * (
-                    float(np.max(np.abs(b))) if b.size else 0.0)):
-                raise InputError(f"has a different time base from {CHANNELS[0]}", path=path,
-                                 channel=name,
-                                 hint="resample the channels to one time base before "
-                                      "processing")
+        if name == first_name:
+            continue
+        t = _own_times(raw, channels[name].size)
+        if t is None:
+            if channels[name].size != n:
+                raise InputError(f"has {channels[name].size} samples, {first_name} has {n}",
+                                 path=path, channel=name,
+                                 hint="all channels must be sampled together")
+            continue
+        if t.size != channels[name].size:
+            raise InputError(f"has {channels[name].size} samples but {t.size} time stamps",
+                             path=path, channel=name)
+        if t.shape == ref.shape and np.max(np.abs(t - ref)) <= 1e-3 * span / max(n - 1, 1):
+            continue  # the same samples (within a thousandth of a period)
+        if t.size < 2 or np.any(np.diff(t) <= 0):
+            raise InputError("time stamps are not strictly increasing", path=path,
+                             channel=name)
+        timed[name] = t
+        lo, hi = max(lo, t[0]), min(hi, t[-1])
+    if not timed:
+        return channels, first, notes
+    if hi - lo < 0.9 * span:
+        worst = min(timed, key=lambda k: min(timed[k][-1], ref[-1]) - max(timed[k][0], ref[0]))
+        t = timed[worst]
+        raise InputError(f"covers {t[0] - ref[0]:+.4f} s to {t[-1] - ref[0]:+.4f} s of "
+                         f"{first_name}'s {span:.4f} s (less than 90 % of it)", path=path,
+                         channel=worst, hint="export the channels over a common time span")
+    keep = (ref >= lo - 1e-12) & (ref <= hi + 1e-12)
+    out = {k: (v[keep] if k not in timed else v) for k, v in channels.items()}
+    for name, t in timed.items():
+        offset = t[0] - ref[0]
+        rate = (t.size - 1) / (t[-1] - t[0])
+        out[name] = np.interp(ref[keep], t, channels[name])
+        notes.append(f"channel '{name}' on its own time base (start {offset * 1e3:+.3f} ms "
+                     f"from {first_name}, {rate:.6g} Hz): interpolated linearly onto "
+                     f"{first_name}'s sample times")
+    if not keep.all():
+        notes.append(f"cut to the span all channels share: {int((~keep).sum())} of {n} samples "
+                     f"of {first_name} dropped")
+    kept = ref[keep]
+    trimmed = replace(first, time_s=kept if first.time_s is not None else None,
+                      t0_s=float(kept[0]) if first.time_s is None else first.t0_s)
+    return out, trimmed, notes
 
 
 def assemble_recording(cmap: ChannelMap, lookup: Callable[[str], RawChannel | None], *,
@@ -451,10 +515,18 @@ def assemble_recording(cmap: ChannelMap, lookup: Callable[[str], RawChannel | No
         spec = cmap.spec(channel)
         raw = lookup(spec.name)
         if raw is None:
+            if channel in OPTIONAL_CHANNELS and not spec.explicit:
+                continue  # an optional channel the file does not hold
             raise _missing(spec, path, available)
         found[channel] = raw
+    forces = [c for c in ("fx_n", "fz_n") if c in found]
+    if len(forces) == 1 or ("fy_n" in found and not forces):
+        lacking = "fz_n" if "fx_n" in found else "fx_n"
+        raise _missing(cmap.spec(lacking), path, available) from None
     channels = {c: _converted(cmap.spec(c), raw, path) for c, raw in found.items()}
-    _check_same_time_base(found, path)
+    notes: list[str] = []
+    if cmap.sample_rate_hz is None:
+        channels, found[CHANNELS[0]], notes = _common_time_base(found, channels, path)
     fs, t0, t = _time_base(cmap, lookup, found, native_rate, path)
     n = channels[CHANNELS[0]].size
     if t is not None and t.size != n:
@@ -467,7 +539,9 @@ def assemble_recording(cmap: ChannelMap, lookup: Callable[[str], RawChannel | No
                          channel=TIME)
     if not math.isfinite(t0):
         raise InputError(f"start time {t0} s is not finite", path=path, channel=TIME)
-    return Recording(channels, float(fs), float(t0), source)
+    if "fx_n" in channels and "fy_n" not in channels:
+        notes.append("no lateral force channel: CoA = |Fx|/Fz")
+    return Recording(channels, float(fs), float(t0), source, notes)
 
 
 def unit_table() -> list[tuple[str, str, float]]:

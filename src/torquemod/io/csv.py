@@ -14,7 +14,7 @@ import pandas as pd
 import pyarrow as pa
 from pyarrow import csv as pa_csv
 
-from ..data import CHANNELS, Recording
+from ..data import CHANNELS, OPTIONAL_CHANNELS, Recording
 from ..errors import InputError
 from .channels import (
     TIME,
@@ -55,6 +55,7 @@ def read_csv(path: Path, *, group: str | None = None,
         raise InputError(f"column(s) {', '.join(twice)} appear more than once in the header",
                          path=path, channel=by_name[twice[0]],
                          hint="rename or remove the duplicate columns")
+    optional = {cmap.spec(c).name for c in OPTIONAL_CHANNELS if not cmap.spec(c).explicit}
     missing = [n for n in wanted if n not in header]
     if missing and len(header) == 1:
         for sep, word in ((";", "';'"), ("\t", "tabs"), ("|", "'|'"), (" ", "spaces")):
@@ -62,6 +63,8 @@ def read_csv(path: Path, *, group: str | None = None,
                 raise InputError(f"the header row has one column; the file seems separated by "
                                  f"{word}", path=path, hint="torquemod reads comma-separated "
                                  "files with '.' as decimal point; convert the file")
+    wanted = [n for n in wanted if n in header or n not in optional]
+    missing = [n for n in missing if n not in optional]
     if missing:
         rate = (" (or set sample_rate_hz instead of a time column)"
                 if TIME in map(by_name.get, missing) else "")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..data import CHANNELS, Recording
+from ..data import CHANNELS, REQUIRED_CHANNELS, Recording
 from ..errors import InputError
 
 #: Largest deviation of a time stamp from the fitted uniform grid, in sample periods, that is
@@ -60,10 +60,13 @@ def check_finite(rec: Recording, *, path: object) -> None:
 
 
 def check_channels(rec: Recording, *, path: object) -> None:
-    """Every method channel present, 1-D, numeric and of one common length."""
+    """The required channels present (optional ones may be absent), each 1-D, numeric and of
+    one common length."""
     n = None
     for name in CHANNELS:
         if name not in rec.channels:
+            if name not in REQUIRED_CHANNELS:
+                continue
             raise InputError("missing channel", path=path, channel=name,
                              hint="add the column or map it in the manifest's [channels]")
         x = rec.channels[name]
