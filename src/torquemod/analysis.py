@@ -176,7 +176,27 @@ def _step_column(steps_df: pd.DataFrame, name: str) -> np.ndarray | None:
     return pd.to_numeric(steps_df[name], errors="coerce").to_numpy(float)
 
 
-def _phase_fit(steps_df: pd.DataFrame, pts, use: np.ndarray, constant) -> tuple[object, str]:
+def measured_constant(steps_df: pd.DataFrame, use: np.ndarray, *, wheel_radius_m: float,
+                      normal_load_n: float) -> float | None:
+    """The theory constant C = Omega*J*V/(R^2*N) measured from the modulation itself: the
+    wheel's mechanical impedance T/w = j*Omega*J + R^2*N*k/V has the quadrature part
+    Omega*J, so ``C_i = (|T_i|/|w_i|)*sin(phi_i)*V_i/(R^2*N)`` at every step (amplitudes
+    [N*m], [rad/s] of the fitted modulation, speed V [m/s]); the median over the steps. It
+    holds where the torque is measured between the drive and the wheel and the speed at the
+    wheel (V-Track's torque shaft with its encoder). None when a column is missing."""
+    cols = [_step_column(steps_df, k) for k in ("torque_amplitude_nm", "wheel_amplitude_rad_s",
+                                               "phase_deg", "speed_m_s")]
+    if any(c is None for c in cols) or not (wheel_radius_m and normal_load_n):
+        return None
+    t, w, phi, v = (c[use] for c in cols)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ci = t / w * np.sin(np.radians(phi)) * v / (wheel_radius_m**2 * normal_load_n)
+    ci = ci[np.isfinite(ci) & (ci > 0)]
+    return float(np.median(ci)) if ci.size else None
+
+
+def _phase_fit(steps_df: pd.DataFrame, pts, use: np.ndarray, constant,
+               measured_c: tuple[float, float] | None = None) -> tuple[object, str]:
     """mu from the phase progression (:mod:`torquemod.phasefit`) over the steps in ``use``:
     (result or None, reason it was skipped or "")."""
     try:
@@ -196,6 +216,9 @@ def _phase_fit(steps_df: pd.DataFrame, pts, use: np.ndarray, constant) -> tuple[
     c = None if constant is None else np.asarray(constant, dtype=float)
     if c is not None and c.ndim:
         c = float(np.nanmean(c[use]))
+    if c is None and measured_c:
+        c = measured_constant(steps_df, use, wheel_radius_m=measured_c[0],
+                              normal_load_n=measured_c[1])
     try:
         res = fit_mu_from_phase(coa[use], pts.phase_deg[use], se[use], constant=c,
                                 creepage_swing=None if swing is None else swing[use])
@@ -280,11 +303,16 @@ def fit_results_folder(results_dir, *, options=None) -> dict:
             warnings.append("wheel inertia given but speed, load or frequency per step is "
                             "missing: the theory constant is fitted instead")
     # mu from the phase progression (runs whether or not forces were recorded)
-    pfit, p_skipped = _phase_fit(steps_df, pts, use, constant)
+    c_source = "rig" if constant is not None else "measured"
+    pfit, p_skipped = _phase_fit(steps_df, pts, use, constant,
+                                 measured_c=(radius, n_nom) if radius and n_nom else None)
     if pfit is None:
         warnings.append(f"mu from the phase was not estimated: {p_skipped}")
     else:
         warnings += [f"mu from the phase: {w}" for w in pfit.warnings]
+        if c_source == "measured" and pfit.constant_given:
+            warnings.append(f"mu from the phase: C = {pfit.constant:.4g} measured from the "
+                            "torque/wheel-speed amplitude ratio (no rig inertia given)")
     coa_phase = _step_column(steps_df, "coa_torque")
     if coa_phase is None or not np.all(np.isfinite(coa_phase[use])):
         coa_phase = pts.coa

@@ -148,7 +148,9 @@ def _phase_fit_panel(steps: pd.DataFrame, fit: dict):
     use = np.array([not slip.get(int(s), False) for s in pts.step], dtype=bool)
     theory = fit.get("theory") or {}
     constant = theory.get("constant") if theory.get("mode") == "rig" else None
-    pfit, _ = _phase_fit(steps, pts, use, constant)
+    load, radius = fit.get("normal_load_n"), fit.get("wheel_radius_m")
+    pfit, _ = _phase_fit(steps, pts, use, constant,
+                         measured_c=(radius, load) if radius and load else None)
     coa = steps["coa_torque"] if "coa_torque" in steps else steps["coa"]
     coa = np.asarray(coa, dtype=float)
     if not np.all(np.isfinite(coa)):
