@@ -56,7 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from .contact.polach import force_function, friction_coefficient
+from .contact.polach import force_function, friction_coefficient, swing_average
 from .errors import InputError, ProcessingError
 from .jsonutil import to_jsonable
 
@@ -103,6 +103,18 @@ def polach_slope(xi, theta, *, speed_m_s=None):
     f_hi = polach_coa(hi, theta, speed_m_s=speed_m_s)
     f_lo = polach_coa(lo, theta, speed_m_s=speed_m_s)
     return (f_hi - f_lo) / (hi - lo)
+
+
+def longitudinal_mean(xi, theta, swing=None, speed_m_s=None):
+    """Mean longitudinal CoA [-] at creepage ``xi`` [-]: the static curve, or, with a
+    creepage swing [-], its period average over the swing (the mean of a modulated step)."""
+    if swing is None:
+        return polach_coa(xi, theta, speed_m_s=speed_m_s)
+    spd = None if speed_m_s is None else np.asarray(speed_m_s, dtype=float)[..., None]
+
+    def signed(x):
+        return np.sign(x) * polach_coa(np.abs(x), theta, speed_m_s=spd)
+    return np.abs(swing_average(signed, xi, swing))
 
 
 def _clean(name, x, n=None):
@@ -152,6 +164,7 @@ class PolachFit:
     starts: list[dict] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     options: dict = field(default_factory=dict)
+    swing: np.ndarray | None = None  # creepage swing per point [-] when modelled
 
     @property
     def mu(self) -> float | None:
@@ -182,6 +195,12 @@ class PolachFit:
     def curve(self, xi, speed_m_s=None):
         """Fitted CoA at creepage ``xi`` [-] (speed defaults to the mean of the data)."""
         return polach_coa(xi, self.theta, speed_m_s=self._speed(xi, speed_m_s))
+
+    def mean_curve(self, xi, swing, speed_m_s=None):
+        """Mean CoA of a step at mean creepage ``xi`` whose creepage swings by ``swing`` [-]
+        (the swing-averaged model that was fitted); ``curve`` is the static curve."""
+        return longitudinal_mean(xi, self.theta, np.asarray(swing, dtype=float),
+                                 self._speed(xi, speed_m_s))
 
     def slope(self, xi, speed_m_s=None):
         """Creep coefficient dCoA/dxi of the fitted curve at ``xi`` [-]."""
@@ -334,7 +353,7 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
                seed: int = 0, sigma_floor: float = 1e-4, max_rel_stderr: float = 0.10,
                min_saturation_fraction: float = 0.5, min_peak_fraction: float = 0.9,
                creepage_limit: float = 0.1, max_nfev: int = 2000,
-               lateral_coa=None) -> PolachFit:
+               lateral_coa=None, creepage_swing=None) -> PolachFit:
     """Fit Polach's model (P05 Eqs. 3, 8; Eq. 9 when velocity-dependent) to creep points.
 
     Parameters
@@ -357,6 +376,11 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
         paper, ``sqrt(Fx^2 + Fy^2)/Fz``, and modelled as ``sqrt(f(xi)^2 + lateral^2)`` with f
         the longitudinal Polach curve: at low torque the lateral force dominates the CoA and
         would otherwise be read as a steep creep curve.
+    creepage_swing : array_like, optional
+        Amplitude [-] of the sinusoidal creepage swing the torque modulation causes at each
+        point (``steps.csv`` ``creepage_swing``). The model is then the static curve averaged
+        over the swing (:func:`torquemod.contact.polach.swing_average`), which is what the
+        mean (creepage, CoA) of a modulated step measures; NaN counts as no swing.
     sigma_floor, max_rel_stderr, min_saturation_fraction, min_peak_fraction, creepage_limit
         See the module docstring.
 
@@ -378,6 +402,9 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
     speeds = _clean("speeds_m_s", speeds_m_s, xi.size)
     lateral = _clean("lateral_coa", lateral_coa, xi.size)
     lateral = np.zeros(xi.size) if lateral is None else np.abs(np.nan_to_num(lateral))
+    swing = _clean("creepage_swing", creepage_swing, xi.size)
+    swing = None if swing is None or not np.any(np.nan_to_num(swing) > 0) \
+        else np.abs(np.nan_to_num(swing))
     n_par = 5 if velocity_dependent else 3
     if xi.size < n_par + 1:
         raise InputError(f"the Polach fit needs at least {n_par + 1} points, got {xi.size}",
@@ -410,7 +437,7 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
     hi = [MU_BOUNDS[1], np.inf, np.inf] + ([1.0, B_MAX_S_M] if velocity_dependent else [])
 
     def model(th):
-        return np.hypot(polach_coa(xi, th, speed_m_s=spd), lateral)
+        return np.hypot(longitudinal_mean(xi, th, swing, spd), lateral)
 
     def run(sig, starts):
         def resid(th):
@@ -534,12 +561,13 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
         stiffness=stiffness, weighted=weighted,
         starts=[{"x0": [float(v) for v in t[3]], "cost": t[0] if np.isfinite(t[0]) else None}
                 for t in results],
-        warnings=warn,
+        warnings=warn, swing=swing,
         options={"velocity_dependent": velocity_dependent, "n_starts": n_starts, "seed": seed,
                  "sigma_floor": sigma_floor, "max_rel_stderr": max_rel_stderr,
                  "min_saturation_fraction": min_saturation_fraction,
                  "min_peak_fraction": min_peak_fraction, "creepage_limit": creepage_limit,
                  "max_nfev": max_nfev, "lateral_coa": bool(np.any(lateral > 0)),
+                 "creepage_swing": None if swing is None else swing.tolist(),
                  "stiffness": stiffness, "mu_bounds": list(MU_BOUNDS),
                  "covariance_scale": "max(1, reduced chi2)" if weighted else "reduced chi2"},
     )
