@@ -112,8 +112,10 @@ class SlipParams:
     * a falling CoA: from the previous cycle the CoA falls by more than ``coa_drop_abs`` [-]
       while the creepage rises by more than ``creepage_rise_abs`` [-] (the falling branch of
       the creep curve);
-    * a creepage drift within the cycle: the line fitted to the notched wheel speed rises by
-      more than ``within_cycle_abs`` [-] of creepage from the cycle's start to its end.
+    * a creepage drift within the cycle: the creepage's trend over the cycle rises by more
+      than ``within_cycle_abs`` [-] and by more than ``within_cycle_rel`` times the cycle's
+      creepage (near saturation a wheel's creepage follows the speed loop's wobble by tens of
+      per cent up and down, measured on the twin; a runaway grows it far more).
 
     Flagged steps stay in ``steps.csv`` (column ``slip``) and are left out of the Polach fit.
     """
@@ -124,6 +126,7 @@ class SlipParams:
     coa_drop_abs: float = 5e-3
     creepage_rise_abs: float = 5e-4
     within_cycle_abs: float = 2e-3
+    within_cycle_rel: float = 0.5
 
 
 @dataclass(frozen=True)

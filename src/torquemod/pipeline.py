@@ -321,7 +321,7 @@ def detect_slip(creepage, coa, drift, params: SlipParams) -> list[str | None]:
             if rise > params.creepage_rise_abs and drop > params.coa_drop_abs:
                 why.append(f"CoA fell by {drop:.3g} from the previous cycle while the creepage "
                            f"rose by {rise:.3g}")
-        if d[i] > params.within_cycle_abs:
+        if d[i] > max(params.within_cycle_abs, params.within_cycle_rel * abs(xi[i])):
             why.append(f"creepage rose by {d[i]:.3g} within the cycle")
         out[i] = "; ".join(why) or None
     return out

@@ -35,7 +35,7 @@ from .errors import InputError
 from .fsutil import atomic_dir
 from .io import write_manifest, write_recording
 from .jsonutil import dump_json
-from .rig.dynamics import OUT_COLUMNS, initial_state, integrate, pack_parameters
+from .rig.dynamics import OUT_COLUMNS, initial_state, integrate, pack_parameters, wobble_table
 from .rig.params import (
     ContactParams,
     DisturbanceParams,
@@ -171,8 +171,16 @@ def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
                                   frequency_offset=float(m["frequency_offset"]),
                                   random_phase=bool(m["random_phase"]))
     d = dict(doc["disturbances"])
-    dist = DisturbanceParams(**{k: (v if isinstance(v, bool | int) else float(v))
-                                for k, v in d.items()})
+    dist = DisturbanceParams(**{k: (v if isinstance(v, bool | int) else
+                                    tuple(float(x) for x in v) if isinstance(v, list)
+                                    else float(v)) for k, v in d.items()})
+    band = dist.speed_wobble_band_hz
+    if len(band) != 2 or not 0 < band[0] <= band[1]:
+        raise InputError(f"disturbances.speed_wobble_band_hz must be [low, high] with "
+                         f"0 < low <= high, got {list(band)}", path=where)
+    if dist.speed_wobble_rms < 0 or dist.speed_wobble_rev1 < 0 or dist.speed_wobble_rev2 < 0:
+        raise InputError("disturbances.speed_wobble_* amplitudes must be zero or positive",
+                         path=where)
     for key in doc["sensors"]:
         _positive(doc, "sensors", key, where, allow_zero=(key != "sample_rate_hz"))
     sensors = SensorParams(**{k: float(v) for k, v in doc["sensors"].items()})
@@ -385,9 +393,10 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     out = np.empty((n_settle + n_rec, len(OUT_COLUMNS)))  # reused: each step copies out
     for i_step, dc in enumerate(torques, start=1):
         phase = float(rng.uniform(0.0, 2.0 * np.pi)) if mod.random_phase else 0.0
+        wobble = wobble_table(config.disturbances, rig.platform_speed_rad_s, rng)
         n_done, slipped = integrate(y, t, n_settle + n_rec, dt, proc.substeps, params, dc_prev,
                                     dc, t, proc.ramp_s, mod.amplitude_nm, omega_mod, phase, t,
-                                    proc.slip_creepage, out, proc.samples_per_step)
+                                    proc.slip_creepage, out, proc.samples_per_step, wobble)
         t_step = t
         t += n_done * dt
         dc_prev = dc
@@ -401,6 +410,12 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
                                proc.cycles_per_step)
         raw = out[bounds[0]:bounds[-1]]
         steps.append(_step_truth(i_step, dc, config, raw, False))
+        w_p = raw[:, _COL["platform_speed_rad_s"]]
+        steps[-1]["speed_wobble"] = {
+            "platform_speed_rms_pct": float(100 * np.std(w_p) / np.mean(w_p)),
+            "terms": [{"amplitude_rad_s": a, "rate": r, "phase_rad": ph,
+                       "kind": "time [rad/s]" if kind < 0.5 else "platform order"}
+                      for a, r, ph, kind in wobble.tolist()]}
         channels = measure(raw, disturbances=config.disturbances, sensors=config.sensors,
                            rng=rng)
         spans = (list(itertools.pairwise(bounds)) if files_per_cycle

@@ -17,7 +17,8 @@ Equations (derived for this model; the contact force is quasi-static, Polach 200
     T_sh      = k_t*twist + c_t*(w_m - w_w)               shaft (and sensor) torque
     J_m w_m'  = T_m(t) - T_sh                              motor side
     J_w w_w'  = T_sh - R_w*F_x                             wheel (creep-force moment)
-    J_p W_p'  = K_p*(W_ref - W_p) + K_i*i_pi + R_p*F_x - T_rr
+    J_p W_p'  = K_p*(W_ref(t) - W_p) + K_i*i_pi + R_p*F_x - T_rr
+    W_ref(t)  = W_0 + wobble(t, th_p)       a speed loop's slow oscillation (wobble_table)
     xi_x      = (w_w*R_w - W_p*R_p)/(W_p*R_p)              V-Track paper Eq. (3)
     F_x, F_y  = Polach(xi_x, xi_y, N(th_p), V = W_p*R_p)
 
@@ -263,16 +264,17 @@ def _ramp(t, dc_from, dc_to, t_step, ramp_s):
 
 
 @numba.njit(**_FAST)
-def _rhs_s(y0, y1, y2, y5, y6, t_m, n, c):
+def _rhs_s(y0, y1, y2, y5, y6, t_m, n, c, dw=0.0):
     """:func:`_rhs` on scalars (the states the right-hand side reads; ``th_w' = w_w`` and
-    ``th_p' = W_p`` need no evaluation) with the constants ``c`` of :func:`_constants`.
+    ``th_p' = W_p`` need no evaluation) with the constants ``c`` of :func:`_constants` and the
+    speed reference's wobble ``dw`` [rad/s] (:func:`_wobble`).
     Returns the derivatives of ``twist, w_m, w_w, W_p, i_pi`` and ``(Fx, Fy, xi_x)``."""
     rw, rp, wref, ijm, ijw, ijp, kt, ct, kp, ki, trr, xiy, sx, sy, mu0, a, b, ka, ks = c
     v = y5 * rp
     xi = (y2 * rw - v) / v
     fx, fy = _creep_force(xi, xiy, n, v, sx, sy, mu0, a, b, ka, ks)
     t_sh = kt * y0 + ct * (y1 - y2)
-    err = wref - y5
+    err = wref + dw - y5
     return (y1 - y2, (t_m - t_sh) * ijm, (t_sh - rw * fx) * ijw,
             (kp * err + ki * y6 + rp * fx - trr) * ijp, err, fx, fy, xi)
 
@@ -297,13 +299,59 @@ def _put(out, i, kt, ct, y0, y1, y2, y3, y4, y5, fx, fy, n, xi):
     out[i, 8] = xi
 
 
+@numba.njit(**_FAST)
+def _wobble(t, th_p, wob):
+    """Wobble of the platform's speed reference [rad/s] at time ``t`` [s] and platform angle
+    ``th_p`` [rad]: ``sum amp*sin(rate*t + phase)`` over the rows of ``wob`` whose kind is 0
+    (a speed loop's slow oscillation) and ``amp*sin(order*th_p + phase)`` over those of kind 1
+    (once- and twice-per-revolution terms)."""
+    out = 0.0
+    for j in range(wob.shape[0]):
+        arg = wob[j, 1] * (th_p if wob[j, 3] > 0.5 else t) + wob[j, 2]
+        out += wob[j, 0] * math.sin(arg)
+    return out
+
+
+def wobble_table(dist: DisturbanceParams, platform_speed_rad_s: float,
+                 rng: np.random.Generator) -> np.ndarray:
+    """The rows ``(amplitude [rad/s], rate [rad/s] or order, phase [rad], kind)`` of one
+    recording's speed-reference wobble (:func:`_wobble`): ``speed_wobble_components`` sines
+    of equal amplitude and random frequency in ``speed_wobble_band_hz`` whose RMS together is
+    ``speed_wobble_rms`` of the set speed, and the revolution terms ``speed_wobble_rev1`` and
+    ``rev2`` (relative amplitudes), every phase random. Empty when switched off."""
+    rows = []
+    if dist.enabled and dist.speed_wobble_rms > 0 and dist.speed_wobble_components > 0:
+        k = dist.speed_wobble_components
+        amp = dist.speed_wobble_rms * np.sqrt(2.0 / k) * platform_speed_rad_s
+        lo, hi = dist.speed_wobble_band_hz
+        for _ in range(k):
+            rows.append((amp, 2 * np.pi * rng.uniform(lo, hi), rng.uniform(0, 2 * np.pi), 0.0))
+    if dist.enabled:
+        for order, rel in ((1.0, dist.speed_wobble_rev1), (2.0, dist.speed_wobble_rev2)):
+            if rel > 0:
+                rows.append((rel * platform_speed_rad_s, order, rng.uniform(0, 2 * np.pi), 1.0))
+    return np.array(rows, dtype=np.float64).reshape(-1, 4)
+
+
 #: RK4 steps between exact re-evaluations of the modulation's sine (rotated in between)
 _RESYNC = 1024
 
 
-@numba.njit(**_FAST)
+_NO_WOBBLE = np.zeros((0, 4))
+
+
 def integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s, amp, omega,
-              phase, t_gen, slip_creepage, out, samples_per_step=1):
+              phase, t_gen, slip_creepage, out, samples_per_step=1, wobble=None):
+    """:func:`_integrate` (compiled) with the platform speed reference's ``wobble`` table of
+    :func:`wobble_table` (None: a steady reference)."""
+    wob = _NO_WOBBLE if wobble is None else np.ascontiguousarray(wobble, dtype=np.float64)
+    return _integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s, amp,
+                      omega, phase, t_gen, slip_creepage, out, samples_per_step, wob)
+
+
+@numba.njit(**_FAST)
+def _integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s, amp, omega,
+               phase, t_gen, slip_creepage, out, samples_per_step, wob):
     """Advance state ``y`` (modified in place) by ``n_samples`` output samples of ``dt`` [s]
     and write :data:`OUT_COLUMNS` to ``out`` (sample ``i`` is the state at ``t0 + i*dt``).
 
@@ -332,7 +380,8 @@ def integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s,
     # derivative and contact at the first sample
     n0 = _load_anchor(y4, p, anc)
     tm = _ramp(t0, dc_from, dc_to, t_step, ramp_s) + amp * ms
-    a0, a1, a2, a5, a6, fx0, fy0, xi0 = _rhs_s(y0, y1, y2, y5, y6, tm, n0, c)
+    a0, a1, a2, a5, a6, fx0, fy0, xi0 = _rhs_s(y0, y1, y2, y5, y6, tm, n0, c,
+                                               _wobble(t0, y4, wob))
     i = 0
     h_prev = -1.0
     rc = rs = 1.0
@@ -377,15 +426,18 @@ def integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s,
             s2, s5 = y2 + hh * a2, y5 + hh * a5
             s4 = y4 + hh * y5
             b0, b1, b2, b5, b6, _, _, _ = _rhs_s(y0 + hh * a0, y1 + hh * a1, s2, s5,
-                                                 y6 + hh * a6, tmh, _load_near(s4, p, anc), c)
+                                                 y6 + hh * a6, tmh, _load_near(s4, p, anc), c,
+                                                 _wobble(ta + hh, s4, wob))
             u2, u5 = y2 + hh * b2, y5 + hh * b5
             u4 = y4 + hh * s5
             c0, c1, c2, c5, c6, _, _, _ = _rhs_s(y0 + hh * b0, y1 + hh * b1, u2, u5,
-                                                 y6 + hh * b6, tmh, _load_near(u4, p, anc), c)
+                                                 y6 + hh * b6, tmh, _load_near(u4, p, anc), c,
+                                                 _wobble(ta + hh, u4, wob))
             v2, v5 = y2 + hb * c2, y5 + hb * c5
             v4 = y4 + hb * u5
             d0, d1, d2, d5, d6, _, _, _ = _rhs_s(y0 + hb * c0, y1 + hb * c1, v2, v5,
-                                                 y6 + hb * c6, tm1, _load_near(v4, p, anc), c)
+                                                 y6 + hb * c6, tm1, _load_near(v4, p, anc), c,
+                                                 _wobble(ta + hb, v4, wob))
             h6 = hb / 6.0
             z0 = y0 + h6 * (a0 + 2.0 * (b0 + c0) + d0)
             z1 = y1 + h6 * (a1 + 2.0 * (b1 + c1) + d1)
@@ -396,7 +448,8 @@ def integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s,
             z6 = y6 + h6 * (a6 + 2.0 * (b6 + c6) + d6)
             # derivative at the step's end: the next step's k1 and the interpolation's slope
             nn = _load_advance(z4, p, anc, anc_n, n_steps % _ANCHOR_EXACT == 0)
-            e0, e1, e2, e5, e6, fxn, fyn, xin = _rhs_s(z0, z1, z2, z5, z6, tm1, nn, c)
+            e0, e1, e2, e5, e6, fxn, fyn, xin = _rhs_s(z0, z1, z2, z5, z6, tm1, nn, c,
+                                                       _wobble(ta + hb, z4, wob))
             # samples strictly inside this step: cubic Hermite interpolation
             for k in range(mb):
                 q = k * s_n - jj * mb

@@ -112,6 +112,10 @@ class DisturbanceParams:
     normal-load variation from ``sleeper_count`` sleepers per revolution
     (``sleeper_load_n`` amplitude [N]) and ``joint_count`` rail joints (a decaying
     oscillation of ``joint_load_n`` [N] at ``joint_frequency_hz`` with ``joint_damping_ratio``).
+    The platform's speed loop wobbles: its reference carries ``speed_wobble_components`` sines
+    at random frequencies in ``speed_wobble_band_hz`` [Hz], together ``speed_wobble_rms``
+    (relative) RMS, and once- and twice-per-revolution terms ``speed_wobble_rev1``/``rev2``
+    (relative amplitudes); the wheel follows through the contact.
     """
 
     enabled: bool = True
@@ -129,6 +133,11 @@ class DisturbanceParams:
     joint_load_n: float = 0.0
     joint_frequency_hz: float = 40.0
     joint_damping_ratio: float = 0.1
+    speed_wobble_rms: float = 0.0
+    speed_wobble_band_hz: tuple[float, float] = (0.2, 0.6)
+    speed_wobble_components: int = 3
+    speed_wobble_rev1: float = 0.0
+    speed_wobble_rev2: float = 0.0
 
 
 @dataclass(frozen=True)
