@@ -204,3 +204,27 @@ def test_integrator_step_is_configurable_and_checked():
         load_config(overrides=stiff)
     cfg = load_config(overrides={**stiff, "procedure": {"samples_per_step": 1, "substeps": 2}})
     assert cfg.procedure.substeps == 2
+
+
+def test_speed_wobble_is_on_by_default(short_run):
+    """The twin's speed loop wobbles (issue 8): the simulated platform speed varies by about
+    the configured 0.2 % RMS plus the revolution terms (0.1 % and 0.05 % amplitude, i.e.
+    0.08 % RMS together): sqrt(0.2^2 + 0.079^2) = 0.215 % if the loop followed its reference
+    exactly; a PI loop with a finite bandwidth and the wheel's drag change that somewhat, so
+    the tolerance is 0.1-0.4 %. The measured platform speed shows it."""
+    out, truth = short_run
+    cfg = load_config()
+    assert cfg.disturbances.speed_wobble_rms == pytest.approx(0.002)
+    for st in truth["steps"]:
+        assert 0.1 < st["speed_wobble"]["platform_speed_rms_pct"] < 0.4
+        assert len(st["speed_wobble"]["terms"]) == 5
+    rec = read_recording(out / "step01_cycle1.csv")
+    w = rec.channels["platform_speed_rad_s"]
+    assert np.ptp(w) / np.mean(w) > 4e-3  # the wobble is in the measured signal too
+
+
+def test_speed_wobble_off_when_disturbances_off(oracle_run):
+    _, _, truth = oracle_run
+    for st in truth["steps"]:
+        assert st["speed_wobble"]["terms"] == []
+        assert st["speed_wobble"]["platform_speed_rms_pct"] < 0.01
