@@ -25,6 +25,9 @@ from torquemod.data import Rig
 from torquemod.pipeline import detect_slip
 from torquemod.testing import SyntheticSpec, synthetic_recording
 
+#: creepage runaways over one cycle [-]
+RISES = (2e-3, 5e-3, 1e-2, 2e-2)
+
 
 def random_spec(rng: np.random.Generator, seed: int, step: dict) -> SyntheticSpec:
     rms = rng.uniform(1e-3, 5e-3)
@@ -49,7 +52,7 @@ def main() -> None:
     cfg = ProcessingConfig()
     rng = np.random.default_rng(2026)
     t0 = time.perf_counter()
-    rows = {"no slip": 0, **{f"rise {r:.0e}": 0 for r in (5e-4, 1e-3, 2e-3, 3e-3)}}
+    rows = {"no slip": 0, **{f"rise {r:.0e}": 0 for r in RISES}}
     worst_drift = 0.0
     for k in range(args.steps):
         step = {"creepage": float(rng.uniform(1e-3, 1e-2)),
@@ -61,7 +64,7 @@ def main() -> None:
         flags = detect_slip([s.creepage for s in sigs], [s.coa for s in sigs],
                             [s.creepage_drift for s in sigs], cfg.slip)
         rows["no slip"] += any(flags)
-        for rise in (5e-4, 1e-3, 2e-3, 3e-3):
+        for rise in RISES:
             slip = dataclasses.replace(specs[2], creepage_rate_per_s=rise / 6.46,
                                        slip_force_drop=0.05)
             s3 = cycle(slip, cfg)

@@ -11,33 +11,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from torquemod.contact.polach import swing_average, swing_slope
 from torquemod.errors import InputError
 from torquemod.phasefit import _invert, fit_mu_from_phase, polach_h, polach_h_slope
+from torquemod.testing import synthetic_phase_progression
 
 C = 10.2  # Omega*J*V/(R^2*N) of V-Track with J = 4 kg m^2
 FRACTIONS = np.array([0.0035, 0.35, 0.68, 0.84, 0.92, 1.0])
 
 
 def truth(mu, r, k_scale, u_max, *, swing=False):
-    """CoA, phase [deg] and creepage swing of six steps on a Polach curve."""
-    u = FRACTIONS * u_max
-    x = _invert(u, r)
-    k = k_scale * polach_h_slope(x, r)
-    sw = None
-    if swing:  # the rigid wheel's answer to 8 N*m at 2 Hz sets the swing; iterate with k
-        om, j, radius, load, v = 4 * np.pi, 4.0, 0.0675, 4200.0, 1.944
-        for _ in range(4):
-            sw = 8.0 / np.abs(1j * om * j + radius**2 * load * k / v) * radius / v
-            a = sw * k_scale / mu
-            lo, hi = x * 0.999, 4 * x + 4 * a + 1e-6
-            for _ in range(60):
-                mid = 0.5 * (lo + hi)
-                low = swing_average(lambda z: polach_h(z, r), mid, a) < u
-                lo, hi = np.where(low, mid, lo), np.where(low, hi, mid)
-            k = k_scale * swing_slope(lambda z: polach_h(z, r), 0.5 * (lo + hi), a,
-                                      slope=lambda z: polach_h_slope(z, r))
-    return u * mu, np.degrees(np.arctan2(C, k)), sw
+    return synthetic_phase_progression(mu, r, k_scale, u_max, constant=C, swing=swing)
 
 
 def test_h_and_its_inverse():

@@ -156,9 +156,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     _print_fit(out)
     truth = out.get("truth") or {}
     if truth.get("peak_coa") is not None:
-        print(f"simulator truth: creep-curve peak CoA {truth['peak_coa']:.4f} at "
-              f"{_fmt(truth.get('peak_torque_nm'), '.2f')} N*m; slip at step "
-              f"{truth.get('slip_step')}")
+        print(f"simulator truth: mu0 = {truth['mu0']:.4f}, falling with slip velocity to "
+              f"{truth['mu_at_top_step']:.4f} at the top step (Polach Eq. 9); creep-curve "
+              f"peak CoA {truth['peak_coa']:.4f} at {_fmt(truth.get('peak_torque_nm'), '.2f')} "
+              f"N*m; slip at step {truth.get('slip_step')}")
     return 0
 
 

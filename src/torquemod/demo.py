@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -173,6 +174,10 @@ def run_demo(out_dir, *, config_path=None, seed: int = 0, force: bool = False,
             "curve_peak_coa": summary["curve_peak_coa"],
             "saturation_torque_nm": summary["saturation_torque_nm"],
             "onset_step": summary["onset_step"], "theory_rms_deg": summary["theory_rms_deg"],
+            "fit_skipped": summary.get("fit_skipped"),
+            **{k: summary.get(k) for k in ("mu_from_phase", "mu_from_phase_stderr",
+                                           "mu_from_phase_interval_95",
+                                           "mu_from_phase_determined")},
             "steps": [{k: s[k] for k in ("step", "dc_torque_nm", "phase_deg",
                                          "phase_theory_deg", "torque_pct_saturation")}
                       for s in summary["steps"]],
@@ -183,7 +188,14 @@ def _truth_headline(truth: dict) -> dict:
     """The simulator's ground truth (``run_simulation``'s truth dict) worth comparing with:
     the peak of its creep curve, the slip step and the theory phases."""
     peak = truth["creep_curve_peak"]
+    c = truth["parameters"]["rig"]["contact"]
+    rig = truth["parameters"]["rig"]
+    top = [s for s in truth["steps"] if not s.get("slipped") and s.get("creepage") is not None]
+    w = abs(top[-1]["creepage"]) * rig["speed_m_s"] if top else 0.0
+    # Polach 2005 Eq. (9): the friction the top step's slip velocity sees
+    mu_top = c["mu0"] * ((1 - c["a_ratio"]) * math.exp(-c["b_s_m"] * w) + c["a_ratio"])
     return {"peak_coa": peak["coa"], "peak_torque_nm": peak["torque_nm"],
+            "mu0": c["mu0"], "mu_at_top_step": mu_top,
             "slip_step": truth["slip_step"],
             "phase_theory_deg": [s["phase_theory_deg"] for s in truth["steps"]]}
 

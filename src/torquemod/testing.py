@@ -219,3 +219,39 @@ def write_synthetic_experiment(folder, *, n_steps: int = 6, n_cycles: int = 3,
                          "modulation_amplitude_nm": base.modulation_amplitude_nm},
                    recordings=entries)
     return truth
+
+
+#: V-Track's torque steps (Table 1 of the paper) as fractions of the highest
+VTRACK_STEP_FRACTIONS = (0.0035, 0.35, 0.68, 0.84, 0.92, 1.0)
+
+
+def synthetic_phase_progression(mu: float, ratio_ka_ks: float, k_scale: float, u_max: float,
+                                *, constant: float = 10.2, swing: bool = False,
+                                fractions=VTRACK_STEP_FRACTIONS):
+    """CoA [-], phase [deg] and creepage swing [-] (or None) of torque steps up to the
+    utilisation ``u_max`` on a Polach curve ``CoA = mu*h(k_scale*xi/mu; kA/kS)``
+    (:mod:`torquemod.phasefit`), by the rigid-wheel law ``tan(phi) = C/k``. With ``swing``
+    the creepage swing of V-Track's 8 N*m, 2 Hz modulation (J = 4 kg m^2, R = 0.0675 m,
+    N = 4200 N, V = 1.944 m/s: |dw| = T/|j*Omega*J + R^2*N*k/V|, swing = |dw|*R/V) is
+    found self-consistently and k is the describing-function slope over it."""
+    from .contact.polach import swing_average, swing_slope
+    from .phasefit import _invert, polach_h, polach_h_slope
+
+    r = ratio_ka_ks
+    u = np.asarray(fractions, dtype=float) * u_max
+    x = _invert(u, r)
+    k = k_scale * polach_h_slope(x, r)
+    sw = None
+    if swing:
+        om, j, radius, load, v = 4 * np.pi, 4.0, 0.0675, 4200.0, 1.944
+        for _ in range(4):
+            sw = 8.0 / np.abs(1j * om * j + radius**2 * load * k / v) * radius / v
+            a = sw * k_scale / mu
+            lo, hi = x * 0.999, 4 * x + 4 * a + 1e-6
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                low = swing_average(lambda z: polach_h(z, r), mid, a) < u
+                lo, hi = np.where(low, mid, lo), np.where(low, hi, mid)
+            k = k_scale * swing_slope(lambda z: polach_h(z, r), 0.5 * (lo + hi), a,
+                                      slope=lambda z: polach_h_slope(z, r))
+    return u * mu, np.degrees(np.arctan2(constant, k)), sw
