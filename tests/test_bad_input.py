@@ -207,6 +207,34 @@ def c_missing_column(d):
     return [], None
 
 
+def c_fx_without_fz(d):
+    _edit_csv(_first_file(d), lambda df: df.drop(columns=["fz_n"]))
+    return [], None
+
+
+def c_optional_mapped_absent(d):
+    """An optional channel is only optional until the manifest asks for it."""
+    _edit_manifest(d, lambda doc: doc.__setitem__("channels",
+                                                  {"platform_speed": "PlatformSpeed"}))
+    return [], None
+
+
+def c_tdms_channel_late(d):
+    """A logger's force module started 40 % into the torque's recording (wf_start_offset)."""
+    from nptdms import ChannelObject, GroupObject, TdmsWriter
+    df = pd.read_csv(_first_file(d))
+    t = df["time_s"].to_numpy()
+    objs = [GroupObject("Meas")]
+    for name in df.columns.drop("time_s"):
+        late = 0.4 * (t[-1] - t[0]) if name == "fx_n" else 0.0
+        objs.append(ChannelObject("Meas", name, df[name].to_numpy(), properties={
+            "wf_increment": 1.0 / FS_HZ, "wf_start_offset": float(t[0]) + late}))
+    with TdmsWriter(str(d / "rec.tdms")) as w:
+        w.write_segment(objs)
+    _edit_manifest(d, lambda doc: doc["recording"][0].__setitem__("file", "rec.tdms"))
+    return [], None
+
+
 def c_wrong_unit(d):
     _edit_manifest(d, lambda doc: doc.__setitem__(
         "channels", {"torque": {"name": "torque_nm", "unit": "N"}}))
@@ -407,6 +435,12 @@ CASES: list[tuple[str, Callable, tuple[str, ...]]] = [
     ("unknown_suffix", c_unknown_suffix, ("rec.xyz", "unknown recording format")),
     ("missing_column", c_missing_column, ("step1_cycle1.csv", "wheel_speed_rad_s",
                                           "missing column")),
+    ("fx_without_fz", c_fx_without_fz, ("step1_cycle1.csv", "channel 'fz_n'",
+                                        "Fx and Fz")),
+    ("optional_mapped_absent", c_optional_mapped_absent,
+     ("step1_cycle1.csv", "channel 'platform_speed_rad_s'", "PlatformSpeed")),
+    ("tdms_channel_late", c_tdms_channel_late,
+     ("rec.tdms", "channel 'fx_n'", "starts", "at least 90 %", "export all channels")),
     ("wrong_unit", c_wrong_unit, ("channel 'torque_nm'", "unit 'N'", "torque")),
     ("unknown_unit", c_unknown_unit, ("'furlong'",)),
     ("unknown_processing_key", c_unknown_processing_key, ("bandpas", "known keys")),

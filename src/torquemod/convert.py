@@ -1,7 +1,8 @@
 """Convert recordings in any supported format into the project's HDF5 layout.
 
-``torquemod convert`` calls these; the HDF5 files they write hold the method's channels in SI
-units with their sample rate, so they read back without any ``[channels]`` table.
+``torquemod convert`` calls these; the HDF5 files they write hold the channels the input has
+(absent optional channels stay absent) in SI units with their sample rate and the reader's
+notes (``torquemod_notes``), so they read back without any ``[channels]`` table.
 """
 
 from __future__ import annotations

@@ -25,11 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data import CHANNELS, OPTIONAL_CHANNELS, Recording
+from ..data import CHANNEL_UNITS, CHANNELS, OPTIONAL_CHANNELS, Recording
 from ..errors import InputError
-from .validate import sample_rate_from_time
+from .validate import fit_time_grid
 
 TIME = "time_s"
+TORQUE = CHANNELS[0]  # the channel whose sample times are the recording's
 
 #: Short manifest keys of the method's channels (the full names are accepted too).
 SHORT_NAMES: dict[str, str] = {
@@ -88,7 +89,7 @@ del _q, _table, _u, _alias
 
 _QUANTITY_WORDS = {"time": "a time", "torque": "a torque", "angular_speed": "an angular speed",
                    "force": "a force", "linear_speed": "a linear speed"}
-_ENTRY_KEYS = ("name", "unit", "radius_m")
+_ENTRY_KEYS = ("name", "unit", "radius_m", "time")
 _RATE_KEYS = ("sample_rate_hz", "t0_s")
 
 
@@ -181,13 +182,17 @@ def convert_units(values: object, unit: str | None, quantity: str, *,
 @dataclass(frozen=True)
 class ChannelSpec:
     """Where one method channel is found: ``name`` in the file, in ``unit`` (None: the unit
-    the file declares, else the method's SI unit), ``radius_m`` [m] for linear speeds."""
+    the file declares, else the method's SI unit), ``radius_m`` [m] for linear speeds;
+    ``time`` names the channel's own time vector in the file (in ``time_unit``; None: the
+    unit the file declares, else s) when it is not sampled with the torque."""
 
     channel: str
     name: str
     unit: str | None = None
     radius_m: float | None = None
     explicit: bool = False  # named in the manifest (not the default)
+    time: str | None = None
+    time_unit: str | None = None
 
     @property
     def quantity(self) -> str:
@@ -218,6 +223,11 @@ class ChannelMap:
         """File names of the method channels (not time), in :data:`CHANNELS` order."""
         return [self.specs[c].name for c in CHANNELS]
 
+    def own_time_names(self) -> list[str]:
+        """File names of the channels' own time vectors (the ``time`` key of an entry)."""
+        return list(dict.fromkeys(self.specs[c].time for c in CHANNELS
+                                  if self.specs[c].time))
+
     def with_sample_rate(self, sample_rate_hz: float | None, t0_s: float | None = None,
                          *, path: object | None = None) -> ChannelMap:
         """This map with the time base replaced by a sample rate (None: unchanged)."""
@@ -228,6 +238,11 @@ class ChannelMap:
             raise InputError(f"both a sample rate ({fs} Hz) and a time channel "
                              f"('{self.time.name}') are given", path=path, channel=TIME,
                              hint="keep one of them")
+        own = [c for c in CHANNELS if self.specs[c].time]
+        if own:
+            raise InputError(f"both a sample rate ({fs} Hz) and the channel's own time vector "
+                             f"('{self.specs[own[0]].time}') are given", path=path,
+                             channel=own[0], hint="keep one of them")
         return replace(self, sample_rate_hz=fs, t0_s=self.t0_s if t0_s is None else t0_s)
 
 
@@ -271,7 +286,35 @@ def _entry(channel: str, key: str, value: object, path: object) -> ChannelSpec:
     if unit:
         # check now, so a mistake shows when the manifest is read, not file by file
         unit_factor(unit, QUANTITY[channel], radius_m=radius, path=path, channel=channel)
-    return ChannelSpec(channel, name.strip(), unit.strip() if unit else None, radius, True)
+    time_name, time_unit = _own_time_entry(channel, key, value.get("time"), path)
+    return ChannelSpec(channel, name.strip(), unit.strip() if unit else None, radius, True,
+                       time_name, time_unit)
+
+
+def _own_time_entry(channel: str, key: str, value: object, path: object
+                    ) -> tuple[str | None, str | None]:
+    """``(name, unit)`` of an entry's ``time`` key: the channel's own time vector."""
+    if value is None:
+        return None, None
+    if channel == TIME:
+        raise InputError(f"[channels] '{key}': 'time' only applies to the method channels",
+                         path=path, channel=channel)
+    if isinstance(value, str):
+        value = {"name": value}
+    if not isinstance(value, Mapping) or any(k not in ("name", "unit") for k in value):
+        raise InputError(f"[channels] '{key}': 'time' must be the name of the channel's own "
+                         "time vector or a table like { name = \"t_fx\", unit = \"ms\" }",
+                         path=path, channel=channel)
+    name, unit = value.get("name"), value.get("unit")
+    if not isinstance(name, str) or not name.strip():
+        raise InputError(f"[channels] '{key}': the time vector's 'name' must be a non-empty "
+                         "string", path=path, channel=channel)
+    if unit is not None:
+        if not isinstance(unit, str):
+            raise InputError(f"[channels] '{key}': the time vector's 'unit' must be a string",
+                             path=path, channel=channel)
+        unit_factor(unit, "time", path=path, channel=channel)
+    return name.strip(), unit.strip() if unit else None
 
 
 def resolve_channel_map(raw: Mapping | ChannelMap | None, path: object = None) -> ChannelMap:
@@ -279,7 +322,8 @@ def resolve_channel_map(raw: Mapping | ChannelMap | None, path: object = None) -
 
     Keys are the method channels, short (``torque``, ``wheel_speed``, ``platform_speed``,
     ``fx``, ``fy``, ``fz``, ``time``) or full (``torque_nm``, ..., ``time_s``), each a file
-    channel name or a table ``{ name, unit, radius_m }``; plus ``sample_rate_hz`` [Hz] and
+    channel name or a table ``{ name, unit, radius_m, time }`` (``time``: the channel's own
+    time vector, a name or ``{ name, unit }``); plus ``sample_rate_hz`` [Hz] and
     ``t0_s`` [s]. Channels left out keep their default (the CSV name, SI unit). ``path`` is
     only used in messages. An empty or None table gives :func:`default_channel_map`.
     """
@@ -357,9 +401,14 @@ def _unit_of(spec: ChannelSpec, raw: RawChannel) -> str | None:
     return None
 
 
-def _converted(spec: ChannelSpec, raw: RawChannel, path: object) -> np.ndarray:
+def _converted(spec: ChannelSpec, raw: RawChannel, path: object,
+               notes: list[str] | None = None) -> np.ndarray:
     unit = _unit_of(spec, raw)
     values = as_vector(raw.values, path=path, channel=spec.channel)
+    if notes is not None and values.dtype.kind in "iu" and values.dtype.itemsize <= 2:
+        notes.append(f"channel '{spec.channel}' is stored as {values.dtype} without a scale "
+                     f"in the file: its integers are taken as values in "
+                     f"{unit or CHANNEL_UNITS[spec.channel]}")
     try:
         return convert_units(values, unit, spec.quantity, radius_m=spec.radius_m, path=path,
                              channel=spec.channel)
@@ -376,139 +425,311 @@ def _missing(spec: ChannelSpec, path: object, available: Callable[[], list[str]]
     what = f"no channel '{spec.name}' in the file"
     if spec.explicit:
         what += " (mapped in [channels])"
-    have = ""
-    if available is not None:
-        names = [n.decode("utf-8", "replace") if isinstance(n, bytes) else str(n)
-                 for n in available()]
-        shown = ", ".join(names[:12]) + (", ..." if len(names) > 12 else "")
-        have = f"; the file has {shown}" if names else "; the file has no channels"
-    return InputError(what + have, path=path, channel=spec.channel,
+    return InputError(what + _available_text(available), path=path, channel=spec.channel,
                       hint="map it in the manifest's [channels] table (docs/format.md)")
 
 
-def _time_base(cmap: ChannelMap, lookup: Callable[[str], RawChannel | None],
-               found: dict[str, RawChannel], native_rate: tuple[float, float] | None,
-               path: object) -> tuple[float, float, np.ndarray | None]:
-    """``(fs_hz, t0_s, time_s or None)`` by precedence: the map's sample rate, the time
-    channel, the channels' own time base, the file's sample rate."""
-    if cmap.sample_rate_hz is not None:
-        return cmap.sample_rate_hz, cmap.t0_s, None
+def _available_text(available: Callable[[], list[str]] | None) -> str:
+    if available is None:
+        return ""
+    names = [n.decode("utf-8", "replace") if isinstance(n, bytes) else str(n)
+             for n in available()]
+    shown = ", ".join(names[:12]) + (", ..." if len(names) > 12 else "")
+    return f"; the file has {shown}" if names else "; the file has no channels"
+
+
+# --- time bases (logger realities, issue 8) ------------------------------------------------
+
+#: A channel on its own time base must cover at least this share of the torque channel's
+#: time span (all channels are cut to the span they share); otherwise it is refused.
+MIN_COVERAGE = 0.9
+#: Start offsets within this many sample periods of a whole number of samples, and rates so
+#: close that they drift apart by less than this over the record, are taken as exact (the
+#: fitted grids of jittered stamps differ by less, see tests/test_logger_timebase.py).
+SAME_INSTANT_SAMPLES = 0.01
+#: Highest frequency [Hz] of the method's signals, for the interpolation error stated in the
+#: notes: linear interpolation of a sine of frequency f between samples dt apart errs by at
+#: most (2*pi*f*dt)^2/8 of its amplitude.
+SIGNAL_BAND_HZ = 30.0
+#: A channel sampled faster than the torque is low-passed (zero-phase Butterworth, this
+#: order, at this share of the torque's sample rate) before it is interpolated, so that its
+#: noise above the torque's Nyquist frequency does not alias.
+ANTI_ALIAS_ORDER = 8
+ANTI_ALIAS_SHARE = 0.4
+
+
+@dataclass(frozen=True)
+class _Grid:
+    """Uniform sample times: sample ``k`` at ``anchor_s + rel_s + k / fs_hz`` [s]. The split
+    keeps start differences of absolute (epoch) time stamps exact."""
+
+    fs_hz: float
+    anchor_s: float
+    rel_s: float = 0.0
+
+    @property
+    def t0_s(self) -> float:
+        return self.anchor_s + self.rel_s
+
+    def start_in(self, ref: _Grid) -> float:
+        """This grid's first sample time in sample periods of ``ref`` after ref's first."""
+        return ((self.anchor_s - ref.anchor_s) + (self.rel_s - ref.rel_s)) * ref.fs_hz
+
+    def text(self) -> str:
+        return f"{self.fs_hz:.6g} Hz from {self.t0_s:.9g} s"
+
+
+def _stamps_grid(t: np.ndarray, path: object, channel: str) -> _Grid:
+    fs, anchor, rel = fit_time_grid(t, path=path, channel=channel)
+    return _Grid(fs, anchor, rel)
+
+
+def _own_grid(raw: RawChannel, n: int, path: object, channel: str,
+              fitted: list[tuple[np.ndarray, _Grid]] | None = None) -> _Grid | None:
+    """A channel's own time base (stamps, or a rate and start), None if it has none.
+    ``fitted`` holds stamps already fitted (an MDF group's master comes once per channel)."""
+    if raw.time_s is not None:
+        t = np.asarray(raw.time_s, dtype=np.float64).reshape(-1)
+        if t.size != n:
+            raise InputError(f"has {n} samples but {t.size} time stamps", path=path,
+                             channel=channel, hint="is the file complete?")
+        for seen, grid in fitted or []:
+            if seen is t or np.array_equal(seen, t):
+                return grid
+        grid = _stamps_grid(t, path, channel)
+        if fitted is not None:
+            fitted.append((t, grid))
+        return grid
+    if raw.fs_hz is not None:
+        fs, t0 = float(raw.fs_hz), float(raw.t0_s)
+        if not math.isfinite(fs) or fs <= 0 or not math.isfinite(t0):
+            raise InputError(f"its time base ({fs} Hz from {t0} s) is not usable", path=path,
+                             channel=channel, hint="map a 'time' channel or set "
+                             "sample_rate_hz in the manifest")
+        return _Grid(fs, t0)
+    return None
+
+
+def _with_own_time(spec: ChannelSpec, raw: RawChannel,
+                   lookup: Callable[[str], RawChannel | None], path: object,
+                   available: Callable[[], list[str]] | None) -> RawChannel:
+    """``raw`` with the time vector the manifest maps for it (the entry's ``time`` key)."""
+    if not spec.time:
+        return raw
+    t_raw = lookup(spec.time)
+    if t_raw is None:
+        raise _missing(replace(spec, name=spec.time), path, available)
+    t_values = as_vector(t_raw.values, path=path, channel=spec.channel)
+    if t_values.dtype.kind in "mM":
+        raise InputError(f"its time vector '{spec.time}' holds date-times", path=path,
+                         channel=spec.channel, hint="map a numeric time vector (seconds)")
+    unit = spec.time_unit or (str(t_raw.unit).strip() if t_raw.unit else None)
+    t = convert_units(t_values, unit, "time", path=path, channel=spec.channel)
+    return replace(raw, time_s=t, fs_hz=None)
+
+
+def _recording_grid(cmap: ChannelMap, lookup: Callable[[str], RawChannel | None],
+                    torque_grid: _Grid | None, native_rate: tuple[float, float] | None,
+                    n: int, path: object) -> _Grid:
+    """The recording's time base by precedence: the time channel, the torque's own time
+    base, the file's sample rate (the manifest's sample rate is handled by the caller)."""
     spec = cmap.time
     raw = lookup(spec.name)
     if raw is None and spec.explicit:
         raise _missing(spec, path, None)
     if raw is not None:
         t = _converted(spec, raw, path)
-        fs, t0 = sample_rate_from_time(t, path=path)
-        return fs, t0, t
-    first = found[CHANNELS[0]]
-    if first.time_s is not None:
-        t = np.asarray(first.time_s, dtype=np.float64).reshape(-1)
-        fs, t0 = sample_rate_from_time(t, path=path)
-        return fs, t0, t
-    if first.fs_hz is not None:
-        return first.fs_hz, first.t0_s, None
+        if t.size != n:
+            raise InputError(f"has {t.size} samples, the channels have {n}", path=path,
+                             channel=TIME)
+        return _stamps_grid(t, path, TIME)
+    if torque_grid is not None:
+        return torque_grid
     if native_rate is not None:
-        return native_rate[0], native_rate[1], None
+        fs, t0 = float(native_rate[0]), float(native_rate[1])
+        if not math.isfinite(fs) or fs <= 0:
+            raise InputError(f"sample rate {fs} Hz is not a positive number", path=path,
+                             channel=TIME)
+        if not math.isfinite(t0):
+            raise InputError(f"start time {t0} s is not finite", path=path, channel=TIME)
+        return _Grid(fs, t0)
     raise InputError(f"no time base: no time channel '{spec.name}' and no sample rate in the "
                      "file", path=path, channel=TIME,
                      hint="map 'time' or set sample_rate_hz in [channels] or in the "
                           "[[recording]] (docs/format.md)")
 
 
-def _own_times(raw: RawChannel, n: int) -> np.ndarray | None:
-    """A channel's own sample times [s] (stamps, or a rate and start), None if it has none."""
-    if raw.time_s is not None:
-        return np.asarray(raw.time_s, dtype=np.float64).reshape(-1)
-    if raw.fs_hz is not None:
-        return raw.t0_s + np.arange(n) / raw.fs_hz
-    return None
+@dataclass
+class _Plan:
+    """How one channel on its own time base reaches the torque's samples: sample ``k`` of
+    the torque is at ``(k - start) * ratio`` of the channel; ``shift`` is the whole-sample
+    offset when no interpolation is needed."""
+
+    grid: _Grid
+    m: int
+    start: float
+    ratio: float
+    shift: int | None
+
+    @property
+    def end(self) -> float:
+        return self.start + (self.m - 1) / self.ratio
 
 
-def _common_time_base(found: dict[str, RawChannel], channels: dict[str, np.ndarray],
-                      path: object) -> tuple[dict[str, np.ndarray], RawChannel, list[str]]:
-    """Put every channel on the torque channel's sample times (logger realities, issue 8).
+def _plan(channel: str, grid: _Grid, m: int, ref: _Grid, n: int, path: object) -> _Plan:
+    start = grid.start_in(ref)
+    ratio = grid.fs_hz / ref.fs_hz
+    if not (math.isfinite(start) and math.isfinite(ratio) and 1e-6 < ratio < 1e6):
+        raise InputError(f"its time base ({grid.text()}) cannot be matched to "
+                         f"{TORQUE}'s ({ref.text()})", path=path, channel=channel,
+                         hint="check the file's time properties, or map a common 'time' "
+                              "channel in [channels]")
+    if abs(ratio - 1.0) * max(n, m) <= SAME_INSTANT_SAMPLES:
+        ratio = 1.0
+        whole = round(start)
+        if abs(start - whole) <= SAME_INSTANT_SAMPLES:
+            return _Plan(grid, m, float(whole), 1.0, int(whole))
+    return _Plan(grid, m, start, ratio, None)
 
-    A channel on its own time base (a TDMS ``wf_start_offset``, an MDF channel group with its
-    own master channel or rate) is interpolated linearly onto the torque's times; for the
-    chain's signals (< 30 Hz) sampled at >= 10 kHz that errs by < (2*pi*f/fs)^2/8 = 2e-4 of
-    the amplitude, less after the chain's resampling. All channels are cut to the span they
-    share; a channel that covers less than 90 % of the torque's span is refused. Returns the
-    channels, the torque's (trimmed) raw time base and notes for provenance."""
-    first_name = CHANNELS[0]
-    first = found[first_name]
-    n = channels[first_name].size
-    ref = _own_times(first, n)
-    notes: list[str] = []
-    if n < 2:  # refused later ("fewer than two samples")
-        return channels, first, notes
-    if ref is None:
-        for name, raw in found.items():
-            if _own_times(raw, channels[name].size) is not None:
-                raise InputError(f"has its own time base but {first_name} has none",
-                                 path=path, channel=name,
-                                 hint="map a common 'time' channel in [channels]")
-        return channels, first, notes
-    span = ref[-1] - ref[0]
-    lo, hi = ref[0], ref[-1]
-    timed: dict[str, np.ndarray] = {}
-    for name, raw in found.items():
-        if name == first_name:
+
+def _coverage_error(channel: str, plan: _Plan, ref: _Grid, n: int, shared: float,
+                    path: object) -> InputError:
+    span = (n - 1) / ref.fs_hz
+    first, last = plan.start / ref.fs_hz, plan.end / ref.fs_hz
+    late = f"starts {first:.4f} s after" if first > 0 else ""
+    early = f"ends {span - last:.4f} s before" if last < span else ""
+    how = " and ".join(x for x in (late, early) if x) or "is offset from"
+    return InputError(f"{how} {TORQUE} (it covers {first:+.4f} s to {last:+.4f} s of "
+                      f"{TORQUE}'s 0 to {span:.4f} s); the channels share {100 * shared:.1f} % "
+                      f"of that span, at least {100 * MIN_COVERAGE:.0f} % is needed",
+                      path=path, channel=channel,
+                      hint="export all channels over one time span, or cut the recording to "
+                           "the span this channel covers")
+
+
+def _lowpass(x: np.ndarray, fs_hz: float, cutoff_hz: float) -> np.ndarray:
+    from scipy.signal import butter, sosfiltfilt
+    sos = butter(ANTI_ALIAS_ORDER, cutoff_hz, fs=fs_hz, output="sos")
+    return sosfiltfilt(sos, x, padlen=min(x.size - 1, 3 * (2 * len(sos) + 1)))
+
+
+def _interpolated(x: np.ndarray, plan: _Plan, lo: int, hi: int) -> np.ndarray:
+    """Linear interpolation of ``x`` at torque samples ``lo..hi`` (positions in the channel's
+    samples are exact to ~1e-9 of a sample even for 1e7-sample records)."""
+    u = np.arange(lo, hi + 1, dtype=np.float64)
+    u -= plan.start
+    u *= plan.ratio
+    np.clip(u, 0.0, plan.m - 1.0, out=u)
+    i = np.minimum(u.astype(np.intp), plan.m - 2)
+    u -= i
+    out = x[i + 1] - x[i]
+    out *= u
+    out += x[i]
+    return out
+
+
+def _align(channels: dict[str, np.ndarray], grids: dict[str, _Grid | None], ref: _Grid,
+           path: object, notes: list[str]) -> tuple[dict[str, np.ndarray], int]:
+    """Every channel on the torque's sample times ``ref`` (channels without their own time
+    base are taken as sampled with the torque); all cut to the span they share. Returns the
+    channels and the first torque sample kept."""
+    n = channels[TORQUE].size
+    plans: dict[str, _Plan] = {}
+    for name, x in channels.items():
+        if name == TORQUE:
             continue
-        t = _own_times(raw, channels[name].size)
-        if t is None:
-            if channels[name].size != n:
-                raise InputError(f"has {channels[name].size} samples, {first_name} has {n}",
-                                 path=path, channel=name,
-                                 hint="all channels must be sampled together")
+        grid = grids.get(name)
+        if grid is None:
+            if x.size != n:
+                raise InputError(f"has {x.size} samples, {TORQUE} has {n}", path=path,
+                                 channel=name, hint="all channels must be sampled together "
+                                 "(or each on its own declared time base)")
             continue
-        if t.size != channels[name].size:
-            raise InputError(f"has {channels[name].size} samples but {t.size} time stamps",
-                             path=path, channel=name)
-        if t.shape == ref.shape and np.max(np.abs(t - ref)) <= 1e-3 * span / max(n - 1, 1):
-            continue  # the same samples (within a thousandth of a period)
-        if t.size < 2 or np.any(np.diff(t) <= 0):
-            raise InputError("time stamps are not strictly increasing", path=path,
-                             channel=name)
-        timed[name] = t
-        lo, hi = max(lo, t[0]), min(hi, t[-1])
-    if not timed:
-        return channels, first, notes
-    if hi - lo < 0.9 * span:
-        worst = min(timed, key=lambda k: min(timed[k][-1], ref[-1]) - max(timed[k][0], ref[0]))
-        t = timed[worst]
-        raise InputError(f"covers {t[0] - ref[0]:+.4f} s to {t[-1] - ref[0]:+.4f} s of "
-                         f"{first_name}'s {span:.4f} s (less than 90 % of it)", path=path,
-                         channel=worst, hint="export the channels over a common time span")
-    keep = (ref >= lo - 1e-12) & (ref <= hi + 1e-12)
-    out = {k: (v[keep] if k not in timed else v) for k, v in channels.items()}
-    for name, t in timed.items():
-        offset = t[0] - ref[0]
-        rate = (t.size - 1) / (t[-1] - t[0])
-        out[name] = np.interp(ref[keep], t, channels[name])
-        notes.append(f"channel '{name}' on its own time base (start {offset * 1e3:+.3f} ms "
-                     f"from {first_name}, {rate:.6g} Hz): interpolated linearly onto "
-                     f"{first_name}'s sample times")
-    if not keep.all():
-        notes.append(f"cut to the span all channels share: {int((~keep).sum())} of {n} samples "
-                     f"of {first_name} dropped")
-    kept = ref[keep]
-    trimmed = replace(first, time_s=kept if first.time_s is not None else None,
-                      t0_s=float(kept[0]) if first.time_s is None else first.t0_s)
-    return out, trimmed, notes
+        if x.size < 2:
+            raise InputError(f"fewer than two samples ({x.size})", path=path, channel=name)
+        plans[name] = _plan(name, grid, x.size, ref, n, path)
+    if all(p.shift == 0 and p.m == n for p in plans.values()):
+        return channels, 0
+    eps = SAME_INSTANT_SAMPLES
+    lo = max([0, *(math.ceil(p.start - eps) for p in plans.values())])
+    hi = min([n - 1, *(math.floor(p.end + eps) for p in plans.values())])
+    shared = max(hi - lo, 0) / (n - 1)
+    if shared < MIN_COVERAGE:
+        def covered(p: _Plan) -> float:
+            return min(p.end, n - 1.0) - max(p.start, 0.0)
+        worst = min(plans, key=lambda k: covered(plans[k]))
+        raise _coverage_error(worst, plans[worst], ref, n, shared, path)
+    out: dict[str, np.ndarray] = {}
+    for name, x in channels.items():
+        plan = plans.get(name)
+        if plan is None:
+            out[name] = x[lo:hi + 1]
+            continue
+        offset_ms = plan.start / ref.fs_hz * 1e3
+        if plan.shift is not None:
+            out[name] = x[lo - plan.shift:hi + 1 - plan.shift]
+            if plan.shift:
+                notes.append(f"channel '{name}' starts {plan.shift:+d} samples "
+                             f"({offset_ms:+.4f} ms) from {TORQUE}: shifted by whole samples "
+                             "(no interpolation)")
+            continue
+        what = "interpolated linearly"
+        if plan.ratio > 1.0:
+            if np.isfinite(x).all():
+                x = _lowpass(x, plan.grid.fs_hz, ANTI_ALIAS_SHARE * ref.fs_hz)
+                what = (f"low-passed at {ANTI_ALIAS_SHARE * ref.fs_hz:.6g} Hz (zero-phase "
+                        f"Butterworth, order {ANTI_ALIAS_ORDER}) and interpolated linearly")
+            else:
+                what = "interpolated linearly (not low-passed: it holds NaN/inf)"
+        out[name] = _interpolated(x, plan, lo, hi)
+        err = (2 * math.pi * SIGNAL_BAND_HZ / plan.grid.fs_hz) ** 2 / 8
+        notes.append(f"channel '{name}' on its own time base (starts {offset_ms:+.4f} ms from "
+                     f"{TORQUE}, {plan.grid.fs_hz:.6g} Hz vs {ref.fs_hz:.6g} Hz): {what} "
+                     f"onto {TORQUE}'s sample times (error < {err:.1e} of the amplitude of a "
+                     f"{SIGNAL_BAND_HZ:.0f} Hz component)")
+    if lo > 0 or hi < n - 1:
+        notes.append(f"cut to the span all channels share: {lo} samples of {TORQUE} dropped "
+                     f"at the start and {n - 1 - hi} at the end ({hi + 1 - lo} of {n} kept)")
+    return out, lo
+
+
+def _check_one_time_base(grids: dict[str, _Grid | None], n: int, path: object) -> None:
+    """With a sample rate from the manifest, refuse channels whose own time bases differ
+    (the manifest's rate would put them on one grid, misaligned)."""
+    timed = [(k, g) for k, g in grids.items() if g is not None]
+    if len(timed) < 2:
+        return
+    name0, ref = timed[0]
+    for name, grid in timed[1:]:
+        start = grid.start_in(ref)
+        ratio = grid.fs_hz / ref.fs_hz
+        if not (math.isfinite(start) and math.isfinite(ratio)) or \
+                abs(start) > SAME_INSTANT_SAMPLES or \
+                abs(ratio - 1.0) * n > SAME_INSTANT_SAMPLES:
+            raise InputError(f"its own time base ({grid.text()}) differs from {name0}'s "
+                             f"({ref.text()}); a sample rate from the manifest would put "
+                             "them on one grid, misaligned", path=path, channel=name,
+                             hint="remove sample_rate_hz from the manifest so the file's "
+                                  "time bases are used")
 
 
 def assemble_recording(cmap: ChannelMap, lookup: Callable[[str], RawChannel | None], *,
                        path: object, source: str,
                        native_rate: tuple[float, float] | None = None,
-                       available: Callable[[], list[str]] | None = None) -> Recording:
+                       available: Callable[[], list[str]] | None = None,
+                       notes: list[str] | None = None) -> Recording:
     """Build a :class:`Recording` from a reader's ``lookup(name) -> RawChannel | None``.
 
-    Every method channel is looked up by its mapped name and converted to SI; the time base
-    comes from (in order) the map's ``sample_rate_hz``, the time channel (``time_s`` unless
-    mapped), the channels' own time base (``RawChannel.time_s``/``fs_hz``), then
-    ``native_rate = (fs_hz, t0_s)`` of the file. ``available()`` lists the file's channel
-    names for the message when a channel is missing.
+    Every method channel is looked up by its mapped name and converted to SI; the optional
+    ones (:data:`~torquemod.data.OPTIONAL_CHANNELS`) may be absent unless the map names them
+    explicitly; forces come as Fx with Fz (Fy optional). The time base comes from (in order)
+    the map's ``sample_rate_hz``, the time channel (``time_s`` unless mapped), the torque's
+    own time base (``RawChannel.time_s``/``fs_hz``), then ``native_rate = (fs_hz, t0_s)`` of
+    the file. Channels on their own time base (their ``RawChannel`` time, or a time vector
+    the map names) are put on the torque's sample times and all channels are cut to the span
+    they share (:data:`MIN_COVERAGE`); what was done goes into ``Recording.notes`` after the
+    reader's own ``notes``. ``available()`` lists the file's channel names for the message
+    when a channel is missing.
     """
     found: dict[str, RawChannel] = {}
     for channel in CHANNELS:
@@ -518,22 +739,33 @@ def assemble_recording(cmap: ChannelMap, lookup: Callable[[str], RawChannel | No
             if channel in OPTIONAL_CHANNELS and not spec.explicit:
                 continue  # an optional channel the file does not hold
             raise _missing(spec, path, available)
-        found[channel] = raw
+        found[channel] = _with_own_time(spec, raw, lookup, path, available)
     forces = [c for c in ("fx_n", "fz_n") if c in found]
     if len(forces) == 1 or ("fy_n" in found and not forces):
         lacking = "fz_n" if "fx_n" in found else "fx_n"
-        raise _missing(cmap.spec(lacking), path, available) from None
-    channels = {c: _converted(cmap.spec(c), raw, path) for c, raw in found.items()}
-    notes: list[str] = []
-    if cmap.sample_rate_hz is None:
-        channels, found[CHANNELS[0]], notes = _common_time_base(found, channels, path)
-    fs, t0, t = _time_base(cmap, lookup, found, native_rate, path)
-    n = channels[CHANNELS[0]].size
-    if t is not None and t.size != n:
-        raise InputError(f"has {t.size} samples, the channels have {n}", path=path,
-                         channel=TIME)
+        have = [f"'{cmap.spec(c).name}'" for c in ("fx_n", "fy_n", "fz_n") if c in found]
+        raise InputError(f"no channel '{cmap.spec(lacking).name}' in the file although "
+                         f"{' and '.join(have)} {'is' if len(have) == 1 else 'are'}: the "
+                         "forces need Fx and Fz together (Fy is optional)"
+                         f"{_available_text(available)}", path=path, channel=lacking,
+                         hint="map the missing force in [channels], or leave all force "
+                              "channels out (the CoA then comes from the torque)")
+    notes = list(notes or [])
+    channels = {c: _converted(cmap.spec(c), raw, path, notes) for c, raw in found.items()}
+    n = channels[TORQUE].size
     if n < 2:
-        raise InputError(f"fewer than two samples ({n})", path=path, channel=CHANNELS[0])
+        raise InputError(f"fewer than two samples ({n})", path=path, channel=TORQUE)
+    fitted: list[tuple[np.ndarray, _Grid]] = []
+    grids = {c: _own_grid(raw, channels[c].size, path, c, fitted) for c, raw in found.items()}
+    del fitted
+    if cmap.sample_rate_hz is not None:
+        _check_one_time_base(grids, n, path)
+        grid = _Grid(cmap.sample_rate_hz, cmap.t0_s)
+        lo = 0
+    else:
+        grid = _recording_grid(cmap, lookup, grids[TORQUE], native_rate, n, path)
+        channels, lo = _align(channels, grids, grids[TORQUE] or grid, path, notes)
+    fs, t0 = grid.fs_hz, grid.t0_s + lo / grid.fs_hz
     if not math.isfinite(fs) or fs <= 0:
         raise InputError(f"sample rate {fs} Hz is not a positive number", path=path,
                          channel=TIME)

@@ -49,6 +49,9 @@ def read_csv(path: Path, *, group: str | None = None,
     by_name = {cmap.spec(c).name: c for c in CHANNELS}
     if cmap.sample_rate_hz is None:
         by_name.setdefault(cmap.time.name, TIME)
+    for c in CHANNELS:  # the channels' own time columns ([channels] entry key 'time')
+        if cmap.spec(c).time:
+            by_name.setdefault(cmap.spec(c).time, c)
     wanted = list(by_name)
     twice = [n for n in wanted if header.count(n) > 1]
     if twice:
@@ -114,10 +117,11 @@ def _round_significant(x: np.ndarray, digits: int) -> np.ndarray:
 
 
 def write_csv(path: Path, rec: Recording, *, significant_digits: int = 9) -> Path:
-    """Write ``rec`` as a CSV recording with a ``time_s`` column, each column rounded to
-    ``significant_digits`` (pyarrow prints the shortest decimal that reads back exactly)."""
+    """Write ``rec`` as a CSV recording with a ``time_s`` column and the channels it has
+    (absent optional channels are left out), each column rounded to ``significant_digits``
+    (pyarrow prints the shortest decimal that reads back exactly)."""
     data = {TIME_COLUMN: rec.time_s()}
-    data.update({k: rec.channels[k] for k in CHANNELS})
+    data.update({k: rec.channels[k] for k in CHANNELS if k in rec.channels})
     table = pa.table({k: _round_significant(np.asarray(v, dtype=np.float64), significant_digits)
                       for k, v in data.items()})
     try:

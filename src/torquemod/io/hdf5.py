@@ -5,7 +5,11 @@ A recording is an HDF5 group (the file's root unless the manifest names ``group`
 ``time_s`` dataset or a ``sample_rate_hz`` attribute on the group (with optional ``t0_s``).
 Each dataset carries a ``unit`` attribute (honoured when reading). One file may hold a whole
 experiment, one group per recording. Other layouts are read through the manifest's
-``[channels]`` table, whose names may be paths below the group (``"daq/torque"``).
+``[channels]`` table, whose names may be paths below the group (``"daq/torque"``). Integer
+datasets with the CF attributes ``scale_factor``/``add_offset`` (a logger's raw counts) are
+read as ``counts * scale_factor + add_offset``. The group attribute ``torquemod_notes`` (what
+an earlier read did to the channels, written by ``torquemod convert``) is carried into the
+recording's notes.
 """
 
 from __future__ import annotations
@@ -27,6 +31,8 @@ from .channels import (
 )
 
 LAYOUT_VERSION = 1
+#: Group attribute holding the notes of the recording the file was written from.
+NOTES_ATTR = "torquemod_notes"
 
 
 def _attr_text(value: object) -> str | None:
@@ -62,14 +68,44 @@ def _dataset(g: h5py.Group, name: str, path: Path, *, unit_attr: str = "unit"
         if not isinstance(obj, h5py.Dataset):
             raise InputError(f"'{name}' is a group, not a dataset", path=path,
                              hint="map a dataset in [channels]")
-        values = obj[()]
+        values = np.asarray(obj[()])
         unit = _attr_text(obj.attrs.get(unit_attr)) if unit_attr in obj.attrs else None
+        scale = [_attr_number(obj, key, name, path) for key in ("scale_factor", "add_offset")]
     except InputError:
         raise
     except Exception as exc:  # h5py raises OSError/KeyError/ValueError... on damaged files
         raise library_error(exc, path=path, what=f"cannot read dataset '{name}'",
                             hint="is the file complete?") from None
-    return RawChannel(np.asarray(values), unit)
+    if scale != [None, None] and values.dtype.kind in "biuf":
+        values = values.astype(np.float64)  # counts -> values in the dataset's unit
+        if scale[0] is not None:
+            values *= scale[0]
+        if scale[1] is not None:
+            values += scale[1]
+    return RawChannel(values, unit)
+
+
+def _attr_number(obj: h5py.Dataset, key: str, name: str, path: Path) -> float | None:
+    if key not in obj.attrs:
+        return None
+    value = np.asarray(obj.attrs[key])
+    if value.size != 1 or value.dtype.kind not in "biuf" or \
+            not np.isfinite(float(value.reshape(-1)[0])):
+        raise InputError(f"dataset '{name}': attribute {key}={value!r} is not a finite number",
+                         path=path, hint="repair the attribute or remove it")
+    return float(value.reshape(-1)[0])
+
+
+def _notes(g: h5py.Group) -> list[str]:
+    try:
+        value = g.attrs.get(NOTES_ATTR)
+        if value is None:
+            return []
+        items = np.asarray(value).reshape(-1).tolist()
+    except Exception:  # a damaged attribute: the notes are provenance only
+        return ["the file's torquemod_notes attribute could not be read"]
+    texts = [_attr_text(v) for v in items]
+    return [f"as written to the file: {t}" for t in texts if t]
 
 
 def _names(g: h5py.Group) -> list[str]:
@@ -106,7 +142,7 @@ def read_hdf5(path: Path, *, group: str | None = None,
         native = _group_rate(g, path)
         return assemble_recording(cmap, lambda name: _dataset(g, name, path), path=path,
                                   source=source_name(path, group), native_rate=native,
-                                  available=lambda: _names(g))
+                                  available=lambda: _names(g), notes=_notes(g))
 
 
 def write_hdf5(path: Path, rec: Recording, *, group: str | None = None,
@@ -114,17 +150,27 @@ def write_hdf5(path: Path, rec: Recording, *, group: str | None = None,
                attrs: dict | None = None) -> Path:
     """Write ``rec`` into ``group`` (root by default) of ``path`` (appending to the file).
 
-    The sample rate goes into the ``sample_rate_hz`` attribute; ``write_time`` also writes
-    the ``time_s`` dataset.
+    The channels ``rec`` has are written (absent optional channels are left out, and any
+    left from an earlier write to the same group are removed). The sample rate goes into the
+    ``sample_rate_hz`` attribute; ``write_time`` also writes the ``time_s`` dataset;
+    ``rec.notes`` go into the ``torquemod_notes`` attribute.
     """
     with h5py.File(path, "a") as fh:
         g = fh.require_group(group) if group else fh
         g.attrs["torquemod_layout"] = LAYOUT_VERSION
         g.attrs["sample_rate_hz"] = float(rec.fs_hz)
         g.attrs["t0_s"] = float(rec.t0_s)
+        if rec.notes:
+            g.attrs[NOTES_ATTR] = np.array(list(rec.notes), dtype=h5py.string_dtype())
+        elif NOTES_ATTR in g.attrs:
+            del g.attrs[NOTES_ATTR]
         for k, v in (attrs or {}).items():
             g.attrs[k] = v
-        names = (["time_s"] if write_time else []) + list(CHANNELS)
+        names = (["time_s"] if write_time else []) + [c for c in CHANNELS
+                                                      if c in rec.channels]
+        for name in ["time_s", *CHANNELS]:
+            if name in g and name not in names:
+                del g[name]
         for name in names:
             data = rec.time_s() if name == "time_s" else rec.channels[name]
             if name in g:

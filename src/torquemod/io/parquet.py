@@ -75,7 +75,8 @@ def read_parquet(path: Path, *, group: str | None = None,
         names = list(schema.names)
     except Exception as exc:  # pyarrow raises ArrowInvalid/OSError on damaged files
         raise library_error(exc, path=path, what="cannot open as Parquet", hint=_HINT) from None
-    wanted = [n for n in dict.fromkeys([*cmap.names(), cmap.time.name]) if n in names]
+    wanted = [n for n in dict.fromkeys([*cmap.names(), cmap.time.name,
+                                        *cmap.own_time_names()]) if n in names]
     try:
         table = pq.read_table(path, columns=wanted)
     except Exception as exc:  # damaged pages, bad compression, ...

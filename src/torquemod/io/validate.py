@@ -12,40 +12,67 @@ from ..errors import InputError
 IRREGULAR_TIME_TOLERANCE = 0.25
 
 
-def sample_rate_from_time(time_s: np.ndarray, *, path: object) -> tuple[float, float]:
-    """Sample rate [Hz] and start time [s] of a uniformly sampled time column.
+def fit_time_grid(time_s: np.ndarray, *, path: object, channel: str = "time_s"
+                  ) -> tuple[float, float, float]:
+    """The uniform grid of a column of time stamps [s]: ``(fs_hz, anchor_s, rel_s)``, sample
+    ``k`` at ``anchor_s + rel_s + k / fs_hz``.
 
-    The rate is the least-squares slope of time against sample index, which is insensitive to
-    the rounding of time stamps written as text. Raises :class:`InputError` when the time is
-    not strictly increasing or not uniform (gaps, jumps, jitter above
-    :data:`IRREGULAR_TIME_TOLERANCE` of a sample period).
+    ``anchor_s`` is the first stamp as stored and ``rel_s`` the fitted start relative to it,
+    so two grids' start difference ``(a1 - a2) + (r1 - r2)`` stays exact for absolute
+    (epoch, ~1.7e9 s) stamps, whose float64 spacing is 2.4e-7 s. The rate is the
+    least-squares slope of time against sample index (fitted on the stamps less the first),
+    which is insensitive to rounding and jitter of the stamps. Raises :class:`InputError`
+    naming ``channel`` when the stamps are not finite, not strictly increasing or not
+    uniform (gaps, jumps, jitter above :data:`IRREGULAR_TIME_TOLERANCE` of a period).
     """
-    t = np.asarray(time_s, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64).reshape(-1)
     if t.size < 2:
-        raise InputError("fewer than two samples", path=path, channel="time_s")
+        raise InputError("fewer than two samples", path=path, channel=channel)
     if not np.all(np.isfinite(t)):
         bad = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise InputError(f"non-finite time stamp at row {bad + 1}", path=path, channel="time_s",
+        raise InputError(f"non-finite time stamp at row {bad + 1}", path=path, channel=channel,
                          hint="repair or cut the recording")
     dt = np.diff(t)
     if np.any(dt <= 0):
         bad = int(np.flatnonzero(dt <= 0)[0])
         raise InputError(f"time is not strictly increasing at row {bad + 2} "
                          f"({float(t[bad])!r} then {float(t[bad + 1])!r})", path=path,
-                         channel="time_s",
+                         channel=channel,
                          hint="sort the recording or cut it at the jump")
+    del dt
+    anchor = float(t[0])
+    rel = t - anchor  # exact for stamps within a factor 2 of each other (Sterbenz)
     n = np.arange(t.size, dtype=np.float64)
-    n_c = n - n.mean()
-    slope = float(np.dot(n_c, t - t.mean()) / np.dot(n_c, n_c))
-    t0 = float(t.mean() - slope * n.mean())
-    resid = t - (t0 + slope * n)
-    worst = float(np.max(np.abs(resid))) / slope
+    n_mean = (t.size - 1) / 2.0
+    n -= n_mean
+    r_mean = float(rel.mean())
+    slope = float(np.dot(n, rel - r_mean) / np.dot(n, n))
+    rel0 = r_mean - slope * n_mean
+    # residuals from the fitted line, in place: rel - (rel0 + slope * k)
+    n *= slope
+    rel -= r_mean
+    rel -= n
+    if not np.isfinite(slope) or slope <= 0:
+        raise InputError("time stamps give no positive sample period", path=path,
+                         channel=channel, hint="check the time channel")
+    worst = float(np.max(np.abs(rel))) / slope
     if worst > IRREGULAR_TIME_TOLERANCE:
-        bad = int(np.argmax(np.abs(np.diff(resid)))) + 1
+        bad = int(np.argmax(np.abs(np.diff(rel)))) + 1
         raise InputError(f"time is not uniformly sampled (a gap or jump of {worst:.2f} sample "
-                         f"periods near row {bad + 1})", path=path, channel="time_s",
+                         f"periods near row {bad + 1})", path=path, channel=channel,
                          hint="resample the recording to a uniform rate before processing")
-    return 1.0 / slope, t0
+    return 1.0 / slope, anchor, rel0
+
+
+def sample_rate_from_time(time_s: np.ndarray, *, path: object, channel: str = "time_s"
+                          ) -> tuple[float, float]:
+    """Sample rate [Hz] and start time [s] of a uniformly sampled time column.
+
+    See :func:`fit_time_grid` (same checks); the start is ``anchor_s + rel_s``, good to the
+    float64 spacing of the stamps (2.4e-7 s at epoch times of 1.7e9 s).
+    """
+    fs, anchor, rel = fit_time_grid(time_s, path=path, channel=channel)
+    return fs, anchor + rel
 
 
 def check_finite(rec: Recording, *, path: object) -> None:
