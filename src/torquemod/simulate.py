@@ -8,6 +8,11 @@ Public entry points (the CLI in :mod:`torquemod.cli` only parses arguments and c
 * :func:`run_simulation` -- simulate the procedure and write ``experiment.toml``, one file per
   recording and ``truth.json`` (the simulated ground truth per step).
 
+``truth.json`` holds the run's speed-loop wobble (``speed_wobble``: configuration, realised
+terms, reference RMS) and per step the steady state, the theory phases and what was simulated
+(``simulated``: means, CoA, the phase with the wobble fitted out, the platform speed's RMS
+variation), also per platform revolution (``simulated.cycles``).
+
 Recordings of a step in which the wheel slips are *not* written; the step appears in
 ``truth.json`` with ``slipped = true`` and the procedure stops there (as the paper's test did).
 """
@@ -35,7 +40,15 @@ from .errors import InputError
 from .fsutil import atomic_dir
 from .io import write_manifest, write_recording
 from .jsonutil import dump_json
-from .rig.dynamics import OUT_COLUMNS, initial_state, integrate, pack_parameters, wobble_table
+from .rig.dynamics import (
+    OUT_COLUMNS,
+    initial_state,
+    integrate,
+    pack_parameters,
+    wobble_basis,
+    wobble_reference,
+    wobble_table,
+)
 from .rig.params import (
     ContactParams,
     DisturbanceParams,
@@ -178,9 +191,10 @@ def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
     if len(band) != 2 or not 0 < band[0] <= band[1]:
         raise InputError(f"disturbances.speed_wobble_band_hz must be [low, high] with "
                          f"0 < low <= high, got {list(band)}", path=where)
-    if dist.speed_wobble_rms < 0 or dist.speed_wobble_rev1 < 0 or dist.speed_wobble_rev2 < 0:
-        raise InputError("disturbances.speed_wobble_* amplitudes must be zero or positive",
-                         path=where)
+    if (min(dist.speed_wobble_rms, dist.speed_wobble_rev1, dist.speed_wobble_rev2) < 0
+            or dist.speed_wobble_components < 0):
+        raise InputError("disturbances.speed_wobble_* amplitudes and components must be zero "
+                         "or positive", path=where)
     for key in doc["sensors"]:
         _positive(doc, "sensors", key, where, allow_zero=(key != "sample_rate_hz"))
     sensors = SensorParams(**{k: float(v) for k, v in doc["sensors"].items()})
@@ -322,6 +336,112 @@ def sine_fit_phase_deg(torque: np.ndarray, speed: np.ndarray, fs_hz: float,
     return float((np.degrees(ang[0] - ang[1]) + 180.0) % 360.0 - 180.0)
 
 
+#: the wobble-aware truth fit uses every 8th sample (2 kHz at 16 670 Hz): every simulated line
+#: (modulation, its harmonics, the 15-100 Hz load and torsional lines) lies far below the
+#: decimated Nyquist frequency, so no alias lands on the modulation frequency
+_WOBBLE_FIT_STRIDE = 8
+
+
+def _phase_from_basis(x: np.ndarray, torque: np.ndarray, speed: np.ndarray) -> float:
+    """Phase [deg] of ``speed`` behind ``torque`` from a least-squares fit of the basis ``x``
+    whose first two columns are cos and sin at the modulation frequency."""
+    # normal equations solved by SVD: two wobble lines closer than the window resolves are
+    # near-collinear, which leaves the modulation's coefficients (orthogonal to them) intact
+    coef = np.linalg.lstsq(x.T @ x, x.T @ np.column_stack([torque, speed]), rcond=1e-12)[0]
+    ang = np.angle(coef[0] - 1j * coef[1])  # x = A cos(w + phi) -> a = A cos phi, b = -A sin phi
+    return float((np.degrees(ang[0] - ang[1]) + 180.0) % 360.0 - 180.0)
+
+
+def wobble_free_phase_deg(torque: np.ndarray, speed: np.ndarray, theta_rad: np.ndarray,
+                          fs_hz: float, frequency_hz: float, wobble: np.ndarray, *,
+                          t0_s: float = 0.0) -> float:
+    """:func:`sine_fit_phase_deg` with the speed loop's wobble (rows of
+    :func:`~torquemod.rig.dynamics.wobble_table`) fitted alongside: cos, sin and DC at
+    ``frequency_hz`` plus cos and sin at every wobble line (band rows at their rate in time
+    from ``t0_s`` [s], revolution rows at their order of the platform angle ``theta_rad``), so
+    that the wobble's leakage into the modulation line (up to 0.5 deg over three revolutions at
+    the default 0.2 % RMS, measured) stays out of the truth. Linear least squares on every
+    ``_WOBBLE_FIT_STRIDE``-th sample of the same whole modulation periods; without wobble rows
+    it is :func:`sine_fit_phase_deg`."""
+    if wobble.shape[0] == 0:
+        return sine_fit_phase_deg(torque, speed, fs_hz, frequency_hz)
+    n = int(np.floor(torque.size / fs_hz * frequency_hz) * fs_hz / frequency_hz)
+    idx = np.arange(0, n, _WOBBLE_FIT_STRIDE)
+    t = t0_s + idx / fs_hz
+    w = 2.0 * np.pi * frequency_hz
+    x = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones(idx.size),
+                         wobble_basis(wobble, t, theta_rad[idx])])
+    return _phase_from_basis(x, torque[idx], speed[idx])
+
+
+def _wobble_truth(config: SimConfig, wobble: np.ndarray) -> dict:
+    """truth.json's record of the wobble drawn for this run: configuration and realised
+    terms; ``reference_rms_pct`` is the RMS of the realised reference over a long run
+    (``sqrt(sum amp^2/2)/W0``) [%]."""
+    d, w0 = config.disturbances, config.rig.platform_speed_rad_s
+    f_rev = w0 / (2.0 * np.pi)
+    terms = []
+    for amp, rate, ph, kind in wobble.tolist():
+        band = kind < 0.5
+        terms.append({"kind": "band" if band else "revolution",
+                      "frequency_hz": rate / (2.0 * np.pi) if band else rate * f_rev,
+                      "order": None if band else int(rate),
+                      "amplitude_rel": amp / w0, "amplitude_rad_s": amp, "phase_rad": ph})
+    return {"enabled": bool(wobble.shape[0]), "rms": d.speed_wobble_rms,
+            "band_hz": list(d.speed_wobble_band_hz), "components": d.speed_wobble_components,
+            "rev1": d.speed_wobble_rev1, "rev2": d.speed_wobble_rev2,
+            "revolution_hz": f_rev, "terms": terms,
+            "reference_rms_pct": float(100.0 * np.sqrt(0.5 * np.sum(wobble[:, 0] ** 2)) / w0)}
+
+
+#: truth.json's columns averaged over a recorded span
+_MEANS = ("creepage", "torque_nm", "fx_n", "fy_n", "fz_n", "platform_speed_rad_s")
+
+
+def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.ndarray,
+                 spans: list[tuple[int, int]]) -> list[dict]:
+    """What was simulated over each span ``(a, b)`` of sample indices into ``raw`` (sample 0
+    at ``t0_s`` [s]): means, CoA of the mean forces, the phase with the wobble fitted out
+    (:func:`wobble_free_phase_deg`), the creepage's and the platform speed's variation
+    (``std``; the latter ``/mean`` [%]) and that of the speed reference over the same
+    samples. One basis at the fit's stride serves every span."""
+    f, fs = config.modulation.actual_frequency_hz, config.sensors.sample_rate_hz
+    w0 = config.rig.platform_speed_rad_s
+    th = raw[:, _COL["platform_angle_rad"]]
+    idx = np.arange(0, raw.shape[0], _WOBBLE_FIT_STRIDE)
+    t = t0_s + idx / fs
+    ref = wobble_reference(wobble, t, th[idx])
+    if wobble.shape[0]:
+        w = 2.0 * np.pi * f
+        x = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones(idx.size),
+                             wobble_basis(wobble, t, th[idx])])
+    # the averaged columns as contiguous rows: one strided pass over raw, not one per span
+    cols = np.ascontiguousarray(raw[:, [_COL[c] for c in _MEANS]].T)
+    out = []
+    for a, b in spans:
+        seg = raw[a:b]
+        m = dict(zip(_MEANS, cols[:, a:b].mean(axis=1).tolist(), strict=True))
+        if wobble.shape[0]:
+            n = int(np.floor((b - a) / fs * f) * fs / f)  # whole modulation periods
+            k = slice(np.searchsorted(idx, a), np.searchsorted(idx, a + n))
+            phase = _phase_from_basis(x[k], raw[idx[k], _COL["torque_nm"]],
+                                      raw[idx[k], _COL["wheel_speed_rad_s"]])
+        else:
+            phase = sine_fit_phase_deg(seg[:, _COL["torque_nm"]],
+                                       seg[:, _COL["wheel_speed_rad_s"]], fs, f)
+        r = ref[np.searchsorted(idx, a):np.searchsorted(idx, b)]
+        out.append({"creepage_mean": m["creepage"],
+                    "creepage_std": float(cols[0, a:b].std()),
+                    "coa_mean": float(np.hypot(m["fx_n"], m["fy_n"]) / m["fz_n"]),
+                    "torque_mean_nm": m["torque_nm"], "fx_mean_n": m["fx_n"],
+                    "fy_mean_n": m["fy_n"], "fz_mean_n": m["fz_n"], "phase_deg": phase,
+                    "platform_speed_rms_pct": float(
+                        100.0 * cols[5, a:b].std()
+                        / m["platform_speed_rad_s"]),
+                    "reference_rms_pct": float(100.0 * r.std() / w0) if r.size else 0.0})
+    return out
+
+
 def _large_signal(dc: float, config: SimConfig) -> float | None:
     """Phase [deg] at the actual modulation amplitude (periodic steady state of the same
     model, driven by the motor as in the simulation; :func:`large_signal_phase_deg`)."""
@@ -331,7 +451,12 @@ def _large_signal(dc: float, config: SimConfig) -> float | None:
 
 
 def _step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None,
-                slipped: bool) -> dict:
+                slipped: bool, t0_s: float = 0.0, wobble: np.ndarray | None = None,
+                bounds: list[int] = (0, 0)) -> dict:
+    """Ground truth of one step: the steady state and theory at ``dc`` and, when not
+    ``slipped``, what was simulated over the recorded samples ``raw`` (from ``t0_s`` [s]) and
+    per platform revolution (``bounds``, indices into the step's output, ``raw`` starting
+    at ``bounds[0]``); see :func:`_spans_truth`."""
     rig, f = config.rig, config.modulation.actual_frequency_hz
     op = operating_point(dc, rig)
     k = op.creep_coefficient
@@ -352,16 +477,13 @@ def _step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | Non
                 wheel_radius_m=rig.wheel_radius_m, normal_load_n=rig.normal_load_n,
                 frequency_hz=f)))
     if raw is not None and not slipped:
-        fx, fy = raw[:, _COL["fx_n"]].mean(), raw[:, _COL["fy_n"]].mean()
-        fz = raw[:, _COL["fz_n"]].mean()
-        entry["simulated"] = {"creepage_mean": float(raw[:, _COL["creepage"]].mean()),
-                              "coa_mean": float(np.hypot(fx, fy) / fz),
-                              "torque_mean_nm": float(raw[:, _COL["torque_nm"]].mean()),
-                              "fx_mean_n": float(fx), "fy_mean_n": float(fy),
-                              "fz_mean_n": float(fz),
-                              "phase_deg": sine_fit_phase_deg(
-                                  raw[:, _COL["torque_nm"]], raw[:, _COL["wheel_speed_rad_s"]],
-                                  config.sensors.sample_rate_hz, f)}
+        wob = np.zeros((0, 4)) if wobble is None else wobble
+        rel = [(a - bounds[0], b - bounds[0]) for a, b in itertools.pairwise(bounds)]
+        spans = [(0, raw.shape[0])] + (rel if len(rel) > 1 else [])
+        whole, *cycles = _spans_truth(raw, t0_s, config, wob, spans)
+        entry["simulated"] = whole
+        if cycles:
+            whole["cycles"] = [{"cycle": j, **c} for j, c in enumerate(cycles, start=1)]
     return entry
 
 
@@ -391,9 +513,11 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     bar = tqdm(total=len(torques), desc="simulate", unit="step", file=sys.stderr,
                disable=not progress)
     out = np.empty((n_settle + n_rec, len(OUT_COLUMNS)))  # reused: each step copies out
+    # one wobble for the whole run: the rig's speed loop runs on across the steps (redrawn
+    # per step, the reference would jump by up to ~1 % of the speed at every step change)
+    wobble = wobble_table(config.disturbances, rig.platform_speed_rad_s, rng)
     for i_step, dc in enumerate(torques, start=1):
         phase = float(rng.uniform(0.0, 2.0 * np.pi)) if mod.random_phase else 0.0
-        wobble = wobble_table(config.disturbances, rig.platform_speed_rad_s, rng)
         n_done, slipped = integrate(y, t, n_settle + n_rec, dt, proc.substeps, params, dc_prev,
                                     dc, t, proc.ramp_s, mod.amplitude_nm, omega_mod, phase, t,
                                     proc.slip_creepage, out, proc.samples_per_step, wobble)
@@ -409,13 +533,8 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         bounds = _cycle_bounds(out[:n_done, _COL["platform_angle_rad"]], n_settle,
                                proc.cycles_per_step)
         raw = out[bounds[0]:bounds[-1]]
-        steps.append(_step_truth(i_step, dc, config, raw, False))
-        w_p = raw[:, _COL["platform_speed_rad_s"]]
-        steps[-1]["speed_wobble"] = {
-            "platform_speed_rms_pct": float(100 * np.std(w_p) / np.mean(w_p)),
-            "terms": [{"amplitude_rad_s": a, "rate": r, "phase_rad": ph,
-                       "kind": "time [rad/s]" if kind < 0.5 else "platform order"}
-                      for a, r, ph, kind in wobble.tolist()]}
+        steps.append(_step_truth(i_step, dc, config, raw, False, t_step + bounds[0] * dt,
+                                 wobble, bounds))
         channels = measure(raw, disturbances=config.disturbances, sensors=config.sensors,
                            rng=rng)
         spans = (list(itertools.pairwise(bounds)) if files_per_cycle
@@ -442,6 +561,7 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         "sample_rate_hz": fs, "slip_step": slip_step,
         "creep_curve_peak": {"creepage": xi_peak, "torque_nm": t_peak,
                              "coa": t_peak / (rig.wheel_radius_m * rig.normal_load_n)},
+        "speed_wobble": _wobble_truth(config, wobble),
         "steps": steps, "parameters": asdict(config),
     }
     write_manifest(

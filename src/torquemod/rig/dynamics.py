@@ -29,7 +29,8 @@ samples (default 2, configured in ``[procedure]``); samples inside a step are th
 Hermite interpolant of the step's end states and slopes, with the contact forces evaluated
 at that state. The work per step is trimmed without changing the equations: the modulation
 sine is rotated from step to step, the normal load's sines from a per-step anchor (above
-:func:`_load_near`), and the states are kept in registers (:func:`_rhs_s`).
+:func:`_load_near`), the speed reference's wobble from per-step phasors (:func:`_wob_step`),
+and the states are kept in registers (:func:`_rhs_s`).
 """
 
 from __future__ import annotations
@@ -304,7 +305,8 @@ def _wobble(t, th_p, wob):
     """Wobble of the platform's speed reference [rad/s] at time ``t`` [s] and platform angle
     ``th_p`` [rad]: ``sum amp*sin(rate*t + phase)`` over the rows of ``wob`` whose kind is 0
     (a speed loop's slow oscillation) and ``amp*sin(order*th_p + phase)`` over those of kind 1
-    (once- and twice-per-revolution terms)."""
+    (once- and twice-per-revolution terms). The plain form of what :func:`_integrate`
+    evaluates by :func:`_wob_step`."""
     out = 0.0
     for j in range(wob.shape[0]):
         arg = wob[j, 1] * (th_p if wob[j, 3] > 0.5 else t) + wob[j, 2]
@@ -312,25 +314,104 @@ def _wobble(t, th_p, wob):
     return out
 
 
+@numba.njit(**_FAST)
+def _wob_set(t, th_p, wob, ws, wc):
+    """Each wobble row's argument at ``(t, th_p)`` into its phasor: ``ws`` sin, ``wc`` cos."""
+    for j in range(wob.shape[0]):
+        arg = wob[j, 1] * (th_p if wob[j, 3] > 0.5 else t) + wob[j, 2]
+        ws[j] = math.sin(arg)
+        wc[j] = math.cos(arg)
+
+
+@numba.njit(**_FAST)
+def _wob_step(wob, ws, wc, rc, rs, dth, s):
+    """One RK4 step's wobble from the phasors ``ws``, ``wc`` (sin, cos of every row's argument
+    at the step's start, the revolution rows still at the previous start, ``dth`` [rad]
+    behind). Band rows are rotated by half a step (``rc``, ``rs``: cos, sin of ``rate*h/2``)
+    to the step's middle and end: ``s[0]``, ``s[1]`` their sum there [rad/s]; their phasors
+    are left at the end. Revolution rows are advanced by ``order*dth``, then ``s[2:6]`` are
+    the Taylor coefficients of their sum in the angle increment from the step's start
+    (:func:`_wob_rev`): within a step ``order*dth`` < 1e-3 rad, so the cubic's truncation
+    (x^4/24) is below 1e-13 of the term, i.e. at rounding."""
+    for k in range(6):
+        s[k] = 0.0
+    for j in range(wob.shape[0]):
+        amp, sn, cs = wob[j, 0], ws[j], wc[j]
+        if wob[j, 3] > 0.5:
+            o = wob[j, 1]
+            u = o * dth
+            if abs(u) <= _SMALL:
+                cu, su = _cos_small(u), _sin_small(u)
+            else:
+                cu, su = math.cos(u), math.sin(u)
+            sn, cs = sn * cu + cs * su, cs * cu - sn * su
+            ws[j], wc[j] = sn, cs
+            ao = amp * o
+            s[2] += amp * sn
+            s[3] += ao * cs
+            s[4] -= 0.5 * ao * o * sn
+            s[5] -= ao * o * o * cs / 6.0
+        else:
+            sm, cm = sn * rc[j] + cs * rs[j], cs * rc[j] - sn * rs[j]
+            se, ce = sm * rc[j] + cm * rs[j], cm * rc[j] - sm * rs[j]
+            s[0] += amp * sm
+            s[1] += amp * se
+            ws[j], wc[j] = se, ce
+
+
+@numba.njit(**_FAST)
+def _wob_rev(s, x):
+    """The revolution rows' wobble at angle increment ``x`` [rad] (:func:`_wob_step`)."""
+    return s[2] + x * (s[3] + x * (s[4] + x * s[5]))
+
+
 def wobble_table(dist: DisturbanceParams, platform_speed_rad_s: float,
                  rng: np.random.Generator) -> np.ndarray:
     """The rows ``(amplitude [rad/s], rate [rad/s] or order, phase [rad], kind)`` of one
-    recording's speed-reference wobble (:func:`_wobble`): ``speed_wobble_components`` sines
-    of equal amplitude and random frequency in ``speed_wobble_band_hz`` whose RMS together is
-    ``speed_wobble_rms`` of the set speed, and the revolution terms ``speed_wobble_rev1`` and
-    ``rev2`` (relative amplitudes), every phase random. Empty when switched off."""
+    run's speed-reference wobble ``W_ref - W0`` (:func:`_wobble`): ``speed_wobble_components``
+    sines (kind 0) of equal amplitude ``rms*sqrt(2/k)*W0`` -- so that their RMS together is
+    ``speed_wobble_rms`` of the set speed ``W0`` -- at frequencies drawn uniformly in
+    ``speed_wobble_band_hz``, and the revolution terms (kind 1) ``speed_wobble_rev1*W0`` at
+    order 1 and ``rev2*W0`` at order 2 of the platform angle; every phase uniform in
+    [0, 2*pi). Empty when ``enabled`` or ``speed_wobble_enabled`` is off.
+
+    Why the reference: the twin's platform loop is stiff (bandwidth ~500 Hz), so it rejects a
+    slow disturbance torque almost entirely, while a real loop's slow wobble (tachometer or
+    encoder ripple, set-point and drive-gain drift, runout) shows in its speed as if its
+    reference wobbled. The equivalent disturbance torque on the platform is
+    ``Kp*dW + Ki*integral(dW dt)``, ``dW = W_ref - W0``."""
     rows = []
-    if dist.enabled and dist.speed_wobble_rms > 0 and dist.speed_wobble_components > 0:
+    if not (dist.enabled and dist.speed_wobble_enabled):
+        return np.zeros((0, 4))
+    if dist.speed_wobble_rms > 0 and dist.speed_wobble_components > 0:
         k = dist.speed_wobble_components
         amp = dist.speed_wobble_rms * np.sqrt(2.0 / k) * platform_speed_rad_s
         lo, hi = dist.speed_wobble_band_hz
         for _ in range(k):
             rows.append((amp, 2 * np.pi * rng.uniform(lo, hi), rng.uniform(0, 2 * np.pi), 0.0))
-    if dist.enabled:
-        for order, rel in ((1.0, dist.speed_wobble_rev1), (2.0, dist.speed_wobble_rev2)):
-            if rel > 0:
-                rows.append((rel * platform_speed_rad_s, order, rng.uniform(0, 2 * np.pi), 1.0))
+    for order, rel in ((1.0, dist.speed_wobble_rev1), (2.0, dist.speed_wobble_rev2)):
+        if rel > 0:
+            rows.append((rel * platform_speed_rad_s, order, rng.uniform(0, 2 * np.pi), 1.0))
     return np.array(rows, dtype=np.float64).reshape(-1, 4)
+
+
+def wobble_reference(wobble: np.ndarray, t_s: np.ndarray, theta_rad: np.ndarray) -> np.ndarray:
+    """The speed reference's wobble [rad/s] (rows of :func:`wobble_table`) at times ``t_s``
+    [s] and platform angles ``theta_rad`` [rad]: :func:`_wobble` on arrays."""
+    out = np.zeros(np.shape(t_s))
+    for amp, rate, ph, kind in wobble:
+        out += amp * np.sin(rate * (theta_rad if kind > 0.5 else t_s) + ph)
+    return out
+
+
+def wobble_basis(wobble: np.ndarray, t_s: np.ndarray, theta_rad: np.ndarray) -> np.ndarray:
+    """Columns cos and sin of every wobble row's argument without its phase (``rate*t_s`` or
+    ``order*theta_rad``): the lines a linear fit needs to take the wobble out of a signal."""
+    cols = []
+    for _amp, rate, _ph, kind in wobble:
+        arg = rate * (theta_rad if kind > 0.5 else t_s)
+        cols += [np.cos(arg), np.sin(arg)]
+    return np.column_stack(cols) if cols else np.empty((np.size(t_s), 0))
 
 
 #: RK4 steps between exact re-evaluations of the modulation's sine (rotated in between)
@@ -377,6 +458,13 @@ def _integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s
     ang0 = omega * (t0 - t_gen) + phase
     ms, mc = math.sin(ang0), math.cos(ang0)
     y0, y1, y2, y3, y4, y5, y6 = y[0], y[1], y[2], y[3], y[4], y[5], y[6]
+    # the speed reference's wobble: each row's phasor at the step start (rotated from step to
+    # step, exact every _RESYNC steps), a cubic in the step's time and angle increments
+    nw = wob.shape[0]
+    use_wob = nw > 0
+    ws, wc, wrc, wrs, wsum = np.zeros(nw), np.zeros(nw), np.ones(nw), np.zeros(nw), np.zeros(6)
+    _wob_set(t0, y4, wob, ws, wc)
+    dth = 0.0  # platform angle advanced in the last step [rad]
     # derivative and contact at the first sample
     n0 = _load_anchor(y4, p, anc)
     tm = _ramp(t0, dc_from, dc_to, t_step, ramp_s) + amp * ms
@@ -392,6 +480,8 @@ def _integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s
         if hb != h_prev:  # rotation of the modulation phase by half a step
             h_prev = hb
             rc, rs = math.cos(0.5 * omega * hb), math.sin(0.5 * omega * hb)
+            for j in range(nw):
+                wrc[j], wrs[j] = math.cos(0.5 * wob[j, 1] * hb), math.sin(0.5 * wob[j, 1] * hb)
         tb = t0 + i * dt
         hh = 0.5 * hb
         for jj in range(s_n):
@@ -419,25 +509,35 @@ def _integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s
             else:
                 hs = es = 0.0
                 ec = 1.0
+            # wobble: time part at ta + h/2 and ta + h, angle part per stage (below)
+            if use_wob:
+                if n_steps % _RESYNC == 0:
+                    _wob_set(ta, y4, wob, ws, wc)
+                    dth = 0.0
+                _wob_step(wob, ws, wc, wrc, wrs, dth, wsum)
+            wth, wt1 = wsum[0], wsum[1]
             n_steps += 1
             tmh = _ramp(ta + hh, dc_from, dc_to, t_step, ramp_s) + amp * hs
             tm1 = _ramp(ta + hb, dc_from, dc_to, t_step, ramp_s) + amp * es
             # classical RK4; k_i = (b0, b1, b2, w_w, W_p, b5, b6) of stage i
             s2, s5 = y2 + hh * a2, y5 + hh * a5
             s4 = y4 + hh * y5
+            dw = (wth + _wob_rev(wsum, hh * y5)) if use_wob else 0.0
             b0, b1, b2, b5, b6, _, _, _ = _rhs_s(y0 + hh * a0, y1 + hh * a1, s2, s5,
                                                  y6 + hh * a6, tmh, _load_near(s4, p, anc), c,
-                                                 _wobble(ta + hh, s4, wob))
+                                                 dw)
             u2, u5 = y2 + hh * b2, y5 + hh * b5
             u4 = y4 + hh * s5
+            dw = (wth + _wob_rev(wsum, hh * s5)) if use_wob else 0.0
             c0, c1, c2, c5, c6, _, _, _ = _rhs_s(y0 + hh * b0, y1 + hh * b1, u2, u5,
                                                  y6 + hh * b6, tmh, _load_near(u4, p, anc), c,
-                                                 _wobble(ta + hh, u4, wob))
+                                                 dw)
             v2, v5 = y2 + hb * c2, y5 + hb * c5
             v4 = y4 + hb * u5
+            dw = (wt1 + _wob_rev(wsum, hb * u5)) if use_wob else 0.0
             d0, d1, d2, d5, d6, _, _, _ = _rhs_s(y0 + hb * c0, y1 + hb * c1, v2, v5,
                                                  y6 + hb * c6, tm1, _load_near(v4, p, anc), c,
-                                                 _wobble(ta + hb, v4, wob))
+                                                 dw)
             h6 = hb / 6.0
             z0 = y0 + h6 * (a0 + 2.0 * (b0 + c0) + d0)
             z1 = y1 + h6 * (a1 + 2.0 * (b1 + c1) + d1)
@@ -448,8 +548,9 @@ def _integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s
             z6 = y6 + h6 * (a6 + 2.0 * (b6 + c6) + d6)
             # derivative at the step's end: the next step's k1 and the interpolation's slope
             nn = _load_advance(z4, p, anc, anc_n, n_steps % _ANCHOR_EXACT == 0)
-            e0, e1, e2, e5, e6, fxn, fyn, xin = _rhs_s(z0, z1, z2, z5, z6, tm1, nn, c,
-                                                       _wobble(ta + hb, z4, wob))
+            dth = z4 - y4
+            dw = (wt1 + _wob_rev(wsum, dth)) if use_wob else 0.0
+            e0, e1, e2, e5, e6, fxn, fyn, xin = _rhs_s(z0, z1, z2, z5, z6, tm1, nn, c, dw)
             # samples strictly inside this step: cubic Hermite interpolation
             for k in range(mb):
                 q = k * s_n - jj * mb

@@ -112,10 +112,13 @@ class DisturbanceParams:
     normal-load variation from ``sleeper_count`` sleepers per revolution
     (``sleeper_load_n`` amplitude [N]) and ``joint_count`` rail joints (a decaying
     oscillation of ``joint_load_n`` [N] at ``joint_frequency_hz`` with ``joint_damping_ratio``).
-    The platform's speed loop wobbles: its reference carries ``speed_wobble_components`` sines
-    at random frequencies in ``speed_wobble_band_hz`` [Hz], together ``speed_wobble_rms``
-    (relative) RMS, and once- and twice-per-revolution terms ``speed_wobble_rev1``/``rev2``
-    (relative amplitudes); the wheel follows through the contact.
+    The platform's speed loop wobbles (``speed_wobble_enabled``, and only with ``enabled``):
+    its reference ``W_ref = W0*(1 + w(t, theta_p))`` carries ``speed_wobble_components`` sines
+    of equal amplitude at random frequencies in ``speed_wobble_band_hz`` [Hz], together
+    ``speed_wobble_rms`` (relative) RMS, and once- and twice-per-revolution terms
+    ``speed_wobble_rev1``/``rev2`` (relative amplitudes, functions of the platform angle);
+    frequencies and phases are drawn once per run from the seed. The wheel follows through
+    the contact (:func:`torquemod.rig.dynamics.wobble_table`).
     """
 
     enabled: bool = True
@@ -133,6 +136,7 @@ class DisturbanceParams:
     joint_load_n: float = 0.0
     joint_frequency_hz: float = 40.0
     joint_damping_ratio: float = 0.1
+    speed_wobble_enabled: bool = True
     speed_wobble_rms: float = 0.0
     speed_wobble_band_hz: tuple[float, float] = (0.2, 0.6)
     speed_wobble_components: int = 3
