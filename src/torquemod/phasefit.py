@@ -537,6 +537,21 @@ def _zoom_minima(pts: _Points, floor_mu: float, *, rounds: int = 3, n_points: in
         pts.add(np.concatenate(new))
 
 
+def _polish_best(pts: _Points, *, rounds: int = 4, n_points: int = 4,
+                 rel_tol: float = 1e-5) -> None:
+    """Fill the intervals on both sides of the lowest evaluated point, a few rounds: a
+    basin narrower than the grid whose slopes were misjudged (LM not converged at a
+    neighbour) is still found, because the lowest point always lies next to it."""
+    for _ in range(rounds):
+        k = int(np.argmin(pts.chi))
+        lo, hi = max(k - 1, 0), min(k + 1, pts.mu.size - 1)
+        if pts.mu[hi] / pts.mu[lo] - 1.0 < rel_tol:
+            return
+        new = [np.geomspace(pts.mu[a], pts.mu[b], n_points + 2)[1:-1]
+               for a, b in ((lo, k), (k, hi)) if b > a]
+        pts.add(np.concatenate(new))
+
+
 def _refine_crossings(pts: _Points, level: float, pairs, *, rounds: int = 2,
                       n_points: int = 8) -> list[float]:
     """mu where the profile crosses ``level`` between each (inside, outside) pair of
@@ -632,6 +647,7 @@ def _fit(coa, phase_deg, phase_se_deg, *, constant, creepage_swing, coa_se,
     pts.add(np.concatenate([[floor_mu], cmax * np.exp(v)]), search=True)
     pts.sweep(max_sweeps=3 if eng.mode == "free" else 1)
     _zoom_minima(pts, floor_mu)
+    _polish_best(pts)
     k = int(np.argmin(pts.chi))
     chi_min, mu_hat = float(pts.chi[k]), float(pts.mu[k])
     p_hat = pts.data["p"][k]
