@@ -1,18 +1,20 @@
 """Throughput of the processing chain.
 
-1. The per-cycle chain on in-memory data: samples per second on one core (7 channels per
-   sample counted as one sample of the recording) and its ratio to one memory pass
-   (``np.sum``) over the same arrays.
+1. The decimators of step 2 (one-stage ``resample_poly`` with line or zero padding, the
+   two-stage design) and the per-cycle chain with each, on in-memory data: samples per
+   second per core (all channels at one time counted as one sample of the recording), wall
+   and CPU time, and the chain's ratio to one pass of the fastest decimator (issue 11).
 2. End to end: ``torquemod process`` on an 18-recording CSV experiment (6 steps x 3 cycles,
    16 670 Hz, 7 columns), split into read time and compute time, against a plain script that
    reads with ``np.loadtxt`` and runs the same kind of scipy chain.
 
-    python benchmarks/throughput.py [--workdir DIR]
+    python benchmarks/throughput.py [--chain-only] [--workdir DIR]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import subprocess
 import sys
@@ -24,38 +26,83 @@ import numpy as np
 
 from torquemod import chain
 from torquemod.config import ProcessingConfig
-from torquemod.data import CHANNELS, Rig
+from torquemod.data import Rig
+from torquemod.dsp import filters
 from torquemod.testing import SyntheticSpec, synthetic_recording, write_synthetic_experiment
 
 
 def best_of(fn, repeat: int = 5) -> float:
-    times = []
+    """Best wall time [s] of ``repeat`` calls."""
+    return best_of_both(fn, repeat)[0]
+
+
+def best_of_both(fn, repeat: int = 5) -> tuple[float, float]:
+    """Best wall time and best CPU time of this process [s] (CPU time counts every thread
+    of the process and none of the other processes: on a loaded machine it is the figure
+    that says what one core does)."""
+    walls, cpus = [], []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    return min(walls), min(cpus)
 
 
-def chain_throughput() -> None:
+def _with_resample(cfg: ProcessingConfig, method: str) -> ProcessingConfig:
+    return dataclasses.replace(cfg, resample=dataclasses.replace(cfg.resample, method=method))
+
+
+def chain_throughput(repeat: int = 7) -> None:
+    """Samples/s per core of the chain (one cycle) with each decimation design, and the ratio
+    of the chain's time to one pass of the fastest decimator over the same channels."""
     rig, cfg = Rig(0.0675, 2.0), ProcessingConfig()
     rec = synthetic_recording(SyntheticSpec(seed=3))
     n = rec.n_samples
-    data = np.vstack([rec.channels[k] for k in CHANNELS])
+    names = [k for k in chain._RESAMPLED if k in rec.channels]
+    stacked = np.vstack([rec.channels[k] for k in names])
+    up, down = filters.resample_ratio(rec.fs_hz, cfg.resample.target_hz)
+    print(f"one cycle: {n} samples x {len(names)} resampled channels at {rec.fs_hz:.0f} Hz "
+          f"({up}/{down}); best of {repeat}; wall and CPU (process_time) figures")
 
-    def run(c=cfg) -> None:
+    decimators = {
+        "resample_poly, line padding (old)":
+            lambda: filters.resample(stacked, up, down, method="polyphase", padtype="line"),
+        "resample_poly, zero padding":
+            lambda: filters.resample(stacked, up, down, method="polyphase",
+                                     padtype="constant"),
+        "two-stage (numba FIR + resample_poly)":
+            lambda: filters.resample(stacked, up, down, method="two_stage",
+                                     padtype="constant"),
+    }
+    decimators["two-stage (numba FIR + resample_poly)"]()  # numba compile / cache load
+    dec_cpu = {}
+    print("decimators (M channel-samples/s, wall | CPU):")
+    for label, fn in decimators.items():
+        wall, cpu = best_of_both(fn, repeat)
+        dec_cpu[label] = cpu
+        print(f"  {label:40s} {stacked.size / wall / 1e6:7.1f} | {stacked.size / cpu / 1e6:7.1f}")
+    fastest = min(dec_cpu, key=dec_cpu.get)
+
+    def run(c) -> None:
         sig = chain.process_cycle(rec, rig, c, where="bench")
         chain.cycle_phase(sig, c, center_index=sig.torque_filtered.size / 2)
 
-    t_chain = best_of(run)
-    t_sine = best_of(lambda: run(cfg.with_phase_method("sinefit")))
-    t_sum = best_of(lambda: np.sum(data), repeat=20)
-    print(f"chain, one cycle of {n} samples x {len(CHANNELS)} channels (+ time):")
-    print(f"  paper   : {t_chain * 1e3:7.2f} ms  -> {n / t_chain / 1e6:6.2f} M samples/s per core"
-          f"  ({n * len(CHANNELS) / t_chain / 1e6:6.1f} M values/s)")
-    print(f"  sinefit : {t_sine * 1e3:7.2f} ms  -> {n / t_sine / 1e6:6.2f} M samples/s per core")
-    print(f"  np.sum over the same {data.size} values: {t_sum * 1e3:.3f} ms; chain / memory pass"
-          f" = {t_chain / t_sum:.0f}x")
+    print("chain, steps 1-8 of one cycle (M samples/s per core, wall | CPU; a sample is all "
+          "channels at one time):")
+    for method in ("polyphase", "two_stage"):
+        c = _with_resample(cfg, method)
+        run(c)
+        wall, cpu = best_of_both(lambda c=c: run(c), repeat)
+        print(f"  resample.method = {method:10s} {wall * 1e3:7.2f} ms | {cpu * 1e3:7.2f} ms"
+              f"  -> {n / wall / 1e6:6.2f} | {n / cpu / 1e6:6.2f} M samples/s;"
+              f"  chain / fastest decimator pass ({fastest.split(' (')[0]}) ="
+              f" {cpu / dec_cpu[fastest]:.2f}x (CPU)")
+    t_sum = best_of_both(lambda: np.sum(stacked), repeat=20)[1]
+    print(f"  np.sum over the same {stacked.size} values: {t_sum * 1e3:.3f} ms CPU")
+    c = cfg.with_phase_method("sinefit")
+    wall, cpu = best_of_both(lambda: run(c), repeat)
+    print(f"  sinefit phase, two_stage: {n / wall / 1e6:6.2f} | {n / cpu / 1e6:6.2f} M samples/s")
 
 
 BASELINE = r'''
@@ -125,9 +172,12 @@ def end_to_end(workdir: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--workdir", default=None, help="keep the experiment here between runs")
+    ap.add_argument("--chain-only", action="store_true", help="skip the end-to-end part")
     args = ap.parse_args()
-    print(f"cores visible: {os.cpu_count()}")
+    print(f"cores visible: {os.cpu_count()}; load average {os.getloadavg()[0]:.1f}")
     chain_throughput()
+    if args.chain_only:
+        return
     if args.workdir:
         Path(args.workdir).mkdir(parents=True, exist_ok=True)
         end_to_end(Path(args.workdir))

@@ -272,8 +272,9 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # output samples the FIR's zero padding touches are cut off.
     edge = filters.resampler_edge_samples(up, down)
     stacked = np.vstack([ch[k] for k in names])
-    resampled = filters.resample(stacked, up, down,
-                                 kaiser_beta=cfg.resample.kaiser_beta)[:, edge:-edge]
+    resampled = filters.resample(stacked, up, down, kaiser_beta=cfg.resample.kaiser_beta,
+                                 method=cfg.resample.method,
+                                 padtype="constant")[:, edge:-edge]  # pads only cut samples
     sig = dict(zip(names, resampled, strict=True))
     n = resampled.shape[1]
     if n < 8:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 from fractions import Fraction
 
+import numba
 import numpy as np
 from scipy import linalg, signal
 
@@ -67,19 +68,133 @@ def _resampling_fir(up: int, down: int, kaiser_beta: float) -> np.ndarray:
     return h  # resample_poly scales a given FIR by up itself
 
 
-def resample(x: np.ndarray, up: int, down: int, *, kaiser_beta: float = 5.0) -> np.ndarray:
+RESAMPLE_METHODS = ("polyphase", "two_stage")
+
+
+def resample(x: np.ndarray, up: int, down: int, *, kaiser_beta: float = 5.0,
+             method: str = "polyphase", padtype: str = "line") -> np.ndarray:
     """Polyphase resampling by ``up/down`` along the last axis (MATLAB ``resample``
     equivalent, Kaiser beta 5; the FIR is designed once per ratio and cached).
 
-    Each row's mean is removed before and restored after, and the ends are padded along a
-    line, so a DC offset or slow trend does not ring at the edges (FACTS.md §4).
+    Each row's mean is removed before and restored after, and with ``padtype="line"`` the ends
+    are padded along a line, so a DC offset or slow trend does not ring at the edges
+    (FACTS.md §4). ``padtype="constant"`` pads with zeros (after the mean removal): it changes
+    only the :func:`resampler_edge_samples` outputs at each end, which the chain cuts off, and
+    saves the padding's cost (tests/test_decimate.py verifies both claims).
+
+    ``method="two_stage"`` gives the same output samples at the same times through a cheaper
+    route (:func:`decimate_two_stage`): an integer decimation by a long Kaiser FIR first
+    (numba), then ``resample_poly`` for the rest of the ratio. It falls back to
+    ``"polyphase"`` when ``down`` has no suitable integer factor.
     """
+    if method not in RESAMPLE_METHODS:
+        raise ValueError(f"unknown resampling method {method!r}; use one of {RESAMPLE_METHODS}")
+    if padtype not in ("line", "constant"):
+        raise ValueError(f"padtype must be 'line' or 'constant', got {padtype!r}")
     x = np.asarray(x, dtype=np.float64)
     m = x.mean(axis=-1, keepdims=True)
+    if method == "two_stage":
+        plan = two_stage_plan(up, down)
+        if plan is not None:
+            return decimate_two_stage(x - m, up, down, kaiser_beta=kaiser_beta,
+                                      line=padtype == "line") + m
     y = signal.resample_poly(x - m, up, down, axis=-1,
                              window=_resampling_fir(up, down, float(kaiser_beta)),
-                             padtype="line")
+                             padtype=padtype)
     return y + m
+
+
+# Two-stage decimation (issue 11). Stage 1 keeps 0..f_pass flat to STAGE1_RIPPLE (so the
+# amplitude at the modulation frequency moves by less than the phase target of 1e-4 deg,
+# 1.7e-6 rad, would allow) and stops everything that would alias into 0..f_pass + stage 2's
+# transition; stage 2 is resample_poly's own design for the remaining ratio.
+STAGE1_RIPPLE_DB = 120.0
+STAGE1_MIN_OVERSAMPLING = 8.0  # stage-1 output rate >= 8x the final rate
+
+
+def two_stage_plan(up: int, down: int) -> tuple[int, int] | None:
+    """``(q1, down2)``: the largest divisor ``q1`` of ``down`` leaving the stage-1 rate at
+    least ``STAGE1_MIN_OVERSAMPLING`` times the final rate (``down/q1 >= 8*up``), and the
+    remaining ``down2 = down // q1``; None when no divisor above 1 qualifies (2/625 gives 25,
+    25: 16 670 Hz -> 666.8 Hz -> 53.344 Hz)."""
+    best = None
+    for q in range(2, down + 1):
+        if down % q == 0 and down // q >= STAGE1_MIN_OVERSAMPLING * up:
+            best = q
+    return None if best is None else (best, down // best)
+
+
+@functools.lru_cache(maxsize=16)
+def stage1_fir(q1: int, up: int, down: int) -> np.ndarray:
+    """Stage-1 low-pass (odd length, symmetric: zero phase about its centre) for decimating
+    by ``q1`` before a final ``up/down`` resampling, in units of the input rate: pass band to
+    the final Nyquist ``f_p = up/(2*down)``, stop band from ``1/q1 - 1.5*f_p`` (what would alias
+    into the final band and stage 2's transition), Kaiser window for ``STAGE1_RIPPLE_DB``
+    (Kaiser 1974 via ``scipy.signal.kaiserord``). 2/625 with q1 = 25 gives 215 taps."""
+    f_p = up / (2.0 * down)
+    f_s = 1.0 / q1 - 1.5 * f_p
+    numtaps, beta = signal.kaiserord(STAGE1_RIPPLE_DB, 2.0 * (f_s - f_p))
+    numtaps += 1 - numtaps % 2
+    h = signal.firwin(numtaps, f_p + f_s, window=("kaiser", beta))  # cutoff rel. Nyquist
+    h.setflags(write=False)
+    return h
+
+
+@numba.njit(cache=True, nogil=True)
+def _fir_decimate(x: np.ndarray, h: np.ndarray, q: int) -> np.ndarray:
+    """``y[c, k] = sum_j h[j] x[c, q*k + j - half]`` with zeros outside the record: a
+    centred (zero-phase) symmetric FIR evaluated only at the kept samples."""
+    n_ch, n = x.shape
+    half = (h.size - 1) // 2
+    n_out = (n - 1) // q + 1
+    y = np.zeros((n_ch, n_out))
+    for c in range(n_ch):
+        for k in range(n_out):
+            centre = q * k
+            acc = h[half] * x[c, centre]
+            if centre - half >= 0 and centre + half < n:
+                for j in range(1, half + 1):
+                    acc += h[half + j] * (x[c, centre - j] + x[c, centre + j])
+            else:
+                for j in range(1, half + 1):
+                    if centre - j >= 0:
+                        acc += h[half + j] * x[c, centre - j]
+                    if centre + j < n:
+                        acc += h[half + j] * x[c, centre + j]
+            y[c, k] = acc
+    return y
+
+
+def decimate_two_stage(x: np.ndarray, up: int, down: int, *, kaiser_beta: float = 5.0,
+                       line: bool = False) -> np.ndarray:
+    """Resample rows of ``x`` by ``up/down`` in two stages: :func:`stage1_fir` decimating by
+    the integer ``q1`` of :func:`two_stage_plan` (numba, zero padding), then
+    ``resample_poly(up, down2)`` with its own Kaiser design (zero padding). Output ``m`` sits
+    at input sample ``m*down/up`` as with one-stage ``resample_poly``, and there are as many
+    (``ceil(n*up/down)``). ``line`` removes the line through the end samples before and
+    restores it at the output times after (a symmetric FIR of unit DC gain passes a line
+    unchanged), so a trend does not ring at the ends."""
+    plan = two_stage_plan(up, down)
+    if plan is None:
+        raise ValueError(f"no integer first stage for {up}/{down}")
+    q1, down2 = plan
+    x = np.asarray(x, dtype=np.float64)
+    shape = x.shape
+    x2 = np.ascontiguousarray(x.reshape(-1, shape[-1]))
+    n = x2.shape[1]
+    n_out = -(-n * up // down)
+    if line:
+        t = np.arange(n) / max(n - 1, 1)
+        slope = (x2[:, -1:] - x2[:, :1])
+        x2 = x2 - x2[:, :1] - slope * t
+    y1 = _fir_decimate(x2, stage1_fir(q1, up, down), q1)
+    y = signal.resample_poly(y1, up, down2, axis=-1,
+                             window=_resampling_fir(up, down2, float(kaiser_beta)),
+                             padtype="constant")[:, :n_out]
+    if line:
+        t_out = np.arange(n_out) * (down / up) / max(n - 1, 1)
+        y = y + x[..., :1].reshape(-1, 1) + slope * t_out
+    return y.reshape(*shape[:-1], n_out)
 
 
 def design_notch(f0_hz: float, q: float, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
