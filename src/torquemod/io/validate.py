@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..data import CHANNELS, REQUIRED_CHANNELS, Recording
@@ -10,6 +12,10 @@ from ..errors import InputError
 #: Largest deviation of a time stamp from the fitted uniform grid, in sample periods, that is
 #: still taken as rounding or clock jitter rather than a gap or a jump.
 IRREGULAR_TIME_TOLERANCE = 0.25
+
+
+#: Samples per block of the time-grid fit: its temporaries stay in cache, whatever the length.
+TIME_FIT_BLOCK = 1 << 16
 
 
 def fit_time_grid(time_s: np.ndarray, *, path: object, channel: str = "time_s"
@@ -24,42 +30,85 @@ def fit_time_grid(time_s: np.ndarray, *, path: object, channel: str = "time_s"
     which is insensitive to rounding and jitter of the stamps. Raises :class:`InputError`
     naming ``channel`` when the stamps are not finite, not strictly increasing or not
     uniform (gaps, jumps, jitter above :data:`IRREGULAR_TIME_TOLERANCE` of a period).
+
+    Computed in blocks of :data:`TIME_FIT_BLOCK` samples (two passes, no full-length
+    temporary): see :func:`fit_time_grid_blocks`, which also serves streamed columns.
     """
     t = np.asarray(time_s, dtype=np.float64).reshape(-1)
-    if t.size < 2:
+    step = TIME_FIT_BLOCK
+    return fit_time_grid_blocks(lambda: (t[a:a + step] for a in range(0, t.size, step)),
+                                path=path, channel=channel)
+
+
+def fit_time_grid_blocks(blocks, *, path: object, channel: str = "time_s"
+                         ) -> tuple[float, float, float]:
+    """:func:`fit_time_grid` of a column given as consecutive blocks: ``blocks()`` returns a
+    new iterator of 1-D float64 arrays each time it is called (it is called twice).
+
+    Pass 1 checks finiteness and order and sums ``r_k = t_k - t_0`` and ``k r_k`` per block
+    (numpy's pairwise sums, blocks added by ``math.fsum``); the least-squares slope is
+    ``sum((k - kbar) r_k) / sum((k - kbar)^2)`` with the denominator in closed form
+    ``n (n^2 - 1) / 12``. Pass 2 takes the largest residual from the fitted line.
+    """
+    n = 0
+    anchor = math.nan
+    prev = math.nan
+    s_r: list[float] = []
+    s_kr: list[float] = []
+    for block in blocks():
+        b = np.asarray(block, dtype=np.float64).reshape(-1)
+        if b.size == 0:
+            continue
+        finite = np.isfinite(b)
+        if not finite.all():
+            bad = n + int(np.flatnonzero(~finite)[0])
+            raise InputError(f"non-finite time stamp at row {bad + 1}", path=path,
+                             channel=channel, hint="repair or cut the recording")
+        if n == 0:
+            anchor = float(b[0])
+        ext = b if n == 0 else np.concatenate(([prev], b))
+        dt = np.diff(ext)
+        if np.any(dt <= 0):
+            i = int(np.flatnonzero(dt <= 0)[0])
+            row = n + i - (0 if n == 0 else 1)  # index of the earlier stamp
+            raise InputError(f"time is not strictly increasing at row {row + 2} "
+                             f"({float(ext[i])!r} then {float(ext[i + 1])!r})", path=path,
+                             channel=channel,
+                             hint="sort the recording or cut it at the jump")
+        rel = b - anchor  # exact for stamps within a factor 2 of each other (Sterbenz)
+        k = np.arange(n, n + b.size, dtype=np.float64)
+        s_r.append(float(rel.sum()))
+        s_kr.append(float(np.dot(k, rel)))
+        prev = float(b[-1])
+        n += b.size
+    if n < 2:
         raise InputError("fewer than two samples", path=path, channel=channel)
-    if not np.all(np.isfinite(t)):
-        bad = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise InputError(f"non-finite time stamp at row {bad + 1}", path=path, channel=channel,
-                         hint="repair or cut the recording")
-    dt = np.diff(t)
-    if np.any(dt <= 0):
-        bad = int(np.flatnonzero(dt <= 0)[0])
-        raise InputError(f"time is not strictly increasing at row {bad + 2} "
-                         f"({float(t[bad])!r} then {float(t[bad + 1])!r})", path=path,
-                         channel=channel,
-                         hint="sort the recording or cut it at the jump")
-    del dt
-    anchor = float(t[0])
-    rel = t - anchor  # exact for stamps within a factor 2 of each other (Sterbenz)
-    n = np.arange(t.size, dtype=np.float64)
-    n_mean = (t.size - 1) / 2.0
-    n -= n_mean
-    r_mean = float(rel.mean())
-    slope = float(np.dot(n, rel - r_mean) / np.dot(n, n))
+    n_mean = (n - 1) / 2.0
+    sum_r = math.fsum(s_r)
+    r_mean = sum_r / n
+    slope = (math.fsum(s_kr) - n_mean * sum_r) / (n * (n * n - 1.0) / 12.0)
     rel0 = r_mean - slope * n_mean
-    # residuals from the fitted line, in place: rel - (rel0 + slope * k)
-    n *= slope
-    rel -= r_mean
-    rel -= n
-    if not np.isfinite(slope) or slope <= 0:
+    if not math.isfinite(slope) or slope <= 0:
         raise InputError("time stamps give no positive sample period", path=path,
                          channel=channel, hint="check the time channel")
-    worst = float(np.max(np.abs(rel))) / slope
+    worst, jump, jump_row, k0, last = 0.0, -1.0, 0, 0, math.nan
+    for block in blocks():
+        b = np.asarray(block, dtype=np.float64).reshape(-1)
+        if b.size == 0:
+            continue
+        res = b - anchor
+        res -= rel0 + slope * np.arange(k0, k0 + b.size, dtype=np.float64)
+        worst = max(worst, float(np.max(np.abs(res))))
+        d = np.abs(np.diff(res if k0 == 0 else np.concatenate(([last], res))))
+        if d.size and float(d.max()) > jump:
+            jump = float(d.max())
+            jump_row = int(np.argmax(d)) + (1 if k0 == 0 else 0) + k0
+        last = float(res[-1])
+        k0 += b.size
+    worst /= slope
     if worst > IRREGULAR_TIME_TOLERANCE:
-        bad = int(np.argmax(np.abs(np.diff(rel)))) + 1
         raise InputError(f"time is not uniformly sampled (a gap or jump of {worst:.2f} sample "
-                         f"periods near row {bad + 1})", path=path, channel=channel,
+                         f"periods near row {jump_row + 1})", path=path, channel=channel,
                          hint="resample the recording to a uniform rate before processing")
     return 1.0 / slope, anchor, rel0
 
