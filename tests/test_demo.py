@@ -15,12 +15,10 @@ import pandas as pd
 import pytest
 from scipy.optimize import brentq
 
-from torquemod import pipeline
-from torquemod.analysis import fit_results_folder
+import torquemod as tm
 from torquemod.creep import phase_from_constant_deg, theory_constant
 from torquemod.fit import polach_coa, polach_slope
 from torquemod.io import write_manifest, write_recording
-from torquemod.report import write_report
 from torquemod.testing import SyntheticSpec, synthetic_recording
 
 MU = 0.24
@@ -63,10 +61,9 @@ def _experiment(folder: Path, fractions=(0.01, 0.3, 0.55, 0.7, 0.8, 0.9), n_cycl
 def test_process_fit_report_chain_integration(tmp_path):
     """Known truth through the real processing chain, then the fit and the report."""
     manifest = _experiment(tmp_path / "experiment")
-    result = pipeline.process_experiment(manifest, config=pipeline.ProcessingConfig(),
-                                         progress=False)
-    pipeline.write_results(result, tmp_path / "results")
-    summary = fit_results_folder(tmp_path / "results")
+    result = tm.process(manifest)
+    ana = tm.analyze(result)
+    summary = ana.summary()
     assert summary["mu_determined"]
     assert summary["mu"] == pytest.approx(MU, rel=0.02)
     assert summary["saturation_torque_nm"] == pytest.approx(MU * N_LOAD * R_W, rel=0.02)
@@ -75,8 +72,8 @@ def test_process_fit_report_chain_integration(tmp_path):
     # Eq. (1): onset where the true creep coefficient has halved (tan_ratio = 2)
     k_true = np.array([polach_slope(x, THETA) for x in _true_creepages()])
     assert summary["onset_step"] == 1 + int(np.flatnonzero(k_true < k_true[0] / 2)[0])
-    report = write_report(tmp_path / "results")
-    text = report.read_text(encoding="utf-8")
+    tm.save(result, ana, tmp_path / "results")
+    text = (tmp_path / "results" / "report.html").read_text(encoding="utf-8")
     assert text.count("data:image/png;base64,") == 4
     steps = pd.read_csv(tmp_path / "results" / "steps.csv")
     assert {"torque_pct_saturation", "creep_coefficient", "phase_theory_deg"} <= set(steps)
@@ -117,4 +114,9 @@ def test_run_demo_end_to_end_integration(tmp_path):
     assert fit["converged"] is True
     text = Path(out["report"]).read_text(encoding="utf-8")
     assert text.count("data:image/png;base64,") == 4
-    json.dumps(out, allow_nan=False)
+    json.dumps({k: v for k, v in out.items() if k != "analysis"}, allow_nan=False)
+    # the results name the experiment where it is now, not the folder it was assembled in
+    res, _ = tm.load(out["results"])
+    assert res.experiment.manifest_path == Path(out["manifest"])
+    assert all(Path(e.path).is_file() for e in res.experiment.recordings)
+    assert sorted(p.name for p in (tmp_path).iterdir()) == ["demo", "short.toml"]

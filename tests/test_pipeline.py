@@ -18,7 +18,8 @@ import pytest
 
 from torquemod.config import ProcessingConfig
 from torquemod.dsp.phase import phase_crb_deg
-from torquemod.pipeline import CYCLE_COLUMNS, STEP_COLUMNS, process_experiment, write_results
+from torquemod.layout import save
+from torquemod.pipeline import CYCLE_COLUMNS, STEP_COLUMNS, process_experiment
 from torquemod.testing import SyntheticSpec, write_synthetic_experiment
 
 QUIET = SyntheticSpec(torque_noise_nm=0.1, wheel_noise_rad_s=3e-4, platform_noise_rad_s=3e-4,
@@ -147,9 +148,9 @@ def test_serial_and_threaded_runs_agree(noisy_experiment):
 def test_results_folder_and_provenance(noisy_experiment, tmp_path):
     folder, _ = noisy_experiment
     res = process_experiment(folder / "experiment.toml")
-    out = write_results(res, tmp_path / "res", command=["torquemod", "process"])
+    out = save(res, None, tmp_path / "res", command=["torquemod", "process"])
     assert sorted(p.name for p in out.iterdir()) == ["cycles.csv", "provenance.json",
-                                                    "steps.csv", "traces.npz"]
+                                                    "result.json", "steps.csv", "traces.npz"]
     prov = json.loads((out / "provenance.json").read_text())
     assert prov["torquemod_version"]
     assert prov["parameters"]["bandpass"]["width_hz"] == 0.36
@@ -176,7 +177,7 @@ def test_published_results_have_the_umask_permissions(noisy_experiment, tmp_path
     try:
         folder, _ = noisy_experiment
         res = process_experiment(folder / "experiment.toml")
-        out = write_results(res, tmp_path / "res")
+        out = save(res, None, tmp_path / "res")
         assert stat.S_IMODE(out.stat().st_mode) == 0o755
         report = write_atomic(out / "report.html", lambda fh: fh.write("<html></html>"))
         assert stat.S_IMODE(report.stat().st_mode) == 0o644

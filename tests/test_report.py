@@ -2,25 +2,23 @@
 
 from __future__ import annotations
 
-import json
+import dataclasses
 import re
 import subprocess
 import sys
 from html.parser import HTMLParser
 
-import numpy as np
-import pandas as pd
 import pytest
 from matplotlib.figure import Figure
 
-from torquemod.analysis import fit_results_folder
-from torquemod.demo import write_synthetic_results
+import torquemod as tm
+from torquemod.demo import synthetic_result
 from torquemod.errors import InputError
 from torquemod.report import ReportOptions, write_report
 from torquemod.report.figures import (
-    available_cycles,
     creep_curve_figure,
     phase_figure,
+    phase_fit_figure,
     save_figure,
     signals_figure,
 )
@@ -65,45 +63,62 @@ def parse(path):
     return p
 
 
-@pytest.fixture
-def results(tmp_path):
-    return write_synthetic_results(tmp_path / "results", seed=0)
+@pytest.fixture(scope="module")
+def synthetic():
+    res = synthetic_result(seed=0)
+    return res, tm.analyze(res)
 
 
-def test_figures_are_headless_figures(results):
-    fit_results_folder(results)
-    fit = json.loads((results / "fit.json").read_text())
-    steps = pd.read_csv(results / "steps.csv")
-    with np.load(results / "traces.npz") as npz:
-        traces = {k: npz[k] for k in npz.files}
-    assert (3, 1) in available_cycles(traces)
-    figs = {"a": signals_figure(traces, step=3, cycle=1),
-            "b": creep_curve_figure(steps, fit, coa_multiplier=10, creepage_multiplier=2),
-            "c": phase_figure(steps, fit)}
+def _report(tmp_path, res, ana, options=None):
+    return write_report(tmp_path, res, ana, options=options)
+
+
+def test_figures_are_headless_figures(synthetic, tmp_path):
+    res, ana = synthetic
+    assert (3, 1) in res.traces
+    figs = {"a": signals_figure(res.traces[(3, 1)], step=3, cycle=1),
+            "b": creep_curve_figure(ana, coa_multiplier=10, creepage_multiplier=2),
+            "c": phase_figure(ana), "d": phase_fit_figure(ana)}
     for name, fig in figs.items():
         assert isinstance(fig, Figure)
-        paths = save_figure(fig, results / "out" / name)
+        paths = save_figure(fig, tmp_path / "out" / name)
         assert [p.suffix for p in paths] == [".png", ".svg"]
         assert all(p.stat().st_size > 1000 for p in paths)
     legend = [t.get_text() for t in figs["b"].axes[0].get_legend().get_texts()]
     assert any("10× std CoA" in t and "2× std creepage" in t for t in legend)
     assert any("μ = 0.2" in t for t in legend)
+    # Figure 4 marks the onset step (step 3 of the synthetic data)
+    legend4 = [t.get_text() for t in figs["c"].axes[0].get_legend().get_texts()]
+    assert "saturation onset (step 3)" in legend4
     with pytest.raises(InputError):
-        signals_figure(traces, step=99, cycle=1)
+        res.plot_signals(99, 1)
+
+
+def test_plots_draw_on_a_given_ax(synthetic):
+    res, ana = synthetic
+    fig = Figure()
+    axes = fig.subplots(1, 4)
+    assert ana.plot_creep_curve(ax=axes[0]) is fig
+    assert ana.plot_phase(ax=axes[1]) is fig
+    assert ana.plot_phase_fit(ax=axes[2]) is fig
+    assert res.plot_signals(3, 1, ax=axes[3]) is fig
+    assert len(fig.axes) == 5  # the wheel speed on a twin axis of the fourth
+    assert all(len(a.lines) > 0 for a in fig.axes)
 
 
 def test_report_modules_do_not_need_pyplot():
-    code = ("import sys, torquemod.report, torquemod.report.figures; "
+    code = ("import sys, torquemod, torquemod.report, torquemod.report.figures; "
             "assert 'matplotlib.pyplot' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
-def test_report_contains_every_figure_and_table(results):
-    path = write_report(results)  # runs the fit first: no fit.json yet
-    assert path == results / "report.html"
+def test_report_contains_every_figure_and_table(synthetic, tmp_path):
+    res, ana = synthetic
+    path = _report(tmp_path, res, ana)
+    assert path == tmp_path / "report.html"
     for name in FIGURES:
         for ext in ("png", "svg"):
-            assert (results / "figures" / f"{name}.{ext}").stat().st_size > 1000
+            assert (tmp_path / "figures" / f"{name}.{ext}").stat().st_size > 1000
     p = parse(path)
     imgs = [v for t, k, v in p.attrs if t == "img" and k == "src"]
     assert len(imgs) == 4  # Figures 2-4 and 5 (mu from the phase)
@@ -121,40 +136,64 @@ def test_report_contains_every_figure_and_table(results):
                 "RMS difference", "Provenance", "Warnings"):
         assert key in text
     assert "step 3" in text  # the onset of the synthetic data (true k halved at step 3)
-    n_cycles = len(pd.read_csv(results / "cycles.csv"))
-    assert text.count("<tr>") >= n_cycles + 6
+    assert text.count("<tr>") >= len(res.cycles) + 6
 
 
-def test_report_escapes_text(results):
-    prov_path = results / "provenance.json"
-    prov = json.loads(prov_path.read_text())
-    prov["warnings"].append("<script>alert('x')</script> & more")
-    prov["experiment"]["manifest"] = "<b>evil</b>.toml"
-    prov_path.write_text(json.dumps(prov))
-    text = write_report(results).read_text(encoding="utf-8")
+def test_report_title_names_the_experiment_and_says_onset_once(synthetic, tmp_path):
+    res, ana = synthetic
+    text = _report(tmp_path, res, ana).read_text(encoding="utf-8")
+    assert "<title>torquemod report: synthetic</title>" in text
+    assert text.count("tan(phase) at least") == 1  # the onset criterion, said once
+    # no optimiser status text (scipy's message) in the report
+    assert ana.polach.message and ana.polach.message not in text
+    assert "status" not in text.split("Fit converged", 1)[1].split("</dd>", 1)[0]
+
+
+def test_report_converged_only_for_a_monotone_curve(synthetic, tmp_path):
+    """'Fit converged: yes' needs the fitted curve to rise monotonically up to its maximum;
+    a curve with a dip (theta made up: a negative kS*s gives a curve that first falls) is
+    reported with what is wrong."""
+    res, ana = synthetic
+    text = _report(tmp_path / "a", res, ana).read_text(encoding="utf-8")
+    assert re.search(r"Fit converged</dt><dd>yes<", text)
+    bent = dataclasses.replace(ana.polach, theta=ana.polach.theta * [1.0, 1.0, -3.0])
+    assert not bent.curve([1e-4]) > 0  # the made-up curve starts downwards
+    bad = dataclasses.replace(ana, polach=bent)
+    assert bad.converged is False and "does not rise" in bad.curve_ok[1]
+    text = _report(tmp_path / "b", res, bad).read_text(encoding="utf-8")
+    assert re.search(r"Fit converged</dt><dd>no: the fitted curve does not rise", text)
+    assert bad.to_dict()["converged"] is False
+
+
+def test_report_escapes_text(synthetic, tmp_path):
+    res, ana = synthetic
+    evil = dataclasses.replace(res, warnings=[*res.warnings,
+                                              "<script>alert('x')</script> & more"])
+    text = write_report(tmp_path, evil, ana, options={"title": "<b>evil</b>"}).read_text(
+        encoding="utf-8")
     assert "<script>" not in text and "<b>evil</b>" not in text
     assert "&lt;script&gt;alert(&#x27;x&#x27;)&lt;/script&gt; &amp; more" in text
 
 
-def test_report_options_and_fallbacks(results):
+def test_report_options_and_fallbacks(synthetic, tmp_path):
+    res, ana = synthetic
     opts = ReportOptions(step=42, cycle=7, coa_multiplier=15, creepage_multiplier=3,
                          formats=("png",), title="Lab run 7")
-    text = write_report(results, options=opts).read_text(encoding="utf-8")
+    text = _report(tmp_path / "a", res, ana, opts).read_text(encoding="utf-8")
     assert "<title>Lab run 7</title>" in text
     assert "step 42 cycle 7 has no traces" in text
     assert "15× the standard deviation" in text
-    assert not list((results / "figures").glob("*.svg"))
+    assert not list((tmp_path / "a" / "figures").glob("*.svg"))
     with pytest.raises(InputError):
         ReportOptions.coerce({"colour": "red"})
-    (results / "traces.npz").unlink()
-    p = parse(write_report(results, options={"refit": True}))
+    bare = dataclasses.replace(res, traces={})
+    p = parse(_report(tmp_path / "b", bare, ana))
     assert sum(1 for t, k, _ in p.attrs if t == "img" and k == "src") == 3
 
 
 def test_report_when_mu_undetermined(tmp_path):
-    d = write_synthetic_results(tmp_path / "r", saturation_fractions=(0.01, 0.05, 0.1, 0.15,
-                                                                       0.2, 0.25))
-    text = write_report(d).read_text(encoding="utf-8")
+    res = synthetic_result(saturation_fractions=(0.01, 0.05, 0.1, 0.15, 0.2, 0.25))
+    text = _report(tmp_path, res, tm.analyze(res)).read_text(encoding="utf-8")
     assert "not determined" in text
     assert "do not determine the friction coefficient" in text
     assert text.count("data:image/png;base64,") == 4

@@ -35,70 +35,46 @@ def _print_steps(steps) -> None:
               + ("  SLIP (not fitted)" if getattr(r, "slip", False) else ""))
 
 
-def _post_stages(args: argparse.Namespace, summary: dict):
-    """The fit and report stages run on a results folder (before it is published); the
-    fit's summary is stored into ``summary``."""
-    if getattr(args, "no_fit", False):
+def _stage_printer(args: argparse.Namespace):
+    """Stage lines on stderr (silent with --quiet)."""
+    if getattr(args, "quiet", False):
         return None
-
-    def post(folder: Path) -> None:
-        from .analysis import fit_results_folder
-        from .report import write_report
-        summary.update(fit_results_folder(folder))
-        write_report(folder)
-    return post
+    return lambda text: print(text, file=sys.stderr, flush=True)
 
 
-def _print_fit(summary: dict) -> None:
-    if not summary:
-        return
-    if summary.get("fit_skipped"):
-        print(f"warning: Polach fit skipped: {summary['fit_skipped']}", file=sys.stderr)
-    elif summary.get("mu_determined"):
-        print(f"Polach fit: mu = {summary['mu']:.4f} +- {summary['mu_stderr']:.4f}, "
-              f"saturation torque Ts = {summary['saturation_torque_nm']:.2f} N*m")
-    else:
-        print(f"Polach fit: mu not determined by these points; mu >= "
-              f"{_fmt(summary.get('mu_lower_bound'), '.4f')}")
-    lo, hi = summary.get("mu_from_phase_interval_95") or (None, None)
-    if summary.get("mu_from_phase_determined"):
-        print(f"mu from the phase: {summary['mu_from_phase']:.4f} "
-              f"(95 % interval {_fmt(lo, '.4f')} .. {_fmt(hi, '.4f')})")
-    elif lo is not None:
-        print(f"mu from the phase: not determined by these steps; mu >= {lo:.4f}")
-    onset = summary.get("onset_step")
-    print(f"saturation onset: {'step ' + str(onset) if onset is not None else 'not reached'}; "
-          f"theory vs measured phase: RMS {_fmt(summary.get('theory_rms_deg'), '.2f')} deg")
+def _print_warnings(warnings) -> None:
+    for w in warnings:
+        print(f"warning: {w}", file=sys.stderr)
+
+
+def _print_fit(ana) -> None:
+    """The analysis' headline lines, formatted (a skipped fit goes to stderr)."""
+    from .analysisresult import headline_lines
+    for line in headline_lines(ana):
+        if line.startswith(("Polach fit skipped", "Polach fit not usable")):
+            print(f"warning: {line}", file=sys.stderr)
+        else:
+            print(line)
 
 
 def cmd_process(args: argparse.Namespace) -> int:
-    from .config import ProcessingConfig
-    from .fsutil import check_output_dir
-    from .io import read_experiment
-    from .pipeline import process_experiment, write_results
+    from .api import run
 
-    check_output_dir(args.out, force=args.force)
-    exp = read_experiment(args.experiment)
-    base = ProcessingConfig()
-    proc_table = exp.extra.get("processing")
-    if proc_table:
-        base = ProcessingConfig.from_dict(proc_table, source=str(exp.manifest_path))
-    cfg = base.with_phase_method(args.phase_method)
-    if args.nan_policy:
-        import dataclasses
-        cfg = dataclasses.replace(cfg, nan_policy=args.nan_policy)
-    result = process_experiment(exp, config=cfg, progress=not args.quiet)
-    fit_summary: dict = {}
-    write_results(result, args.out, force=args.force, command=sys.argv,
-                  post=_post_stages(args, fit_summary))
-    for w in result.warnings:
-        print(f"warning: {w}", file=sys.stderr)
-    _print_steps(result.steps)
-    _print_fit(fit_summary)
-    t = result.timing_s
-    print(f"results in {args.out} ({len(result.cycles)} cycles in {t['wall_s']:.2f} s with "
-          f"{t['workers']} threads: read {t['read_thread_s']:.2f} s, compute "
-          f"{t['compute_thread_s']:.2f} s, summed over threads)")
+    out = run(args.experiment, args.out, phase_method=args.phase_method,
+              nan_policy=args.nan_policy, fit=not args.no_fit, force=args.force,
+              progress=not args.quiet, command=sys.argv, on_stage=_stage_printer(args))
+    res, ana = out.result, out.analysis
+    _print_warnings(res.warnings + (ana.warnings if ana is not None else []))
+    _print_steps(ana.steps if ana is not None else res.steps)
+    if ana is not None:
+        _print_fit(ana)
+    t = out.stage_s
+    print(f"done in {t['total']:.1f} s: processing {len(res.cycles)} cycles "
+          f"{t['process']:.1f} s ({res.timing_s['workers']} threads), fit {t['fit']:.1f} s, "
+          f"writing results{' and report' if ana is not None else ''} {t['write']:.1f} s")
+    print(f"results: {out.folder}")
+    if out.report is not None:
+        print(f"report:  {out.report}")
     return 0
 
 
@@ -110,6 +86,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.out is None:
         raise _UsageError("simulate needs --out DIR (or --print-config)")
     config = simulate.load_config(args.config)
+    say = _stage_printer(args)
+    if say:
+        say(_COMPILE_NOTE)
     truth = simulate.run_simulation(config, Path(args.out), seed=args.seed, fmt=args.format,
                                     progress=not args.quiet, force=args.force)
     print(f"experiment written to {args.out}/experiment.toml")
@@ -121,28 +100,46 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+_COMPILE_NOTE = ("simulating the experiment (the first run compiles the simulator's numba "
+                 "kernels, which can take a minute; later runs reuse the compiled cache) ...")
+
+
+def _fit_options(args: argparse.Namespace) -> dict:
+    """The ``fit`` subcommand's options as FitOptions fields (only those given)."""
+    opts = {"velocity_dependent": args.velocity_dependent or None,
+            "weighted": False if args.unweighted else None,
+            "stiffness": args.stiffness, "inertia_kg_m2": args.inertia,
+            "theory_constant": args.theory_constant, "onset_criterion": args.onset_criterion,
+            "seed": args.seed}
+    return {k: v for k, v in opts.items() if v is not None}
+
+
 def cmd_fit(args: argparse.Namespace) -> int:
-    from .analysis import fit_results_folder
-    summary = fit_results_folder(Path(args.results))
-    for w in summary.get("warnings") or []:
-        print(f"warning: {w}", file=sys.stderr)
-    _print_fit(summary)
-    print(f"fit written to {summary['fit_json']} (steps.csv updated; run 'torquemod report "
-          f"{args.results}' to redraw the report)")
+    from .api import fit_folder
+    _, ana = fit_folder(Path(args.results), _fit_options(args),
+                          on_stage=_stage_printer(args))
+    _print_warnings(ana.warnings)
+    _print_steps(ana.steps)
+    _print_fit(ana)
+    print(f"updated {args.results}: fit.json, steps.csv, figures and report.html")
     return 0
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from .report import write_report
-    path = write_report(Path(args.results))
+    from .api import report_folder
+    opts = {k: v for k, v in (("step", args.step), ("cycle", args.cycle),
+                              ("title", args.title)) if v is not None}
+    path = report_folder(Path(args.results), report_options=opts,
+                         on_stage=_stage_printer(args))
     print(f"report written to {path}")
     return 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
+    say = _stage_printer(args)
     out = run_demo(Path(args.out), config_path=args.config, seed=args.seed, force=args.force,
-                   progress=not args.quiet, quick=args.quick)
+                   progress=not args.quiet, quick=args.quick, on_stage=say)
     print(f"simulated experiment: {out['manifest']}")
     print(f"results:              {out['results']}")
     print(f"report:               {out['report']}")
@@ -153,14 +150,28 @@ def cmd_demo(args: argparse.Namespace) -> int:
               f"{_fmt(st.get('torque_pct_saturation'), '8.1f')} "
               f"{_fmt(st.get('phase_deg'), '12.2f')} {_fmt(st.get('phase_theory_deg'), '13.2f')}")
     print()
-    _print_fit(out)
+    _print_warnings(out["analysis"].warnings)
+    _print_fit(out["analysis"])
     truth = out.get("truth") or {}
     if truth.get("peak_coa") is not None:
         print(f"simulator truth: mu0 = {truth['mu0']:.4f}, falling with slip velocity to "
               f"{truth['mu_at_top_step']:.4f} at the top step (Polach Eq. 9); creep-curve "
               f"peak CoA {truth['peak_coa']:.4f} at {_fmt(truth.get('peak_torque_nm'), '.2f')} "
               f"N*m; slip at step {truth.get('slip_step')}")
+        print(_why_they_differ(out, truth))
     return 0
+
+
+def _why_they_differ(out: dict, truth: dict) -> str:
+    """Why the fitted mu is not the simulator's peak CoA, in the numbers of this run."""
+    mu = out.get("mu") if out.get("mu") is not None else out.get("mu_from_phase")
+    head = f"why mu ({_fmt(mu, '.4f')}) differs from the peak CoA ({truth['peak_coa']:.4f}): "
+    return (head + "mu is the friction coefficient of the fitted Polach curve, the level its "
+            "CoA would reach only at full sliding; a creep curve with a finite kA/kS peaks "
+            "below its mu, and the simulator's friction also falls with the slip velocity "
+            f"(from mu0 = {truth['mu0']:.4f} to {truth['mu_at_top_step']:.4f} at the top "
+            "step), so the simulated curve's maximum lies below both. Compare mu with the "
+            "friction at the top step's slip velocity, not with the peak CoA.")
 
 
 def cmd_convert(args: argparse.Namespace) -> int:
@@ -184,9 +195,14 @@ def build_parser() -> argparse.ArgumentParser:
         "Torque-modulation measurement of the wheel-rail coefficient of friction."))
     p.add_argument("--version", action="version", version=f"torquemod {__version__}")
     p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
+    # --debug is accepted after the subcommand too (the error hint suggests it there)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show tracebacks of internal errors")
     sub = p.add_subparsers(dest="command", required=True)
 
-    q = sub.add_parser("process", help="run the processing chain on an experiment")
+    q = sub.add_parser("process", parents=[common],
+                       help="run the processing chain on an experiment")
     q.add_argument("experiment", help="experiment.toml (or its folder)")
     q.add_argument("--out", required=True, help="results folder to create")
     q.add_argument("--phase-method", choices=["paper", "sinefit"], default=None,
@@ -198,7 +214,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=cmd_process)
 
-    s = sub.add_parser("simulate", help="simulate the V-Track experiment (digital twin)")
+    s = sub.add_parser("simulate", parents=[common],
+                       help="simulate the V-Track experiment (digital twin)")
     s.add_argument("config", nargs="?", default=None, help="simulation config TOML")
     s.add_argument("--out", default=None, help="experiment folder to create")
     s.add_argument("--seed", type=int, default=0)
@@ -208,15 +225,38 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_simulate)
 
-    f = sub.add_parser("fit", help="(re)fit the creep curve of a results folder")
-    f.add_argument("results")
+    f = sub.add_parser("fit", parents=[common], help=(
+        "(re)fit the creep curve of a results folder and update it (fit.json, steps.csv, "
+        "figures, report.html)"))
+    f.add_argument("results", help="results folder written by 'torquemod process'")
+    f.add_argument("--velocity-dependent", action="store_true",
+                   help="fit Polach's falling friction (Eq. 9; needs differing speeds)")
+    f.add_argument("--unweighted", action="store_true",
+                   help="ignore the steps' standard errors in the force fit")
+    f.add_argument("--stiffness", type=float, default=None,
+                   help="contact stiffness s = pi*G*a*b*c11/(4*Q) [-] to report kA, kS alone")
+    f.add_argument("--inertia", type=float, default=None, metavar="J_KG_M2",
+                   help="wheel-side inertia [kg*m^2] for the theory constant C")
+    f.add_argument("--theory-constant", type=float, default=None, metavar="C",
+                   help="use this theory constant C [-] instead of the rig's")
+    f.add_argument("--onset-criterion", default=None,
+                   choices=["tan_ratio", "phase", "creep_coefficient", "either", "both"],
+                   help="saturation-onset rule (default: tan_ratio)")
+    f.add_argument("--seed", type=int, default=None, help="seed of the fit's random starts")
+    f.add_argument("--quiet", action="store_true", help="no stage lines")
     f.set_defaults(func=cmd_fit)
 
-    r = sub.add_parser("report", help="(re)write figures and report.html of a results folder")
-    r.add_argument("results")
+    r = sub.add_parser("report", parents=[common],
+                       help="(re)draw the figures and report.html of a results folder")
+    r.add_argument("results", help="results folder written by 'torquemod process'")
+    r.add_argument("--step", type=int, default=None, help="step of Figure 2 (default 3)")
+    r.add_argument("--cycle", type=int, default=None, help="cycle of Figure 2 (default 1)")
+    r.add_argument("--title", default=None, help="page title (default: experiment name)")
+    r.add_argument("--quiet", action="store_true", help="no stage lines")
     r.set_defaults(func=cmd_report)
 
-    d = sub.add_parser("demo", help="simulate, process, fit and report the V-Track default")
+    d = sub.add_parser("demo", parents=[common],
+                       help="simulate, process, fit and report the V-Track default")
     d.add_argument("--out", default="demo-output")
     d.add_argument("--config", default=None, help="simulation config TOML")
     d.add_argument("--seed", type=int, default=0)
@@ -225,7 +265,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--quiet", action="store_true")
     d.set_defaults(func=cmd_demo)
 
-    c = sub.add_parser("convert", help="write a recording (or experiment) as HDF5")
+    c = sub.add_parser("convert", parents=[common],
+                       help="write a recording (or experiment) as HDF5")
     c.add_argument("input", nargs="?", help="recording file")
     c.add_argument("--manifest", default=None, help="convert a whole experiment instead")
     c.add_argument("--out", required=True)

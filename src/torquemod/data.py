@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .config import ProcessingConfig
+
 #: The method's channels, SI units, in the order the CSV format lists them.
 CHANNELS: tuple[str, ...] = (
     "torque_nm",
@@ -88,6 +90,15 @@ class Experiment:
     @property
     def steps(self) -> list[int]:
         return sorted({r.step for r in self.recordings})
+
+    @property
+    def processing(self) -> ProcessingConfig:
+        """The manifest's ``[processing]`` table as a
+        :class:`~torquemod.config.ProcessingConfig` (the defaults when absent)."""
+        table = self.extra.get("processing")
+        if not table:
+            return ProcessingConfig()
+        return ProcessingConfig.from_dict(table, source=str(self.manifest_path))
 
 
 @dataclass

@@ -1,19 +1,17 @@
-"""End-to-end demonstration: simulate -> process -> fit -> report, plus a synthetic results
-folder for tests and documentation.
+"""End-to-end demonstration: simulate -> process -> fit -> report, plus a synthetic result
+for tests and documentation.
 
-:func:`run_demo` drives the digital twin (:mod:`torquemod.simulate`) and the processing chain
-(:mod:`torquemod.pipeline`), then :func:`torquemod.analysis.fit_results_folder` and
-:func:`torquemod.report.write_report` on ``out_dir/results``.
+:func:`run_demo` drives the digital twin (:mod:`torquemod.twin`) and the orchestrator
+(:func:`torquemod.api.run`), writing the whole demo folder atomically.
 
-:func:`write_synthetic_results` fabricates a folder in the layout ``torquemod process`` writes
-(``steps.csv``, ``cycles.csv``, ``provenance.json``, ``traces.npz``) from a known Polach curve
-and the rigid-wheel phase law, with noise. It is independent of the simulator and the pipeline.
+:func:`synthetic_result` fabricates a :class:`~torquemod.pipeline.ProcessResult` from a known
+Polach curve and the rigid-wheel phase law, with noise; :func:`write_synthetic_results` saves
+it as a results folder. It is independent of the simulator and the processing chain.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from pathlib import Path
 
@@ -21,13 +19,14 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import brentq
 
-from ._version import __version__
 from .creep import phase_from_constant_deg, theory_constant
+from .data import Experiment, RecordingEntry, Rig, TestSetup
 from .fit import polach_coa, polach_slope
+from .pipeline import CYCLE_COLUMNS, ProcessResult, aggregate_steps, resolve_config
 
-__all__ = ["SYNTHETIC_TRUTH", "run_demo", "write_synthetic_results"]
+__all__ = ["SYNTHETIC_TRUTH", "run_demo", "synthetic_result", "write_synthetic_results"]
 
-#: Ground truth of :func:`write_synthetic_results` (lumped Polach form, stiffness s = 250).
+#: Ground truth of :func:`synthetic_result` (lumped Polach form, stiffness s = 250).
 SYNTHETIC_TRUTH = {"mu": 0.24, "k_a": 1.0, "k_s": 0.4, "stiffness": 250.0,
                    "wheel_radius_m": 0.075, "platform_radius_m": 1.0,
                    "wheel_inertia_kg_m2": 4.0, "normal_load_n": 4200.0,
@@ -35,13 +34,13 @@ SYNTHETIC_TRUTH = {"mu": 0.24, "k_a": 1.0, "k_s": 0.4, "stiffness": 250.0,
                    "modulation_amplitude_nm": 8.0}
 
 
-def write_synthetic_results(out_dir, *, seed: int = 0,
+def synthetic_result(*, seed: int = 0,
                             saturation_fractions=(0.003, 0.3, 0.55, 0.7, 0.8, 0.9),
                             n_cycles: int = 3, coa_noise: float = 0.001,
                             creepage_rel_noise: float = 0.02, phase_noise_deg: float = 0.5,
                             include_inertia: bool = True, fs_raw_hz: float = 400.0,
-                            duration_s: float = 6.5) -> Path:
-    """Write a fabricated results folder to ``out_dir`` and return its path.
+                            duration_s: float = 6.5) -> ProcessResult:
+    """A fabricated :class:`ProcessResult` (experiment "synthetic", no files behind it).
 
     The steps' CoA are ``saturation_fractions * mu`` of :data:`SYNTHETIC_TRUTH`; creepages
     follow from the Polach curve, phases from ``atan(C/k)``; per-cycle values get Gaussian
@@ -49,8 +48,6 @@ def write_synthetic_results(out_dir, *, seed: int = 0,
     With ``include_inertia=False`` the rig lacks ``wheel_inertia_kg_m2`` (the truth, 4 kg m^2,
     stands for the wheel plus the drive line referred to the wheel axis).
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     tr = SYNTHETIC_TRUTH
     rng = np.random.default_rng(seed)
     theta = np.array([tr["mu"], tr["k_a"] * tr["stiffness"], tr["k_s"] * tr["stiffness"]])
@@ -66,7 +63,7 @@ def write_synthetic_results(out_dir, *, seed: int = 0,
     dc = coa_true * tr["normal_load_n"] * tr["wheel_radius_m"]
     omega_p = tr["speed_m_s"] / tr["platform_radius_m"]
 
-    cyc_rows, prov_cycles, traces, inputs = [], [], {}, []
+    cyc_rows, details, traces, entries = [], [], {}, []
     fs_rs = 53.344
     for i in range(fr.size):
         step = i + 1
@@ -76,16 +73,22 @@ def write_synthetic_results(out_dir, *, seed: int = 0,
             ph = phase_true[i] + phase_noise_deg * rng.standard_normal()
             f_t = 2.0 + 0.004 * rng.standard_normal()
             f_w = f_t + 0.01 + 0.003 * rng.standard_normal()
+            # not modelled here (NaN): the chain's per-cycle standard error, the drive's
+            # CoA, the modulation amplitudes and the creepage swing
             cyc_rows.append({"step": step, "cycle": cyc, "torque_peak_hz": f_t,
                              "wheel_peak_hz": f_w, "modulation_hz": 0.5 * (f_t + f_w),
-                             "phase_deg": ph, "creepage": xi, "coa": coa})
+                             "phase_deg": ph, "creepage": xi, "coa": coa,
+                             "coa_source": "forces", "speed_m_s": tr["speed_m_s"],
+                             "creepage_drift": 0.0})
             w_mean = omega_p * tr["platform_radius_m"] * (1 + xi) / tr["wheel_radius_m"]
-            prov_cycles.append({"step": step, "cycle": cyc, "platform_speed_rad_s": omega_p,
-                                "wheel_speed_rad_s": w_mean, "fz_n": tr["normal_load_n"],
-                                "speed_m_s": tr["speed_m_s"]})
-            inputs.append({"file": f"step{step}_cycle{cyc}.csv", "sha256": "0" * 64,
-                           "step": step, "cycle": cyc})
-            key = f"s{step}c{cyc}__"
+            details.append({"step": step, "cycle": cyc, "dc_torque_nm": float(dc[i]),
+                            "source": f"step{step}_cycle{cyc}.csv", "slip": None,
+                            "platform_speed_rad_s": omega_p, "wheel_speed_rad_s": w_mean,
+                            "fz_n": tr["normal_load_n"], "speed_m_s": tr["speed_m_s"]})
+            entries.append(RecordingEntry(step=step, dc_torque_nm=float(dc[i]),
+                                          path=Path(f"step{step}_cycle{cyc}.csv"), cycle=cyc,
+                                          index=len(entries)))
+            one = traces.setdefault((step, cyc), {})
             f_mod = 0.5 * (f_t + f_w)
             t_raw = np.arange(int(duration_s * fs_raw_hz)) / fs_raw_hz
             lag = np.radians(ph)
@@ -95,93 +98,111 @@ def write_synthetic_results(out_dir, *, seed: int = 0,
             wheel = (w_mean + dw + 0.02 * np.sin(2 * np.pi * w_mean / (2 * np.pi) * t_raw)
                      + 0.01 * rng.standard_normal(t_raw.size))
             t_s = np.arange(int(duration_s * fs_rs)) / fs_rs
-            traces[key + "t_raw_s"] = t_raw
-            traces[key + "torque_raw_nm"] = torque
-            traces[key + "wheel_speed_raw_rad_s"] = wheel
-            traces[key + "t_s"] = t_s
-            traces[key + "torque_resampled_nm"] = np.interp(t_s, t_raw, torque)
-            traces[key + "wheel_speed_resampled_rad_s"] = np.interp(t_s, t_raw, wheel)
-            traces[key + "torque_filtered_nm"] = (tr["modulation_amplitude_nm"]
+            one["t_raw_s"] = t_raw
+            one["torque_raw_nm"] = torque
+            one["wheel_speed_raw_rad_s"] = wheel
+            one["t_s"] = t_s
+            one["torque_resampled_nm"] = np.interp(t_s, t_raw, torque)
+            one["wheel_speed_resampled_rad_s"] = np.interp(t_s, t_raw, wheel)
+            one["torque_filtered_nm"] = (tr["modulation_amplitude_nm"]
                                                   * np.sin(2 * np.pi * f_mod * t_s))
-            traces[key + "wheel_speed_filtered_rad_s"] = 0.05 * np.sin(2 * np.pi * f_mod * t_s
+            one["wheel_speed_filtered_rad_s"] = 0.05 * np.sin(2 * np.pi * f_mod * t_s
                                                                        - lag)
-            traces[key + "phase_window_s"] = np.array([1.75, 1.75 + 3 / f_mod])
+            one["phase_window_s"] = np.array([1.75, 1.75 + 3 / f_mod])
 
-    cycles = pd.DataFrame(cyc_rows)
-    g = cycles.groupby("step")
-    steps = pd.DataFrame({
-        "step": np.arange(1, fr.size + 1), "dc_torque_nm": dc,
-        "phase_deg": g["phase_deg"].mean().to_numpy(),
-        "phase_std_deg": g["phase_deg"].std(ddof=1).to_numpy(),
-        "creepage": g["creepage"].mean().to_numpy(),
-        "creepage_std": g["creepage"].std(ddof=1).to_numpy(),
-        "coa": g["coa"].mean().to_numpy(), "coa_std": g["coa"].std(ddof=1).to_numpy(),
-        "n_cycles": g.size().to_numpy()})
-    rig = {"wheel_radius_m": tr["wheel_radius_m"], "platform_radius_m": tr["platform_radius_m"]}
-    if include_inertia:
-        rig["wheel_inertia_kg_m2"] = tr["wheel_inertia_kg_m2"]
-    prov = {"torquemod_version": __version__, "created_utc": "2025-01-01T00:00:00+00:00",
-            "experiment": {"manifest": "synthetic/experiment.toml", "rig": rig,
-                           "test": {"normal_load_n": tr["normal_load_n"],
-                                    "modulation_frequency_hz": tr["modulation_frequency_hz"],
-                                    "modulation_amplitude_nm": tr["modulation_amplitude_nm"]}},
-            "inputs": inputs, "parameters": {"synthetic": True, "seed": seed},
-            "warnings": ["synthetic data: fabricated by torquemod.demo.write_synthetic_results"],
-            "cycles": prov_cycles}
-    cycles.to_csv(out / "cycles.csv", index=False)
-    steps.to_csv(out / "steps.csv", index=False)
-    (out / "provenance.json").write_text(json.dumps(prov, indent=2), encoding="utf-8")
-    np.savez_compressed(out / "traces.npz", **traces)
-    return out
+    cycles = pd.DataFrame(cyc_rows).reindex(columns=CYCLE_COLUMNS)
+    steps = aggregate_steps(cycles, {i + 1: float(dc[i]) for i in range(fr.size)})
+    extra = {"wheel_inertia_kg_m2": tr["wheel_inertia_kg_m2"]} if include_inertia else {}
+    exp = Experiment(
+        manifest_path=Path("synthetic/experiment.toml"),
+        rig=Rig(tr["wheel_radius_m"], tr["platform_radius_m"], extra),
+        test=TestSetup(tr["normal_load_n"], tr["modulation_frequency_hz"],
+                       tr["modulation_amplitude_nm"]),
+        recordings=tuple(entries))
+    return ProcessResult(
+        experiment=exp, config=resolve_config(exp), cycles=cycles, steps=steps,
+        cycle_details=details, traces=traces,
+        warnings=["synthetic data: fabricated by torquemod.demo.synthetic_result"],
+        input_sha256={str(e.path): "0" * 64 for e in entries},
+        created_utc="2025-01-01T00:00:00+00:00")
+
+
+def write_synthetic_results(out_dir, **kwargs) -> Path:
+    """Save :func:`synthetic_result` ``(**kwargs)`` as a results folder without an analysis
+    (as ``torquemod process --no-fit`` leaves it) and return its path."""
+    from .layout import save
+    return save(synthetic_result(**kwargs), None, out_dir, report=False)
 
 
 def run_demo(out_dir, *, config_path=None, seed: int = 0, force: bool = False,
-             progress: bool = True, quick: bool = False) -> dict:
+             progress: bool = True, quick: bool = False, on_stage=None) -> dict:
     """Simulate an experiment, process it, fit the creep curve and write the report.
 
     ``out_dir/experiment`` receives the simulated recordings and manifest,
-    ``out_dir/results`` the processed results, ``fit.json``, figures and ``report.html``.
-    ``quick`` shortens the simulation (2 cycles per step, 1.5 s run-in; see
-    :func:`_quick_config`).
+    ``out_dir/results`` the results folder with ``fit.json``, figures and ``report.html``.
+    The whole ``out_dir`` is assembled beside its place and appears in one rename, so an
+    interrupted demo leaves nothing behind that blocks the next run. ``quick`` shortens the
+    simulation (2 cycles per step, 1.5 s run-in; see :func:`_quick_config`); ``on_stage``
+    receives a line of text as each stage starts.
 
-    Returns paths (``experiment``, ``results``, ``report``, ``fit_json``) and headline
-    numbers: ``mu``, ``mu_stderr``, ``mu_determined``, ``saturation_torque_nm``,
-    ``onset_step``, ``theory_rms_deg``, ``steps`` (per-step phase, theory phase, % of Ts),
-    ``warnings`` and ``truth`` (the simulator's creep-curve peak, slip step, theory phases).
+    Returns paths (``experiment``, ``manifest``, ``results``, ``report``, ``fit_json``), the
+    :class:`Analysis` (``analysis``), its :meth:`~Analysis.summary` numbers (``mu``,
+    ``mu_stderr``, ``mu_determined``, ``saturation_torque_nm``, ``onset_step``,
+    ``theory_rms_deg``, ``steps``, ``warnings``, ...) and ``truth`` (the simulator's
+    creep-curve peak, slip step and theory phases).
     """
-    from . import pipeline, simulate
-    from .analysis import fit_results_folder
-    from .report import write_report
+    from . import simulate
+    from .api import analyze, process, save
+    from .fsutil import atomic_dir
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    say = on_stage or (lambda _text: None)
+    out = Path(out_dir).absolute()
     config = simulate.load_config(config_path)
     if quick:
         config = _quick_config(config)
-    sim = simulate.run_simulation(config, out / "experiment", seed=seed, fmt="csv",
-                                  progress=progress, force=force)
-    manifest = out / "experiment" / "experiment.toml"  # run_simulation writes it there
-    result = pipeline.process_experiment(manifest, config=pipeline.ProcessingConfig(),
-                                         progress=progress)
-    pipeline.write_results(result, out / "results", force=force)
-    summary = fit_results_folder(out / "results")
-    report = write_report(out / "results")
-    return {"experiment": str(out / "experiment"), "manifest": str(manifest),
-            "results": str(out / "results"), "report": str(report),
-            "fit_json": summary["fit_json"], "mu": summary["mu"],
-            "mu_stderr": summary["mu_stderr"], "mu_determined": summary["mu_determined"],
-            "mu_lower_bound": summary["mu_lower_bound"],
-            "curve_peak_coa": summary["curve_peak_coa"],
-            "saturation_torque_nm": summary["saturation_torque_nm"],
-            "onset_step": summary["onset_step"], "theory_rms_deg": summary["theory_rms_deg"],
-            "fit_skipped": summary.get("fit_skipped"),
-            **{k: summary.get(k) for k in ("mu_from_phase", "mu_from_phase_stderr",
-                                           "mu_from_phase_interval_95",
-                                           "mu_from_phase_determined")},
-            "steps": [{k: s[k] for k in ("step", "dc_torque_nm", "phase_deg",
-                                         "phase_theory_deg", "torque_pct_saturation")}
-                      for s in summary["steps"]],
-            "warnings": summary["warnings"], "truth": _truth_headline(sim)}
+    with atomic_dir(out, force=force) as tmp:
+        say("simulating the experiment (the first run compiles the simulator's numba "
+            "kernels, which can take a minute; later runs reuse the compiled cache) ...")
+        sim = simulate.run_simulation(config, tmp / "experiment", seed=seed, fmt="csv",
+                                      progress=progress)
+        say("processing the simulated recordings ...")
+        res = _moved(process(tmp / "experiment" / "experiment.toml", progress=progress),
+                     tmp, out)
+        say("fitting the creep curve and mu from the phase ...")
+        ana = analyze(res)
+        say("writing the results folder with figures and report.html ...")
+        save(res, ana, tmp / "results")
+    summary = ana.summary()
+    return {"experiment": str(out / "experiment"),
+            "manifest": str(out / "experiment" / "experiment.toml"),
+            "results": str(out / "results"), "report": str(out / "results" / "report.html"),
+            "fit_json": str(out / "results" / "fit.json"), "analysis": ana,
+            **{k: v for k, v in summary.items() if k != "steps"},
+            "steps": [{k: st[k] for k in ("step", "dc_torque_nm", "phase_deg",
+                                          "phase_theory_deg", "torque_pct_saturation")}
+                      for st in summary["steps"]],
+            "truth": _truth_headline(sim)}
+
+
+def _moved(result: ProcessResult, old: Path, new: Path) -> ProcessResult:
+    """``result`` with its experiment's paths under ``old`` moved under ``new`` (the demo
+    is assembled in a temporary folder that is renamed at the end)."""
+    def move(p) -> Path:
+        p = Path(p)
+        return new / p.relative_to(old) if p.is_relative_to(old) else p
+
+    exp = result.experiment
+    exp = dataclasses.replace(
+        exp, manifest_path=move(exp.manifest_path),
+        recordings=tuple(dataclasses.replace(e, path=move(e.path)) for e in exp.recordings))
+    hashes = {str(move(k)): v for k, v in result.input_sha256.items()}
+    def text(t):
+        return t.replace(str(old), str(new)) if isinstance(t, str) else t
+
+    return dataclasses.replace(
+        result, experiment=exp, input_sha256=hashes,
+        warnings=[text(w) for w in result.warnings],
+        cycle_details=[{k: text(v) for k, v in d.items()} for d in result.cycle_details])
 
 
 def _truth_headline(truth: dict) -> dict:

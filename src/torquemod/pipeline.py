@@ -1,13 +1,15 @@
-"""The orchestrator: experiment in, per-cycle and per-step results out.
+"""The processing orchestrator: experiment in, per-cycle and per-step results out.
 
-``process_experiment`` reads every recording, splits files that span several platform
+:func:`process_experiment` reads every recording, splits files that span several platform
 revolutions into cycles, runs the chain of :mod:`torquemod.chain` on each cycle, aligns the
-cycles of a step and measures their phase, then aggregates per step. ``write_results`` writes
-``cycles.csv``, ``steps.csv``, ``provenance.json`` and ``traces.npz`` atomically.
+cycles of a step and measures their phase, then aggregates per step. It returns a
+:class:`ProcessResult` held in memory; :mod:`torquemod.layout` writes and reads it.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import datetime as _dt
 import os
 import time
 from collections import deque
@@ -20,6 +22,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from . import chain
+from ._version import __version__
 from .config import ProcessingConfig, SlipParams
 from .cycles import revolution_bounds
 from .data import Experiment, Recording, RecordingEntry
@@ -27,10 +30,9 @@ from .errors import InputError, ProcessingError
 from .fsutil import sha256_file
 from .io import read_entry, read_experiment
 from .io.validate import check_finite
-from .results import write_results
 
-__all__ = ["ProcessResult", "ProcessingConfig", "detect_slip", "process_experiment",
-           "write_results"]
+__all__ = ["CYCLE_COLUMNS", "STEP_COLUMNS", "TRACE_NAMES", "ProcessResult", "ProcessingConfig",
+           "aggregate_steps", "detect_slip", "process_experiment", "resolve_config"]
 
 CYCLE_COLUMNS = ["step", "cycle", "torque_peak_hz", "wheel_peak_hz", "modulation_hz",
                  "phase_deg", "creepage", "coa", "phase_se_deg", "coa_torque", "coa_source",
@@ -45,22 +47,80 @@ _STEP_MEANS = ("coa_torque", "speed_m_s", "torque_amplitude_nm", "wheel_amplitud
                "creepage_swing")
 #: Raw signals are subsampled to at most this many points for the figures' traces.
 TRACE_POINTS = 20_000
+#: The named arrays of one cycle in :attr:`ProcessResult.traces` (times [s] from the start of
+#: the recording; raw signals subsampled, resampled/filtered ones at the chain's rate).
+TRACE_NAMES = ("t_raw_s", "torque_raw_nm", "wheel_speed_raw_rad_s", "t_s",
+               "torque_resampled_nm", "wheel_speed_resampled_rad_s", "torque_filtered_nm",
+               "wheel_speed_filtered_rad_s", "phase_window_s")
 
 
 @dataclass
 class ProcessResult:
-    """Everything ``process`` produced: tables, per-cycle details, traces and provenance."""
+    """Everything the processing produced, in memory.
+
+    ``cycles``/``steps`` are the per-cycle and per-step tables (columns
+    :data:`CYCLE_COLUMNS`, :data:`STEP_COLUMNS`), ``cycle_details`` one dict per cycle
+    (means of every channel, filters, windows, slip reason), ``traces[(step, cycle)]`` a dict
+    of the named arrays :data:`TRACE_NAMES` for the figures, ``warnings`` what the user should
+    know, ``input_sha256`` the digest of each recording file.
+    """
 
     experiment: Experiment
     config: ProcessingConfig
     cycles: pd.DataFrame
     steps: pd.DataFrame
     cycle_details: list[dict]
-    traces: dict[str, np.ndarray]
+    traces: dict[tuple[int, int], dict[str, np.ndarray]]
     warnings: list[str]
     timing_s: dict = field(default_factory=dict)
     nan_actions: list[str] = field(default_factory=list)
     input_sha256: dict[str, str] = field(default_factory=dict)  # file path -> digest
+    created_utc: str = ""
+    torquemod_version: str = __version__
+
+    @property
+    def name(self) -> str:
+        """The experiment's name: its manifest's folder name (or the manifest's stem)."""
+        path = Path(self.experiment.manifest_path)
+        return path.parent.name or path.stem
+
+    def __repr__(self) -> str:
+        slip = [int(s) for s, f in zip(self.steps["step"], self.steps["slip"], strict=True)
+                if f]
+        return (f"<ProcessResult {self.name!r}: {len(self.steps)} steps, {len(self.cycles)} "
+                f"cycles, phase method {self.config.phase.method!r}, "
+                f"{len(self.warnings)} warnings" + (f", slip at steps {slip}" if slip else "")
+                + ">")
+
+    def _repr_html_(self) -> str:
+        from html import escape
+        cols = ["step", "dc_torque_nm", "phase_deg", "creepage", "coa", "n_cycles", "slip"]
+        return (f"<p>{escape(repr(self))}</p>"
+                + self.steps[cols].to_html(index=False, float_format=lambda v: f"{v:.5g}"))
+
+    def plot_signals(self, step: int, cycle: int, *, ax=None):
+        """Paper Figure 2 for one cycle: torque and wheel speed, raw and band-pass filtered.
+        ``ax`` one Axes (the wheel speed goes on a twin axis) or a pair of Axes; a new
+        Figure when None. Returns the Figure."""
+        from .report.figures import signals_figure
+        if (step, cycle) not in self.traces:
+            raise InputError(f"no traces for step {step} cycle {cycle}; available: "
+                             f"{sorted(self.traces)}")
+        return signals_figure(self.traces[(step, cycle)], step=step, cycle=cycle, ax=ax)
+
+
+def resolve_config(experiment: Experiment, config: ProcessingConfig | None = None, *,
+                   phase_method: str | None = None, nan_policy: str | None = None
+                   ) -> ProcessingConfig:
+    """The processing parameters of a run: ``config`` when given, else the manifest's
+    ``[processing]`` table (:attr:`Experiment.processing`), with the flat overrides
+    ``phase_method`` ("paper", "sinefit") and ``nan_policy`` ("raise", "interpolate",
+    "drop-cycle") applied on top when not None."""
+    cfg = config if config is not None else experiment.processing
+    cfg = cfg.with_phase_method(phase_method)
+    if nan_policy is not None:
+        cfg = dataclasses.replace(cfg, nan_policy=nan_policy)
+    return cfg
 
 
 def _fill_nan(rec: Recording, where: str) -> list[str]:
@@ -192,36 +252,41 @@ def process_experiment(experiment: Experiment | str | Path, *,
                        workers: int | None = None) -> ProcessResult:
     """Run the whole chain on an experiment (a parsed manifest or its path).
 
+    ``config`` None uses the manifest's ``[processing]`` table (see :func:`resolve_config`).
+
     Recordings are read and put through steps 1-5 and 8 by ``workers`` threads (default:
     the number of CPUs, at most 4; numpy, scipy and pyarrow release the GIL), then each
     step's cycles are aligned and their phases measured in order.
     """
     workers = workers if workers is not None else min(4, os.cpu_count() or 1)
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
-    cfg = config or ProcessingConfig()
+    cfg = resolve_config(exp, config)
+    created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     notes: list[str] = []
     nan_actions: list[str] = []
     per_step: dict[int, list[tuple[int, chain.CycleSignals, dict]]] = {}
-    traces: dict[str, np.ndarray] = {}
+    traces: dict[tuple[int, int], dict[str, np.ndarray]] = {}
     hashes: dict[str, str] = {}
+    if Path(exp.manifest_path).is_file():
+        hashes[str(exp.manifest_path)] = sha256_file(exp.manifest_path)
     t_read = t_compute = 0.0
     t_start = time.perf_counter()
     bar = tqdm(total=len(exp.recordings), desc="processing", unit="rec", disable=not progress,
                leave=False)
-    for entry, loaded in _prefetched(exp, cfg, workers):
-        read_s, compute_s, digest, actions, rec_notes, cycles_out = loaded
-        hashes[str(entry.path)] = digest
-        t_read += read_s
-        t_compute += compute_s
-        nan_actions += actions
-        notes += rec_notes
-        for cyc, sig, info, raw in cycles_out:
-            per_step.setdefault(entry.step, []).append((cyc, sig, info))
-            key = f"s{entry.step}c{cyc}__"
-            for name, x in raw.items():
-                traces[key + name] = x
-        bar.update()
-    bar.close()
+    try:  # the bar is cleared before any error line is printed
+        for entry, loaded in _prefetched(exp, cfg, workers):
+            read_s, compute_s, digest, actions, rec_notes, cycles_out = loaded
+            hashes[str(entry.path)] = digest
+            t_read += read_s
+            t_compute += compute_s
+            nan_actions += actions
+            notes += rec_notes
+            for cyc, sig, info, raw in cycles_out:
+                per_step.setdefault(entry.step, []).append((cyc, sig, info))
+                traces[(entry.step, cyc)] = dict(raw)
+            bar.update()
+    finally:
+        bar.close()
     if not per_step:
         raise InputError("no cycle could be processed", path=exp.manifest_path,
                          hint="every cycle was dropped; see --nan-policy")
@@ -273,13 +338,13 @@ def process_experiment(experiment: Experiment | str | Path, *,
                             "platform_rotation_hz": sig.platform_rotation_hz,
                             "notches_hz": sig.notches_hz, "speed_m_s": speed,
                             "creepage_drift": sig.creepage_drift, "slip": why, **sig.means})
-            key = f"s{step}c{cyc}__"
-            traces[key + "t_s"] = sig.t0_s + np.arange(sig.torque_filtered.size) / sig.fs_hz
-            traces[key + "torque_resampled_nm"] = sig.torque_resampled
-            traces[key + "wheel_speed_resampled_rad_s"] = sig.wheel_resampled
-            traces[key + "torque_filtered_nm"] = sig.torque_filtered
-            traces[key + "wheel_speed_filtered_rad_s"] = sig.wheel_filtered
-            traces[key + "phase_window_s"] = sig.t0_s + np.asarray(window)
+            traces[(step, cyc)].update({
+                "t_s": sig.t0_s + np.arange(sig.torque_filtered.size) / sig.fs_hz,
+                "torque_resampled_nm": sig.torque_resampled,
+                "wheel_speed_resampled_rad_s": sig.wheel_resampled,
+                "torque_filtered_nm": sig.torque_filtered,
+                "wheel_speed_filtered_rad_s": sig.wheel_filtered,
+                "phase_window_s": sig.t0_s + np.asarray(window)})
     t_compute += time.perf_counter() - t1
     if not rows:
         raise InputError("no cycle could be processed", path=exp.manifest_path,
@@ -290,7 +355,7 @@ def process_experiment(experiment: Experiment | str | Path, *,
     timing = {"wall_s": time.perf_counter() - t_start, "read_thread_s": t_read,
               "compute_thread_s": t_compute, "workers": workers}
     return ProcessResult(exp, cfg, cycles, steps, details, traces, notes + nan_actions,
-                         timing, nan_actions, hashes)
+                         timing, nan_actions, hashes, created)
 
 
 def detect_slip(creepage, coa, drift, params: SlipParams) -> list[str | None]:

@@ -1,6 +1,7 @@
-"""Figures and the self-contained HTML report of a processed (and fitted) experiment.
+"""Figures and the self-contained HTML report of a processed and analysed experiment.
 
-:func:`write_report` writes, inside the results folder::
+:func:`write_report` writes, into a folder (the results folder being assembled by
+:mod:`torquemod.layout`)::
 
     figures/fig2_signals.{png,svg}      paper Figure 2 (one step and cycle, raw and filtered)
     figures/fig3_creep_curve.{png,svg}  paper Figure 3 (creep curve, error bars, Polach fit)
@@ -8,8 +9,8 @@
     figures/fig5_mu_from_phase.{png,svg} phase vs utilised adhesion with the fitted C/k(CoA)
     report.html                         summary, figures, Tables 1-2, fit, warnings, provenance
 
-If ``fit.json`` is missing the fit stage (:func:`torquemod.analysis.fit_results_folder`) runs
-first with ``options.fit_options``.
+Everything is drawn from the objects in memory (:class:`~torquemod.pipeline.ProcessResult`,
+:class:`~torquemod.analysisresult.Analysis`); nothing is read from the folder.
 """
 
 from __future__ import annotations
@@ -17,15 +18,12 @@ from __future__ import annotations
 import io
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-import pandas as pd
-
-from ..analysis import fit_results_folder, read_json
 from ..config import coerce_options
 from ..fsutil import write_atomic
+from ..provenance import provenance
 from .figures import (
-    available_cycles,
     creep_curve_figure,
     phase_figure,
     phase_fit_figure,
@@ -34,8 +32,12 @@ from .figures import (
 )
 from .html import render_report
 
-__all__ = ["ReportOptions", "creep_curve_figure", "phase_figure", "signals_figure",
-           "write_report"]
+if TYPE_CHECKING:
+    from ..analysisresult import Analysis
+    from ..pipeline import ProcessResult
+
+__all__ = ["ReportOptions", "creep_curve_figure", "phase_figure", "phase_fit_figure",
+           "signals_figure", "write_report"]
 
 
 @dataclass(frozen=True)
@@ -43,7 +45,8 @@ class ReportOptions:
     """Report options. ``step``/``cycle`` choose Figure 2 (paper: step 3, cycle 1; the first
     available cycle is used, with a warning, if absent); ``coa_multiplier`` and
     ``creepage_multiplier`` scale the error bars of Figure 3 (paper: 20 and 5);
-    ``formats`` of the saved figures; ``refit`` reruns the fit even if fit.json exists."""
+    ``formats`` of the saved figures; ``title`` of the page (default: the experiment's
+    name)."""
 
     step: int = 3
     cycle: int = 1
@@ -52,8 +55,6 @@ class ReportOptions:
     formats: tuple[str, ...] = ("png", "svg")
     dpi: int = 150
     title: str | None = None
-    refit: bool = False
-    fit_options: object = None
 
     @classmethod
     def coerce(cls, options) -> ReportOptions:
@@ -66,95 +67,53 @@ def _png_bytes(fig, dpi: int) -> bytes:
     return buf.getvalue()
 
 
-def write_report(results_dir, *, options=None) -> Path:
-    """Write the figures and ``report.html`` for ``results_dir``; returns the report's path."""
+def write_report(folder, result: ProcessResult, analysis: Analysis, *, options=None,
+                 provenance_doc: dict | None = None) -> Path:
+    """Write the figures and ``report.html`` of ``result`` and ``analysis`` into ``folder``
+    (non-atomically: :mod:`torquemod.layout` passes the folder it is assembling); returns
+    the report's path."""
     opts = ReportOptions.coerce(options)
-    results_dir = Path(results_dir)
-    if opts.refit or not (results_dir / "fit.json").is_file():
-        fit_results_folder(results_dir, options=opts.fit_options)
-    fit = read_json(results_dir / "fit.json")
-    prov = read_json(results_dir / "provenance.json")
-    steps = pd.read_csv(results_dir / "steps.csv")
-    cycles_path = results_dir / "cycles.csv"
-    cycles = pd.read_csv(cycles_path) if cycles_path.is_file() else None
-    warnings = [*(prov.get("warnings") or []), *(fit.get("warnings") or [])]
-    speeds = [c.get("speed_m_s") for c in prov.get("cycles") or [] if c.get("speed_m_s")]
-    speed = float(np.mean(speeds)) if speeds else None
-
-    fig_dir = results_dir / "figures"
+    folder = Path(folder)
+    prov = provenance_doc if provenance_doc is not None else provenance(result)
+    warnings = [*result.warnings, *analysis.warnings]
+    fig_dir = folder / "figures"
     figures = []
 
     def add(fig, name, alt, caption):
         save_figure(fig, fig_dir / name, formats=opts.formats, dpi=opts.dpi)
         figures.append({"png": _png_bytes(fig, opts.dpi), "alt": alt, "caption": caption})
 
-    traces_path = results_dir / "traces.npz"
-    if traces_path.is_file():
-        with np.load(traces_path) as npz:
-            traces = {k: npz[k] for k in npz.files}
-        pairs = available_cycles(traces)
-        step, cycle = opts.step, opts.cycle
-        if pairs and (step, cycle) not in pairs:
-            warnings.append(f"Figure 2: step {step} cycle {cycle} has no traces; "
-                            f"showing step {pairs[0][0]} cycle {pairs[0][1]} instead")
-            step, cycle = pairs[0]
-        if pairs:
-            add(signals_figure(traces, step=step, cycle=cycle), "fig2_signals",
-                "Torque and wheel angular velocity signals",
-                f"Figure 2: (a) applied torque and (b) wheel angular velocity, step {step}, "
-                f"cycle {cycle}: raw (grey) and after the band-pass filter (blue, drawn about "
-                "the mean); shaded: the window used for the phase.")
-        else:
-            warnings.append("Figure 2: traces.npz holds no cycle traces")
+    pairs = sorted(result.traces)
+    step, cycle = opts.step, opts.cycle
+    if pairs and (step, cycle) not in result.traces:
+        warnings.append(f"Figure 2: step {step} cycle {cycle} has no traces; "
+                        f"showing step {pairs[0][0]} cycle {pairs[0][1]} instead")
+        step, cycle = pairs[0]
+    if pairs:
+        add(signals_figure(result.traces[(step, cycle)], step=step, cycle=cycle),
+            "fig2_signals", "Torque and wheel angular velocity signals",
+            f"Figure 2: (a) applied torque and (b) wheel angular velocity, step {step}, "
+            f"cycle {cycle}: raw (grey) and after the band-pass filter (colour, drawn about "
+            "the mean); shaded: the window used for the phase.")
     else:
-        warnings.append("Figure 2: traces.npz not found; no signal figure")
-    add(creep_curve_figure(steps, fit, coa_multiplier=opts.coa_multiplier,
-                           creepage_multiplier=opts.creepage_multiplier, speed_m_s=speed),
+        warnings.append("Figure 2: no cycle traces; no signal figure")
+    add(creep_curve_figure(analysis, coa_multiplier=opts.coa_multiplier,
+                           creepage_multiplier=opts.creepage_multiplier),
         "fig3_creep_curve", "Creep curve with the fitted Polach model",
         f"Figure 3: measured creep curve (error bars {opts.coa_multiplier:g}× the standard "
         f"deviation of CoA and {opts.creepage_multiplier:g}× that of the creepage over cycles) "
         "with the fitted Polach model (dashed).")
-    add(phase_figure(steps, fit, speed_m_s=speed), "fig4_phase",
-        "Phase difference against DC torque",
+    add(phase_figure(analysis), "fig4_phase", "Phase difference against DC torque",
         "Figure 4: phase difference between torque and wheel angular velocity against the DC "
         "torque as a percentage of the saturation torque (error bars: standard deviation over "
         "cycles), with the rigid-wheel theory tan φ = C/k from the fitted curve's slope.")
-
-    pfig = _phase_fit_panel(steps, fit)
-    if pfig is not None:
-        add(pfig, "fig5_mu_from_phase", "Phase progression with the fit that gives mu",
-            "Figure 5: phase difference against the utilised adhesion (the drive's, from the "
-            "torque), with the fit tan φ = C/k(CoA) over the Polach family that gives μ from "
-            "the phase alone; labels: step (utilisation CoA/μ).")
-
-    title = opts.title or f"torquemod report: {prov.get('experiment', {}).get('manifest', '')}"
-    text = render_report(title=title, fit=fit, steps=steps, cycles=cycles, provenance=prov,
-                         figures=figures, warnings=warnings)
-    out = results_dir / "report.html"
-    write_atomic(out, lambda fh: fh.write(text))
-    return out
-
-
-def _phase_fit_panel(steps: pd.DataFrame, fit: dict):
-    """Figure 5 from steps.csv: the phase fit is recomputed (deterministic) so that its curve
-    can be drawn; None when it cannot run."""
-    from ..analysis import _phase_fit, _slip_flags
-    from ..creep import creep_points
-    try:
-        pts = creep_points(steps)
-    except Exception:  # a damaged table is reported by the fit stage, not here
-        return None
-    slip = _slip_flags(steps)
-    use = np.array([not slip.get(int(s), False) for s in pts.step], dtype=bool)
-    theory = fit.get("theory") or {}
-    constant = theory.get("constant") if theory.get("mode") == "rig" else None
-    load, radius = fit.get("normal_load_n"), fit.get("wheel_radius_m")
-    pfit, _ = _phase_fit(steps, pts, use, constant,
-                         measured_c=(radius, load) if radius and load else None)
-    coa = steps["coa_torque"] if "coa_torque" in steps else steps["coa"]
-    coa = np.asarray(coa, dtype=float)
-    if not np.all(np.isfinite(coa)):
-        coa = pts.coa
-    se = steps["phase_se_deg"] if "phase_se_deg" in steps else steps.get("phase_std_deg")
-    return phase_fit_figure(coa[use], pts.phase_deg[use], np.asarray(se, float)[use],
-                            pts.step[use], pfit, mu_forces=fit.get("mu"))
+    add(phase_fit_figure(analysis), "fig5_mu_from_phase",
+        "Phase progression with the fit that gives mu",
+        "Figure 5: phase difference against the utilised adhesion (the drive's, from the "
+        "torque), with the fit tan φ = C/k(CoA) over the Polach family that gives μ from "
+        "the phase alone; labels: step (utilisation CoA/μ).")
+    title = opts.title or f"torquemod report: {result.name}"
+    text = render_report(title=title, fit=analysis.to_dict(), steps=analysis.steps,
+                         cycles=result.cycles, provenance=prov, figures=figures,
+                         warnings=warnings)
+    return write_atomic(folder / "report.html", lambda fh: fh.write(text))

@@ -109,15 +109,12 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
         ("Maximum CoA of the fitted curve", fmt(fit.get("curve_peak_coa"))),
         ("Saturation torque Ts = μ·N·Rw [N·m] (forces)",
          _pm(fit.get("saturation_torque_nm"), fit.get("saturation_torque_stderr_nm"))),
-        ("Saturation onset", f"step {onset['step']}" if onset.get("step") is not None
-         else "not detected"),
-        ("Onset criterion", onset.get("description", "—")),
+        ("Saturation onset", _onset_text(onset)),
         ("Theory check",
          f"{theory.get('mode', '—')} constant C = {fmt(_scalar(theory.get('constant')))}; "
          f"RMS difference {fmt(theory.get('rms_difference_deg'), 3)}°, "
          f"max |difference| {fmt(theory.get('max_abs_difference_deg'), 3)}°"),
-        ("Fit converged", f"{fmt(fit.get('converged'))} (status {fit.get('status')}: "
-                          f"{fit.get('message', '')})"),
+        ("Fit converged", _converged_text(fit)),
         ("Steps / cycles", f"{len(steps)} / {0 if cycles is None else len(cycles)}"),
         ("Manifest", str(exp.get("manifest", "—"))),
     ])
@@ -197,7 +194,7 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
              ("C standard error", fmt(theory.get("constant_stderr"))),
              ("RMS difference [deg]", fmt(theory.get("rms_difference_deg"))),
              ("Max |difference| [deg]", fmt(theory.get("max_abs_difference_deg"))),
-             ("Onset", onset.get("description", "—"))]),
+             ]),
         "<h2>Warnings</h2>", warn_html,
         "<h2>Provenance</h2>", t_in,
         "<details><summary>provenance.json (without inputs and cycles)</summary><pre>"
@@ -208,6 +205,26 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
         "</body></html>",
     ]
     return "\n".join(parts) + "\n"
+
+
+def _onset_text(onset: dict) -> str:
+    """The onset step and its criterion, said once."""
+    desc = str(onset.get("description") or "")
+    rule = desc.partition(" (criterion: ")[2]
+    where = f"step {onset['step']}" if onset.get("step") is not None else "not detected"
+    return f"{where} (criterion: {rule}" if rule else where
+
+
+def _converged_text(fit: dict) -> str:
+    """'yes' only when the optimiser converged and the fitted curve rises monotonically up to
+    its maximum; otherwise what is wrong, in words (no optimiser status text)."""
+    if fit.get("fit_skipped"):
+        return "no fit (skipped)"
+    if fit.get("curve_monotone") is False:
+        return f"no: {fit.get('curve_problem') or 'the fitted curve is not a creep curve'}"
+    if fit.get("converged"):
+        return "yes"
+    return "no: the optimiser stopped before converging; the fitted values are unreliable"
 
 
 def _scalar(c):

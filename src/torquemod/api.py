@@ -1,0 +1,130 @@
+"""The library's face and the one orchestrator behind the CLI and the demo.
+
+Stages, joined in memory::
+
+    exp = read_experiment("experiment.toml")   # Experiment; exp.processing: [processing]
+    res = process(exp, phase_method="sinefit") # ProcessResult (tables, details, traces)
+    ana = analyze(res)                         # Analysis (Polach fit, mu from the phase, ...)
+    save(res, ana, "results/")                 # the results folder, atomically
+    res, ana = load("results/")                # ... and back
+
+:func:`run`, :func:`fit_folder` and :func:`report_folder` are what ``torquemod process``,
+``fit`` and ``report`` do; they report their stages through an optional ``on_stage(text)``
+callback and never print.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from . import io as _io
+from .analysis import FitOptions, analyze
+from .analysisresult import Analysis
+from .config import ProcessingConfig
+from .data import Experiment
+from .layout import load, save, update
+from .pipeline import ProcessResult, process_experiment, resolve_config
+
+__all__ = ["RunOutcome", "analyze", "fit_folder", "load", "process", "read_experiment",
+           "report_folder", "run", "save"]
+
+Stage = Callable[[str], object] | None
+
+
+def read_experiment(path) -> Experiment:
+    """Read an experiment manifest (``experiment.toml`` or its folder). Its ``[processing]``
+    table is checked now and available as ``exp.processing`` (a
+    :class:`~torquemod.config.ProcessingConfig`)."""
+    exp = _io.read_experiment(path)
+    _ = exp.processing  # a bad [processing] table is reported here, naming the manifest
+    return exp
+
+
+def process(experiment, config: ProcessingConfig | None = None, *,
+            phase_method: str | None = None, nan_policy: str | None = None,
+            progress: bool = False, workers: int | None = None) -> ProcessResult:
+    """Run the processing chain on an experiment (an :class:`Experiment` or a manifest path).
+
+    The parameters are the manifest's ``[processing]`` table, or ``config`` when given (a
+    whole :class:`ProcessingConfig` replaces the table); the flat keywords ``phase_method``
+    ("paper" or "sinefit") and ``nan_policy`` ("raise", "interpolate", "drop-cycle") are
+    applied over either. The CLI's ``--phase-method``/``--nan-policy`` do the same, so the
+    library and the command line give the same result.
+    """
+    exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
+    cfg = resolve_config(exp, config, phase_method=phase_method, nan_policy=nan_policy)
+    return process_experiment(exp, config=cfg, progress=progress, workers=workers)
+
+
+@dataclass
+class RunOutcome:
+    """What :func:`run` did: the result, its analysis (None with ``fit=False``), the results
+    folder, the report (None without one) and the wall time of each stage [s]."""
+
+    result: ProcessResult
+    analysis: Analysis | None
+    folder: Path
+    report: Path | None
+    stage_s: dict
+
+
+def _inputs(exp: Experiment) -> list[Path]:
+    return [Path(exp.manifest_path), *(Path(e.path) for e in exp.recordings)]
+
+
+def run(experiment, out, *, config: ProcessingConfig | None = None,
+        phase_method: str | None = None, nan_policy: str | None = None, fit: bool = True,
+        fit_options=None, report_options=None, force: bool = False, progress: bool = False,
+        command: list[str] | None = None, on_stage: Stage = None) -> RunOutcome:
+    """process -> analyze -> save (with the report): ``torquemod process``."""
+    say = on_stage or (lambda _text: None)
+    t0 = time.perf_counter()
+    exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
+    from .fsutil import check_output_dir
+    check_output_dir(out, force=force)  # refuse an occupied --out before any work
+    res = process(exp, config, phase_method=phase_method, nan_policy=nan_policy,
+                  progress=progress)
+    t1 = time.perf_counter()
+    ana = None
+    if fit:
+        say("fitting the creep curve and mu from the phase ...")
+        ana = analyze(res, fit_options)
+    t2 = time.perf_counter()
+    if fit:
+        say("writing the results folder with figures and report.html ...")
+    folder = save(res, ana, out, force=force, inputs=_inputs(exp), command=command,
+                  report=fit, report_options=report_options)
+    t3 = time.perf_counter()
+    return RunOutcome(res, ana, Path(folder), Path(folder) / "report.html" if fit else None,
+                      {"process": t1 - t0, "fit": t2 - t1, "write": t3 - t2, "total": t3 - t0})
+
+
+def fit_folder(folder, options: FitOptions | dict | None = None, *, report_options=None,
+               on_stage: Stage = None
+               ) -> tuple[ProcessResult, Analysis]:
+    """load -> analyze(options) -> update the folder atomically, report included:
+    ``torquemod fit``."""
+    say = on_stage or (lambda _text: None)
+    res, _ = load(folder)
+    say("fitting the creep curve and mu from the phase ...")
+    ana = analyze(res, options)
+    say("rewriting fit.json, steps.csv, the figures and report.html ...")
+    update(folder, res, ana, report_options=report_options)
+    return res, ana
+
+
+def report_folder(folder, *, report_options=None, on_stage: Stage = None) -> Path:
+    """load -> render the figures and report.html -> update the folder atomically:
+    ``torquemod report`` (a folder saved without an analysis is analysed with the default
+    options first)."""
+    say = on_stage or (lambda _text: None)
+    res, ana = load(folder)
+    if ana is None:
+        say("fitting the creep curve (the folder holds no fit yet) ...")
+        ana = analyze(res)
+    say("drawing the figures and writing report.html ...")
+    update(folder, res, ana, report_options=report_options)
+    return Path(folder) / "report.html"

@@ -1,0 +1,306 @@
+"""The results folder: the one module that knows its layout (docs/format.md, "Results").
+
+:func:`save` writes, once and atomically (the folder appears whole or not at all)::
+
+    result.json       machine-readable state: experiment, parameters, per-cycle details,
+                      warnings, the fit options (what :func:`load` rebuilds from)
+    cycles.csv        per-cycle table (exact floats)
+    steps.csv         per-step table, with the analysis columns when analysed
+    traces.npz        signals for the figures, keys ``s{step}c{cycle}__{name}``
+    provenance.json   for people: software, parameters, inputs with SHA-256, warnings
+    fit.json          the analysis document (:meth:`Analysis.to_dict`), when analysed
+    figures/, report.html   the report (:mod:`torquemod.report`), when analysed
+
+:func:`load` is the only reader. It reads ``result.json``, the two tables and the traces,
+checks them, and rebuilds the :class:`~torquemod.pipeline.ProcessResult`; the
+:class:`~torquemod.analysisresult.Analysis` is recomputed in memory with the stored fit
+options (deterministic, so it equals the saved one). ``provenance.json``, ``fit.json`` and the
+report are outputs only. A missing or damaged file raises :class:`InputError` naming it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import re
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from . import fsutil
+from .analysis import ADDED_STEP_COLUMNS, FitOptions, analyze
+from .config import ProcessingConfig
+from .data import Experiment, RecordingEntry, Rig, TestSetup
+from .errors import InputError, OutputError, TorquemodError
+from .jsonutil import dump_json
+from .pipeline import CYCLE_COLUMNS, STEP_COLUMNS, ProcessResult
+from .provenance import provenance
+from .report import write_report
+
+if TYPE_CHECKING:
+    from .analysisresult import Analysis
+
+__all__ = ["STATE_FILE", "load", "save", "update"]
+
+STATE_FILE = "result.json"
+FORMAT = "torquemod-results"
+FORMAT_VERSION = 1
+_TRACE_KEY = re.compile(r"^s(\d+)c(\d+)__(\w+)$")
+_BOOL = {"True": True, "False": False, "true": True, "false": False, "1": True, "0": False}
+
+
+# --------------------------------------------------------------------------- writing
+
+def save(result: ProcessResult, analysis: Analysis | None, folder, *, force: bool = False,
+         inputs=(), command: list[str] | None = None, report: bool = True,
+         report_options=None) -> Path:
+    """Write a new results folder (see the module docstring) in one atomic step.
+
+    An existing non-empty ``folder`` is refused unless ``force``; ``inputs`` (the manifest and
+    the recordings) are files the folder must never replace or contain. ``report=False``
+    skips the figures and report.html."""
+    with _new_dir(folder, force=force, inputs=inputs) as tmp:
+        _write_all(tmp, Path(folder), result, analysis, command=command, report=report,
+                   report_options=report_options)
+    return Path(folder)
+
+
+def update(folder, result: ProcessResult, analysis: Analysis | None, *,
+           command: list[str] | None = None, report: bool = True, report_options=None
+           ) -> Path:
+    """Rewrite an existing results folder with a new analysis or report, atomically: readers
+    see the old folder or the new one, never a mix."""
+    folder = Path(folder)
+    with _update_dir(folder) as tmp:
+        _write_all(tmp, folder, result, analysis, command=command, report=report,
+                   report_options=report_options)
+    return folder
+
+
+@contextlib.contextmanager
+def _new_dir(folder, *, force: bool, inputs) -> Iterator[Path]:
+    """fsutil's atomic folder; refuses an ``--out`` that is or holds an input when fsutil
+    knows how (its ``inputs=`` keyword)."""
+    import inspect
+    kwargs = {"force": force}
+    if inputs and "inputs" in inspect.signature(fsutil.atomic_dir).parameters:
+        kwargs["inputs"] = list(inputs)
+    with fsutil.atomic_dir(folder, **kwargs) as tmp:
+        yield tmp
+
+
+@contextlib.contextmanager
+def _update_dir(folder: Path) -> Iterator[Path]:
+    """An atomic in-place update of a results folder (fsutil's ``update_dir`` when present,
+    else a forced atomic replacement of the folder)."""
+    updater = getattr(fsutil, "update_dir", None)
+    cm = updater(folder) if updater is not None else fsutil.atomic_dir(folder, force=True)
+    with cm as tmp:
+        yield tmp
+
+
+def _write_all(tmp: Path, final: Path, result: ProcessResult, analysis: Analysis | None, *,
+               command, report: bool, report_options) -> None:
+    """Every file of the layout into the folder being assembled; a full disk or an
+    unwritable target ends as one OutputError naming the folder."""
+    try:
+        prov = provenance(result, command=command)
+        steps = analysis.steps if analysis is not None else result.steps
+        result.cycles.to_csv(tmp / "cycles.csv", index=False, lineterminator="\n")
+        steps.to_csv(tmp / "steps.csv", index=False, lineterminator="\n")
+        (tmp / "provenance.json").write_text(dump_json(prov) + "\n", encoding="utf-8")
+        (tmp / STATE_FILE).write_text(dump_json(_state(result, analysis)) + "\n",
+                                      encoding="utf-8")
+        np.savez(tmp / "traces.npz", **{f"s{s}c{c}__{name}": x
+                                        for (s, c), arrays in sorted(result.traces.items())
+                                        for name, x in arrays.items()})
+        if analysis is not None:
+            doc = analysis.to_dict(results_dir=str(final))
+            (tmp / "fit.json").write_text(dump_json(doc) + "\n", encoding="utf-8")
+            if report:
+                write_report(tmp, result, analysis, options=report_options,
+                             provenance_doc=prov)
+    except TorquemodError:
+        raise
+    except OSError as exc:
+        raise OutputError(f"{final}: cannot write the results "
+                          f"({exc.strerror or exc}); nothing was changed") from None
+
+
+def _state(result: ProcessResult, analysis: Analysis | None) -> dict:
+    exp = result.experiment
+    return {
+        "format": FORMAT, "format_version": FORMAT_VERSION,
+        "torquemod_version": result.torquemod_version, "created_utc": result.created_utc,
+        "experiment": {
+            "manifest_path": str(exp.manifest_path),
+            "rig": dataclasses.asdict(exp.rig), "test": dataclasses.asdict(exp.test),
+            "recordings": [{**dataclasses.asdict(e), "path": str(e.path)}
+                           for e in exp.recordings],
+            "channel_map": exp.channel_map, "extra": exp.extra},
+        "config": result.config.to_dict(),
+        "n_steps": len(result.steps), "n_cycles": len(result.cycles),
+        "cycle_details": result.cycle_details, "warnings": result.warnings,
+        "nan_actions": result.nan_actions, "timing_s": result.timing_s,
+        "input_sha256": result.input_sha256,
+        "analysis": None if analysis is None else {
+            "options": dataclasses.asdict(analysis.options),
+            "created_utc": analysis.created_utc},
+    }
+
+
+# --------------------------------------------------------------------------- reading
+
+def load(folder) -> tuple[ProcessResult, Analysis | None]:
+    """Read a results folder written by :func:`save`: ``(ProcessResult, Analysis)`` (the
+    Analysis is None when the folder was saved without one, e.g. ``process --no-fit``)."""
+    folder = Path(folder)
+    if not folder.exists():
+        raise InputError("results folder does not exist", path=folder,
+                         hint="give the --out folder of 'torquemod process'")
+    if not folder.is_dir():
+        raise InputError("not a folder", path=folder,
+                         hint="give the --out folder of 'torquemod process'")
+    state = _read_state(folder / STATE_FILE)
+    path = folder / STATE_FILE
+    try:
+        exp = _experiment(state["experiment"])
+        config = ProcessingConfig.from_dict(state["config"], source=str(path))
+        n_steps, n_cycles = int(state["n_steps"]), int(state["n_cycles"])
+        details = list(state["cycle_details"])
+        fit_state = state.get("analysis")
+        options = None if fit_state is None else FitOptions.coerce(fit_state["options"])
+    except InputError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise InputError(f"damaged results state ({type(exc).__name__}: {exc})", path=path,
+                         hint="process the experiment again") from None
+    cycles = _read_table(folder / "cycles.csv", CYCLE_COLUMNS, n_cycles)
+    steps = _read_table(folder / "steps.csv", STEP_COLUMNS, n_steps)
+    traces = _read_traces(folder / "traces.npz")
+    result = ProcessResult(
+        experiment=exp, config=config, cycles=cycles, steps=steps, cycle_details=details,
+        traces=traces, warnings=list(state.get("warnings") or []),
+        timing_s=dict(state.get("timing_s") or {}),
+        nan_actions=list(state.get("nan_actions") or []),
+        input_sha256=dict(state.get("input_sha256") or {}),
+        created_utc=str(state.get("created_utc") or ""),
+        torquemod_version=str(state.get("torquemod_version") or ""))
+    if options is None:
+        return result, None
+    analysis = analyze(result, options)
+    analysis.created_utc = str(fit_state.get("created_utc") or analysis.created_utc)
+    return result, analysis
+
+
+def _read_state(path: Path) -> dict:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("not a torquemod results folder: result.json is missing", path=path,
+                         hint="run 'torquemod process EXPERIMENT --out FOLDER' (folders "
+                         "written by torquemod before 0.2 need processing again)") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read ({getattr(exc, 'strerror', None) or exc})",
+                         path=path) from None
+    try:
+        state = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"damaged: not valid JSON ({exc})", path=path,
+                         hint="process the experiment again") from None
+    if not isinstance(state, dict) or state.get("format") != FORMAT:
+        raise InputError("not a torquemod results state file", path=path,
+                         hint="process the experiment again")
+    if state.get("format_version") != FORMAT_VERSION:
+        raise InputError(f"results format version {state.get('format_version')!r}; this "
+                         f"torquemod reads version {FORMAT_VERSION}", path=path,
+                         hint="process the experiment again with this version")
+    return state
+
+
+def _experiment(doc: dict) -> Experiment:
+    recs = tuple(RecordingEntry(**{**r, "path": Path(r["path"])}) for r in doc["recordings"])
+    return Experiment(manifest_path=Path(doc["manifest_path"]), rig=Rig(**doc["rig"]),
+                      test=TestSetup(**doc["test"]), recordings=recs,
+                      channel_map=dict(doc.get("channel_map") or {}),
+                      extra=dict(doc.get("extra") or {}))
+
+
+def _read_table(path: Path, columns: list[str], n_rows: int) -> pd.DataFrame:
+    """A table of the layout with its columns checked and typed; rows must all be there."""
+    try:
+        df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except FileNotFoundError:
+        raise InputError("missing from the results folder", path=path,
+                         hint="process the experiment again") from None
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError,
+            pd.errors.EmptyDataError) as exc:
+        raise InputError(f"damaged table ({str(exc).strip().splitlines()[0]})", path=path,
+                         hint="process the experiment again") from None
+    missing = [c for c in columns if c not in df.columns]
+    if missing:
+        raise InputError(f"damaged table: column(s) {missing} missing", path=path,
+                         hint="process the experiment again")
+    if len(df) != n_rows:
+        raise InputError(f"damaged table: {len(df)} rows where {n_rows} were written",
+                         path=path, hint="process the experiment again")
+    out = {}
+    for col in columns:
+        values = df[col].str.strip()
+        if col == "coa_source":
+            out[col] = values.to_numpy(dtype=object)
+        elif col == "slip":
+            bad = ~values.isin(list(_BOOL))
+            if bad.any():
+                raise InputError(f"damaged table: column 'slip' holds "
+                                 f"{values[bad].iloc[0]!r} in row {int(np.flatnonzero(bad)[0]) + 2}"
+                                 " (True or False expected)", path=path,
+                                 hint="process the experiment again")
+            out[col] = values.map(_BOOL).astype(bool).to_numpy()
+        else:
+            num = pd.to_numeric(values.replace({"": "nan"}), errors="coerce")
+            bad = num.isna() & ~values.str.lower().isin(["", "nan"])
+            if bad.any():
+                row = int(np.flatnonzero(bad)[0]) + 2
+                raise InputError(f"damaged table: column '{col}' holds {values[bad].iloc[0]!r} "
+                                 f"in line {row} (a number expected)", path=path,
+                                 hint="process the experiment again")
+            out[col] = num.to_numpy()
+    table = pd.DataFrame(out, columns=columns)
+    for col in ("step", "cycle", "n_cycles"):
+        if col in table:
+            if not np.all(np.isfinite(table[col])):
+                raise InputError(f"damaged table: column '{col}' is not a whole number",
+                                 path=path, hint="process the experiment again")
+            table[col] = table[col].astype(int)
+    return table
+
+
+def _read_traces(path: Path) -> dict[tuple[int, int], dict[str, np.ndarray]]:
+    traces: dict[tuple[int, int], dict[str, np.ndarray]] = {}
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            for key in npz.files:
+                m = _TRACE_KEY.match(key)
+                if m is None:
+                    raise InputError(f"damaged: unexpected entry {key!r}", path=path,
+                                     hint="process the experiment again")
+                traces.setdefault((int(m[1]), int(m[2])), {})[m[3]] = npz[key]
+    except FileNotFoundError:
+        raise InputError("missing from the results folder", path=path,
+                         hint="process the experiment again") from None
+    except InputError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise InputError(f"damaged signal traces ({exc})", path=path,
+                         hint="process the experiment again") from None
+    return traces
+
+
+#: Column order of steps.csv after the analysis (for documentation and tests).
+ANALYSED_STEP_COLUMNS = [*STEP_COLUMNS, *ADDED_STEP_COLUMNS]

@@ -1,0 +1,23 @@
+"""The V-Track digital twin under one namespace: its parameters (:mod:`torquemod.rig`) and the
+simulation that writes an experiment in the measurement's own format
+(:mod:`torquemod.simulate`). ``import torquemod as tm; tm.twin.run_simulation(...)``.
+
+The twin is kept apart from the measurement: nothing in the processing or fitting imports it.
+"""
+
+from __future__ import annotations
+
+from .rig import (
+    ContactParams,
+    DisturbanceParams,
+    ModulationParams,
+    ProcedureParams,
+    RigParams,
+    SensorParams,
+    SimConfig,
+)
+from .simulate import config_from_dict, default_config_text, load_config, run_simulation
+
+__all__ = ["ContactParams", "DisturbanceParams", "ModulationParams", "ProcedureParams",
+           "RigParams", "SensorParams", "SimConfig", "config_from_dict", "default_config_text",
+           "load_config", "run_simulation"]
