@@ -90,8 +90,9 @@ def measure(folder: Path, workers: int, trace: bool, out_dir: Path) -> dict:
     import pandas  # noqa: F401
     import scipy.signal  # noqa: F401
 
-    from torquemod.cli import _post_stages  # noqa: F401
-    from torquemod.pipeline import process_experiment, write_results
+    from torquemod.api import run  # noqa: F401
+    from torquemod.layout import save
+    from torquemod.pipeline import process_experiment
 
     base_now = _rss_now_bytes()
     base_peak = _rss_peak_bytes()
@@ -99,7 +100,7 @@ def measure(folder: Path, workers: int, trace: bool, out_dir: Path) -> dict:
         tracemalloc.start()
     t0 = time.perf_counter()
     res = process_experiment(folder / "experiment.toml", workers=workers)
-    write_results(res, out_dir, force=True)
+    save(res, None, out_dir, force=True)
     wall = time.perf_counter() - t0
     traced = tracemalloc.get_traced_memory()[1] if trace else None
     return {"baseline_rss": base_now, "baseline_peak_rss": base_peak,
