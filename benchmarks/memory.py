@@ -12,6 +12,15 @@ and both scaled to one recorded hour. The recording is generated one revolution 
 that the generator's own memory does not enter the figure.
 
     python benchmarks/memory.py [--minutes 15] [--workdir DIR] [--workers N]
+
+``--reading HOURS...`` (issue 11) instead measures reading alone: for each length it writes
+an HDF5 recording with a ``time_s`` column and the 6 channels (fast synthetic signals, written
+in blocks), then in a fresh process per case reads it whole (``read_recording``) or streamed
+(``torquemod.io.stream.iter_chunks``, summing every chunk so each value is touched), and
+prints peak RSS above the post-import baseline and CPU time. Reading whole is skipped when
+one copy would not fit in the machine's memory.
+
+    python benchmarks/memory.py --reading 0.1667 1 [--workdir DIR] [--keep]
 """
 
 from __future__ import annotations
@@ -108,8 +117,106 @@ def measure(folder: Path, workers: int, trace: bool, out_dir: Path) -> dict:
             "n_cycles": len(res.cycles)}
 
 
+READ_CHANNELS = 7  # time_s and the 6 method channels
+
+
+def generate_plain(path: Path, hours: float, block: int = 1 << 20) -> int:
+    """An HDF5 recording of ``hours`` at FS_HZ: ``time_s`` and the 6 channels (a 2 Hz
+    modulation on offsets, rotation tones and noise), written block by block [samples]."""
+    import h5py
+    import numpy as np
+
+    from torquemod.data import CHANNEL_UNITS, CHANNELS
+
+    n = round(hours * 3600 * FS_HZ)
+    rng = np.random.default_rng(1)
+    level = {"torque_nm": 40.0, "wheel_speed_rad_s": 29.6, "platform_speed_rad_s": 0.74,
+             "fx_n": 900.0, "fy_n": 150.0, "fz_n": 4200.0}
+    with h5py.File(path, "w") as fh:
+        fh.attrs["torquemod_layout"] = 1
+        names = ["time_s", *CHANNELS]
+        ds = {c: fh.create_dataset(c, shape=(n,), dtype="f8", chunks=(1 << 16,))
+              for c in names}
+        for c in CHANNELS:
+            ds[c].attrs["unit"] = CHANNEL_UNITS[c]
+        ds["time_s"].attrs["unit"] = "s"
+        for a in range(0, n, block):
+            b = min(n, a + block)
+            t = np.arange(a, b) / FS_HZ
+            ds["time_s"][a:b] = t
+            for k, c in enumerate(CHANNELS):
+                x = level[c] * (1 + 0.01 * np.sin(2 * np.pi * 2.0 * t + k)
+                                + 0.002 * np.sin(2 * np.pi * 4.6 * t))
+                x += 1e-3 * level[c] * rng.standard_normal(b - a)
+                ds[c][a:b] = x
+    return n
+
+
+def measure_read(path: Path, mode: str) -> dict:
+    """Read ``path`` whole or streamed in this (fresh) process; bytes and seconds."""
+    import numpy as np  # noqa: F401  (imports count as baseline)
+
+    from torquemod.io import read_recording
+    from torquemod.io.stream import iter_chunks
+
+    base_now = _rss_now_bytes()
+    t0, c0 = time.perf_counter(), time.process_time()
+    total = 0.0
+    if mode == "whole":
+        rec = read_recording(path)
+        n = rec.n_samples
+        total = sum(float(x.sum()) for x in rec.channels.values())
+    else:
+        n = 0
+        for chunk in iter_chunks(path):
+            n += chunk["torque_nm"].size
+            total += sum(float(x.sum()) for x in chunk.values())
+    return {"baseline_rss": base_now, "peak_rss": _rss_peak_bytes(), "n": n, "sum": total,
+            "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
+
+
+def reading(hours_list: list[float], workdir: str | None, keep: bool) -> None:
+    import os
+
+    mib = 2**20
+    mem_total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    print(f"reading an HDF5 recording ({READ_CHANNELS} float64 columns incl. time_s, "
+          f"{FS_HZ:.0f} Hz) whole vs streamed; machine memory {mem_total / 2**30:.1f} GiB")
+    print(f"{'length':>8s} {'file MiB':>9s} {'mode':>8s} {'peak RSS above baseline':>24s} "
+          f"{'copies':>7s} {'wall s':>7s} {'CPU s':>7s}")
+    tmp = tempfile.mkdtemp(dir=workdir)
+    try:
+        for hours in hours_list:
+            path = Path(tmp) / f"long_{hours:g}h.h5"
+            n = generate_plain(path, hours)
+            one_copy = n * READ_CHANNELS * 8
+            for mode in ("whole", "streamed"):
+                if mode == "whole" and 1.5 * one_copy > 0.8 * mem_total:
+                    print(f"{hours:7.3g}h {path.stat().st_size / mib:9.0f} {mode:>8s} "
+                          f"{'skipped: does not fit':>24s}")
+                    continue
+                m = json.loads(subprocess.run(
+                    [sys.executable, __file__, "--_read", str(path), "--_mode", mode],
+                    check=True, capture_output=True, text=True).stdout)
+                used = m["peak_rss"] - m["baseline_rss"]
+                print(f"{hours:7.3g}h {path.stat().st_size / mib:9.0f} {mode:>8s} "
+                      f"{used / mib:20.0f} MiB {used / one_copy:7.3f} {m['wall_s']:7.1f} "
+                      f"{m['cpu_s']:7.1f}", flush=True)
+            if not keep:
+                path.unlink()
+    finally:
+        if not keep:
+            import shutil
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--reading", type=float, nargs="+", default=None, metavar="HOURS",
+                    help="measure reading alone, whole vs streamed, for these lengths [h]")
+    ap.add_argument("--keep", action="store_true", help="keep the generated files")
+    ap.add_argument("--_read", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--_mode", default="whole", help=argparse.SUPPRESS)
     ap.add_argument("--minutes", type=float, default=15.0)
     ap.add_argument("--workdir", default=None)
     ap.add_argument("--workers", type=int, default=None)
@@ -117,6 +224,12 @@ def main() -> None:
     ap.add_argument("--_generate", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--_measure", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args._read:
+        print(json.dumps(measure_read(Path(args._read), args._mode)))
+        return
+    if args.reading:
+        reading(args.reading, args.workdir, args.keep)
+        return
     if args._generate:
         print(json.dumps(generate(Path(args._generate), args.minutes)))
         return
