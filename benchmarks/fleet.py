@@ -1,0 +1,109 @@
+"""Fleet throughput on Dask: hours of recording processed per minute against workers.
+
+Writes a synthetic fleet (``--runs`` experiments of 6 steps x ``--cycles`` one-revolution
+HDF5 recordings at 16 670 Hz), then for each worker count processes the whole fleet with
+:func:`torquemod.fleet.run_fleet` on a ``LocalCluster`` of that many single-threaded worker
+processes (``force``: nothing skipped) and prints
+
+* hours of recording per minute of wall time (workers warmed up: imports and numba
+  caches loaded before the clock starts), and the scaling efficiency against 1 worker
+  (speed-up / workers),
+* CPU seconds the workers spent (their own ``process_time``), hence the figure per core,
+* peak RSS per worker (``ru_maxrss``).
+
+    python benchmarks/fleet.py 1 2 [--runs 8] [--cycles 3] [--workdir DIR]
+
+The script takes the machine as it finds it (``os.cpu_count()``) and runs unchanged on a
+bigger one; worker counts above the cores measure oversubscription.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import tempfile
+import time
+from pathlib import Path
+
+
+def _worker_stats() -> dict:
+    return {"maxrss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+            "cpu_s": time.process_time()}
+
+
+def _warm_up() -> None:
+    """Imports and the numba kernels' cache, once per worker, outside the timing."""
+    import numpy as np
+
+    import torquemod.pipeline  # noqa: F401
+    from torquemod.dsp import filters
+
+    filters.resample(np.zeros((2, 5000)), 2, 625, method="two_stage", padtype="constant")
+
+
+def write_fleet(root: Path, runs: int, cycles: int) -> float:
+    """The fleet's folders; returns the recorded duration [s]."""
+    import h5py
+
+    from torquemod.testing import write_synthetic_experiment
+
+    for k in range(runs):
+        folder = root / f"run{k:03d}"
+        if not (folder / "experiment.toml").exists():
+            write_synthetic_experiment(folder, n_steps=6, n_cycles=cycles, fmt="hdf5", seed=k)
+    seconds = 0.0
+    for path in root.rglob("*.h5"):
+        with h5py.File(path, "r") as fh:
+            seconds += fh["torque_nm"].shape[0] / float(fh.attrs["sample_rate_hz"])
+    return seconds
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("workers", type=int, nargs="+")
+    ap.add_argument("--runs", type=int, default=8)
+    ap.add_argument("--cycles", type=int, default=3)
+    ap.add_argument("--workdir", default=None)
+    args = ap.parse_args()
+
+    from dask.distributed import Client, LocalCluster
+
+    from torquemod.fleet import run_fleet
+
+    with tempfile.TemporaryDirectory(dir=args.workdir) as tmp:
+        root = Path(args.workdir or tmp) / "fleet"
+        seconds = write_fleet(root, args.runs, args.cycles)
+        hours = seconds / 3600
+        print(f"cores visible: {os.cpu_count()}; load average {os.getloadavg()[0]:.1f}; "
+              f"fleet: {args.runs} runs, {hours * 60:.1f} min of recording")
+        print(f"{'workers':>7s} {'wall s':>7s} {'h/min':>7s} {'efficiency':>10s} "
+              f"{'worker CPU s':>12s} {'h/min per CPU-core':>18s} {'peak RSS/worker':>15s}")
+        base = None
+        for n in args.workers:
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=40)
+            client = Client(cluster)
+            try:
+                client.run(_warm_up)
+                before = client.run(_worker_stats)
+                res = run_fleet([root], Path(tmp) / f"out{n}",
+                                scheduler=cluster.scheduler_address, force=True)
+                after = client.run(_worker_stats)
+            finally:
+                client.close()
+                cluster.close()
+            if res.count("failed"):
+                print(res.failures.to_string())
+            cpu = sum(after[w]["cpu_s"] - before[w]["cpu_s"] for w in after)
+            rss = max(a["maxrss_mib"] for a in after.values())
+            rate = hours / (res.wall_s / 60)
+            if n == 1:
+                base = rate
+            eff = f"{rate / (base * n):10.2f}" if base else f"{'-':>10s}"
+            print(f"{n:7d} {res.wall_s:7.1f} {rate:7.2f} {eff} {cpu:12.1f} "
+                  f"{hours / (cpu / 60):18.2f} {rss:12.0f} MiB", flush=True)
+
+
+if __name__ == "__main__":
+    main()
