@@ -71,3 +71,19 @@ def test_finding_manifests(fleet, tmp_path):
     assert names[0] != names[1] and all(n.startswith("axle1-") for n in names)
     with pytest.raises(TorquemodError):
         find_manifests([tmp_path / "nothing-here"])
+
+
+def test_file_digest_reused_only_while_size_and_mtime_hold(tmp_path):
+    import hashlib
+    import os
+
+    from torquemod.fleet import _file_digest
+    path = tmp_path / "rec.bin"
+    path.write_bytes(b"abc" * 1000)
+    first = _file_digest(path, {})
+    assert first[2] == hashlib.sha256(b"abc" * 1000).hexdigest()
+    fake = {str(path): [first[0], first[1], "recorded"]}
+    assert _file_digest(path, fake)[2] == "recorded"  # unchanged: not read again
+    path.write_bytes(b"abd" * 1000)  # same size, new content and time
+    os.utime(path, ns=(first[1] + 10**9, first[1] + 10**9))
+    assert _file_digest(path, fake)[2] == hashlib.sha256(b"abd" * 1000).hexdigest()

@@ -16,7 +16,8 @@ pandas, Dask and DuckDB read ``OUT/cycles`` directly (hive partitioning gives th
 column). A bad run never stops the fleet: its error, the same text ``torquemod process``
 prints after ``torquemod: error:``, becomes a row of the failures table. A rerun skips a run
 whose fingerprint (SHA-256 of the manifest and of every recording, the processing
-parameters, the torquemod version) is unchanged and whose partitions are in place.
+parameters, the torquemod version) is unchanged and whose partitions are in place; a file
+whose size and modification time are unchanged keeps its recorded digest.
 """
 
 from __future__ import annotations
@@ -85,21 +86,35 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def fingerprint(manifest: Path) -> tuple[str, object]:
-    """``(hex digest, experiment)``: SHA-256 over the manifest's bytes, each recording's
-    bytes, the processing parameters and the torquemod version."""
+def _file_digest(path: Path, known: dict) -> list:
+    """``[size, mtime_ns, sha256]`` of a file; the digest in ``known[str(path)]`` is reused
+    when size and modification time are unchanged (a rerun does not read every file again
+    just to find it unchanged; the usual assumption of make and rsync)."""
+    st = path.stat()
+    old = known.get(str(path))
+    if old and old[0] == st.st_size and old[1] == st.st_mtime_ns:
+        return list(old)
+    return [st.st_size, st.st_mtime_ns, _sha256(path)]
+
+
+def fingerprint(manifest: Path, known: dict | None = None) -> tuple[str, object, dict]:
+    """``(hex digest, experiment, files)``: SHA-256 over the manifest's and each recording's
+    SHA-256, the processing parameters and the torquemod version; ``files`` maps each file
+    to ``[size, mtime_ns, sha256]`` (pass it back as ``known`` next time)."""
     from .io import read_experiment
+    known = known or {}
     exp = read_experiment(manifest)
     cfg = exp.processing
-    h = hashlib.sha256()
-    h.update(_sha256(Path(exp.manifest_path)).encode())
+    files = {str(Path(exp.manifest_path)): _file_digest(Path(exp.manifest_path), known)}
     for path in sorted({str(e.path) for e in exp.recordings}):
-        h.update(path.encode())
         if Path(path).is_file():
-            h.update(_sha256(Path(path)).encode())
+            files[path] = _file_digest(Path(path), known)
+    h = hashlib.sha256()
+    for path, (_, _, digest) in sorted(files.items()):
+        h.update(f"{path}\0{digest}\0".encode())
     h.update(json.dumps(cfg.to_dict(), sort_keys=True, default=str).encode())
     h.update(__version__.encode())
-    return h.hexdigest(), exp
+    return h.hexdigest(), exp, files
 
 
 def _write_partition(df: pd.DataFrame, folder: Path) -> None:
@@ -127,11 +142,14 @@ def process_run(manifest: str, out_dir: str, run: str, force: bool = False) -> d
     row = {"run": run, "manifest": str(manifest), "n_steps": 0, "n_cycles": 0,
            "message": ""}
     try:
-        digest, exp = fingerprint(Path(manifest))
         state = out / "_state" / f"{run}.json"
+        try:
+            old = json.loads(state.read_text()) if state.is_file() else {}
+        except (OSError, ValueError):
+            old = {}
+        digest, exp, files = fingerprint(Path(manifest), old.get("files"))
         parts = [out / t / f"run={run}" / "part-0.parquet" for t in ("cycles", "steps")]
-        if not force and state.is_file() and all(p.is_file() for p in parts):
-            old = json.loads(state.read_text())
+        if not force and all(p.is_file() for p in parts):
             if old.get("fingerprint") == digest:
                 return {**row, **{k: old[k] for k in ("n_steps", "n_cycles")},
                         "status": "skipped", "seconds": time.perf_counter() - t0}
@@ -142,7 +160,7 @@ def process_run(manifest: str, out_dir: str, run: str, force: bool = False) -> d
         state.parent.mkdir(parents=True, exist_ok=True)
         state.write_text(json.dumps({"fingerprint": digest, "manifest": str(manifest),
                                      "n_steps": row["n_steps"],
-                                     "n_cycles": row["n_cycles"]}))
+                                     "n_cycles": row["n_cycles"], "files": files}))
         row["status"] = "processed"
     except TorquemodError as exc:
         row.update(status="failed", message=str(exc).splitlines()[0])
