@@ -85,6 +85,8 @@ def run(experiment, out, *, config: ProcessingConfig | None = None,
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
     from .fsutil import check_output_dir
     check_output_dir(out, force=force)  # refuse an occupied --out before any work
+    say(f"processing {len(exp.recordings)} recordings (the first run compiles the numba "
+        "decimation filter, a few seconds; later runs reuse the compiled cache) ...")
     res = process(exp, config, phase_method=phase_method, nan_policy=nan_policy,
                   progress=progress)
     t1 = time.perf_counter()
