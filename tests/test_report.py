@@ -137,6 +137,17 @@ def test_report_contains_every_figure_and_table(synthetic, tmp_path):
         assert key in text
     assert "step 3" in text  # the onset of the synthetic data (true k halved at step 3)
     assert text.count("<tr>") >= len(res.cycles) + 6
+    # Table 2 per step (6 rows, not 18 of nearly the same number), per cycle folded away
+    assert "Table 2: modulation frequencies from the FFT, mean over each step" in text
+    assert "<summary>Modulation frequencies per cycle</summary>" in text
+    # creepage in % in Table 1, as in Figure 3: step 6's 100*xi appears
+    xi6 = 100 * float(res.steps.loc[res.steps.step == 6, "creepage"].iloc[0])
+    assert f"<td>{xi6:.4g}</td>" in text
+    # tables scroll instead of overflowing; numbers do not wrap
+    assert '<div class="scroll"><table>' in text and "white-space:nowrap" in text
+    # SVG text is text, not outlines
+    svg = (tmp_path / "figures" / "fig3_creep_curve.svg").read_text(encoding="utf-8")
+    assert "<text" in svg and "Longitudinal creepage" in svg
 
 
 def test_report_title_names_the_experiment_and_says_onset_once(synthetic, tmp_path):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
@@ -47,7 +48,7 @@ def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None) -> F
     if ax is not None and not isinstance(ax, list | tuple | np.ndarray):
         fig, axes = ax.figure, [ax, ax.twinx()]
     else:
-        fig, axes = _axes(ax, 2, figsize=(8.0, 6.0))
+        fig, axes = _axes(ax, 2, figsize=(9.5, 6.0))
     rows = (("torque", "nm", "Applied torque [N·m]", "(a)", "C0"),
             ("wheel_speed", "rad_s", "Wheel angular velocity [rad/s]", "(b)", "C2"))
     t_raw, t_s, win = get("t_raw_s"), get("t_s"), get("phase_window_s")
@@ -59,12 +60,22 @@ def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None) -> F
             offset = float(np.mean(res)) if res is not None else float(np.mean(raw))
             a.plot(t_s[: filt.size], filt + offset, color=colour, lw=1.6,
                    label=f"{name.replace('_', ' ')} band-pass filtered (+ mean)")
-        if win is not None and win.size == 2 and a is axes[0]:
-            a.axvspan(win[0], win[1], color="C1", alpha=0.12, label="phase window")
+        if win is not None and win.size == 2:
+            a.axvspan(win[0], win[1], color="C1", alpha=0.12,
+                      label="phase window" if a is axes[0] else None)
+            # the torque's peaks in the window on both panels: the wheel speed's lag shows
+            for k, t_peak in enumerate(_peaks_in(t_s, get("torque_filtered_nm"), win)):
+                a.axvline(t_peak, color="C0", ls=":", lw=0.9,
+                          label="torque peaks" if a is axes[0] and k == 0 else None)
         a.set_ylabel(label)
         a.set_title(f"{tag} step {step}, cycle {cycle}", loc="left", fontsize=10)
         a.grid(True, alpha=0.3)
-        a.legend(loc="upper right", fontsize=8)
+        if ax is None:  # beside the panel, not over the peaks
+            a.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    if ax is not None:
+        handles = [h for a in axes for h in a.get_legend_handles_labels()[0]]
+        labels = [lab for a in axes for lab in a.get_legend_handles_labels()[1]]
+        axes[0].legend(handles, labels, loc="upper left", fontsize=7)
     axes[-1].set_xlabel("Time from cycle start [s]")
     return fig
 
@@ -72,6 +83,16 @@ def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None) -> F
 def _curve_xi(polach, xi_max, speed):
     grid = np.linspace(0.0, xi_max, 400)
     return grid, np.asarray(polach.curve(grid, speed), dtype=float)
+
+
+def _peaks_in(t, x, window) -> np.ndarray:
+    """Times [s] of the local maxima of ``x`` inside ``window`` (empty when unknown)."""
+    if t is None or x is None:
+        return np.empty(0)
+    t = t[: x.size]
+    inner = (x[1:-1] > x[:-2]) & (x[1:-1] >= x[2:])
+    tp = t[1:-1][inner]
+    return tp[(tp >= window[0]) & (tp <= window[1])]
 
 
 def creep_curve_figure(ana, *, ax=None, coa_multiplier: float = 20.0,
@@ -213,8 +234,10 @@ def save_figure(fig: Figure, base: Path, *, formats=("png", "svg"), dpi: int = 1
     base = Path(base)
     base.parent.mkdir(parents=True, exist_ok=True)
     paths = []
-    for fmt in formats:
-        path = base.with_suffix(f".{fmt}")
-        fig.savefig(path, format=fmt, dpi=dpi)
-        paths.append(path)
+    # SVG text stays text (searchable, selectable), not glyph outlines
+    with matplotlib.rc_context({"svg.fonttype": "none"}):
+        for fmt in formats:
+            path = base.with_suffix(f".{fmt}")
+            fig.savefig(path, format=fmt, dpi=dpi)
+            paths.append(path)
     return paths

@@ -18,7 +18,8 @@ body{font-family:system-ui,-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;m
 max-width:1100px;padding:0 1em;color:#222;line-height:1.45}
 h1{font-size:1.6em;border-bottom:2px solid #444}h2{font-size:1.25em;margin-top:1.8em;
 border-bottom:1px solid #bbb}table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
-th,td{border:1px solid #bbb;padding:.25em .6em;text-align:right}th{background:#eee}
+th,td{border:1px solid #bbb;padding:.25em .6em;text-align:right;white-space:nowrap}
+.scroll{overflow-x:auto;max-width:100%}th{background:#eee}
 td.l,th.l{text-align:left}caption{caption-side:top;text-align:left;font-weight:bold;
 padding:.3em 0}figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}
 figcaption{font-size:.9em;color:#444}.warn{background:#fff4e0;border-left:4px solid #e0a000;
@@ -43,7 +44,7 @@ def fmt(value, digits: int = 4) -> str:
 
 def table(headers, rows, *, caption: str | None = None, left: int = 0) -> str:
     """An escaped HTML table; the first ``left`` columns are left-aligned."""
-    out = ["<table>"]
+    out = ['<div class="scroll"><table>']
     if caption:
         out.append(f"<caption>{escape(caption)}</caption>")
     cls = [' class="l"' if i < left else "" for i in range(len(headers))]
@@ -53,7 +54,7 @@ def table(headers, rows, *, caption: str | None = None, left: int = 0) -> str:
     for row in rows:
         out.append("<tr>" + "".join(f"<td{c}>{escape(v if isinstance(v, str) else fmt(v))}</td>"
                                     for c, v in zip(cls, row, strict=True)) + "</tr>")
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     return "\n".join(out)
 
 
@@ -72,7 +73,9 @@ def _kv(pairs) -> str:
 def _pm(value, err, digits=4) -> str:
     if value is None:
         return "—"
-    return f"{fmt(value, digits)} ± {fmt(err, 2)}" if err is not None else fmt(value, digits)
+    # no-break spaces: a value and its error never split across lines
+    return (f"{fmt(value, digits)}\u00a0±\u00a0{fmt(err, 2)}" if err is not None
+            else fmt(value, digits))
 
 
 def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
@@ -120,29 +123,20 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
     ])
 
     s_cols = [("step", "Step"), ("dc_torque_nm", "DC applied torque [N·m]"),
-              ("torque_pct_saturation", "DC torque [% Ts]"), ("creepage", "Creepage ξx [-]"),
-              ("creepage_std", "std ξx [-]"), ("coa", "CoA [-]"), ("coa_std", "std CoA [-]"),
+              ("torque_pct_saturation", "DC torque [% Ts]"), ("creepage", "Creepage ξx [%]"),
+              ("creepage_std", "std ξx [%]"), ("coa", "CoA [-]"), ("coa_std", "std CoA [-]"),
               ("phase_deg", "Phase φ [deg]"), ("phase_std_deg", "std φ [deg]"),
               ("phase_theory_deg", "Theory φ [deg]"), ("creep_coefficient", "dCoA/dξx [-]"),
               ("phase_fit_deg", "Phase fit φ [deg]"),
               ("utilisation_phase", "Utilisation CoA/μ (phase) [-]"),
               ("n_cycles", "Cycles")]
     s_cols = [(k, h) for k, h in s_cols if k in steps.columns]
+    pct = {"creepage", "creepage_std"}  # in % as in Figure 3
     t1 = table([h for _, h in s_cols],
-               [[_py(r[k]) for k, _ in s_cols] for _, r in steps.iterrows()],
+               [[_py(100 * r[k] if k in pct else r[k]) for k, _ in s_cols]
+                for _, r in steps.iterrows()],
                caption="Table 1: DC torque steps and their creep-curve and phase results")
-    if cycles is not None:
-        c_cols = [("step", "Step"), ("cycle", "Cycle"),
-                  ("torque_peak_hz", "Peak frequency torque [Hz]"),
-                  ("wheel_peak_hz", "Peak frequency wheel angular velocity [Hz]"),
-                  ("modulation_hz", "Common modulation frequency [Hz]")]
-        c_cols = [(k, h) for k, h in c_cols if k in cycles.columns]
-        t2 = table([h for _, h in c_cols],
-                   [[_py(r[k], 6) for k, _ in c_cols] for _, r in cycles.iterrows()],
-                   caption="Table 2: modulation frequencies from the FFT per cycle and their "
-                           "average (common modulation frequency)")
-    else:
-        t2 = "<p>Table 2: cycles.csv not found.</p>"
+    t2 = _frequency_tables(cycles)
 
     names = list(fit.get("parameters", {}))
     tp = table(["Parameter", "Value", "Standard error"],
@@ -205,6 +199,35 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
         "</body></html>",
     ]
     return "\n".join(parts) + "\n"
+
+
+def _frequency_tables(cycles) -> str:
+    """Table 2 per step (mean and spread of the FFT peak frequencies over the step's cycles),
+    the per-cycle values folded away below it."""
+    if cycles is None or cycles.empty:
+        return "<p>Table 2: no cycles.</p>"
+    cols = [("torque_peak_hz", "Peak frequency torque [Hz]"),
+            ("wheel_peak_hz", "Peak frequency wheel angular velocity [Hz]"),
+            ("modulation_hz", "Common modulation frequency [Hz]")]
+    cols = [(k, h) for k, h in cols if k in cycles.columns]
+    g = cycles.groupby("step")
+    rows = []
+    for step, grp in g:
+        row = [_py(step), str(len(grp))]
+        for k, _ in cols:
+            v = grp[k].to_numpy(dtype=float)
+            spread = float(v.max() - v.min()) if v.size > 1 else None
+            row.append(f"{fmt(float(v.mean()), 6)}" + (f" (± {fmt(spread / 2, 2)})"
+                                                       if spread else ""))
+        rows.append(row)
+    t2 = table(["Step", "Cycles", *[h for _, h in cols]], rows,
+               caption="Table 2: modulation frequencies from the FFT, mean over each step's "
+                       "cycles (± half their range); per cycle below")
+    per_cycle = table(["Step", "Cycle", *[h for _, h in cols]],
+                      [[_py(r["step"]), _py(r["cycle"]), *[_py(r[k], 6) for k, _ in cols]]
+                       for _, r in cycles.iterrows()])
+    return (t2 + "<details><summary>Modulation frequencies per cycle</summary>" + per_cycle
+            + "</details>")
 
 
 def _onset_text(onset: dict) -> str:
