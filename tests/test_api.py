@@ -163,6 +163,24 @@ def _damage(folder: Path, case: str) -> Path:
         df.loc[0, "slip"] = "maybe"
         df.to_csv(steps, index=False)
         return steps
+    if case in ("radius as text", "fit option garbage"):
+        doc = json.loads((folder / "result.json").read_text(encoding="utf-8"))
+        if case == "radius as text":
+            doc["experiment"]["rig"]["wheel_radius_m"] = "0.075 m"
+        else:
+            doc["analysis"] = {"options": {"n_starts": "many"}}
+        (folder / "result.json").write_text(json.dumps(doc), encoding="utf-8")
+        return folder / "result.json"
+    if case == "fractional cycle count":
+        df = pd.read_csv(steps, dtype=str)
+        df.loc[1, "n_cycles"] = "2.5"
+        df.to_csv(steps, index=False)
+        return steps
+    if case == "tables disagree":
+        df = pd.read_csv(steps, dtype=str)
+        df.loc[1, "step"] = "12"
+        df.to_csv(steps, index=False)
+        return folder
     if case == "no cycles.csv":
         (folder / "cycles.csv").unlink()
         return folder / "cycles.csv"
@@ -174,7 +192,8 @@ def _damage(folder: Path, case: str) -> Path:
 
 DAMAGE = ("no result.json", "result.json garbage", "result.json wrong shape",
           "text in a number column", "truncated row", "slip not a boolean", "no cycles.csv",
-          "traces garbage")
+          "traces garbage", "radius as text", "fit option garbage", "fractional cycle count",
+          "tables disagree")
 
 
 @pytest.fixture(scope="module")

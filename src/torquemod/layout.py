@@ -174,7 +174,7 @@ def load(folder) -> tuple[ProcessResult, Analysis | None]:
         n_steps, n_cycles = int(state["n_steps"]), int(state["n_cycles"])
         details = list(state["cycle_details"])
         fit_state = state.get("analysis")
-        options = None if fit_state is None else FitOptions.coerce(fit_state["options"])
+        options = None if fit_state is None else _fit_options(fit_state["options"])
     except InputError:
         raise
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
@@ -183,6 +183,7 @@ def load(folder) -> tuple[ProcessResult, Analysis | None]:
     cycles = _read_table(folder / "cycles.csv", CYCLE_COLUMNS, n_cycles)
     steps = _read_table(folder / "steps.csv", STEP_COLUMNS, n_steps)
     traces = _read_traces(folder / "traces.npz")
+    _check_consistent(cycles, steps, details, folder)
     result = ProcessResult(
         experiment=exp, config=config, cycles=cycles, steps=steps, cycle_details=details,
         traces=traces, warnings=list(state.get("warnings") or []),
@@ -193,7 +194,11 @@ def load(folder) -> tuple[ProcessResult, Analysis | None]:
         torquemod_version=str(state.get("torquemod_version") or ""))
     if options is None:
         return result, None
-    analysis = analyze(result, options)
+    try:
+        analysis = analyze(result, options)
+    except InputError as exc:  # tables that parse but cannot be analysed
+        raise InputError(f"cannot be analysed: {exc}", path=folder,
+                         hint="process the experiment again") from None
     analysis.created_utc = str(fit_state.get("created_utc") or analysis.created_utc)
     return result, analysis
 
@@ -223,12 +228,57 @@ def _read_state(path: Path) -> dict:
     return state
 
 
+def _number(value, key: str) -> float:
+    """A finite number of the state file (bool and text refused)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or \
+            not np.isfinite(value):
+        raise ValueError(f"'{key}' is {value!r}, not a finite number")
+    return float(value)
+
+
 def _experiment(doc: dict) -> Experiment:
+    rig, test = dict(doc["rig"]), dict(doc["test"])
+    for key in ("wheel_radius_m", "platform_radius_m"):
+        rig[key] = _number(rig[key], f"rig.{key}")
+    for key in ("normal_load_n", "modulation_frequency_hz", "modulation_amplitude_nm"):
+        test[key] = _number(test[key], f"test.{key}")
+    extra = dict(rig.get("extra") or {})
+    for key in ("wheel_inertia_kg_m2", "contact_stiffness"):
+        if extra.get(key) is not None:
+            extra[key] = _number(extra[key], f"rig.{key}")
+    rig["extra"] = extra
     recs = tuple(RecordingEntry(**{**r, "path": Path(r["path"])}) for r in doc["recordings"])
-    return Experiment(manifest_path=Path(doc["manifest_path"]), rig=Rig(**doc["rig"]),
-                      test=TestSetup(**doc["test"]), recordings=recs,
+    return Experiment(manifest_path=Path(doc["manifest_path"]), rig=Rig(**rig),
+                      test=TestSetup(**test), recordings=recs,
                       channel_map=dict(doc.get("channel_map") or {}),
                       extra=dict(doc.get("extra") or {}))
+
+
+def _fit_options(doc) -> FitOptions:
+    """The stored fit options, each of its default's type."""
+    opts = FitOptions.coerce(doc)
+    for f in dataclasses.fields(FitOptions):
+        value, default = getattr(opts, f.name), f.default
+        if isinstance(default, bool):
+            ok = isinstance(value, bool)
+        elif isinstance(default, int | float) or default is None:
+            ok = (value is None and default is None) or (
+                isinstance(value, int | float) and not isinstance(value, bool)
+                and np.isfinite(value))
+        else:
+            ok = isinstance(value, type(default))
+        if not ok:
+            raise ValueError(f"fit option '{f.name}' is {value!r}")
+    return opts
+
+
+def _check_consistent(cycles: pd.DataFrame, steps: pd.DataFrame, details: list,
+                      folder: Path) -> None:
+    """The tables and the per-cycle details describe the same steps and cycles."""
+    if set(cycles["step"]) != set(steps["step"]) or len(details) != len(cycles):
+        raise InputError("damaged results: steps.csv, cycles.csv and result.json do not "
+                         "describe the same steps and cycles", path=folder,
+                         hint="process the experiment again")
 
 
 def _read_table(path: Path, columns: list[str], n_rows: int) -> pd.DataFrame:
@@ -274,7 +324,8 @@ def _read_table(path: Path, columns: list[str], n_rows: int) -> pd.DataFrame:
     table = pd.DataFrame(out, columns=columns)
     for col in ("step", "cycle", "n_cycles"):
         if col in table:
-            if not np.all(np.isfinite(table[col])):
+            values = table[col].to_numpy(float)
+            if not np.all(np.isfinite(values) & (values == np.round(values))):
                 raise InputError(f"damaged table: column '{col}' is not a whole number",
                                  path=path, hint="process the experiment again")
             table[col] = table[col].astype(int)
