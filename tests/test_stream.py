@@ -99,8 +99,8 @@ def test_parquet_row_groups_and_csv_blocks_do_not_show(columns, tmp_path, write_
     pq.write_table(table, path, row_group_size=1000)
     assert pq.ParquetFile(path).num_row_groups == 6
     _same(path)
-    from torquemod.io import stream
-    monkeypatch.setattr(stream, "CSV_BLOCK_BYTES", 10_000)  # ~ 60 rows per text block
+    from torquemod.io import _stream_tables
+    monkeypatch.setattr(_stream_tables, "CSV_BLOCK_BYTES", 10_000)  # ~ 60 rows per text block
     path = write_columns("csv", tmp_path / "blocks.csv", {"time_s": t, **columns})
     _same(path)
 
@@ -157,3 +157,58 @@ def test_hash_file_async_is_sha256(tmp_path):
     data = np.random.default_rng(1).bytes(3 * 2**20 + 17)
     path.write_bytes(data)
     assert hash_file_async(path, block=1 << 20).result() == hashlib.sha256(data).hexdigest()
+
+
+@pytest.mark.parametrize(("n_rev", "fmt", "chunk"), [(3.6, "hdf5", 997), (3.0, "hdf5", 1 << 14),
+                                                     (2.4, "csv", 1500)])
+def test_revolutions_streamed_equal_the_whole_file_split(n_rev, fmt, chunk, tmp_path):
+    """Index ranges identical to revolution_bounds on the whole platform speed (a wobbling
+    speed, chunks that cut revolutions anywhere, a file of exactly whole revolutions), and
+    samples identical to Recording.slice."""
+    from torquemod.cycles import revolution_bounds
+    from torquemod.io import write_recording
+    from torquemod.testing import SyntheticSpec, synthetic_recording
+
+    rec = synthetic_recording(SyntheticSpec(fs_hz=FS_HZ, n_revolutions=n_rev, seed=4))
+    path = write_recording(tmp_path / f"long.{'h5' if fmt == 'hdf5' else 'csv'}", rec,
+                           fmt=fmt)
+    whole = read_recording(path)
+    bounds = revolution_bounds(whole.channels["platform_speed_rad_s"], whole.fs_hz)
+    assert len(bounds) == int(n_rev)
+    with open_stream(path) as stream:
+        got = list(stream.revolutions(chunk_rows=chunk))
+        tail = stream.tail_samples
+    assert [r for _, _, r in got] == bounds
+    assert [k for k, _, _ in got] == list(range(1, len(bounds) + 1))
+    assert tail == whole.n_samples - bounds[-1][1]
+    for _, seg, (a, b) in got:
+        ref = whole.slice(a, b)
+        assert seg.channels.keys() == ref.channels.keys()
+        for c in ref.channels:
+            np.testing.assert_array_equal(seg.channels[c], ref.channels[c])
+        assert seg.t0_s == pytest.approx(ref.t0_s, abs=1e-12)
+        assert seg.fs_hz == pytest.approx(ref.fs_hz, rel=1e-12)
+
+
+def test_last_revolution_completed_within_the_last_sample_interval(tmp_path):
+    """A file of exactly 3 revolutions at a constant speed: the angle at the last sample is
+    one sample short of 6 pi, so the third revolution is found only at the end of the last
+    sample's interval (revolution_bounds' appended point)."""
+    from torquemod.cycles import revolution_bounds
+    from torquemod.data import Recording
+    from torquemod.io import write_recording
+
+    w = 0.75  # [rad/s]
+    n = 3 * 2000  # 3 revolutions of 2000 samples
+    fs = n * w / (6 * np.pi)
+    rng = np.random.default_rng(2)
+    ch = {"torque_nm": rng.standard_normal(n), "wheel_speed_rad_s": 30 + rng.standard_normal(n),
+          "platform_speed_rad_s": np.full(n, w)}
+    path = write_recording(tmp_path / "exact.h5", Recording(ch, fs, 0.0, "t"), fmt="hdf5")
+    whole = read_recording(path)
+    bounds = revolution_bounds(whole.channels["platform_speed_rad_s"], whole.fs_hz)
+    assert bounds[-1][1] == n and len(bounds) == 3
+    with open_stream(path) as stream:
+        got = [r for _, _, r in stream.revolutions(chunk_rows=1234)]
+        assert stream.tail_samples == 0
+    assert got == bounds
