@@ -21,17 +21,23 @@ EXIT_INTERNAL = 3
 
 def _fmt(x: object, spec: str) -> str:
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "-"
+        width = spec.split(".")[0]
+        return "-".rjust(int(width)) if width.isdigit() else "-"
     return format(x, spec)
 
 
 def _print_steps(steps) -> None:
+    """The steps table; with the analysis columns when the steps were analysed."""
+    analysed = "torque_pct_saturation" in steps.columns
     print(f"{'step':>4} {'DC [N*m]':>9} {'phase [deg]':>12} {'std':>6} {'creepage':>10} "
-          f"{'CoA':>7} {'cycles':>6}")
+          f"{'CoA':>7} {'cycles':>6}" + (f" {'% of Ts':>8} {'theory [deg]':>13}"
+                                          if analysed else ""))
     for r in steps.itertuples():
+        extra = (f" {_fmt(r.torque_pct_saturation, '8.1f')} "
+                 f"{_fmt(r.phase_theory_deg, '13.2f')}") if analysed else ""
         print(f"{r.step:>4} {r.dc_torque_nm:>9.2f} {_fmt(r.phase_deg, '12.3f')} "
               f"{_fmt(r.phase_std_deg, '6.3f')} {_fmt(r.creepage, '10.3e')} "
-              f"{_fmt(r.coa, '7.4f')} {r.n_cycles:>6}"
+              f"{_fmt(r.coa, '7.4f')} {r.n_cycles:>6}{extra}"
               + ("  SLIP (not fitted)" if getattr(r, "slip", False) else ""))
 
 
