@@ -18,9 +18,10 @@ an HDF5 recording with a ``time_s`` column and the 6 channels (fast synthetic si
 in blocks), then in a fresh process per case reads it whole (``read_recording``) or streamed
 (``torquemod.io.stream.iter_chunks``, summing every chunk so each value is touched), and
 prints peak RSS above the post-import baseline and CPU time. Reading whole is skipped when
-one copy would not fit in the machine's memory.
+one copy would not fit in the machine's memory. ``--chain`` adds a third case: streamed
+revolution by revolution (``RecordingStream.revolutions``) through the per-cycle chain.
 
-    python benchmarks/memory.py --reading 0.1667 1 [--workdir DIR] [--keep]
+    python benchmarks/memory.py --reading 0.1667 1 [--chain] [--workdir DIR] [--keep]
 """
 
 from __future__ import annotations
@@ -166,6 +167,20 @@ def measure_read(path: Path, mode: str) -> dict:
         rec = read_recording(path)
         n = rec.n_samples
         total = sum(float(x.sum()) for x in rec.channels.values())
+    elif mode == "revolutions":  # streamed, and the per-cycle chain on every revolution
+        from torquemod import chain
+        from torquemod.config import ProcessingConfig
+        from torquemod.data import Rig
+        from torquemod.io.stream import open_stream
+
+        cfg, rig, n = ProcessingConfig(), Rig(0.0675, 2.0), 0
+        with open_stream(path) as stream:
+            for k, seg, _ in stream.revolutions():
+                sig = chain.process_cycle(seg, rig, cfg, where=f"revolution {k}",
+                                          nominal_hz=2.0)
+                total += chain.cycle_phase(sig, cfg,
+                                           center_index=sig.torque_filtered.size / 2)[0]
+                n += seg.n_samples
     else:
         n = 0
         for chunk in iter_chunks(path):
@@ -175,14 +190,15 @@ def measure_read(path: Path, mode: str) -> dict:
             "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
 
 
-def reading(hours_list: list[float], workdir: str | None, keep: bool) -> None:
+def reading(hours_list: list[float], workdir: str | None, keep: bool,
+            chain: bool = False) -> None:
     import os
 
     mib = 2**20
     mem_total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     print(f"reading an HDF5 recording ({READ_CHANNELS} float64 columns incl. time_s, "
           f"{FS_HZ:.0f} Hz) whole vs streamed; machine memory {mem_total / 2**30:.1f} GiB")
-    print(f"{'length':>8s} {'file MiB':>9s} {'mode':>8s} {'peak RSS above baseline':>24s} "
+    print(f"{'length':>8s} {'file MiB':>9s} {'mode':>11s} {'peak RSS above baseline':>24s} "
           f"{'copies':>7s} {'wall s':>7s} {'CPU s':>7s}")
     tmp = tempfile.mkdtemp(dir=workdir)
     try:
@@ -190,16 +206,16 @@ def reading(hours_list: list[float], workdir: str | None, keep: bool) -> None:
             path = Path(tmp) / f"long_{hours:g}h.h5"
             n = generate_plain(path, hours)
             one_copy = n * READ_CHANNELS * 8
-            for mode in ("whole", "streamed"):
+            for mode in ("whole", "streamed", *(("revolutions",) if chain else ())):
                 if mode == "whole" and 1.5 * one_copy > 0.8 * mem_total:
-                    print(f"{hours:7.3g}h {path.stat().st_size / mib:9.0f} {mode:>8s} "
+                    print(f"{hours:7.3g}h {path.stat().st_size / mib:9.0f} {mode:>11s} "
                           f"{'skipped: does not fit':>24s}")
                     continue
                 m = json.loads(subprocess.run(
                     [sys.executable, __file__, "--_read", str(path), "--_mode", mode],
                     check=True, capture_output=True, text=True).stdout)
                 used = m["peak_rss"] - m["baseline_rss"]
-                print(f"{hours:7.3g}h {path.stat().st_size / mib:9.0f} {mode:>8s} "
+                print(f"{hours:7.3g}h {path.stat().st_size / mib:9.0f} {mode:>11s} "
                       f"{used / mib:20.0f} MiB {used / one_copy:7.3f} {m['wall_s']:7.1f} "
                       f"{m['cpu_s']:7.1f}", flush=True)
             if not keep:
@@ -215,6 +231,9 @@ def main() -> None:
     ap.add_argument("--reading", type=float, nargs="+", default=None, metavar="HOURS",
                     help="measure reading alone, whole vs streamed, for these lengths [h]")
     ap.add_argument("--keep", action="store_true", help="keep the generated files")
+    ap.add_argument("--chain", action="store_true",
+                    help="with --reading: also stream revolution by revolution through the "
+                         "per-cycle chain (steps 1-5, 8 and the phase)")
     ap.add_argument("--_read", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--_mode", default="whole", help=argparse.SUPPRESS)
     ap.add_argument("--minutes", type=float, default=15.0)
@@ -228,7 +247,7 @@ def main() -> None:
         print(json.dumps(measure_read(Path(args._read), args._mode)))
         return
     if args.reading:
-        reading(args.reading, args.workdir, args.keep)
+        reading(args.reading, args.workdir, args.keep, args.chain)
         return
     if args._generate:
         print(json.dumps(generate(Path(args._generate), args.minutes)))
