@@ -282,6 +282,19 @@ def test_error_line_is_not_written_on_the_progress_bar(experiment, tmp_path, cap
     assert "step3_cycle2.csv" in last
 
 
+@pytest.mark.parametrize("where", ["folder", "parent"])
+def test_process_refuses_an_out_holding_its_inputs(experiment, tmp_path, capsys, where):
+    d = tmp_path / "exp"
+    shutil.copytree(experiment.parent, d)
+    before = {p.name: p.read_bytes() for p in d.iterdir()}
+    out = d if where == "folder" else tmp_path
+    assert main(["process", str(d / "experiment.toml"), "--out", str(out), "--force",
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "would replace the experiment's own file" in err[0]
+    assert {p.name: p.read_bytes() for p in d.iterdir()} == before
+
+
 def test_interrupted_demo_leaves_nothing_behind(tmp_path, monkeypatch):
     from torquemod import simulate
     from torquemod.demo import run_demo

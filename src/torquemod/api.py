@@ -25,6 +25,7 @@ from .analysis import FitOptions, analyze
 from .analysisresult import Analysis
 from .config import ProcessingConfig
 from .data import Experiment
+from .errors import OutputError
 from .layout import load, save, update
 from .pipeline import ProcessResult, process_experiment, resolve_config
 
@@ -75,6 +76,17 @@ def _inputs(exp: Experiment) -> list[Path]:
     return [Path(exp.manifest_path), *(Path(e.path) for e in exp.recordings)]
 
 
+def _refuse_inputs(out, inputs) -> None:
+    """Refuse, before any work, an output folder that is or holds one of the inputs (with
+    --force it would be replaced, inputs and all)."""
+    target = Path(out).resolve()
+    for path in inputs:
+        p = Path(path).resolve()
+        if p == target or target in p.parents:
+            raise OutputError(f"{out}: the results folder would replace the experiment's own "
+                              f"file {path}; choose another --out")
+
+
 def run(experiment, out, *, config: ProcessingConfig | None = None,
         phase_method: str | None = None, nan_policy: str | None = None, fit: bool = True,
         fit_options=None, report_options=None, force: bool = False, progress: bool = False,
@@ -84,6 +96,7 @@ def run(experiment, out, *, config: ProcessingConfig | None = None,
     t0 = time.perf_counter()
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
     from .fsutil import check_output_dir
+    _refuse_inputs(out, _inputs(exp))
     check_output_dir(out, force=force)  # refuse an occupied --out before any work
     say(f"processing {len(exp.recordings)} recordings (the first run compiles the numba "
         "decimation filter, a few seconds; later runs reuse the compiled cache) ...")
