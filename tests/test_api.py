@@ -254,6 +254,8 @@ def test_fit_takes_options_updates_the_report_and_prints_formatted(processed, tm
     d = tmp_path / "out"
     shutil.copytree(processed[0], d)
     old_report = (d / "report.html").read_text(encoding="utf-8")
+    command = json.loads((d / "provenance.json").read_text(encoding="utf-8"))["command"]
+    assert command
     assert "phase rise over the previous step" not in old_report
     assert main(["fit", str(d), "--onset-criterion", "phase"]) == 0
     cap = capsys.readouterr()
@@ -265,6 +267,8 @@ def test_fit_takes_options_updates_the_report_and_prints_formatted(processed, tm
     assert "warning: the creep points do not determine" in cap.err
     assert not re.search(r"\d\.\d{7,}", cap.out)
     assert f"updated {d}" in cap.out
+    # provenance keeps the command that processed the data
+    assert json.loads((d / "provenance.json").read_text(encoding="utf-8"))["command"] == command
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
     _, ana = tm.load(d)
     assert ana.options.onset_criterion == "phase"

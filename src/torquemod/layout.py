@@ -64,8 +64,10 @@ def save(result: ProcessResult, analysis: Analysis | None, folder, *, force: boo
     An existing non-empty ``folder`` is refused unless ``force``; ``inputs`` (the manifest and
     the recordings) are files the folder must never replace or contain. ``report=False``
     skips the figures and report.html."""
+    if command is not None:
+        result = dataclasses.replace(result, command=list(command))
     with _new_dir(folder, force=force, inputs=inputs) as tmp:
-        _write_all(tmp, Path(folder), result, analysis, command=command, report=report,
+        _write_all(tmp, Path(folder), result, analysis, command=None, report=report,
                    report_options=report_options)
     return Path(folder)
 
@@ -74,7 +76,8 @@ def update(folder, result: ProcessResult, analysis: Analysis | None, *,
            command: list[str] | None = None, report: bool = True, report_options=None
            ) -> Path:
     """Rewrite an existing results folder with a new analysis or report, atomically: readers
-    see the old folder or the new one, never a mix."""
+    see the old folder or the new one, never a mix. provenance.json keeps the processing
+    command (``result.command``) unless ``command`` is given."""
     folder = Path(folder)
     with _update_dir(folder) as tmp:
         _write_all(tmp, folder, result, analysis, command=command, report=report,
@@ -109,7 +112,7 @@ def _write_all(tmp: Path, final: Path, result: ProcessResult, analysis: Analysis
     """Every file of the layout into the folder being assembled; a full disk or an
     unwritable target ends as one OutputError naming the folder."""
     try:
-        prov = provenance(result, command=command)
+        prov = provenance(result, command=command or result.command)
         steps = analysis.steps if analysis is not None else result.steps
         result.cycles.to_csv(tmp / "cycles.csv", index=False, lineterminator="\n")
         steps.to_csv(tmp / "steps.csv", index=False, lineterminator="\n")
@@ -147,7 +150,7 @@ def _state(result: ProcessResult, analysis: Analysis | None) -> dict:
         "n_steps": len(result.steps), "n_cycles": len(result.cycles),
         "cycle_details": result.cycle_details, "warnings": result.warnings,
         "nan_actions": result.nan_actions, "timing_s": result.timing_s,
-        "input_sha256": result.input_sha256,
+        "input_sha256": result.input_sha256, "command": result.command,
         "analysis": None if analysis is None else {
             "options": dataclasses.asdict(analysis.options),
             "created_utc": analysis.created_utc},
@@ -191,7 +194,8 @@ def load(folder) -> tuple[ProcessResult, Analysis | None]:
         nan_actions=list(state.get("nan_actions") or []),
         input_sha256=dict(state.get("input_sha256") or {}),
         created_utc=str(state.get("created_utc") or ""),
-        torquemod_version=str(state.get("torquemod_version") or ""))
+        torquemod_version=str(state.get("torquemod_version") or ""),
+        command=state.get("command") if isinstance(state.get("command"), list) else None)
     if options is None:
         return result, None
     try:

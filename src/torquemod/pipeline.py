@@ -77,6 +77,7 @@ class ProcessResult:
     input_sha256: dict[str, str] = field(default_factory=dict)  # file path -> digest
     created_utc: str = ""
     torquemod_version: str = __version__
+    command: list[str] | None = None  # the command line that processed it, for provenance
 
     @property
     def name(self) -> str:
