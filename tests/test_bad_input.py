@@ -616,6 +616,7 @@ def test_force_replaces_whole_folder(base_experiment, tmp_path, capsys):
     out = tmp_path / "out"
     out.mkdir()
     (out / "stale.txt").write_text("old", encoding="utf-8")
+    (out / ".torquemod-results").write_text('{"format": "torquemod-output"}')  # torquemod's
     rc = main(["process", str(base_experiment), "--out", str(out), "--quiet", "--no-fit",
                "--force"])
     capsys.readouterr()

@@ -431,7 +431,8 @@ def test_convert_experiment(reference, tmp_path, write_columns):
     out = tmp_path / "converted"
     manifest = convert_experiment(src / "experiment.toml", out)
     assert manifest == out.absolute() / "experiment.toml"
-    assert sorted(p.name for p in out.iterdir()) == ["experiment.toml", "s1.h5", "s2.h5"]
+    assert sorted(p.name for p in out.iterdir()) == [".torquemod-results", "experiment.toml",
+                                                 "s1.h5", "s2.h5"]
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
     old, new = read_experiment(src), read_experiment(manifest)
     assert new.rig == old.rig and new.test == old.test and new.channel_map == {}

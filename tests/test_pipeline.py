@@ -149,8 +149,9 @@ def test_results_folder_and_provenance(noisy_experiment, tmp_path):
     folder, _ = noisy_experiment
     res = process_experiment(folder / "experiment.toml")
     out = save(res, None, tmp_path / "res", command=["torquemod", "process"])
-    assert sorted(p.name for p in out.iterdir()) == ["cycles.csv", "provenance.json",
-                                                    "result.json", "steps.csv", "traces.npz"]
+    assert sorted(p.name for p in out.iterdir()) == [".torquemod-results", "cycles.csv",
+                                                    "provenance.json", "result.json",
+                                                    "steps.csv", "traces.npz"]
     prov = json.loads((out / "provenance.json").read_text())
     assert prov["torquemod_version"]
     assert prov["parameters"]["bandpass"]["width_hz"] == 0.36

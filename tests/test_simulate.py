@@ -132,6 +132,9 @@ def test_output_folder_rules(short_run, tmp_path):
     target = tmp_path / "x"
     target.mkdir()
     (target / "old.txt").write_text("old")
+    with pytest.raises(OutputError, match=r"old\.txt"):  # --force spares folders not torquemod's
+        run_simulation(cfg, target, progress=False, force=True)
+    (target / ".torquemod-results").write_text('{"format": "torquemod-output"}')
     run_simulation(cfg, target, progress=False, force=True, files_per_cycle=False,
                    fmt="hdf5")
     assert not (target / "old.txt").exists()

@@ -182,12 +182,16 @@ def _why_they_differ(out: dict, truth: dict) -> str:
 
 def cmd_convert(args: argparse.Namespace) -> int:
     from . import convert
-    if args.manifest:
-        path = convert.convert_experiment(Path(args.manifest), Path(args.out))
-    elif args.input is None:
+    if args.input is None and not args.manifest:
         raise _UsageError("convert needs an INPUT recording or --manifest EXPERIMENT.toml")
+    if args.input is None:  # the whole experiment into a folder
+        path = convert.convert_experiment(Path(args.manifest), Path(args.out),
+                                          force=args.force)
+    elif args.manifest:  # one file, read with the manifest's [channels]
+        path = convert.convert_listed_file(Path(args.input), Path(args.manifest),
+                                           Path(args.out), force=args.force)
     else:
-        path = convert.convert_file(Path(args.input), Path(args.out))
+        path = convert.convert_file(Path(args.input), Path(args.out), force=args.force)
     print(f"written {path}")
     return 0
 
@@ -272,10 +276,21 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=cmd_demo)
 
     c = sub.add_parser("convert", parents=[common],
-                       help="write a recording (or experiment) as HDF5")
-    c.add_argument("input", nargs="?", help="recording file")
-    c.add_argument("--manifest", default=None, help="convert a whole experiment instead")
-    c.add_argument("--out", required=True)
+                       help="write a recording (or experiment) as HDF5", epilog=(
+                           "examples: 'torquemod convert run1.tdms --out run1.h5'; "
+                           "'torquemod convert logger.mat --manifest experiment.toml --out "
+                           "logger.h5' (read with the manifest's [channels]); 'torquemod "
+                           "convert --manifest experiment.toml --out converted/' (every "
+                           "recording plus a new experiment.toml)"))
+    c.add_argument("input", nargs="?", help="recording file (any supported format)")
+    c.add_argument("--manifest", default=None, help=(
+        "experiment.toml: with INPUT, read INPUT with its [channels] table (and its entry's "
+        "group and sample rate); without INPUT, convert the whole experiment into the folder "
+        "--out"))
+    c.add_argument("--out", required=True,
+                   help="output .h5 file (or folder, for a whole experiment)")
+    c.add_argument("--force", action="store_true", help=(
+        "replace an existing output (a folder only if torquemod wrote it; never an input)"))
     c.set_defaults(func=cmd_convert)
     return p
 
@@ -287,17 +302,34 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except TorquemodError as exc:
-        print(f"torquemod: error: {exc}", file=sys.stderr)
+        print(f"torquemod: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("torquemod: interrupted", file=sys.stderr)
         return 130
-    except Exception as exc:  # a bug: say so in one line unless asked for the traceback
-        if args.debug:
+    except Exception as exc:
+        from .fsutil import environment_error
+        env = environment_error(exc)  # full disk, read-only, no permission, ... (also deep
+        if env is not None:           # inside numpy/pandas/h5py writes): the system's fault
+            print(f"torquemod: error: {_os_error_line(env, args)}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        if args.debug:  # a bug: say so in one line unless asked for the traceback
             raise
-        print(f"torquemod: internal error: {type(exc).__name__}: {exc} (rerun with --debug "
-              "and report it)", file=sys.stderr)
+        print(f"torquemod: internal error: {type(exc).__name__}: {_one_line(exc)} (rerun "
+              "with --debug and report it)", file=sys.stderr)
         return EXIT_INTERNAL
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
+
+
+def _os_error_line(exc: OSError, args: argparse.Namespace) -> str:
+    """``path: reason`` for an OSError of the system: the file it names, else the command's
+    output (``--out`` or the results folder)."""
+    path = exc.filename or getattr(args, "out", None) or getattr(args, "results", None)
+    reason = exc.strerror or _one_line(exc)
+    return f"{path}: {reason}" if path else reason
 
 
 if __name__ == "__main__":

@@ -9,15 +9,12 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
-import tempfile
 import tomllib
 from pathlib import Path
 
 from ._version import __version__
-from .data import Recording
-from .errors import InputError, OutputError
-from .fsutil import atomic_dir
+from .errors import InputError
+from .fsutil import atomic_dir, atomic_file
 from .io.channels import ChannelMap
 from .io.hdf5 import write_hdf5
 from .io.manifest import read_experiment, write_manifest
@@ -35,43 +32,47 @@ def _attrs(source: Path, group: str | None) -> dict:
     return attrs
 
 
-def _write_h5_atomic(out: Path, rec: Recording, attrs: dict) -> None:
-    """Write ``rec`` to ``out`` via a temporary file beside it and one rename."""
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp_dir = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
-    except OSError as exc:
-        raise OutputError(f"{out}: cannot create the output file ({exc.strerror})") from None
-    try:
-        tmp = tmp_dir / out.name
-        write_hdf5(tmp, rec, attrs=attrs)
-        os.replace(tmp, out)
-    except OSError as exc:
-        raise OutputError(f"{out}: cannot write ({exc.strerror or exc})") from None
-    finally:
-        shutil.rmtree(tmp_dir, ignore_errors=True)
-
-
 def convert_file(input_path: str | Path, output_path: str | Path, *,
                  channel_map: ChannelMap | dict | None = None, group: str | None = None,
-                 sample_rate_hz: float | None = None) -> Path:
+                 sample_rate_hz: float | None = None, force: bool = False) -> Path:
     """Read one recording (any supported format) and write it as the project's HDF5 layout.
 
     ``channel_map`` is a manifest ``[channels]`` table (raw or resolved), ``group`` the group
     inside the input, ``sample_rate_hz`` [Hz] overrides the input's time base (see
     :func:`torquemod.io.recording.read_recording`). The output (``.h5``/``.hdf5``) is written
-    whole or not at all and replaced if it exists. Returns the output path.
+    whole or not at all (:func:`~torquemod.fsutil.atomic_file`); an existing output is
+    replaced only with ``force``, and never when it is the input. Returns the output path.
     """
     src, out = Path(input_path), Path(output_path)
     if out.suffix.lower() not in _H5_SUFFIXES:
         raise InputError(f"output must be an HDF5 file ({', '.join(_H5_SUFFIXES)})", path=out,
                          hint="name the output like recording.h5")
-    if out.exists() and src.exists() and out.resolve() == src.resolve():
-        raise InputError("output is the input file", path=out, hint="choose another --out")
-    rec = read_recording(src, group=group, channel_map=channel_map,
-                         sample_rate_hz=sample_rate_hz)
-    _write_h5_atomic(out, rec, _attrs(src, group))
+    with atomic_file(out, force=force, inputs=[src]) as tmp:
+        rec = read_recording(src, group=group, channel_map=channel_map,
+                             sample_rate_hz=sample_rate_hz)
+        write_hdf5(tmp, rec, attrs=_attrs(src, group))
     return out
+
+
+def convert_listed_file(input_path: str | Path, manifest_path: str | Path,
+                        output_path: str | Path, *, force: bool = False) -> Path:
+    """Convert one recording with an experiment's ``[channels]`` table: ``torquemod convert
+    INPUT --manifest experiment.toml --out OUT.h5`` (docs/format.md). When the manifest
+    lists ``input_path``, that entry's ``group`` and ``sample_rate_hz`` apply too; a logger
+    file that needs a map (names, units, its channels' own time vectors) converts this way."""
+    exp = read_experiment(manifest_path)
+    src = Path(input_path)
+    entry = next((e for e in exp.recordings if _same_file(e.path, src)), None)
+    return convert_file(src, output_path, channel_map=exp.channel_map,
+                        group=entry.group if entry else None,
+                        sample_rate_hz=entry.sample_rate_hz if entry else None, force=force)
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return Path(a).absolute() == Path(b).absolute()
 
 
 def _file_name(stem: str, group: str | None, used: set[str]) -> str:
@@ -91,8 +92,9 @@ def convert_experiment(manifest_path: str | Path, out_dir: str | Path, *,
     ``[channels]``, ``group`` or ``sample_rate_hz``, which the HDF5 files no longer need).
 
     ``out_dir`` is built in a temporary folder and renamed into place at the end, so it is
-    complete or absent; an existing non-empty ``out_dir`` is replaced only with ``force``.
-    Returns the path of the new manifest.
+    complete or absent (:func:`~torquemod.fsutil.atomic_dir`); an existing non-empty
+    ``out_dir`` is replaced only with ``force`` and only if torquemod wrote it; it never is
+    nor holds the experiment's manifest or recordings. Returns the path of the new manifest.
     """
     exp = read_experiment(manifest_path)
     out = Path(out_dir).absolute()
@@ -105,13 +107,14 @@ def convert_experiment(manifest_path: str | Path, out_dir: str | Path, *,
     written: dict[tuple, str] = {}
     used: set[str] = {"experiment.toml"}
     new_recordings = []
-    with atomic_dir(out, force=force) as tmp:
+    inputs = [exp.manifest_path, *(e.path for e in exp.recordings)]
+    with atomic_dir(out, force=force, inputs=inputs, kind="converted experiment") as tmp:
         for entry, raw in zip(exp.recordings, raw_recordings, strict=True):
             key = (entry.path, entry.group, entry.sample_rate_hz)
             if key not in written:
                 rec = read_entry(exp, entry)
                 name = _file_name(entry.path.stem, entry.group, used)
-                _write_h5_atomic(tmp / name, rec, _attrs(entry.path, entry.group))
+                write_hdf5(tmp / name, rec, attrs=_attrs(entry.path, entry.group))
                 written[key] = name
             new = {k: v for k, v in raw.items() if k not in _SOURCE_KEYS}
             new["file"] = written[key]
