@@ -343,8 +343,11 @@ def test_a_second_run_fails_at_once_while_the_first_holds_the_folder(tmp_path):
             pass
 
 
+@pytest.mark.parametrize("force", [[], ["--force"]])
 def test_two_concurrent_cli_runs_into_one_out_never_both_succeed(experiment, tmp_path,
-                                                                  capsys):
+                                                                  capsys, force):
+    """Also with --force: the run holds the lock from its first check to its last rename,
+    so the second fails at once instead of replacing the first's results."""
     out = tmp_path / "out"
     barrier = threading.Barrier(2)
     codes: list[int] = []
@@ -352,7 +355,7 @@ def test_two_concurrent_cli_runs_into_one_out_never_both_succeed(experiment, tmp
     def run():
         barrier.wait(10)
         codes.append(main(["process", str(experiment), "--out", str(out), "--quiet",
-                           "--no-fit"]))
+                           "--no-fit", *force]))
 
     threads = [threading.Thread(target=run) for _ in range(2)]
     for t in threads:
@@ -639,3 +642,56 @@ def test_subprocess_prints_one_line_and_no_traceback(case, experiment, h5_input,
     one_error_line(proc.stderr)
     assert "Traceback" not in proc.stdout
     assert snapshot(experiment) == before
+
+
+def test_unwritable_out_is_refused_before_any_work(experiment, tmp_path, capsys):
+    """An --out below a file, or in a system folder, fails at once (exit 2, one line),
+    not after processing."""
+    f = tmp_path / "file"
+    f.write_text("x", encoding="utf-8")
+    for out, reason in ((f / "sub" / "out", "Not a directory"),
+                        (Path("/dev/null/out"), "Not a directory")):
+        with pytest.raises(OutputError, match=reason):
+            fsutil.check_output_dir(out, force=False)
+        assert main(["process", str(experiment), "--out", str(out), "--quiet",
+                     "--no-fit"]) == 2
+        one_error_line(capsys.readouterr().err, str(out), reason)
+    assert f.read_text(encoding="utf-8") == "x"
+
+
+def test_failed_run_leaves_no_parent_folders(experiment, tmp_path, capsys, monkeypatch):
+    import numpy as np
+    raise_in(monkeypatch, np, "savez", errno.ENOSPC)
+    out = tmp_path / "a" / "b" / "out"
+    assert main(["process", str(experiment), "--out", str(out), "--quiet", "--no-fit"]) == 2
+    one_error_line(capsys.readouterr().err, "No space left on device")
+    no_leftovers(tmp_path)
+
+
+def test_sigterm_during_the_write_leaves_nothing(experiment, tmp_path):
+    """A run stopped by SIGTERM while it writes (sent from inside the writer, so the moment
+    is exact) removes its temporary folder and lock file and names the interruption."""
+    out = tmp_path / "out"
+    script = ("import os, signal, sys\n"
+              "import torquemod.fsutil as f\n"
+              "from torquemod.cli import main\n"
+              "f.write_marker = lambda *a, **k: os.kill(os.getpid(), signal.SIGTERM)\n"
+              "sys.exit(main(sys.argv[1:]))\n")
+    proc = subprocess.run([sys.executable, "-c", script, "process", str(experiment),
+                           "--out", str(out), "--quiet", "--no-fit"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 130, proc.stderr
+    assert proc.stderr.strip() == "torquemod: interrupted"
+    no_leftovers(tmp_path)
+
+
+def test_temporary_folders_of_a_killed_run_are_swept(tmp_path):
+    """A run killed with SIGKILL leaves ``.out.tmp-XXXXXXXX``; the next run into the same
+    --out (holding the lock, so no run owns it) removes it; other names are kept."""
+    stale = tmp_path / ".out.tmp-abcd1234"
+    (stale / "sub").mkdir(parents=True)
+    other = tmp_path / ".outer.tmp-abcd1234"
+    other.mkdir()
+    with fsutil.atomic_dir(tmp_path / "out") as tmp:
+        (tmp / "a").write_text("a", encoding="utf-8")
+    no_leftovers(tmp_path, "out", ".outer.tmp-abcd1234")

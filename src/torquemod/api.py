@@ -95,23 +95,24 @@ def run(experiment, out, *, config: ProcessingConfig | None = None,
     say = on_stage or (lambda _text: None)
     t0 = time.perf_counter()
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
-    from .fsutil import check_output_dir
+    from .fsutil import check_output_dir, output_lock
     _refuse_inputs(out, _inputs(exp))
-    check_output_dir(out, force=force)  # refuse an occupied --out before any work
-    say(f"processing {len(exp.recordings)} recordings (the first run compiles the numba "
-        "decimation filter, a few seconds; later runs reuse the compiled cache) ...")
-    res = process(exp, config, phase_method=phase_method, nan_policy=nan_policy,
-                  progress=progress)
-    t1 = time.perf_counter()
-    ana = None
-    if fit:
-        say("fitting the creep curve and mu from the phase ...")
-        ana = analyze(res, fit_options)
-    t2 = time.perf_counter()
-    if fit:
-        say("writing the results folder with figures and report.html ...")
-    folder = save(res, ana, out, force=force, inputs=_inputs(exp), command=command,
-                  report=fit, report_options=report_options)
+    with output_lock(out):  # one run at a time writes --out (save re-enters this lock)
+        check_output_dir(out, force=force)  # refuse an occupied --out before any work
+        say(f"processing {len(exp.recordings)} recordings (the first run compiles the numba "
+            "decimation filter, a few seconds; later runs reuse the compiled cache) ...")
+        res = process(exp, config, phase_method=phase_method, nan_policy=nan_policy,
+                      progress=progress)
+        t1 = time.perf_counter()
+        ana = None
+        if fit:
+            say("fitting the creep curve and mu from the phase ...")
+            ana = analyze(res, fit_options)
+        t2 = time.perf_counter()
+        if fit:
+            say("writing the results folder with figures and report.html ...")
+        folder = save(res, ana, out, force=force, inputs=_inputs(exp), command=command,
+                      report=fit, report_options=report_options)
     t3 = time.perf_counter()
     return RunOutcome(res, ana, Path(folder), Path(folder) / "report.html" if fit else None,
                       {"process": t1 - t0, "fit": t2 - t1, "write": t3 - t2, "total": t3 - t0})

@@ -7,8 +7,11 @@ anything else is a bug: one line, exit code 3, and ``--debug`` shows the traceba
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import signal
 import sys
+import threading
 import warnings
 from pathlib import Path
 
@@ -300,7 +303,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     warnings.simplefilter("ignore", TorquemodWarning)  # collected and printed by commands
     try:
-        return int(args.func(args) or 0)
+        with _terminate_as_interrupt():
+            return int(args.func(args) or 0)
     except TorquemodError as exc:
         print(f"torquemod: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -318,6 +322,24 @@ def main(argv: list[str] | None = None) -> int:
         print(f"torquemod: internal error: {type(exc).__name__}: {_one_line(exc)} (rerun "
               "with --debug and report it)", file=sys.stderr)
         return EXIT_INTERNAL
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt():
+    """SIGTERM (``kill``, a job scheduler's stop) unwinds like Ctrl-C, so temporary outputs
+    are removed and nothing half-written is left (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(_signum, _frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _one_line(exc: BaseException) -> str:

@@ -34,18 +34,13 @@ import re
 import shutil
 import stat
 import tempfile
-import threading
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import TextIO
 
 from ._version import __version__
 from .errors import OutputError
-
-try:  # POSIX only; elsewhere runs are not locked against each other
-    import fcntl
-except ImportError:  # pragma: no cover - Windows
-    fcntl = None
+from .fslock import output_lock
 
 __all__ = ["MARKER", "atomic_dir", "atomic_file", "check_output_dir", "environment_error",
            "is_torquemod_dir", "output_error", "output_lock", "publish", "refuse_inputs",
@@ -140,8 +135,9 @@ def _marker_ok(folder: Path) -> bool:
 def is_torquemod_dir(folder: str | Path, *, legacy_steps_only: bool = False) -> bool:
     """True if ``folder`` holds torquemod output: it has a valid :data:`MARKER`, or it is a
     results folder from before the marker (``steps.csv`` and nothing outside
-    :data:`LEGACY_RESULTS`). With ``legacy_steps_only`` a ``steps.csv`` alone suffices (what
-    ``fit``/``report`` accept)."""
+    :data:`LEGACY_RESULTS`), or an old demo folder (``experiment/`` with the simulator's
+    ``truth.json`` and ``results/``). With ``legacy_steps_only`` a ``steps.csv`` alone
+    suffices (what ``fit``/``report`` accept)."""
     folder = Path(folder)
     if _marker_ok(folder):
         return True
@@ -149,6 +145,9 @@ def is_torquemod_dir(folder: str | Path, *, legacy_steps_only: bool = False) -> 
         names = set(_entries(folder))
     except OSError:
         return False
+    if names and names <= {"experiment", "results", MARKER}:  # an old demo folder
+        return ((folder / "experiment" / "truth.json").is_file()
+                and is_torquemod_dir(folder / "results"))
     if "steps.csv" not in names:
         return False
     return legacy_steps_only or names <= LEGACY_RESULTS
@@ -163,6 +162,7 @@ def check_output_dir(out_dir: str | Path, *, force: bool, inputs: Iterable = ())
     try:
         st = out.lstat()
     except FileNotFoundError:
+        _check_parent(out)
         return out
     except OSError as exc:
         raise output_error(exc, out, doing="cannot use as output folder") from None
@@ -179,99 +179,36 @@ def check_output_dir(out_dir: str | Path, *, force: bool, inputs: Iterable = ())
                           "replace it whole (torquemod results only) or choose another --out")
     if names and not is_torquemod_dir(out):
         raise OutputError(f"{out}: --force replaces only a folder of torquemod results, and "
-                          f"this one holds other files (e.g. '{names[0]}') and no {MARKER}; "
+                          f"this one holds other files (e.g. '{_foreign(names)}') and no "
+                          f"{MARKER}; "
                           "move them away or choose another --out")
     return out
 
 
-# --------------------------------------------------------------------------- locking
-
-_held: dict[str, list] = {}  # lock path -> [owner thread id, depth]
-_held_guard = threading.Lock()
+def _foreign(names: list[str]) -> str:
+    return next((n for n in names if n not in LEGACY_RESULTS), names[0])
 
 
-def _lock_path(target: Path) -> Path:
-    parent = target.parent.resolve()
-    return parent / f".{target.name}.lock"
+def _check_parent(out: Path) -> None:
+    """Refuse early a missing ``out`` whose nearest existing ancestor is not a writable
+    folder (the run would otherwise fail only when it publishes)."""
+    anc = out.absolute().parent
+    while not os.path.lexists(anc) and anc != anc.parent:
+        anc = anc.parent
+    code = None
+    if not anc.is_dir():
+        code = errno.ENOTDIR
+    elif not os.access(anc, os.W_OK | os.X_OK):
+        code = errno.EROFS if _read_only_fs(anc) else errno.EACCES
+    if code is not None:
+        raise OutputError(f"{out}: cannot write in {anc} ({os.strerror(code)})")
 
 
-@contextlib.contextmanager
-def output_lock(target: str | Path) -> Iterator[Path]:
-    """Hold the exclusive lock of the output ``target`` (``.{name}.lock`` beside it, created
-    and removed here; ``fcntl.flock``) while the block runs. Re-entrant in one thread; a
-    second holder (another process or thread) gets :class:`OutputError` at once. The parent
-    folder is created if missing. Yields the lock file's path."""
-    target = Path(target).absolute()
+def _read_only_fs(path: Path) -> bool:
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        lock = _lock_path(target)
-    except OSError as exc:
-        raise output_error(exc, target.parent, doing="cannot create the output's folder") \
-            from None
-    key, me = str(lock), threading.get_ident()
-    with _held_guard:
-        entry = _held.get(key)
-        if entry is not None and entry[0] == me:
-            entry[1] += 1
-            reentered = True
-        else:
-            reentered = False
-    if reentered:
-        try:
-            yield lock
-        finally:
-            with _held_guard:
-                _held[key][1] -= 1
-        return
-    if entry is not None:
-        raise _busy(target, lock)
-    fd = _acquire(target, lock)
-    with _held_guard:
-        _held[key] = [me, 1]
-    try:
-        yield lock
-    finally:
-        with _held_guard:
-            del _held[key]
-        with contextlib.suppress(OSError):
-            os.unlink(lock)  # still holding the flock: a waiter re-checks the inode
-        os.close(fd)
-
-
-def _busy(target: Path, lock: Path) -> OutputError:
-    return OutputError(f"{target}: another torquemod run is writing this folder (lock "
-                       f"{lock.name}); wait for it to finish or choose another --out")
-
-
-def _acquire(target: Path, lock: Path) -> int:
-    """Open, flock and verify the lock file (a lock file unlinked by its previous holder
-    between our open and our flock is not the lock any more: retry)."""
-    flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0)
-    while True:
-        try:
-            fd = os.open(lock, flags, 0o644)
-        except OSError as exc:
-            raise OutputError(f"{target}: cannot write in {target.parent} "
-                              f"({_reason(exc)})") from None
-        if fcntl is None:  # pragma: no cover - no flock: no protection against other runs
-            return fd
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            raise _busy(target, lock) from None
-        except OSError:  # a file system without flock: go on unprotected
-            return fd
-        try:
-            same = os.path.samestat(os.fstat(fd), os.stat(lock))
-        except FileNotFoundError:
-            same = False
-        if same:
-            with contextlib.suppress(OSError):
-                os.ftruncate(fd, 0)
-                os.write(fd, f"{os.getpid()}\n".encode())
-            return fd
-        os.close(fd)
+        return bool(os.statvfs(path).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False
 
 
 # --------------------------------------------------------------------------- renaming
@@ -417,24 +354,41 @@ def write_marker(folder: str | Path, kind: str = "results") -> Path:
 
 
 def _mkdtemp_beside(target: Path) -> Path:
+    """A new temporary folder ``.{name}.tmp-XXXXXXXX`` beside ``target``. Called with the
+    target's lock held, so older ones (left by a killed run) are removed first."""
+    _sweep_stale(target)
     try:
         return Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=target.parent))
     except OSError as exc:
         raise output_error(exc, target, doing="cannot create the output") from None
 
 
+def _sweep_stale(target: Path) -> None:
+    pattern = re.compile(re.escape(f".{target.name}.") + r"(tmp|old)-[A-Za-z0-9_]{8}")
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(target.parent):
+            if pattern.fullmatch(entry.name) and entry.is_dir(follow_symlinks=False):
+                shutil.rmtree(entry.path, ignore_errors=True)
+
+
 def _converted(exc: BaseException, target: Path, tmp: Path) -> OutputError | None:
-    """The OutputError for an OSError raised while the caller wrote into ``tmp``: one whose
-    file lies in ``tmp``, or a full disk/quota/too large without a file name. Others (an
-    input that cannot be read, say) are left to the caller."""
+    """The OutputError for an exception raised while the caller wrote into ``tmp``: an
+    OSError naming a file in ``tmp``, or a full disk, quota, too large a file or read-only
+    file system without a file name (h5py's errno in its text included). Others (an input
+    that cannot be read, say) are left to the caller."""
     if isinstance(exc, OutputError) or not isinstance(exc, OSError):
         return None
     name = exc.filename
-    inside = isinstance(name, (str, os.PathLike)) and Path(name).is_relative_to(tmp)
-    space = exc.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", -1), errno.EFBIG)
-    if inside or (name is None and (space or exc.errno is None)):
+    if isinstance(name, (str, os.PathLike)) and Path(name).is_relative_to(tmp):
         return output_error(exc, target, tmp=tmp, final=target)
+    env = environment_error(exc)
+    if env is not None and env.filename is None and env.errno in _WRITE_ERRNOS:
+        return output_error(env, target)
     return None
+
+
+_WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EROFS,
+                           getattr(errno, "EDQUOT", errno.ENOSPC)})
 
 
 @contextlib.contextmanager
@@ -471,11 +425,7 @@ def _writable(folder: Path) -> None:
     its update would otherwise replace it by a writable copy."""
     if os.access(folder, os.W_OK):
         return
-    try:
-        ro = bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
-    except OSError:
-        ro = False
-    code = errno.EROFS if ro else errno.EACCES
+    code = errno.EROFS if _read_only_fs(folder) else errno.EACCES
     raise output_error(OSError(code, os.strerror(code), str(folder)), folder,
                        doing="cannot update the results folder")
 
@@ -504,24 +454,17 @@ def update_dir(folder: str | Path) -> Iterator[Path]:
                 yield tmp
                 if not _marker_ok(tmp):
                     write_marker(tmp, "results")
-            except OSError as exc:  # shutil.Error included (copytree)
-                if isinstance(exc, shutil.Error):
-                    raise OutputError(f"{folder}: cannot copy the results folder to update it "
-                                      f"({_shutil_reason(exc)})") from None
+            except shutil.Error as exc:  # copytree's list of failures
+                first = exc.args[0][0] if exc.args and isinstance(exc.args[0], list) else exc
+                raise OutputError(f"{folder}: cannot copy the results folder to update it "
+                                  f"({' '.join(str(first).split())})") from None
+            except OSError as exc:
                 if (err := _converted(exc, folder, tmp)) is not None:
                     raise err from None
                 raise
             publish(tmp, folder, force=True, update=True)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
-
-
-def _shutil_reason(exc: shutil.Error) -> str:
-    errors = exc.args[0] if exc.args and isinstance(exc.args[0], list) else []
-    if errors:
-        src, _dst, why = errors[0]
-        return f"{src}: {why}"
-    return " ".join(str(exc).split())
 
 
 # --------------------------------------------------------------------------- files
