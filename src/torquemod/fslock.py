@@ -40,7 +40,7 @@ def output_lock(target: str | Path) -> Iterator[Path]:
     second holder (another process or thread) gets :class:`OutputError` at once. Missing
     parent folders are created, and removed again if still empty at the end (a failed run
     leaves nothing). Yields the lock file's path."""
-    target = Path(target).absolute()
+    target = Path(os.path.abspath(target))
     made = _make_parents(target)
     try:
         with _locked(target) as lock:

@@ -192,7 +192,7 @@ def _foreign(names: list[str]) -> str:
 def _check_parent(out: Path) -> None:
     """Refuse early a missing ``out`` whose nearest existing ancestor is not a writable
     folder (the run would otherwise fail only when it publishes)."""
-    anc = out.absolute().parent
+    anc = Path(os.path.abspath(out)).parent
     while not os.path.lexists(anc) and anc != anc.parent:
         anc = anc.parent
     code = None
@@ -400,7 +400,7 @@ def atomic_dir(out_dir: str | Path, *, force: bool = False, inputs: Iterable = (
     the end; the run holds :func:`output_lock` throughout. On any error the temporary folder
     is removed and ``out_dir`` is left as it was; a write error in it (full disk, read-only,
     ...) becomes one :class:`OutputError` naming the final path."""
-    out = Path(out_dir).absolute()
+    out = Path(os.path.abspath(out_dir))
     inputs = list(inputs)
     with output_lock(out):
         check_output_dir(out, force=force, inputs=inputs)
@@ -439,7 +439,7 @@ def update_dir(folder: str | Path) -> Iterator[Path]:
     writing into the copy cannot reach the old folder. Refused (:class:`OutputError`): a
     missing folder, one without :data:`MARKER` and without ``steps.csv``, a read-only one,
     one another run is writing."""
-    folder = Path(folder).absolute()
+    folder = Path(os.path.abspath(folder))
     if not folder.is_dir() or folder.is_symlink():
         raise OutputError(f"{folder}: no such results folder; run 'torquemod process' first")
     with output_lock(folder):
@@ -476,7 +476,7 @@ def atomic_file(out_path: str | Path, *, force: bool = False, inputs: Iterable =
     write one output file; published at the end without replacing an existing file unless
     ``force``. ``out_path`` is never one of ``inputs`` (also through a link), nor a folder.
     On any error nothing is left behind and ``out_path`` is as it was."""
-    out = Path(out_path).absolute()
+    out = Path(os.path.abspath(out_path))
     inputs = list(inputs)
     with output_lock(out):
         _check_output_file(out, force=force, inputs=inputs)
