@@ -47,6 +47,9 @@ def convert_file(input_path: str | Path, output_path: str | Path, *,
     if out.suffix.lower() not in _H5_SUFFIXES:
         raise InputError(f"output must be an HDF5 file ({', '.join(_H5_SUFFIXES)})", path=out,
                          hint="name the output like recording.h5")
+    if not src.is_file():
+        raise InputError("no such recording file" if not src.exists() else
+                         "is not a recording file", path=src, hint="check the INPUT path")
     with atomic_file(out, force=force, inputs=[src]) as tmp:
         rec = read_recording(src, group=group, channel_map=channel_map,
                              sample_rate_hz=sample_rate_hz)
