@@ -698,3 +698,30 @@ def test_temporary_folders_of_a_killed_run_are_swept(tmp_path):
     with fsutil.atomic_dir(tmp_path / "out") as tmp:
         (tmp / "a").write_text("a", encoding="utf-8")
     no_leftovers(tmp_path, "out", ".outer.tmp-abcd1234")
+
+
+def test_ctrl_c_during_processing_leaves_nothing(experiment, tmp_path, capsys, monkeypatch):
+    import torquemod.api as api
+
+    def interrupted(*_a, **_k):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(api, "process", interrupted)
+    out = tmp_path / "new" / "out"
+    assert main(["process", str(experiment), "--out", str(out), "--quiet"]) == 130
+    assert capsys.readouterr().err.strip() == "torquemod: interrupted"
+    no_leftovers(tmp_path)  # no lock file, no parent folder made for it
+
+
+def test_ctrl_c_while_report_writes_keeps_the_old_folder(res_copy, tmp_path, capsys,
+                                                         monkeypatch):
+    import torquemod.layout as layout
+
+    def interrupted(folder, *_a, **_k):
+        (Path(folder) / "report.html").write_text("half", encoding="utf-8")
+        raise KeyboardInterrupt
+    monkeypatch.setattr(layout, "write_report", interrupted)
+    before = snapshot(res_copy)
+    assert main(["report", str(res_copy), "--quiet"]) == 130
+    capsys.readouterr()
+    assert snapshot(res_copy) == before
+    no_leftovers(tmp_path, "res")

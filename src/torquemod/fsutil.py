@@ -44,7 +44,7 @@ from .fslock import output_lock
 
 __all__ = ["MARKER", "atomic_dir", "atomic_file", "check_output_dir", "environment_error",
            "is_torquemod_dir", "output_error", "output_lock", "publish", "refuse_inputs",
-           "sha256_file", "update_dir", "write_atomic"]
+           "sha256_file", "update_dir", "write_atomic", "write_marker"]
 
 #: Marker file in every folder torquemod publishes; JSON ``{"format", "version", "kind", ...}``.
 MARKER = ".torquemod-results"
