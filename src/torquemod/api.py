@@ -123,12 +123,14 @@ def fit_folder(folder, options: FitOptions | dict | None = None, *, report_optio
                ) -> tuple[ProcessResult, Analysis]:
     """load -> analyze(options) -> update the folder atomically, report included:
     ``torquemod fit``."""
+    from .fsutil import output_lock
     say = on_stage or (lambda _text: None)
-    res, _ = load(folder)
-    say("fitting the creep curve and mu from the phase ...")
-    ana = analyze(res, options)
-    say("rewriting fit.json, steps.csv, the figures and report.html ...")
-    update(folder, res, ana, report_options=report_options)
+    with output_lock(folder):  # one run at a time updates the folder (update re-enters)
+        res, _ = load(folder)
+        say("fitting the creep curve and mu from the phase ...")
+        ana = analyze(res, options)
+        say("rewriting fit.json, steps.csv, the figures and report.html ...")
+        update(folder, res, ana, report_options=report_options)
     return res, ana
 
 
@@ -136,11 +138,13 @@ def report_folder(folder, *, report_options=None, on_stage: Stage = None) -> Pat
     """load -> render the figures and report.html -> update the folder atomically:
     ``torquemod report`` (a folder saved without an analysis is analysed with the default
     options first)."""
+    from .fsutil import output_lock
     say = on_stage or (lambda _text: None)
-    res, ana = load(folder)
-    if ana is None:
-        say("fitting the creep curve (the folder holds no fit yet) ...")
-        ana = analyze(res)
-    say("drawing the figures and writing report.html ...")
-    update(folder, res, ana, report_options=report_options)
+    with output_lock(folder):  # one run at a time updates the folder (update re-enters)
+        res, ana = load(folder)
+        if ana is None:
+            say("fitting the creep curve (the folder holds no fit yet) ...")
+            ana = analyze(res)
+        say("drawing the figures and writing report.html ...")
+        update(folder, res, ana, report_options=report_options)
     return Path(folder) / "report.html"
