@@ -87,3 +87,20 @@ def test_file_digest_reused_only_while_size_and_mtime_hold(tmp_path):
     path.write_bytes(b"abd" * 1000)  # same size, new content and time
     os.utime(path, ns=(first[1] + 10**9, first[1] + 10**9))
     assert _file_digest(path, fake)[2] == hashlib.sha256(b"abd" * 1000).hexdigest()
+
+
+def test_fleet_command_line(fleet, tmp_path, capsys):
+    """`torquemod fleet`: exit 0 with the damaged run named on stderr, the counts and the
+    results folder on stdout; a rerun reports the good runs unchanged."""
+    from torquemod.cli import main
+
+    out = tmp_path / "fl"
+    args = ["fleet", str(fleet / "axle1"), str(fleet / "damaged"), "--out", str(out),
+            "--workers", "1", "--quiet"]
+    assert main(args) == 0
+    io = capsys.readouterr()
+    assert "2 runs: 1 processed, 0 unchanged (skipped), 1 failed" in io.out
+    assert "failed: damaged:" in io.err and "step2_cycle1.h5" in io.err
+    assert f"results: {out}" in io.out
+    assert main(args) == 0
+    assert "1 unchanged (skipped)" in capsys.readouterr().out

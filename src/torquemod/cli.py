@@ -199,6 +199,22 @@ def cmd_convert(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_fleet(args: argparse.Namespace) -> int:
+    from .fleet import run_fleet
+    res = run_fleet(args.runs, Path(args.out), scheduler=args.scheduler,
+                    n_workers=args.workers, force=args.force, progress=not args.quiet,
+                    on_dashboard=lambda link: print(f"dashboard: {link}", file=sys.stderr,
+                                                    flush=True))
+    print(f"{res.summary.shape[0]} runs: {res.count('processed')} processed, "
+          f"{res.count('skipped')} unchanged (skipped), {res.count('failed')} failed "
+          f"in {res.wall_s:.1f} s")
+    for row in res.failures.itertuples():
+        print(f"failed: {getattr(row, 'run', '?')}: {getattr(row, 'message', '')}",
+              file=sys.stderr)
+    print(f"results: {res.out_dir}")
+    return 0
+
+
 class _UsageError(TorquemodError):
     """A command line that cannot be carried out (exit code 2, like bad input)."""
 
@@ -295,6 +311,25 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--force", action="store_true", help=(
         "replace an existing output (a folder only if torquemod wrote it; never an input)"))
     c.set_defaults(func=cmd_convert)
+
+    fl = sub.add_parser("fleet", parents=[common],
+                        help="process many experiments in parallel on Dask", epilog=(
+                            "examples: 'torquemod fleet runs/ --out fleet/' (every "
+                            "experiment.toml below runs/); 'torquemod fleet runs.txt --out "
+                            "fleet/ --scheduler tcp://host:8786' (a list file, an existing "
+                            "Dask cluster)"))
+    fl.add_argument("runs", nargs="+", help="manifests, folders holding them, globs or list "
+                    "files (one path per line)")
+    fl.add_argument("--out", required=True, help="fleet results folder (Parquet datasets, "
+                    "fleet_summary.csv, failures.csv)")
+    fl.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                    help="address of an existing Dask scheduler (default: a local cluster "
+                    "sized to the machine)")
+    fl.add_argument("--workers", type=int, default=None,
+                    help="worker processes of the local cluster (default: CPU count)")
+    fl.add_argument("--force", action="store_true", help="reprocess unchanged runs too")
+    fl.add_argument("--quiet", action="store_true", help="no progress bar")
+    fl.set_defaults(func=cmd_fleet)
     return p
 
 

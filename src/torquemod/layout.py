@@ -87,23 +87,15 @@ def update(folder, result: ProcessResult, analysis: Analysis | None, *,
 
 @contextlib.contextmanager
 def _new_dir(folder, *, force: bool, inputs) -> Iterator[Path]:
-    """fsutil's atomic folder; refuses an ``--out`` that is or holds an input when fsutil
-    knows how (its ``inputs=`` keyword)."""
-    import inspect
-    kwargs = {"force": force}
-    if inputs and "inputs" in inspect.signature(fsutil.atomic_dir).parameters:
-        kwargs["inputs"] = list(inputs)
-    with fsutil.atomic_dir(folder, **kwargs) as tmp:
+    """fsutil's atomic folder, refusing an ``--out`` that is or holds an input."""
+    with fsutil.atomic_dir(folder, force=force, inputs=list(inputs or ())) as tmp:
         yield tmp
 
 
 @contextlib.contextmanager
 def _update_dir(folder: Path) -> Iterator[Path]:
-    """An atomic in-place update of a results folder (fsutil's ``update_dir`` when present,
-    else a forced atomic replacement of the folder)."""
-    updater = getattr(fsutil, "update_dir", None)
-    cm = updater(folder) if updater is not None else fsutil.atomic_dir(folder, force=True)
-    with cm as tmp:
+    """An atomic in-place update of a results folder (:func:`torquemod.fsutil.update_dir`)."""
+    with fsutil.update_dir(folder) as tmp:
         yield tmp
 
 
