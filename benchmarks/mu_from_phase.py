@@ -7,7 +7,8 @@ V-Track's 8 N*m creepage swing (describing-function slope) plus Gaussian phase n
 chain's per-step standard error, CoA exact. Fitted with C known (the rig's inertia) and with
 C fitted (no inertia given), both with the measured creepage swing as the chain passes it.
 Prints per shape, u_max and case: the median and 90th percentile of |mu error| over the
-trials where mu is determined, the fraction determined, and the coverage: the 95 % interval contains the truth (determined trials) or
+trials where mu is determined, the fraction determined, and the coverage: the 95 % interval
+contains the truth (determined trials) or
 the lower bound does not exceed it (undetermined ones).
 
     python benchmarks/mu_from_phase.py [--trials 20] [--noise-deg 0.1]
