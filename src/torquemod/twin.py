@@ -7,17 +7,9 @@ The twin is kept apart from the measurement: nothing in the processing or fittin
 
 from __future__ import annotations
 
-from .rig import (
-    ContactParams,
-    DisturbanceParams,
-    ModulationParams,
-    ProcedureParams,
-    RigParams,
-    SensorParams,
-    SimConfig,
-)
+from . import rig as _rig
+from .rig import *  # noqa: F403 - the parameter classes, listed in rig.__all__
 from .simulate import config_from_dict, default_config_text, load_config, run_simulation
 
-__all__ = ["ContactParams", "DisturbanceParams", "ModulationParams", "ProcedureParams",
-           "RigParams", "SensorParams", "SimConfig", "config_from_dict", "default_config_text",
-           "load_config", "run_simulation"]
+__all__ = [*_rig.__all__, "config_from_dict", "default_config_text", "load_config",
+           "run_simulation"]
