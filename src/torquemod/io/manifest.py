@@ -6,6 +6,7 @@ file, the key and what to do.
 
 from __future__ import annotations
 
+import difflib
 import math
 import tomllib
 from pathlib import Path
@@ -34,6 +35,17 @@ def _positive_float(table: dict, key: str, section: str, path: Path) -> float:
     return value
 
 
+#: file suffixes of recordings (a recording given where the manifest belongs gets a clear
+#: message instead of a TOML syntax error)
+_RECORDING_SUFFIXES = {".csv": "CSV", ".h5": "HDF5", ".hdf5": "HDF5",
+                       ".tdms": "TDMS", ".mf4": "MDF4", ".mdf": "MDF", ".mat": "MATLAB",
+                       ".parquet": "Parquet", ".pq": "Parquet"}
+
+
+#: the keys a [[recording]] table may hold
+_RECORDING_KEYS = ("step", "cycle", "dc_torque_nm", "file", "group", "sample_rate_hz")
+
+
 def _load_toml(path: Path) -> dict:
     if not path.exists():
         raise ManifestError("experiment manifest not found", path=path,
@@ -44,6 +56,11 @@ def _load_toml(path: Path) -> dict:
             path = candidate
         else:
             raise ManifestError("is a folder without experiment.toml", path=path)
+    kind = _RECORDING_SUFFIXES.get(path.suffix.lower())
+    if kind is not None:
+        raise ManifestError(f"is a {kind} recording, not an experiment manifest", path=path,
+                            hint="write an experiment.toml that lists it under [[recording]] "
+                            "(docs/format.md), or convert it with 'torquemod convert'")
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -63,6 +80,12 @@ def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEn
     where = f"recording #{i + 1}"
     if not isinstance(rec, dict):
         raise ManifestError(f"{where} is not a table", path=path)
+    for key in rec:  # a typo ('dc_torque', 'stpe') must not pass unnoticed
+        if key not in _RECORDING_KEYS:
+            near = difflib.get_close_matches(str(key), _RECORDING_KEYS, n=1)
+            raise ManifestError(f"{where}: unknown key '{key}'", path=path, hint=(
+                f"did you mean '{near[0]}'? " if near else "") + "a [[recording]] takes "
+                + ", ".join(_RECORDING_KEYS))
     for key in ("step", "dc_torque_nm", "file"):
         if key not in rec:
             raise ManifestError(f"{where} has no '{key}'", path=path,
