@@ -100,24 +100,75 @@ def test_vectorised_and_scalar_kernels_agree():
     assert creep_force_scalar(0.0, 0.0, *args) == (0.0, 0.0)
 
 
-def test_kalker_reproduces_table_nodes():
-    for i, g in enumerate(A_OVER_B_NODES):
-        for j, nu in enumerate(POISSON_NODES):
-            k = kalker_coefficients(g, nu)
-            assert (k.c11, k.c22, k.c23) == pytest.approx(
-                (C11_TABLE[i, j], C22_TABLE[i, j], C23_TABLE[i, j]), rel=1e-13)
+# Kalker (1990) Table E.3 as printed in FACTS.md §3, typed here independently of the module:
+# (shape, c11 at nu = 0/0.25/0.5, c22, c23); "a0.3" is a/b = 0.3, "b0.3" is b/a = 0.3
+KALKER_ROWS = """
+a0.1 2.51 3.31 4.85 2.51 2.52 2.53 0.334 0.473 0.731
+a0.2 2.59 3.37 4.81 2.59 2.63 2.66 0.483 0.603 0.809
+a0.3 2.68 3.44 4.80 2.68 2.75 2.81 0.607 0.715 0.889
+a0.4 2.78 3.53 4.82 2.78 2.88 2.98 0.720 0.823 0.977
+a0.5 2.88 3.62 4.83 2.88 3.01 3.14 0.827 0.929 1.07
+a0.6 2.98 3.72 4.91 2.98 3.14 3.31 0.930 1.03 1.18
+a0.7 3.09 3.81 4.97 3.09 3.28 3.48 1.03 1.14 1.29
+a0.8 3.19 3.91 5.05 3.19 3.41 3.65 1.13 1.25 1.40
+a0.9 3.29 4.01 5.12 3.29 3.54 3.82 1.23 1.36 1.51
+a1.0 3.40 4.12 5.20 3.40 3.67 3.98 1.33 1.47 1.63
+b0.9 3.51 4.22 5.30 3.51 3.81 4.16 1.44 1.59 1.77
+b0.8 3.65 4.36 5.42 3.65 3.99 4.39 1.58 1.75 1.94
+b0.7 3.82 4.54 5.58 3.82 4.21 4.67 1.76 1.95 2.18
+b0.6 4.06 4.78 5.80 4.06 4.50 5.04 2.01 2.23 2.50
+b0.5 4.37 5.10 6.11 4.37 4.90 5.56 2.35 2.62 2.96
+b0.4 4.84 5.57 6.57 4.84 5.48 6.31 2.88 3.24 3.70
+b0.3 5.57 6.34 7.34 5.57 6.40 7.51 3.79 4.32 5.01
+b0.2 6.96 7.78 8.82 6.96 8.14 9.79 5.72 6.63 7.89
+b0.1 10.7 11.7 12.9 10.7 12.8 16.0 12.2 14.6 18.0
+"""
 
 
-def test_kalker_interpolation_between_nodes_and_arrays():
+def _kalker_rows():
+    for line in KALKER_ROWS.split("\n"):
+        if line.strip():
+            name, *vals = line.split()
+            g = float(name[1:])
+            yield (g if name[0] == "a" else 1.0 / g), np.array(vals, float).reshape(3, 3)
+
+
+def test_kalker_full_table_at_every_row_and_poisson_ratio():
+    rows = list(_kalker_rows())
+    assert len(rows) == 19 and len(A_OVER_B_NODES) == 19
+    for a_over_b, ref in rows:
+        for j, nu in enumerate((0.0, 0.25, 0.5)):
+            k = kalker_coefficients(a_over_b, nu)
+            assert (k.c11, k.c22, k.c23) == pytest.approx(tuple(ref[:, j]), rel=1e-12), \
+                (a_over_b, nu)
+    # the module's own arrays hold the same table
+    np.testing.assert_allclose(C11_TABLE, [r[0] for _, r in rows])
+    np.testing.assert_allclose(C22_TABLE, [r[1] for _, r in rows])
+    np.testing.assert_allclose(C23_TABLE, [r[2] for _, r in rows])
+    assert POISSON_NODES == (0.0, 0.25, 0.5)
+
+
+def test_kalker_between_rows_by_hand():
+    # linear in g within a half: a/b = 0.85 at nu = 0.25 is halfway between rows 0.8 and 0.9
+    k = kalker_coefficients(0.85, 0.25)
+    assert k.c11 == pytest.approx((3.91 + 4.01) / 2, rel=1e-12)
+    assert k.c23 == pytest.approx((1.25 + 1.36) / 2, rel=1e-12)
+    # b/a = 0.25 (a/b = 4), nu = 0: halfway between the b/a = 0.3 and 0.2 rows
+    k = kalker_coefficients(4.0, 0.0)
+    assert k.c22 == pytest.approx((5.57 + 6.96) / 2, rel=1e-12)
+    # quadratic through the three nu columns: at nu = 0.125 the Lagrange weights are
+    # 3/8, 3/4, -1/8 (by hand: (nu-.25)(nu-.5)/((0-.25)(0-.5)) = 0.375, ...)
     k = kalker_coefficients(1.0, 0.125)
-    assert k.c11 == pytest.approx((3.40 + 4.12) / 2)
-    mid = kalker_coefficients(math.sqrt(0.5), 0.25)  # halfway in log(a/b) between 0.5 and 1
-    assert mid.c22 == pytest.approx((3.01 + 3.67) / 2)
+    assert k.c11 == pytest.approx(0.375 * 3.40 + 0.75 * 4.12 - 0.125 * 5.20, rel=1e-12)
     arr = kalker_coefficients(np.array([0.1, 1.0, 10.0]), 0.25)
     np.testing.assert_allclose(arr.c11, [3.31, 4.12, 11.7])
-    # monotone in a/b along a column
-    g = np.geomspace(0.1, 10, 50)
-    assert np.all(np.diff(kalker_coefficients(g, 0.25).c11) > 0)
+    # the coefficients rise with a/b across both halves (all but c11 at nu = 0.5, which the
+    # table itself has dipping from 4.85 to 4.80 over a/b = 0.1-0.3)
+    g = np.geomspace(0.1, 10, 200)
+    for nu in (0.0, 0.25, 0.5):
+        kc = kalker_coefficients(g, nu)
+        for c in ((kc.c22, kc.c23) if nu == 0.5 else (kc.c11, kc.c22, kc.c23)):
+            assert np.all(np.diff(c) >= 0)
 
 
 @pytest.mark.parametrize("bad", [(0.05, 0.25), (20.0, 0.25), (1.0, -0.1), (1.0, 0.6)])
