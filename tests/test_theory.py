@@ -134,14 +134,16 @@ def test_operating_point_balances_torque(cfg):
     assert 65.82 < t_peak < 72.0 and 0 < xi_peak < 0.05
 
 
-def test_default_run_reproduces_the_papers_shape(cfg):
-    """Phase about flat over steps 1-3, a sharp rise at step 4, no slip at step 6, and a
-    Polach fit (no velocity dependence) of the steady-state points giving mu near 0.24."""
+def test_default_theory_phase_flat_then_rising_and_fit_near_024(cfg):
+    """What the default rig's small-signal theory gives at the paper's six torques (not the
+    paper's phases themselves): phase within a factor 1.8 over steps 1-3, rising by > 1.5x at
+    step 4, steps 1 and 6 in broad bands, and a noise-free Polach fit (no velocity
+    dependence) of the steady-state points giving mu within 0.01 of the paper's 0.24."""
     ops = [operating_point(dc, cfg.rig) for dc in TABLE1]
     ph = [float(predicted_phase_deg(o.creep_coefficient, cfg.rig, 2.0)) for o in ops]
     assert max(ph[:3]) / min(ph[:3]) < 1.8
     assert ph[3] / ph[2] > 1.5
-    assert 1.0 < ph[0] < 15.0 and 20.0 < ph[5] < 80.0  # J = 4 kg*m^2: 12.7 and 66.9 deg
+    assert 1.0 < ph[0] < 15.0 and 20.0 < ph[5] < 80.0  # J = 4 kg*m^2: about 11 and 70 deg
     xi = np.array([o.creepage for o in ops])
     coa = np.array([o.coa for o in ops])
     popt, _ = curve_fit(lambda x, mu, ka, ks, st: adhesion_curve(x, mu=mu, k_a=ka, k_s=ks,
