@@ -215,7 +215,7 @@ def test_convert_units_datetime_time():
     np.testing.assert_allclose(convert_units(t, None, "time"), [0, 5e-4, 1e-3, 1.5e-3])
 
 
-def test_unit_table_matches_the_method_units():
+def test_first_unit_of_each_quantity_is_the_method_unit():
     for channel, unit in CHANNEL_UNITS.items():
         assert next(iter(UNITS[QUANTITY[channel]])) == unit
         assert canonical_unit(unit) == (QUANTITY[channel], unit)

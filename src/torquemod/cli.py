@@ -12,11 +12,10 @@ import math
 import signal
 import sys
 import threading
-import warnings
 from pathlib import Path
 
 from ._version import __version__
-from .errors import TorquemodError, TorquemodWarning
+from .errors import TorquemodError
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERNAL = 3
@@ -336,7 +335,6 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    warnings.simplefilter("ignore", TorquemodWarning)  # collected and printed by commands
     try:
         with _terminate_as_interrupt():
             return int(args.func(args) or 0)

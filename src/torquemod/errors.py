@@ -42,7 +42,3 @@ class ProcessingError(TorquemodError, RuntimeError):
 
 class OutputError(TorquemodError, OSError):
     """The results folder cannot be written as asked."""
-
-
-class TorquemodWarning(UserWarning):
-    """A condition the user should know about; recorded in provenance.json."""

@@ -776,13 +776,6 @@ def assemble_recording(cmap: ChannelMap, lookup: Callable[[str], RawChannel | No
     return Recording(channels, float(fs), float(t0), source, notes)
 
 
-def unit_table() -> list[tuple[str, str, float]]:
-    """``(quantity, unit, factor to SI)`` for every accepted unit, for docs and messages."""
-    rows = [(q, u, f) for q, table in UNITS.items() for u, f in table.items()]
-    rows += [("linear_speed", u, f) for u, f in LINEAR_SPEED_UNITS.items()]
-    return rows
-
-
 def source_name(path: Path, group: str | None) -> str:
     """The ``Recording.source`` text: the path, and ``:group`` when one was chosen."""
     return f"{path}" + (f":{group}" if group else "")

@@ -42,8 +42,9 @@ _RECORDING_SUFFIXES = {".csv": "CSV", ".h5": "HDF5", ".hdf5": "HDF5",
                        ".parquet": "Parquet", ".pq": "Parquet"}
 
 
-#: the keys a [[recording]] table may hold
-_RECORDING_KEYS = ("step", "cycle", "dc_torque_nm", "file", "group", "sample_rate_hz")
+#: the keys a [[recording]] table may hold ("note" and "comment" are free text)
+_RECORDING_KEYS = ("step", "cycle", "dc_torque_nm", "file", "group", "sample_rate_hz", "note",
+                   "comment")
 
 
 def _load_toml(path: Path) -> dict:

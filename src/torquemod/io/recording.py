@@ -33,16 +33,6 @@ _WRITERS = {
 }
 
 
-def register_reader(suffix: str, reader) -> None:
-    """Make ``reader(path, *, group=None, channel_map=None) -> Recording`` handle ``suffix``.
-
-    ``channel_map`` reaches the reader as a :class:`~torquemod.io.channels.ChannelMap`
-    (already checked); :func:`~torquemod.io.channels.assemble_recording` does the mapping,
-    unit conversion and time base for it.
-    """
-    _READERS[suffix.lower()] = reader
-
-
 def supported_suffixes() -> list[str]:
     """File suffixes :func:`read_recording` can read."""
     return sorted(_READERS)
