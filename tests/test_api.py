@@ -384,3 +384,18 @@ def test_readme_python_api_example_runs(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     exec(compile(block[1], "README.md", "exec"), {"__name__": "readme"})
     assert (tmp_path / "my-results" / "report.html").is_file()
+
+
+def test_measurement_path_does_not_import_the_twin():
+    """The measurement (read, process, analyze, save, report) never loads the twin's modules:
+    torquemod.rig, torquemod.simulate and the rig-based torquemod.theory."""
+    import subprocess
+    import sys
+
+    code = ("import sys, torquemod, torquemod.api, torquemod.analysis, torquemod.pipeline, "
+            "torquemod.layout, torquemod.report, torquemod.phasefit, torquemod.fit\n"
+            "print(sorted(m for m in sys.modules if m.startswith('torquemod.rig') or m in "
+            "('torquemod.simulate', 'torquemod.theory')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "[]"

@@ -35,7 +35,6 @@ from .config import coerce_options
 from .creep import creep_points, saturation_onset, theory_check, theory_constant
 from .errors import InputError, ProcessingError
 from .fit import fit_polach
-from .theory import rigid_wheel_phase_deg
 
 if TYPE_CHECKING:
     from .pipeline import ProcessResult
@@ -185,9 +184,7 @@ def analyze(result: ProcessResult, options: FitOptions | dict | None = None, **f
     else:
         k = nan
     tc = theory_check(pts.phase_deg, k, constant=constant)
-    phase_theory = tc.phase_theory_deg
-    if rig_args is not None:  # the project's rigid-wheel formula (torquemod.theory)
-        phase_theory = np.asarray(rigid_wheel_phase_deg(k, **rig_args), dtype=float)
+    phase_theory = tc.phase_theory_deg  # atan(C/k), C from the rig when rig_args are known
     if tc.mode == "fitted" and tc.n_used < 2:
         warnings.append("too few usable steps to fit the theory constant")
     onset = saturation_onset(pts.step, pts.phase_deg, pts.phase_std_deg, k,

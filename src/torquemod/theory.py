@@ -35,6 +35,7 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
 from .contact.polach import creep_force
+from .creep import phase_from_constant_deg, theory_constant
 from .errors import InputError
 from .rig.params import RigParams
 
@@ -42,15 +43,16 @@ from .rig.params import RigParams
 def rigid_wheel_phase_deg(creep_coefficient, *, inertia_kg_m2: float, speed_m_s: float,
                           wheel_radius_m: float, normal_load_n: float, frequency_hz: float):
     """Phase lag [deg] of wheel speed behind torque for a rigid wheel (FACTS.md §1):
-    ``phi = arctan(Omega*J*V / (R^2*N*k))``, ``Omega = 2*pi*f``; 90 deg at k = 0.
+    ``phi = arctan(Omega*J*V / (R^2*N*k))``, ``Omega = 2*pi*f``; 90 deg at k = 0. The
+    measurement's own formula (:func:`torquemod.creep.theory_constant`,
+    :func:`torquemod.creep.phase_from_constant_deg`) in the rig's terms.
 
     ``creep_coefficient`` k = dCoA/dxi_x [-] (scalar or array, k >= 0).
     """
-    k = np.asarray(creep_coefficient, dtype=float)
-    omega = 2.0 * np.pi * frequency_hz
-    num = omega * inertia_kg_m2 * speed_m_s
-    den = wheel_radius_m**2 * normal_load_n * k
-    return np.degrees(np.arctan2(num, den))
+    c = theory_constant(inertia_kg_m2=inertia_kg_m2, speed_m_s=speed_m_s,
+                        wheel_radius_m=wheel_radius_m, normal_load_n=normal_load_n,
+                        frequency_hz=frequency_hz)
+    return phase_from_constant_deg(c, creep_coefficient)
 
 
 def creep_coefficient_from_phase(phase_deg, *, inertia_kg_m2: float, speed_m_s: float,
@@ -62,9 +64,10 @@ def creep_coefficient_from_phase(phase_deg, *, inertia_kg_m2: float, speed_m_s: 
     if np.any(~np.isfinite(phi)) or np.any(phi <= 0.0) or np.any(phi > 90.0):
         raise InputError(f"phase {phase_deg} deg is outside (0, 90] deg",
                          hint="a wheel speed that leads the torque has no creep coefficient")
-    omega = 2.0 * np.pi * frequency_hz
-    return omega * inertia_kg_m2 * speed_m_s / (
-        wheel_radius_m**2 * normal_load_n * np.tan(np.radians(phi)))
+    c = theory_constant(inertia_kg_m2=inertia_kg_m2, speed_m_s=speed_m_s,
+                        wheel_radius_m=wheel_radius_m, normal_load_n=normal_load_n,
+                        frequency_hz=frequency_hz)
+    return c / np.tan(np.radians(phi))
 
 
 def drive_line_response(creep_coefficient, params: RigParams, frequency_hz, *,
