@@ -80,7 +80,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from .contact.polach import force_function, friction_coefficient, swing_average
+from .contact.polach import (
+    force_function,
+    force_function_slope,
+    friction_coefficient,
+    swing_average,
+)
 from .errors import InputError, ProcessingError
 from .jsonutil import to_jsonable
 
@@ -117,10 +122,7 @@ def polach_slope(xi, theta, *, speed_m_s=None):
     xi = np.abs(np.asarray(xi, dtype=float))
     if len(theta) == 3:
         mu, a, s = (float(v) for v in theta)
-        eps = xi / mu
-        ae = a * eps
-        return (2.0 / np.pi) * (a * (1.0 - ae * ae) / (1.0 + ae * ae) ** 2
-                                + s / (1.0 + (s * eps) ** 2))
+        return force_function_slope(xi / mu, k_a=a, k_s=s)
     h = np.maximum(1e-7, 1e-4 * xi)
     lo = np.maximum(xi - h, 0.0)
     hi = xi + h

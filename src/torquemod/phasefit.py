@@ -65,7 +65,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .contact.polach import swing_average, swing_slope
+from .contact.polach import (
+    force_function,
+    force_function_slope,
+    swing_average,
+    swing_slope,
+)
 from .errors import InputError
 from .jsonutil import to_jsonable
 
@@ -87,17 +92,15 @@ K0_BOUNDS = (3.0, 3000.0)
 
 def polach_h(x, r):
     """Normalised Polach force ``h(x; r) = (2/pi)*(r*x/(1+(r*x)^2) + arctan(x))`` (P05 Eq. 8
-    with ``x = kS*eps``, ``r = kA/kS``), odd in x."""
-    x = np.asarray(x, dtype=float)
-    rx = r * x
-    return (2.0 / np.pi) * (rx / (1.0 + rx * rx) + np.arctan(x))
+    with ``x = kS*eps``, ``r = kA/kS``), odd in x: the library's
+    :func:`torquemod.contact.polach.force_function` with kA = r, kS = 1."""
+    return force_function(np.asarray(x, dtype=float), k_a=r, k_s=1.0)
 
 
 def polach_h_slope(x, r):
-    """``dh/dx`` of :func:`polach_h`: ``(2/pi)*(r*(1-(rx)^2)/(1+(rx)^2)^2 + 1/(1+x^2))``."""
-    x = np.asarray(x, dtype=float)
-    rx2 = (r * x) ** 2
-    return (2.0 / np.pi) * (r * (1.0 - rx2) / (1.0 + rx2) ** 2 + 1.0 / (1.0 + x * x))
+    """``dh/dx`` of :func:`polach_h`: ``(2/pi)*(r*(1-(rx)^2)/(1+(rx)^2)^2 + 1/(1+x^2))``
+    (:func:`torquemod.contact.polach.force_function_slope`)."""
+    return force_function_slope(np.asarray(x, dtype=float), k_a=r, k_s=1.0)
 
 
 def polach_h_curvature(x, r):

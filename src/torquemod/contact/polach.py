@@ -96,14 +96,19 @@ def adhesion_curve(xi, *, mu: float, k_a: float, k_s: float, stiffness: float):
     return np.sign(xi) * mu * force_function(eps, k_a=k_a, k_s=k_s)
 
 
+def force_function_slope(eps, *, k_a: float, k_s: float):
+    """``d/d eps`` of :func:`force_function` (even in eps):
+    ``(2/pi)*(kA*(1-(kA*eps)^2)/(1+(kA*eps)^2)^2 + kS/(1+(kS*eps)^2))``."""
+    ke = k_a * eps
+    return (2.0 / np.pi) * (k_a * (1.0 - ke * ke) / (1.0 + ke * ke) ** 2
+                            + k_s / (1.0 + (k_s * eps) ** 2))
+
+
 def adhesion_slope(xi, *, mu: float, k_a: float, k_s: float, stiffness: float):
     """Creep coefficient dCoA/dxi [-] of :func:`adhesion_curve` (analytic derivative)."""
     xi = np.asarray(xi, dtype=float)
     eps = stiffness * np.abs(xi) / mu
-    ke = k_a * eps
-    d_f_d_eps = (2.0 / np.pi) * (k_a * (1.0 - ke * ke) / (1.0 + ke * ke) ** 2
-                                 + k_s / (1.0 + (k_s * eps) ** 2))
-    return stiffness * d_f_d_eps
+    return stiffness * force_function_slope(eps, k_a=k_a, k_s=k_s)
 
 
 # --------------------------------------------------------------------------------------------
