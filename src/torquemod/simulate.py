@@ -32,6 +32,7 @@ import numba
 import numpy as np
 
 from . import __version__
+from .checks import positive_number
 from .contact.hertz import hertz_ellipse
 from .contact.kalker import kalker_coefficients
 from .contact.presets import polach_preset
@@ -122,11 +123,8 @@ def _check_and_merge(default: dict, user: dict, where: str) -> dict:
 
 
 def _positive(doc: dict, section: str, key: str, where: str, *, allow_zero=False) -> float:
-    v = float(doc[section][key])
-    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        need = "non-negative" if allow_zero else "positive"
-        raise InputError(f"'{section}.{key}' must be {need}, got {v}", path=where)
-    return v
+    return positive_number(doc[section][key], f"{section}.{key}", path=where,
+                           allow_zero=allow_zero)
 
 
 def _contact(doc: dict, rig: dict, where: str) -> ContactParams:

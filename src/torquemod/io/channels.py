@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import positive_number
 from ..data import CHANNEL_UNITS, CHANNELS, OPTIONAL_CHANNELS, Recording
 from ..errors import InputError
 from .validate import fit_time_grid
@@ -252,11 +253,8 @@ def default_channel_map() -> ChannelMap:
 
 
 def _positive(value: object, key: str, path: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) \
-            or not math.isfinite(value) or value <= 0:
-        raise InputError(f"'{key}' must be a positive number, got {value!r}", path=path,
-                         hint="give the value in SI units, e.g. sample_rate_hz = 1000.0")
-    return float(value)
+    return positive_number(value, key, path=path,
+                           hint="give the value in SI units, e.g. sample_rate_hz = 1000.0")
 
 
 def _entry(channel: str, key: str, value: object, path: object) -> ChannelSpec:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import tomli_w
 
+from ..checks import positive_number
 from ..data import Experiment, RecordingEntry, Rig, TestSetup
 from ..errors import InputError, ManifestError
 from .channels import resolve_channel_map
@@ -25,14 +26,7 @@ def _positive_float(table: dict, key: str, section: str, path: Path) -> float:
     if key not in table:
         raise ManifestError(f"missing key '{section}.{key}'", path=path,
                             hint=f"add '{key} = <value>' under [{section}]")
-    value = table[key]
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ManifestError(f"'{section}.{key}' must be a number, got {value!r}", path=path)
-    value = float(value)
-    if not math.isfinite(value) or value <= 0:
-        raise ManifestError(f"'{section}.{key}' must be a positive finite number, got {value}",
-                            path=path)
-    return value
+    return positive_number(table[key], f"{section}.{key}", path=path, error=ManifestError)
 
 
 #: file suffixes of recordings (a recording given where the manifest belongs gets a clear
