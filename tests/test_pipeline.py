@@ -198,3 +198,26 @@ def test_means_are_free_of_the_partial_modulation_period(tmp_path):
     m = _merge(process_experiment(tmp_path / "experiment.toml"), truth)
     assert np.abs(m.creepage - m.creepage_true).max() < 2e-5
     assert np.abs(m.coa - m.coa_true).max() < 5e-4
+
+
+@pytest.mark.parametrize("extra_samples,noted", [(1, False), (3, False), (250, True)])
+def test_trailing_part_noted_only_when_it_matters(extra_samples, noted):
+    """A file of two platform revolutions plus a few samples splits into two cycles
+    without a note; a quarter revolution left over is noted with its length."""
+    from pathlib import Path
+
+    from torquemod.data import Recording, RecordingEntry
+    from torquemod.pipeline import _cycles_of
+
+    fs, rev = 1000.0, 1000  # one revolution per second at 2*pi rad/s
+    n = 2 * rev + extra_samples
+    ch = {name: np.zeros(n) for name in ("torque_nm", "wheel_speed_rad_s")}
+    ch["platform_speed_rad_s"] = np.full(n, 2 * np.pi)
+    notes: list[str] = []
+    entry = RecordingEntry(step=1, dc_torque_nm=0.0, path=Path("x.h5"))
+    cycles = _cycles_of(entry, Recording(ch, fs), "x.h5", notes)
+    assert [c for c, _, _ in cycles] == [1, 2]
+    trailing = [m for m in notes if "trailing" in m]
+    assert bool(trailing) == noted
+    if noted:
+        assert "0.25 s (25 % of a platform revolution)" in trailing[0]

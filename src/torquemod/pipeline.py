@@ -159,9 +159,10 @@ def _cycles_of(entry: RecordingEntry, rec: Recording, where: str, notes: list[st
                          channel="platform_speed_rad_s",
                          hint="give its 'cycle' in the manifest or record a whole revolution")
     tail = rec.n_samples - bounds[-1][1]
-    if tail > 1:
-        notes.append(f"{where}: dropped a trailing part of {tail / rec.fs_hz:.3f} s shorter "
-                     "than a platform revolution")
+    rev = float(np.mean([b - a for a, b in bounds]))
+    if tail > 0.01 * rev:  # a sample or two past the last revolution's end is not news
+        notes.append(f"{where}: dropped a trailing part of {tail / rec.fs_hz:.3g} s "
+                     f"({100 * tail / rev:.0f} % of a platform revolution)")
     return [(k + 1, rec.slice(a, b), (a, b)) for k, (a, b) in enumerate(bounds)]
 
 
