@@ -30,7 +30,7 @@ from .errors import InputError, ProcessingError
 from .fsutil import sha256_file
 from .io import read_entry, read_experiment
 from .io.stream import hash_file_async
-from .io.validate import check_finite
+from .io.validate import check_finite, clipping_notes
 
 __all__ = ["CYCLE_COLUMNS", "STEP_COLUMNS", "TRACE_NAMES", "ProcessResult", "ProcessingConfig",
            "aggregate_steps", "detect_slip", "process_experiment", "resolve_config"]
@@ -187,6 +187,7 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
     actions: list[str] = []
     # what the reader did to the time bases (offsets, other rates), for provenance
     notes: list[str] = [f"{where}: {n}" for n in getattr(rec, "notes", [])]
+    notes += clipping_notes(rec, path=where)
     bad = None
     if cfg.nan_policy == "raise":
         check_finite(rec, path=where)

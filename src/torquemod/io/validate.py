@@ -155,3 +155,37 @@ def check_channels(rec: Recording, *, path: object) -> None:
             raise InputError(f"has {x.size} samples, other channels have {n}", path=path,
                              channel=name, hint="all channels must be sampled together; "
                              "export them again or cut them to one length")
+
+
+def _longest_run(mask: np.ndarray) -> int:
+    """Length of the longest run of True in a boolean array."""
+    if not mask.any():
+        return 0
+    edges = np.diff(np.concatenate([[0], mask.view(np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return int((stops - starts).max())
+
+
+def clipping_notes(rec: Recording, *, path: object, min_run_s: float = 0.005,
+                   min_fraction: float = 1e-3) -> list[str]:
+    """Warnings for channels that look clipped: a run of at least ``min_run_s`` [s] of
+    consecutive samples, and at least ``min_fraction`` of all samples, sitting exactly at the
+    channel's maximum or minimum (a saturated sensor or a logger range set too small). A
+    live, noisy signal reaches its extreme once, not for a run of samples; the phase and the
+    means of a clipped channel are biased, so the user must know."""
+    out = []
+    n = rec.n_samples
+    need = max(int(np.ceil(min_run_s * rec.fs_hz)), int(np.ceil(min_fraction * n)), 3)
+    for name, x in rec.channels.items():
+        finite = x[np.isfinite(x)]
+        if finite.size < need or finite.min() == finite.max():
+            continue
+        for which, value in (("maximum", finite.max()), ("minimum", finite.min())):
+            at = x == value
+            if at.sum() >= need and (run := _longest_run(at)) >= need:
+                out.append(f"{path}: channel '{name}' sits at its {which} {value:.6g} for "
+                           f"{run} consecutive samples ({run / rec.fs_hz:.3g} s; "
+                           f"{100 * at.mean():.2g} % of the record): a clipped sensor or a "
+                           "logger range set too small? Check the channel; its phase and "
+                           "means are biased where it is clipped")
+    return out
