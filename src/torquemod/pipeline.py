@@ -29,7 +29,7 @@ from .data import Experiment, Recording, RecordingEntry
 from .errors import InputError, ProcessingError
 from .fsutil import sha256_file
 from .io import read_entry, read_experiment
-from .io.stream import hash_file_async
+from .io.stream import hash_file_async, open_stream
 from .io.validate import check_finite, clipping_notes
 
 __all__ = ["CYCLE_COLUMNS", "STEP_COLUMNS", "TRACE_NAMES", "ProcessResult", "ProcessingConfig",
@@ -172,6 +172,56 @@ def _subsample(x: np.ndarray) -> np.ndarray:
     return x[::stride].astype(np.float32)
 
 
+#: Files of at least this size [bytes] that span several revolutions are split while they
+#: are read (:meth:`torquemod.io.stream.RecordingStream.revolutions`): memory holds one
+#: revolution and one chunk instead of the whole file; the cycles are identical (tests).
+STREAM_MIN_BYTES = 256 * 2**20
+
+
+def _open_stream(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig):
+    """A stream of a long multi-revolution file, or None for the whole-file path (short
+    files, a manifest cycle, a NaN policy other than 'raise', or a file streaming cannot
+    align: channels on their own time bases, .mat v5)."""
+    if entry.cycle is not None or cfg.nan_policy != "raise":
+        return None
+    try:
+        if entry.path.stat().st_size < STREAM_MIN_BYTES:
+            return None
+        stream = open_stream(entry, experiment=exp)
+    except (InputError, OSError):
+        return None  # the whole-file reader aligns it, or names what is wrong
+    if "platform_speed_rad_s" not in stream.info.file_names:
+        stream.close()
+        return None
+    return stream
+
+
+def _streamed_cycles(stream, where: str, notes: list[str]):
+    """(cycle, segment, (start, stop)) of every whole revolution of a stream, each checked
+    for NaN/inf and clipping as it comes; the stream is closed at the end."""
+    seen: set[str] = set()
+    with stream:
+        revs = []
+        for k, seg, ab in stream.revolutions():
+            check_finite(seg, path=where)
+            for note in clipping_notes(seg, path=where):
+                key = note.split(" sits at ")[0]
+                if key not in seen:  # once per channel, not per revolution
+                    seen.add(key)
+                    notes.append(note)
+            revs.append(ab[1] - ab[0])
+            yield k, seg, ab
+        if not revs:
+            raise InputError("recording spans less than one platform revolution", path=where,
+                             channel="platform_speed_rad_s",
+                             hint="give its 'cycle' in the manifest or record a whole "
+                             "revolution")
+        tail, rev = stream.tail_samples, float(np.mean(revs))
+        if tail > 0.01 * rev:
+            notes.append(f"{where}: dropped a trailing part of {tail / stream.info.fs_hz:.3g} s "
+                         f"({100 * tail / rev:.0f} % of a platform revolution)")
+
+
 def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig
                       ) -> tuple[float, float, str, list[str], list[str], list]:
     """Read one recording, apply the NaN policy, split it into cycles and run steps 1-5 and 8
@@ -182,29 +232,37 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
     # the input's SHA-256 (provenance) in a background thread while the file is read and
     # processed: hashlib releases the GIL, so on a free core it costs no wall time
     digest_future = hash_file_async(entry.path)
-    rec = read_entry(exp, entry)
-    t1 = time.perf_counter()
+    stream = _open_stream(entry, exp, cfg)
     actions: list[str] = []
-    # what the reader did to the time bases (offsets, other rates), for provenance
-    notes: list[str] = [f"{where}: {n}" for n in getattr(rec, "notes", [])]
-    notes += clipping_notes(rec, path=where)
+    notes: list[str] = []
     bad = None
-    if cfg.nan_policy == "raise":
-        check_finite(rec, path=where)
+    if stream is not None:  # a long file: revolution by revolution while it is read
+        t1 = time.perf_counter()
+        segments = _streamed_cycles(stream, where, notes)
     else:
-        bad = np.zeros(rec.n_samples, dtype=bool)
-        for x in rec.channels.values():
-            bad |= ~np.isfinite(x)
-        if not bad.any():
-            bad = None
-        elif cfg.nan_policy == "drop-cycle" and entry.cycle is not None:
-            actions.append(f"{where}: dropped step {entry.step} cycle {entry.cycle} "
-                           "(NaN/inf samples)")
-            return t1 - t0, time.perf_counter() - t1, digest_future.result(), actions, notes, []
-        else:  # interpolate; drop-cycle also fills so that the file can be split
-            actions += _fill_nan(rec, where)
+        rec = read_entry(exp, entry)
+        t1 = time.perf_counter()
+        # what the reader did to the time bases (offsets, other rates), for provenance
+        notes += [f"{where}: {n}" for n in getattr(rec, "notes", [])]
+        notes += clipping_notes(rec, path=where)
+        if cfg.nan_policy == "raise":
+            check_finite(rec, path=where)
+        else:
+            bad = np.zeros(rec.n_samples, dtype=bool)
+            for x in rec.channels.values():
+                bad |= ~np.isfinite(x)
+            if not bad.any():
+                bad = None
+            elif cfg.nan_policy == "drop-cycle" and entry.cycle is not None:
+                actions.append(f"{where}: dropped step {entry.step} cycle {entry.cycle} "
+                               "(NaN/inf samples)")
+                return (t1 - t0, time.perf_counter() - t1, digest_future.result(), actions,
+                        notes, [])
+            else:  # interpolate; drop-cycle also fills so that the file can be split
+                actions += _fill_nan(rec, where)
+        segments = _cycles_of(entry, rec, where, notes)
     out = []
-    for cyc, seg, (a, b) in _cycles_of(entry, rec, where, notes):
+    for cyc, seg, (a, b) in segments:
         cwhere = f"{where} (step {entry.step} cycle {cyc})"
         if cfg.nan_policy == "drop-cycle" and bad is not None and bad[a:b].any():
             actions.append(f"{cwhere}: dropped (NaN/inf samples)")
