@@ -38,7 +38,8 @@ def reference() -> Recording:
     """A recording with full-precision values (no short decimal forms)."""
     rng = np.random.default_rng(20240501)
     scale = {"torque_nm": 40.0, "wheel_speed_rad_s": 30.0, "platform_speed_rad_s": 0.7,
-             "fx_n": 900.0, "fy_n": 150.0, "fz_n": 4200.0}
+             "fx_n": 900.0, "fy_n": 150.0, "fz_n": 4200.0, "vehicle_speed_m_s": 20.0,
+             "position_m": 500.0}
     channels = {c: scale[c] * (1 + 0.1 * rng.standard_normal(N)) for c in CHANNELS}
     return Recording(channels, FS_HZ, T0_S, "reference")
 
@@ -96,9 +97,12 @@ RENAMED = {
     "fx_n": ("Fx", "kN", 1e-3),
     "fy_n": ("Fy", "N", 1.0),
     "fz_n": ("Fz", "daN", 0.1),
+    "vehicle_speed_m_s": ("Radar", "km/h", 3.6),
+    "position_m": ("Odometer", "km", 1e-3),
 }
 SHORT = {"torque_nm": "torque", "wheel_speed_rad_s": "wheel_speed",
-         "platform_speed_rad_s": "platform_speed", "fx_n": "fx", "fy_n": "fy", "fz_n": "fz"}
+         "platform_speed_rad_s": "platform_speed", "fx_n": "fx", "fy_n": "fy", "fz_n": "fz",
+         "vehicle_speed_m_s": "vehicle_speed", "position_m": "position"}
 
 
 def _renamed_columns(ref: Recording, prefix: str = "") -> dict:

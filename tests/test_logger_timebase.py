@@ -28,14 +28,15 @@ from torquemod.io.validate import fit_time_grid, sample_rate_from_time
 
 FS = 10_000.0
 N = 20_000
-NAMES = CHANNELS
+NAMES = CHANNELS[:6]  # the rig's channels (the train's reference speed: tests/test_train_io.py)
 EPOCH = 1.7e9
 
 
 def _signal(name: str, t: np.ndarray) -> np.ndarray:
     """Each channel a distinct smooth function of time [s] (relative to EPOCH if above)."""
     k = {"torque_nm": 1.0, "wheel_speed_rad_s": 2.0, "platform_speed_rad_s": 3.0,
-         "fx_n": 4.0, "fy_n": 5.0, "fz_n": 6.0}[name]
+         "fx_n": 4.0, "fy_n": 5.0, "fz_n": 6.0, "vehicle_speed_m_s": 7.0,
+         "position_m": 8.0}[name]
     return 10 * k + np.sin(2 * np.pi * 2.0 * t + k) + 0.3 * np.cos(2 * np.pi * 0.7 * t * k)
 
 

@@ -27,7 +27,8 @@ CHUNK = 777  # not a divisor of N, nor of any block size the libraries use
 def columns() -> dict[str, np.ndarray]:
     rng = np.random.default_rng(11)
     scale = {"torque_nm": 40.0, "wheel_speed_rad_s": 30.0, "platform_speed_rad_s": 0.7,
-             "fx_n": 900.0, "fy_n": 150.0, "fz_n": 4200.0}
+             "fx_n": 900.0, "fy_n": 150.0, "fz_n": 4200.0, "vehicle_speed_m_s": 20.0,
+             "position_m": 500.0}
     return {c: scale[c] * (1 + 0.1 * rng.standard_normal(N)) for c in CHANNELS}
 
 

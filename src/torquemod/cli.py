@@ -86,13 +86,71 @@ def cmd_process(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train_config(args: argparse.Namespace):
+    """The train configuration when --train is given or the config says kind = "train"."""
+    import tomllib
+
+    from .train import is_train_config, load_train_config
+    if args.train:
+        return load_train_config(args.config)
+    if args.config:
+        try:
+            doc = tomllib.loads(Path(args.config).read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+            return None  # the rig's loader names the problem
+        if is_train_config(doc):
+            return load_train_config(args.config)
+    return None
+
+
+def cmd_simulate_train(args: argparse.Namespace, config) -> int:
+    from .train import run_train_simulation
+    say = _stage_printer(args)
+    if say:
+        say("simulating the train run (the first run compiles the twin's numba kernels) ...")
+    summary = run_train_simulation(config, Path(args.out), seed=args.seed, force=args.force)
+    print(f"train run written to {args.out}/run.toml (MDF4) and run_h5.toml (HDF5), truth in "
+          "truth.parquet")
+    print(f"  {summary['length_m']:.0f} m in {summary['duration_s']:.1f} s")
+    for seg in summary["segments"]:
+        print(f"  {seg['condition']:>18} {seg['start_m']:7.0f}-{seg['end_m']:7.0f} m: friction "
+              f"{seg['mu']:.3f}, available adhesion {seg['adhesion_peak']:.3f}, max "
+              f"utilisation {seg['max_utilisation']:.2f}")
+    return 0
+
+
+def cmd_onboard(args: argparse.Namespace) -> int:
+    from .onboard import run_onboard
+    say = _stage_printer(args)
+    if say:
+        say("estimating the friction along the run ...")
+    results = run_onboard(args.run, Path(args.out), force=args.force,
+                          command=sys.argv)
+    for r in results:
+        s = r.summary()
+        print(f"axle {s['axle']}: {s['windows']} windows over {s['length_m']:.0f} m, mu "
+              f"determined in {100 * s['mu_given_share']:.0f} % (elsewhere a lower bound), "
+              f"low adhesion {100 * s['low_adhesion_share']:.1f} %, slip "
+              f"{100 * s['slip_share']:.1f} %; {s['seconds']:.1f} s")
+    print(f"track:  {Path(args.out) / 'track.parquet'}")
+    print(f"report: {Path(args.out) / 'report.html'}")
+    return 0
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     from . import simulate
+    if args.print_config and args.train:
+        from .train import default_train_config_text
+        sys.stdout.write(default_train_config_text())
+        return 0
     if args.print_config:
         sys.stdout.write(simulate.default_config_text())
         return 0
     if args.out is None:
         raise _UsageError("simulate needs --out DIR (or --print-config)")
+    train = _train_config(args)
+    if train is not None:
+        return cmd_simulate_train(args, train)
     config = simulate.load_config(args.config)
     say = _stage_printer(args)
     if say:
@@ -147,7 +205,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
     say = _stage_printer(args)
     out = run_demo(Path(args.out), config_path=args.config, seed=args.seed, force=args.force,
-                   progress=not args.quiet, quick=args.quick, on_stage=say)
+                   progress=not args.quiet, quick=args.quick, on_stage=say,
+                   with_train=not args.no_train)
     print(f"simulated experiment: {out['manifest']}")
     print(f"results:              {out['results']}")
     print(f"report:               {out['report']}")
@@ -167,7 +226,21 @@ def cmd_demo(args: argparse.Namespace) -> int:
               f"peak CoA {truth['peak_coa']:.4f} at {_fmt(truth.get('peak_torque_nm'), '.2f')} "
               f"N*m; slip at step {truth.get('slip_step')}")
         print(_why_they_differ(out, truth))
+    if out.get("train"):
+        _print_train_demo(out["train"])
     return 0
+
+
+def _print_train_demo(train: dict) -> None:
+    print()
+    print(f"train run:     {train['run']}")
+    print(f"train report:  {train['report']}")
+    print(f"{'segment':>18} {'span [m]':>12} {'friction':>9} {'mu est.':>9} {'lower bd':>9}")
+    for s in train["segments"]:
+        print(f"{s['condition']:>18} {s['start_m']:5.0f}-{s['end_m']:<6.0f} {s['mu']:9.3f} "
+              f"{_fmt(s['mu_estimate'], '9.3f')} {_fmt(s['mu_lower_bound'], '9.3f')}")
+    print("where mu is not determined (the axle stayed far from saturation for the curve's "
+          "shape to fix mu), the lower bound is what the data show.")
 
 
 def _why_they_differ(out: dict, truth: dict) -> str:
@@ -249,9 +322,20 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--format", choices=["csv", "hdf5"], default="csv")
     s.add_argument("--print-config", action="store_true", help="print the default config")
+    s.add_argument("--train", action="store_true",
+                   help="simulate a train run (powered wheelset, friction map) instead of "
+                        "the rig; also chosen by kind = \"train\" in the config")
     s.add_argument("--force", action="store_true", help="replace an existing folder")
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_simulate)
+
+    o = sub.add_parser("onboard", parents=[common],
+                       help="the friction along a train run (run.toml) from torque and speed")
+    o.add_argument("run", help="run.toml (or its folder)")
+    o.add_argument("--out", required=True, help="results folder to create")
+    o.add_argument("--force", action="store_true", help="replace an existing results folder")
+    o.add_argument("--quiet", action="store_true", help="no stage lines")
+    o.set_defaults(func=cmd_onboard)
 
     f = sub.add_parser("fit", parents=[common], help=(
         "(re)fit the creep curve of a results folder and update it (fit.json, steps.csv, "
@@ -289,6 +373,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--config", default=None, help="simulation config TOML")
     d.add_argument("--seed", type=int, default=0)
     d.add_argument("--quick", action="store_true", help="a shortened experiment")
+    d.add_argument("--no-train", action="store_true",
+                   help="only the rig (skip the train run and its on-board estimate)")
     d.add_argument("--force", action="store_true")
     d.add_argument("--quiet", action="store_true")
     d.set_defaults(func=cmd_demo)

@@ -17,12 +17,17 @@ CHANNELS: tuple[str, ...] = (
     "fx_n",
     "fy_n",
     "fz_n",
+    "vehicle_speed_m_s",
+    "position_m",
 )
 #: Channels every recording needs (the phase needs nothing else).
 REQUIRED_CHANNELS: tuple[str, ...] = ("torque_nm", "wheel_speed_rad_s")
 #: Channels that may be absent: without the platform speed no creepage is measured; without
 #: forces the CoA is the drive's adhesion from the torque. Forces come as fx, fz (+ fy).
-OPTIONAL_CHANNELS: tuple[str, ...] = ("platform_speed_rad_s", "fx_n", "fy_n", "fz_n")
+#: A train run adds the reference speed of the vehicle (radar, GNSS or an unpowered axle) and
+#: the position along the track (docs/format.md, run.toml).
+OPTIONAL_CHANNELS: tuple[str, ...] = ("platform_speed_rad_s", "fx_n", "fy_n", "fz_n",
+                                      "vehicle_speed_m_s", "position_m")
 #: Units of :data:`CHANNELS` (and of the time column) as written in files and docs.
 CHANNEL_UNITS: dict[str, str] = {
     "time_s": "s",
@@ -32,6 +37,8 @@ CHANNEL_UNITS: dict[str, str] = {
     "fx_n": "N",
     "fy_n": "N",
     "fz_n": "N",
+    "vehicle_speed_m_s": "m/s",
+    "position_m": "m",
 }
 
 

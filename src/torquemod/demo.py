@@ -135,7 +135,8 @@ def write_synthetic_results(out_dir, **kwargs) -> Path:
 
 
 def run_demo(out_dir, *, config_path=None, seed: int = 0, force: bool = False,
-             progress: bool = True, quick: bool = False, on_stage=None) -> dict:
+             progress: bool = True, quick: bool = False, on_stage=None,
+             with_train: bool = False) -> dict:
     """Simulate an experiment, process it, fit the creep curve and write the report.
 
     ``out_dir/experiment`` receives the simulated recordings and manifest,
@@ -149,7 +150,8 @@ def run_demo(out_dir, *, config_path=None, seed: int = 0, force: bool = False,
     :class:`Analysis` (``analysis``), its :meth:`~Analysis.summary` numbers (``mu``,
     ``mu_stderr``, ``mu_determined``, ``saturation_torque_nm``, ``onset_step``,
     ``theory_rms_deg``, ``steps``, ``warnings``, ...) and ``truth`` (the simulator's
-    creep-curve peak, slip step and theory phases).
+    creep-curve peak, slip step and theory phases). ``with_train`` adds the train part
+    (:func:`_train_demo`: ``out_dir/train-run``, ``out_dir/train-results``) as ``train``.
     """
     from . import simulate
     from .api import analyze, process, save
@@ -173,6 +175,7 @@ def run_demo(out_dir, *, config_path=None, seed: int = 0, force: bool = False,
         say("writing the results folder with figures and report.html ...")
         save(res, ana, tmp / "results")
     summary = ana.summary()
+    train = _train_demo(out, seed=seed, say=say) if with_train else None
     return {"experiment": str(out / "experiment"),
             "manifest": str(out / "experiment" / "experiment.toml"),
             "results": str(out / "results"), "report": str(out / "results" / "report.html"),
@@ -181,7 +184,32 @@ def run_demo(out_dir, *, config_path=None, seed: int = 0, force: bool = False,
             "steps": [{k: st[k] for k in ("step", "dc_torque_nm", "phase_deg",
                                           "phase_theory_deg", "torque_pct_saturation")}
                       for st in summary["steps"]],
-            "truth": _truth_headline(sim)}
+            "truth": _truth_headline(sim), "train": train}
+
+
+def _train_demo(out: Path, *, seed: int, say) -> dict:
+    """The train part of the demo: simulate the default run, estimate the friction along
+    it, write ``out/train-run`` and ``out/train-results`` (each folder atomically)."""
+    from .onboard import run_onboard
+    from .train import load_train_config, run_train_simulation
+    say("simulating the default train run (powered axle, dry/wet/leaves/friction modifier) "
+        "...")
+    sim = run_train_simulation(load_train_config(), out / "train-run", seed=seed)
+    say("estimating the friction along the train run ...")
+    res = run_onboard(out / "train-run" / "run.toml", out / "train-results")[0]
+    t = res.track
+    segs = []
+    for seg in sim["segments"]:
+        part = t[(t.position_m >= seg["start_m"]) & (t.position_m <= seg["end_m"])]
+        given = part["mu"].notna()
+        segs.append({**seg, "mu_estimate": float(part.loc[given, "mu"].median())
+                     if given.any() else None,
+                     "mu_lower_bound": float(part["mu_low_95"].median()) if len(part)
+                     else None, "mu_given_share": float(given.mean()) if len(part) else 0.0})
+    return {"run": str(out / "train-run" / "run.toml"),
+            "results": str(out / "train-results"),
+            "report": str(out / "train-results" / "report.html"), "segments": segs,
+            "summary": res.summary()}
 
 
 def _moved(result: ProcessResult, old: Path, new: Path) -> ProcessResult:

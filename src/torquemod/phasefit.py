@@ -186,14 +186,16 @@ class _Engine:
     "small" (no swing), "tied" (swing, C given: k0 = C/L), "free" (swing, k0 fitted).
     Parameters have shape (B, 1) or (B, n_par), per-step arrays (B, n)."""
 
-    def __init__(self, d: _Data, *, n_nodes: int = 16, n_ratio: int = 17, n_lm: int = 8):
+    def __init__(self, d: _Data, *, n_nodes: int = 16, n_ratio: int = 17, n_lm: int = 8,
+                 ratio_bounds: tuple[float, float] = R_BOUNDS):
         self.d = d
         self.mode = ("small" if d.swing is None else
                      "tied" if d.constant is not None else "free")
         self.n_nodes, self.n_lm = n_nodes, n_lm
-        self.log_r = np.linspace(0.0, np.log(R_BOUNDS[1]), n_ratio)
-        self.lo = np.array([0.0, -15.0, np.log(K0_BOUNDS[0])])
-        self.hi = np.array([np.log(R_BOUNDS[1]), 5.0, np.log(K0_BOUNDS[1])])
+        lr0, lr1 = np.log(ratio_bounds[0]), np.log(ratio_bounds[1])
+        self.log_r = np.linspace(lr0, lr1, n_ratio if lr1 - lr0 > 0.5 else 9)
+        self.lo = np.array([lr0, -15.0, np.log(K0_BOUNDS[0])])
+        self.hi = np.array([lr1, 5.0, np.log(K0_BOUNDS[1])])
         self.n_par = 3 if self.mode == "free" else 2
 
     # -- model ---------------------------------------------------------------------------
@@ -264,7 +266,7 @@ class _Engine:
         d = self.d
         m = mu.size
         free = self.mode == "free"
-        log_r = self.log_r if not free else np.linspace(0.0, self.log_r[-1], 9)
+        log_r = self.log_r if not free else np.linspace(self.log_r[0], self.log_r[-1], 9)
         log_k = np.log(np.geomspace(*K0_BOUNDS, 25)) if free else np.zeros(1)
         q, nk = log_r.size, log_k.size
         mu_b = mu[:, None, None, None]
@@ -537,6 +539,8 @@ def _zoom_minima(pts: _Points, floor_mu: float, *, rounds: int = 3, n_points: in
         best = min(min(e for _, _, e in br), float(pts.chi.min()))
         br = sorted((b for b in br if b[2] <= best + margin), key=lambda b: b[2])
         new = [np.geomspace(lo, hi, n_points + 2)[1:-1] for lo, hi, _ in br[:max_brackets]]
+        if not new:  # no bracket within the margin of the best point
+            return
         pts.add(np.concatenate(new))
 
 
@@ -585,7 +589,8 @@ def _refine_crossings(pts: _Points, level: float, pairs, *, rounds: int = 2,
 
 def fit_mu_from_phase(coa, phase_deg, phase_se_deg, *, constant=None, creepage_swing=None,
                       coa_se=None, max_rel_half_width: float = 0.10, scale_by_chi2: bool = True,
-                      n_nodes: int = 16) -> PhaseMuFit:
+                      n_nodes: int = 16, ratio_bounds: tuple[float, float] = R_BOUNDS
+                      ) -> PhaseMuFit:
     """mu from the phase progression: fit ``tan(phi_i) = C/k(CoA_i)`` over the Polach family
     (module docstring; V-Track paper Eq. 1, Polach 2005 Eq. 8) and find the 95 %
     profile-likelihood interval of mu.
@@ -597,6 +602,8 @@ def fit_mu_from_phase(coa, phase_deg, phase_se_deg, *, constant=None, creepage_s
     counts as determined when its 95 % interval is closed and at most this fraction of mu
     wide on either side; ``scale_by_chi2`` widens the interval by the reduced chi2 when it
     exceeds 1. ``n_nodes``: nodes of the swing average (refitted with 64 when too few).
+    ``ratio_bounds``: the range of r = kA/kS searched (a narrower range is a prior on the
+    curve's shape, e.g. Polach's published sets for a train; default :data:`R_BOUNDS`).
     Steps with a non-finite value, a phase outside (0, 90) deg or a non-positive standard
     error are left out; at least (number of parameters + 1) steps must remain.
     """
@@ -606,11 +613,11 @@ def fit_mu_from_phase(coa, phase_deg, phase_se_deg, *, constant=None, creepage_s
         return _fit(coa, phase_deg, phase_se_deg, constant=constant,
                     creepage_swing=creepage_swing, coa_se=coa_se,
                     max_rel_half_width=max_rel_half_width, scale_by_chi2=scale_by_chi2,
-                    n_nodes=n_nodes)
+                    n_nodes=n_nodes, ratio_bounds=ratio_bounds)
 
 
 def _fit(coa, phase_deg, phase_se_deg, *, constant, creepage_swing, coa_se,
-         max_rel_half_width, scale_by_chi2, n_nodes) -> PhaseMuFit:
+         max_rel_half_width, scale_by_chi2, n_nodes, ratio_bounds=R_BOUNDS) -> PhaseMuFit:
     """The body of :func:`fit_mu_from_phase`."""
     coa = np.abs(_clean("coa", coa))
     n = coa.size
@@ -639,7 +646,11 @@ def _fit(coa, phase_deg, phase_se_deg, *, constant, creepage_swing, coa_se,
               None if constant is None else float(constant))
     cmax = float(d.coa.max())
     dof = int(ok.sum()) - n_par
-    eng = _Engine(d, n_nodes=n_nodes)
+    lo, hi = (float(b) for b in ratio_bounds)
+    if not (R_BOUNDS[0] <= lo <= hi <= R_BOUNDS[1]):
+        raise InputError(f"ratio_bounds {ratio_bounds} must lie within {R_BOUNDS}",
+                         hint="r = kA/kS: 1 <= low <= high <= 7")
+    eng = _Engine(d, n_nodes=n_nodes, ratio_bounds=(lo, max(hi, lo * 1.0001)))
 
     # the profile on a global grid of log(mu/max CoA): dense near saturation, steps of 2 %
     # over utilisations 0.37-0.96, sparse up to mu = 50x max CoA; plus mu -> max CoA
@@ -692,12 +703,14 @@ def _fit(coa, phase_deg, phase_se_deg, *, constant, creepage_swing, coa_se,
         # the swing average's trapezoidal rule: exact to ~1e-8 with 16 nodes at V-Track's
         # swings (measured); re-fit with 64 nodes where the swing is larger than that
         mu_c, p_c, x_c = np.array([[mu_hat]]), p_hat[None, :], pts.data["x"][k][None, :]
-        fine = _Engine(d, n_nodes=64).residuals(mu_c, p_c, x_c)[0]
+        fine_eng = _Engine(d, n_nodes=64, ratio_bounds=(lo, max(hi, lo * 1.0001)))
+        fine = fine_eng.residuals(mu_c, p_c, x_c)[0]
         if np.max(np.abs(fine - eng.residuals(mu_c, p_c, x_c)[0])) > 1e-3:
             return _fit(coa, phase_deg, phase_se_deg, constant=constant,
                         creepage_swing=creepage_swing, coa_se=coa_se,
                         max_rel_half_width=max_rel_half_width,
-                        scale_by_chi2=scale_by_chi2, n_nodes=64)
+                        scale_by_chi2=scale_by_chi2, n_nodes=64,
+                        ratio_bounds=ratio_bounds)
     r_hat, lev_hat = float(np.exp(p_hat[0])), float(np.exp(p_hat[1]))
     if eng.mode == "free":
         k0_hat = float(np.exp(p_hat[2]))

@@ -42,6 +42,8 @@ SHORT_NAMES: dict[str, str] = {
     "fx": "fx_n",
     "fy": "fy_n",
     "fz": "fz_n",
+    "vehicle_speed": "vehicle_speed_m_s",
+    "position": "position_m",
 }
 #: The physical quantity of every method channel (and of the time column).
 QUANTITY: dict[str, str] = {
@@ -52,6 +54,8 @@ QUANTITY: dict[str, str] = {
     "fx_n": "force",
     "fy_n": "force",
     "fz_n": "force",
+    "vehicle_speed_m_s": "linear_speed",
+    "position_m": "length",
 }
 
 #: Accepted units per quantity: factor to the SI unit of the method (first entry of each).
@@ -62,10 +66,12 @@ UNITS: dict[str, dict[str, float]] = {
     "angular_speed": {"rad/s": 1.0, "rpm": 2.0 * math.pi / 60.0, "deg/s": math.pi / 180.0,
                       "rev/s": 2.0 * math.pi},
     "force": {"N": 1.0, "kN": 1e3, "daN": 10.0, "lbf": 4.4482216152605},
+    "linear_speed": {"m/s": 1.0, "km/h": 1.0 / 3.6, "mm/s": 1e-3, "mph": 0.44704},
+    "length": {"m": 1.0, "km": 1e3, "mm": 1e-3, "cm": 1e-2, "mi": 1609.344},
 }
-#: Linear (surface) speeds [-> m/s] accepted for the speed channels when the entry gives the
-#: radius ``radius_m`` that turns them into an angular speed: omega = v / r.
-LINEAR_SPEED_UNITS: dict[str, float] = {"m/s": 1.0, "km/h": 1.0 / 3.6, "mm/s": 1e-3}
+#: Linear (surface) speeds [-> m/s] accepted for the angular speed channels when the entry
+#: gives the radius ``radius_m`` that turns them into an angular speed: omega = v / r.
+LINEAR_SPEED_UNITS: dict[str, float] = UNITS["linear_speed"]
 
 #: Other spellings of the units above (matched after removing spaces).
 UNIT_ALIASES: dict[str, str] = {
@@ -89,7 +95,8 @@ for _alias, _u in UNIT_ALIASES.items():
 del _q, _table, _u, _alias
 
 _QUANTITY_WORDS = {"time": "a time", "torque": "a torque", "angular_speed": "an angular speed",
-                   "force": "a force", "linear_speed": "a linear speed"}
+                   "force": "a force", "linear_speed": "a linear speed",
+                   "length": "a length"}
 _ENTRY_KEYS = ("name", "unit", "radius_m", "time")
 _RATE_KEYS = ("sample_rate_hz", "t0_s")
 
@@ -123,7 +130,8 @@ def unit_factor(unit: str, quantity: str, *, radius_m: float | None = None,
                 path: object | None = None, channel: str | None = None) -> float:
     """Factor that turns values in ``unit`` into the SI unit of ``quantity``.
 
-    ``quantity`` is one of ``time``, ``torque``, ``angular_speed``, ``force``. A linear speed
+    ``quantity`` is one of ``time``, ``torque``, ``angular_speed``, ``force``,
+    ``linear_speed``, ``length``. A linear speed
     (m/s, km/h, mm/s) is accepted for ``angular_speed`` when ``radius_m`` [m] is given (the
     angular speed is v / r). Raises :class:`InputError` naming the unit and listing the
     accepted ones when the unit is unknown or measures another quantity.

@@ -41,20 +41,22 @@ _RECORDING_KEYS = ("step", "cycle", "dc_torque_nm", "file", "group", "sample_rat
                    "comment")
 
 
-def _load_toml(path: Path) -> dict:
+def _load_toml(path: Path, name: str = "experiment.toml") -> dict:
+    """The parsed manifest ``path`` (``name``: experiment.toml or run.toml, for messages)."""
+    what = "experiment manifest" if name == "experiment.toml" else "run manifest"
     if not path.exists():
-        raise ManifestError("experiment manifest not found", path=path,
-                            hint="give the path of an experiment.toml")
+        raise ManifestError(f"{what} not found", path=path, hint=f"give the path of a {name}")
     if path.is_dir():
-        candidate = path / "experiment.toml"
+        candidate = path / name
         if candidate.exists():
             path = candidate
         else:
-            raise ManifestError("is a folder without experiment.toml", path=path)
+            raise ManifestError(f"is a folder without {name}", path=path)
     kind = _RECORDING_SUFFIXES.get(path.suffix.lower())
     if kind is not None:
-        raise ManifestError(f"is a {kind} recording, not an experiment manifest", path=path,
-                            hint="write an experiment.toml that lists it under [[recording]] "
+        raise ManifestError(f"is a {kind} recording, not a{'n' if what[0] == 'e' else ''} "
+                            f"{what}", path=path,
+                            hint=f"write a {name} that lists it under [[recording]] "
                             "(docs/format.md), or convert it with 'torquemod convert'")
     try:
         text = path.read_text(encoding="utf-8")
@@ -95,13 +97,23 @@ def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEn
     if isinstance(dc, bool) or not isinstance(dc, int | float) or not math.isfinite(dc):
         raise ManifestError(f"{where}: 'dc_torque_nm' must be a finite number, got {dc!r}",
                             path=path)
+    resolved, group, fs = recording_file(rec, where, folder, path)
+    return RecordingEntry(step=step, cycle=cycle, dc_torque_nm=float(dc), path=resolved,
+                          group=group, index=i,
+                          sample_rate_hz=None if fs is None else float(fs))
+
+
+def recording_file(rec: dict, where: str, folder: Path, path: Path
+                   ) -> tuple[Path, str | None, float | None]:
+    """The checked ``file`` (resolved inside ``folder``), ``group`` and ``sample_rate_hz``
+    of one ``[[recording]]`` table (shared by experiment.toml and run.toml)."""
     file = rec["file"]
     if not isinstance(file, str) or not file.strip():
         raise ManifestError(f"{where}: 'file' must be a non-empty string", path=path)
     resolved = (folder / file).resolve()
     if not resolved.is_relative_to(folder.resolve()):
-        raise ManifestError(f"{where}: file '{file}' points outside the experiment folder",
-                            path=path, hint="copy the recording into the experiment folder")
+        raise ManifestError(f"{where}: file '{file}' points outside the manifest's folder",
+                            path=path, hint="copy the recording into the manifest's folder")
     group = rec.get("group")
     if group is not None and not isinstance(group, str):
         raise ManifestError(f"{where}: 'group' must be a string", path=path)
@@ -110,9 +122,23 @@ def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEn
                            or not math.isfinite(fs) or fs <= 0):
         raise ManifestError(f"{where}: 'sample_rate_hz' must be a positive number, got {fs!r}",
                             path=path, hint="give the recording's sample rate in Hz")
-    return RecordingEntry(step=step, cycle=cycle, dc_torque_nm=float(dc), path=resolved,
-                          group=group, index=i,
-                          sample_rate_hz=None if fs is None else float(fs))
+    return resolved, group, None if fs is None else float(fs)
+
+
+def checked_channel_map(channel_map: object, path: Path, rates=()) -> dict:
+    """The manifest's raw ``[channels]`` table after checking it (and each recording's
+    ``sample_rate_hz`` against it), mistakes raised as :class:`ManifestError`."""
+    if not isinstance(channel_map, dict):
+        raise ManifestError("[channels] must be a table", path=path)
+    try:  # checked here so a mistake in [channels] shows before any recording is read
+        cmap = resolve_channel_map(channel_map, path)
+        for fs in rates:
+            cmap.with_sample_rate(fs, path=path)
+    except InputError as exc:  # same text, raised as a manifest error
+        err = ManifestError(str(exc))
+        err.path, err.channel, err.hint = exc.path, exc.channel, exc.hint
+        raise err from None
+    return channel_map
 
 
 def read_experiment(path: str | Path) -> Experiment:
@@ -121,6 +147,9 @@ def read_experiment(path: str | Path) -> Experiment:
     if path.is_dir():
         path = path / "experiment.toml"
     doc = _load_toml(path)
+    if "vehicle" in doc and "rig" not in doc:
+        raise ManifestError("is a train run (it has [vehicle], no [rig])", path=path,
+                            hint="process it with 'torquemod onboard' (docs/format.md)")
     for section in ("rig", "test"):
         if not isinstance(doc.get(section), dict):
             raise ManifestError(f"missing section [{section}]", path=path,
@@ -163,17 +192,8 @@ def read_experiment(path: str | Path) -> Experiment:
                                 hint="give every recording of a step the same DC torque, or "
                                 "number the steps apart")
         dc_by_step.setdefault(e.step, e.dc_torque_nm)
-    channel_map = doc.get("channels", {})
-    if not isinstance(channel_map, dict):
-        raise ManifestError("[channels] must be a table", path=path)
-    try:  # checked here so a mistake in [channels] shows before any recording is read
-        cmap = resolve_channel_map(channel_map, path)
-        for e in entries:
-            cmap.with_sample_rate(e.sample_rate_hz, path=path)
-    except InputError as exc:  # same text, raised as a manifest error
-        err = ManifestError(str(exc))
-        err.path, err.channel, err.hint = exc.path, exc.channel, exc.hint
-        raise err from None
+    channel_map = checked_channel_map(doc.get("channels", {}), path,
+                                      [e.sample_rate_hz for e in entries])
     extra = {k: v for k, v in doc.items() if k not in ("rig", "test", "recording", "channels")}
     return Experiment(manifest_path=path.resolve(), rig=rig, test=test, recordings=entries,
                       channel_map=channel_map, extra=extra)

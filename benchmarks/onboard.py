@@ -1,0 +1,127 @@
+"""On-board estimator against the train twin (issue 10): prints figures, asserts nothing.
+
+1. Measurement runs (the default twin run: dry, wet, leaves, friction modifier, dry; DC
+   torque staircase to ``--depth`` of the available adhesion) over ``--seeds`` seeds: per
+   segment the share of rows with mu, the median error of mu where given, the coverage of
+   the 95 % interval, and how often the lower bound exceeds the truth.
+2. Low adhesion: constant demand that needs 93 % of the adhesion of a leaf patch entered
+   from dry rail (where it is ~24 % of the available adhesion): the delay from entering the
+   patch to the first low_adhesion row, and false flags on the dry part.
+3. Speed: simulated seconds per wall second of the estimator on one core.
+
+    python benchmarks/onboard.py [--seeds 3] [--depth 0.8 0.9]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from torquemod.onboard.run import run_onboard
+from torquemod.train import load_train_config, run_train_simulation
+from torquemod.train.params import CONDITIONS, Leg, Segment
+
+
+def _truth_at(track, truth, col):
+    return np.interp(track["position_m"], truth["position_m"], truth[col])
+
+
+def measurement(depth: float, seeds: int, out: Path) -> None:
+    cfg = load_train_config()
+    legs = tuple(dataclasses.replace(leg, levels=tuple(np.linspace(0.2, depth, 4)))
+                 for leg in cfg.controller.legs)
+    cfg = dataclasses.replace(cfg, controller=dataclasses.replace(cfg.controller, legs=legs))
+    stats: dict[str, list] = {}
+    wall = sim_s = 0.0
+    for seed in range(seeds):
+        run = out / f"run{depth}_{seed}"
+        run_train_simulation(cfg, run, seed=seed, force=True)
+        res = run_onboard(run / "run.toml", out / f"res{depth}_{seed}", force=True)[0]
+        wall += res.seconds
+        t, tr = res.track, res.truth
+        sim_s += float(t["time_s"].iloc[-1] - t["time_s"].iloc[0])
+        mu_true = _truth_at(t, tr, "mu")
+        cond = np.array(tr["condition"])[np.clip(np.searchsorted(
+            tr["position_m"], t["position_m"]), 0, len(tr) - 1)]
+        for c in dict.fromkeys(cond):
+            sel = cond == c
+            part, mt = t[sel], mu_true[sel]
+            given = part["mu"].notna().to_numpy()
+            s = stats.setdefault(c, [0, 0, [], 0, 0, 0])
+            s[0] += sel.sum()
+            s[1] += given.sum()
+            s[2] += list(np.abs(part["mu"].to_numpy()[given] / mt[given] - 1))
+            s[3] += int(((part["mu_low_95"].to_numpy()[given] <= mt[given])
+                         & (mt[given] <= part["mu_high_95"].to_numpy()[given])).sum())
+            lb = part["mu_low_95"].to_numpy()[~given]
+            s[4] += int((lb > mt[~given]).sum())
+            s[5] += int((~given).sum())
+    print(f"\nmeasurement runs, staircase to {depth:.0%} of the available adhesion, "
+          f"{seeds} seeds")
+    print(f"{'condition':>18} {'rows':>6} {'mu given':>9} {'median err':>11} "
+          f"{'coverage':>9} {'LB > truth':>11}")
+    for c, (n, g, err, cov, lb_bad, n_lb) in stats.items():
+        med = f"{100 * np.median(err):.1f} %" if err else "-"
+        covs = f"{100 * cov / g:.0f} %" if g else "-"
+        print(f"{c:>18} {n:>6} {100 * g / n:>8.0f}% {med:>11} {covs:>9} "
+              f"{100 * lb_bad / max(n_lb, 1):>10.1f}%")
+    print(f"estimator speed: {sim_s / wall:.0f} x real time (one core, incl. reading MDF4)")
+
+
+def low_adhesion(seeds: int, out: Path) -> None:
+    base = load_train_config()
+    v = base.vehicle
+    from torquemod.train.dynamics import adhesion_peak
+    sx = v.stiffness_x_n()
+    lv = CONDITIONS["leaves"]
+    peak = float(adhesion_peak(20.0, v.normal_load_n, sx, lv.mu0, lv.a_ratio, lv.b_s_m,
+                               lv.k_a, lv.k_s)[0])
+    torque = 0.93 * peak * v.normal_load_n * v.wheel_radius_m
+    force = torque / v.wheel_radius_m
+    track = dataclasses.replace(base.track, length_m=1400.0, segments=(
+        Segment(0.0, "dry", CONDITIONS["dry"]), Segment(800.0, "leaves", lv)))
+    ctl = dataclasses.replace(base.controller, legs=(
+        Leg(until_m=1400.0, mode="torque", torque_nm=torque, others_force_n=-force + 1500),))
+    cfg = dataclasses.replace(base, track=track, controller=ctl)
+    delays, false_rows, dry_rows = [], 0, 0
+    for seed in range(seeds):
+        run = out / f"la_{seed}"
+        run_train_simulation(cfg, run, seed=seed, force=True)
+        res = run_onboard(run / "run.toml", out / f"la_res_{seed}", force=True)[0]
+        t, tr = res.track, res.truth
+        t_in = float(np.interp(800.0 - track.transition_m / 2, tr["position_m"], tr["time_s"]))
+        flagged = t[(t["time_s"] > t_in) & t["low_adhesion"]]
+        delays.append(float(flagged["time_s"].iloc[0]) - t_in if len(flagged) else np.inf)
+        util = _truth_at(t, tr, "utilisation")
+        dry = (t["position_m"] < 800.0 - track.transition_m).to_numpy() & (util <= 0.5)
+        dry &= (t["time_s"] > 3.0).to_numpy()  # after the start-up transient
+        false_rows += int(t["low_adhesion"].to_numpy()[dry].sum())
+        dry_rows += int(dry.sum())
+    print(f"\nlow adhesion: demand = 93 % of the leaf patch's adhesion ({torque:.0f} N*m)")
+    print(f"  delay from entering the patch to low_adhesion: "
+          f"{', '.join(f'{d:.2f} s' for d in delays)}")
+    print(f"  false low_adhesion on dry rail at <= 50 % utilisation: {false_rows}/{dry_rows} "
+          f"windows ({100 * false_rows / max(dry_rows, 1):.2f} %)")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--depth", type=float, nargs="+", default=[0.8, 0.9])
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp)
+        t0 = time.perf_counter()
+        for depth in args.depth:
+            measurement(depth, args.seeds, out)
+        low_adhesion(args.seeds, out)
+        print(f"\n(benchmark wall time {time.perf_counter() - t0:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()

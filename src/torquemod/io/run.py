@@ -1,0 +1,161 @@
+"""The train run manifest ``run.toml`` (issue 10; format in docs/format.md).
+
+A run extends the experiment manifest: the same ``[test]`` modulation keys, ``[[recording]]``
+tables and ``[channels]`` map (read by the same readers), with ``[vehicle]`` in place of
+``[rig]`` and the axle in place of step and cycle::
+
+    [vehicle]
+    wheel_radius_m = 0.46
+    normal_load_n = 200000.0       # the axle's (both wheels)
+    inertia_kg_m2 = 270.0          # wheelset + gears + motor rotor, referred to the axle
+    # gear_ratio = 4.5             # only when torque and speed are recorded at the motor
+
+    [test]
+    modulation_frequency_hz = 5.0
+    modulation_amplitude_nm = 1500.0
+
+    [[recording]]
+    file = "run.mf4"
+    axle = 1
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..checks import positive_number
+from ..errors import ManifestError
+from .manifest import _load_toml, checked_channel_map, recording_file
+
+_VEHICLE_REQUIRED = ("wheel_radius_m", "normal_load_n", "inertia_kg_m2")
+_VEHICLE_OPTIONAL = ("gear_ratio", "motor_inertia_kg_m2", "coupling_stiffness_nm_rad",
+                     "coupling_damping_nm_s_rad", "vehicle", "mass_kg")
+_TEST_REQUIRED = ("modulation_frequency_hz", "modulation_amplitude_nm")
+_RECORDING_KEYS = ("file", "axle", "group", "sample_rate_hz", "date", "note", "comment")
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """``[vehicle]``: rolling radius [m], axle load [N] (both wheels), the inertia referred
+    to the axle [kg*m^2]; ``gear_ratio`` (motor turns per axle turn) when torque and speed
+    are recorded at the motor; the drive line (``motor_inertia_kg_m2`` of the total,
+    referred to the axle, and the coupling [N*m/rad], [N*m*s/rad]) when known."""
+
+    wheel_radius_m: float
+    normal_load_n: float
+    inertia_kg_m2: float
+    gear_ratio: float | None = None
+    motor_inertia_kg_m2: float | None = None
+    coupling_stiffness_nm_rad: float | None = None
+    coupling_damping_nm_s_rad: float = 0.0
+    name: str = ""
+
+    @property
+    def has_drive_line(self) -> bool:
+        return self.motor_inertia_kg_m2 is not None and \
+            self.coupling_stiffness_nm_rad is not None
+
+
+@dataclass(frozen=True)
+class RunRecording:
+    """One ``[[recording]]`` of a run: the file, the axle (default 1), group, sample rate."""
+
+    path: Path
+    axle: int = 1
+    group: str | None = None
+    sample_rate_hz: float | None = None
+    date: str | None = None
+    index: int = 0
+
+
+@dataclass(frozen=True)
+class Run:
+    """A parsed ``run.toml``."""
+
+    manifest_path: Path
+    vehicle: Vehicle
+    modulation_frequency_hz: float
+    modulation_amplitude_nm: float
+    recordings: tuple[RunRecording, ...]
+    channel_map: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)  # [onboard], [truth], other tables
+
+    @property
+    def folder(self) -> Path:
+        return self.manifest_path.parent
+
+
+def _number(table: dict, key: str, section: str, path: Path) -> float:
+    if key not in table:
+        raise ManifestError(f"missing key '{section}.{key}'", path=path,
+                            hint=f"add '{key} = <value>' under [{section}] (docs/format.md)")
+    return positive_number(table[key], f"{section}.{key}", path=path, error=ManifestError)
+
+
+def _check_keys(table: dict, allowed: tuple[str, ...], where: str, path: Path) -> None:
+    for key in table:
+        if key not in allowed:
+            near = difflib.get_close_matches(str(key), allowed, n=1)
+            raise ManifestError(f"{where}: unknown key '{key}'", path=path, hint=(
+                f"did you mean '{near[0]}'? " if near else "") + "known keys: "
+                + ", ".join(allowed))
+
+
+def read_run(path: str | Path) -> Run:
+    """Parse and check a ``run.toml`` (a folder means its run.toml); files are not opened."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / "run.toml"
+    doc = _load_toml(path, "run.toml")
+    if "rig" in doc and "vehicle" not in doc:
+        raise ManifestError("is a rig experiment (it has [rig], no [vehicle])", path=path,
+                            hint="process it with 'torquemod process'")
+    for section in ("vehicle", "test"):
+        if not isinstance(doc.get(section), dict):
+            raise ManifestError(f"missing section [{section}]", path=path,
+                                hint="see docs/format.md for the run manifest")
+    vt, tt = doc["vehicle"], doc["test"]
+    _check_keys(vt, _VEHICLE_REQUIRED + _VEHICLE_OPTIONAL, "[vehicle]", path)
+    opt = {k: _number(vt, k, "vehicle", path) for k in _VEHICLE_OPTIONAL[:4] if k in vt}
+    if "coupling_damping_nm_s_rad" in vt:
+        d = vt["coupling_damping_nm_s_rad"]
+        if isinstance(d, bool) or not isinstance(d, int | float) or d < 0:
+            raise ManifestError("vehicle.coupling_damping_nm_s_rad must be >= 0", path=path)
+        opt["coupling_damping_nm_s_rad"] = float(d)
+    if ("motor_inertia_kg_m2" in opt) != ("coupling_stiffness_nm_rad" in opt):
+        raise ManifestError("the drive line needs motor_inertia_kg_m2 and "
+                            "coupling_stiffness_nm_rad together", path=path,
+                            hint="give both, or neither (a rigid drive line)")
+    vehicle = Vehicle(**{k: _number(vt, k, "vehicle", path) for k in _VEHICLE_REQUIRED}, **opt,
+                      name=str(vt.get("vehicle", "")))
+    if vehicle.has_drive_line and vehicle.motor_inertia_kg_m2 >= vehicle.inertia_kg_m2:
+        raise ManifestError("vehicle.motor_inertia_kg_m2 must be a part of inertia_kg_m2",
+                            path=path, hint="inertia_kg_m2 is the total referred to the axle")
+    recs = doc.get("recording", [])
+    if not isinstance(recs, list) or not recs:
+        raise ManifestError("the run lists no [[recording]]", path=path,
+                            hint="add a [[recording]] table with the file of each axle")
+    entries = []
+    for i, rec in enumerate(recs):
+        where = f"recording #{i + 1}"
+        if not isinstance(rec, dict) or "file" not in rec:
+            raise ManifestError(f"{where} has no 'file'", path=path)
+        _check_keys(rec, _RECORDING_KEYS, where, path)
+        axle = rec.get("axle", 1)
+        if isinstance(axle, bool) or not isinstance(axle, int) or axle < 1:
+            raise ManifestError(f"{where}: 'axle' must be a positive integer, got {axle!r}",
+                                path=path)
+        file, group, fs = recording_file(rec, where, path.parent, path)
+        entries.append(RunRecording(file, axle, group, fs, rec.get("date"), i))
+    axles = [e.axle for e in entries]
+    if len(set(axles)) != len(axles):
+        raise ManifestError("an axle is listed twice", path=path,
+                            hint="give one [[recording]] per axle (split long runs later)")
+    cmap = checked_channel_map(doc.get("channels", {}), path, [e.sample_rate_hz for e in entries])
+    extra = {k: v for k, v in doc.items() if k not in ("vehicle", "test", "recording",
+                                                        "channels")}
+    return Run(path.resolve(), vehicle, _number(tt, "modulation_frequency_hz", "test", path),
+               _number(tt, "modulation_amplitude_nm", "test", path), tuple(entries), cmap,
+               extra)

@@ -1,0 +1,143 @@
+"""Figures and the HTML report of an on-board run. Every plot takes an ``ax``."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+from pathlib import Path
+
+import numpy as np
+
+
+def plot_mu(result, ax=None):
+    """mu with its 95 % interval (or the lower bound) along the track; truth overlaid."""
+    import matplotlib.pyplot as plt
+    ax = ax or plt.gca()
+    t = result.track
+    x = t["position_m"].to_numpy()
+    ax.fill_between(x, t["mu_low_95"], t["mu_high_95"], color="C0", alpha=0.25, lw=0,
+                    label="95 % interval")
+    ax.plot(x, t["mu"], "C0", lw=1.5, label="mu from the phase")
+    und = t["mu"].isna()
+    ax.plot(x[und], t["mu_low_95"][und], ".", color="C1", ms=2,
+            label="lower bound (mu not determined)")
+    ax.plot(x, t["coa"], color="0.5", lw=0.6, label="CoA (utilised adhesion)")
+    if result.truth is not None:
+        tr = result.truth
+        ax.plot(tr["position_m"], tr["mu"], "k--", lw=1, label="truth: friction")
+        ax.plot(tr["position_m"], tr["adhesion_peak"], "k:", lw=1,
+                label="truth: available adhesion")
+    ax.set_xlabel("position [m]")
+    ax.set_ylabel("coefficient [-]")
+    ax.legend(fontsize=7, loc="upper right")
+    return ax
+
+
+def plot_phase(result, ax=None):
+    """The lag of the axle speed behind the torque per window, with +-2 standard errors."""
+    import matplotlib.pyplot as plt
+    ax = ax or plt.gca()
+    t = result.track
+    x = t["position_m"]
+    ax.fill_between(x, t["phase_deg"] - 2 * t["phase_se_deg"],
+                    t["phase_deg"] + 2 * t["phase_se_deg"], color="C2", alpha=0.3, lw=0)
+    ax.plot(x, t["phase_deg"], "C2", lw=0.8)
+    ax.set_xlabel("position [m]")
+    ax.set_ylabel("phase lag [deg]")
+    return ax
+
+
+def plot_utilisation(result, ax=None):
+    """Utilisation CoA/mu where mu is given, the flags; the true utilisation overlaid."""
+    import matplotlib.pyplot as plt
+    ax = ax or plt.gca()
+    t = result.track
+    x = t["position_m"].to_numpy()
+    ax.plot(x, t["utilisation"], "C0", lw=1, label="CoA / mu (estimated)")
+    if result.truth is not None:
+        ax.plot(result.truth["position_m"], result.truth["coa"] / result.truth["mu"], "k--",
+                lw=0.8, label="truth: CoA / friction")
+    low = t["low_adhesion"].to_numpy()
+    slip = t["slip"].to_numpy()
+    ax.plot(x[low], np.full(low.sum(), 1.02), "|", color="C3", label="low_adhesion")
+    ax.plot(x[slip], np.full(slip.sum(), 1.06), "|", color="k", label="slip")
+    ax.set_ylim(0, 1.1)
+    ax.set_xlabel("position [m]")
+    ax.set_ylabel("utilisation [-]")
+    ax.legend(fontsize=7, loc="lower right")
+    return ax
+
+
+FIGURES = {"mu_along_track.png": plot_mu, "phase_along_track.png": plot_phase,
+           "utilisation_along_track.png": plot_utilisation}
+
+
+def write_figures(folder: Path, result) -> dict[str, bytes]:
+    """Save :data:`FIGURES` as PNG in ``folder``; return their bytes for the report."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    out = {}
+    for name, fn in FIGURES.items():
+        fig, ax = plt.subplots(figsize=(9, 3.2), layout="constrained")
+        fn(result, ax=ax)
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=110)
+        plt.close(fig)
+        out[name] = buf.getvalue()
+        (folder / name).write_bytes(out[name])
+    return out
+
+
+def _segments_table(result) -> str:
+    tr = result.truth
+    if tr is None:
+        return ""
+    from ..train.simulate import segment_summary
+    t = result.track
+    rows = []
+    for s in segment_summary(tr):
+        sel = (t["position_m"] >= s["start_m"]) & (t["position_m"] <= s["end_m"])
+        part = t[sel]
+        given = part["mu"].notna()
+        mu = f"{part.loc[given, 'mu'].median():.3f}" if given.any() else "not determined"
+        low = f"{part['mu_low_95'].median():.3f}" if len(part) else ""
+        rows.append(f"<tr><td>{html.escape(s['condition'])}</td><td>{s['start_m']:.0f}-"
+                    f"{s['end_m']:.0f}</td><td>{s['mu']:.3f}</td>"
+                    f"<td>{s['adhesion_peak']:.3f}</td><td>{mu}</td><td>{low}</td>"
+                    f"<td>{100 * given.mean() if len(part) else 0:.0f} %</td></tr>")
+    return ("<h2>Against the simulated truth</h2><table><tr><th>condition</th><th>span [m]"
+            "</th><th>friction</th><th>available adhesion</th><th>mu (median)</th>"
+            "<th>mu_low_95 (median)</th><th>rows with mu</th></tr>" + "".join(rows)
+            + "</table>")
+
+
+def write_report(path: Path, result, meta: dict, figures: dict[str, bytes]) -> None:
+    """A one-page HTML report: what was run, the summary, the figures, the notes."""
+    s = result.summary()
+    imgs = "".join(f'<figure><img alt="{html.escape(n)}" src="data:image/png;base64,'
+                   f'{base64.b64encode(b).decode()}"><figcaption>{html.escape(n)}'
+                   "</figcaption></figure>" for n, b in figures.items())
+    notes = "".join(f"<li>{html.escape(n)}</li>" for n in result.notes) or "<li>none</li>"
+    v = result.run.vehicle
+    body = f"""<!doctype html><html><head><meta charset="utf-8">
+<title>torquemod on-board: {html.escape(result.run.manifest_path.name)}</title>
+<style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}
+table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:2px 8px}}
+img{{max-width:100%}}</style></head><body>
+<h1>Friction along the run</h1>
+<p>Run {html.escape(str(result.run.manifest_path))}, axle {result.axle}: wheel radius
+{v.wheel_radius_m} m, axle load {v.normal_load_n:.0f} N, inertia {v.inertia_kg_m2} kg m²;
+modulation {result.run.modulation_frequency_hz} Hz, {result.run.modulation_amplitude_nm} N m.
+torquemod {html.escape(meta['torquemod_version'])}.</p>
+<p>{s['windows']} windows over {s['length_m']:.0f} m; mu determined in
+{100 * s['mu_given_share']:.0f} % of them (elsewhere only a lower bound: the data do not fix
+mu when the axle works far from saturation); low adhesion flagged in
+{100 * s['low_adhesion_share']:.1f} %, slip in {100 * s['slip_share']:.1f} %.</p>
+{_segments_table(result)}
+<h2>Figures</h2>{imgs}
+<h2>Notes</h2><ul>{notes}</ul>
+<h2>Settings</h2><pre>{html.escape(str(meta['onboard']))}</pre>
+</body></html>"""
+    path.write_text(body, encoding="utf-8")

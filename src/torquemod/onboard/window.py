@@ -1,0 +1,133 @@
+"""One window of a train run: phase, DC torque, speeds, acceleration, CoA and the creep
+coefficient from the phase (issue 10). Pure functions; the same DSP core as the rig chain
+(:func:`torquemod.dsp.phase.sinefit_phase`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..dsp.phase import sinefit_phase
+from ..io.run import Vehicle
+
+
+@dataclass(frozen=True)
+class WindowResult:
+    """Measurements of one window. ``time_s`` [s] and ``position_m`` [m] at its end (when
+    a live system has the result), means of ``speed_m_s`` (reference) [m/s],
+    ``wheel_speed_rad_s``, ``dc_torque_nm`` [N*m] at the axle; ``accel_m_s2`` [m/s^2] of
+    the reference; ``coa`` [-] (with ``coa_se``), ``creepage`` [-], the lag ``phase_deg``
+    [deg] with ``phase_se_deg``, ``creep_coefficient`` [-] dCoA/dxi from the phase (with
+    ``creep_coefficient_se``), ``creepage_swing`` [-] the modulation's creepage amplitude,
+    ``wheel_excess_accel_m_s2`` [m/s^2] (R*dw/dt - dV/dt)."""
+
+    time_s: float
+    position_m: float
+    speed_m_s: float
+    wheel_speed_rad_s: float
+    dc_torque_nm: float
+    accel_m_s2: float
+    coa: float
+    coa_se: float
+    creepage: float
+    phase_deg: float
+    phase_se_deg: float
+    creep_coefficient: float
+    creep_coefficient_se: float
+    creepage_swing: float
+    wheel_excess_accel_m_s2: float
+
+
+def load_impedance(ratio: complex, vehicle: Vehicle, frequency_hz: float) -> complex:
+    """The impedance G [N*m*s/rad] the wheelset's speed meets beyond its own inertia (the
+    contact and, behind it, the vehicle), from the measured complex ratio ``T/w`` of the
+    torque to the axle speed at the modulation frequency.
+
+    Rigid drive line: ``T = (j*Omega*J + G)*w``. With the drive line of ``vehicle`` (motor
+    inertia J_m, coupling Z = k_c/(j*Omega) + c_c, both referred to the axle; the torque acts
+    on the motor, the speed is the axle's; derived for this model)::
+
+        G = Z/(j*Omega*J_m + Z) * T/w - j*Omega*J_w - Z*j*Omega*J_m/(j*Omega*J_m + Z)
+    """
+    jw_om = 2j * math.pi * frequency_hz
+    if not vehicle.has_drive_line:
+        return ratio - jw_om * vehicle.inertia_kg_m2
+    jm = vehicle.motor_inertia_kg_m2
+    z = vehicle.coupling_stiffness_nm_rad / jw_om + vehicle.coupling_damping_nm_s_rad
+    return z / (jw_om * jm + z) * ratio - jw_om * (vehicle.inertia_kg_m2 - jm) \
+        - z * jw_om * jm / (jw_om * jm + z)
+
+
+def damping_from_ratio(ratio: complex, vehicle: Vehicle, frequency_hz: float
+                       ) -> tuple[float, float]:
+    """Contact damping D = R^2*N*k/V [N*m*s/rad] and the vehicle inertia seen at the wheel
+    M' = M*R^2 [kg*m^2] from the torque-to-speed ratio (:func:`load_impedance`).
+
+    The contact (D) and the vehicle's inertia (j*Omega*M') act in series between wheel and
+    track, ``1/G = 1/D + 1/(j*Omega*M')``, so ``D = 1/Re(1/G)`` and
+    ``M' = -1/(Omega*Im(1/G))``. A train moves with the modulating force (the rig's
+    platform hardly does): the rigid-wheel relation ``tan(phi) = Omega*J/D`` (V-Track paper
+    Eq. 1) is the limit M' -> infinity. Needs the torque's calibration (amplitude); NaN
+    when ``Re(1/G) <= 0``.
+    """
+    g = load_impedance(ratio, vehicle, frequency_hz)
+    if g == 0:
+        return math.nan, math.nan
+    inv = 1.0 / g
+    d = 1.0 / inv.real if inv.real > 0 else math.nan
+    om = 2 * math.pi * frequency_hz
+    m = -1.0 / (om * inv.imag) if inv.imag < 0 else math.inf
+    return d, m
+
+
+def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
+                   speed_m_s: np.ndarray, position_m: np.ndarray, fs_hz: float,
+                   t_end_s: float, vehicle: Vehicle, frequency_hz: float) -> WindowResult:
+    """Measure one window of whole modulation periods (the arrays are the window).
+
+    Phase: the sine fit at the modulation frequency with a line and the first two orders of
+    the axle revolution (eccentricity, tooth errors) as nuisance terms, standard error at
+    the Cramer-Rao bound (FACTS §5). CoA = (T - J*dw/dt)/(N*R) with dw/dt the slope of the
+    axle speed. Creep coefficient k = D*V/(R^2*N) with D from the phase and amplitude ratio
+    (:func:`damping_from_ratio`); its standard error from k's change over one standard
+    error of the phase and of the (log) amplitude ratio.
+    """
+    r, n_load, j = vehicle.wheel_radius_m, vehicle.normal_load_n, vehicle.inertia_kg_m2
+    n = torque_nm.size
+    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    w_mean = float(wheel_speed_rad_s.mean())
+    f_rot = abs(w_mean) / (2 * math.pi)
+    nuisance = tuple(f for f in (f_rot, 2 * f_rot) if f > 0.2)
+    fit = sinefit_phase(torque_nm, wheel_speed_rad_s, fs_hz, frequency_hz,
+                        nuisance_hz=nuisance, trend=True)
+    tt = t - t.mean()
+    den = float(tt @ tt)
+    dw_dt = float(tt @ (wheel_speed_rad_s - w_mean)) / den
+    v_mean = float(speed_m_s.mean())
+    dv_dt = float(tt @ (speed_m_s - v_mean)) / den
+    t_dc = float(torque_nm.mean())
+    coa = (t_dc - j * dw_dt) / (n_load * r)
+    coa_se = float(np.std(torque_nm)) / math.sqrt(n) / (n_load * r)
+    v_ref = max(abs(v_mean), 0.5)
+    creepage = (w_mean * r - v_mean) / v_ref
+    phase = fit.phase_deg
+    phi, rho = math.radians(phase), fit.torque_amplitude / fit.wheel_amplitude
+    e = math.radians(fit.phase_stderr_deg)  # also the relative se of the amplitude ratio
+
+    def k_of(ph, rh):
+        d, _ = damping_from_ratio(rh * complex(math.cos(ph), math.sin(ph)), vehicle,
+                                  frequency_hz)
+        return d * v_ref / (r * r * n_load)
+
+    k = k_of(phi, rho)
+    k_se = math.hypot(k_of(phi + e, rho) - k, k_of(phi, rho * (1 + e)) - k)
+    return WindowResult(
+        time_s=float(t_end_s), position_m=float(position_m[-1]), speed_m_s=v_mean,
+        wheel_speed_rad_s=w_mean, dc_torque_nm=t_dc, accel_m_s2=dv_dt, coa=coa,
+        coa_se=coa_se, creepage=creepage, phase_deg=phase,
+        phase_se_deg=fit.phase_stderr_deg, creep_coefficient=k, creep_coefficient_se=k_se,
+        creepage_swing=r * fit.wheel_amplitude / v_ref,
+        wheel_excess_accel_m_s2=r * dw_dt - dv_dt)
