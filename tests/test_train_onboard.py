@@ -129,11 +129,15 @@ def short_run(tmp_path_factory):
     return folder
 
 
+def _onboard(run, out) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "torquemod.cli", "onboard", str(run),
+                           "--out", str(out), "--quiet"], capture_output=True, text=True,
+                          timeout=300)
+
+
 def test_twin_run_through_the_onboard_command(short_run, tmp_path):
     out = tmp_path / "res"
-    cp = subprocess.run([sys.executable, "-m", "torquemod.cli", "onboard",
-                         str(short_run / "run.toml"), "--out", str(out), "--quiet"],
-                        capture_output=True, text=True, timeout=300)
+    cp = _onboard(short_run / "run.toml", out)
     assert cp.returncode == 0, cp.stderr
     track = pd.read_parquet(out / "track.parquet")
     assert list(track.columns) == list(TRACK_COLUMNS)
@@ -154,18 +158,14 @@ def test_twin_run_through_the_onboard_command(short_run, tmp_path):
     assert (t.loc[~given, "mu_low_95"] <= mu_true[~given.to_numpy()]).mean() >= 0.97
     # the HDF5 twin of the run gives the same track
     out2 = tmp_path / "res_h5"
-    cp = subprocess.run([sys.executable, "-m", "torquemod.cli", "onboard",
-                         str(short_run / "run_h5.toml"), "--out", str(out2), "--quiet"],
-                        capture_output=True, text=True, timeout=300)
+    cp = _onboard(short_run / "run_h5.toml", out2)
     assert cp.returncode == 0, cp.stderr
     t2 = pd.read_parquet(out2 / "track.parquet")
     np.testing.assert_allclose(t2.phase_deg, track.phase_deg, atol=1e-3)
 
 
 def test_onboard_bad_input_exits_2(tmp_path):
-    cp = subprocess.run([sys.executable, "-m", "torquemod.cli", "onboard",
-                         str(tmp_path / "nothing.toml"), "--out", str(tmp_path / "o")],
-                        capture_output=True, text=True, timeout=120)
+    cp = _onboard(tmp_path / "nothing.toml", tmp_path / "o")
     assert cp.returncode == 2
     assert "Traceback" not in cp.stderr and "run manifest not found" in cp.stderr
     assert not (tmp_path / "o").exists()

@@ -103,7 +103,7 @@ def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEn
                           sample_rate_hz=None if fs is None else float(fs))
 
 
-def recording_file(rec: dict, where: str, folder: Path, path: Path
+def recording_file(rec: dict, where: str, folder: Path, path: Path, kind: str = "experiment"
                    ) -> tuple[Path, str | None, float | None]:
     """The checked ``file`` (resolved inside ``folder``), ``group`` and ``sample_rate_hz``
     of one ``[[recording]]`` table (shared by experiment.toml and run.toml)."""
@@ -112,8 +112,8 @@ def recording_file(rec: dict, where: str, folder: Path, path: Path
         raise ManifestError(f"{where}: 'file' must be a non-empty string", path=path)
     resolved = (folder / file).resolve()
     if not resolved.is_relative_to(folder.resolve()):
-        raise ManifestError(f"{where}: file '{file}' points outside the manifest's folder",
-                            path=path, hint="copy the recording into the manifest's folder")
+        raise ManifestError(f"{where}: file '{file}' points outside the {kind} folder",
+                            path=path, hint=f"copy the recording into the {kind} folder")
     group = rec.get("group")
     if group is not None and not isinstance(group, str):
         raise ManifestError(f"{where}: 'group' must be a string", path=path)

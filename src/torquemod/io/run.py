@@ -147,7 +147,7 @@ def read_run(path: str | Path) -> Run:
         if isinstance(axle, bool) or not isinstance(axle, int) or axle < 1:
             raise ManifestError(f"{where}: 'axle' must be a positive integer, got {axle!r}",
                                 path=path)
-        file, group, fs = recording_file(rec, where, path.parent, path)
+        file, group, fs = recording_file(rec, where, path.parent, path, "run")
         entries.append(RunRecording(file, axle, group, fs, rec.get("date"), i))
     axles = [e.axle for e in entries]
     if len(set(axles)) != len(axles):
