@@ -67,12 +67,13 @@ def run(cfg, dc, seconds, *, amp=0.0, substeps=1, samples_per_step=None, dc_from
 
 
 def test_default_step():
-    """The configured step spans two samples (h = 2/16670 s), well inside RK4's stability
-    region for the stiffest mode (the platform's PI loop, lambda ~ 3300 1/s)."""
+    """The configured step spans four samples (h = 4/16670 s), inside RK4's stability
+    region (|lambda*h| < 2.8) for the stiffest mode (the platform's PI loop, lambda ~ 3300
+    1/s)."""
     cfg = load_config()
-    assert (cfg.procedure.samples_per_step, cfg.procedure.substeps) == (2, 1)
+    assert (cfg.procedure.samples_per_step, cfg.procedure.substeps) == (4, 1)
     assert stiffest_rate(cfg.rig) == pytest.approx(3333.3, rel=1e-3)
-    assert stiffest_rate(cfg.rig) * 2 / FS == pytest.approx(0.4, rel=1e-3)
+    assert stiffest_rate(cfg.rig) * 4 / FS == pytest.approx(0.8, rel=1e-3)
 
 
 def test_normal_load_disturbances(quiet, noisy):
@@ -138,7 +139,7 @@ def _max_diff(a, b):
 
 
 def test_halving_the_step_changes_nothing(noisy, wobble):
-    """Default step (RK4 at h = 2/16670 s, every second sample cubic-Hermite interpolated)
+    """Default step (RK4 at h = 4/16670 s, samples inside a step cubic-Hermite interpolated)
     against the halved step (h = 1/16670 s, every sample a step end) and the quartered one,
     disturbances on (rail-joint kinks in the load), 8 N*m modulation, near saturation, an
     odd number of samples (the last block is one sample), the speed loop wobbling. Tolerance

@@ -24,6 +24,7 @@ import itertools
 import math
 import sys
 import tomllib
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict
 from importlib import resources
 from pathlib import Path
@@ -510,33 +511,25 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     slip_step = None
     bar = tqdm(total=len(torques), desc="simulate", unit="step", file=sys.stderr,
                disable=not progress)
-    out = np.empty((n_settle + n_rec, len(OUT_COLUMNS)))  # reused: each step copies out
     # one wobble for the whole run: the rig's speed loop runs on across the steps (redrawn
     # per step, the reference would jump by up to ~1 % of the speed at every step change)
     wobble = wobble_table(config.disturbances, rig.platform_speed_rad_s, rng)
-    for i_step, dc in enumerate(torques, start=1):
-        phase = float(rng.uniform(0.0, 2.0 * np.pi)) if mod.random_phase else 0.0
-        n_done, slipped = integrate(y, t, n_settle + n_rec, dt, proc.substeps, params, dc_prev,
-                                    dc, t, proc.ramp_s, mod.amplitude_nm, omega_mod, phase, t,
-                                    proc.slip_creepage, out, proc.samples_per_step, wobble)
-        t_step = t
-        t += n_done * dt
-        dc_prev = dc
-        bar.update(1)
-        if slipped:
-            steps.append(_step_truth(i_step, dc, config, None, True))
-            steps[-1]["slip_time_s"] = t
-            slip_step = i_step
-            break
+    # the sensor noise has its own stream (a child of the seed's), so that it can be drawn
+    # for one step while the next is integrated and the run stays deterministic
+    noise_rng = rng.spawn(1)[0]
+
+    def finish(i_step, dc, out, n_done, t_step):
+        """Truth, sensor channels and files of a step that did not slip (worker thread)."""
         bounds = _cycle_bounds(out[:n_done, _COL["platform_angle_rad"]], n_settle,
                                proc.cycles_per_step)
         raw = out[bounds[0]:bounds[-1]]
-        steps.append(_step_truth(i_step, dc, config, raw, False, t_step + bounds[0] * dt,
-                                 wobble, bounds))
+        entry = _step_truth(i_step, dc, config, raw, False, t_step + bounds[0] * dt, wobble,
+                            bounds)
         channels = measure(raw, disturbances=config.disturbances, sensors=config.sensors,
-                           rng=rng)
+                           rng=noise_rng)
         spans = (list(itertools.pairwise(bounds)) if files_per_cycle
                  else [(bounds[0], bounds[-1])])
+        recs = []
         for j, (a, b) in enumerate(spans, start=1):
             sl = slice(a - bounds[0], b - bounds[0])
             rec = Recording({k: v[sl] for k, v in channels.items()}, fs_hz=fs,
@@ -547,10 +540,44 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
                 write_recording(folder / file, rec, fmt=fmt, write_time=True)
             else:
                 write_recording(folder / file, rec, fmt=fmt)
-            entry = {"step": i_step, "dc_torque_nm": dc, "file": file}
+            rec_entry = {"step": i_step, "dc_torque_nm": dc, "file": file}
             if files_per_cycle:
-                entry["cycle"] = j
-            recordings.append(entry)
+                rec_entry["cycle"] = j
+            recs.append(rec_entry)
+        return entry, recs
+
+    # Two-stage pipeline: this thread integrates step after step (the state runs on from one
+    # step to the next, so the steps stay sequential), one worker thread computes the truth,
+    # draws the noise and writes the files of the step before. The compiled integrator and
+    # numpy's noise and array work release the GIL, so the stages overlap on two cores.
+    pending = []
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        try:
+            for i_step, dc in enumerate(torques, start=1):
+                phase = float(rng.uniform(0.0, 2.0 * np.pi)) if mod.random_phase else 0.0
+                out = np.empty((n_settle + n_rec, len(OUT_COLUMNS)))  # the worker keeps it
+                n_done, slipped = integrate(y, t, n_settle + n_rec, dt, proc.substeps, params,
+                                            dc_prev, dc, t, proc.ramp_s, mod.amplitude_nm,
+                                            omega_mod, phase, t, proc.slip_creepage, out,
+                                            proc.samples_per_step, wobble)
+                t_step = t
+                t += n_done * dt
+                dc_prev = dc
+                bar.update(1)
+                if slipped:
+                    slip_step = i_step
+                    break
+                pending.append(pool.submit(finish, i_step, dc, out, n_done, t_step))
+            for fut in pending:  # in step order
+                entry, recs = fut.result()
+                steps.append(entry)
+                recordings.extend(recs)
+        finally:
+            for fut in pending:
+                fut.cancel()
+    if slip_step is not None:
+        steps.append(_step_truth(slip_step, torques[slip_step - 1], config, None, True))
+        steps[-1]["slip_time_s"] = t
     bar.close()
     xi_peak, t_peak = creep_curve_peak(rig)
     truth = {

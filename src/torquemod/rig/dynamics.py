@@ -430,7 +430,8 @@ def integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s,
                       omega, phase, t_gen, slip_creepage, out, samples_per_step, wob)
 
 
-@numba.njit(**_FAST)
+# nogil: simulate's pipeline integrates the next step while a worker thread finishes the last
+@numba.njit(nogil=True, **_FAST)
 def _integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s, amp, omega,
                phase, t_gen, slip_creepage, out, samples_per_step, wob):
     """Advance state ``y`` (modified in place) by ``n_samples`` output samples of ``dt`` [s]

@@ -169,7 +169,7 @@ class ProcedureParams:
     ramp_s: float = 0.5
     slip_creepage: float = 0.05
     substeps: int = 1
-    samples_per_step: int = 2
+    samples_per_step: int = 4
 
 
 @dataclass(frozen=True)
