@@ -551,11 +551,16 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     # draws the noise and writes the files of the step before. The compiled integrator and
     # numpy's noise and array work release the GIL, so the stages overlap on two cores.
     pending = []
+    buffers = [np.empty((n_settle + n_rec, len(OUT_COLUMNS))) for _ in range(2)]
     with ThreadPoolExecutor(max_workers=1) as pool:
         try:
             for i_step, dc in enumerate(torques, start=1):
                 phase = float(rng.uniform(0.0, 2.0 * np.pi)) if mod.random_phase else 0.0
-                out = np.empty((n_settle + n_rec, len(OUT_COLUMNS)))  # the worker keeps it
+                # two output buffers in turn: the one of the step before last is free again
+                # once the worker has finished that step
+                if len(pending) >= 2:
+                    pending[-2].result()
+                out = buffers[i_step % 2]
                 n_done, slipped = integrate(y, t, n_settle + n_rec, dt, proc.substeps, params,
                                             dc_prev, dc, t, proc.ramp_s, mod.amplitude_nm,
                                             omega_mod, phase, t, proc.slip_creepage, out,
