@@ -90,7 +90,7 @@ def _train_config(args: argparse.Namespace):
     """The train configuration when --train is given or the config says kind = "train"."""
     import tomllib
 
-    from .train import is_train_config, load_train_config
+    from .train import config_from_dict, is_train_config, load_train_config
     if args.train:
         return load_train_config(args.config)
     if args.config:
@@ -99,7 +99,7 @@ def _train_config(args: argparse.Namespace):
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
             return None  # the rig's loader names the problem
         if is_train_config(doc):
-            return load_train_config(args.config)
+            return config_from_dict(doc, where=str(args.config))
     return None
 
 

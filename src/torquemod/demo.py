@@ -191,21 +191,14 @@ def _train_demo(out: Path, *, seed: int, say) -> dict:
     """The train part of the demo: simulate the default run, estimate the friction along
     it, write ``out/train-run`` and ``out/train-results`` (each folder atomically)."""
     from .onboard import run_onboard
+    from .onboard.report import segment_estimates
     from .train import load_train_config, run_train_simulation
     say("simulating the default train run (powered axle, dry/wet/leaves/friction modifier) "
         "...")
     sim = run_train_simulation(load_train_config(), out / "train-run", seed=seed)
     say("estimating the friction along the train run ...")
     res = run_onboard(out / "train-run" / "run.toml", out / "train-results")[0]
-    t = res.track
-    segs = []
-    for seg in sim["segments"]:
-        part = t[(t.position_m >= seg["start_m"]) & (t.position_m <= seg["end_m"])]
-        given = part["mu"].notna()
-        segs.append({**seg, "mu_estimate": float(part.loc[given, "mu"].median())
-                     if given.any() else None,
-                     "mu_lower_bound": float(part["mu_low_95"].median()) if len(part)
-                     else None, "mu_given_share": float(given.mean()) if len(part) else 0.0})
+    segs = segment_estimates(res.track, sim["segments"])
     return {"run": str(out / "train-run" / "run.toml"),
             "results": str(out / "train-results"),
             "report": str(out / "train-results" / "report.html"), "segments": segs,

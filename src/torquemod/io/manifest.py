@@ -73,16 +73,24 @@ def _load_toml(path: Path, name: str = "experiment.toml") -> dict:
         raise ManifestError(f"TOML syntax error: {text}", path=path, hint=hint) from None
 
 
+def check_keys(table: dict, allowed, where: str, path: object, *,
+               takes: str = "known keys:", error: type[InputError] = ManifestError) -> None:
+    """Raise ``error`` naming the first key of ``table`` not in ``allowed`` (a typo such as
+    'dc_torque' or 'stpe' must not pass unnoticed), with the nearest allowed key."""
+    allowed = tuple(allowed)
+    for key in table:
+        if key not in allowed:
+            near = difflib.get_close_matches(str(key), allowed, n=1)
+            raise error(f"{where}: unknown key '{key}'", path=path, hint=(
+                f"did you mean '{near[0]}'? " if near else "") + f"{takes} "
+                + ", ".join(allowed))
+
+
 def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEntry:
     where = f"recording #{i + 1}"
     if not isinstance(rec, dict):
         raise ManifestError(f"{where} is not a table", path=path)
-    for key in rec:  # a typo ('dc_torque', 'stpe') must not pass unnoticed
-        if key not in _RECORDING_KEYS:
-            near = difflib.get_close_matches(str(key), _RECORDING_KEYS, n=1)
-            raise ManifestError(f"{where}: unknown key '{key}'", path=path, hint=(
-                f"did you mean '{near[0]}'? " if near else "") + "a [[recording]] takes "
-                + ", ".join(_RECORDING_KEYS))
+    check_keys(rec, _RECORDING_KEYS, where, path, takes="a [[recording]] takes")
     for key in ("step", "dc_torque_nm", "file"):
         if key not in rec:
             raise ManifestError(f"{where} has no '{key}'", path=path,

@@ -21,13 +21,12 @@ tables and ``[channels]`` map (read by the same readers), with ``[vehicle]`` in 
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..checks import positive_number
 from ..errors import ManifestError
-from .manifest import _load_toml, checked_channel_map, recording_file
+from .manifest import _load_toml, check_keys, checked_channel_map, recording_file
 
 _VEHICLE_REQUIRED = ("wheel_radius_m", "normal_load_n", "inertia_kg_m2")
 _VEHICLE_OPTIONAL = ("gear_ratio", "motor_inertia_kg_m2", "coupling_stiffness_nm_rad",
@@ -94,15 +93,6 @@ def _number(table: dict, key: str, section: str, path: Path) -> float:
     return positive_number(table[key], f"{section}.{key}", path=path, error=ManifestError)
 
 
-def _check_keys(table: dict, allowed: tuple[str, ...], where: str, path: Path) -> None:
-    for key in table:
-        if key not in allowed:
-            near = difflib.get_close_matches(str(key), allowed, n=1)
-            raise ManifestError(f"{where}: unknown key '{key}'", path=path, hint=(
-                f"did you mean '{near[0]}'? " if near else "") + "known keys: "
-                + ", ".join(allowed))
-
-
 def read_run(path: str | Path) -> Run:
     """Parse and check a ``run.toml`` (a folder means its run.toml); files are not opened."""
     path = Path(path)
@@ -117,7 +107,7 @@ def read_run(path: str | Path) -> Run:
             raise ManifestError(f"missing section [{section}]", path=path,
                                 hint="see docs/format.md for the run manifest")
     vt, tt = doc["vehicle"], doc["test"]
-    _check_keys(vt, _VEHICLE_REQUIRED + _VEHICLE_OPTIONAL, "[vehicle]", path)
+    check_keys(vt, _VEHICLE_REQUIRED + _VEHICLE_OPTIONAL, "[vehicle]", path)
     opt = {k: _number(vt, k, "vehicle", path) for k in _VEHICLE_OPTIONAL[:4] if k in vt}
     if "coupling_damping_nm_s_rad" in vt:
         d = vt["coupling_damping_nm_s_rad"]
@@ -142,7 +132,7 @@ def read_run(path: str | Path) -> Run:
         where = f"recording #{i + 1}"
         if not isinstance(rec, dict) or "file" not in rec:
             raise ManifestError(f"{where} has no 'file'", path=path)
-        _check_keys(rec, _RECORDING_KEYS, where, path)
+        check_keys(rec, _RECORDING_KEYS, where, path)
         axle = rec.get("axle", 1)
         if isinstance(axle, bool) or not isinstance(axle, int) or axle < 1:
             raise ManifestError(f"{where}: 'axle' must be a positive integer, got {axle!r}",

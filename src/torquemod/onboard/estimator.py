@@ -36,6 +36,7 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 from ..errors import InputError, ProcessingError
+from ..io.manifest import check_keys
 from ..io.run import Vehicle
 from ..phasefit import R_BOUNDS, fit_mu_from_phase
 from .window import WindowResult, measure_window
@@ -67,11 +68,7 @@ class OnboardConfig:
     @classmethod
     def from_dict(cls, table: dict | None, *, source: str = "[onboard]") -> OnboardConfig:
         table = dict(table or {})
-        known = {f.name for f in fields(cls)}
-        bad = sorted(set(table) - known)
-        if bad:
-            raise InputError(f"unknown key(s) {', '.join(bad)} in [onboard]", path=source,
-                             hint=f"known: {', '.join(sorted(known))}")
+        check_keys(table, [f.name for f in fields(cls)], "[onboard]", source, error=InputError)
         if "ratio_bounds" in table:
             table["ratio_bounds"] = tuple(float(v) for v in table["ratio_bounds"])
         cfg = cls(**table)

@@ -90,23 +90,34 @@ def write_figures(folder: Path, result) -> dict[str, bytes]:
     return out
 
 
+def segment_estimates(track, segments: list[dict]) -> list[dict]:
+    """Each truth segment (:func:`torquemod.train.simulate.segment_summary`) with the
+    estimate over the track's rows inside it: ``mu_estimate`` (median where mu is given,
+    else None), ``mu_lower_bound`` (median of ``mu_low_95``) and ``mu_given_share``."""
+    out = []
+    for seg in segments:
+        part = track[(track.position_m >= seg["start_m"]) & (track.position_m <= seg["end_m"])]
+        given = part["mu"].notna()
+        out.append({**seg, "mu_estimate": float(part.loc[given, "mu"].median())
+                    if given.any() else None,
+                    "mu_lower_bound": float(part["mu_low_95"].median()) if len(part)
+                    else None, "mu_given_share": float(given.mean()) if len(part) else 0.0})
+    return out
+
+
 def _segments_table(result) -> str:
     tr = result.truth
     if tr is None:
         return ""
     from ..train.simulate import segment_summary
-    t = result.track
     rows = []
-    for s in segment_summary(tr):
-        sel = (t["position_m"] >= s["start_m"]) & (t["position_m"] <= s["end_m"])
-        part = t[sel]
-        given = part["mu"].notna()
-        mu = f"{part.loc[given, 'mu'].median():.3f}" if given.any() else "not determined"
-        low = f"{part['mu_low_95'].median():.3f}" if len(part) else ""
+    for s in segment_estimates(result.track, segment_summary(tr)):
+        mu = "not determined" if s["mu_estimate"] is None else f"{s['mu_estimate']:.3f}"
+        low = "" if s["mu_lower_bound"] is None else f"{s['mu_lower_bound']:.3f}"
         rows.append(f"<tr><td>{html.escape(s['condition'])}</td><td>{s['start_m']:.0f}-"
                     f"{s['end_m']:.0f}</td><td>{s['mu']:.3f}</td>"
                     f"<td>{s['adhesion_peak']:.3f}</td><td>{mu}</td><td>{low}</td>"
-                    f"<td>{100 * given.mean() if len(part) else 0:.0f} %</td></tr>")
+                    f"<td>{100 * s['mu_given_share']:.0f} %</td></tr>")
     return ("<h2>Against the simulated truth</h2><table><tr><th>condition</th><th>span [m]"
             "</th><th>friction</th><th>available adhesion</th><th>mu (median)</th>"
             "<th>mu_low_95 (median)</th><th>rows with mu</th></tr>" + "".join(rows)

@@ -6,7 +6,6 @@ estimator, written as ``track.parquet`` (one row per window, :data:`TRACK_COLUMN
 from __future__ import annotations
 
 import json
-import math
 import time
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -19,6 +18,7 @@ from ..errors import InputError
 from ..fsutil import atomic_dir, sha256_file
 from ..io.recording import read_recording
 from ..io.run import Run, RunRecording, read_run
+from ..jsonutil import dump_json
 from ..provenance import software_versions
 from .estimator import TRACK_COLUMNS, OnboardConfig, OnboardEstimator
 
@@ -160,19 +160,9 @@ def _write(folder: Path, results: list[OnboardResult], command: list[str] | None
                                                     ("torquemod_version", "created_utc",
                                                      "onboard")}).encode()})
         pq.write_table(table, folder / name)
-    (folder / "onboard.json").write_text(json.dumps(meta, indent=2, default=_num))
+    (folder / "onboard.json").write_text(dump_json(meta))
     figs = write_figures(folder, results[0])
     write_report(folder / "report.html", results[0], meta, figs)
-
-
-def _num(x):
-    if isinstance(x, float | np.floating) and not math.isfinite(x):
-        return None
-    if isinstance(x, Path):
-        return str(x)
-    if isinstance(x, np.generic):
-        return x.item()
-    return str(x)
 
 
 def run_onboard(run_path: str | Path, out_dir: str | Path, *, force: bool = False,

@@ -19,6 +19,7 @@ from ..contact.hertz import hertz_ellipse
 from ..contact.kalker import kalker_coefficients
 from ..contact.presets import POLACH_PRESETS, PolachParameters
 from ..errors import InputError
+from ..io.manifest import check_keys
 
 #: Friction conditions of the track map. ``dry`` and ``wet`` are Polach's published sets
 #: (contact.presets); the others are assumed, with the reason in ``source``.
@@ -141,7 +142,7 @@ class ControllerParams:
 class TrainSensorParams:
     """What the logger records. Torque: estimated from the motor current with a gain error,
     a bias [N*m], white noise [N*m RMS] and a first-order lag [s]. Wheel speed: an axle
-    encoder of ``encoder_teeth`` teeth with tooth spacing errors (RMS share of a pitch),
+    encoder with tooth spacing errors (RMS share of a pitch, as revolution harmonics 2-8),
     once-per-revolution eccentricity (share of the speed), white noise [rad/s RMS] and
     quantization [rad/s]. Reference speed (radar): its own rate [Hz], noise [m/s RMS] and
     scale error. Position: the reference speed integrated."""
@@ -151,7 +152,6 @@ class TrainSensorParams:
     torque_bias_nm: float = 60.0
     torque_noise_nm: float = 40.0
     torque_lag_s: float = 0.0
-    encoder_teeth: int = 90
     tooth_error_rms: float = 2e-4
     eccentricity: float = 3e-4
     speed_noise_rad_s: float = 1e-3
@@ -199,11 +199,8 @@ def _polach(entry: dict, where: str) -> tuple[str, PolachParameters]:
 
 
 def _known(table: dict, cls, section: str, where: str) -> dict:
-    names = set(cls.__dataclass_fields__)
-    bad = sorted(set(table) - names)
-    if bad:
-        raise InputError(f"unknown key(s) {', '.join(bad)} in [{section}]", path=where,
-                         hint=f"known: {', '.join(sorted(names))}")
+    check_keys(table, sorted(cls.__dataclass_fields__), f"[{section}]", where,
+               error=InputError)
     return table
 
 

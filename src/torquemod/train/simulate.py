@@ -11,7 +11,6 @@ once per modulation period: friction at the contact's slip velocity, the curve's
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import asdict
 from pathlib import Path
@@ -21,12 +20,22 @@ from scipy import signal
 
 from .. import __version__
 from ..fsutil import atomic_dir
+from ..jsonutil import dump_json
 from . import dynamics as dyn
 from .params import TrainConfig
 
 REFERENCE_CLOCK_OFFSET_S = 0.013  # the radar's first sample after the logger's [s] (assumed)
 MDF_NAMES = {"torque": ("Axle1.TorqueEst", "kN*m"), "wheel_speed": ("Axle1.Speed", "rpm"),
              "vehicle_speed": ("Radar.Speed", "km/h"), "position": ("Odometer.Distance", "m")}
+
+
+def _friction_table(cfg: TrainConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Segment starts [m] and their Polach parameters (mu0, A, B, kA, kS), one row each."""
+    segs = cfg.track.segments
+    starts = np.array([s.start_m for s in segs], dtype=float)
+    table = np.array([[s.polach.mu0, s.polach.a_ratio, s.polach.b_s_m, s.polach.k_a,
+                       s.polach.k_s] for s in segs], dtype=float)
+    return starts, table
 
 
 def _arrays(cfg: TrainConfig, rng: np.random.Generator) -> dict:
@@ -44,9 +53,7 @@ def _arrays(cfg: TrainConfig, rng: np.random.Generator) -> dict:
     p[dyn.P_TRANS], p[dyn.P_KP] = tr.transition_m, ctl.speed_gain_n_s_m
     p[dyn.P_AS_XI], p[dyn.P_AS_CUT] = ctl.antislip_creepage, ctl.antislip_cut_per_s
     p[dyn.P_AS_FLOOR], p[dyn.P_AS_REST] = ctl.antislip_floor, ctl.antislip_restore_per_s
-    starts = np.array([s.start_m for s in tr.segments], dtype=float)
-    table = np.array([[s.polach.mu0, s.polach.a_ratio, s.polach.b_s_m, s.polach.k_a,
-                       s.polach.k_s] for s in tr.segments], dtype=float)
+    starts, table = _friction_table(cfg)
     n_w = len(tr.irregularity_wavelengths_m)
     amp = tr.load_variation_rms * math.sqrt(2.0 / n_w) if n_w else 0.0
     irr = np.array([[amp, 2 * math.pi / lam, rng.uniform(0, 2 * math.pi)]
@@ -142,11 +149,11 @@ def truth_table(raw: np.ndarray, cfg: TrainConfig):
     nb = raw.shape[0] // m
     blk = raw[:nb * m].reshape(nb, m, dyn.N_OUT)
     mean = blk.mean(axis=1)
-    a = _arrays(cfg, np.random.default_rng(0))
-    pars = np.array([dyn.friction_params(x, a["starts"], a["table"], cfg.track.transition_m)[0]
+    starts, table = _friction_table(cfg)
+    pars = np.array([dyn.friction_params(x, starts, table, cfg.track.transition_m)[0]
                      for x in mean[:, 5]])
     v, n, xi = mean[:, 4], mean[:, 7], mean[:, 8]
-    sx = a["stiffness_x_n"]
+    sx = cfg.vehicle.stiffness_x_n()
     peak, xi_peak = dyn.adhesion_peak(v, n, sx, *pars.T)
     h = 1e-3 * np.abs(xi) + 1e-7
     k = (dyn.static_coa(xi + h, v, n, sx, *pars.T)
@@ -232,8 +239,8 @@ def run_train_simulation(cfg: TrainConfig, out_dir: str | Path, *, seed: int = 0
         (tmp / "run.toml").write_text(tomli_w.dumps(run_manifest(cfg, "run.mf4", "mdf")))
         (tmp / "run_h5.toml").write_text(tomli_w.dumps(run_manifest(cfg, "run.h5", "hdf5")))
         truth.to_parquet(tmp / "truth.parquet", index=False)
-        doc = dict(summary, config=_jsonable(cfg.raw) or _jsonable(asdict(cfg)))
-        (tmp / "simulation.json").write_text(json.dumps(doc, indent=2, default=str))
+        (tmp / "simulation.json").write_text(dump_json(dict(summary,
+                                                            config=cfg.raw or asdict(cfg))))
     return summary
 
 
@@ -250,6 +257,3 @@ def segment_summary(truth) -> list[dict]:
                     "max_utilisation": float(part.utilisation.max())})
     return out
 
-
-def _jsonable(obj):
-    return json.loads(json.dumps(obj, default=str))
