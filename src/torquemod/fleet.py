@@ -25,7 +25,6 @@ from __future__ import annotations
 import glob
 import hashlib
 import json
-import os
 import shutil
 import time
 from collections.abc import Iterable
@@ -203,8 +202,10 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     at the end. ``force`` reprocesses unchanged runs. ``on_dashboard(link)`` is called with
     the dashboard address when there is one; ``progress`` shows a bar on stderr.
     """
-    from dask.distributed import Client, LocalCluster, as_completed
+    from dask.distributed import as_completed
     from tqdm import tqdm
+
+    from .daskutil import dask_client
 
     paths = find_manifests(manifests)
     if not paths:
@@ -214,20 +215,15 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     out.mkdir(parents=True, exist_ok=True)
     names = run_names(paths)
     t0 = time.perf_counter()
-    cluster = None
-    if scheduler is None:
-        cluster = LocalCluster(n_workers=n_workers or os.cpu_count() or 1,
-                               threads_per_worker=1, processes=True,
-                               dashboard_address=":0", silence_logs=40)
-        client = Client(cluster)
-    else:
-        client = Client(scheduler)
     rows = []
-    link = None
-    try:
-        link = getattr(client, "dashboard_link", None)
-        if link and on_dashboard is not None:
+    links: list[str] = []
+
+    def dashboard(link: str) -> None:
+        links.append(link)
+        if on_dashboard is not None:
             on_dashboard(link)
+
+    with dask_client(scheduler, n_workers, dashboard) as client:
         futures = [client.submit(process_run, str(p), str(out), name, force, pure=False,
                                  key=f"torquemod-run-{name}-{time.time_ns()}")
                    for p, name in zip(paths, names, strict=True)]
@@ -236,10 +232,7 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
             rows.append(fut.result())
             bar.update()
         bar.close()
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    link = links[0] if links else None
     summary = pd.DataFrame(rows, columns=SUMMARY_COLUMNS).sort_values("run",
                                                                       ignore_index=True)
     failures = summary.loc[summary["status"] == "failed",
