@@ -1,76 +1,166 @@
-"""The fleet on Dask (torquemod.fleet): a LocalCluster of 2 worker processes, a small fleet
-with a damaged run, against the same runs processed one by one in this process."""
+"""The fleet on Dask (torquemod.fleet): a LocalCluster of 2 worker processes, a small fleet of
+rig experiments and train runs with damaged ones, against the same runs processed one by one
+(`process_experiment`, `run_onboard`) in this process."""
 
 from __future__ import annotations
 
+import dataclasses
+import datetime as dt
 import shutil
+import tomllib
 
 import pandas as pd
 import pytest
+import tomli_w
 
 from torquemod.errors import TorquemodError
-from torquemod.fleet import find_manifests, run_fleet, run_names
+from torquemod.fleet import (
+    find_manifests,
+    manifest_kind,
+    partition_value,
+    run_fleet,
+    run_names,
+)
 from torquemod.pipeline import process_experiment
 from torquemod.testing import write_synthetic_experiment
 
 
+def _edit_toml(path, change) -> None:
+    doc = tomllib.loads(path.read_text())
+    change(doc)
+    path.write_text(tomli_w.dumps(doc))
+
+
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory):
+    from torquemod.train import load_train_config, run_train_simulation
     root = tmp_path_factory.mktemp("fleet")
     for k, name in enumerate(("axle1", "axle2")):
         write_synthetic_experiment(root / name, n_steps=2, n_cycles=1, fmt="hdf5", seed=k)
+    _edit_toml(root / "axle2" / "experiment.toml",
+               lambda d: (d["rig"].update(vehicle="V-Track #2"),
+                          d["test"].update(date=dt.date(2025, 3, 4))))
     shutil.copytree(root / "axle1", root / "damaged")
     bad = root / "damaged" / "step2_cycle1.h5"
     bad.write_bytes(bad.read_bytes()[:5000])  # truncated, as by a full disk
+    # a short train run of the twin (300 m, 15 s), dated; and a copy with a truncated MDF4
+    cfg = load_train_config()
+    cfg = dataclasses.replace(cfg, track=dataclasses.replace(cfg.track, length_m=300.0))
+    run_train_simulation(cfg, root / "train1", seed=3)
+    _edit_toml(root / "train1" / "run.toml",
+               lambda d: d["recording"][0].update(date="2025-03-05T07:40:00"))
+    shutil.copytree(root / "train1", root / "train_bad")
+    mf4 = root / "train_bad" / "run.mf4"
+    mf4.write_bytes(mf4.read_bytes()[: mf4.stat().st_size // 3])
     return root
 
 
+def _one_line(exc: BaseException) -> str:
+    """What `torquemod process/onboard` print after 'torquemod: error: '."""
+    from torquemod.cli import _one_line
+    return _one_line(exc)
+
+
+def _same(got: pd.DataFrame, alone: pd.DataFrame) -> None:
+    pd.testing.assert_frame_equal(got.reset_index(drop=True), alone.reset_index(drop=True),
+                                  check_dtype=False, rtol=0, atol=0)
+
+
 def test_fleet_on_two_worker_processes(fleet, tmp_path):
+    from torquemod.onboard import run_onboard
     out = tmp_path / "out"
     links = []
     res = run_fleet([fleet], out, n_workers=2, on_dashboard=links.append)
-    assert res.count("processed") == 2 and res.count("failed") == 1
-    # the damaged run: one row, the same one-line message `torquemod process` gives
+    status = dict(zip(res.summary["run"], res.summary["status"], strict=True))
+    assert status == {"axle1": "processed", "axle2": "processed", "damaged": "failed",
+                      "train1": "processed", "train_bad": "failed"}
+    kinds = dict(zip(res.summary["run"], res.summary["kind"], strict=True))
+    assert kinds["train1"] == kinds["train_bad"] == "train" and kinds["axle1"] == "rig"
+    # the damaged runs: one row each, the same one-line message the commands give
     with pytest.raises(TorquemodError) as exc:
         process_experiment(fleet / "damaged" / "experiment.toml", workers=1)
-    assert res.failures["run"].tolist() == ["damaged"]
-    assert res.failures["message"].iloc[0] == str(exc.value).splitlines()[0]
-    assert "step2_cycle1.h5" in res.failures["message"].iloc[0]
-    assert pd.read_csv(out / "failures.csv")["run"].tolist() == ["damaged"]
-    # the dataset, partitioned by run, read directly by pandas; numbers identical to
-    # single runs
+    with pytest.raises(TorquemodError) as exc_train:
+        run_onboard(fleet / "train_bad" / "run.toml", tmp_path / "bad_alone")
+    msg = dict(zip(res.failures["run"], res.failures["message"], strict=True))
+    assert list(msg) == ["damaged", "train_bad"]
+    assert msg["damaged"] == _one_line(exc.value) and "step2_cycle1.h5" in msg["damaged"]
+    assert msg["train_bad"] == _one_line(exc_train.value) and "run.mf4" in msg["train_bad"]
+    assert pd.read_csv(out / "failures.csv")["run"].tolist() == ["damaged", "train_bad"]
+    # the rig datasets, partitioned vehicle/date/run, read directly by pandas; numbers
+    # identical to single runs
     cycles = pd.read_parquet(out / "cycles")
     assert sorted(cycles["run"].astype(str).unique()) == ["axle1", "axle2"]
+    labels = cycles.groupby("run", observed=True)[["vehicle", "date"]].first().astype(str)
+    assert labels.loc["axle2"].tolist() == ["V-Track__2", "2025-03-04"]
+    assert labels.loc["axle1"].tolist() == ["unknown", "unknown"]
     for run in ("axle1", "axle2"):
         alone = process_experiment(fleet / run / "experiment.toml", workers=1).cycles
-        got = cycles[cycles["run"].astype(str) == run].drop(columns="run")
-        pd.testing.assert_frame_equal(got.reset_index(drop=True),
-                                      alone.reset_index(drop=True), check_dtype=False,
-                                      rtol=0, atol=0)
-    steps = pd.read_parquet(out / "steps")
-    assert len(steps) == 4
-    # a rerun skips unchanged runs (same partition file), retries the damaged one, and
-    # reprocesses a run whose manifest changed
-    part = out / "cycles" / "run=axle1" / "part-0.parquet"
+        got = cycles[cycles["run"].astype(str) == run].drop(columns=["run", "vehicle", "date"])
+        _same(got, alone)
+    assert len(pd.read_parquet(out / "steps")) == 4
+    # the train run: the same rows `torquemod onboard` writes to track.parquet, in files of
+    # exactly its 13 columns; vehicle, date, run, axle from the partitions
+    run_onboard(fleet / "train1" / "run.toml", tmp_path / "alone")
+    alone = pd.read_parquet(tmp_path / "alone" / "track.parquet")
+    part = (out / "track" / "vehicle=torquemod_train_twin" / "date=2025-03-05" / "run=train1"
+            / "axle=1" / "part-0.parquet")
+    assert list(pd.read_parquet(part).columns) == list(alone.columns)
+    track = pd.read_parquet(out / "track")
+    assert {"vehicle", "date", "run", "axle"} <= set(track.columns)
+    assert track["run"].astype(str).unique().tolist() == ["train1"]
+    _same(track[list(alone.columns)], alone)
+    row = res.summary.set_index("run").loc["train1"]
+    assert row["n_rows"] == len(alone)
+    assert row["low_adhesion_windows"] == int(alone["low_adhesion"].sum())
+    assert row["duration_s"] == pytest.approx(15.0, abs=0.3)  # window-covered time [s]
+    page = (out / "fleet_report.html").read_text()
+    assert "train_bad" in page and "run.mf4" in page and "data:image/png;base64" in page
+    assert res.report == out / "fleet_report.html"
+    # a rerun skips unchanged runs (same partition file), retries the damaged ones, and
+    # reprocesses a run whose manifest changed; a changed date moves the partition
     stamp = part.stat().st_mtime_ns
-    manifest = fleet / "axle2" / "experiment.toml"
-    manifest.write_text(manifest.read_text() + "\n# edited\n")
+    rig_part = next((out / "cycles").rglob("run=axle1/part-0.parquet"))
+    rig_stamp = rig_part.stat().st_mtime_ns
+    _edit_toml(fleet / "axle2" / "experiment.toml",
+               lambda d: d["test"].update(date=dt.date(2025, 3, 6)))
     again = run_fleet([fleet], out, n_workers=2)
     status = dict(zip(again.summary["run"], again.summary["status"], strict=True))
-    assert status == {"axle1": "skipped", "axle2": "processed", "damaged": "failed"}
-    assert part.stat().st_mtime_ns == stamp
+    assert status == {"axle1": "skipped", "axle2": "processed", "damaged": "failed",
+                      "train1": "skipped", "train_bad": "failed"}
+    assert part.stat().st_mtime_ns == stamp and rig_part.stat().st_mtime_ns == rig_stamp
+    skipped = again.summary.set_index("run").loc["train1"]
+    assert skipped["n_rows"] == len(alone) and skipped["date"] == "2025-03-05"
+    dates = pd.read_parquet(out / "steps").groupby("run", observed=True)["date"].first()
+    assert dates.astype(str).to_dict() == {"axle1": "unknown", "axle2": "2025-03-06"}
+    assert not (out / "steps" / "vehicle=V-Track__2" / "date=2025-03-04").exists()
 
 
 def test_finding_manifests(fleet, tmp_path):
     lst = tmp_path / "runs.txt"
-    lst.write_text(f"# the fleet\n{fleet / 'axle1'}\n{fleet / 'axle2' / 'experiment.toml'}\n")
-    assert [p.parent.name for p in find_manifests([lst])] == ["axle1", "axle2"]
+    lst.write_text(f"# the fleet\n{fleet / 'axle1'}\n{fleet / 'axle2' / 'experiment.toml'}\n"
+                   f"{fleet / 'train1' / 'run_h5.toml'}\n")
+    found = find_manifests([lst])
+    assert [p.parent.name for p in found] == ["axle1", "axle2", "train1"]
+    assert [manifest_kind(p) for p in found] == ["rig", "rig", "train"]  # run_h5 by content
+    assert run_names(found) == ["axle1", "axle2", "train1-run_h5"]
+    # a folder: experiment.toml and run.toml below it (not run_h5.toml)
+    assert [p.name for p in find_manifests([fleet])] == ["experiment.toml"] * 3 + \
+        ["run.toml"] * 2
     assert len(find_manifests([str(fleet / "*" / "experiment.toml")])) == 3
     same = [fleet / "axle1" / "experiment.toml", tmp_path / "x" / "axle1" / "experiment.toml"]
     names = run_names(same)
     assert names[0] != names[1] and all(n.startswith("axle1-") for n in names)
     with pytest.raises(TorquemodError):
         find_manifests([tmp_path / "nothing-here"])
+
+
+def test_partition_values():
+    assert partition_value(None) == partition_value("  ") == "unknown"
+    assert partition_value("BR 185/12=a") == "BR_185_12_a"  # no path or key separators
+    assert partition_value(dt.date(2025, 1, 2), day=True) == "2025-01-02"
+    assert partition_value(dt.datetime(2025, 1, 2, 23, 59), day=True) == "2025-01-02"
+    assert partition_value("2025-01-02T08:00:00Z", day=True) == "2025-01-02"
+    assert partition_value("spring 2025", day=True) == "spring_2025"
 
 
 def test_file_digest_reused_only_while_size_and_mtime_hold(tmp_path):
@@ -90,8 +180,8 @@ def test_file_digest_reused_only_while_size_and_mtime_hold(tmp_path):
 
 
 def test_fleet_command_line(fleet, tmp_path, capsys):
-    """`torquemod fleet`: exit 0 with the damaged run named on stderr, the counts and the
-    results folder on stdout; a rerun reports the good runs unchanged."""
+    """`torquemod fleet`: exit 0 with the damaged run named on stderr, the counts, the
+    results folder and the report on stdout; a rerun reports the good runs unchanged."""
     from torquemod.cli import main
 
     out = tmp_path / "fl"
@@ -101,6 +191,6 @@ def test_fleet_command_line(fleet, tmp_path, capsys):
     io = capsys.readouterr()
     assert "2 runs: 1 processed, 0 unchanged (skipped), 1 failed" in io.out
     assert "failed: damaged:" in io.err and "step2_cycle1.h5" in io.err
-    assert f"results: {out}" in io.out
+    assert f"results: {out}" in io.out and "fleet_report.html" in io.out
     assert main(args) == 0
     assert "1 unchanged (skipped)" in capsys.readouterr().out

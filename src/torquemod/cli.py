@@ -284,6 +284,8 @@ def cmd_fleet(args: argparse.Namespace) -> int:
         print(f"failed: {getattr(row, 'run', '?')}: {getattr(row, 'message', '')}",
               file=sys.stderr)
     print(f"results: {res.out_dir}")
+    if res.report is not None:
+        print(f"report:  {res.report}")
     return 0
 
 
@@ -398,15 +400,16 @@ def build_parser() -> argparse.ArgumentParser:
     c.set_defaults(func=cmd_convert)
 
     fl = sub.add_parser("fleet", parents=[common],
-                        help="process many experiments in parallel on Dask", epilog=(
+                        help="process many experiments and train runs in parallel on Dask",
+                        epilog=(
                             "examples: 'torquemod fleet runs/ --out fleet/' (every "
-                            "experiment.toml below runs/); 'torquemod fleet runs.txt --out "
-                            "fleet/ --scheduler tcp://host:8786' (a list file, an existing "
-                            "Dask cluster)"))
+                            "experiment.toml and run.toml below runs/); 'torquemod fleet "
+                            "runs.txt --out fleet/ --scheduler tcp://host:8786' (a list "
+                            "file, an existing Dask cluster)"))
     fl.add_argument("runs", nargs="+", help="manifests, folders holding them, globs or list "
                     "files (one path per line)")
     fl.add_argument("--out", required=True, help="fleet results folder (Parquet datasets, "
-                    "fleet_summary.csv, failures.csv)")
+                    "fleet_summary.csv, failures.csv, fleet_report.html)")
     fl.add_argument("--scheduler", default=None, metavar="ADDRESS",
                     help="address of an existing Dask scheduler (default: a local cluster "
                     "sized to the machine)")

@@ -1,32 +1,48 @@
-"""Many experiments at once on Dask (issue 11): one task per run manifest, in worker processes.
+"""Many rig experiments and train runs at once on Dask (issue 11): one task per run manifest,
+in worker processes.
 
 :func:`run_fleet` sends each run manifest to a Dask worker process (a ``LocalCluster`` of
-processes sized to the machine, or an existing scheduler). A worker reads and processes the
-run with :func:`torquemod.pipeline.process_experiment` (one thread: the processes are the
-parallelism, since the GIL makes threads of this chain useless) and writes its tables as
-partitions of Parquet datasets::
+processes sized to the machine, or an existing scheduler). A rig experiment
+(``experiment.toml``) goes through :func:`torquemod.pipeline.process_experiment` and the
+creep-curve fit, as ``torquemod process`` does; a train run (``run.toml``) through the on-board
+estimator, axle by axle, as ``torquemod onboard`` does. Each worker runs one thread (the
+processes are the parallelism: the GIL makes threads of this chain useless) and writes its
+tables as partitions of Parquet datasets::
 
-    OUT/cycles/run=<run>/part-0.parquet    per-cycle table of every run
-    OUT/steps/run=<run>/part-0.parquet     per-step table of every run
-    OUT/fleet_summary.csv                  one row per run: status, counts, seconds, message
-    OUT/failures.csv                       one row per failed run: the one-line message
-    OUT/_state/<run>.json                  fingerprint of what produced the partitions
+    OUT/cycles/vehicle=<v>/date=<d>/run=<run>/part-0.parquet          rig: per cycle
+    OUT/steps/vehicle=<v>/date=<d>/run=<run>/part-0.parquet           rig: per step
+    OUT/track/vehicle=<v>/date=<d>/run=<run>/axle=<n>/part-0.parquet  train: per window
+    OUT/fleet_summary.csv     one row per run (:data:`SUMMARY_COLUMNS`)
+    OUT/failures.csv          one row per failed run: the one-line message
+    OUT/fleet_report.html     the summary, the failures and figures (torquemod.fleetreport)
+    OUT/_state/<run>.json     fingerprint of what produced the partitions
 
-pandas, Dask and DuckDB read ``OUT/cycles`` directly (hive partitioning gives the ``run``
-column). A bad run never stops the fleet: its error, the same text ``torquemod process``
-prints after ``torquemod: error:``, becomes a row of the failures table. A rerun skips a run
-whose fingerprint (SHA-256 of the manifest and of every recording, the processing
-parameters, the torquemod version) is unchanged and whose partitions are in place; a file
-whose size and modification time are unchanged keeps its recorded digest.
+The ``track`` files hold exactly the 13 columns of ``torquemod onboard``'s ``track.parquet``;
+the partition keys (hive layout) add ``vehicle``, ``date``, ``run`` (and ``axle``) when pandas,
+Dask or DuckDB read ``OUT/track`` (or ``OUT/cycles``, ``OUT/steps``) as a dataset.
+``vehicle`` is the free text ``[vehicle] vehicle`` of run.toml or ``[rig] vehicle`` of
+experiment.toml; ``date`` the recordings' ``date`` (run.toml ``[[recording]]``, the earliest
+when the axles differ) or ``[test] date`` of experiment.toml; the day of a TOML date or of an
+ISO text, else the text; characters other than letters, digits, ``-_.`` become ``_``; absent
+means ``unknown``.
+
+A bad run never stops the fleet: its error, the same line ``torquemod process`` or
+``torquemod onboard`` prints after ``torquemod: error:``, becomes a row of the failures table.
+A rerun skips a run whose fingerprint (SHA-256 of the manifest and of every recording, the
+processing or ``[onboard]`` settings, the torquemod version) is unchanged and whose partitions
+are in place; a file whose size and modification time are unchanged keeps its recorded digest.
 """
 
 from __future__ import annotations
 
+import datetime as _dt
 import glob
 import hashlib
 import json
+import os
 import shutil
 import time
+import tomllib
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,19 +53,26 @@ from ._version import __version__
 from .errors import InputError, TorquemodError
 
 MANIFEST_NAME = "experiment.toml"
-SUMMARY_COLUMNS = ["run", "status", "manifest", "n_steps", "n_cycles", "seconds", "message"]
+RUN_NAME = "run.toml"
+TABLES = ("cycles", "steps", "track")
+SUMMARY_COLUMNS = ["run", "kind", "status", "vehicle", "date", "manifest", "duration_s",
+                   "n_rows", "n_steps", "n_cycles", "mu", "mu_stderr", "mu_lower_bound",
+                   "mu_given_share", "low_adhesion_windows", "slip_windows", "seconds",
+                   "message"]
+#: summary fields a skipped run takes from its state file
+_KEPT = SUMMARY_COLUMNS[3:-2]
 
 
 def find_manifests(runs: Iterable[str | Path]) -> list[Path]:
-    """Run manifests from ``runs``: manifest files, folders (every ``experiment.toml``
-    below them), glob patterns, or list files (``.txt``/``.lst``: one of the above a line,
-    ``#`` comments). Sorted, without duplicates."""
+    """Run manifests from ``runs``: manifest files, folders (every ``experiment.toml`` and
+    ``run.toml`` below them), glob patterns, or list files (``.txt``/``.lst``: one of the
+    above a line, ``#`` comments). Sorted, without duplicates."""
     found: list[Path] = []
     for item in runs:
         text = str(item)
         path = Path(text)
         if path.is_dir():
-            found += sorted(path.rglob(MANIFEST_NAME))
+            found += sorted([*path.rglob(MANIFEST_NAME), *path.rglob(RUN_NAME)])
         elif path.is_file() and path.suffix.lower() in (".txt", ".lst"):
             lines = [ln.split("#", 1)[0].strip() for ln in path.read_text().splitlines()]
             found += find_manifests([path.parent / ln for ln in lines if ln])
@@ -59,22 +82,60 @@ def find_manifests(runs: Iterable[str | Path]) -> list[Path]:
             found += find_manifests(sorted(glob.glob(text, recursive=True)))
         else:
             raise InputError("no such run manifest, folder or list", path=path,
-                             hint="give experiment.toml files, folders holding them, a glob "
-                                  "or a .txt list of them")
+                             hint="give experiment.toml or run.toml files, folders holding "
+                                  "them, a glob or a .txt list of them")
     return sorted(dict.fromkeys(p.resolve() for p in found))
 
 
+def manifest_kind(path: Path) -> str:
+    """``"train"`` for a train run, ``"rig"`` for a rig experiment: by content (a
+    ``[vehicle]`` table without ``[rig]`` is a run, as the readers decide), else by the
+    file name (``run.toml``) when the file does not parse (its reader then names the
+    problem)."""
+    try:
+        doc = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        doc = None
+    if isinstance(doc, dict) and ("vehicle" in doc or "rig" in doc):
+        return "train" if "vehicle" in doc and "rig" not in doc else "rig"
+    return "train" if Path(path).name == RUN_NAME else "rig"
+
+
+def _safe(text: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in text)
+
+
 def run_names(manifests: list[Path]) -> list[str]:
-    """A partition name per manifest: its folder's name, with a short hash of the full path
-    when two folders share a name."""
-    base = [m.parent.name or m.stem for m in manifests]
+    """A partition name per manifest: its folder's name (``folder-stem`` for a manifest not
+    named experiment.toml or run.toml), with a short hash of the full path when two
+    manifests share a name."""
+    base = [m.parent.name if m.name in (MANIFEST_NAME, RUN_NAME) or not m.parent.name
+            else f"{m.parent.name}-{m.stem}" for m in manifests]
     out = []
     for m, b in zip(manifests, base, strict=True):
-        safe = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in b)
+        safe = _safe(b or m.stem)
         if base.count(b) > 1:
             safe += "-" + hashlib.sha256(str(m).encode()).hexdigest()[:8]
         out.append(safe)
     return out
+
+
+def partition_value(value: object, *, day: bool = False) -> str:
+    """A hive partition value: ``unknown`` for nothing; with ``day`` the ISO day of a
+    date, a date-time or a text starting with an ISO date; characters other than letters,
+    digits and ``-_.`` replaced by ``_`` (no ``/`` or ``=`` can enter the path)."""
+    if value is None or (isinstance(value, str) and not value.strip()):
+        return "unknown"
+    if day:
+        if isinstance(value, _dt.datetime):
+            return value.date().isoformat()
+        if isinstance(value, _dt.date):
+            return value.isoformat()
+        try:
+            return _dt.date.fromisoformat(str(value).strip()[:10]).isoformat()
+        except ValueError:
+            pass
+    return _safe(str(value).strip())[:80]
 
 
 def _sha256(path: Path) -> str:
@@ -96,34 +157,113 @@ def _file_digest(path: Path, known: dict) -> list:
     return [st.st_size, st.st_mtime_ns, _sha256(path)]
 
 
-def fingerprint(manifest: Path, known: dict | None = None) -> tuple[str, object, dict]:
-    """``(hex digest, experiment, files)``: SHA-256 over the manifest's and each recording's
-    SHA-256, the processing parameters and the torquemod version; ``files`` maps each file
-    to ``[size, mtime_ns, sha256]`` (pass it back as ``known`` next time)."""
-    from .io import read_experiment
+@dataclass(frozen=True)
+class Prepared:
+    """A parsed manifest and its fingerprint: ``kind`` rig or train, ``source`` the
+    Experiment or Run, ``settings`` the processing or ``[onboard]`` settings (an
+    OnboardConfig for a run), the partition labels ``vehicle`` and ``date``."""
+
+    kind: str
+    source: object
+    settings: object
+    digest: str
+    files: dict
+    vehicle: str
+    date: str
+
+
+def prepare(manifest: Path, known: dict | None = None, *, kind: str | None = None,
+            fit: bool = True) -> Prepared:
+    """Read the manifest and fingerprint it: SHA-256 over the manifest's and each
+    recording's SHA-256, the settings, the kind and the torquemod version; ``files`` maps
+    each file to ``[size, mtime_ns, sha256]`` (pass it back as ``known`` next time)."""
     known = known or {}
-    exp = read_experiment(manifest)
-    cfg = exp.processing
-    files = {str(Path(exp.manifest_path)): _file_digest(Path(exp.manifest_path), known)}
-    for path in sorted({str(e.path) for e in exp.recordings}):
+    kind = kind or manifest_kind(manifest)
+    if kind == "train":
+        from .io.run import read_run
+        from .onboard import OnboardConfig
+        src = read_run(manifest)
+        settings = OnboardConfig.from_dict(src.extra.get("onboard"),
+                                           source=str(src.manifest_path))
+        params = settings.to_dict()
+        dates = sorted(partition_value(e.date, day=True) for e in src.recordings if e.date)
+        vehicle, date = src.vehicle.name, dates[0] if dates else None
+    else:
+        from .io import read_experiment
+        src = read_experiment(manifest)
+        settings = src.processing
+        params = dict(settings.to_dict(), fit=fit)
+        vehicle, date = src.rig.extra.get("vehicle"), src.test.extra.get("date")
+    files = {str(Path(src.manifest_path)): _file_digest(Path(src.manifest_path), known)}
+    for path in sorted({str(e.path) for e in src.recordings}):
         if Path(path).is_file():
             files[path] = _file_digest(Path(path), known)
-    h = hashlib.sha256()
+    h = hashlib.sha256(kind.encode())
     for path, (_, _, digest) in sorted(files.items()):
         h.update(f"{path}\0{digest}\0".encode())
-    h.update(json.dumps(cfg.to_dict(), sort_keys=True, default=str).encode())
+    h.update(json.dumps(params, sort_keys=True, default=str).encode())
     h.update(__version__.encode())
-    return h.hexdigest(), exp, files
+    return Prepared(kind, src, settings, h.hexdigest(), files,
+                    partition_value(vehicle), partition_value(date, day=True))
 
 
-def _write_partition(df: pd.DataFrame, folder: Path) -> None:
-    """``df`` as ``folder/part-0.parquet``, replacing the folder at once (written beside it,
-    then renamed), so a reader never sees half a partition."""
-    tmp = folder.with_name(folder.name + ".tmp")
+def fingerprint(manifest: Path, known: dict | None = None) -> tuple[str, object, dict]:
+    """``(hex digest, experiment or run, files)`` of :func:`prepare`."""
+    p = prepare(Path(manifest), known)
+    return p.digest, p.source, p.files
+
+
+def _rig_tables(prep: Prepared, fit: bool) -> tuple[dict, dict]:
+    """``torquemod process`` without its results folder: {table: {file: DataFrame}} and
+    the summary fields (the creep-curve fit's mu when ``fit``)."""
+    from .pipeline import process_experiment
+    res = process_experiment(prep.source, workers=1)
+    info = {"n_steps": len(res.steps), "n_cycles": len(res.cycles), "n_rows": len(res.cycles),
+            "duration_s": float(sum(d["n_samples"] / d["fs_hz"] for d in res.cycle_details))}
+    if fit:
+        from .analysis import analyze
+        ana = analyze(res)
+        pf = ana.phase_fit
+        mu = ana.mu if ana.mu is not None else (
+            pf.mu if pf is not None and pf.mu_determined else None)
+        info.update(mu=mu, mu_stderr=ana.mu_stderr if ana.mu is not None else None,
+                    mu_lower_bound=ana.mu_lower_bound)
+    return {"cycles": {"part-0.parquet": res.cycles},
+            "steps": {"part-0.parquet": res.steps}}, info
+
+
+def _train_tables(prep: Prepared) -> tuple[dict, dict]:
+    """``torquemod onboard`` without its results folder: every axle's ``track.parquet``
+    table (:func:`torquemod.onboard.run.track_table`) and the summary fields."""
+    from .onboard.run import estimate_axle, track_table
+    run, config = prep.source, prep.settings
+    tracks = {e.axle: track_table(estimate_axle(run, e, config)) for e in run.recordings}
+    allrows = pd.concat(tracks.values(), ignore_index=True)
+    window_s = config.window_periods / run.modulation_frequency_hz
+    given = allrows["mu"].notna()
+    info = {"n_rows": len(allrows),
+            "duration_s": max(float(t["time_s"].iloc[-1] - t["time_s"].iloc[0]) + window_s
+                              for t in tracks.values()),
+            "mu": float(allrows.loc[given, "mu"].median()) if given.any() else None,
+            "mu_lower_bound": float(allrows["mu_low_95"].median())
+            if allrows["mu_low_95"].notna().any() else None,
+            "mu_given_share": float(given.mean()),
+            "low_adhesion_windows": int(allrows["low_adhesion"].sum()),
+            "slip_windows": int(allrows["slip"].sum())}
+    return {"track": {f"axle={a}/part-0.parquet": t for a, t in sorted(tracks.items())}}, info
+
+
+def _write_partition(files: dict, folder: Path) -> None:
+    """``files`` ({relative path: DataFrame}) as the folder ``folder``, replacing it at once
+    (written beside it under a hidden name, which dataset readers skip, then renamed), so a
+    reader never sees half a partition."""
+    tmp = folder.with_name("." + folder.name + ".tmp")
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
-    df.to_parquet(tmp / "part-0.parquet", index=False)
-    old = folder.with_name(folder.name + ".old")
+    for rel, df in files.items():
+        (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
+        df.to_parquet(tmp / rel, index=False)
+    old = folder.with_name("." + folder.name + ".old")
     if folder.exists():
         shutil.rmtree(old, ignore_errors=True)
         folder.rename(old)
@@ -131,60 +271,96 @@ def _write_partition(df: pd.DataFrame, folder: Path) -> None:
     shutil.rmtree(old, ignore_errors=True)
 
 
-def process_run(manifest: str, out_dir: str, run: str, force: bool = False) -> dict:
-    """Process one run into its partitions (a Dask task; also usable alone). Never raises:
-    the outcome is a summary row (``status`` processed, skipped or failed)."""
-    from .pipeline import process_experiment
+def one_line(exc: BaseException) -> str:
+    """The error as the command line prints it after ``torquemod: error:`` (one line)."""
+    from .fsutil import environment_error
+    if not isinstance(exc, TorquemodError) and (env := environment_error(exc)) is not None:
+        reason = env.strerror or " ".join(str(env).split())
+        return f"{env.filename}: {reason}" if env.filename else reason
+    text = " ".join(str(exc).split())
+    if isinstance(exc, TorquemodError):
+        return text
+    return f"internal error: {type(exc).__name__}: {text}"
 
+
+def _remove(out: Path, rels: Iterable[str]) -> None:
+    for rel in rels:
+        shutil.rmtree(out / rel, ignore_errors=True)
+
+
+def process_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
+                fit: bool = True) -> dict:
+    """Process one run manifest (rig or train) into its partitions: a Dask task, also
+    usable alone. Never raises: the outcome is a summary row (``status`` processed, skipped
+    or failed; :data:`SUMMARY_COLUMNS`)."""
     t0 = time.perf_counter()
     out = Path(out_dir)
-    row = {"run": run, "manifest": str(manifest), "n_steps": 0, "n_cycles": 0,
-           "message": ""}
+    row = dict.fromkeys(SUMMARY_COLUMNS)
+    row.update(run=run, manifest=str(manifest), kind=manifest_kind(Path(manifest)),
+               n_steps=0, n_cycles=0, n_rows=0, message="")
+    state = out / "_state" / f"{run}.json"
     try:
-        state = out / "_state" / f"{run}.json"
-        try:
-            old = json.loads(state.read_text()) if state.is_file() else {}
-        except (OSError, ValueError):
-            old = {}
-        digest, exp, files = fingerprint(Path(manifest), old.get("files"))
-        parts = [out / t / f"run={run}" / "part-0.parquet" for t in ("cycles", "steps")]
-        if not force and all(p.is_file() for p in parts):
-            if old.get("fingerprint") == digest:
-                return {**row, **{k: old[k] for k in ("n_steps", "n_cycles")},
-                        "status": "skipped", "seconds": time.perf_counter() - t0}
-        res = process_experiment(exp, workers=1)
-        _write_partition(res.cycles, out / "cycles" / f"run={run}")
-        _write_partition(res.steps, out / "steps" / f"run={run}")
-        row.update(n_steps=len(res.steps), n_cycles=len(res.cycles))
+        old = json.loads(state.read_text()) if state.is_file() else {}
+    except (OSError, ValueError):
+        old = {}
+    old_parts = list(old.get("partitions", [])) + [f"{t}/run={run}" for t in TABLES]
+    try:
+        prep = prepare(Path(manifest), old.get("files"), kind=row["kind"], fit=fit)
+        row.update(vehicle=prep.vehicle, date=prep.date)
+        where = f"vehicle={prep.vehicle}/date={prep.date}/run={run}"
+        if (not force and old.get("fingerprint") == prep.digest and old.get("partitions")
+                and all((out / p).is_dir() for p in old["partitions"])):
+            return {**row, **{k: old.get("row", {}).get(k) for k in _KEPT},
+                    "status": "skipped", "seconds": time.perf_counter() - t0}
+        tables, info = (_train_tables(prep) if prep.kind == "train"
+                        else _rig_tables(prep, fit))
+        parts = []
+        for table, files in tables.items():
+            _write_partition(files, out / table / where)
+            parts.append(f"{table}/{where}")
+        _remove(out, [p for p in old_parts if p not in parts])
+        row.update(info, status="processed")
         state.parent.mkdir(parents=True, exist_ok=True)
-        state.write_text(json.dumps({"fingerprint": digest, "manifest": str(manifest),
-                                     "n_steps": row["n_steps"],
-                                     "n_cycles": row["n_cycles"], "files": files}))
-        row["status"] = "processed"
-    except TorquemodError as exc:
-        row.update(status="failed", message=str(exc).splitlines()[0])
-    except Exception as exc:  # a bug or a library failure: reported, the fleet goes on
-        row.update(status="failed",
-                   message=f"internal error: {type(exc).__name__}: {exc}".splitlines()[0])
-    if row["status"] == "failed":
-        for t in ("cycles", "steps"):  # no stale results of an earlier good run
-            shutil.rmtree(out / t / f"run={run}", ignore_errors=True)
-        (out / "_state" / f"{run}.json").unlink(missing_ok=True)
+        tmp = state.with_name(state.name + ".tmp")
+        tmp.write_text(json.dumps({"fingerprint": prep.digest, "manifest": str(manifest),
+                                   "partitions": parts, "files": prep.files,
+                                   "row": {k: row[k] for k in _KEPT}}, default=str))
+        os.replace(tmp, state)
+    except Exception as exc:  # a bad run (or a bug) is reported; the fleet goes on
+        row.update(status="failed", message=one_line(exc))
+        _remove(out, old_parts)  # no stale results of an earlier good run
+        state.unlink(missing_ok=True)
     row["seconds"] = time.perf_counter() - t0
     return row
+
+
+def prune_empty(out: Path) -> None:
+    """Remove empty partition folders (a run that moved to another vehicle or date, or
+    failed) below the datasets of ``out``."""
+    for table in TABLES:
+        root = out / table
+        if not root.is_dir():
+            continue
+        for folder, _dirs, _files in sorted(os.walk(root, topdown=False), reverse=True):
+            if Path(folder) != root:
+                try:
+                    os.rmdir(folder)
+                except OSError:
+                    pass  # not empty
 
 
 @dataclass(frozen=True)
 class FleetResult:
     """What :func:`run_fleet` did: ``summary`` (one row per run, :data:`SUMMARY_COLUMNS`),
-    ``failures`` (its failed rows), the output folder and the dashboard address (None when
-    the cluster has none)."""
+    ``failures`` (its failed rows), the output folder, the dashboard address (None when
+    the cluster has none), the wall time [s] and the report (None when not written)."""
 
     out_dir: Path
     summary: pd.DataFrame
     failures: pd.DataFrame
     dashboard: str | None
     wall_s: float
+    report: Path | None = None
 
     def count(self, status: str) -> int:
         return int((self.summary["status"] == status).sum())
@@ -192,15 +368,18 @@ class FleetResult:
 
 def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
               scheduler: str | None = None, n_workers: int | None = None,
-              force: bool = False, progress: bool = False,
-              on_dashboard=None) -> FleetResult:
-    """Process many run manifests in parallel on Dask and write the fleet's datasets.
+              force: bool = False, progress: bool = False, fit: bool = True,
+              report: bool = True, on_dashboard=None) -> FleetResult:
+    """Process many run manifests (rig experiments and train runs) in parallel on Dask and
+    write the fleet's datasets, summary, failures and report.
 
     ``manifests`` as :func:`find_manifests` takes them. ``scheduler`` is the address of an
     existing Dask scheduler (``tcp://host:8786``); None starts a ``LocalCluster`` of
     ``n_workers`` single-threaded worker processes (default: the CPU count) and stops it
-    at the end. ``force`` reprocesses unchanged runs. ``on_dashboard(link)`` is called with
-    the dashboard address when there is one; ``progress`` shows a bar on stderr.
+    at the end. ``force`` reprocesses unchanged runs; ``fit`` fits the rig experiments'
+    creep curves (mu in the summary); ``report`` writes ``fleet_report.html``.
+    ``on_dashboard(link)`` is called with the dashboard address when there is one;
+    ``progress`` shows a bar on stderr.
     """
     from dask.distributed import as_completed
     from tqdm import tqdm
@@ -209,8 +388,8 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
 
     paths = find_manifests(manifests)
     if not paths:
-        raise InputError("no run manifests found", hint="give experiment.toml files, "
-                         "folders holding them, a glob or a list file")
+        raise InputError("no run manifests found", hint="give experiment.toml or run.toml "
+                         "files, folders holding them, a glob or a list file")
     out = Path(out_dir).resolve()
     out.mkdir(parents=True, exist_ok=True)
     names = run_names(paths)
@@ -224,20 +403,30 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
             on_dashboard(link)
 
     with dask_client(scheduler, n_workers, dashboard) as client:
-        futures = [client.submit(process_run, str(p), str(out), name, force, pure=False,
-                                 key=f"torquemod-run-{name}-{time.time_ns()}")
+        futures = [client.submit(process_run, str(p), str(out), name, force, fit=fit,
+                                 pure=False, key=f"torquemod-run-{name}-{time.time_ns()}")
                    for p, name in zip(paths, names, strict=True)]
         bar = tqdm(total=len(futures), desc="fleet", unit="run", disable=not progress)
         for fut in as_completed(futures):
             rows.append(fut.result())
             bar.update()
         bar.close()
-    link = links[0] if links else None
+    prune_empty(out)
     summary = pd.DataFrame(rows, columns=SUMMARY_COLUMNS).sort_values("run",
                                                                       ignore_index=True)
     failures = summary.loc[summary["status"] == "failed",
-                           ["run", "manifest", "message"]].reset_index(drop=True)
-    summary.to_csv(out / "fleet_summary.csv", index=False)
-    failures.to_csv(out / "failures.csv", index=False)
-    return FleetResult(out, summary, failures, link if link else None,
-                       time.perf_counter() - t0)
+                           ["run", "kind", "manifest", "message"]].reset_index(drop=True)
+    _write_csv(summary, out / "fleet_summary.csv")
+    _write_csv(failures, out / "failures.csv")
+    page = None
+    if report:
+        from .fleetreport import write_fleet_report
+        page = write_fleet_report(out, summary, failures)
+    return FleetResult(out, summary, failures, links[0] if links else None,
+                       time.perf_counter() - t0, page)
+
+
+def _write_csv(df: pd.DataFrame, path: Path) -> None:
+    tmp = path.with_name("." + path.name + ".tmp")
+    df.to_csv(tmp, index=False)
+    os.replace(tmp, path)
