@@ -1,7 +1,8 @@
 """Fleet throughput on Dask: hours of recording processed per minute against workers.
 
 Writes a synthetic fleet (``--runs`` experiments of 6 steps x ``--cycles`` one-revolution
-HDF5 recordings at 16 670 Hz), then for each worker count processes the whole fleet with
+HDF5 recordings at 16 670 Hz, and ``--train-runs`` train runs of the twin, ``--train-length-m``
+each, MDF4), then for each worker count processes the whole fleet with
 :func:`torquemod.fleet.run_fleet` on a ``LocalCluster`` of that many single-threaded worker
 processes (``force``: nothing skipped) and prints
 
@@ -11,7 +12,8 @@ processes (``force``: nothing skipped) and prints
 * CPU seconds the workers spent (their own ``process_time``), hence the figure per core,
 * peak RSS per worker (``ru_maxrss``).
 
-    python benchmarks/fleet.py 1 2 [--runs 8] [--cycles 3] [--workdir DIR]
+    python benchmarks/fleet.py 1 2 [--runs 8] [--cycles 3] [--train-runs 0]
+                                   [--train-length-m 2000] [--workdir DIR]
 
 The script takes the machine as it finds it (``os.cpu_count()``) and runs unchanged on a
 bigger one; worker counts above the cores measure oversubscription.
@@ -36,24 +38,38 @@ def _warm_up() -> None:
     """Imports and the numba kernels' cache, once per worker, outside the timing."""
     import numpy as np
 
+    import torquemod.onboard.run
     import torquemod.pipeline  # noqa: F401
     from torquemod.dsp import filters
 
     filters.resample(np.zeros((2, 5000)), 2, 625, method="two_stage", padtype="constant")
 
 
-def write_fleet(root: Path, runs: int, cycles: int) -> float:
+def write_fleet(root: Path, runs: int, cycles: int, train_runs: int = 0,
+                train_length_m: float = 2000.0) -> float:
     """The fleet's folders; returns the recorded duration [s]."""
+    import dataclasses
+    import json
+
     import h5py
 
     from torquemod.testing import write_synthetic_experiment
+    from torquemod.train import load_train_config, run_train_simulation
 
     for k in range(runs):
         folder = root / f"run{k:03d}"
         if not (folder / "experiment.toml").exists():
             write_synthetic_experiment(folder, n_steps=6, n_cycles=cycles, fmt="hdf5", seed=k)
-    seconds = 0.0
-    for path in root.rglob("*.h5"):
+    cfg = load_train_config()
+    cfg = dataclasses.replace(cfg, track=dataclasses.replace(cfg.track,
+                                                             length_m=train_length_m))
+    for k in range(train_runs):
+        folder = root / f"train{k:03d}"
+        if not (folder / "run.toml").exists():
+            run_train_simulation(cfg, folder, seed=k)
+    seconds = sum(json.loads(p.read_text())["duration_s"]
+                  for p in root.glob("train*/simulation.json"))
+    for path in root.glob("run*/*.h5"):
         with h5py.File(path, "r") as fh:
             seconds += fh["torque_nm"].shape[0] / float(fh.attrs["sample_rate_hz"])
     return seconds
@@ -64,6 +80,8 @@ def main() -> None:
     ap.add_argument("workers", type=int, nargs="+")
     ap.add_argument("--runs", type=int, default=8)
     ap.add_argument("--cycles", type=int, default=3)
+    ap.add_argument("--train-runs", type=int, default=0)
+    ap.add_argument("--train-length-m", type=float, default=2000.0)
     ap.add_argument("--workdir", default=None)
     args = ap.parse_args()
 
@@ -73,10 +91,12 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory(dir=args.workdir) as tmp:
         root = Path(args.workdir or tmp) / "fleet"
-        seconds = write_fleet(root, args.runs, args.cycles)
+        seconds = write_fleet(root, args.runs, args.cycles, args.train_runs,
+                              args.train_length_m)
         hours = seconds / 3600
         print(f"cores visible: {os.cpu_count()}; load average {os.getloadavg()[0]:.1f}; "
-              f"fleet: {args.runs} runs, {hours * 60:.1f} min of recording")
+              f"fleet: {args.runs} rig runs, {args.train_runs} train runs, "
+              f"{hours * 60:.1f} min of recording")
         print(f"{'workers':>7s} {'wall s':>7s} {'h/min':>7s} {'efficiency':>10s} "
               f"{'worker CPU s':>12s} {'h/min per CPU-core':>18s} {'peak RSS/worker':>15s}")
         base = None
