@@ -289,6 +289,21 @@ def cmd_fleet(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from .sweep.run import run_sweep
+    res = run_sweep(args.sweep, Path(args.out), scheduler=args.scheduler,
+                    n_workers=args.workers, force=args.force, progress=not args.quiet,
+                    on_dashboard=lambda link: print(f"dashboard: {link}", file=sys.stderr,
+                                                    flush=True))
+    print(f"{res.status.shape[0]} points: {res.count('done')} run, {res.count('skipped')} "
+          f"unchanged (skipped), {res.count('failed')} failed in {res.wall_s:.1f} s")
+    for row in res.failures.itertuples():
+        print(f"failed: point {row.point_index} {row.params}: {row.message}", file=sys.stderr)
+    print(f"recommendation: {res.recommendation.get('reasoning', '')}")
+    print(f"results: {res.out_dir}" + (f" (report: {res.report})" if res.report else ""))
+    return 0
+
+
 class _UsageError(TorquemodError):
     """A command line that cannot be carried out (exit code 2, like bad input)."""
 
@@ -418,6 +433,22 @@ def build_parser() -> argparse.ArgumentParser:
     fl.add_argument("--force", action="store_true", help="reprocess unchanged runs too")
     fl.add_argument("--quiet", action="store_true", help="no progress bar")
     fl.set_defaults(func=cmd_fleet)
+
+    sw = sub.add_parser("sweep", parents=[common],
+                        help="sensitivity study: the twin over a grid of parameters, on Dask",
+                        epilog="example: 'torquemod sweep examples/sweep_vtrack_conditions."
+                               "toml --out out/sweep' (format: docs/sweep.md)")
+    sw.add_argument("sweep", help="sweep file (SWEEP.toml)")
+    sw.add_argument("--out", required=True, help="sweep results folder (sweep.parquet, "
+                    "failures.csv, sweep.json, figures, report.html); rerun to resume")
+    sw.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                    help="address of an existing Dask scheduler (default: a local cluster "
+                    "sized to the machine)")
+    sw.add_argument("--workers", type=int, default=None,
+                    help="worker processes of the local cluster (default: CPU count)")
+    sw.add_argument("--force", action="store_true", help="rerun finished points too")
+    sw.add_argument("--quiet", action="store_true", help="no progress bar")
+    sw.set_defaults(func=cmd_sweep)
     return p
 
 

@@ -1,0 +1,259 @@
+"""One sweep point: its twin configuration, its torque progression and its rows of the sweep
+table (one per torque step).
+
+``mode = "theory"``: per step the steady operating point (:func:`torquemod.theory.
+operating_point`) and the periodic steady state under the full modulation
+(:func:`torquemod.theory.large_signal_phase_deg`, driven by the motor as in the twin); the
+phase's standard error is the Cramér-Rao bound of the step's record (FACTS.md §5) and mu from
+the phase is fitted to those phases. ``mode = "full"``: the twin (:func:`torquemod.simulate.
+run_simulation`, HDF5) -> the processing chain (:func:`torquemod.api.process`) -> the fits
+(:func:`torquemod.api.analyze`), with the theory columns beside the chain's.
+
+``utilisation`` is ``T_dc / T_peak`` = longitudinal CoA / mu_true, with ``mu_true`` the peak of
+the twin's creep curve (``T_peak/(R_w*N)``: the adhesion the wheel can use; truth.json's
+``creep_curve_peak``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import shutil
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..creep import theory_constant
+from ..errors import InputError, ProcessingError
+
+__all__ = ["PointTask", "chain_config", "evaluate_point", "phase_crlb_deg", "point_config"]
+
+_Z95 = 1.959963984540054
+
+
+@dataclass(frozen=True)
+class PointTask:
+    """What a worker needs to evaluate one point (picklable, small)."""
+
+    point_id: str
+    index: int
+    params: dict
+    overrides: dict
+    seed: int
+    mode: str
+    base: str | None
+    fractions_of_peak: tuple[float, ...] | None
+    max_utilisation: float
+
+
+def point_config(task: PointTask):
+    """``(SimConfig, T_peak [N*m])``: the base config with the point's overrides, its DC
+    torques set to ``fractions_of_peak`` of the creep-curve peak torque when given."""
+    from ..simulate import load_config
+    from ..theory import creep_curve_peak
+    config = load_config(task.base, overrides=task.overrides)
+    _, t_peak = creep_curve_peak(config.rig)
+    if task.fractions_of_peak is not None:
+        torques = tuple(float(f) * t_peak for f in task.fractions_of_peak)
+        config = dataclasses.replace(config, procedure=dataclasses.replace(
+            config.procedure, dc_torques_nm=torques))
+    return config, float(t_peak)
+
+
+def phase_crlb_deg(torque_amplitude_nm, speed_amplitude_rad_s, *, torque_noise_nm: float,
+                   speed_noise_rad_s: float, sample_rate_hz: float, duration_s: float):
+    """Cramér-Rao bound [deg] of the phase difference of two sinusoids of amplitudes A1, A2
+    in white noise sigma1, sigma2 over ``duration_s`` at ``sample_rate_hz``:
+    ``var = (2*s1^2/A1^2 + 2*s2^2/A2^2)/(fs*T)`` [rad^2] (FACTS.md §5, one-sided PSD
+    ``2*sigma^2/fs``). A lower bound: the chain also sees the rig's disturbances."""
+    n = sample_rate_hz * duration_s
+    var = (2.0 * torque_noise_nm**2 / np.asarray(torque_amplitude_nm, float) ** 2
+           + 2.0 * speed_noise_rad_s**2 / np.asarray(speed_amplitude_rad_s, float) ** 2) / n
+    return np.degrees(np.sqrt(var))
+
+
+def _theory_steps(config, t_peak: float) -> list[dict]:
+    """Operating point and large-signal periodic state of each step until the first that
+    slips (included, flagged)."""
+    from ..theory import large_signal_phase_deg, operating_point
+    rig, mod = config.rig, config.modulation
+    f = mod.actual_frequency_hz
+    sens, dist = config.sensors, config.disturbances
+    noisy = dist.enabled
+    duration = config.procedure.cycles_per_step * rig.revolution_s
+    rows = []
+    for i, dc in enumerate(config.procedure.dc_torques_nm, start=1):
+        row = {"step": i, "dc_torque_nm": float(dc), "utilisation": float(dc) / t_peak}
+        op = operating_point(dc, rig)
+        ls = None if op.slipped else large_signal_phase_deg(dc, rig, f, mod.amplitude_nm,
+                                                            drive="motor")
+        if ls is None or ls.slipped:
+            rows.append({**row, "slipped": True})
+            break
+        crlb = phase_crlb_deg(ls.torque_amplitude_nm, ls.speed_amplitude_rad_s,
+                              torque_noise_nm=sens.torque_noise_nm if noisy else 0.0,
+                              speed_noise_rad_s=sens.wheel_speed_noise_rad_s if noisy else 0.0,
+                              sample_rate_hz=sens.sample_rate_hz, duration_s=duration)
+        rows.append({**row, "slipped": False, "coa_true": op.coa,
+                     "creepage_true": op.creepage, "creep_coefficient": op.creep_coefficient,
+                     "phase_theory_deg": ls.phase_deg,
+                     "phase_small_signal_deg": ls.small_signal_phase_deg,
+                     "phase_crlb_deg": float(crlb),
+                     "creepage_swing": 0.5 * (ls.creepage_max - ls.creepage_min),
+                     "torque_amplitude_nm": ls.torque_amplitude_nm,
+                     "torque_ripple_pct": 100.0 * ls.torque_amplitude_nm / t_peak,
+                     "speed_amplitude_rad_s": ls.speed_amplitude_rad_s})
+    if rows and rows[0]["slipped"]:
+        raise ProcessingError(
+            f"the wheel slips at the first step: DC torque {rows[0]['dc_torque_nm']:.4g} N*m "
+            f"is at or above the creep curve's peak {t_peak:.4g} N*m (or no periodic state "
+            "exists there)")
+    return rows
+
+
+def _phase_mu(coa, phase_deg, se_deg, constant, swing) -> dict:
+    """mu from the phase (:func:`torquemod.phasefit.fit_mu_from_phase`) over the given
+    steps: value (NaN when not determined), 95 % interval (low end = lower bound when not
+    determined), determined flag, and why it was not fitted."""
+    from ..phasefit import fit_mu_from_phase
+    out = {"mu_phase": math.nan, "mu_phase_lo": math.nan, "mu_phase_hi": math.nan,
+           "mu_phase_determined": False, "mu_phase_note": ""}
+    try:
+        fit = fit_mu_from_phase(coa, phase_deg, se_deg, constant=constant,
+                                creepage_swing=swing)
+    except (InputError, ProcessingError) as exc:
+        out["mu_phase_note"] = str(exc).splitlines()[0]
+        return out
+    lo, hi = fit.mu_interval_95
+    out.update(mu_phase=fit.mu if fit.mu_determined else math.nan,
+               mu_phase_lo=math.nan if lo is None else float(lo),
+               mu_phase_hi=math.nan if hi is None else float(hi),
+               mu_phase_determined=bool(fit.mu_determined))
+    return out
+
+
+def _f(x) -> float:
+    return math.nan if x is None else float(x)
+
+
+def chain_config(frequency_hz: float):
+    """The processing chain's parameters for a modulation at ``frequency_hz`` [Hz]: the
+    defaults (tuned for the paper's 2 Hz) with every frequency-bound setting scaled by
+    ``frequency_hz/2``: the search band (1.5-2.5 Hz), the band-pass width (0.36 Hz), the
+    high-pass cut-off (0.5 Hz) and the slow-variation model's top (1.2 Hz)."""
+    from ..config import ProcessingConfig
+    d = ProcessingConfig()
+    s = float(frequency_hz) / 2.0
+    return dataclasses.replace(
+        d, frequency=dataclasses.replace(d.frequency, band_hz=(d.frequency.band_hz[0] * s,
+                                                               d.frequency.band_hz[1] * s)),
+        bandpass=dataclasses.replace(d.bandpass, width_hz=d.bandpass.width_hz * s),
+        highpass=dataclasses.replace(d.highpass, cutoff_hz=d.highpass.cutoff_hz * s),
+        slow=dataclasses.replace(d.slow, max_hz=d.slow.max_hz * s))
+
+
+def _full_steps(config, t_peak: float, seed: int, workdir: Path) -> tuple[list[dict], dict]:
+    """Twin -> chain -> fits: the chain's and the twin's columns per step, and the point's
+    force fit and mu from the phase over all steps (the analysis of ``torquemod fit``)."""
+    from ..api import analyze, process
+    from ..simulate import run_simulation
+    truth = run_simulation(config, workdir / "experiment", seed=seed, fmt="hdf5",
+                           progress=False)
+    if truth["slip_step"] == 1:
+        raise ProcessingError(
+            f"the wheel slips at the first step (DC torque "
+            f"{config.procedure.dc_torques_nm[0]:.4g} N*m, creep-curve peak {t_peak:.4g} N*m)")
+    res = process(workdir / "experiment" / "experiment.toml",
+                  chain_config(config.modulation.frequency_hz), workers=1)
+    ana = analyze(res)
+    chain = ana.steps.set_index("step")
+    rows = []
+    for st in truth["steps"]:
+        i = int(st["step"])
+        row = {"step": i, "slipped_twin": bool(st["slipped"])}
+        sim = st.get("simulated")
+        if sim is not None:
+            row["phase_simulated_deg"] = sim["phase_deg"]
+        if i in chain.index:
+            c = chain.loc[i]
+            row.update(phase_deg=_f(c["phase_deg"]), phase_se_deg=_f(c["phase_se_deg"]),
+                       phase_std_deg=_f(c["phase_std_deg"]), creepage=_f(c["creepage"]),
+                       coa=_f(c["coa"]), coa_torque=_f(c["coa_torque"]),
+                       creepage_swing_measured=_f(c["creepage_swing"]),
+                       torque_amplitude_measured_nm=_f(c["torque_amplitude_nm"]),
+                       creep_coefficient_fit=_f(c["creep_coefficient"]),
+                       n_cycles=int(c["n_cycles"]), slip_flag_chain=bool(c["slip"]))
+        rows.append(row)
+    pol, pf = ana.polach, ana.phase_fit
+    lo, hi = (None, None) if pol is None else pol.mu_interval_95
+    point = {"mu_forces": _f(ana.mu), "mu_forces_lo": _f(lo), "mu_forces_hi": _f(hi),
+             "mu_forces_determined": bool(ana.mu_determined),
+             "mu_forces_lower_bound": _f(ana.mu_lower_bound)}
+    plo, phi = (None, None) if pf is None else pf.mu_interval_95
+    point.update(mu_phase_all=_f(None if pf is None else pf.mu), mu_phase_all_lo=_f(plo),
+                 mu_phase_all_hi=_f(phi),
+                 mu_phase_all_determined=bool(pf is not None and pf.mu_determined))
+    return rows, point
+
+
+def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.DataFrame:
+    """The rows of one point (raises :class:`~torquemod.errors.TorquemodError` when the
+    point cannot be evaluated: a bad parameter, a wheel that slips at the first step).
+    ``workdir`` holds the twin's experiment while the full chain runs (removed after)."""
+    t0 = time.perf_counter()
+    config, t_peak = point_config(task)
+    rig, mod = config.rig, config.modulation
+    mu_true = t_peak / (rig.wheel_radius_m * rig.normal_load_n)
+    rows = _theory_steps(config, t_peak)
+    point = {}
+    if task.mode == "full":
+        tmp = Path(tempfile.mkdtemp(prefix=f"sweep-{task.point_id}-", dir=workdir))
+        try:
+            chain_rows, point = _full_steps(config, t_peak, task.seed, tmp)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        by_step = {r["step"]: r for r in chain_rows}
+        for r in rows:
+            r.update(by_step.get(r["step"], {}))
+    df = pd.DataFrame(rows)
+    for col in ("phase_deg", "phase_se_deg", "coa", "creepage", "phase_simulated_deg"):
+        if col not in df:
+            df[col] = np.nan
+    constant = float(theory_constant(inertia_kg_m2=rig.wheel_inertia_kg_m2,
+                                     speed_m_s=rig.speed_m_s, wheel_radius_m=rig.wheel_radius_m,
+                                     normal_load_n=rig.normal_load_n,
+                                     frequency_hz=mod.actual_frequency_hz))
+    below = (~df["slipped"].astype(bool)) & (df["utilisation"] <= task.max_utilisation + 1e-9)
+    if task.mode == "full":
+        coa = df["coa_torque"].where(np.isfinite(df["coa_torque"]), df["coa"])
+        se = df["phase_se_deg"].where(df["phase_se_deg"] > 0, 0.1)
+        phase, swing = df["phase_deg"], df["creepage_swing_measured"]
+    else:
+        coa, phase, swing = df["coa_true"], df["phase_theory_deg"], df["creepage_swing"]
+        se = df["phase_crlb_deg"].clip(lower=1e-3)  # noise-free twin: a 0.001 deg floor
+    use = below & np.isfinite(coa) & np.isfinite(phase)
+    point.update(_phase_mu(coa[use].to_numpy(float), phase[use].to_numpy(float),
+                           se[use].to_numpy(float), constant,
+                           swing[use].to_numpy(float) if np.isfinite(swing[use]).all()
+                           else None))
+    point["mu_phase_n_steps"] = int(use.sum())
+    point["mu_phase_error"] = point["mu_phase"] / mu_true - 1.0
+    point["mu_phase_lo_error"] = point["mu_phase_lo"] / mu_true - 1.0
+    df["phase_twin_minus_theory_deg"] = df["phase_simulated_deg"] - df["phase_theory_deg"]
+    head = {"point_id": task.point_id, "point_index": task.index,
+            **{k: v for k, v in task.params.items()}, "seed": task.seed, "mode": task.mode}
+    info = {"modulation_frequency_hz": mod.actual_frequency_hz,
+            "modulation_amplitude_nm": mod.amplitude_nm, "speed_m_s": rig.speed_m_s,
+            "normal_load_n": rig.normal_load_n, "wheel_radius_m": rig.wheel_radius_m,
+            "wheel_inertia_kg_m2": rig.wheel_inertia_kg_m2, "mu0": rig.contact.mu0,
+            "mu_true": mu_true, "peak_torque_nm": t_peak, "theory_constant": constant,
+            **point, "point_wall_s": time.perf_counter() - t0}
+    for key, value in reversed(list(head.items())):
+        df.insert(0, key, [value] * len(df) if isinstance(value, list) else value)
+    for key, value in info.items():
+        df[key] = value
+    return df

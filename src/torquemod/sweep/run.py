@@ -1,0 +1,254 @@
+"""Running a sweep: one task per point, on Dask worker processes or in this process,
+resumable, every output written atomically::
+
+    OUT/points/point=<id>/part-0.parquet   the rows of one finished point
+    OUT/_state/<id>.json                   its fingerprint (parameters, seed, mode, base
+                                           config, torquemod version), status, seconds
+    OUT/sweep.parquet                      every point's rows (metadata: version, sweep file)
+    OUT/failures.csv                       one row per failed point: its one-line message
+    OUT/sweep.json                         version, sweep spec, seeds, counts, wall time,
+                                           the recommendation
+    OUT/figures/*.png, OUT/report.html     (:mod:`torquemod.sweep.report`)
+
+A rerun skips a point whose partition is in place and whose fingerprint is unchanged;
+``force`` reruns every point. A point that fails (bad parameter value, wheel slipping at the
+first step, ...) becomes a row of failures.csv and the sweep goes on.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from .._version import __version__
+from ..errors import InputError, TorquemodError
+from ..fsutil import write_atomic
+from ..jsonutil import dump_json
+from .evaluate import PointTask, evaluate_point
+from .spec import SweepSpec, load_sweep
+
+__all__ = ["SweepResult", "fingerprint", "run_point", "run_sweep", "tasks"]
+
+FAILURE_COLUMNS = ["point_id", "point_index", "seed", "params", "message"]
+
+
+def tasks(spec: SweepSpec) -> list[PointTask]:
+    """One :class:`PointTask` per point of ``spec``."""
+    base = None if spec.base is None else str(spec.base.resolve())
+    return [PointTask(point_id=p.point_id, index=p.index, params=p.params,
+                      overrides=p.overrides(), seed=p.seed, mode=spec.mode, base=base,
+                      fractions_of_peak=spec.fractions_of_peak,
+                      max_utilisation=spec.recommend.max_utilisation) for p in spec.points]
+
+
+def fingerprint(task: PointTask) -> str:
+    """SHA-256 over what a point's rows depend on: its parameters and seed, the mode, the
+    torque fractions, the utilisation limit of the phase fit, the base config's text (the
+    default config's when none) and the torquemod version."""
+    from ..simulate import default_config_text
+    base_text = (Path(task.base).read_text(encoding="utf-8") if task.base
+                 else default_config_text())
+    blob = json.dumps({"params": task.params, "seed": task.seed, "mode": task.mode,
+                       "fractions": task.fractions_of_peak,
+                       "max_utilisation": task.max_utilisation, "version": __version__,
+                       "base": hashlib.sha256(base_text.encode()).hexdigest()},
+                      sort_keys=True, default=str)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def _part(out: Path, point_id: str) -> Path:
+    return out / "points" / f"point={point_id}" / "part-0.parquet"
+
+
+def _write_parquet(df: pd.DataFrame, path: Path, metadata: dict | None = None) -> None:
+    """``df`` as Parquet at ``path``: written beside it and renamed into place (readers see
+    the old file or the new one, never half of one)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    if metadata:
+        table = table.replace_schema_metadata({**(table.schema.metadata or {}),
+                                               **{k.encode(): v.encode()
+                                                  for k, v in metadata.items()}})
+    try:
+        pq.write_table(table, tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    if isinstance(exc, TorquemodError):
+        return text
+    return f"internal error: {type(exc).__name__}: {text}"
+
+
+def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
+    """Evaluate one point into its partition (a Dask task; also usable alone). Never
+    raises: returns a status row (``done``, ``skipped`` or ``failed`` with the message)."""
+    t0 = time.perf_counter()
+    out = Path(out_dir)
+    row = {"point_id": task.point_id, "point_index": task.index, "seed": task.seed,
+           "status": "failed", "n_rows": 0, "message": ""}
+    state = out / "_state" / f"{task.point_id}.json"
+    part = _part(out, task.point_id)
+    try:
+        digest = fingerprint(task)
+        try:
+            old = json.loads(state.read_text()) if state.is_file() else {}
+        except (OSError, ValueError):
+            old = {}
+        if not force and part.is_file() and old.get("fingerprint") == digest:
+            return {**row, "status": "skipped", "n_rows": old.get("n_rows", 0),
+                    "seconds": time.perf_counter() - t0}
+        work = out / "_work"
+        work.mkdir(parents=True, exist_ok=True)
+        df = evaluate_point(task, workdir=work)
+        _write_parquet(df, part)
+        state.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(state, lambda fh: fh.write(json.dumps(
+            {"fingerprint": digest, "point_id": task.point_id, "params": task.params,
+             "seed": task.seed, "n_rows": len(df), "version": __version__,
+             "seconds": time.perf_counter() - t0}, default=str)))
+        row.update(status="done", n_rows=len(df))
+    except Exception as exc:  # a bad point never stops the sweep: it becomes a failure row
+        row["message"] = _one_line(exc)
+        part.unlink(missing_ok=True)  # no stale rows of an earlier good run
+        state.unlink(missing_ok=True)
+    row["seconds"] = time.perf_counter() - t0
+    return row
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """What :func:`run_sweep` did: the table (one row per point and step), the status of
+    each point, the failures, the recommendation (a dict, see
+    :func:`torquemod.sweep.report.recommend`), paths, dashboard link and wall time [s]."""
+
+    out_dir: Path
+    table: pd.DataFrame
+    status: pd.DataFrame
+    failures: pd.DataFrame
+    recommendation: dict
+    report: Path | None
+    dashboard: str | None
+    wall_s: float
+
+    def count(self, status: str) -> int:
+        return int((self.status["status"] == status).sum())
+
+
+def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, scheduler,
+                  n_workers, force: bool, progress: bool, on_dashboard) -> tuple[list, str]:
+    from tqdm import tqdm
+    bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
+    rows, links = [], []
+    if in_process:
+        for task in todo:
+            rows.append(run_point(task, str(out), force))
+            bar.update()
+        bar.close()
+        return rows, None
+    from dask.distributed import as_completed
+
+    from ..daskutil import dask_client
+
+    def dashboard(link: str) -> None:
+        links.append(link)
+        if on_dashboard is not None:
+            on_dashboard(link)
+
+    with dask_client(scheduler, n_workers, dashboard) as client:
+        futures = [client.submit(run_point, t, str(out), force, pure=False,
+                                 key=f"torquemod-sweep-{t.point_id}-{time.time_ns()}")
+                   for t in todo]
+        for fut in as_completed(futures):
+            rows.append(fut.result())
+            bar.update()
+    bar.close()
+    return rows, (links[0] if links else None)
+
+
+def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
+    """The sweep table from the partitions of the points that are done (this spec's points
+    only; stale partitions of an earlier spec are left alone), sorted by point and step."""
+    order = {p.point_id: p.index for p in spec.points}
+    ok = status.loc[status["status"].isin(["done", "skipped"]), "point_id"]
+    frames = [pd.read_parquet(_part(out, pid)) for pid in ok]
+    if not frames:
+        return pd.DataFrame()
+    table = pd.concat(frames, ignore_index=True)
+    table["point_index"] = table["point_id"].map(order)
+    return table.sort_values(["point_index", "step"], ignore_index=True)
+
+
+def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
+              in_process: bool = False, scheduler: str | None = None,
+              n_workers: int | None = None, force: bool = False, progress: bool = False,
+              report: bool = True, on_dashboard=None) -> SweepResult:
+    """Run a sweep (a :class:`SweepSpec` or the path of ``SWEEP.toml``) into ``out_dir``.
+
+    Points run as Dask tasks: on the scheduler at ``scheduler`` (``tcp://host:8786``), else on
+    a local cluster of ``n_workers`` single-threaded worker processes (default: the CPU
+    count); ``in_process`` runs them one after another here instead (tests, small sweeps).
+    Finished points with an unchanged fingerprint are skipped unless ``force``. ``report``
+    writes the figures and report.html. ``on_dashboard(link)`` receives the dashboard
+    address; ``progress`` shows a bar on stderr.
+    """
+    t0 = time.perf_counter()
+    spec = sweep if isinstance(sweep, SweepSpec) else load_sweep(sweep)
+    if not spec.points:
+        raise InputError("the sweep has no points", path=spec.path,
+                         hint="add a [grid] or [[point]] tables")
+    out = Path(out_dir).absolute()
+    if out.exists() and not out.is_dir():
+        raise InputError("the sweep output is not a folder", path=out)
+    out.mkdir(parents=True, exist_ok=True)
+    todo = tasks(spec)
+    rows, link = _evaluate_all(todo, out, in_process=in_process, scheduler=scheduler,
+                               n_workers=n_workers, force=force, progress=progress,
+                               on_dashboard=on_dashboard)
+    status = pd.DataFrame(rows).sort_values("point_index", ignore_index=True)
+    table = assemble(out, spec, status)
+    params = {p.point_id: json.dumps(p.params, sort_keys=True, default=str)
+              for p in spec.points}
+    failed = status.loc[status["status"] == "failed"]
+    failures = pd.DataFrame({"point_id": failed["point_id"],
+                             "point_index": failed["point_index"], "seed": failed["seed"],
+                             "params": failed["point_id"].map(params),
+                             "message": failed["message"]}, columns=FAILURE_COLUMNS)
+    write_atomic(out / "failures.csv", lambda fh: failures.to_csv(
+        fh, index=False, quoting=csv.QUOTE_MINIMAL, lineterminator="\n"))
+    meta = {"torquemod_version": __version__, "sweep_toml": spec.text,
+            "sweep_spec": json.dumps(spec.to_dict(), default=str)}
+    if not table.empty:
+        _write_parquet(table, out / "sweep.parquet", metadata=meta)
+    else:
+        (out / "sweep.parquet").unlink(missing_ok=True)
+    from .report import recommend, write_report
+    rec = recommend(table, spec) if not table.empty else {"setting": None,
+                                                          "reasoning": "no point finished"}
+    wall = time.perf_counter() - t0
+    doc = {"generator": "torquemod sweep", "version": __version__, "spec": spec.to_dict(),
+           "sweep_toml": spec.text, "seeds": list(spec.seeds),
+           "points": {s: int((status["status"] == s).sum())
+                      for s in ("done", "skipped", "failed")},
+           "status": status.to_dict(orient="records"), "wall_s": wall,
+           "recommendation": rec}
+    report_path = None
+    if report and not table.empty:
+        report_path = write_report(out, table, spec, rec, status=status,
+                                   failures=failures, wall_s=wall)
+    write_atomic(out / "sweep.json", lambda fh: fh.write(dump_json(doc)))
+    return SweepResult(out, table, status, failures, rec, report_path, link,
+                       time.perf_counter() - t0)

@@ -1,0 +1,302 @@
+"""The sweep file ``SWEEP.toml``: parsed and checked into typed points (format in
+docs/sweep.md).
+
+A sweep names a base twin configuration (the V-Track default, or a config TOML as
+``torquemod simulate`` reads it), the twin parameters to vary by their dotted config key
+(``"modulation.frequency_hz"``, ``"contact.mu0"``, ``"sensors.torque_noise_nm"``, ...; the keys
+of ``torquemod/data/vtrack_default.toml``), as a cartesian ``[grid]`` and/or a list of
+``[[point]]`` tables, the mode (``"full"``: twin + processing chain + fits; ``"theory"``:
+large-signal theory only) and the seeds. Every mistake is an :class:`InputError` naming the
+sweep file and the key, with the nearest known key when it looks like a typo.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..contact.presets import POLACH_PRESETS, PolachParameters
+from ..errors import InputError
+from ..io.manifest import check_keys
+
+__all__ = ["CONDITION_KEY", "RecommendOptions", "SweepPoint", "SweepSpec", "conditions",
+           "load_sweep", "parse_sweep", "twin_keys"]
+
+#: A sweep-only key: a named friction condition filling the five Polach parameters
+CONDITION_KEY = "contact.condition"
+_TOP_KEYS = ("name", "description", "base", "mode", "seeds", "repeats", "max_utilisation",
+             "fixed", "steps", "grid", "point", "recommend")
+_STEP_KEYS = ("fractions_of_peak",)
+_MODES = ("full", "theory")
+_POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
+
+
+def conditions() -> dict[str, PolachParameters]:
+    """Named friction conditions a sweep can set with ``contact.condition``: the rig's
+    presets (:data:`~torquemod.contact.presets.POLACH_PRESETS`: vtrack, dry, wet) and the
+    train twin's track conditions (``torquemod.train.params.CONDITIONS``: leaves,
+    friction_modifier), each with its source."""
+    out = dict(POLACH_PRESETS)
+    try:
+        from ..train.params import CONDITIONS
+        out.update({k: v for k, v in CONDITIONS.items() if k not in out})
+    except ImportError:  # pragma: no cover - the train twin ships with the package
+        pass
+    return out
+
+
+def twin_keys() -> dict[str, object]:
+    """Every dotted key of the rig twin's configuration with its default value."""
+    from ..simulate import default_config_text
+    doc = tomllib.loads(default_config_text())
+    return {f"{s}.{k}": v for s, table in doc.items() for k, v in table.items()}
+
+
+@dataclass(frozen=True)
+class RecommendOptions:
+    """Limits of the recommendation (``[recommend]``): the disturbance the modulation may
+    add below ``max_utilisation`` -- the creepage swing amplitude ``max_creepage_swing``
+    [-] and the torque ripple ``max_torque_ripple_pct`` (modulation amplitude of the
+    measured torque, % of the saturation torque) -- and ``max_utilisation`` [-], the
+    highest utilisation whose steps the mu-from-phase fit may use."""
+
+    max_utilisation: float = 0.8
+    max_creepage_swing: float = 2.0e-3
+    max_torque_ripple_pct: float = 15.0
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    """One point of the sweep: ``params`` (dotted twin key -> value, the fixed ones
+    included), its ``seed`` and ``index`` (order in the file); ``point_id`` a digest of
+    the parameters and the seed (stable when the grid is reordered or extended)."""
+
+    index: int
+    params: dict
+    seed: int
+
+    @property
+    def point_id(self) -> str:
+        blob = json.dumps({"params": self.params, "seed": self.seed}, sort_keys=True)
+        return hashlib.sha256(blob.encode()).hexdigest()[:12]
+
+    def overrides(self) -> dict:
+        """The parameters as ``load_config(overrides=...)`` takes them (nested sections);
+        a ``contact.condition`` becomes its five Polach values, a Polach key given as well
+        wins over the condition's."""
+        nested: dict = {}
+        cond = self.params.get(CONDITION_KEY)
+        if cond is not None:
+            nested["contact"] = conditions()[cond].as_dict()
+        for key, value in self.params.items():
+            if key == CONDITION_KEY:
+                continue
+            section, name = key.split(".", 1)
+            nested.setdefault(section, {})[name] = value
+        return nested
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A parsed sweep: where it came from (``path``, ``text``), the ``base`` config (None:
+    the V-Track default), ``mode``, the ``points``, the swept keys in file order
+    (``swept``), ``fractions_of_peak`` (DC torques as fractions of each point's creep-curve
+    peak torque, or None: the base procedure's torques) and the recommendation limits."""
+
+    path: Path | None
+    text: str
+    name: str
+    description: str
+    base: Path | None
+    mode: str
+    seeds: tuple[int, ...]
+    points: tuple[SweepPoint, ...]
+    swept: tuple[str, ...]
+    fixed: dict = field(default_factory=dict)
+    fractions_of_peak: tuple[float, ...] | None = None
+    recommend: RecommendOptions = RecommendOptions()
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "description": self.description,
+                "path": None if self.path is None else str(self.path),
+                "base": None if self.base is None else str(self.base), "mode": self.mode,
+                "seeds": list(self.seeds), "swept": list(self.swept), "fixed": self.fixed,
+                "fractions_of_peak": (None if self.fractions_of_peak is None
+                                      else list(self.fractions_of_peak)),
+                "recommend": self.recommend.__dict__, "n_points": len(self.points)}
+
+
+def _flatten(table: dict, prefix: str = "") -> dict:
+    """``{"contact": {"mu0": [..]}}`` and ``{"contact.mu0": [..]}`` alike -> dotted keys."""
+    out = {}
+    for key, value in table.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out.update(_flatten(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+def _check_value(key: str, value, where: str, path) -> None:
+    """A parameter value must be a number, a string, a bool or a list of numbers, and a
+    condition must be a known name."""
+    ok = (isinstance(value, bool | str) or
+          (isinstance(value, int | float) and math.isfinite(value)) or
+          (isinstance(value, list) and all(isinstance(v, int | float)
+                                           and not isinstance(v, bool) for v in value)))
+    if not ok:
+        raise InputError(f"{where}: '{key}' has an unusable value {value!r}", path=path,
+                         hint="give a number, a string, true/false or a list of numbers")
+    if key == CONDITION_KEY:
+        known = conditions()
+        if value not in known:
+            raise InputError(f"{where}: unknown friction condition {value!r}", path=path,
+                             hint=f"use one of {', '.join(known)}, or give the Polach "
+                                  "parameters (contact.mu0, a_ratio, b_s_m, k_a, k_s)")
+
+
+def _params(table, where: str, path, allowed) -> dict:
+    if not isinstance(table, dict):
+        raise InputError(f"{where} must be a table of 'section.key = value'", path=path)
+    flat = _flatten(table)
+    check_keys(flat, allowed, where, path, takes="twin parameters are", error=InputError)
+    return flat
+
+
+def _seeds(doc: dict, path) -> tuple[int, ...]:
+    if "seeds" in doc and "repeats" in doc:
+        raise InputError("give 'seeds' or 'repeats', not both", path=path)
+    if "repeats" in doc:
+        n = doc["repeats"]
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise InputError(f"'repeats' must be a positive integer, got {n!r}", path=path)
+        return tuple(range(n))
+    seeds = doc.get("seeds", [0])
+    if isinstance(seeds, int) and not isinstance(seeds, bool):
+        seeds = [seeds]
+    if (not isinstance(seeds, list) or not seeds
+            or not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0
+                       for s in seeds)):
+        raise InputError(f"'seeds' must be a non-empty list of integers >= 0, got {seeds!r}",
+                         path=path)
+    return tuple(dict.fromkeys(seeds))
+
+
+def _fractions(doc: dict, path) -> tuple[float, ...] | None:
+    steps = doc.get("steps")
+    if steps is None:
+        return None
+    if not isinstance(steps, dict):
+        raise InputError("[steps] must be a table", path=path)
+    check_keys(steps, _STEP_KEYS, "[steps]", path, takes="[steps] takes", error=InputError)
+    fr = steps.get("fractions_of_peak")
+    if fr is None:
+        return None
+    if (not isinstance(fr, list) or not fr
+            or not all(isinstance(v, int | float) and not isinstance(v, bool)
+                       and 0.0 <= v < 1.0 for v in fr)):
+        raise InputError(f"[steps] fractions_of_peak must be a non-empty list of numbers in "
+                         f"[0, 1), got {fr!r}", path=path,
+                         hint="fractions of the creep-curve peak torque, e.g. [0.0, 0.3, 0.5]")
+    return tuple(float(v) for v in fr)
+
+
+def _recommend(doc: dict, path) -> RecommendOptions:
+    table = doc.get("recommend", {})
+    if not isinstance(table, dict):
+        raise InputError("[recommend] must be a table", path=path)
+    names = tuple(RecommendOptions.__dataclass_fields__)
+    check_keys(table, names, "[recommend]", path, takes="[recommend] takes", error=InputError)
+    if "max_utilisation" in doc:
+        table = {**table, "max_utilisation": doc["max_utilisation"]}
+    for key, value in table.items():
+        if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
+            raise InputError(f"[recommend] {key} must be a positive number, got {value!r}",
+                             path=path)
+    if table.get("max_utilisation", 0.8) >= 1.0:
+        raise InputError("max_utilisation must be below 1", path=path)
+    return RecommendOptions(**{k: float(v) for k, v in table.items()})
+
+
+def parse_sweep(text: str, *, path: str | Path | None = None) -> SweepSpec:
+    """Parse and check the sweep file's ``text`` (``path`` names it in errors and anchors a
+    relative ``base``)."""
+    where = path if path is not None else "<sweep>"
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"TOML syntax error: {exc}", path=where,
+                         hint="fix the line named") from None
+    check_keys(doc, _TOP_KEYS, "sweep file", where, takes="a sweep takes", error=InputError)
+    mode = doc.get("mode", "full")
+    if mode not in _MODES:
+        raise InputError(f"unknown mode {mode!r}", path=where,
+                         hint="use \"full\" (twin + chain + fits) or \"theory\" "
+                              "(large-signal theory only)")
+    base = doc.get("base", "rig")
+    if not isinstance(base, str):
+        raise InputError("'base' must be \"rig\" or the path of a twin config TOML",
+                         path=where)
+    base_path = None
+    if base != "rig":
+        base_path = Path(base)
+        if not base_path.is_absolute() and path is not None:
+            base_path = Path(path).parent / base_path
+        if not base_path.is_file():
+            raise InputError(f"base config {base!r} not found", path=where,
+                             hint="give \"rig\" (the V-Track default) or a config TOML "
+                                  "(relative to the sweep file)")
+    allowed = (*twin_keys(), CONDITION_KEY)
+    fixed = _params(doc.get("fixed", {}), "[fixed]", where, allowed)
+    for key, value in fixed.items():
+        _check_value(key, value, "[fixed]", where)
+    grid = _params(doc.get("grid", {}), "[grid]", where, allowed)
+    for key, values in grid.items():
+        if not isinstance(values, list) or not values:
+            raise InputError(f"[grid] '{key}' must be a non-empty list of values", path=where,
+                             hint=f"e.g. {key} = [a, b, c]; a single value goes in [fixed]")
+        for v in values:
+            _check_value(key, v, "[grid]", where)
+    listed = doc.get("point", [])
+    if not isinstance(listed, list):
+        raise InputError("'point' must be an array of tables ([[point]])", path=where)
+    rows = [_params(p, f"[[point]] #{i + 1}", where, allowed) for i, p in enumerate(listed)]
+    for i, row in enumerate(rows):
+        for key, value in row.items():
+            _check_value(key, value, f"[[point]] #{i + 1}", where)
+    # the grid runs over each listed point (or over the base alone when none is listed)
+    combos = [dict(zip(grid, vals, strict=True)) for vals in itertools.product(*grid.values())]
+    bases = rows or [{}]
+    seeds = _seeds(doc, where)
+    points, seen = [], set()
+    for row in bases:
+        for combo in combos:
+            params = {**fixed, **row, **combo}
+            for seed in seeds:
+                pt = SweepPoint(index=len(points), params=params, seed=seed)
+                if pt.point_id not in seen:
+                    seen.add(pt.point_id)
+                    points.append(pt)
+    swept = tuple(dict.fromkeys([*(k for r in rows for k in r), *grid]))
+    fr = _fractions(doc, where)
+    return SweepSpec(path=None if path is None else Path(path), text=text,
+                     name=str(doc.get("name", Path(str(where)).stem)),
+                     description=str(doc.get("description", "")), base=base_path, mode=mode,
+                     seeds=seeds, points=tuple(points), swept=swept, fixed=fixed,
+                     fractions_of_peak=fr, recommend=_recommend(doc, where))
+
+
+def load_sweep(path: str | Path) -> SweepSpec:
+    """Read and check ``SWEEP.toml``."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read the sweep file ({exc})", path=path) from None
+    return parse_sweep(text, path=path)

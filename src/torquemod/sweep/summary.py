@@ -1,0 +1,187 @@
+"""From the sweep table to per-point figures of merit and the recommendation.
+
+Per point (:func:`point_summary`): the sensitivity ``dphi/du`` (slope of a straight line
+through the phase against the utilisation over the steps in the band 50-80 %), the error of
+mu from the phase, the disturbance the modulation adds below the utilisation limit (largest
+creepage swing amplitude, largest torque ripple in % of the saturation torque) and the
+largest twin-minus-theory phase difference.
+
+The recommendation (:func:`recommend`) is computed from those, never stated in advance: among
+the modulation settings (frequency x amplitude) whose disturbance stays within the limits of
+``[recommend]``, the one with the smallest RMS mu-from-phase error over the other swept
+parameters (conditions, speeds, seeds, ...). The error of a point whose mu is not determined
+is that of the lower bound the fit does give (what the method tells the user), or 100 %
+when the fit gave nothing.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from .spec import SweepSpec
+
+__all__ = ["BAND", "point_summary", "recommend", "setting_table"]
+
+#: utilisation band of the sensitivity dphi/du [-]
+BAND = (0.5, 0.8)
+SETTING = ("modulation_frequency_hz", "modulation_amplitude_nm")
+
+
+def _slope(u: np.ndarray, phi: np.ndarray) -> float:
+    ok = np.isfinite(u) & np.isfinite(phi) & (u >= BAND[0] - 1e-9) & (u <= BAND[1] + 1e-9)
+    if ok.sum() < 2 or np.ptp(u[ok]) <= 0:
+        return math.nan
+    return float(np.polyfit(u[ok], phi[ok], 1)[0]) / 100.0  # deg per % of utilisation
+
+
+def effective_error(mu_phase, lo, mu_true, determined) -> float:
+    """|mu/mu_true - 1| when determined, else that of the lower bound, else 1 (100 %)."""
+    value = mu_phase if determined else lo
+    if value is None or not np.isfinite(value):
+        return 1.0
+    return abs(float(value) / float(mu_true) - 1.0)
+
+
+def point_summary(table: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
+    """One row per point: its swept parameters, seed, setting, sensitivities, mu errors,
+    disturbances and the twin-vs-theory difference."""
+    lim = spec.recommend.max_utilisation
+    rows = []
+    for pid, g in table.groupby("point_id", sort=False):
+        first = g.iloc[0]
+        live = g[~g["slipped"].astype(bool)]
+        below = live[live["utilisation"] <= lim + 1e-9]
+        u = live["utilisation"].to_numpy(float)
+        row = {"point_id": pid, "point_index": int(first["point_index"]),
+               **{k: first.get(k) for k in spec.swept}, "seed": int(first["seed"]),
+               **{k: float(first[k]) for k in SETTING},
+               "mu_true": float(first["mu_true"]),
+               "mu_phase": float(first["mu_phase"]), "mu_phase_lo": float(first["mu_phase_lo"]),
+               "mu_phase_hi": float(first["mu_phase_hi"]),
+               "mu_phase_determined": bool(first["mu_phase_determined"]),
+               "dphi_du_theory": _slope(u, live["phase_theory_deg"].to_numpy(float)),
+               "dphi_du_chain": _slope(u, live["phase_deg"].to_numpy(float)),
+               "creepage_swing_max": float(below["creepage_swing"].max()),
+               "torque_ripple_pct_max": float(below["torque_ripple_pct"].max()),
+               "phase_se_median_deg": float(np.nanmedian(
+                   below["phase_se_deg"] if below["phase_se_deg"].notna().any()
+                   else below["phase_crlb_deg"])) if len(below) else math.nan,
+               "twin_minus_theory_max_deg": float(np.nanmax(np.abs(
+                   live["phase_twin_minus_theory_deg"])))
+               if live["phase_twin_minus_theory_deg"].notna().any() else math.nan,
+               "n_steps": len(live), "slipped_at_step": (
+                   int(g.loc[g["slipped"].astype(bool), "step"].min())
+                   if g["slipped"].astype(bool).any() else None)}
+        if "mu_forces" in g:
+            row.update(mu_forces=float(first["mu_forces"]),
+                       mu_forces_determined=bool(first["mu_forces_determined"]))
+        row["mu_phase_error_pct"] = 100.0 * (row["mu_phase"] / row["mu_true"] - 1.0)
+        row["mu_phase_lo_error_pct"] = 100.0 * (row["mu_phase_lo"] / row["mu_true"] - 1.0)
+        row["mu_phase_hi_error_pct"] = 100.0 * (row["mu_phase_hi"] / row["mu_true"] - 1.0)
+        row["effective_error_pct"] = 100.0 * effective_error(
+            row["mu_phase"], row["mu_phase_lo"], row["mu_true"], row["mu_phase_determined"])
+        rows.append(row)
+    return pd.DataFrame(rows).sort_values("point_index", ignore_index=True)
+
+
+def setting_table(summary: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
+    """One row per modulation setting (frequency x amplitude): points, mu-from-phase
+    determined, RMS and largest effective error [%], mean sensitivity [deg/%], largest
+    creepage swing and torque ripple below the utilisation limit, and whether those stay
+    within the limits."""
+    opts = spec.recommend
+    rows = []
+    for (f, a), g in summary.groupby(list(SETTING), sort=True):
+        err = g["effective_error_pct"].to_numpy(float)
+        sens = g["dphi_du_theory"].to_numpy(float)
+        swing, ripple = float(g["creepage_swing_max"].max()), float(
+            g["torque_ripple_pct_max"].max())
+        rows.append({"modulation_frequency_hz": f, "modulation_amplitude_nm": a,
+                     "n_points": len(g), "n_determined": int(g["mu_phase_determined"].sum()),
+                     "rms_error_pct": float(np.sqrt(np.mean(err**2))),
+                     "max_error_pct": float(np.max(err)),
+                     "dphi_du_mean": float(np.nanmean(sens)) if np.isfinite(sens).any()
+                     else math.nan,
+                     "creepage_swing_max": swing, "torque_ripple_pct_max": ripple,
+                     "phase_se_median_deg": float(np.nanmedian(g["phase_se_median_deg"])),
+                     "within_limits": bool(swing <= opts.max_creepage_swing
+                                           and ripple <= opts.max_torque_ripple_pct)})
+    return pd.DataFrame(rows)
+
+
+def _name(row) -> str:
+    return (f"{row['modulation_frequency_hz']:.4g} Hz, {row['modulation_amplitude_nm']:.4g} N*m")
+
+
+def recommend(table: pd.DataFrame, spec: SweepSpec) -> dict:
+    """The modulation setting that gives the most accurate mu from the phase below the
+    utilisation limit with the disturbance within the limits, and why (a JSON-ready dict:
+    ``setting``, ``reasoning`` text, ``settings`` table, ``limits``)."""
+    opts = spec.recommend
+    summary = point_summary(table, spec)
+    settings = setting_table(summary, spec)
+    limits = {"max_utilisation": opts.max_utilisation,
+              "max_creepage_swing": opts.max_creepage_swing,
+              "max_torque_ripple_pct": opts.max_torque_ripple_pct}
+    doc = {"limits": limits, "settings": settings.to_dict(orient="records"), "setting": None}
+    others = [k for k in spec.swept if k not in ("modulation.frequency_hz",
+                                                 "modulation.amplitude_nm")]
+    varying = others + (["seed"] if len(spec.seeds) > 1 else [])
+    per = int(settings["n_points"].max()) if len(settings) else 0
+    over = (f"each over its {per} points (varying {', '.join(varying)})" if varying
+            else f"each over its {per} point(s)")
+    if len(settings) < 2:
+        doc["reasoning"] = ("The sweep varies no modulation setting (one frequency and "
+                            "amplitude), so there is nothing to choose between; sweep "
+                            "modulation.frequency_hz and/or modulation.amplitude_nm.")
+        if len(settings):
+            doc["setting"] = settings.iloc[0][list(SETTING)].to_dict()
+        return doc
+    ok = settings[settings["within_limits"]]
+    pool = ok if len(ok) else settings
+    ranked = pool.sort_values(["rms_error_pct", "torque_ripple_pct_max",
+                               "creepage_swing_max"], ignore_index=True)
+    best = ranked.iloc[0]
+    doc["setting"] = {k: float(best[k]) for k in SETTING}
+    lines = [f"Compared {len(settings)} modulation settings {over}, using mu from the phase "
+             f"fitted to the steps at or below {opts.max_utilisation:.0%} utilisation."]
+    if len(ok):
+        excluded = settings[~settings["within_limits"]]
+        lines.append(f"{len(ok)} of them keep the disturbance small below that utilisation "
+                     f"(creepage swing amplitude <= {opts.max_creepage_swing:.3g}, torque "
+                     f"ripple <= {opts.max_torque_ripple_pct:.3g} % of the saturation "
+                     "torque)" + (": excluded " + "; ".join(
+                         f"{_name(r)} (swing {r['creepage_swing_max']:.3g}, ripple "
+                         f"{r['torque_ripple_pct_max']:.3g} %)"
+                         for _, r in excluded.iterrows()) if len(excluded) else "") + ".")
+    else:
+        lines.append("No setting keeps the disturbance within the limits (creepage swing "
+                     f"<= {opts.max_creepage_swing:.3g}, torque ripple <= "
+                     f"{opts.max_torque_ripple_pct:.3g} %): the choice below is the most "
+                     "accurate one regardless, and its disturbance must be accepted or the "
+                     "limits relaxed.")
+        doc["within_limits"] = False
+    lines.append(
+        f"Recommended: {_name(best)}. Its RMS mu-from-phase error is "
+        f"{best['rms_error_pct']:.2f} % (largest {best['max_error_pct']:.2f} %), mu determined "
+        f"in {int(best['n_determined'])} of {int(best['n_points'])} points (elsewhere the "
+        f"error is that of the lower bound), sensitivity dphi/du "
+        f"{best['dphi_du_mean']:.3g} deg per % utilisation in {BAND[0]:.0%}-{BAND[1]:.0%}, "
+        f"median phase standard error {best['phase_se_median_deg']:.3g} deg; it adds a "
+        f"creepage swing of at most {best['creepage_swing_max']:.3g} and a torque ripple of "
+        f"at most {best['torque_ripple_pct_max']:.3g} % of the saturation torque.")
+    if len(ranked) > 1:
+        nxt = ranked.iloc[1]
+        lines.append(f"Next best: {_name(nxt)} ({nxt['rms_error_pct']:.2f} % RMS, swing "
+                     f"{nxt['creepage_swing_max']:.3g}, ripple "
+                     f"{nxt['torque_ripple_pct_max']:.3g} %).")
+    noise = [k for k in spec.swept if k.startswith("sensors.")]
+    lines.append("The recommendation holds for the base rig" + (
+        f" over the swept noise levels ({', '.join(noise)})" if noise
+        else " at its configured sensor noise") + "; a train or another noise level needs "
+        "its own sweep (base = its config).")
+    doc["reasoning"] = " ".join(lines)
+    return doc
