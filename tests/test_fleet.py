@@ -47,8 +47,11 @@ def fleet(tmp_path_factory):
     cfg = load_train_config()
     cfg = dataclasses.replace(cfg, track=dataclasses.replace(cfg.track, length_m=300.0))
     run_train_simulation(cfg, root / "train1", seed=3)
+    # two axles (the second a copy of the first's recording), dated
+    shutil.copy(root / "train1" / "run.mf4", root / "train1" / "axle2.mf4")
     _edit_toml(root / "train1" / "run.toml",
-               lambda d: d["recording"][0].update(date="2025-03-05T07:40:00"))
+               lambda d: (d["recording"][0].update(date="2025-03-05T07:40:00"),
+                          d["recording"].append({"file": "axle2.mf4", "axle": 2})))
     shutil.copytree(root / "train1", root / "train_bad")
     mf4 = root / "train_bad" / "run.mf4"
     mf4.write_bytes(mf4.read_bytes()[: mf4.stat().st_size // 3])
@@ -66,11 +69,28 @@ def _same(got: pd.DataFrame, alone: pd.DataFrame) -> None:
                                   check_dtype=False, rtol=0, atol=0)
 
 
-def test_fleet_on_two_worker_processes(fleet, tmp_path):
+@pytest.fixture(scope="module")
+def cluster():
+    from dask.distributed import LocalCluster
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=":0", silence_logs=40) as c:
+        yield c
+
+
+def test_fleet_on_two_worker_processes(fleet, cluster, tmp_path):
+    from dask.distributed import Client, get_task_stream
+
     from torquemod.onboard import run_onboard
     out = tmp_path / "out"
     links = []
-    res = run_fleet([fleet], out, n_workers=2, on_dashboard=links.append)
+    with Client(cluster) as client, get_task_stream(client) as stream:
+        res = run_fleet([fleet], out, scheduler=cluster.scheduler_address,
+                        on_dashboard=links.append)
+    assert links and links[0].startswith("http")
+    # one task per manifest, per recording (axle) and per run's assembly; both workers used
+    kinds = [t["key"].split("-")[1][:4] for t in stream.data]
+    assert sorted(kinds) == ["fini"] * 5 + ["item"] * 10 + ["plan"] * 5
+    assert len({t["worker"] for t in stream.data}) == 2
     status = dict(zip(res.summary["run"], res.summary["status"], strict=True))
     assert status == {"axle1": "processed", "axle2": "processed", "damaged": "failed",
                       "train1": "processed", "train_bad": "failed"}
@@ -98,20 +118,25 @@ def test_fleet_on_two_worker_processes(fleet, tmp_path):
         got = cycles[cycles["run"].astype(str) == run].drop(columns=["run", "vehicle", "date"])
         _same(got, alone)
     assert len(pd.read_parquet(out / "steps")) == 4
-    # the train run: the same rows `torquemod onboard` writes to track.parquet, in files of
-    # exactly its 13 columns; vehicle, date, run, axle from the partitions
+    # the train run: the same rows `torquemod onboard` writes to track.parquet (and
+    # track_axle2.parquet), in files of exactly its 13 columns; vehicle, date, run, axle
+    # from the partitions
     run_onboard(fleet / "train1" / "run.toml", tmp_path / "alone")
     alone = pd.read_parquet(tmp_path / "alone" / "track.parquet")
+    alone2 = pd.read_parquet(tmp_path / "alone" / "track_axle2.parquet")
     part = (out / "track" / "vehicle=torquemod_train_twin" / "date=2025-03-05" / "run=train1"
             / "axle=1" / "part-0.parquet")
     assert list(pd.read_parquet(part).columns) == list(alone.columns)
     track = pd.read_parquet(out / "track")
     assert {"vehicle", "date", "run", "axle"} <= set(track.columns)
     assert track["run"].astype(str).unique().tolist() == ["train1"]
-    _same(track[list(alone.columns)], alone)
+    axle = track["axle"].astype(int)
+    _same(track.loc[axle == 1, list(alone.columns)], alone)
+    _same(track.loc[axle == 2, list(alone.columns)], alone2)
     row = res.summary.set_index("run").loc["train1"]
-    assert row["n_rows"] == len(alone)
-    assert row["low_adhesion_windows"] == int(alone["low_adhesion"].sum())
+    assert row["n_rows"] == len(alone) + len(alone2)
+    assert row["low_adhesion_windows"] == int(alone["low_adhesion"].sum()
+                                              + alone2["low_adhesion"].sum())
     assert row["duration_s"] == pytest.approx(15.0, abs=0.3)  # window-covered time [s]
     page = (out / "fleet_report.html").read_text()
     assert "train_bad" in page and "run.mf4" in page and "data:image/png;base64" in page
@@ -123,13 +148,13 @@ def test_fleet_on_two_worker_processes(fleet, tmp_path):
     rig_stamp = rig_part.stat().st_mtime_ns
     _edit_toml(fleet / "axle2" / "experiment.toml",
                lambda d: d["test"].update(date=dt.date(2025, 3, 6)))
-    again = run_fleet([fleet], out, n_workers=2)
+    again = run_fleet([fleet], out, scheduler=cluster.scheduler_address)
     status = dict(zip(again.summary["run"], again.summary["status"], strict=True))
     assert status == {"axle1": "skipped", "axle2": "processed", "damaged": "failed",
                       "train1": "skipped", "train_bad": "failed"}
     assert part.stat().st_mtime_ns == stamp and rig_part.stat().st_mtime_ns == rig_stamp
     skipped = again.summary.set_index("run").loc["train1"]
-    assert skipped["n_rows"] == len(alone) and skipped["date"] == "2025-03-05"
+    assert skipped["n_rows"] == row["n_rows"] and skipped["date"] == "2025-03-05"
     dates = pd.read_parquet(out / "steps").groupby("run", observed=True)["date"].first()
     assert dates.astype(str).to_dict() == {"axle1": "unknown", "axle2": "2025-03-06"}
     assert not (out / "steps" / "vehicle=V-Track__2" / "date=2025-03-04").exists()
@@ -194,3 +219,24 @@ def test_fleet_command_line(fleet, tmp_path, capsys):
     assert f"results: {out}" in io.out and "fleet_report.html" in io.out
     assert main(args) == 0
     assert "1 unchanged (skipped)" in capsys.readouterr().out
+
+
+def test_first_bad_recording_in_manifest_order_names_the_failure(fleet, tmp_path):
+    """Recordings are separate tasks; with two damaged files the run fails with the message
+    of the first in the manifest, as `process` (which reads them in order) does; an earlier
+    good result of the run is removed."""
+    from torquemod.fleet import process_run
+    folder = tmp_path / "two_bad"
+    shutil.copytree(fleet / "axle1", folder)
+    out = tmp_path / "out"
+    assert process_run(str(folder / "experiment.toml"), str(out), "r")["status"] == "processed"
+    assert len(pd.read_parquet(out / "cycles")) == 2
+    for name in ("step2_cycle1.h5", "step1_cycle1.h5"):
+        (folder / name).write_bytes(b"not HDF5")
+    with pytest.raises(TorquemodError) as exc:
+        process_experiment(folder / "experiment.toml", workers=1)
+    row = process_run(str(folder / "experiment.toml"), str(out), "r")
+    assert row["status"] == "failed" and "step1_cycle1.h5" in row["message"]
+    assert row["message"] == _one_line(exc.value)
+    assert not list((out / "cycles").rglob("*.parquet"))
+    assert not (out / "_state" / "r.json").exists()

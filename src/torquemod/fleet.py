@@ -1,13 +1,16 @@
-"""Many rig experiments and train runs at once on Dask (issue 11): one task per run manifest,
-in worker processes.
+"""Many rig experiments and train runs at once on Dask (issue 11): tasks per recording, in
+worker processes.
 
-:func:`run_fleet` sends each run manifest to a Dask worker process (a ``LocalCluster`` of
-processes sized to the machine, or an existing scheduler). A rig experiment
-(``experiment.toml``) goes through :func:`torquemod.pipeline.process_experiment` and the
-creep-curve fit, as ``torquemod process`` does; a train run (``run.toml``) through the on-board
-estimator, axle by axle, as ``torquemod onboard`` does. Each worker runs one thread (the
-processes are the parallelism: the GIL makes threads of this chain useless) and writes its
-tables as partitions of Parquet datasets::
+:func:`run_fleet` sends the fleet to Dask worker processes (a ``LocalCluster`` of processes
+sized to the machine, or an existing scheduler). Per run manifest, a task reads and
+fingerprints it (:func:`plan_run`); a run to process becomes one task per recording
+(:func:`work_item`: for a rig experiment, steps 1-5 and 8 of the chain on one recording file,
+usually one cycle; for a train run, the on-board estimator on one axle) and a task that
+assembles them (:func:`finish_run`: for a rig, the alignment, phases, steps and creep-curve fit
+of ``process_experiment`` and ``torquemod process``; for a train run, the axles' tracks of
+``torquemod onboard``). Each worker runs one thread (the processes are the parallelism: the
+GIL makes threads of this chain useless) and writes its tables as partitions of Parquet
+datasets::
 
     OUT/cycles/vehicle=<v>/date=<d>/run=<run>/part-0.parquet          rig: per cycle
     OUT/steps/vehicle=<v>/date=<d>/run=<run>/part-0.parquet           rig: per step
@@ -213,11 +216,93 @@ def fingerprint(manifest: Path, known: dict | None = None) -> tuple[str, object,
     return p.digest, p.source, p.files
 
 
-def _rig_tables(prep: Prepared, fit: bool) -> tuple[dict, dict]:
-    """``torquemod process`` without its results folder: {table: {file: DataFrame}} and
-    the summary fields (the creep-curve fit's mu when ``fit``)."""
+@dataclass(frozen=True)
+class Plan:
+    """A run to (re)process, split into items: the run's recordings (rig: one task per
+    recording file, steps 1-5 and 8 of the chain; train: one task per axle), assembled by
+    :func:`finish_run` (rig: alignment, phases, steps and the fit, exactly as
+    ``process_experiment``; train: the axles' track tables)."""
+
+    prep: Prepared
+    manifest: str
+    out_dir: str
+    run: str
+    row: dict
+    old_parts: tuple[str, ...]
+    fit: bool
+    seconds: float
+
+    @property
+    def n_items(self) -> int:
+        return len(self.prep.source.recordings)
+
+
+def _state_path(out_dir: str, run: str) -> Path:
+    return Path(out_dir) / "_state" / f"{run}.json"
+
+
+def _failed(row: dict, exc: BaseException | str, out_dir: str, old_parts) -> dict:
+    """The failure row; an earlier good run's partitions and state are removed (no stale
+    results)."""
+    row.update(status="failed", message=exc if isinstance(exc, str) else one_line(exc))
+    _remove(Path(out_dir), old_parts)
+    _state_path(out_dir, row["run"]).unlink(missing_ok=True)
+    return row
+
+
+def plan_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
+             fit: bool = True) -> dict | Plan:
+    """Read and fingerprint one run manifest: a summary row when the run is done with
+    (``skipped``: unchanged; ``failed``: the manifest is bad), else its :class:`Plan`.
+    Never raises (a Dask task)."""
+    t0 = time.perf_counter()
+    row = dict.fromkeys(SUMMARY_COLUMNS)
+    row.update(run=run, manifest=str(manifest), kind=manifest_kind(Path(manifest)),
+               n_steps=0, n_cycles=0, n_rows=0, message="")
+    state = _state_path(out_dir, run)
+    try:
+        old = json.loads(state.read_text()) if state.is_file() else {}
+    except (OSError, ValueError):
+        old = {}
+    old_parts = tuple(old.get("partitions", [])) + tuple(f"{t}/run={run}" for t in TABLES)
+    try:
+        prep = prepare(Path(manifest), old.get("files"), kind=row["kind"], fit=fit)
+    except Exception as exc:
+        return dict(_failed(row, exc, out_dir, old_parts), seconds=time.perf_counter() - t0)
+    row.update(vehicle=prep.vehicle, date=prep.date)
+    out = Path(out_dir)
+    if (not force and old.get("fingerprint") == prep.digest and old.get("partitions")
+            and all((out / p).is_dir() for p in old["partitions"])):
+        return {**row, **{k: old.get("row", {}).get(k) for k in _KEPT}, "status": "skipped",
+                "seconds": time.perf_counter() - t0}
+    return Plan(prep, str(manifest), out_dir, run, row, old_parts, fit,
+                time.perf_counter() - t0)
+
+
+def work_item(plan: Plan, index: int) -> tuple:
+    """Recording ``index`` of the plan: ``("ok", result, seconds)`` or ``("error", one-line
+    message, seconds)``. Never raises (a Dask task)."""
+    t0 = time.perf_counter()
+    prep = plan.prep
+    entry = prep.source.recordings[index]
+    try:
+        if prep.kind == "train":
+            from .onboard.run import estimate_axle, track_table
+            out = track_table(estimate_axle(prep.source, entry, prep.settings))
+        else:
+            from .pipeline import load_and_process, resolve_config
+            out = load_and_process(entry, prep.source, resolve_config(prep.source))
+        return "ok", out, time.perf_counter() - t0
+    except Exception as exc:
+        return "error", one_line(exc), time.perf_counter() - t0
+
+
+def _rig_tables(prep: Prepared, loaded: list, fit: bool) -> tuple[dict, dict]:
+    """``torquemod process`` without its results folder, from the recordings' results:
+    {table: {file: DataFrame}} and the summary fields (the fit's mu when ``fit``)."""
     from .pipeline import process_experiment
-    res = process_experiment(prep.source, workers=1)
+    res = process_experiment(prep.source, workers=1,
+                             loaded=list(zip(prep.source.recordings, loaded, strict=True)))
     info = {"n_steps": len(res.steps), "n_cycles": len(res.cycles), "n_rows": len(res.cycles),
             "duration_s": float(sum(d["n_samples"] / d["fs_hz"] for d in res.cycle_details))}
     if fit:
@@ -232,25 +317,78 @@ def _rig_tables(prep: Prepared, fit: bool) -> tuple[dict, dict]:
             "steps": {"part-0.parquet": res.steps}}, info
 
 
-def _train_tables(prep: Prepared) -> tuple[dict, dict]:
+def _train_tables(prep: Prepared, tracks: list) -> tuple[dict, dict]:
     """``torquemod onboard`` without its results folder: every axle's ``track.parquet``
     table (:func:`torquemod.onboard.run.track_table`) and the summary fields."""
-    from .onboard.run import estimate_axle, track_table
     run, config = prep.source, prep.settings
-    tracks = {e.axle: track_table(estimate_axle(run, e, config)) for e in run.recordings}
-    allrows = pd.concat(tracks.values(), ignore_index=True)
+    axles = [e.axle for e in run.recordings]
+    allrows = pd.concat(tracks, ignore_index=True)
     window_s = config.window_periods / run.modulation_frequency_hz
     given = allrows["mu"].notna()
     info = {"n_rows": len(allrows),
             "duration_s": max(float(t["time_s"].iloc[-1] - t["time_s"].iloc[0]) + window_s
-                              for t in tracks.values()),
+                              for t in tracks),
             "mu": float(allrows.loc[given, "mu"].median()) if given.any() else None,
             "mu_lower_bound": float(allrows["mu_low_95"].median())
             if allrows["mu_low_95"].notna().any() else None,
             "mu_given_share": float(given.mean()),
             "low_adhesion_windows": int(allrows["low_adhesion"].sum()),
             "slip_windows": int(allrows["slip"].sum())}
-    return {"track": {f"axle={a}/part-0.parquet": t for a, t in sorted(tracks.items())}}, info
+    return {"track": {f"axle={a}/part-0.parquet": t
+                      for a, t in sorted(zip(axles, tracks, strict=True))}}, info
+
+
+def finish_run(plan: Plan, *items: tuple) -> dict:
+    """Assemble the run from its items (in manifest order), write its partitions and state:
+    the summary row. The first failed item, in manifest order, fails the run with its
+    message (the one the sequential command meets first). Never raises (a Dask task)."""
+    t0 = time.perf_counter()
+    row = dict(plan.row)
+    seconds = plan.seconds + sum(it[2] for it in items)
+    try:
+        errors = [it[1] for it in items if it[0] != "ok"]
+        if errors:
+            raise _ItemError(errors[0])
+        results = [it[1] for it in items]
+        prep = plan.prep
+        tables, info = (_train_tables(prep, results) if prep.kind == "train"
+                        else _rig_tables(prep, results, plan.fit))
+        out = Path(plan.out_dir)
+        where = f"vehicle={prep.vehicle}/date={prep.date}/run={plan.run}"
+        parts = []
+        for table, files in tables.items():
+            _write_partition(files, out / table / where)
+            parts.append(f"{table}/{where}")
+        _remove(out, [p for p in plan.old_parts if p not in parts])
+        row.update(info, status="processed")
+        state = _state_path(plan.out_dir, plan.run)
+        state.parent.mkdir(parents=True, exist_ok=True)
+        tmp = state.with_name(state.name + ".tmp")
+        tmp.write_text(json.dumps({"fingerprint": prep.digest, "manifest": plan.manifest,
+                                   "partitions": parts, "files": prep.files,
+                                   "row": {k: row[k] for k in _KEPT}}, default=str))
+        os.replace(tmp, state)
+    except _ItemError as exc:
+        _failed(row, str(exc), plan.out_dir, plan.old_parts)
+    except Exception as exc:  # a bad run (or a bug) is reported; the fleet goes on
+        _failed(row, exc, plan.out_dir, plan.old_parts)
+    row["seconds"] = seconds + time.perf_counter() - t0
+    return row
+
+
+class _ItemError(Exception):
+    """An item's failure, carried to :func:`finish_run` as its one-line message."""
+
+
+def process_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
+                fit: bool = True) -> dict:
+    """Process one run manifest (rig or train) into its partitions in this process: what
+    :func:`run_fleet` does with tasks, in sequence. Never raises: the outcome is a summary
+    row (``status`` processed, skipped or failed; :data:`SUMMARY_COLUMNS`)."""
+    plan = plan_run(manifest, out_dir, run, force, fit=fit)
+    if isinstance(plan, dict):
+        return plan
+    return finish_run(plan, *(work_item(plan, i) for i in range(plan.n_items)))
 
 
 def _write_partition(files: dict, folder: Path) -> None:
@@ -286,52 +424,6 @@ def one_line(exc: BaseException) -> str:
 def _remove(out: Path, rels: Iterable[str]) -> None:
     for rel in rels:
         shutil.rmtree(out / rel, ignore_errors=True)
-
-
-def process_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
-                fit: bool = True) -> dict:
-    """Process one run manifest (rig or train) into its partitions: a Dask task, also
-    usable alone. Never raises: the outcome is a summary row (``status`` processed, skipped
-    or failed; :data:`SUMMARY_COLUMNS`)."""
-    t0 = time.perf_counter()
-    out = Path(out_dir)
-    row = dict.fromkeys(SUMMARY_COLUMNS)
-    row.update(run=run, manifest=str(manifest), kind=manifest_kind(Path(manifest)),
-               n_steps=0, n_cycles=0, n_rows=0, message="")
-    state = out / "_state" / f"{run}.json"
-    try:
-        old = json.loads(state.read_text()) if state.is_file() else {}
-    except (OSError, ValueError):
-        old = {}
-    old_parts = list(old.get("partitions", [])) + [f"{t}/run={run}" for t in TABLES]
-    try:
-        prep = prepare(Path(manifest), old.get("files"), kind=row["kind"], fit=fit)
-        row.update(vehicle=prep.vehicle, date=prep.date)
-        where = f"vehicle={prep.vehicle}/date={prep.date}/run={run}"
-        if (not force and old.get("fingerprint") == prep.digest and old.get("partitions")
-                and all((out / p).is_dir() for p in old["partitions"])):
-            return {**row, **{k: old.get("row", {}).get(k) for k in _KEPT},
-                    "status": "skipped", "seconds": time.perf_counter() - t0}
-        tables, info = (_train_tables(prep) if prep.kind == "train"
-                        else _rig_tables(prep, fit))
-        parts = []
-        for table, files in tables.items():
-            _write_partition(files, out / table / where)
-            parts.append(f"{table}/{where}")
-        _remove(out, [p for p in old_parts if p not in parts])
-        row.update(info, status="processed")
-        state.parent.mkdir(parents=True, exist_ok=True)
-        tmp = state.with_name(state.name + ".tmp")
-        tmp.write_text(json.dumps({"fingerprint": prep.digest, "manifest": str(manifest),
-                                   "partitions": parts, "files": prep.files,
-                                   "row": {k: row[k] for k in _KEPT}}, default=str))
-        os.replace(tmp, state)
-    except Exception as exc:  # a bad run (or a bug) is reported; the fleet goes on
-        row.update(status="failed", message=one_line(exc))
-        _remove(out, old_parts)  # no stale results of an earlier good run
-        state.unlink(missing_ok=True)
-    row["seconds"] = time.perf_counter() - t0
-    return row
 
 
 def prune_empty(out: Path) -> None:
@@ -381,9 +473,6 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     ``on_dashboard(link)`` is called with the dashboard address when there is one;
     ``progress`` shows a bar on stderr.
     """
-    from dask.distributed import as_completed
-    from tqdm import tqdm
-
     from .daskutil import dask_client
 
     paths = find_manifests(manifests)
@@ -394,7 +483,6 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     out.mkdir(parents=True, exist_ok=True)
     names = run_names(paths)
     t0 = time.perf_counter()
-    rows = []
     links: list[str] = []
 
     def dashboard(link: str) -> None:
@@ -403,14 +491,7 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
             on_dashboard(link)
 
     with dask_client(scheduler, n_workers, dashboard) as client:
-        futures = [client.submit(process_run, str(p), str(out), name, force, fit=fit,
-                                 pure=False, key=f"torquemod-run-{name}-{time.time_ns()}")
-                   for p, name in zip(paths, names, strict=True)]
-        bar = tqdm(total=len(futures), desc="fleet", unit="run", disable=not progress)
-        for fut in as_completed(futures):
-            rows.append(fut.result())
-            bar.update()
-        bar.close()
+        rows = _run_tasks(client, paths, names, str(out), force, fit, progress)
     prune_empty(out)
     summary = pd.DataFrame(rows, columns=SUMMARY_COLUMNS).sort_values("run",
                                                                       ignore_index=True)
@@ -424,6 +505,49 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
         page = write_fleet_report(out, summary, failures)
     return FleetResult(out, summary, failures, links[0] if links else None,
                        time.perf_counter() - t0, page)
+
+
+def _run_tasks(client, paths: list[Path], names: list[str], out: str, force: bool,
+               fit: bool, progress: bool) -> list[dict]:
+    """The fleet's task graph, grown as plans arrive: per run a :func:`plan_run` task; for a
+    run to process, one :func:`work_item` task per recording (axle) and a :func:`finish_run`
+    task on their results. Returns the summary rows; a task lost with its worker (killed,
+    out of memory) becomes a failed row."""
+    from dask.distributed import as_completed
+    from tqdm import tqdm
+
+    def key(kind: str, name: str) -> str:
+        return f"torquemod-{kind}-{name}-{time.time_ns()}"
+
+    runs = {}
+    for p, name in zip(paths, names, strict=True):
+        runs[client.submit(plan_run, str(p), out, name, force, fit=fit, pure=False,
+                           key=key("plan", name))] = (name, str(p))
+    rows = []
+    bar = tqdm(total=len(runs), desc="fleet", unit="run", disable=not progress)
+    done = as_completed(list(runs))
+    for fut in done:
+        name, manifest = runs[fut]
+        try:
+            res = fut.result()
+        except Exception as exc:  # the worker died under the task
+            row = dict.fromkeys(SUMMARY_COLUMNS)
+            row.update(run=name, manifest=manifest, kind=manifest_kind(Path(manifest)),
+                       status="failed", message=one_line(exc))
+            rows.append(row)
+            bar.update()
+            continue
+        if isinstance(res, Plan):
+            items = [client.submit(work_item, res, i, pure=False, key=key(f"item{i}", name))
+                     for i in range(res.n_items)]
+            last = client.submit(finish_run, res, *items, pure=False, key=key("finish", name))
+            runs[last] = (name, manifest)
+            done.add(last)
+            continue
+        rows.append(res)
+        bar.update()
+    bar.close()
+    return rows
 
 
 def _write_csv(df: pd.DataFrame, path: Path) -> None:

@@ -283,6 +283,10 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
     return t1 - t0, time.perf_counter() - t1, digest_future.result(), actions, notes, out
 
 
+#: steps 1-5 and 8 of one recording, for callers that distribute them (torquemod.fleet)
+load_and_process = _load_and_process
+
+
 def _prefetched(exp: Experiment, cfg: ProcessingConfig, workers: int):
     """Yield (entry, result of :func:`_load_and_process`) in manifest order, with at most
     ``workers + 1`` recordings in flight so memory stays bounded on long experiments."""
@@ -313,14 +317,16 @@ def _prefetched(exp: Experiment, cfg: ProcessingConfig, workers: int):
 
 def process_experiment(experiment: Experiment | str | Path, *,
                        config: ProcessingConfig | None = None, progress: bool = False,
-                       workers: int | None = None) -> ProcessResult:
+                       workers: int | None = None, loaded=None) -> ProcessResult:
     """Run the whole chain on an experiment (a parsed manifest or its path).
 
     ``config`` None uses the manifest's ``[processing]`` table (see :func:`resolve_config`).
 
     Recordings are read and put through steps 1-5 and 8 by ``workers`` threads (default:
     the number of CPUs, at most 4; numpy, scipy and pyarrow release the GIL), then each
-    step's cycles are aligned and their phases measured in order.
+    step's cycles are aligned and their phases measured in order. ``loaded``: pairs (entry,
+    result of :func:`load_and_process`) in manifest order, computed elsewhere (the fleet's
+    one task per recording); None reads the recordings here.
     """
     workers = workers if workers is not None else min(4, os.cpu_count() or 1)
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
@@ -338,8 +344,8 @@ def process_experiment(experiment: Experiment | str | Path, *,
     bar = tqdm(total=len(exp.recordings), desc="processing", unit="rec", disable=not progress,
                leave=False)
     try:  # the bar is cleared before any error line is printed
-        for entry, loaded in _prefetched(exp, cfg, workers):
-            read_s, compute_s, digest, actions, rec_notes, cycles_out = loaded
+        for entry, done in (_prefetched(exp, cfg, workers) if loaded is None else loaded):
+            read_s, compute_s, digest, actions, rec_notes, cycles_out = done
             hashes[str(entry.path)] = digest
             t_read += read_s
             t_compute += compute_s
