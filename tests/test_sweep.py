@@ -176,6 +176,21 @@ def test_resume_skips_finished_points_and_force_reruns(theory_sweep):
     pd.testing.assert_frame_equal(forced.table[cols], first.table[cols])
 
 
+def test_dask_local_cluster_gives_the_in_process_rows(tmp_path, theory_sweep):
+    """Two points as tasks on a LocalCluster of 2 worker processes: the same rows as the
+    in-process run of the same points (same ids: same parameters and seed)."""
+    _, _, inproc = theory_sweep
+    spec = parse_sweep(THEORY.replace("[2.0, 3.0]", "[3.0]"))
+    links = []
+    res = run_sweep(spec, tmp_path / "dask", n_workers=2, report=False,
+                    on_dashboard=links.append)
+    assert res.count("done") == 2 and links and res.dashboard == links[0]
+    ref = inproc.table[inproc.table["point_id"].isin(res.table["point_id"])]
+    cols = [c for c in ref if c not in ("point_wall_s", "point_index")]
+    pd.testing.assert_frame_equal(res.table[cols].reset_index(drop=True),
+                                  ref[cols].reset_index(drop=True))
+
+
 def test_failed_points_become_rows_and_the_sweep_goes_on(tmp_path):
     spec = parse_sweep("""
 mode = "theory"
@@ -214,6 +229,7 @@ def _fake_table(errors, ripples, swings) -> tuple[pd.DataFrame, SweepSpec]:
                              "phase_twin_minus_theory_deg": np.nan,
                              "creepage_swing": sw, "torque_ripple_pct": rip,
                              "modulation_frequency_hz": 1.0 + s,
+                             "modulation_frequency_nominal_hz": 1.0 + s,
                              "modulation_amplitude_nm": 8.0, "mu_true": mu,
                              "mu_phase": mu * (1 + e), "mu_phase_lo": mu * (1 + e - 0.01),
                              "mu_phase_hi": mu * (1 + e + 0.01),
@@ -232,15 +248,18 @@ def test_recommendation_is_the_most_accurate_setting_within_the_limits():
     tab, spec = _fake_table(errors=[1.0, 3.0, 5.0], ripples=[20.0, 10.0, 10.0],
                             swings=[1e-3, 1e-3, 1.5e-3])
     rec = recommend(tab, spec)
-    assert rec["setting"] == {"modulation_frequency_hz": 2.0, "modulation_amplitude_nm": 8.0}
+    assert rec["setting"] == {"modulation_frequency_nominal_hz": 2.0,
+                              "modulation_amplitude_nm": 8.0}
     assert "excluded 1 Hz" in rec["reasoning"] and "3 Hz" in rec["reasoning"]
-    best = next(s for s in rec["settings"] if s["modulation_frequency_hz"] == 2.0)
+    best = next(s for s in rec["settings"] if s["modulation_frequency_nominal_hz"] == 2.0)
     assert best["rms_error_pct"] == pytest.approx(3.0)
+    assert best["bias_pct"] == pytest.approx(0.0, abs=1e-9)  # -3 % and +3 %
+    assert best["n_covered"] == 0  # +-3 % with a +-1 % interval: the truth is outside
     # with no setting within the limits, the most accurate one, said so
     tab, spec = _fake_table(errors=[4.0, 3.0, 5.0], ripples=[20.0, 20.0, 20.0],
                             swings=[1e-3, 1e-3, 1e-3])
     rec = recommend(tab, spec)
-    assert rec["setting"]["modulation_frequency_hz"] == 2.0
+    assert rec["setting"]["modulation_frequency_nominal_hz"] == 2.0
     assert rec["within_limits"] is False and "No setting" in rec["reasoning"]
 
 
@@ -266,7 +285,7 @@ def test_full_sweep_on_the_chain(tmp_path):
     lb = tab["mu_forces_lower_bound"].to_numpy(float)
     assert np.all((lb > 0.6 * tab["mu_true"]) & (lb < tab["mu_true"]))
     # the experiment folders the twin wrote are gone
-    assert not any((tmp_path / "full" / "_work").iterdir())
+    assert not (tmp_path / "full" / "_work").exists()
 
 
 def test_twin_agrees_with_large_signal_theory_over_a_small_grid(tmp_path):

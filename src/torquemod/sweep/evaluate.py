@@ -247,6 +247,7 @@ def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.
     head = {"point_id": task.point_id, "point_index": task.index,
             **{k: v for k, v in task.params.items()}, "seed": task.seed, "mode": task.mode}
     info = {"modulation_frequency_hz": mod.actual_frequency_hz,
+            "modulation_frequency_nominal_hz": mod.frequency_hz,
             "modulation_amplitude_nm": mod.amplitude_nm, "speed_m_s": rig.speed_m_s,
             "normal_load_n": rig.normal_load_n, "wheel_radius_m": rig.wheel_radius_m,
             "wheel_inertia_kg_m2": rig.wheel_inertia_kg_m2, "mu0": rig.contact.mu0,

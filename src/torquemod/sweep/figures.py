@@ -222,7 +222,8 @@ def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None) -> Figu
     the saturation torque] below the utilisation limit, with the limits dashed."""
     fig, axes = _axes(ax, 2, figsize=(7.0, 5.5))
     label = [f"{f:.3g} Hz\n{a:.3g} N*m" for f, a in zip(
-        settings["modulation_frequency_hz"], settings["modulation_amplitude_nm"], strict=True)]
+        settings["modulation_frequency_nominal_hz"], settings["modulation_amplitude_nm"],
+        strict=True)]
     x = np.arange(len(label))
     axes[0].bar(x, settings["creepage_swing_max"], color="C0")
     axes[0].axhline(limits["max_creepage_swing"], color="k", ls="--", lw=0.8)

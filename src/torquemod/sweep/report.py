@@ -77,11 +77,12 @@ def _settings_html(rec: dict) -> str:
     rows = rec.get("settings") or []
     if not rows:
         return ""
-    head = ["f [Hz]", "A [N*m]", "points", "mu determined", "RMS error [%]", "max error [%]",
-            "dphi/du [deg/%]", "phase SE [deg]", "creepage swing", "torque ripple [%]",
-            "within limits"]
-    body = [[r["modulation_frequency_hz"], r["modulation_amplitude_nm"], r["n_points"],
-             r["n_determined"], r["rms_error_pct"], r["max_error_pct"], r["dphi_du_mean"],
+    head = ["f [Hz]", "A [N*m]", "points", "mu determined", "truth covered", "RMS error [%]",
+            "max error [%]", "bias [%]", "dphi/du [deg/%]", "phase SE [deg]",
+            "creepage swing", "torque ripple [%]", "within limits"]
+    body = [[r["modulation_frequency_nominal_hz"], r["modulation_amplitude_nm"], r["n_points"],
+             r["n_determined"], r["n_covered"], r["rms_error_pct"], r["max_error_pct"],
+             r["bias_pct"], r["dphi_du_mean"],
              r["phase_se_median_deg"], r["creepage_swing_max"], r["torque_ripple_pct_max"],
              bool(r["within_limits"])] for r in rows]
     return table(head, body, caption="Modulation settings compared")
@@ -90,10 +91,12 @@ def _settings_html(rec: dict) -> str:
 def _points_html(summary: pd.DataFrame, spec: SweepSpec) -> str:
     keys = [k for k in spec.swept if k in summary]
     head = ["#", *keys, "seed", "mu true", "mu phase", "95 % lo", "95 % hi", "error [%]",
-            "dphi/du [deg/%]", "swing", "ripple [%]", "twin-theory [deg]", "slip at step"]
+            "covered", "dphi/du [deg/%]", "swing", "ripple [%]", "twin-theory [deg]",
+            "slip at step"]
     body = [[int(r["point_index"]), *[str(r[k]) for k in keys], int(r["seed"]), r["mu_true"],
              r["mu_phase"], r["mu_phase_lo"], r["mu_phase_hi"], r["effective_error_pct"],
-             r["dphi_du_theory"], r["creepage_swing_max"], r["torque_ripple_pct_max"],
+             bool(r["covered"]), r["dphi_du_theory"], r["creepage_swing_max"],
+             r["torque_ripple_pct_max"],
              r["twin_minus_theory_max_deg"],
              "—" if r["slipped_at_step"] is None or pd.isna(r["slipped_at_step"])
              else int(r["slipped_at_step"])] for _, r in summary.iterrows()]

@@ -17,6 +17,7 @@ first step, ...) becomes a row of failures.csv and the sweep goes on.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import json
@@ -218,6 +219,8 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
     rows, link = _evaluate_all(todo, out, in_process=in_process, scheduler=scheduler,
                                n_workers=n_workers, force=force, progress=progress,
                                on_dashboard=on_dashboard)
+    with contextlib.suppress(OSError):  # the twin's experiments are gone: drop the folder
+        (out / "_work").rmdir()
     status = pd.DataFrame(rows).sort_values("point_index", ignore_index=True)
     table = assemble(out, spec, status)
     params = {p.point_id: json.dumps(p.params, sort_keys=True, default=str)

@@ -27,7 +27,8 @@ __all__ = ["BAND", "point_summary", "recommend", "setting_table"]
 
 #: utilisation band of the sensitivity dphi/du [-]
 BAND = (0.5, 0.8)
-SETTING = ("modulation_frequency_hz", "modulation_amplitude_nm")
+#: a modulation setting: nominal frequency [Hz] and motor-torque amplitude [N*m]
+SETTING = ("modulation_frequency_nominal_hz", "modulation_amplitude_nm")
 
 
 def _slope(u: np.ndarray, phi: np.ndarray) -> float:
@@ -83,6 +84,10 @@ def point_summary(table: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
         row["mu_phase_hi_error_pct"] = 100.0 * (row["mu_phase_hi"] / row["mu_true"] - 1.0)
         row["effective_error_pct"] = 100.0 * effective_error(
             row["mu_phase"], row["mu_phase_lo"], row["mu_true"], row["mu_phase_determined"])
+        # the truth inside the 95 % interval (determined) or not below the lower bound
+        lo, hi = row["mu_phase_lo"], row["mu_phase_hi"]
+        row["covered"] = bool(np.isfinite(lo) and lo <= row["mu_true"]
+                              and (not row["mu_phase_determined"] or row["mu_true"] <= hi))
         rows.append(row)
     return pd.DataFrame(rows).sort_values("point_index", ignore_index=True)
 
@@ -99,8 +104,12 @@ def setting_table(summary: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
         sens = g["dphi_du_theory"].to_numpy(float)
         swing, ripple = float(g["creepage_swing_max"].max()), float(
             g["torque_ripple_pct_max"].max())
-        rows.append({"modulation_frequency_hz": f, "modulation_amplitude_nm": a,
-                     "n_points": len(g), "n_determined": int(g["mu_phase_determined"].sum()),
+        det = g[g["mu_phase_determined"]]
+        rows.append({"modulation_frequency_nominal_hz": f, "modulation_amplitude_nm": a,
+                     "n_points": len(g), "n_determined": len(det),
+                     "n_covered": int(g["covered"].sum()),
+                     "bias_pct": float(det["mu_phase_error_pct"].mean()) if len(det)
+                     else math.nan,
                      "rms_error_pct": float(np.sqrt(np.mean(err**2))),
                      "max_error_pct": float(np.max(err)),
                      "dphi_du_mean": float(np.nanmean(sens)) if np.isfinite(sens).any()
@@ -113,7 +122,8 @@ def setting_table(summary: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
 
 
 def _name(row) -> str:
-    return (f"{row['modulation_frequency_hz']:.4g} Hz, {row['modulation_amplitude_nm']:.4g} N*m")
+    return (f"{row['modulation_frequency_nominal_hz']:.4g} Hz, "
+            f"{row['modulation_amplitude_nm']:.4g} N*m")
 
 
 def recommend(table: pd.DataFrame, spec: SweepSpec) -> dict:
@@ -170,6 +180,8 @@ def recommend(table: pd.DataFrame, spec: SweepSpec) -> dict:
         f"in {int(best['n_determined'])} of {int(best['n_points'])} points (elsewhere the "
         f"error is that of the lower bound), sensitivity dphi/du "
         f"{best['dphi_du_mean']:.3g} deg per % utilisation in {BAND[0]:.0%}-{BAND[1]:.0%}, "
+        f"the truth inside the 95 % interval (or above the lower bound) in "
+        f"{int(best['n_covered'])} of {int(best['n_points'])}, "
         f"median phase standard error {best['phase_se_median_deg']:.3g} deg; it adds a "
         f"creepage swing of at most {best['creepage_swing_max']:.3g} and a torque ripple of "
         f"at most {best['torque_ripple_pct_max']:.3g} % of the saturation torque.")
@@ -178,6 +190,17 @@ def recommend(table: pd.DataFrame, spec: SweepSpec) -> dict:
         lines.append(f"Next best: {_name(nxt)} ({nxt['rms_error_pct']:.2f} % RMS, swing "
                      f"{nxt['creepage_swing_max']:.3g}, ripple "
                      f"{nxt['torque_ripple_pct_max']:.3g} %).")
+    bias = settings["bias_pct"].to_numpy(float)
+    if np.isfinite(bias).any():
+        lines.append(f"Where mu is determined its mean signed error is {np.nanmin(bias):+.1f} "
+                     f"to {np.nanmax(bias):+.1f} % across the settings: a bias common to all, "
+                     "part of which is the definition of the truth (the peak CoA of the twin's "
+                     "creep curve, while the fit's mu belongs to a constant-friction curve).")
+    bad = summary[~summary["covered"]]
+    if len(bad):
+        lines.append(f"{len(bad)} of {len(summary)} points have the true mu outside the 95 % "
+                     "interval or below the reported lower bound (see the points table): "
+                     "there the phase model does not describe the measurement.")
     noise = [k for k in spec.swept if k.startswith("sensors.")]
     lines.append("The recommendation holds for the base rig" + (
         f" over the swept noise levels ({', '.join(noise)})" if noise
