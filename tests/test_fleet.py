@@ -204,18 +204,20 @@ def test_file_digest_reused_only_while_size_and_mtime_hold(tmp_path):
     assert _file_digest(path, fake)[2] == hashlib.sha256(b"abd" * 1000).hexdigest()
 
 
-def test_fleet_command_line(fleet, tmp_path, capsys):
-    """`torquemod fleet`: exit 0 with the damaged run named on stderr, the counts, the
-    results folder and the report on stdout; a rerun reports the good runs unchanged."""
+def test_fleet_command_line(fleet, cluster, tmp_path, capsys):
+    """`torquemod fleet` on an existing scheduler: exit 0 with the damaged run named on
+    stderr, the dashboard address, the counts, the results folder and the report on stdout;
+    a rerun reports the good runs unchanged."""
     from torquemod.cli import main
 
     out = tmp_path / "fl"
     args = ["fleet", str(fleet / "axle1"), str(fleet / "damaged"), "--out", str(out),
-            "--workers", "1", "--quiet"]
+            "--scheduler", cluster.scheduler_address, "--quiet"]
     assert main(args) == 0
     io = capsys.readouterr()
     assert "2 runs: 1 processed, 0 unchanged (skipped), 1 failed" in io.out
     assert "failed: damaged:" in io.err and "step2_cycle1.h5" in io.err
+    assert "dashboard: http" in io.err
     assert f"results: {out}" in io.out and "fleet_report.html" in io.out
     assert main(args) == 0
     assert "1 unchanged (skipped)" in capsys.readouterr().out

@@ -495,6 +495,8 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     prune_empty(out)
     summary = pd.DataFrame(rows, columns=SUMMARY_COLUMNS).sort_values("run",
                                                                       ignore_index=True)
+    counts = ["n_rows", "n_steps", "n_cycles", "low_adhesion_windows", "slip_windows"]
+    summary[counts] = summary[counts].astype("Int64")  # integers with gaps, not floats
     failures = summary.loc[summary["status"] == "failed",
                            ["run", "kind", "manifest", "message"]].reset_index(drop=True)
     _write_csv(summary, out / "fleet_summary.csv")

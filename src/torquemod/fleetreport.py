@@ -101,7 +101,8 @@ def mu_track_figure(tracks: pd.DataFrame) -> bytes:
 
 
 def _value(v):
-    return None if v is None or (isinstance(v, float) and v != v) else v
+    """None for a missing value (None, NaN, pd.NA), else ``v``."""
+    return None if v is None or (pd.api.types.is_scalar(v) and pd.isna(v)) else v
 
 
 def render_fleet_report(summary: pd.DataFrame, failures: pd.DataFrame,
