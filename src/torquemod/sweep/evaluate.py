@@ -100,6 +100,7 @@ def _theory_steps(config, t_peak: float) -> list[dict]:
                               sample_rate_hz=sens.sample_rate_hz, duration_s=duration)
         rows.append({**row, "slipped": False, "coa_true": op.coa,
                      "creepage_true": op.creepage, "creep_coefficient": op.creep_coefficient,
+                     "lateral_coa_true": abs(op.fy_n) / rig.normal_load_n,
                      "phase_theory_deg": ls.phase_deg,
                      "phase_small_signal_deg": ls.small_signal_phase_deg,
                      "phase_crlb_deg": float(crlb),
@@ -133,6 +134,28 @@ def _phase_mu(coa, phase_deg, se_deg, constant, swing) -> dict:
                mu_phase_lo=math.nan if lo is None else float(lo),
                mu_phase_hi=math.nan if hi is None else float(hi),
                mu_phase_determined=bool(fit.mu_determined))
+    return out
+
+
+def _forces_mu_theory(df: pd.DataFrame) -> dict:
+    """The Polach force fit (:func:`torquemod.fit.fit_polach`, as the chain's analysis
+    calls it, unweighted) on the exact steady-state creep points of the steps that do not
+    slip: what the force method gives with perfect measurements."""
+    from ..fit import fit_polach
+    live = df[~df["slipped"].astype(bool)]
+    out = {"mu_forces": math.nan, "mu_forces_lo": math.nan, "mu_forces_hi": math.nan,
+           "mu_forces_determined": False,
+           "mu_forces_lower_bound": float(live["coa_true"].max())}
+    try:
+        fit = fit_polach(live["creepage_true"].to_numpy(float),
+                         live["coa_true"].to_numpy(float),
+                         lateral_coa=live["lateral_coa_true"].to_numpy(float))
+    except (InputError, ProcessingError):
+        return out
+    lo, hi = fit.mu_interval_95
+    out.update(mu_forces=_f(fit.mu), mu_forces_lo=_f(lo), mu_forces_hi=_f(hi),
+               mu_forces_determined=fit.mu is not None,
+               mu_forces_lower_bound=float(fit.mu_lower_bound))
     return out
 
 
@@ -220,6 +243,8 @@ def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.
         for r in rows:
             r.update(by_step.get(r["step"], {}))
     df = pd.DataFrame(rows)
+    if task.mode != "full":
+        point.update(_forces_mu_theory(df))
     for col in ("phase_deg", "phase_se_deg", "coa", "creepage", "phase_simulated_deg"):
         if col not in df:
             df[col] = np.nan
