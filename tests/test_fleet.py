@@ -130,6 +130,9 @@ def test_fleet_on_two_worker_processes(fleet, cluster, tmp_path):
     track = pd.read_parquet(out / "track")
     assert {"vehicle", "date", "run", "axle"} <= set(track.columns)
     assert track["run"].astype(str).unique().tolist() == ["train1"]
+    import dask.dataframe as dd  # Dask reads the same layout
+    lazy = dd.read_parquet(out / "track")
+    assert {"vehicle", "date", "run", "axle"} <= set(lazy.columns) and len(lazy) == len(track)
     axle = track["axle"].astype(int)
     _same(track.loc[axle == 1, list(alone.columns)], alone)
     _same(track.loc[axle == 2, list(alone.columns)], alone2)
