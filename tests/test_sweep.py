@@ -314,3 +314,12 @@ modulation.frequency_hz = [2.0, 4.0]
     # measured 0.0023 deg (wet, near 80 %): the undisturbed twin is far inside the issue's
     # bound; 0.01 deg still leaves 4x margin for the settling of the steps
     assert np.max(np.abs(diff)) < 0.01, np.max(np.abs(diff))
+
+
+def test_cli_reports_a_bad_sweep_file_before_starting_a_cluster(tmp_path, capsys):
+    from torquemod.cli import main
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[grid]\nrig.sped_km_h = [5.0]\n", encoding="utf-8")
+    assert main(["sweep", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml" in err and "did you mean 'rig.speed_km_h'" in err

@@ -23,6 +23,8 @@ from .summary import BAND, point_summary, recommend, setting_table
 
 __all__ = ["make_figures", "recommend", "write_report"]
 
+#: rows of the per-step table shown in the page (all are in sweep.parquet)
+MAX_TABLE_ROWS = 2000
 _STEP_COLUMNS = ("point_index", "seed", "step", "dc_torque_nm", "utilisation", "coa",
                  "creepage", "phase_deg", "phase_se_deg", "phase_theory_deg",
                  "phase_simulated_deg", "creep_coefficient", "creepage_swing",
@@ -133,10 +135,12 @@ def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
                            [[int(r.point_index), r.params, int(r.seed), r.message]
                             for r in failures.itertuples()], left=4))
     cols = [c for c in _STEP_COLUMNS if c in tab]
+    shown = tab.head(MAX_TABLE_ROWS)
     parts.append("<h2>Table</h2><p>Every column of every step is in <code>sweep.parquet"
-                 "</code>; a selection:</p><details><summary>per-step table</summary>")
-    parts.append(table(cols, [[r[c] if not isinstance(r[c], float) else float(r[c])
-                               for c in cols] for _, r in tab.iterrows()]))
+                 "</code>; a selection" + (f" (the first {MAX_TABLE_ROWS} of {len(tab)} rows)"
+                                           if len(tab) > MAX_TABLE_ROWS else "")
+                 + ":</p><details><summary>per-step table</summary>")
+    parts.append(table(cols, [[r[c] for c in cols] for _, r in shown.iterrows()]))
     parts.append("</details><h2>Provenance</h2>")
     parts.append(f"<p>torquemod {escape(__version__)}; base config: "
                  f"{escape(str(spec.base) if spec.base else 'the V-Track default')}; "

@@ -30,7 +30,7 @@ import pandas as pd
 
 from .._version import __version__
 from ..errors import InputError, TorquemodError
-from ..fsutil import write_atomic
+from ..fsutil import output_lock, write_atomic
 from ..jsonutil import dump_json
 from .evaluate import PointTask, evaluate_point
 from .spec import SweepSpec, load_sweep
@@ -214,6 +214,14 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
     out = Path(out_dir).absolute()
     if out.exists() and not out.is_dir():
         raise InputError("the sweep output is not a folder", path=out)
+    with output_lock(out):  # one sweep at a time writes OUT (a second one fails at once)
+        return _run_locked(spec, out, t0, in_process=in_process, scheduler=scheduler,
+                           n_workers=n_workers, force=force, progress=progress,
+                           report=report, on_dashboard=on_dashboard)
+
+
+def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler, n_workers,
+                force, progress, report, on_dashboard) -> SweepResult:
     out.mkdir(parents=True, exist_ok=True)
     todo = tasks(spec)
     rows, link = _evaluate_all(todo, out, in_process=in_process, scheduler=scheduler,
