@@ -314,6 +314,8 @@ modulation.frequency_hz = [2.0, 4.0]
     # measured 0.0023 deg (wet, near 80 %): the undisturbed twin is far inside the issue's
     # bound; 0.01 deg still leaves 4x margin for the settling of the steps
     assert np.max(np.abs(diff)) < 0.01, np.max(np.abs(diff))
+    agr = json.loads((tmp_path / "tw" / "sweep.json").read_text())["agreement"]
+    assert agr["twin_minus_theory_max_deg"] == pytest.approx(np.max(np.abs(diff)))
 
 
 def test_cli_reports_a_bad_sweep_file_before_starting_a_cluster(tmp_path, capsys):

@@ -87,7 +87,9 @@ def _theory_steps(config, t_peak: float) -> list[dict]:
     duration = config.procedure.cycles_per_step * rig.revolution_s
     rows = []
     for i, dc in enumerate(config.procedure.dc_torques_nm, start=1):
-        row = {"step": i, "dc_torque_nm": float(dc), "utilisation": float(dc) / t_peak}
+        # rounded: a fraction of the peak comes back as itself, not 0.9500000000000001
+        row = {"step": i, "dc_torque_nm": float(dc),
+               "utilisation": round(float(dc) / t_peak, 12)}
         op = operating_point(dc, rig)
         ls = None if op.slipped else large_signal_phase_deg(dc, rig, f, mod.amplitude_nm,
                                                             drive="motor")

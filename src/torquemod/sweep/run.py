@@ -247,6 +247,7 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
     else:
         (out / "sweep.parquet").unlink(missing_ok=True)
     from .report import recommend, write_report
+    from .summary import agreement
     rec = recommend(table, spec) if not table.empty else {"setting": None,
                                                           "reasoning": "no point finished"}
     wall = time.perf_counter() - t0
@@ -255,7 +256,8 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
            "points": {s: int((status["status"] == s).sum())
                       for s in ("done", "skipped", "failed")},
            "status": status.to_dict(orient="records"), "wall_s": wall,
-           "recommendation": rec}
+           "recommendation": rec,
+           "agreement": agreement(table) if not table.empty else None}
     report_path = None
     if report and not table.empty:
         report_path = write_report(out, table, spec, rec, status=status,

@@ -23,7 +23,7 @@ import pandas as pd
 
 from .spec import SweepSpec
 
-__all__ = ["BAND", "point_summary", "recommend", "setting_table"]
+__all__ = ["BAND", "agreement", "point_summary", "recommend", "setting_table"]
 
 #: utilisation band of the sensitivity dphi/du [-]
 BAND = (0.5, 0.8)
@@ -36,6 +36,20 @@ def _slope(u: np.ndarray, phi: np.ndarray) -> float:
     if ok.sum() < 2 or np.ptp(u[ok]) <= 0:
         return math.nan
     return float(np.polyfit(u[ok], phi[ok], 1)[0]) / 100.0  # deg per % of utilisation
+
+
+def agreement(table: pd.DataFrame) -> dict:
+    """How the twin and the chain agree with the large-signal theory over every step that
+    did not slip: the largest and median |twin - theory| phase [deg] (full mode), and the
+    chain's |phase - theory| / standard error (median, largest)."""
+    live = table[~table["slipped"].astype(bool)]
+    d = live["phase_twin_minus_theory_deg"].abs().dropna()
+    z = ((live["phase_deg"] - live["phase_theory_deg"]) / live["phase_se_deg"]).abs().dropna()
+    return {"n_steps": len(live),
+            "twin_minus_theory_max_deg": float(d.max()) if len(d) else None,
+            "twin_minus_theory_median_deg": float(d.median()) if len(d) else None,
+            "chain_z_median": float(z.median()) if len(z) else None,
+            "chain_z_max": float(z.max()) if len(z) else None}
 
 
 def effective_error(mu_phase, lo, mu_true, determined) -> float:
