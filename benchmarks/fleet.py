@@ -6,9 +6,11 @@ each, MDF4), then for each worker count processes the whole fleet with
 :func:`torquemod.fleet.run_fleet` on a ``LocalCluster`` of that many single-threaded worker
 processes (``force``: nothing skipped) and prints
 
-* hours of recording per minute of wall time (workers warmed up: imports and numba
-  caches loaded before the clock starts), and the scaling efficiency against 1 worker
-  (speed-up / workers),
+* the wall time of ``run_fleet`` and, of it, the seconds spent writing ``fleet_report.html``
+  in the client (serial: matplotlib),
+* hours of recording per minute of processing (wall time less the report; workers warmed up:
+  imports and numba caches loaded before the clock starts), and the scaling efficiency
+  against 1 worker (speed-up / workers),
 * CPU seconds the workers spent (their own ``process_time``), hence the figure per core,
 * peak RSS per worker (``ru_maxrss``).
 
@@ -97,7 +99,7 @@ def main() -> None:
         print(f"cores visible: {os.cpu_count()}; load average {os.getloadavg()[0]:.1f}; "
               f"fleet: {args.runs} rig runs, {args.train_runs} train runs, "
               f"{hours * 60:.1f} min of recording")
-        print(f"{'workers':>7s} {'wall s':>7s} {'h/min':>7s} {'efficiency':>10s} "
+        print(f"{'workers':>7s} {'wall s':>7s} {'report s':>8s} {'h/min':>7s} {'efficiency':>10s} "
               f"{'worker CPU s':>12s} {'h/min per CPU-core':>18s} {'peak RSS/worker':>15s}")
         base = None
         for n in args.workers:
@@ -117,11 +119,11 @@ def main() -> None:
                 print(res.failures.to_string())
             cpu = sum(after[w]["cpu_s"] - before[w]["cpu_s"] for w in after)
             rss = max(a["maxrss_mib"] for a in after.values())
-            rate = hours / (res.wall_s / 60)
+            rate = hours / ((res.wall_s - res.report_s) / 60)
             if n == 1:
                 base = rate
             eff = f"{rate / (base * n):10.2f}" if base else f"{'-':>10s}"
-            print(f"{n:7d} {res.wall_s:7.1f} {rate:7.2f} {eff} {cpu:12.1f} "
+            print(f"{n:7d} {res.wall_s:7.1f} {res.report_s:8.1f} {rate:7.2f} {eff} {cpu:12.1f} "
                   f"{hours / (cpu / 60):18.2f} {rss:12.0f} MiB", flush=True)
 
 

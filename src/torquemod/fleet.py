@@ -445,7 +445,8 @@ def prune_empty(out: Path) -> None:
 class FleetResult:
     """What :func:`run_fleet` did: ``summary`` (one row per run, :data:`SUMMARY_COLUMNS`),
     ``failures`` (its failed rows), the output folder, the dashboard address (None when
-    the cluster has none), the wall time [s] and the report (None when not written)."""
+    the cluster has none), the wall time [s] (``report_s`` of it spent writing the report)
+    and the report (None when not written)."""
 
     out_dir: Path
     summary: pd.DataFrame
@@ -453,6 +454,7 @@ class FleetResult:
     dashboard: str | None
     wall_s: float
     report: Path | None = None
+    report_s: float = 0.0
 
     def count(self, status: str) -> int:
         return int((self.summary["status"] == status).sum())
@@ -501,12 +503,12 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
                            ["run", "kind", "manifest", "message"]].reset_index(drop=True)
     _write_csv(summary, out / "fleet_summary.csv")
     _write_csv(failures, out / "failures.csv")
-    page = None
+    page, t_report = None, time.perf_counter()
     if report:
         from .fleetreport import write_fleet_report
         page = write_fleet_report(out, summary, failures)
     return FleetResult(out, summary, failures, links[0] if links else None,
-                       time.perf_counter() - t0, page)
+                       time.perf_counter() - t0, page, time.perf_counter() - t_report)
 
 
 def _run_tasks(client, paths: list[Path], names: list[str], out: str, force: bool,
