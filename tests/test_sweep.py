@@ -3,6 +3,7 @@ the recommendation, and the twin against the large-signal theory."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -261,6 +262,27 @@ def test_recommendation_is_the_most_accurate_setting_within_the_limits():
     rec = recommend(tab, spec)
     assert rec["setting"]["modulation_frequency_nominal_hz"] == 2.0
     assert rec["within_limits"] is False and "No setting" in rec["reasoning"]
+
+
+def test_one_recommendation_per_noise_level():
+    tab, spec = _fake_table(errors=[1.0, 3.0, 5.0], ripples=[10.0, 10.0, 10.0],
+                            swings=[1e-3, 1e-3, 1e-3])
+    noisy = tab.copy()
+    noisy["sensors.torque_noise_nm"] = 1.0
+    noisy["point_id"] += "n"
+    # at the higher noise the 1 Hz setting loses its accuracy (20 %): 2 Hz is then the best
+    noisy.loc[noisy["modulation.frequency_hz"] == 1.0, "mu_phase"] *= 1.2
+    tab["sensors.torque_noise_nm"] = 0.2
+    both = pd.concat([tab, noisy], ignore_index=True)
+    both["modulation_frequency_nominal_hz"] = both["modulation_frequency_hz"]
+    spec = dataclasses.replace(spec, swept=(*spec.swept, "sensors.torque_noise_nm"))
+    rec = recommend(both, spec)
+    assert [g["noise"] for g in rec["by_noise"]] == [{"sensors.torque_noise_nm": 0.2},
+                                                     {"sensors.torque_noise_nm": 1.0}]
+    assert [g["setting"]["modulation_frequency_nominal_hz"] for g in rec["by_noise"]] == \
+        [1.0, 2.0]
+    assert rec["setting"] == rec["by_noise"][0]["setting"]
+    assert rec["reasoning"].startswith("At sensors.torque_noise_nm = 0.2:")
 
 
 # -------------------------------------------------------------------------- full sweeps

@@ -131,9 +131,14 @@ def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
             f"{agr['chain_z_median']:.2f} of its standard errors (median; largest "
             f"{agr['chain_z_max']:.2f}).</p>")
     parts.append("<h2>Recommendation</h2>")
-    cls = "warn" if rec.get("within_limits") is False or rec.get("setting") is None else ""
-    parts.append(f"<p class='{cls}'>{escape(rec.get('reasoning', ''))}</p>")
-    parts.append(_settings_html(rec))
+    for grp in rec.get("by_noise") or [rec]:
+        if "noise" in grp:
+            parts.append("<h3>" + escape(", ".join(f"{k} = {v}" for k, v in
+                                                    grp["noise"].items())) + "</h3>")
+        cls = ("warn" if grp.get("within_limits") is False or grp.get("setting") is None
+               else "")
+        parts.append(f"<p class='{cls}'>{escape(grp.get('reasoning', ''))}</p>")
+        parts.append(_settings_html(grp))
     parts.append("<h2>Figures</h2>")
     for stem, png, caption in figs:
         parts.append(_img(png, stem, caption))

@@ -140,19 +140,46 @@ def _name(row) -> str:
             f"{row['modulation_amplitude_nm']:.4g} N*m")
 
 
+def noise_keys(spec: SweepSpec) -> list[str]:
+    """The swept keys that set the noise level (``sensors.*``, ``disturbances.*``)."""
+    return [k for k in spec.swept if k.startswith(("sensors.", "disturbances."))]
+
+
 def recommend(table: pd.DataFrame, spec: SweepSpec) -> dict:
     """The modulation setting that gives the most accurate mu from the phase below the
     utilisation limit with the disturbance within the limits, and why (a JSON-ready dict:
-    ``setting``, ``reasoning`` text, ``settings`` table, ``limits``)."""
-    opts = spec.recommend
+    ``setting``, ``reasoning`` text, ``settings`` table, ``limits``). When the sweep varies
+    the noise (:func:`noise_keys`), one recommendation per noise level in ``by_noise``
+    (``noise``, ``setting``, ``reasoning``, ``settings``); the top level then holds the
+    first level's, and the reasoning all of them."""
     summary = point_summary(table, spec)
+    keys = noise_keys(spec)
+    if not keys:
+        return _recommend(summary, spec)
+    groups = []
+    for value, g in summary.groupby(keys, sort=False):
+        value = value if isinstance(value, tuple) else (value,)
+        noise = dict(zip(keys, (v.item() if hasattr(v, "item") else v for v in value),
+                         strict=True))
+        groups.append({"noise": noise, **_recommend(g, spec)})
+    doc = {k: groups[0][k] for k in ("limits", "settings", "setting")}
+    doc["by_noise"] = groups
+    doc["reasoning"] = " ".join(
+        "At " + ", ".join(f"{k} = {v}" for k, v in grp["noise"].items()) + ": "
+        + grp["reasoning"] for grp in groups)
+    return doc
+
+
+def _recommend(summary: pd.DataFrame, spec: SweepSpec) -> dict:
+    opts = spec.recommend
     settings = setting_table(summary, spec)
     limits = {"max_utilisation": opts.max_utilisation,
               "max_creepage_swing": opts.max_creepage_swing,
               "max_torque_ripple_pct": opts.max_torque_ripple_pct}
     doc = {"limits": limits, "settings": settings.to_dict(orient="records"), "setting": None}
     others = [k for k in spec.swept if k not in ("modulation.frequency_hz",
-                                                 "modulation.amplitude_nm")]
+                                                 "modulation.amplitude_nm",
+                                                 *noise_keys(spec))]
     varying = others + (["seed"] if len(spec.seeds) > 1 else [])
     per = int(settings["n_points"].max()) if len(settings) else 0
     over = (f"each over its {per} points (varying {', '.join(varying)})" if varying
@@ -215,10 +242,8 @@ def recommend(table: pd.DataFrame, spec: SweepSpec) -> dict:
         lines.append(f"{len(bad)} of {len(summary)} points have the true mu outside the 95 % "
                      "interval or below the reported lower bound (see the points table): "
                      "there the phase model does not describe the measurement.")
-    noise = [k for k in spec.swept if k.startswith("sensors.")]
     lines.append("The recommendation holds for the base rig" + (
-        f" over the swept noise levels ({', '.join(noise)})" if noise
-        else " at its configured sensor noise") + "; a train or another noise level needs "
-        "its own sweep (base = its config).")
+        " at this noise level" if noise_keys(spec) else " at its configured sensor noise")
+        + "; a train needs its own sweep (base = its config).")
     doc["reasoning"] = " ".join(lines)
     return doc
