@@ -151,7 +151,11 @@ def test_fleet_on_two_worker_processes(fleet, cluster, tmp_path):
     rig_stamp = rig_part.stat().st_mtime_ns
     _edit_toml(fleet / "axle2" / "experiment.toml",
                lambda d: d["test"].update(date=dt.date(2025, 3, 6)))
+    crashed = out / "cycles" / "vehicle=unknown" / "date=unknown" / ".run=axle9.tmp"
+    crashed.mkdir()  # what a worker killed while writing leaves
+    (crashed / "part-0.parquet").write_bytes(b"half")
     again = run_fleet([fleet], out, scheduler=cluster.scheduler_address)
+    assert not crashed.exists()
     status = dict(zip(again.summary["run"], again.summary["status"], strict=True))
     assert status == {"axle1": "skipped", "axle2": "processed", "damaged": "failed",
                       "train1": "skipped", "train_bad": "failed"}

@@ -427,13 +427,17 @@ def _remove(out: Path, rels: Iterable[str]) -> None:
 
 
 def prune_empty(out: Path) -> None:
-    """Remove empty partition folders (a run that moved to another vehicle or date, or
-    failed) below the datasets of ``out``."""
+    """Tidy the datasets of ``out`` once no task writes: remove the hidden leftovers of a
+    partition write cut short (``.run=<run>.tmp``/``.old``, e.g. by a killed worker) and
+    empty partition folders (a run that moved to another vehicle or date, or failed)."""
     for table in TABLES:
         root = out / table
         if not root.is_dir():
             continue
-        for folder, _dirs, _files in sorted(os.walk(root, topdown=False), reverse=True):
+        for folder, dirs, _files in os.walk(root, topdown=False):
+            for d in dirs:
+                if d.startswith(".") and d.endswith((".tmp", ".old")):
+                    shutil.rmtree(Path(folder) / d, ignore_errors=True)
             if Path(folder) != root:
                 try:
                     os.rmdir(folder)
