@@ -113,11 +113,13 @@ def test_fleet_on_two_worker_processes(fleet, cluster, tmp_path):
     labels = cycles.groupby("run", observed=True)[["vehicle", "date"]].first().astype(str)
     assert labels.loc["axle2"].tolist() == ["V-Track__2", "2025-03-04"]
     assert labels.loc["axle1"].tolist() == ["unknown", "unknown"]
+    steps = pd.read_parquet(out / "steps")
     for run in ("axle1", "axle2"):
-        alone = process_experiment(fleet / run / "experiment.toml", workers=1).cycles
-        got = cycles[cycles["run"].astype(str) == run].drop(columns=["run", "vehicle", "date"])
-        _same(got, alone)
-    assert len(pd.read_parquet(out / "steps")) == 4
+        alone = process_experiment(fleet / run / "experiment.toml", workers=1)
+        for got, ref in ((cycles, alone.cycles), (steps, alone.steps)):
+            _same(got[got["run"].astype(str) == run].drop(columns=["run", "vehicle", "date"]),
+                  ref)
+    assert len(steps) == 4
     # the train run: the same rows `torquemod onboard` writes to track.parquet (and
     # track_axle2.parquet), in files of exactly its 13 columns; vehicle, date, run, axle
     # from the partitions
