@@ -95,6 +95,7 @@ contact.mu0 = 0.2
     ("seeds = [1]\nrepeats = 2\n", ["not both"]),
     ("[recommend]\nmax_swing = 1\n", ["did you mean 'max_creepage_swing'"]),
     ("[grid\n", ["TOML syntax error"]),
+    ("[processing.phase]\nmethd = 'sinefit'\n", ["sweep.toml [processing]", "methd"]),
 ])
 def test_bad_sweep_files(tmp_path, text, words):
     path = tmp_path / "sweep.toml"
@@ -286,6 +287,17 @@ def test_one_recommendation_per_noise_level():
 
 
 # -------------------------------------------------------------------------- full sweeps
+
+def test_chain_config_scales_with_the_frequency_and_takes_the_processing_table():
+    from torquemod.config import ProcessingConfig
+    from torquemod.sweep.evaluate import chain_config
+    assert chain_config(2.0) == ProcessingConfig()  # the defaults are the 2 Hz ones
+    c = chain_config(4.0, {"phase": {"method": "sinefit"}, "slow": {"max_hz": 1.0}})
+    assert c.frequency.band_hz == (3.0, 5.0) and c.bandpass.width_hz == pytest.approx(0.72)
+    assert c.highpass.cutoff_hz == 1.0 and c.phase.method == "sinefit"
+    assert c.slow.max_hz == 1.0  # given: wins over the scaled 2.4 Hz
+    assert c.phase.n_periods == ProcessingConfig().phase.n_periods
+
 
 def test_full_sweep_on_the_chain(tmp_path):
     spec = parse_sweep('mode = "full"\nseeds = [2]\n' + SHORT

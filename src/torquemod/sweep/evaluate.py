@@ -48,6 +48,7 @@ class PointTask:
     base: str | None
     fractions_of_peak: tuple[float, ...] | None
     max_utilisation: float
+    processing: dict = dataclasses.field(default_factory=dict)
 
 
 def point_config(task: PointTask):
@@ -165,23 +166,35 @@ def _f(x) -> float:
     return math.nan if x is None else float(x)
 
 
-def chain_config(frequency_hz: float):
+def chain_config(frequency_hz: float, processing: dict | None = None):
     """The processing chain's parameters for a modulation at ``frequency_hz`` [Hz]: the
     defaults (tuned for the paper's 2 Hz) with every frequency-bound setting scaled by
     ``frequency_hz/2``: the search band (1.5-2.5 Hz), the band-pass width (0.36 Hz), the
-    high-pass cut-off (0.5 Hz) and the slow-variation model's top (1.2 Hz)."""
+    high-pass cut-off (0.5 Hz) and the slow-variation model's top (1.2 Hz); then the keys
+    the sweep's ``processing`` table gives (nested as a manifest's ``[processing]``)."""
     from ..config import ProcessingConfig
     d = ProcessingConfig()
     s = float(frequency_hz) / 2.0
-    return dataclasses.replace(
+    cfg = dataclasses.replace(
         d, frequency=dataclasses.replace(d.frequency, band_hz=(d.frequency.band_hz[0] * s,
                                                                d.frequency.band_hz[1] * s)),
         bandpass=dataclasses.replace(d.bandpass, width_hz=d.bandpass.width_hz * s),
         highpass=dataclasses.replace(d.highpass, cutoff_hz=d.highpass.cutoff_hz * s),
         slow=dataclasses.replace(d.slow, max_hz=d.slow.max_hz * s))
+    if not processing:
+        return cfg
+    given = ProcessingConfig.from_dict(processing, source="sweep [processing]")
+    changes = {}
+    for key, value in processing.items():
+        sub = getattr(given, key)
+        changes[key] = (dataclasses.replace(getattr(cfg, key),
+                                            **{k: getattr(sub, k) for k in value})
+                        if isinstance(value, dict) else sub)
+    return dataclasses.replace(cfg, **changes)
 
 
-def _full_steps(config, t_peak: float, seed: int, workdir: Path) -> tuple[list[dict], dict]:
+def _full_steps(config, t_peak: float, seed: int, workdir: Path,
+                processing: dict | None = None) -> tuple[list[dict], dict]:
     """Twin -> chain -> fits: the chain's and the twin's columns per step, and the point's
     force fit and mu from the phase over all steps (the analysis of ``torquemod fit``)."""
     from ..api import analyze, process
@@ -193,7 +206,7 @@ def _full_steps(config, t_peak: float, seed: int, workdir: Path) -> tuple[list[d
             f"the wheel slips at the first step (DC torque "
             f"{config.procedure.dc_torques_nm[0]:.4g} N*m, creep-curve peak {t_peak:.4g} N*m)")
     res = process(workdir / "experiment" / "experiment.toml",
-                  chain_config(config.modulation.frequency_hz), workers=1)
+                  chain_config(config.modulation.frequency_hz, processing), workers=1)
     ana = analyze(res)
     chain = ana.steps.set_index("step")
     rows = []
@@ -238,7 +251,7 @@ def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.
     if task.mode == "full":
         tmp = Path(tempfile.mkdtemp(prefix=f"sweep-{task.point_id}-", dir=workdir))
         try:
-            chain_rows, point = _full_steps(config, t_peak, task.seed, tmp)
+            chain_rows, point = _full_steps(config, t_peak, task.seed, tmp, task.processing)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
         by_step = {r["step"]: r for r in chain_rows}

@@ -46,7 +46,9 @@ def tasks(spec: SweepSpec) -> list[PointTask]:
     return [PointTask(point_id=p.point_id, index=p.index, params=p.params,
                       overrides=p.overrides(), seed=p.seed, mode=spec.mode, base=base,
                       fractions_of_peak=spec.fractions_of_peak,
-                      max_utilisation=spec.recommend.max_utilisation) for p in spec.points]
+                      max_utilisation=spec.recommend.max_utilisation,
+                      processing=spec.processing if spec.mode == "full" else {})
+            for p in spec.points]
 
 
 def fingerprint(task: PointTask) -> str:
@@ -59,6 +61,7 @@ def fingerprint(task: PointTask) -> str:
     blob = json.dumps({"params": task.params, "seed": task.seed, "mode": task.mode,
                        "fractions": task.fractions_of_peak,
                        "max_utilisation": task.max_utilisation, "version": __version__,
+                       "processing": task.processing,
                        "base": hashlib.sha256(base_text.encode()).hexdigest()},
                       sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()

@@ -30,7 +30,7 @@ __all__ = ["CONDITION_KEY", "RecommendOptions", "SweepPoint", "SweepSpec", "cond
 #: A sweep-only key: a named friction condition filling the five Polach parameters
 CONDITION_KEY = "contact.condition"
 _TOP_KEYS = ("name", "description", "base", "mode", "seeds", "repeats", "max_utilisation",
-             "fixed", "steps", "grid", "point", "recommend")
+             "fixed", "steps", "grid", "point", "recommend", "processing")
 _STEP_KEYS = ("fractions_of_peak",)
 _MODES = ("full", "theory")
 _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
@@ -120,6 +120,7 @@ class SweepSpec:
     fixed: dict = field(default_factory=dict)
     fractions_of_peak: tuple[float, ...] | None = None
     recommend: RecommendOptions = RecommendOptions()
+    processing: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         return {"name": self.name, "description": self.description,
@@ -128,7 +129,8 @@ class SweepSpec:
                 "seeds": list(self.seeds), "swept": list(self.swept), "fixed": self.fixed,
                 "fractions_of_peak": (None if self.fractions_of_peak is None
                                       else list(self.fractions_of_peak)),
-                "recommend": self.recommend.__dict__, "n_points": len(self.points)}
+                "recommend": self.recommend.__dict__, "processing": self.processing,
+                "n_points": len(self.points)}
 
 
 def _flatten(table: dict, prefix: str = "") -> dict:
@@ -224,6 +226,15 @@ def _recommend(doc: dict, path) -> RecommendOptions:
     return RecommendOptions(**{k: float(v) for k, v in table.items()})
 
 
+def _processing(doc: dict, path) -> dict:
+    """The ``[processing]`` table (the chain's parameters as an experiment manifest takes
+    them, docs/processing.md), checked now so that a typo names the sweep file."""
+    table = doc.get("processing", {})
+    from ..config import ProcessingConfig
+    ProcessingConfig.from_dict(table, source=f"{path} [processing]")
+    return table
+
+
 def parse_sweep(text: str, *, path: str | Path | None = None) -> SweepSpec:
     """Parse and check the sweep file's ``text`` (``path`` names it in errors and anchors a
     relative ``base``)."""
@@ -289,7 +300,8 @@ def parse_sweep(text: str, *, path: str | Path | None = None) -> SweepSpec:
                      name=str(doc.get("name", Path(str(where)).stem)),
                      description=str(doc.get("description", "")), base=base_path, mode=mode,
                      seeds=seeds, points=tuple(points), swept=swept, fixed=fixed,
-                     fractions_of_peak=fr, recommend=_recommend(doc, where))
+                     fractions_of_peak=fr, recommend=_recommend(doc, where),
+                     processing=_processing(doc, where))
 
 
 def load_sweep(path: str | Path) -> SweepSpec:
