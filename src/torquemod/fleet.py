@@ -535,7 +535,7 @@ def _run_tasks(client, paths: list[Path], names: list[str], out: str, force: boo
     bar = tqdm(total=len(runs), desc="fleet", unit="run", disable=not progress)
     done = as_completed(list(runs))
     for fut in done:
-        name, manifest = runs[fut]
+        name, manifest = runs.pop(fut)  # nothing held once handled
         try:
             res = fut.result()
         except Exception as exc:  # the worker died under the task
