@@ -173,11 +173,17 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
             on_dashboard(link)
 
     with dask_client(scheduler, n_workers, dashboard) as client:
-        futures = [client.submit(run_point, t, str(out), force, pure=False,
-                                 key=f"torquemod-sweep-{t.point_id}-{time.time_ns()}")
-                   for t in todo]
+        futures = {client.submit(run_point, t, str(out), force, pure=False,
+                                 key=f"torquemod-sweep-{t.point_id}-{time.time_ns()}"): t
+                   for t in todo}
         for fut in as_completed(futures):
-            rows.append(fut.result())
+            try:
+                rows.append(fut.result())
+            except Exception as exc:  # the worker died (memory, a kill): the point failed
+                t = futures[fut]
+                rows.append({"point_id": t.point_id, "point_index": t.index, "seed": t.seed,
+                             "status": "failed", "n_rows": 0, "seconds": float("nan"),
+                             "message": f"worker lost: {_one_line(exc)}"})
             bar.update()
     bar.close()
     return rows, (links[0] if links else None)
