@@ -15,6 +15,7 @@ Sign convention of the project: the phase is positive when the wheel speed lags 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -184,14 +185,35 @@ def phase_crb_deg(amplitude_1: float, amplitude_2: float, noise_std_1: float, no
     return float(np.degrees(np.sqrt((1 / eta1 + 1 / eta2) / n_samples)))
 
 
+@functools.lru_cache(maxsize=16)
+def _hann_periodic(n: int) -> tuple[np.ndarray, float]:
+    """The periodic Hann window of n samples (``scipy.signal.get_window('hann', n)``) and the
+    sum of its squares."""
+    w = signal.get_window("hann", n)
+    return w, float(w @ w)
+
+
+def periodogram_density(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """One-sided Hann-windowed periodogram [unit^2/Hz] of ``x`` (mean removed), the same
+    numbers as ``scipy.signal.periodogram(x - mean, fs, window='hann', detrend=False,
+    scaling='density')`` (tested) without its general cross-spectral machinery, which
+    dominates on the on-board estimator's one-second windows."""
+    x = np.asarray(x, dtype=np.float64)
+    n = x.size
+    w, ss = _hann_periodic(n)
+    spec = np.fft.rfft((x - x.mean()) * w)
+    p = (spec.real ** 2 + spec.imag ** 2) / (fs_hz * ss)
+    p[1:n // 2 + (n % 2)] *= 2.0  # one-sided: every bin but DC and (n even) Nyquist
+    return np.fft.rfftfreq(n, 1.0 / fs_hz), p
+
+
 def local_noise_psd(residual: np.ndarray, fs_hz: float, f_hz: float, *,
                     half_width_hz: float = 0.75) -> float:
     """One-sided noise power spectral density [unit^2/Hz] of ``residual`` near ``f_hz``: the
     mean of its Hann-windowed periodogram over ``f_hz +- half_width_hz``, leaving out the
-    two bins nearest ``f_hz`` (where a fitted line's remainder would sit)."""
-    r = np.asarray(residual, dtype=np.float64)
-    f, p = signal.periodogram(r - r.mean(), fs_hz, window="hann", detrend=False,
-                              scaling="density")
+    two bins nearest ``f_hz`` (where a fitted line's remainder would sit); the mean over all
+    bins but DC when that band holds fewer than two bins (windows shorter than ~3 s)."""
+    f, p = periodogram_density(residual, fs_hz)
     df = f[1] - f[0]
     sel = (np.abs(f - f_hz) <= half_width_hz) & (np.abs(f - f_hz) > 1.5 * df)
     if sel.sum() < 2:

@@ -8,23 +8,36 @@ give identical rows. Memory is bounded: one window of samples and the windows of
 
 mu along the track
 ------------------
-The windows of the last ``memory_m`` metres (slips left out) are grouped by CoA into bins;
-each bin gives one point (inverse-variance means; the standard error widened by the
-windows' overlap). Every creep coefficient is turned into the phase it would have at the
-current constant ``C = Omega*J*V/(R^2*N)`` (rigid relation ``tan(phi) = C/k``, V-Track paper
-Eq. 1), so points at other speeds enter one fit, :func:`torquemod.phasefit.fit_mu_from_phase`
-(C known). mu and its 95 % interval are given when that fit determines them; otherwise mu is
-empty and ``mu_low_95`` carries the lower bound: the largest CoA (less two standard errors)
-of the windows of the last ``bound_m`` metres only, because adhesion cannot exceed the
-friction *where it was measured* (a longer memory carries a higher friction into a
-low-adhesion patch). The fit is redone every ``refit_m`` metres.
+The steady windows since the last friction change (at most ``memory_m`` metres; slips and
+windows with a DC torque step inside left out) are sorted by CoA and grouped (up to
+``n_bins`` groups); each group gives one point (inverse-variance mean of k; its standard error
+the larger of the windows' own, widened by their overlap, and the group's scatter, plus a
+relative model error ``model_rel_error``). :func:`torquemod.onboard.mufit.fit_creep_progression`
+fits the Polach family with constant *and* falling friction (Polach 2005 Eqs. 8-9) and gives
+the friction at the current operating point with its 95 % profile interval. mu is reported
+only when that interval is closed and within ``max_rel_half_width``, no change is suspected,
+the current window is steady, its CoA is not above the fit, and a window worked at
+``info_utilisation`` of mu or more within the last ``info_m`` metres (at low utilisation the
+creep coefficient hardly depends on mu, so a fit is not carried far past its evidence).
+Otherwise mu is empty and ``mu_low_95`` is the lower bound: the CoA less two standard errors
+of the windows of the last ``bound_m`` metres (by default the current window alone), because
+adhesion cannot exceed the friction where it was measured. The fit is redone every
+``refit_m`` metres.
+
+Friction changes
+----------------
+:class:`ChangeDetector`: a two-sided CUSUM of each steady window's log creep coefficient
+against the current fitted curve; at an alarm the memory is cut at the change's start. A
+window whose CoA lies beyond the fitted curve counts as strong evidence even when stepping.
 
 Flags
 -----
 ``slip``: the creepage exceeds ``slip_creepage`` or the axle accelerates faster than the
 vehicle by ``slip_accel_m_s2``. ``low_adhesion``: the creep coefficient has fallen below
 ``low_adhesion_ratio`` of the reference (the 90th percentile of the creep coefficient over
-the last ``baseline_m`` metres, i.e. its value at low utilisation), or the axle slips.
+the last ``baseline_m`` metres, i.e. its value at low utilisation) in a steady window (a DC
+torque step inside a window corrupts its k: measured, all false flags on dry rail came from
+such windows), or the axle slips.
 """
 
 from __future__ import annotations
@@ -38,7 +51,8 @@ import numpy as np
 from ..errors import InputError, ProcessingError
 from ..io.manifest import check_keys
 from ..io.run import Vehicle
-from ..phasefit import R_BOUNDS, fit_mu_from_phase
+from ..phasefit import R_BOUNDS
+from .mufit import CreepFit, fit_creep_progression
 from .window import WindowResult, measure_window
 
 #: The columns of track.parquet, in order (issue 10).
@@ -53,15 +67,22 @@ class OnboardConfig:
 
     window_periods: int = 5
     hop_s: float = 0.25
-    memory_m: float = 300.0
-    bound_m: float = 40.0
+    memory_m: float = 1500.0
+    bound_m: float = 1.0
     refit_m: float = 100.0
-    n_bins: int = 8
+    change_drift: float = 1.0
+    change_threshold: float = 10.0
+    max_rel_half_width: float = 0.25
+    model_rel_error: float = 0.05
+    max_dc_step_ratio: float = 0.25
+    info_utilisation: float = 0.5
+    info_m: float = 30.0
+    n_bins: int = 12
     min_windows: int = 12
     min_coa_ratio: float = 2.0
     ratio_bounds: tuple[float, float] = R_BOUNDS
     baseline_m: float = 600.0
-    low_adhesion_ratio: float = 0.35
+    low_adhesion_ratio: float = 0.25
     slip_creepage: float = 0.03
     slip_accel_m_s2: float = 0.8
 
@@ -91,10 +112,67 @@ class _Fit:
     mu: float | None
     low: float
     high: float | None
+    model: CreepFit | None = None
+
+
+class ChangeDetector:
+    """Two-sided CUSUM (Page 1954) on the log residual of each window's creep coefficient
+    against the current fitted curve, ``z = ln(k/k_fit(CoA))/s`` with
+    ``s^2 = (k_se/k)^2 + model_rel^2``; a window above the fitted mu counts as ``+z_cap``.
+    An alarm when either sum exceeds ``threshold`` returns the position where that sum last
+    left zero: where the friction changed."""
+
+    def __init__(self, drift: float, threshold: float, model_rel: float = 0.25,
+                 z_cap: float = 6.0):
+        self.drift, self.threshold, self.model_rel, self.z_cap = drift, threshold, model_rel, z_cap
+        self.reset()
+
+    def reset(self) -> None:
+        self.up = self.down = 0.0
+        self.last_z = 0.0
+        self.up_start = self.down_start = math.nan
+
+    def update(self, w: WindowResult, model: CreepFit | None, steady: bool = True
+               ) -> float | None:
+        """Add a window; the change position when the CUSUM alarms, else None. An unsteady
+        window (a DC step inside it) counts only when its CoA lies beyond the curve."""
+        k = w.creep_coefficient
+        if model is None:
+            return None
+        pred = float(model.creep_coefficient(w.coa))
+        beyond = not (math.isfinite(pred) and pred > 0)
+        if not beyond and not (steady and math.isfinite(k) and k > 0):
+            return None
+        if beyond:
+            z = self.z_cap
+        else:
+            rel = w.creep_coefficient_se / k if math.isfinite(w.creep_coefficient_se) else 1.0
+            z = math.log(k / pred) / math.hypot(rel, self.model_rel)
+            z = max(-self.z_cap, min(self.z_cap, z))
+        if self.up == 0.0:
+            self.up_start = w.position_m
+        if self.down == 0.0:
+            self.down_start = w.position_m
+        self.up = max(0.0, self.up + z - self.drift)
+        self.down = max(0.0, self.down - z - self.drift)
+        self.last_z = z
+        if self.up > self.threshold or self.down > self.threshold:
+            start = self.up_start if self.up > self.threshold else self.down_start
+            self.reset()
+            return start
+        return None
+
+    @property
+    def suspicious(self) -> bool:
+        """A change may be under way: a sum above a third of the threshold, or the last
+        window far off the curve (then the fitted mu is withheld, not reported)."""
+        return (max(self.up, self.down) > self.threshold / 3
+                or abs(self.last_z) >= self.z_cap / 2)
 
 
 class MuTracker:
-    """mu from the windows of the last ``memory_m`` metres (module docstring)."""
+    """mu from the windows since the last friction change (at most ``memory_m`` metres;
+    module docstring)."""
 
     def __init__(self, vehicle: Vehicle, frequency_hz: float, config: OnboardConfig,
                  overlap: float):
@@ -104,13 +182,26 @@ class MuTracker:
         self.recent: deque[WindowResult] = deque()
         self.fit: _Fit | None = None
         self.n_fits = 0
+        self.detector = ChangeDetector(config.change_drift, config.change_threshold)
+        self.changes: list[float] = []
 
     def add(self, w: WindowResult, slip: bool) -> None:
+        model = self.fit.model if self.fit is not None else None
+        steady = w.dc_step_ratio <= self.cfg.max_dc_step_ratio
+        change = None if slip else self.detector.update(w, model, steady)
+        if change is not None:
+            self.changes.append(change)
+            for q in (self.mem, self.recent):
+                while q and q[0].position_m < change:
+                    q.popleft()
+            self.fit = None
         if not slip:
             self.recent.append(w)
         while self.recent and self.recent[0].position_m < w.position_m - self.cfg.bound_m:
             self.recent.popleft()
-        if not slip and math.isfinite(w.creep_coefficient) and w.creep_coefficient > 0:
+        steady = w.dc_step_ratio <= self.cfg.max_dc_step_ratio
+        if (not slip and steady and math.isfinite(w.creep_coefficient)
+                and w.creep_coefficient > 0):
             self.mem.append(w)
         while self.mem and self.mem[0].position_m < w.position_m - self.cfg.memory_m:
             self.mem.popleft()
@@ -128,40 +219,41 @@ class MuTracker:
         coa, k, k_se = coa[ok], k[ok], k_se[ok]
         if coa.size < self.cfg.min_windows or coa.max() < self.cfg.min_coa_ratio * coa.min():
             return None
-        edges = np.linspace(coa.min(), coa.max(), self.cfg.n_bins + 1)
-        idx = np.clip(np.searchsorted(edges, coa, side="right") - 1, 0, self.cfg.n_bins - 1)
+        order = np.argsort(coa, kind="stable")
+        size = max(4, -(-coa.size // self.cfg.n_bins))  # ceil: at most n_bins groups
         pts = []
-        for b in range(self.cfg.n_bins):
-            sel = idx == b
-            if sel.sum() < 2:
-                continue
-            wgt = 1.0 / k_se[sel] ** 2
-            k_b = float(np.sum(wgt * k[sel]) / wgt.sum())
+        for grp in np.array_split(order, max(1, coa.size // size)):
+            wgt = 1.0 / k_se[grp] ** 2
+            k_b = float(np.sum(wgt * k[grp]) / wgt.sum())
             se_b = math.sqrt(self.overlap / wgt.sum())
-            scatter = float(np.std(k[sel], ddof=1)) / math.sqrt(sel.sum() / self.overlap)
-            pts.append((float(coa[sel].mean()), k_b, max(se_b, scatter)))
+            scatter = float(np.std(k[grp], ddof=1)) / math.sqrt(grp.size / self.overlap)
+            se = math.hypot(max(se_b, scatter), self.cfg.model_rel_error * k_b)
+            pts.append((float(coa[grp].mean()), k_b, se))
         return np.array(pts) if len(pts) >= 4 else None
 
     def _fit(self, w: WindowResult) -> _Fit:
         pts = self._points()
-        if pts is None:
+        res = None if pts is None else fit_creep_progression(
+            *pts.T, coa_now=w.coa, ratio_bounds=self.cfg.ratio_bounds,
+            max_rel_half_width=self.cfg.max_rel_half_width)
+        self.n_fits += pts is not None
+        if res is None:
             return _Fit(w.position_m, None, math.nan, None)
-        v = max(w.speed_m_s, 0.5)
-        c = 2 * math.pi * self.f * self.v.inertia_kg_m2 * v / (
-            self.v.wheel_radius_m ** 2 * self.v.normal_load_n)
-        coa, k, k_se = pts.T
-        phase = np.degrees(np.arctan(c / k))
-        phase_se = np.degrees(c / (k * k + c * c) * k_se)
-        self.n_fits += 1
-        try:
-            res = fit_mu_from_phase(coa, phase, phase_se, constant=c,
-                                    ratio_bounds=self.cfg.ratio_bounds)
-        except InputError:
-            return _Fit(w.position_m, None, math.nan, None)
-        if res.mu_determined and res.mu is not None:
-            lo, hi = res.mu_interval_95
-            return _Fit(w.position_m, float(res.mu), float(lo), float(hi))
-        return _Fit(w.position_m, None, math.nan, None)
+        if res.determined:
+            return _Fit(w.position_m, res.mu, res.mu_low, res.mu_high, res)
+        return _Fit(w.position_m, None, math.nan, None, res)
+
+    def informed(self, position_m: float, mu: float) -> bool:
+        """A steady window worked at ``info_utilisation`` of mu or more within the last
+        ``info_m`` metres: at low utilisation the creep coefficient hardly depends on mu
+        (wet and leaf-covered rail look alike there), so a fit is only carried that far."""
+        level = self.cfg.info_utilisation * mu
+        for m in reversed(self.mem):
+            if m.position_m < position_m - self.cfg.info_m:
+                return False
+            if m.coa >= level:
+                return True
+        return False
 
     def lower_bound(self) -> float:
         """Largest CoA less two standard errors over the last ``bound_m`` metres [-]."""
@@ -231,14 +323,21 @@ class OnboardEstimator:
                 or w.wheel_excess_accel_m_s2 > self.cfg.slip_accel_m_s2)
         k = w.creep_coefficient
         ref = self._baseline(w)
-        low = bool(slip or (math.isfinite(k) and math.isfinite(ref)
+        steady = w.dc_step_ratio <= self.cfg.max_dc_step_ratio  # a step corrupts k
+        low = bool(slip or (steady and math.isfinite(k) and math.isfinite(ref)
                             and k < self.cfg.low_adhesion_ratio * ref))
-        if math.isfinite(k) and not slip:
+        if math.isfinite(k) and not slip and steady:
             self.k_hist.append((w.position_m, k))
         self.tracker.add(w, slip)
         fit = self.tracker.fit
-        mu = fit.mu if fit is not None else None
-        if mu is not None:
+        mu = fit.mu if fit is not None and not self.tracker.detector.suspicious else None
+        if w.dc_step_ratio > self.cfg.max_dc_step_ratio:
+            mu = None  # the torque is stepping: the window cannot confirm the curve
+        if mu is not None and w.coa - 2 * w.coa_se > mu:
+            mu = None  # the window's adhesion is above the fitted friction: the fit is stale
+        if mu is not None and not self.tracker.informed(w.position_m, mu):
+            mu = None  # no window near saturation lately: a change would go unseen
+        if mu is not None and fit is not None:
             lo, hi = fit.low, fit.high
         else:
             lo, hi = self.tracker.lower_bound(), None
@@ -249,4 +348,5 @@ class OnboardEstimator:
                 "utilisation": math.nan if mu is None else w.coa / mu,
                 "low_adhesion": low, "slip": bool(slip),
                 "creepage": w.creepage, "dc_torque_nm": w.dc_torque_nm,
-                "accel_m_s2": w.accel_m_s2, "creep_coefficient_ref": ref}
+                "accel_m_s2": w.accel_m_s2, "creep_coefficient_ref": ref,
+                "dc_step_ratio": w.dc_step_ratio}

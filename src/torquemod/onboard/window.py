@@ -16,13 +16,16 @@ from ..io.run import Vehicle
 
 @dataclass(frozen=True)
 class WindowResult:
-    """Measurements of one window. ``time_s`` [s] and ``position_m`` [m] at its end (when
-    a live system has the result), means of ``speed_m_s`` (reference) [m/s],
+    """Measurements of one window. ``time_s`` [s] and ``position_m`` [m] at its centre
+    (the row describes the stretch the window covers; a live system has it half a window
+    later, at the window's end), means of ``speed_m_s`` (reference) [m/s],
     ``wheel_speed_rad_s``, ``dc_torque_nm`` [N*m] at the axle; ``accel_m_s2`` [m/s^2] of
     the reference; ``coa`` [-] (with ``coa_se``), ``creepage`` [-], the lag ``phase_deg``
     [deg] with ``phase_se_deg``, ``creep_coefficient`` [-] dCoA/dxi from the phase (with
     ``creep_coefficient_se``), ``creepage_swing`` [-] the modulation's creepage amplitude,
-    ``wheel_excess_accel_m_s2`` [m/s^2] (R*dw/dt - dV/dt)."""
+    ``wheel_excess_accel_m_s2`` [m/s^2] (R*dw/dt - dV/dt); ``dc_step_ratio`` [-] the change of
+    the mean torque from the first to the last modulation period over the modulation's
+    amplitude (a DC step inside the window leaks into the sine fit)."""
 
     time_s: float
     position_m: float
@@ -39,6 +42,7 @@ class WindowResult:
     creep_coefficient_se: float
     creepage_swing: float
     wheel_excess_accel_m_s2: float
+    dc_step_ratio: float = 0.0
 
 
 def load_impedance(ratio: complex, vehicle: Vehicle, frequency_hz: float) -> complex:
@@ -122,12 +126,16 @@ def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
                                   frequency_hz)
         return d * v_ref / (r * r * n_load)
 
+    per = max(1, round(fs_hz / frequency_hz))
+    step = abs(float(torque_nm[-per:].mean() - torque_nm[:per].mean()))
     k = k_of(phi, rho)
     k_se = math.hypot(k_of(phi + e, rho) - k, k_of(phi, rho * (1 + e)) - k)
     return WindowResult(
-        time_s=float(t_end_s), position_m=float(position_m[-1]), speed_m_s=v_mean,
-        wheel_speed_rad_s=w_mean, dc_torque_nm=t_dc, accel_m_s2=dv_dt, coa=coa,
+        time_s=float(t_end_s) - (n - 1) / (2 * fs_hz), position_m=float(position_m.mean()),
+        speed_m_s=v_mean, wheel_speed_rad_s=w_mean, dc_torque_nm=t_dc, accel_m_s2=dv_dt,
+        coa=coa,
         coa_se=coa_se, creepage=creepage, phase_deg=phase,
         phase_se_deg=fit.phase_stderr_deg, creep_coefficient=k, creep_coefficient_se=k_se,
         creepage_swing=r * fit.wheel_amplitude / v_ref,
-        wheel_excess_accel_m_s2=r * dw_dt - dv_dt)
+        wheel_excess_accel_m_s2=r * dw_dt - dv_dt,
+        dc_step_ratio=step / max(fit.torque_amplitude, 1e-12))
