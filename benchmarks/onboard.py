@@ -32,6 +32,19 @@ def _truth_at(track, truth, col):
     return np.interp(track["position_m"], truth["position_m"], truth[col])
 
 
+def natural(seeds: int, out: Path) -> None:
+    """No probe: the driver's own demand (hold 20 m/s, accelerate with 12 kN*m through dry
+    into wet rail, coast, brake with -8 kN*m, hold the speed), the axle alone."""
+    cfg = load_train_config()
+    legs = (Leg(until_m=800.0, mode="speed", speed_m_s=20.0),
+            Leg(until_m=2000.0, mode="torque", torque_nm=12_000.0),
+            Leg(until_m=2500.0, mode="coast"),
+            Leg(until_m=3100.0, mode="torque", torque_nm=-8_000.0),
+            Leg(until_m=4000.0, mode="speed", speed_m_s=20.0))
+    cfg = dataclasses.replace(cfg, controller=dataclasses.replace(cfg.controller, legs=legs))
+    _segment_stats(cfg, seeds, out, "natural driving, no probe", "nat")
+
+
 def measurement(depth: float, seeds: int, out: Path, a_ratio: float | None = None) -> None:
     cfg = load_train_config()
     legs = tuple(dataclasses.replace(leg, levels=tuple(np.linspace(0.2, depth, 4)))
@@ -42,12 +55,20 @@ def measurement(depth: float, seeds: int, out: Path, a_ratio: float | None = Non
                                                                        a_ratio=a_ratio))
                      for s in cfg.track.segments)
         cfg = dataclasses.replace(cfg, track=dataclasses.replace(cfg.track, segments=segs))
+    falling = "Polach's presets" if a_ratio is None else f"A = {a_ratio} in every segment"
+    _segment_stats(cfg, seeds, out, f"{falling}, staircase to {depth:.0%} of the available "
+                   "adhesion", f"{depth}_{a_ratio}")
+
+
+def _segment_stats(cfg, seeds: int, out: Path, title: str, tag: str) -> None:
+    """Run ``cfg`` over the seeds and print per friction segment: rows, share with mu, median
+    error, coverage, lower bound above the truth, low_adhesion at <= 50 % utilisation."""
     stats: dict[str, list] = {}
     wall = sim_s = 0.0
     for seed in range(seeds):
-        run = out / f"run{depth}_{seed}"
+        run = out / f"run{tag}_{seed}"
         run_train_simulation(cfg, run, seed=seed, force=True)
-        res = run_onboard(run / "run.toml", out / f"res{depth}_{seed}", force=True)[0]
+        res = run_onboard(run / "run.toml", out / f"res{tag}_{seed}", force=True)[0]
         wall += res.seconds
         t, tr = res.track, res.truth
         sim_s += float(t["time_s"].iloc[-1] - t["time_s"].iloc[0])
@@ -71,9 +92,7 @@ def measurement(depth: float, seeds: int, out: Path, a_ratio: float | None = Non
             lb = part["mu_low_95"].to_numpy()[~given]
             s[4] += int((lb > mt[~given]).sum())
             s[5] += int((~given).sum())
-    falling = "Polach's presets" if a_ratio is None else f"A = {a_ratio} in every segment"
-    print(f"\nmeasurement runs ({falling}), staircase to {depth:.0%} of the available "
-          f"adhesion, {seeds} seeds")
+    print(f"\nmeasurement runs ({title}), {seeds} seeds")
     print(f"{'condition':>18} {'rows':>6} {'mu given':>9} {'median err':>11} "
           f"{'coverage':>9} {'LB > truth':>11} {'low_adh. at u<=0.5':>19}")
     for c, (n, g, err, cov, lb_bad, n_lb, la, n_la) in stats.items():
@@ -160,6 +179,7 @@ def main() -> None:
         for depth in args.depth:
             measurement(depth, args.seeds, out)
             measurement(depth, args.seeds, out, a_ratio=0.95)
+        natural(args.seeds, out)
         low_adhesion(args.seeds, out)
         speed(out)
         print(f"\n(benchmark wall time {time.perf_counter() - t0:.0f} s)")
