@@ -688,11 +688,16 @@ def _align(channels: dict[str, np.ndarray], grids: dict[str, _Grid | None], ref:
             else:
                 what = "interpolated linearly (not low-passed: it holds NaN/inf)"
         out[name] = _interpolated(x, plan, lo, hi)
-        err = (2 * math.pi * SIGNAL_BAND_HZ / plan.grid.fs_hz) ** 2 / 8
+        if plan.grid.fs_hz > 2 * SIGNAL_BAND_HZ:
+            err = (2 * math.pi * SIGNAL_BAND_HZ / plan.grid.fs_hz) ** 2 / 8
+            bound = (f"error < {err:.1e} of the amplitude of a {SIGNAL_BAND_HZ:.0f} Hz "
+                     "component")
+        else:  # a slow reference (radar, GNSS): it carries no component that fast
+            bound = (f"a slow channel: components above {plan.grid.fs_hz / 2:.6g} Hz are "
+                     "not in it")
         notes.append(f"channel '{name}' on its own time base (starts {offset_ms:+.4f} ms from "
                      f"{TORQUE}, {plan.grid.fs_hz:.6g} Hz vs {ref.fs_hz:.6g} Hz): {what} "
-                     f"onto {TORQUE}'s sample times (error < {err:.1e} of the amplitude of a "
-                     f"{SIGNAL_BAND_HZ:.0f} Hz component)")
+                     f"onto {TORQUE}'s sample times ({bound})")
     if lo > 0 or hi < n - 1:
         notes.append(f"cut to the span all channels share: {lo} samples of {TORQUE} dropped "
                      f"at the start and {n - 1 - hi} at the end ({hi + 1 - lo} of {n} kept)")
