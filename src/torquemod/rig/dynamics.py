@@ -41,12 +41,15 @@ import numba
 import numpy as np
 
 from ..contact.polach import creep_force_scalar
+from .kernels import FLAGS
+from .kernels import cos_small as _cos_small
+from .kernels import exp_small as _exp_small
+from .kernels import sin_small as _sin_small
 from .params import DisturbanceParams, RigParams
 
 N_STATES = 7
 
-# fast-math without the no-NaN/no-inf assumptions, so that the slip check still sees NaN
-_FLAGS = {"contract", "arcp", "afn", "reassoc", "nsz"}
+_FLAGS = FLAGS
 # the Polach kernel compiled for this integrator
 _creep_force = numba.njit(cache=True, fastmath=_FLAGS)(creep_force_scalar)
 _FAST = {"fastmath": _FLAGS, "cache": True}
@@ -106,36 +109,14 @@ def normal_load(th_p: float, p: np.ndarray) -> float:
 # Within one RK4 step the platform turns by ~1e-4 rad, so every evaluation of the normal load
 # in the step is written as its sines and decay at the step's start angle (the "anchor")
 # rotated/decayed by the small increment, whose sin, cos and exp are Taylor polynomials
-# accurate to rounding for |u| <= _SMALL. The anchor itself is advanced the same way from
-# step to step and evaluated exactly every _ANCHOR_EXACT steps. Larger increments, and a rail
-# joint between anchor and angle, fall back to the exact :func:`normal_load`.
+# accurate to rounding for |u| <= _SMALL (:mod:`torquemod.rig.kernels`). The anchor itself is
+# advanced the same way from step to step and evaluated exactly every _ANCHOR_EXACT steps.
+# Larger increments, and a rail joint between anchor and angle, fall back to the exact
+# :func:`normal_load`.
 _SMALL = 0.05
 # anchor vector: angle, sin/cos of the sleeper argument, joint phase, joint decay, sin/cos
 A_TH, A_SS, A_SC, A_PHI, A_JE, A_JS, A_JC = range(7)
 N_ANCHOR = 7
-
-
-@numba.njit(**_FAST)
-def _sin_small(u):
-    # |u| <= 0.05: truncation below u**11/11! < 2e-22
-    v = u * u
-    return u * (1.0 - v / 6.0 * (1.0 - v / 20.0 * (1.0 - v / 42.0 * (1.0 - v / 72.0
-                                                                         * (1.0 - v / 110.0)))))
-
-
-@numba.njit(**_FAST)
-def _cos_small(u):
-    # |u| <= 0.05: truncation below u**12/12! < 1e-24
-    v = u * u
-    return 1.0 - v / 2.0 * (1.0 - v / 12.0 * (1.0 - v / 30.0 * (1.0 - v / 56.0
-                                                                  * (1.0 - v / 90.0))))
-
-
-@numba.njit(**_FAST)
-def _exp_small(x):
-    # |x| <= 0.05: truncation below x**9/9! < 6e-18 relative to 1 (0.05 ulp)
-    return 1.0 + x * (1.0 + x / 2.0 * (1.0 + x / 3.0 * (1.0 + x / 4.0 * (
-        1.0 + x / 5.0 * (1.0 + x / 6.0 * (1.0 + x / 7.0 * (1.0 + x / 8.0)))))))
 
 
 @numba.njit(**_FAST)

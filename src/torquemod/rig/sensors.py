@@ -12,7 +12,10 @@ import math
 import numba
 import numpy as np
 
-from .dynamics import _FLAGS, OUT_COLUMNS, _cos_small, _sin_small
+from .dynamics import OUT_COLUMNS
+from .kernels import FLAGS as _FLAGS
+from .kernels import cos_small as _cos_small
+from .kernels import sin_small as _sin_small
 from .params import DisturbanceParams, SensorParams
 
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}

@@ -1,0 +1,252 @@
+"""Ground truth of the twin's simulated steps: what ``truth.json`` records per step.
+
+Per step the steady state and the theory phases at its DC torque, and what was simulated over
+the recorded samples: means, CoA, the phase of the wheel speed behind the shaft torque with
+the speed loop's wobble fitted out (:func:`wobble_free_phase_deg`), the variation of the
+creepage and of the platform speed, also per platform revolution. Moved out of
+:mod:`torquemod.simulate` (which re-exports the public names) to keep modules small.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numba
+import numpy as np
+
+from ..theory import (
+    large_signal_phase_deg,
+    operating_point,
+    predicted_phase_deg,
+    rigid_wheel_phase_deg,
+)
+from .dynamics import OUT_COLUMNS, wobble_basis, wobble_reference
+from .params import SimConfig
+
+_COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
+
+
+def _cycle_bounds(theta: np.ndarray, start: int, cycles: int) -> list[int]:
+    """Sample indices where the platform angle has advanced by whole revolutions from
+    ``theta[start]``: ``[start, i1, ..., i_cycles]``."""
+    th0 = theta[start]
+    targets = th0 + 2.0 * np.pi * np.arange(1, cycles + 1)
+    idx = start + np.searchsorted(theta[start:], targets)
+    if idx[-1] >= theta.size:
+        raise RuntimeError("simulated segment too short for the requested revolutions")
+    return [start, *(int(i) for i in idx)]
+
+
+@numba.njit(cache=True)
+def _sine_fit_sums(x, y, n, dw, gram, rhs):
+    """Normal equations of the fit of ``cos(k*dw)``, ``sin(k*dw)``, 1 to ``x[:n]`` and
+    ``y[:n]``: ``gram`` (3, 3) and ``rhs`` (3, 2). The basis is rotated sample by sample
+    (exact sin/cos every 1024 samples); each signal is taken relative to its first sample
+    (absorbed by the DC term) to keep the sums well conditioned."""
+    cr, sr = math.cos(dw), math.sin(dw)
+    gram[:] = 0.0
+    rhs[:] = 0.0
+    c, s = 1.0, 0.0
+    x0, y0 = x[0], y[0]
+    for k in range(n):
+        if k % 1024 == 0:
+            c, s = math.cos(k * dw), math.sin(k * dw)
+        gram[0, 0] += c * c
+        gram[0, 1] += c * s
+        gram[0, 2] += c
+        gram[1, 1] += s * s
+        gram[1, 2] += s
+        u, v = x[k] - x0, y[k] - y0
+        rhs[0, 0] += u * c
+        rhs[1, 0] += u * s
+        rhs[2, 0] += u
+        rhs[0, 1] += v * c
+        rhs[1, 1] += v * s
+        rhs[2, 1] += v
+        c, s = c * cr - s * sr, s * cr + c * sr
+    gram[1, 0] = gram[0, 1]
+    gram[2, 0] = gram[0, 2]
+    gram[2, 1] = gram[1, 2]
+    gram[2, 2] = n
+
+
+def sine_fit_phase_deg(torque: np.ndarray, speed: np.ndarray, fs_hz: float,
+                       frequency_hz: float) -> float:
+    """Phase [deg] of ``speed`` behind ``torque`` at ``frequency_hz`` by a least-squares fit
+    of cos, sin and DC to each signal over the largest whole number of periods (IEEE Std 1057
+    three-parameter fit, FACTS.md §5; solved by its 3x3 normal equations). Positive when the
+    speed lags."""
+    n = int(np.floor(torque.size / fs_hz * frequency_hz) * fs_hz / frequency_hz)
+    if n < 3 or speed.size < n:
+        raise ValueError("sine fit needs one whole period of both signals")
+    gram, rhs = np.empty((3, 3)), np.empty((3, 2))
+    _sine_fit_sums(np.asarray(torque, dtype=np.float64), np.asarray(speed, dtype=np.float64),
+                   n, 2.0 * np.pi * frequency_hz / fs_hz, gram, rhs)
+    coef = np.linalg.solve(gram, rhs)
+    ang = np.angle(coef[0] - 1j * coef[1])  # x = A cos(w + phi) -> a = A cos phi, b = -A sin phi
+    return float((np.degrees(ang[0] - ang[1]) + 180.0) % 360.0 - 180.0)
+
+
+#: the wobble-aware truth fit uses every 8th sample (2 kHz at 16 670 Hz): every simulated line
+#: (modulation, its harmonics, the 15-100 Hz load and torsional lines) lies far below the
+#: decimated Nyquist frequency, so no alias lands on the modulation frequency
+_WOBBLE_FIT_STRIDE = 8
+
+
+def _phase_from_basis(x: np.ndarray, torque: np.ndarray, speed: np.ndarray) -> float:
+    """Phase [deg] of ``speed`` behind ``torque`` from a least-squares fit of the basis ``x``
+    whose first two columns are cos and sin at the modulation frequency."""
+    # normal equations solved by SVD: two wobble lines closer than the window resolves are
+    # near-collinear, which leaves the modulation's coefficients (orthogonal to them) intact
+    coef = np.linalg.lstsq(x.T @ x, x.T @ np.column_stack([torque, speed]), rcond=1e-12)[0]
+    ang = np.angle(coef[0] - 1j * coef[1])  # x = A cos(w + phi) -> a = A cos phi, b = -A sin phi
+    return float((np.degrees(ang[0] - ang[1]) + 180.0) % 360.0 - 180.0)
+
+
+def wobble_free_phase_deg(torque: np.ndarray, speed: np.ndarray, theta_rad: np.ndarray,
+                          fs_hz: float, frequency_hz: float, wobble: np.ndarray, *,
+                          t0_s: float = 0.0) -> float:
+    """:func:`sine_fit_phase_deg` with the speed loop's wobble (rows of
+    :func:`~torquemod.rig.dynamics.wobble_table`) fitted alongside: cos, sin and DC at
+    ``frequency_hz`` plus cos and sin at every wobble line (band rows at their rate in time
+    from ``t0_s`` [s], revolution rows at their order of the platform angle ``theta_rad``), so
+    that the wobble's leakage into the modulation line (up to 0.5 deg over three revolutions at
+    the default 0.2 % RMS, measured) stays out of the truth. Linear least squares on every
+    ``_WOBBLE_FIT_STRIDE``-th sample of the same whole modulation periods; without wobble rows
+    it is :func:`sine_fit_phase_deg`."""
+    if wobble.shape[0] == 0:
+        return sine_fit_phase_deg(torque, speed, fs_hz, frequency_hz)
+    n = int(np.floor(torque.size / fs_hz * frequency_hz) * fs_hz / frequency_hz)
+    idx = np.arange(0, n, _WOBBLE_FIT_STRIDE)
+    t = t0_s + idx / fs_hz
+    w = 2.0 * np.pi * frequency_hz
+    x = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones(idx.size),
+                         wobble_basis(wobble, t, theta_rad[idx])])
+    return _phase_from_basis(x, torque[idx], speed[idx])
+
+
+def _wobble_truth(config: SimConfig, wobble: np.ndarray) -> dict:
+    """truth.json's record of the wobble drawn for this run: configuration and realised
+    terms; ``reference_rms_pct`` is the RMS of the realised reference over a long run
+    (``sqrt(sum amp^2/2)/W0``) [%]."""
+    d, w0 = config.disturbances, config.rig.platform_speed_rad_s
+    f_rev = w0 / (2.0 * np.pi)
+    terms = []
+    for amp, rate, ph, kind in wobble.tolist():
+        band = kind < 0.5
+        terms.append({"kind": "band" if band else "revolution",
+                      "frequency_hz": rate / (2.0 * np.pi) if band else rate * f_rev,
+                      "order": None if band else int(rate),
+                      "amplitude_rel": amp / w0, "amplitude_rad_s": amp, "phase_rad": ph})
+    return {"enabled": bool(wobble.shape[0]), "rms": d.speed_wobble_rms,
+            "band_hz": list(d.speed_wobble_band_hz), "components": d.speed_wobble_components,
+            "rev1": d.speed_wobble_rev1, "rev2": d.speed_wobble_rev2,
+            "revolution_hz": f_rev, "terms": terms,
+            "reference_rms_pct": float(100.0 * np.sqrt(0.5 * np.sum(wobble[:, 0] ** 2)) / w0)}
+
+
+#: truth.json's columns averaged over a recorded span
+_MEANS = ("creepage", "torque_nm", "fx_n", "fy_n", "fz_n", "platform_speed_rad_s")
+
+
+def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.ndarray,
+                 spans: list[tuple[int, int]]) -> list[dict]:
+    """What was simulated over each span ``(a, b)`` of sample indices into ``raw`` (sample 0
+    at ``t0_s`` [s]): means, CoA of the mean forces, the phase with the wobble fitted out
+    (:func:`wobble_free_phase_deg`), the creepage's and the platform speed's variation
+    (``std``; the latter ``/mean`` [%]) and that of the speed reference over the same
+    samples. One basis at the fit's stride serves every span."""
+    f, fs = config.modulation.actual_frequency_hz, config.sensors.sample_rate_hz
+    w0 = config.rig.platform_speed_rad_s
+    th = raw[:, _COL["platform_angle_rad"]]
+    idx = np.arange(0, raw.shape[0], _WOBBLE_FIT_STRIDE)
+    t = t0_s + idx / fs
+    ref = wobble_reference(wobble, t, th[idx])
+    if wobble.shape[0]:
+        w = 2.0 * np.pi * f
+        x = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones(idx.size),
+                             wobble_basis(wobble, t, th[idx])])
+    # the averaged columns as contiguous rows: one strided pass over raw, not one per span
+    cols = np.ascontiguousarray(raw[:, [_COL[c] for c in _MEANS]].T)
+    out = []
+    for a, b in spans:
+        seg = raw[a:b]
+        m = dict(zip(_MEANS, cols[:, a:b].mean(axis=1).tolist(), strict=True))
+        if wobble.shape[0]:
+            n = int(np.floor((b - a) / fs * f) * fs / f)  # whole modulation periods
+            k = slice(np.searchsorted(idx, a), np.searchsorted(idx, a + n))
+            phase = _phase_from_basis(x[k], raw[idx[k], _COL["torque_nm"]],
+                                      raw[idx[k], _COL["wheel_speed_rad_s"]])
+        else:
+            phase = sine_fit_phase_deg(seg[:, _COL["torque_nm"]],
+                                       seg[:, _COL["wheel_speed_rad_s"]], fs, f)
+        r = ref[np.searchsorted(idx, a):np.searchsorted(idx, b)]
+        out.append({"creepage_mean": m["creepage"],
+                    "creepage_std": float(cols[0, a:b].std()),
+                    "coa_mean": float(np.hypot(m["fx_n"], m["fy_n"]) / m["fz_n"]),
+                    "torque_mean_nm": m["torque_nm"], "fx_mean_n": m["fx_n"],
+                    "fy_mean_n": m["fy_n"], "fz_mean_n": m["fz_n"], "phase_deg": phase,
+                    "platform_speed_rms_pct": float(
+                        100.0 * cols[5, a:b].std()
+                        / m["platform_speed_rad_s"]),
+                    "reference_rms_pct": float(100.0 * r.std() / w0) if r.size else 0.0})
+    return out
+
+
+def _large_signal(dc: float, config: SimConfig) -> float | None:
+    """Phase [deg] at the actual modulation amplitude (periodic steady state of the same
+    model, driven by the motor as in the simulation; :func:`large_signal_phase_deg`)."""
+    res = large_signal_phase_deg(dc, config.rig, config.modulation.actual_frequency_hz,
+                                 config.modulation.amplitude_nm, drive="motor")
+    return None if res.slipped else float(res.phase_deg)
+
+
+def _step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None,
+                slipped: bool, t0_s: float = 0.0, wobble: np.ndarray | None = None,
+                bounds: list[int] = (0, 0)) -> dict:
+    """Ground truth of one step: the steady state and theory at ``dc`` and, when not
+    ``slipped``, what was simulated over the recorded samples ``raw`` (from ``t0_s`` [s]) and
+    per platform revolution (``bounds``, indices into the step's output, ``raw`` starting
+    at ``bounds[0]``); see :func:`_spans_truth`."""
+    rig, f = config.rig, config.modulation.actual_frequency_hz
+    op = operating_point(dc, rig)
+    k = op.creep_coefficient
+    entry = {"step": i_step, "dc_torque_nm": dc, "slipped": bool(slipped),
+             "slipped_steady_state": op.slipped}
+    if op.slipped:
+        entry.update(creepage=None, coa=None, creep_coefficient=None, dcoa_dxi=None,
+                     phase_theory_deg=None, phase_rigid_deg=None,
+                     phase_large_signal_deg=None)
+    else:
+        entry.update(
+            creepage=op.creepage, coa=op.coa, creep_coefficient=k, dcoa_dxi=op.dcoa_dxi,
+            fx_n=op.fx_n, fy_n=op.fy_n,
+            phase_theory_deg=float(predicted_phase_deg(k, rig, f, creepage=op.creepage)),
+            phase_large_signal_deg=_large_signal(dc, config),
+            phase_rigid_deg=float(rigid_wheel_phase_deg(
+                k, inertia_kg_m2=rig.wheel_inertia_kg_m2, speed_m_s=rig.speed_m_s,
+                wheel_radius_m=rig.wheel_radius_m, normal_load_n=rig.normal_load_n,
+                frequency_hz=f)))
+    if raw is not None and not slipped:
+        wob = np.zeros((0, 4)) if wobble is None else wobble
+        rel = [(a - bounds[0], b - bounds[0]) for a, b in itertools.pairwise(bounds)]
+        spans = [(0, raw.shape[0])] + (rel if len(rel) > 1 else [])
+        whole, *cycles = _spans_truth(raw, t0_s, config, wob, spans)
+        entry["simulated"] = whole
+        if cycles:
+            whole["cycles"] = [{"cycle": j, **c} for j, c in enumerate(cycles, start=1)]
+    return entry
+
+
+def recorded_step_truth(i_step: int, dc: float, config: SimConfig, out: np.ndarray,
+                        n_done: int, t_step: float, wobble: np.ndarray, n_settle: int
+                        ) -> tuple[dict, list[int]]:
+    """Truth entry (:func:`_step_truth`) of a step that did not slip, integrated into ``out``
+    (``n_done`` samples from ``t_step`` [s]) and recorded from sample ``n_settle`` over the
+    procedure's platform revolutions; also the revolutions' sample bounds in ``out``."""
+    bounds = _cycle_bounds(out[:n_done, _COL["platform_angle_rad"]], n_settle,
+                           config.procedure.cycles_per_step)
+    raw = out[bounds[0]:bounds[-1]]
+    t0 = t_step + bounds[0] * (1.0 / config.sensors.sample_rate_hz)
+    return _step_truth(i_step, dc, config, raw, False, t0, wobble, bounds), bounds
