@@ -42,7 +42,8 @@ from .errors import InputError
 from .fsutil import atomic_dir
 from .io import write_manifest, write_recording
 from .jsonutil import dump_json
-from .rig.dynamics import OUT_COLUMNS, pack_parameters, wobble_table
+from .rig.batch import BatchPoint, plan_run, simulate_batch  # noqa: F401 - re-exported
+from .rig.dynamics import OUT_COLUMNS, pack_parameters
 from .rig.params import (
     ContactParams,
     DisturbanceParams,
@@ -53,7 +54,7 @@ from .rig.params import (
     SimConfig,
 )
 from .rig.sensors import measure
-from .rig.steps import integrate_step, plan_steps
+from .rig.steps import integrate_step
 from .rig.truth import (  # noqa: F401 - sine_fit_phase_deg, wobble_free_phase_deg re-exported
     _step_truth,
     _wobble_truth,
@@ -306,36 +307,30 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     rig, mod, proc = config.rig, config.modulation, config.procedure
     fs = config.sensors.sample_rate_hz
     dt = 1.0 / fs
-    rng = np.random.default_rng(seed)
     params = pack_parameters(rig, config.disturbances)
     torques = proc.dc_torques_nm
-    n_settle = round(proc.settle_s * fs)
-    n_rec = math.ceil((proc.cycles_per_step * rig.revolution_s * 1.01 + 0.1) * fs)
     # one wobble for the whole run: the rig's speed loop runs on across the steps (redrawn
-    # per step, the reference would jump by up to ~1 % of the speed at every step change)
-    wobble = wobble_table(config.disturbances, rig.platform_speed_rad_s, rng)
-    # the sensor noise: one stream per step (children of the seed's), so that the steps can
-    # be finished in any order and the run stays deterministic
-    noise_seeds = rng.bit_generator.seed_seq.spawn(1)[0].spawn(len(torques))
-    phases = [float(rng.uniform(0.0, 2.0 * np.pi)) if mod.random_phase else 0.0
-              for _ in torques]
-    # every step starts from the steady state of the torque before (rig/steps.py), so that
-    # they run side by side; each worker integrates a step and finishes it (truth, noise,
-    # files)
-    plans = plan_steps(config, wobble, phases, n_settle + n_rec)
+    # per step, the reference would jump by up to ~1 % of the speed at every step change);
+    # the sensor noise has one stream per step (children of the seed's), so that the steps
+    # can be finished in any order and the run stays deterministic; every step starts from
+    # the steady state of the torque before (rig/steps.py), so that they run side by side:
+    # each worker integrates a step and finishes it (truth, noise, files)
+    rp = plan_run(config, seed)
+    wobble, n_settle, n_step = rp.wobble, rp.n_settle, rp.n_step
+    plans = rp.steps
     bar = tqdm(total=len(torques), desc="simulate", unit="step", file=sys.stderr,
                disable=not progress)
 
     def run(plan, before):
         start = None if plan.y0 is not None else before.result()[2]
-        out, n_done, slipped, y_end = integrate_step(config, params, wobble, plan,
-                                                     n_settle + n_rec, start)
+        out, n_done, slipped, y_end = integrate_step(config, params, wobble, plan, n_step,
+                                                     start)
         bar.update(1)
         if slipped:
             return None, [], y_end, plan.t0_s + n_done * dt
         entry, bounds = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done,
                                             plan.t0_s, wobble, n_settle)
-        noise_rng = np.random.Generator(np.random.SFC64(noise_seeds[plan.index - 1]))
+        noise_rng = np.random.Generator(np.random.SFC64(rp.noise_seeds[plan.index - 1]))
         channels = measure(out[bounds[0]:bounds[-1]], disturbances=config.disturbances,
                            sensors=config.sensors, rng=noise_rng)
         return entry, _write_step(folder, plan, channels, bounds, fs, fmt,
