@@ -21,7 +21,8 @@ from ..theory import (
     predicted_phase_deg,
     rigid_wheel_phase_deg,
 )
-from .dynamics import OUT_COLUMNS, wobble_basis, wobble_reference
+from .dynamics import OUT_COLUMNS, wobble_basis
+from .kernels import SMALL, cos_small, sin_small
 from .params import SimConfig
 
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
@@ -150,46 +151,116 @@ def _wobble_truth(config: SimConfig, wobble: np.ndarray) -> dict:
 _MEANS = ("creepage", "torque_nm", "fx_n", "fy_n", "fz_n", "platform_speed_rad_s")
 
 
+@numba.njit(cache=True, nogil=True)
+def _span_moments(raw, a, b, cols, mean, std_cols, std):
+    """Means over rows ``a:b`` of ``raw`` of the columns ``cols`` into ``mean``, and the
+    standard deviations (two passes, as ``numpy.std``) of the columns ``std_cols`` (indices
+    into ``cols``) into ``std``: one pass over the rows instead of a copy per column."""
+    mean[:] = 0.0
+    for k in range(a, b):
+        for j in range(cols.size):
+            mean[j] += raw[k, cols[j]]
+    mean /= b - a
+    std[:] = 0.0
+    for k in range(a, b):
+        for j in range(std_cols.size):
+            d = raw[k, cols[std_cols[j]]] - mean[std_cols[j]]
+            std[j] += d * d
+    for j in range(std_cols.size):
+        std[j] = math.sqrt(std[j] / (b - a))
+
+
+#: fit samples between exact evaluations of the basis's sines (rotated in between)
+_BASIS_EXACT = 256
+
+
+@numba.njit(cache=True, nogil=True)
+def _fit_basis(t, w, wob, theta, x):
+    """The truth fit's basis at times ``t`` [s] (equally spaced) and platform angles
+    ``theta`` [rad] into ``x``: ``cos(w*t)``, ``sin(w*t)``, 1, then per wobble row
+    (:func:`~torquemod.rig.dynamics.wobble_table`) cos and sin of ``rate*t`` (band rows) or
+    ``order*theta`` (revolution rows) -- :func:`~torquemod.rig.dynamics.wobble_basis` and the
+    modulation's columns, each sine rotated from sample to sample (through ``rate*dt`` or
+    the angle's small increment, :mod:`torquemod.rig.kernels`) and exact every
+    ``_BASIS_EXACT`` samples."""
+    n = t.size
+    nw = wob.shape[0]
+    dt = t[1] - t[0] if n > 1 else 0.0
+    rates = np.empty(nw + 1)
+    rates[0] = w
+    for j in range(nw):
+        rates[j + 1] = wob[j, 1]
+    c, s = np.empty(nw + 1), np.empty(nw + 1)
+    for k in range(n):
+        exact = k % _BASIS_EXACT == 0
+        for j in range(nw + 1):
+            rev = j > 0 and wob[j - 1, 3] > 0.5
+            if rev:
+                d = rates[j] * (theta[k] - theta[k - 1]) if k > 0 else 0.0
+                arg = rates[j] * theta[k]
+            else:
+                d = rates[j] * dt
+                arg = rates[j] * t[k]
+            if exact or not abs(d) <= SMALL:
+                c[j], s[j] = math.cos(arg), math.sin(arg)
+            else:
+                cd, sd = cos_small(d), sin_small(d)
+                c[j], s[j] = c[j] * cd - s[j] * sd, s[j] * cd + c[j] * sd
+        x[k, 0], x[k, 1], x[k, 2] = c[0], s[0], 1.0
+        for j in range(nw):
+            x[k, 3 + 2 * j], x[k, 4 + 2 * j] = c[j + 1], s[j + 1]
+
+
+_MEAN_COLS = np.array([_COL[c] for c in _MEANS])
+_STD_COLS = np.array([_MEANS.index("creepage"), _MEANS.index("platform_speed_rad_s")])
+
+
 def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.ndarray,
                  spans: list[tuple[int, int]]) -> list[dict]:
     """What was simulated over each span ``(a, b)`` of sample indices into ``raw`` (sample 0
     at ``t0_s`` [s]): means, CoA of the mean forces, the phase with the wobble fitted out
     (:func:`wobble_free_phase_deg`), the creepage's and the platform speed's variation
     (``std``; the latter ``/mean`` [%]) and that of the speed reference over the same
-    samples. One basis at the fit's stride serves every span."""
+    samples. One basis at the fit's stride serves every span (and gives the reference:
+    ``amp*sin(arg + ph) = amp*(sin(arg)*cos(ph) + cos(arg)*sin(ph))``)."""
     f, fs = config.modulation.actual_frequency_hz, config.sensors.sample_rate_hz
     w0 = config.rig.platform_speed_rad_s
-    th = raw[:, _COL["platform_angle_rad"]]
     idx = np.arange(0, raw.shape[0], _WOBBLE_FIT_STRIDE)
     t = t0_s + idx / fs
-    ref = wobble_reference(wobble, t, th[idx])
-    if wobble.shape[0]:
+    sub = raw[idx]  # the fit's samples, all columns: one gather
+    nw = wobble.shape[0]
+    if nw:
         w = 2.0 * np.pi * f
-        x = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones(idx.size),
-                             wobble_basis(wobble, t, th[idx])])
-    # the averaged columns as contiguous rows: one strided pass over raw, not one per span
-    cols = np.ascontiguousarray(raw[:, [_COL[c] for c in _MEANS]].T)
+        x = np.empty((idx.size, 3 + 2 * nw))
+        _fit_basis(t, w, np.ascontiguousarray(wobble, dtype=np.float64),
+                   np.ascontiguousarray(sub[:, _COL["platform_angle_rad"]]), x)
+        coef = np.column_stack([wobble[:, 0] * np.sin(wobble[:, 2]),
+                                wobble[:, 0] * np.cos(wobble[:, 2])]).ravel()
+        ref = x[:, 3:] @ coef
+        ys = sub[:, [_COL["torque_nm"], _COL["wheel_speed_rad_s"]]]
+    else:
+        ref = np.zeros(idx.size)
+    mean, std = np.empty(_MEAN_COLS.size), np.empty(_STD_COLS.size)
     out = []
     for a, b in spans:
-        seg = raw[a:b]
-        m = dict(zip(_MEANS, cols[:, a:b].mean(axis=1).tolist(), strict=True))
-        if wobble.shape[0]:
+        _span_moments(raw, a, b, _MEAN_COLS, mean, _STD_COLS, std)
+        m = dict(zip(_MEANS, mean.tolist(), strict=True))
+        if nw:
             n = int(np.floor((b - a) / fs * f) * fs / f)  # whole modulation periods
             k = slice(np.searchsorted(idx, a), np.searchsorted(idx, a + n))
-            phase = _phase_from_basis(x[k], raw[idx[k], _COL["torque_nm"]],
-                                      raw[idx[k], _COL["wheel_speed_rad_s"]])
+            phase = _phase_from_basis(x[k], ys[k, 0], ys[k, 1])
         else:
+            seg = raw[a:b]
             phase = sine_fit_phase_deg(seg[:, _COL["torque_nm"]],
                                        seg[:, _COL["wheel_speed_rad_s"]], fs, f)
         r = ref[np.searchsorted(idx, a):np.searchsorted(idx, b)]
         out.append({"creepage_mean": m["creepage"],
-                    "creepage_std": float(cols[0, a:b].std()),
+                    "creepage_std": float(std[0]),
                     "coa_mean": float(np.hypot(m["fx_n"], m["fy_n"]) / m["fz_n"]),
                     "torque_mean_nm": m["torque_nm"], "fx_mean_n": m["fx_n"],
                     "fy_mean_n": m["fy_n"], "fz_mean_n": m["fz_n"], "phase_deg": phase,
-                    "platform_speed_rms_pct": float(
-                        100.0 * cols[5, a:b].std()
-                        / m["platform_speed_rad_s"]),
+                    "platform_speed_rms_pct": float(100.0 * std[1]
+                                                    / m["platform_speed_rad_s"]),
                     "reference_rms_pct": float(100.0 * r.std() / w0) if r.size else 0.0})
     return out
 
