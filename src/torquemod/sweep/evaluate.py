@@ -49,6 +49,8 @@ class PointTask:
     fractions_of_peak: tuple[float, ...] | None
     max_utilisation: float
     processing: dict = dataclasses.field(default_factory=dict)
+    kind: str = "rig"  # "train": evaluated by torquemod.sweep.trainpoint
+    max_mu_error: float = 0.10  # train: a mu row within this relative error counts
 
 
 def point_config(task: PointTask):
@@ -242,6 +244,9 @@ def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.
     """The rows of one point (raises :class:`~torquemod.errors.TorquemodError` when the
     point cannot be evaluated: a bad parameter, a wheel that slips at the first step).
     ``workdir`` holds the twin's experiment while the full chain runs (removed after)."""
+    if task.kind == "train":
+        from .trainpoint import evaluate_train_point
+        return evaluate_train_point(task, workdir=workdir)
     t0 = time.perf_counter()
     config, t_peak = point_config(task)
     rig, mod = config.rig, config.modulation
@@ -285,7 +290,8 @@ def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.
     point["mu_phase_lo_error"] = point["mu_phase_lo"] / mu_true - 1.0
     df["phase_twin_minus_theory_deg"] = df["phase_simulated_deg"] - df["phase_theory_deg"]
     head = {"point_id": task.point_id, "point_index": task.index,
-            **{k: v for k, v in task.params.items()}, "seed": task.seed, "mode": task.mode}
+            **{k: v for k, v in task.params.items()}, "seed": task.seed, "kind": "rig",
+            "mode": task.mode}
     info = {"modulation_frequency_hz": mod.actual_frequency_hz,
             "modulation_frequency_nominal_hz": mod.frequency_hz,
             "modulation_amplitude_nm": mod.amplitude_nm, "speed_m_s": rig.speed_m_s,

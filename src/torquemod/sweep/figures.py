@@ -217,7 +217,8 @@ def mu_error_figure(summary: pd.DataFrame, param: str, swept, *, ax=None) -> Fig
     return fig
 
 
-def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None) -> Figure:
+def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None,
+                       ripple_label: str = "torque ripple [% of Ts]") -> Figure:
     """Per modulation setting the largest creepage swing amplitude and torque ripple [% of
     the saturation torque] below the utilisation limit, with the limits dashed."""
     fig, axes = _axes(ax, 2, figsize=(7.0, 5.5))
@@ -230,7 +231,7 @@ def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None) -> Figu
     axes[0].set_ylabel("creepage swing [-]")
     axes[1].bar(x, settings["torque_ripple_pct_max"], color="C1")
     axes[1].axhline(limits["max_torque_ripple_pct"], color="k", ls="--", lw=0.8)
-    axes[1].set_ylabel("torque ripple [% of Ts]")
+    axes[1].set_ylabel(ripple_label)
     axes[1].set_xticks(x, label, fontsize=7)
     axes[0].set_title("disturbance added by the modulation (largest below the utilisation "
                       "limit; dashed: limits)", fontsize=9)

@@ -47,7 +47,8 @@ def tasks(spec: SweepSpec) -> list[PointTask]:
                       overrides=p.overrides(), seed=p.seed, mode=spec.mode, base=base,
                       fractions_of_peak=spec.fractions_of_peak,
                       max_utilisation=spec.recommend.max_utilisation,
-                      processing=spec.processing if spec.mode == "full" else {})
+                      processing=spec.processing if spec.mode == "full" else {},
+                      kind=spec.kind, max_mu_error=spec.recommend.max_mu_error)
             for p in spec.points]
 
 
@@ -56,9 +57,11 @@ def fingerprint(task: PointTask) -> str:
     torque fractions, the utilisation limit of the phase fit, the base config's text (the
     default config's when none) and the torquemod version."""
     from ..simulate import default_config_text
-    base_text = (Path(task.base).read_text(encoding="utf-8") if task.base
-                 else default_config_text())
-    blob = json.dumps({"params": task.params, "seed": task.seed, "mode": task.mode,
+    from ..train.params import default_train_config_text
+    default = default_train_config_text if task.kind == "train" else default_config_text
+    base_text = (Path(task.base).read_text(encoding="utf-8") if task.base else default())
+    extra = {"kind": task.kind, "max_mu_error": task.max_mu_error} if task.kind != "rig" else {}
+    blob = json.dumps({**extra, "params": task.params, "seed": task.seed, "mode": task.mode,
                        "fractions": task.fractions_of_peak,
                        "max_utilisation": task.max_utilisation, "version": __version__,
                        "processing": task.processing,
@@ -135,7 +138,8 @@ def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
 
 @dataclass(frozen=True)
 class SweepResult:
-    """What :func:`run_sweep` did: the table (one row per point and step), the status of
+    """What :func:`run_sweep` did: the table (one row per point and step; a train sweep:
+    per point and friction segment), the status of
     each point, the failures, the recommendation (a dict, see
     :func:`torquemod.sweep.report.recommend`), paths, dashboard link and wall time [s]."""
 
@@ -199,7 +203,8 @@ def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
         return pd.DataFrame()
     table = pd.concat(frames, ignore_index=True)
     table["point_index"] = table["point_id"].map(order)
-    return table.sort_values(["point_index", "step"], ignore_index=True)
+    return table.sort_values(["point_index", "segment" if spec.kind == "train" else "step"],
+                             ignore_index=True)
 
 
 def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
@@ -257,6 +262,12 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
         (out / "sweep.parquet").unlink(missing_ok=True)
     from .report import recommend, write_report
     from .summary import agreement
+    if spec.kind == "train":
+        from .trainreport import recommend_train as recommend
+        from .trainreport import write_train_report as write_report
+
+        def agreement(_table):  # the large-signal theory is the rig's
+            return None
     rec = recommend(table, spec) if not table.empty else {"setting": None,
                                                           "reasoning": "no point finished"}
     wall = time.perf_counter() - t0

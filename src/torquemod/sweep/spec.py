@@ -2,9 +2,11 @@
 docs/sweep.md).
 
 A sweep names a base twin configuration (the V-Track default, or a config TOML as
-``torquemod simulate`` reads it), the twin parameters to vary by their dotted config key
-(``"modulation.frequency_hz"``, ``"contact.mu0"``, ``"sensors.torque_noise_nm"``, ...; the keys
-of ``torquemod/data/vtrack_default.toml``), as a cartesian ``[grid]`` and/or a list of
+``torquemod simulate`` reads it; or a train run: ``base = "train"``, or a train config TOML
+with ``kind = "train"``, see :mod:`torquemod.sweep.trainpoint`), the twin parameters to vary
+by their dotted config key (``"modulation.frequency_hz"``, ``"contact.mu0"``,
+``"sensors.torque_noise_nm"``, ...; the keys of ``torquemod/data/vtrack_default.toml``, or
+the train's), as a cartesian ``[grid]`` and/or a list of
 ``[[point]]`` tables, the mode (``"full"``: twin + processing chain + fits; ``"theory"``:
 large-signal theory only) and the seeds. Every mistake is an :class:`InputError` naming the
 sweep file and the key, with the nearest known key when it looks like a typo.
@@ -68,6 +70,13 @@ class RecommendOptions:
     max_utilisation: float = 0.8
     max_creepage_swing: float = 2.0e-3
     max_torque_ripple_pct: float = 15.0
+    #: train sweeps: a mu row counts when its error is within ``max_mu_error`` [-]; a
+    #: setting qualifies when its 95 % intervals hold the truth in ``min_coverage`` [-] of
+    #: the rows with mu, and its torque ripple (median) stays within
+    #: ``max_torque_ripple_dc_pct`` [%] of the DC torque
+    max_mu_error: float = 0.10
+    min_coverage: float = 0.90
+    max_torque_ripple_dc_pct: float = 25.0
 
 
 @dataclass(frozen=True)
@@ -121,6 +130,9 @@ class SweepSpec:
     fractions_of_peak: tuple[float, ...] | None = None
     recommend: RecommendOptions = RecommendOptions()
     processing: dict = field(default_factory=dict)
+    #: "rig" (the V-Track twin, one row per torque step) or "train" (a train run, one row
+    #: per friction segment)
+    kind: str = "rig"
 
     def to_dict(self) -> dict:
         return {"name": self.name, "description": self.description,
@@ -130,7 +142,7 @@ class SweepSpec:
                 "fractions_of_peak": (None if self.fractions_of_peak is None
                                       else list(self.fractions_of_peak)),
                 "recommend": self.recommend.__dict__, "processing": self.processing,
-                "n_points": len(self.points)}
+                "kind": self.kind, "n_points": len(self.points)}
 
 
 def _flatten(table: dict, prefix: str = "") -> dict:
@@ -145,7 +157,7 @@ def _flatten(table: dict, prefix: str = "") -> dict:
     return out
 
 
-def _check_value(key: str, value, where: str, path) -> None:
+def _check_value(key: str, value, where: str, path, kind: str = "rig") -> None:
     """A parameter value must be a number, a string, a bool or a list of numbers, and a
     condition must be a known name."""
     ok = (isinstance(value, bool | str) or
@@ -155,6 +167,10 @@ def _check_value(key: str, value, where: str, path) -> None:
     if not ok:
         raise InputError(f"{where}: '{key}' has an unusable value {value!r}", path=path,
                          hint="give a number, a string, true/false or a list of numbers")
+    if kind == "train":
+        from .trainpoint import check_train_value
+        check_train_value(key, value, where, path)
+        return
     if key == CONDITION_KEY:
         known = conditions()
         if value not in known:
@@ -223,6 +239,8 @@ def _recommend(doc: dict, path) -> RecommendOptions:
                              path=path)
     if table.get("max_utilisation", 0.8) >= 1.0:
         raise InputError("max_utilisation must be below 1", path=path)
+    if table.get("min_coverage", 0.9) > 1.0:
+        raise InputError("min_coverage is a share: at most 1", path=path)
     return RecommendOptions(**{k: float(v) for k, v in table.items()})
 
 
@@ -233,6 +251,42 @@ def _processing(doc: dict, path) -> dict:
     from ..config import ProcessingConfig
     ProcessingConfig.from_dict(table, source=f"{path} [processing]")
     return table
+
+
+def _base(doc: dict, path, where) -> tuple[Path | None, str]:
+    """``(base config path or None, kind)``: ``"rig"`` and ``"train"`` are the packaged
+    defaults; a path (relative to the sweep file) is a train config when it says
+    ``kind = "train"``, else a rig config."""
+    base = doc.get("base", "rig")
+    if not isinstance(base, str):
+        raise InputError("'base' must be \"rig\", \"train\" or the path of a twin config "
+                         "TOML", path=where)
+    if base in ("rig", "train"):
+        return None, base
+    base_path = Path(base)
+    if not base_path.is_absolute() and path is not None:
+        base_path = Path(path).parent / base_path
+    if not base_path.is_file():
+        raise InputError(f"base config {base!r} not found", path=where,
+                         hint="give \"rig\" (the V-Track default), \"train\" (the default "
+                              "train run) or a config TOML (relative to the sweep file)")
+    try:
+        kind = tomllib.loads(base_path.read_text(encoding="utf-8")).get("kind", "rig")
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise InputError(f"cannot read the base config ({exc})", path=base_path) from None
+    return base_path, "train" if kind == "train" else "rig"
+
+
+def _train_only(doc: dict, mode: str, where) -> None:
+    """What a train sweep cannot take: the rig's theory mode, torque steps, chain settings."""
+    if mode != "full":
+        raise InputError(f"mode {mode!r} is for the rig; a train sweep runs the twin and the "
+                         "on-board estimator (mode = \"full\")", path=where)
+    for key, instead in (("steps", "controller.probe_levels or controller.probe_depth"),
+                         ("processing", "onboard.* keys in [fixed], [grid] or [[point]]")):
+        if key in doc:
+            raise InputError(f"[{key}] is for the rig; a train sweep does not take it",
+                             path=where, hint=f"use {instead}")
 
 
 def parse_sweep(text: str, *, path: str | Path | None = None) -> SweepSpec:
@@ -250,37 +304,30 @@ def parse_sweep(text: str, *, path: str | Path | None = None) -> SweepSpec:
         raise InputError(f"unknown mode {mode!r}", path=where,
                          hint="use \"full\" (twin + chain + fits) or \"theory\" "
                               "(large-signal theory only)")
-    base = doc.get("base", "rig")
-    if not isinstance(base, str):
-        raise InputError("'base' must be \"rig\" or the path of a twin config TOML",
-                         path=where)
-    base_path = None
-    if base != "rig":
-        base_path = Path(base)
-        if not base_path.is_absolute() and path is not None:
-            base_path = Path(path).parent / base_path
-        if not base_path.is_file():
-            raise InputError(f"base config {base!r} not found", path=where,
-                             hint="give \"rig\" (the V-Track default) or a config TOML "
-                                  "(relative to the sweep file)")
-    allowed = (*twin_keys(), CONDITION_KEY)
+    base_path, kind = _base(doc, path, where)
+    if kind == "train":
+        from .trainpoint import train_keys
+        _train_only(doc, mode, where)
+        allowed = train_keys(base_path)
+    else:
+        allowed = (*twin_keys(), CONDITION_KEY)
     fixed = _params(doc.get("fixed", {}), "[fixed]", where, allowed)
     for key, value in fixed.items():
-        _check_value(key, value, "[fixed]", where)
+        _check_value(key, value, "[fixed]", where, kind)
     grid = _params(doc.get("grid", {}), "[grid]", where, allowed)
     for key, values in grid.items():
         if not isinstance(values, list) or not values:
             raise InputError(f"[grid] '{key}' must be a non-empty list of values", path=where,
                              hint=f"e.g. {key} = [a, b, c]; a single value goes in [fixed]")
         for v in values:
-            _check_value(key, v, "[grid]", where)
+            _check_value(key, v, "[grid]", where, kind)
     listed = doc.get("point", [])
     if not isinstance(listed, list):
         raise InputError("'point' must be an array of tables ([[point]])", path=where)
     rows = [_params(p, f"[[point]] #{i + 1}", where, allowed) for i, p in enumerate(listed)]
     for i, row in enumerate(rows):
         for key, value in row.items():
-            _check_value(key, value, f"[[point]] #{i + 1}", where)
+            _check_value(key, value, f"[[point]] #{i + 1}", where, kind)
     # the grid runs over each listed point (or over the base alone when none is listed)
     combos = [dict(zip(grid, vals, strict=True)) for vals in itertools.product(*grid.values())]
     bases = rows or [{}]
@@ -301,7 +348,7 @@ def parse_sweep(text: str, *, path: str | Path | None = None) -> SweepSpec:
                      description=str(doc.get("description", "")), base=base_path, mode=mode,
                      seeds=seeds, points=tuple(points), swept=swept, fixed=fixed,
                      fractions_of_peak=fr, recommend=_recommend(doc, where),
-                     processing=_processing(doc, where))
+                     processing=_processing(doc, where), kind=kind)
 
 
 def load_sweep(path: str | Path) -> SweepSpec:
