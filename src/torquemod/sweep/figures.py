@@ -218,7 +218,9 @@ def mu_error_figure(summary: pd.DataFrame, param: str, swept, *, ax=None) -> Fig
 
 
 def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None,
-                       ripple_label: str = "torque ripple [% of Ts]") -> Figure:
+                       ripple_label: str = "torque ripple [% of Ts]",
+                       title: str = "disturbance added by the modulation (largest below the "
+                                    "utilisation limit; dashed: limits)") -> Figure:
     """Per modulation setting the largest creepage swing amplitude and torque ripple [% of
     the saturation torque] below the utilisation limit, with the limits dashed."""
     fig, axes = _axes(ax, 2, figsize=(7.0, 5.5))
@@ -233,6 +235,5 @@ def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None,
     axes[1].axhline(limits["max_torque_ripple_pct"], color="k", ls="--", lw=0.8)
     axes[1].set_ylabel(ripple_label)
     axes[1].set_xticks(x, label, fontsize=7)
-    axes[0].set_title("disturbance added by the modulation (largest below the utilisation "
-                      "limit; dashed: limits)", fontsize=9)
+    axes[0].set_title(title, fontsize=9)
     return fig

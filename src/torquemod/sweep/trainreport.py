@@ -270,7 +270,10 @@ def make_train_figures(table: pd.DataFrame, spec: SweepSpec, rec: dict):
                "max_torque_ripple_pct": spec.recommend.max_torque_ripple_dc_pct}
         settings = settings.assign(torque_ripple_pct_max=settings["torque_ripple_pct_median"])
         out.append(("disturbance", disturbance_figure(settings, lim,
-                                                       ripple_label="ripple, median [% of DC]"),
+                                                       ripple_label="ripple, median [% of DC]",
+                                                       title="disturbance added by the "
+                                                       "modulation (swing: largest; ripple: "
+                                                       "median; dashed: limits)"),
                     "Disturbance each modulation setting adds on the train: the largest "
                     "creepage swing amplitude and the median torque ripple relative to the DC "
                     "torque over the periods of a constant demand (dashed: limits)."))
