@@ -247,3 +247,63 @@ def test_tiny_train_sweep_resumes(tiny):
     changed = TINY + "[recommend]\nmax_mu_error = 0.2\n"
     third = run_sweep(parse_sweep(changed), out, in_process=True, report=False)
     assert third.count("done") == 2
+
+
+# ------------------------------------------------------------------ the recommendation
+
+def _setting_rows(f, a, *, n_mu, n_ok, n_cov, swing, ripple, noise=None):
+    """Two segments of one point of a setting, the counts split between them."""
+    rows = []
+    for seg in (1, 2):
+        rows.append({"point_id": f"{f}-{a}-{noise}", "segment": seg, "condition": "c",
+                     "modulation_frequency_nominal_hz": f, "modulation_amplitude_nm": a,
+                     "sensors.torque_noise_nm": noise, "n_windows": 100, "n_mu": n_mu // 2,
+                     "n_mu_within_error": n_ok // 2, "n_mu_covered": n_cov // 2,
+                     "mu_error_median": 0.05, "n_lower_bound": 100 - n_mu // 2,
+                     "lower_bound_above_truth_share": 0.0, "creepage_swing_max": swing,
+                     "torque_ripple_pct_max": 3 * ripple, "torque_ripple_pct_median": ripple})
+    return rows
+
+
+def test_train_recommendation_ranks_qualifying_settings_by_good_mu_rows():
+    from torquemod.sweep.trainreport import recommend_train
+    spec = parse_sweep('base = "train"\n[grid]\ntest.modulation_frequency_hz = [3.0, 5.0, '
+                       '8.0]\ntest.modulation_amplitude_nm = [600.0, 1200.0]\n')
+    rows = (_setting_rows(3.0, 1200.0, n_mu=80, n_ok=80, n_cov=80, swing=0.009, ripple=10)
+            # most mu rows, but the swing is above the default 0.002
+            + _setting_rows(5.0, 1200.0, n_mu=40, n_ok=30, n_cov=40, swing=0.001, ripple=20)
+            + _setting_rows(5.0, 600.0, n_mu=60, n_ok=60, n_cov=40, swing=0.001, ripple=10)
+            # coverage 40/60 < 90 %
+            + _setting_rows(8.0, 600.0, n_mu=20, n_ok=20, n_cov=20, swing=0.001, ripple=10)
+            + _setting_rows(8.0, 1200.0, n_mu=40, n_ok=10, n_cov=40, swing=0.001, ripple=10))
+    # 10 of 40 within the error: median error above it
+    rec = recommend_train(pd.DataFrame(rows), spec)
+    by = {(r["modulation_frequency_nominal_hz"], r["modulation_amplitude_nm"]): r
+          for r in rec["settings"]}
+    assert not by[(3.0, 1200.0)]["within_limits"] and by[(3.0, 1200.0)]["accurate"]
+    assert not by[(5.0, 600.0)]["accurate"] and not by[(8.0, 1200.0)]["accurate"]
+    assert by[(5.0, 1200.0)]["qualifies"] and by[(8.0, 600.0)]["qualifies"]
+    assert by[(5.0, 1200.0)]["coverage_95"] == 1.0
+    assert by[(5.0, 1200.0)]["good_share"] == pytest.approx(30 / 200)
+    assert rec["setting"] == {"modulation_frequency_nominal_hz": 5.0,
+                              "modulation_amplitude_nm": 1200.0}
+    assert "Recommended: 5 Hz, 1200 N*m" in rec["reasoning"]
+
+
+def test_train_recommendation_per_noise_level():
+    from torquemod.sweep.trainreport import recommend_train
+    spec = parse_sweep('base = "train"\n[grid]\ntest.modulation_frequency_hz = [3.0, 5.0]\n'
+                       'sensors.torque_noise_nm = [10.0, 80.0]\n')
+    rows = (_setting_rows(3.0, 1200.0, n_mu=40, n_ok=40, n_cov=40, swing=0.001, ripple=10,
+                          noise=10.0)
+            + _setting_rows(5.0, 1200.0, n_mu=20, n_ok=20, n_cov=20, swing=0.001, ripple=10,
+                            noise=10.0)
+            + _setting_rows(3.0, 1200.0, n_mu=10, n_ok=10, n_cov=10, swing=0.001, ripple=10,
+                            noise=80.0)
+            + _setting_rows(5.0, 1200.0, n_mu=30, n_ok=30, n_cov=30, swing=0.001, ripple=10,
+                            noise=80.0))
+    rec = recommend_train(pd.DataFrame(rows), spec)
+    got = {grp["noise"]["sensors.torque_noise_nm"]:
+           grp["setting"]["modulation_frequency_nominal_hz"] for grp in rec["by_noise"]}
+    assert got == {10.0: 3.0, 80.0: 5.0}
+    assert rec["reasoning"].startswith("At sensors.torque_noise_nm = 10.0:")

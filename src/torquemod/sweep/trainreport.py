@@ -33,8 +33,8 @@ from ..report.html import CSS, _img, table
 from .spec import SweepSpec
 from .trainpoint import BANDS, band_name
 
-__all__ = ["condition_table", "make_train_figures", "recommend_train", "setting_summary",
-           "write_train_report"]
+__all__ = ["condition_table", "make_train_figures", "noise_keys", "recommend_train",
+           "setting_summary", "write_train_report"]
 
 SETTING = ("modulation_frequency_nominal_hz", "modulation_amplitude_nm")
 #: the derived column a swept probe key is plotted against
@@ -99,20 +99,47 @@ def _pct(x) -> str:
     return "-" if x is None or not np.isfinite(x) else f"{100 * x:.1f} %"
 
 
+def noise_keys(spec: SweepSpec) -> list[str]:
+    """The swept keys that set the train's noise level (``sensors.*``)."""
+    return [k for k in spec.swept if k.startswith("sensors.")]
+
+
 def recommend_train(table: pd.DataFrame, spec: SweepSpec) -> dict:
     """The modulation setting for the train (module docstring) and the reasoning: a
-    JSON-ready dict with ``setting``, ``reasoning``, ``settings``, ``limits``."""
+    JSON-ready dict with ``setting``, ``reasoning``, ``settings``, ``limits``. When the
+    sweep varies the sensors' noise (:func:`noise_keys`), one recommendation per noise level
+    in ``by_noise`` (``noise``, ``setting``, ``reasoning``, ``settings``); the top level then
+    holds the first level's, and the reasoning all of them."""
+    keys = noise_keys(spec)
+    if not keys or table.empty:
+        return _recommend_one(table, spec)
+    groups = []
+    for value, g in _hashable(table).groupby(keys, sort=True):
+        value = value if isinstance(value, tuple) else (value,)
+        noise = dict(zip(keys, (v.item() if hasattr(v, "item") else v for v in value),
+                         strict=True))
+        groups.append({"noise": noise, **_recommend_one(table.loc[g.index], spec)})
+    doc = {k: groups[0].get(k) for k in ("limits", "settings", "setting")}
+    doc["by_noise"] = groups
+    doc["reasoning"] = " ".join(
+        "At " + ", ".join(f"{k} = {v}" for k, v in grp["noise"].items()) + ": "
+        + grp["reasoning"] for grp in groups)
+    return doc
+
+
+def _recommend_one(table: pd.DataFrame, spec: SweepSpec) -> dict:
     opts = spec.recommend
     settings = setting_summary(table, spec)
     limits = {"max_creepage_swing": opts.max_creepage_swing,
               "max_torque_ripple_dc_pct": opts.max_torque_ripple_dc_pct,
               "max_mu_error": opts.max_mu_error, "min_coverage": opts.min_coverage}
     doc = {"limits": limits, "settings": settings.to_dict(orient="records"), "setting": None}
-    ranked = settings.assign(_r=-settings["torque_ripple_pct_max"]).sort_values(
+    ranked = settings.assign(_r=-settings["torque_ripple_pct_median"]).sort_values(
         ["qualifies", "good_share", "_r", "creepage_swing_max"],
         ascending=[False, False, False, True], ignore_index=True).drop(columns="_r")
     others = [k for k in spec.swept if k not in ("test.modulation_frequency_hz",
-                                                 "test.modulation_amplitude_nm")]
+                                                 "test.modulation_amplitude_nm",
+                                                 *noise_keys(spec))]
     varying = others + (["seed"] if len(spec.seeds) > 1 else [])
     lines = [f"Compared {len(settings)} modulation setting(s) on the train run, each pooled "
              f"over its points and friction segments" + (
@@ -322,9 +349,15 @@ def render_train(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, failure
                  + f"; torquemod {escape(__version__)}. Each point: the train twin, the "
                  "on-board estimator, and its windows against the twin's truth per friction "
                  "segment.</p>")
-    cls = "warn" if rec.get("qualifies") is False or rec.get("setting") is None else ""
-    parts += ["<h2>Recommendation</h2>", f"<p class='{cls}'>{escape(rec.get('reasoning', ''))}"
-              "</p>", _settings_html(rec), "<h2>Figures</h2>"]
+    parts.append("<h2>Recommendation</h2>")
+    for grp in rec.get("by_noise") or [rec]:
+        if "noise" in grp:
+            parts.append("<h3>" + escape(", ".join(f"{k} = {v}" for k, v in
+                                                    grp["noise"].items())) + "</h3>")
+        cls = "warn" if grp.get("qualifies") is False or grp.get("setting") is None else ""
+        parts += [f"<p class='{cls}'>{escape(grp.get('reasoning', ''))}</p>",
+                  _settings_html(grp)]
+    parts.append("<h2>Figures</h2>")
     parts += [_img(png, stem, caption) for stem, png, caption in figs]
     if failures is not None and len(failures):
         parts.append("<h2>Failed points</h2>")
