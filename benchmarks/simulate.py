@@ -31,7 +31,7 @@ import numpy as np
 
 from torquemod.rig.dynamics import OUT_COLUMNS, initial_state, integrate, pack_parameters
 from torquemod.rig.sensors import measure
-from torquemod.simulate import load_config, run_simulation, sine_fit_phase_deg
+from torquemod.simulate import load_config, run_simulation, simulate_batch, sine_fit_phase_deg
 from torquemod.theory import operating_point
 
 
@@ -85,6 +85,39 @@ def integrator_throughput(config) -> tuple[float, float]:
     return t_sim, time.perf_counter() - t0
 
 
+def batch_configs(n_points: int) -> list:
+    """``n_points`` sweep points of the default experiment: friction (mu0) and modulation
+    frequency varied together."""
+    mus = np.linspace(0.22, 0.30, n_points)
+    return [load_config(overrides={"contact": {"mu0": float(mu)},
+                                   "modulation": {"frequency_hz": 2.0 + (k % 2)}})
+            for k, mu in enumerate(mus)]
+
+
+def batch_throughput(configs, repeat: int) -> None:
+    """Points per second: :func:`simulate_batch` of all points at once, the same one point
+    at a time, and ``run_simulation`` (HDF5 files) one point at a time."""
+    runs = {"simulate_batch (all points at once)": lambda: simulate_batch(configs, seed=0),
+            "simulate_batch (one point at a time)":
+                lambda: [simulate_batch([c], seed=0) for c in configs]}
+
+    def files():
+        for c in configs:
+            with tempfile.TemporaryDirectory() as tmp:
+                run_simulation(c, Path(tmp) / "exp", seed=0, fmt="hdf5", progress=False)
+    runs["run_simulation hdf5 (one point at a time)"] = files
+    for label, fn in runs.items():
+        walls = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            fn()
+            walls.append(time.perf_counter() - t0)
+        best = min(walls)
+        extra = f"  (runs: {', '.join(f'{w:.2f} s' for w in walls)})" if repeat > 1 else ""
+        print(f"batch: {label}: {len(configs)} points in {best:.2f} s -> "
+              f"{len(configs) / best:.2f} points/s{extra}")
+
+
 def _report(label: str, sim_s: float, walls: list[float], what: str) -> None:
     runs = ", ".join(f"{w:.2f} s" for w in walls)
     best = min(walls)
@@ -95,6 +128,8 @@ def _report(label: str, sim_s: float, walls: list[float], what: str) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=1, help="runs per measurement (best shown)")
+    ap.add_argument("--points", type=int, default=4,
+                    help="sweep points of the batch measurement (0: skip it)")
     ap.add_argument("--cores", type=int, default=0,
                     help="pin the process to this many CPUs (0: leave as it is)")
     args = ap.parse_args()
@@ -124,6 +159,8 @@ def main() -> None:
         rec_s = n_rec * proc.cycles_per_step * config.rig.revolution_s
         _report(f"run_simulation ({fmt})", rec_s, walls,
                 f"recorded (7 columns at {config.sensors.sample_rate_hz:g} Hz)")
+    if args.points > 0:
+        batch_throughput(batch_configs(args.points), args.repeat)
 
 
 if __name__ == "__main__":

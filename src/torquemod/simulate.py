@@ -6,7 +6,16 @@ Public entry points (the CLI in :mod:`torquemod.cli` only parses arguments and c
   ``torquemod/data/vtrack_default.toml``),
 * :func:`load_config` -- default config, optionally overridden by a user TOML file,
 * :func:`run_simulation` -- simulate the procedure and write ``experiment.toml``, one file per
-  recording and ``truth.json`` (the simulated ground truth per step).
+  recording and ``truth.json`` (the simulated ground truth per step),
+* :func:`simulate_batch` (from :mod:`torquemod.rig.batch`) -- the ground truth of many
+  configurations (sweep points) at once, without sensors or files.
+
+The torque steps run side by side on a pool of threads (each integrates a step and draws its
+truth, noise and files; the compiled integrator and numpy release the GIL): every step
+starts from the steady state of the torque before it (:mod:`torquemod.rig.steps`), which
+moves the simulated phases by < 1e-6 deg against running the steps one after the other.
+The sensor noise of each step comes from its own stream (SFC64, a child of the seed's), so
+a run is deterministic for its seed whatever the threads' timing.
 
 ``truth.json`` holds the run's speed-loop wobble (``speed_wobble``: configuration, realised
 terms, reference RMS) and per step the steady state, the theory phases and what was simulated
@@ -295,7 +304,7 @@ def _write_step(folder: Path, plan, channels: dict, bounds: list[int], fs: float
 
 
 #: threads that integrate and finish steps at once (the compiled integrator, numpy's noise
-#: and array work release the GIL)
+#: and array work release the GIL): the CPUs this process may use, at most 4
 _WORKERS = max(1, min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                       else (os.cpu_count() or 1)))
 
@@ -389,18 +398,20 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
 
 def run_simulation(config: SimConfig, out_dir: Path, *, seed: int = 0, fmt: str = "csv",
                    progress: bool = True, files_per_cycle: bool = True,
-                   force: bool = False) -> dict:
+                   force: bool = False, workers: int | None = None) -> dict:
     """Simulate ``config`` and write the experiment folder ``out_dir``; return the truth dict.
 
     The folder is written into a temporary sibling and renamed into place at the end, so an
     interrupted run leaves no half-written experiment. An existing non-empty ``out_dir``
     raises :class:`~torquemod.errors.OutputError` unless ``force`` (then it is replaced).
-    Deterministic for a given ``seed``.
+    Deterministic for a given ``seed`` (and the same for any ``workers``: the threads that
+    run the steps side by side, default the CPUs available up to 4; 1 runs them one after
+    the other, e.g. inside a process pool that already fills the cores).
     """
     if fmt not in _SUFFIX:
         raise InputError(f"unknown output format '{fmt}'", hint="use csv or hdf5")
     out_dir = Path(out_dir)
     with atomic_dir(out_dir, force=force) as tmp:
         truth = _simulate(config, tmp, seed=seed, fmt=fmt, progress=progress,
-                          files_per_cycle=files_per_cycle)
+                          files_per_cycle=files_per_cycle, workers=workers)
     return truth

@@ -25,7 +25,7 @@ Equations (derived for this model; the contact force is quasi-static, Polach 200
 The motor torque is ``T_m = T_dc(t) + A*sin(2*pi*f*(t - t_gen) + phi)`` with a DC ramp.
 
 Integration (:func:`integrate`): classical RK4 at a fixed step of ``samples_per_step`` output
-samples (default 2, configured in ``[procedure]``); samples inside a step are the cubic
+samples (default 4, configured in ``[procedure]``); samples inside a step are the cubic
 Hermite interpolant of the step's end states and slopes, with the contact forces evaluated
 at that state. The work per step is trimmed without changing the equations: the modulation
 sine is rotated from step to step, the normal load's sines from a per-step anchor (above
