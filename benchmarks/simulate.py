@@ -13,7 +13,8 @@ Run: ``python benchmarks/simulate.py [--repeat N] [--cores N] [--points N]``. Pr
   time for HDF5 on one core; issue 12 >= 1000x;
 * the batch mode (issue 12): ``--points`` sweep points of the default experiment (mu0 from
   0.22 to 0.30, modulation at 2 and 3 Hz) as points per second: ``simulate_batch`` of all
-  points at once, the same one point at a time, and ``run_simulation`` (HDF5) one at a time.
+  points at once (also without the large-signal theory column), the same one point at a
+  time, and ``run_simulation`` (HDF5) one at a time.
 
 ``run_simulation`` and ``simulate_batch`` run the torque steps side by side on one thread per
 CPU (each step starts from the steady state of the torque before, rig/steps.py).
@@ -28,12 +29,15 @@ runs, best of 3):
                                            before                  after
 =========================================  ======================  ======================
 integrator                                 405-419x                504-526x
-run_simulation HDF5, 2 cores               142-202x                265-296x
+run_simulation HDF5, 2 cores               142-202x                265-318x
 run_simulation HDF5, 1 core                126-146x                161-182x
-run_simulation CSV, 2 cores                63-67x                  132-138x
-batch, 4 points, 2 cores (points/s)        2.3 (run_simulation)    4.25 (simulate_batch)
+run_simulation CSV, 2 cores                63-67x                  132-139x
+batch, 4 points, 2 cores (points/s)        2.3 (run_simulation)    4.3 (simulate_batch)
 batch, 4 points, 1 core (points/s)         1.3 (run_simulation)    2.4 (simulate_batch)
 =========================================  ======================  ======================
+
+``simulate_batch(..., large_signal=False)``: 5.0 points/s on 2 cores; one point at a time
+4.1 points/s (each point's steps already run side by side).
 
 Where the time goes now (one core, cProfile of the default run, 0.76 CPU-s before the last
 integrator change): integrator 52 %, sensor noise 18 % (11.6 M normals at ~7.5 ns with SFC64),
@@ -131,6 +135,8 @@ def batch_throughput(configs, repeat: int) -> None:
     """Points per second: :func:`simulate_batch` of all points at once, the same one point
     at a time, and ``run_simulation`` (HDF5 files) one point at a time."""
     runs = {"simulate_batch (all points at once)": lambda: simulate_batch(configs, seed=0),
+            "simulate_batch (all at once, large_signal=False)":
+                lambda: simulate_batch(configs, seed=0, large_signal=False),
             "simulate_batch (one point at a time)":
                 lambda: [simulate_batch([c], seed=0) for c in configs]}
 

@@ -105,3 +105,13 @@ def test_run_is_the_same_for_any_number_of_threads(two, tmp_path):
         a, b = (read_recording(tmp_path / f"w{w}" / name) for w in (1, 3))
         for ch, v in a.channels.items():
             np.testing.assert_array_equal(v, b.channels[ch])
+
+
+def test_batch_without_the_large_signal_theory(two):
+    """``large_signal=False`` drops only that theory column: the simulated truth stays."""
+    full, lean = (simulate_batch([two], seed=1, large_signal=flag)[0] for flag in (True, False))
+    for a, b in zip(full.steps, lean.steps, strict=True):
+        assert b["phase_large_signal_deg"] is None
+        assert isinstance(a["phase_large_signal_deg"], float)
+        assert {k: v for k, v in a.items() if k != "phase_large_signal_deg"} == \
+            {k: v for k, v in b.items() if k != "phase_large_signal_deg"}

@@ -275,11 +275,13 @@ def _large_signal(dc: float, config: SimConfig) -> float | None:
 
 def _step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None,
                 slipped: bool, t0_s: float = 0.0, wobble: np.ndarray | None = None,
-                bounds: list[int] = (0, 0)) -> dict:
+                bounds: list[int] = (0, 0), large_signal: bool = True) -> dict:
     """Ground truth of one step: the steady state and theory at ``dc`` and, when not
     ``slipped``, what was simulated over the recorded samples ``raw`` (from ``t0_s`` [s]) and
     per platform revolution (``bounds``, indices into the step's output, ``raw`` starting
-    at ``bounds[0]``); see :func:`_spans_truth`."""
+    at ``bounds[0]``); see :func:`_spans_truth`. ``large_signal = False`` leaves the
+    large-signal theory phase out (None; its periodic-state solve is most of the theory's
+    cost)."""
     rig, f = config.rig, config.modulation.actual_frequency_hz
     op = operating_point(dc, rig)
     k = op.creep_coefficient
@@ -294,7 +296,7 @@ def _step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | Non
             creepage=op.creepage, coa=op.coa, creep_coefficient=k, dcoa_dxi=op.dcoa_dxi,
             fx_n=op.fx_n, fy_n=op.fy_n,
             phase_theory_deg=float(predicted_phase_deg(k, rig, f, creepage=op.creepage)),
-            phase_large_signal_deg=_large_signal(dc, config),
+            phase_large_signal_deg=_large_signal(dc, config) if large_signal else None,
             phase_rigid_deg=float(rigid_wheel_phase_deg(
                 k, inertia_kg_m2=rig.wheel_inertia_kg_m2, speed_m_s=rig.speed_m_s,
                 wheel_radius_m=rig.wheel_radius_m, normal_load_n=rig.normal_load_n,
@@ -311,8 +313,8 @@ def _step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | Non
 
 
 def recorded_step_truth(i_step: int, dc: float, config: SimConfig, out: np.ndarray,
-                        n_done: int, t_step: float, wobble: np.ndarray, n_settle: int
-                        ) -> tuple[dict, list[int]]:
+                        n_done: int, t_step: float, wobble: np.ndarray, n_settle: int,
+                        large_signal: bool = True) -> tuple[dict, list[int]]:
     """Truth entry (:func:`_step_truth`) of a step that did not slip, integrated into ``out``
     (``n_done`` samples from ``t_step`` [s]) and recorded from sample ``n_settle`` over the
     procedure's platform revolutions; also the revolutions' sample bounds in ``out``."""
@@ -320,4 +322,5 @@ def recorded_step_truth(i_step: int, dc: float, config: SimConfig, out: np.ndarr
                            config.procedure.cycles_per_step)
     raw = out[bounds[0]:bounds[-1]]
     t0 = t_step + bounds[0] * (1.0 / config.sensors.sample_rate_hz)
-    return _step_truth(i_step, dc, config, raw, False, t0, wobble, bounds), bounds
+    return _step_truth(i_step, dc, config, raw, False, t0, wobble, bounds,
+                       large_signal), bounds
