@@ -31,7 +31,6 @@ from __future__ import annotations
 import copy
 import itertools
 import math
-import os
 import sys
 import tomllib
 from concurrent.futures import ThreadPoolExecutor
@@ -51,7 +50,12 @@ from .errors import InputError
 from .fsutil import atomic_dir
 from .io import write_manifest, write_recording
 from .jsonutil import dump_json
-from .rig.batch import BatchPoint, plan_run, simulate_batch  # noqa: F401 - re-exported
+from .rig.batch import (  # noqa: F401 - BatchPoint, simulate_batch re-exported
+    BatchPoint,
+    default_workers,
+    plan_run,
+    simulate_batch,
+)
 from .rig.dynamics import OUT_COLUMNS, pack_parameters
 from .rig.params import (
     ContactParams,
@@ -303,12 +307,6 @@ def _write_step(folder: Path, plan, channels: dict, bounds: list[int], fs: float
     return recs
 
 
-#: threads that integrate and finish steps at once (the compiled integrator, numpy's noise
-#: and array work release the GIL): the CPUs this process may use, at most 4
-_WORKERS = max(1, min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-                      else (os.cpu_count() or 1)))
-
-
 def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress: bool,
               files_per_cycle: bool, workers: int | None = None) -> dict:
     from tqdm import tqdm
@@ -347,7 +345,9 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
 
     steps, recordings = [], []
     slip_step = slip_time = None
-    with ThreadPoolExecutor(max_workers=workers or _WORKERS) as pool:
+    # threads that integrate and finish steps at once (the compiled integrator, numpy's
+    # noise and array work release the GIL): the CPUs this process may use, at most 4
+    with ThreadPoolExecutor(max_workers=workers or min(4, default_workers())) as pool:
         futures = []
         for plan in plans:  # in step order: a step waiting for the one before never blocks
             futures.append(pool.submit(run, plan, futures[-1] if futures else None))
