@@ -9,7 +9,8 @@ from __future__ import annotations
 
 from . import rig as _rig
 from .rig import *  # noqa: F403 - the parameter classes, listed in rig.__all__
+from .rig.batch import simulate_batch
 from .simulate import config_from_dict, default_config_text, load_config, run_simulation
 
 __all__ = [*_rig.__all__, "config_from_dict", "default_config_text", "load_config",
-           "run_simulation"]
+           "run_simulation", "simulate_batch"]

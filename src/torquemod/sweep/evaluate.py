@@ -201,8 +201,9 @@ def _full_steps(config, t_peak: float, seed: int, workdir: Path,
     force fit and mu from the phase over all steps (the analysis of ``torquemod fit``)."""
     from ..api import analyze, process
     from ..simulate import run_simulation
+    # workers=1: the sweep's parallel units are Dask worker processes, one per core
     truth = run_simulation(config, workdir / "experiment", seed=seed, fmt="hdf5",
-                           progress=False)
+                           progress=False, workers=1)
     if truth["slip_step"] == 1:
         raise ProcessingError(
             f"the wheel slips at the first step (DC torque "
