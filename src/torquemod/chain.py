@@ -271,10 +271,10 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # anti-alias filter is flat across the search band, and costs 300x less there). The
     # output samples the FIR's zero padding touches are cut off.
     edge = filters.resampler_edge_samples(up, down)
-    stacked = np.vstack([ch[k] for k in names])
-    resampled = filters.resample(stacked, up, down, kaiser_beta=cfg.resample.kaiser_beta,
-                                 method=cfg.resample.method,
-                                 padtype="constant")[:, edge:-edge]  # pads only cut samples
+    resampled = filters.resample_rows([ch[k] for k in names], up, down,
+                                      kaiser_beta=cfg.resample.kaiser_beta,
+                                      method=cfg.resample.method,
+                                      padtype="constant")[:, edge:-edge]  # pads only cut ones
     sig = dict(zip(names, resampled, strict=True))
     n = resampled.shape[1]
     if n < 8:
@@ -332,16 +332,20 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     pad = max(filters.settling_samples(ba) for ba in [hp, bp, *notch_ba.values()])
     tones = [f_mod, *wheel_notches]
 
-    def chain_3_to_5(name: str, freqs: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    def padded(name: str) -> tuple[np.ndarray, float]:
         x = sig[name] - model.part(name, "slow") - model.part(name, "orders")
         xp, level, _ = filters.model_padded(x, fs_r, tones, pad)
-        for f0 in freqs:
-            xp = filters.zero_phase(notch_ba[f0], xp, method="none")
-        xf = filters.zero_phase(bp, filters.zero_phase(hp, xp, method="none"), method="none")
-        return xp[pad:pad + n] + level + model.mean(name), xf[pad:pad + n]
+        return xp, level
 
-    wh_n, wh_f = chain_3_to_5("wheel_speed_rad_s", wheel_notches)
-    tq_n, tq_f = chain_3_to_5("torque_nm", [])
+    # the wheel speed through its notches, then both records through the high-pass and the
+    # band-pass together (one lfilter call per filter and direction for both rows)
+    wh_p, wh_level = padded("wheel_speed_rad_s")
+    tq_p, tq_level = padded("torque_nm")
+    wh_p = filters.zero_phase_cascade([notch_ba[f0] for f0 in wheel_notches], wh_p)
+    both_f = filters.zero_phase_cascade([hp, bp], np.vstack([wh_p, tq_p]))
+    wh_n = wh_p[pad:pad + n] + wh_level + model.mean("wheel_speed_rad_s")
+    tq_n = tq_p[pad:pad + n] + tq_level + model.mean("torque_nm")
+    wh_f, tq_f = both_f[0, pad:pad + n], both_f[1, pad:pad + n]
     # Step 8: creepage and CoA from means, each the mean of the channel less its fitted
     # modulation and rotation orders (SpeedModel.mean): the value the notched signal averages
     # to, free of the partial modulation period a cycle holds and of edge transients, and

@@ -32,21 +32,32 @@ def lstsq(design: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, int]:
     scale = np.sqrt(np.einsum("ij,ij->j", d, d))
     if d.shape[1] and np.all(scale > 0):
         dn = d / scale
-        gram = dn.T @ dn
-        try:
-            factor = linalg.cho_factor(gram, check_finite=False)
-            diag = np.diag(factor[0]) ** 2
+        # LAPACK's potrf/potrs called directly: the same routines and arguments as
+        # scipy.linalg.cho_factor/cho_solve (bit-identical results) without their
+        # per-call validation, which cost more than the factorisation at this size
+        factor, info = _POTRF(dn.T @ dn, lower=False, overwrite_a=True, clean=False)
+        if info == 0:
+            diag = np.diag(factor) ** 2
             if diag.min() > 1e-10 * diag.max():
-                coef = linalg.cho_solve(factor, dn.T @ y, check_finite=False)
+                coef = _cho_solve(factor, dn.T @ y)
                 for _ in range(2):  # iterative refinement: the normal equations square the
                     # condition number, and a large DC (a wheel speed of 30 rad/s beside a
                     # modulation of 1e-3 rad/s) needs the residual to full precision
-                    coef += linalg.cho_solve(factor, dn.T @ (y - dn @ coef), check_finite=False)
+                    coef += _cho_solve(factor, dn.T @ (y - dn @ coef))
                 return (coef.T / scale).T, d.shape[1]
-        except linalg.LinAlgError:
-            pass
     coef, _, rank, _ = np.linalg.lstsq(d, y, rcond=None)
     return coef, int(rank)
+
+
+_POTRF, _POTRS = linalg.get_lapack_funcs(("potrf", "potrs"), (np.zeros((1, 1)),))
+
+
+def _cho_solve(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``scipy.linalg.cho_solve((factor, False), b)`` for a float64 upper factor."""
+    x, info = _POTRS(factor, b, lower=False, overwrite_b=False)
+    if info != 0:
+        raise ValueError(f"illegal value in argument {-info} of LAPACK potrs")
+    return x
 
 
 def resample_ratio(fs_in_hz: float, fs_target_hz: float, *, max_denominator: int = 1000
@@ -93,12 +104,37 @@ def resample(x: np.ndarray, up: int, down: int, *, kaiser_beta: float = 5.0,
         raise ValueError(f"padtype must be 'line' or 'constant', got {padtype!r}")
     x = np.asarray(x, dtype=np.float64)
     m = x.mean(axis=-1, keepdims=True)
+    return _resample_centred(x - m, m, up, down, kaiser_beta, method, padtype)
+
+
+def resample_rows(rows, up: int, down: int, *, kaiser_beta: float = 5.0,
+                  method: str = "polyphase", padtype: str = "line") -> np.ndarray:
+    """:func:`resample` of ``np.vstack(rows)`` (records of equal length) without stacking
+    them first: each row's mean is removed while it is copied into the stacked array, which
+    saves one pass over the data. The means are the same numbers ``resample`` removes (numpy
+    sums each row the same way), so the output is bit-identical."""
+    if method not in RESAMPLE_METHODS:
+        raise ValueError(f"unknown resampling method {method!r}; use one of {RESAMPLE_METHODS}")
+    if padtype not in ("line", "constant"):
+        raise ValueError(f"padtype must be 'line' or 'constant', got {padtype!r}")
+    rows = [np.asarray(r, dtype=np.float64) for r in rows]
+    xc = np.empty((len(rows), rows[0].size))
+    m = np.empty((len(rows), 1))
+    for i, r in enumerate(rows):
+        m[i, 0] = r.mean()
+        np.subtract(r, m[i, 0], out=xc[i])
+    return _resample_centred(xc, m, up, down, kaiser_beta, method, padtype)
+
+
+def _resample_centred(xc: np.ndarray, m: np.ndarray, up: int, down: int, kaiser_beta: float,
+                      method: str, padtype: str) -> np.ndarray:
+    """Resample mean-free rows ``xc`` and add their means ``m`` back (see :func:`resample`)."""
     if method == "two_stage":
         plan = two_stage_plan(up, down)
         if plan is not None:
-            return decimate_two_stage(x - m, up, down, kaiser_beta=kaiser_beta,
+            return decimate_two_stage(xc, up, down, kaiser_beta=kaiser_beta,
                                       line=padtype == "line") + m
-    y = signal.resample_poly(x - m, up, down, axis=-1,
+    y = signal.resample_poly(xc, up, down, axis=-1,
                              window=_resampling_fir(up, down, float(kaiser_beta)),
                              padtype=padtype)
     return y + m
@@ -202,9 +238,15 @@ def design_notch(f0_hz: float, q: float, fs_hz: float) -> tuple[np.ndarray, np.n
     return signal.iirnotch(f0_hz, q, fs=fs_hz)
 
 
+@functools.lru_cache(maxsize=32)
 def design_highpass(cutoff_hz: float, order: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Butterworth high-pass of ``order`` (applied twice by :func:`zero_phase`)."""
-    return signal.butter(order, cutoff_hz, "highpass", fs=fs_hz)
+    """Butterworth high-pass of ``order`` (applied twice by :func:`zero_phase`). Its
+    parameters are configuration, not measurements, so the design is cached (read-only
+    arrays)."""
+    b, a = signal.butter(order, cutoff_hz, "highpass", fs=fs_hz)
+    b.setflags(write=False)
+    a.setflags(write=False)
+    return b, a
 
 
 def design_bandpass(center_hz: float, width_hz: float, order: int, fs_hz: float
@@ -226,6 +268,24 @@ def zero_phase(ba: tuple[np.ndarray, np.ndarray], x: np.ndarray, *, method: str 
     if method == "none":
         return signal.filtfilt(b, a, x, padlen=0)
     return signal.filtfilt(b, a, x, method="gust")
+
+
+def zero_phase_cascade(filters_ba: list[tuple[np.ndarray, np.ndarray]], x: np.ndarray
+                       ) -> np.ndarray:
+    """Each filter of ``filters_ba`` in turn, forward and backward, along the last axis of
+    ``x`` (one record or several rows): the same arithmetic as
+    ``zero_phase(ba, x, method="none")`` applied in sequence to each row
+    (``filtfilt(b, a, x, padlen=0)``: initial state ``lfilter_zi`` times the first sample,
+    each way), so the results are bit-identical, but every row goes through one ``lfilter``
+    call per direction and the steady-state vector is computed once per filter."""
+    y = np.asarray(x, dtype=np.float64)
+    for b, a in filters_ba:
+        b, a = np.atleast_1d(np.asarray(b)), np.atleast_1d(np.asarray(a))
+        zi = signal.lfilter_zi(b, a).reshape([1] * (y.ndim - 1) + [-1])
+        y, _ = signal.lfilter(b, a, y, axis=-1, zi=zi * y[..., :1])
+        y, _ = signal.lfilter(b, a, y[..., ::-1], axis=-1, zi=zi * y[..., -1:])
+        y = y[..., ::-1]
+    return y
 
 
 def notch_frequencies(rotation_hz: float, harmonics: tuple[int, ...], fs_hz: float
