@@ -10,6 +10,7 @@ record, Gustafsson's method 0.004 deg (FACTS.md §4).
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 from fractions import Fraction
 
 import numba
@@ -29,24 +30,53 @@ def lstsq(design: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, int]:
     iterative refinement bring it to the SVD's accuracy.
     """
     d = np.asarray(design, dtype=np.float64)
-    scale = np.sqrt(np.einsum("ij,ij->j", d, d))
-    if d.shape[1] and np.all(scale > 0):
+    fac = LstsqFactor.of(d)
+    if fac is not None:
+        return fac.solve(y), d.shape[1]
+    coef, _, rank, _ = np.linalg.lstsq(d, y, rcond=None)
+    return coef, int(rank)
+
+
+@dataclass(frozen=True)
+class LstsqFactor:
+    """The Cholesky factor of one design's column-normalised normal equations (see
+    :func:`lstsq`), for solving with the same design many times: ``solve(y)`` gives exactly
+    the numbers ``lstsq(design, y)[0]`` does."""
+
+    dn: np.ndarray  # design with unit-norm columns
+    scale: np.ndarray  # the columns' norms
+    factor: np.ndarray  # upper Cholesky factor of dn.T @ dn (LAPACK layout)
+
+    @classmethod
+    def of(cls, design: np.ndarray) -> LstsqFactor | None:
+        """The factor, or None when :func:`lstsq` would fall back to the SVD (no columns, a
+        zero column, or a normalised normal matrix with condition number above 1e10)."""
+        d = np.asarray(design, dtype=np.float64)
+        scale = np.sqrt(np.einsum("ij,ij->j", d, d))
+        if not (d.shape[1] and np.all(scale > 0)):
+            return None
         dn = d / scale
+        dn.setflags(write=False)
         # LAPACK's potrf/potrs called directly: the same routines and arguments as
         # scipy.linalg.cho_factor/cho_solve (bit-identical results) without their
         # per-call validation, which cost more than the factorisation at this size
         factor, info = _POTRF(dn.T @ dn, lower=False, overwrite_a=True, clean=False)
-        if info == 0:
-            diag = np.diag(factor) ** 2
-            if diag.min() > 1e-10 * diag.max():
-                coef = _cho_solve(factor, dn.T @ y)
-                for _ in range(2):  # iterative refinement: the normal equations square the
-                    # condition number, and a large DC (a wheel speed of 30 rad/s beside a
-                    # modulation of 1e-3 rad/s) needs the residual to full precision
-                    coef += _cho_solve(factor, dn.T @ (y - dn @ coef))
-                return (coef.T / scale).T, d.shape[1]
-    coef, _, rank, _ = np.linalg.lstsq(d, y, rcond=None)
-    return coef, int(rank)
+        if info != 0:
+            return None
+        diag = np.diag(factor) ** 2
+        if not diag.min() > 1e-10 * diag.max():
+            return None
+        return cls(dn, scale, factor)
+
+    def solve(self, y: np.ndarray) -> np.ndarray:
+        """Least-squares coefficients for ``y`` (one or more columns)."""
+        dn = self.dn
+        coef = _cho_solve(self.factor, dn.T @ y)
+        for _ in range(2):  # iterative refinement: the normal equations square the
+            # condition number, and a large DC (a wheel speed of 30 rad/s beside a
+            # modulation of 1e-3 rad/s) needs the residual to full precision
+            coef += _cho_solve(self.factor, dn.T @ (y - dn @ coef))
+        return (coef.T / self.scale).T
 
 
 _POTRF, _POTRS = linalg.get_lapack_funcs(("potrf", "potrs"), (np.zeros((1, 1)),))
@@ -108,11 +138,13 @@ def resample(x: np.ndarray, up: int, down: int, *, kaiser_beta: float = 5.0,
 
 
 def resample_rows(rows, up: int, down: int, *, kaiser_beta: float = 5.0,
-                  method: str = "polyphase", padtype: str = "line") -> np.ndarray:
+                  method: str = "polyphase", padtype: str = "line", return_means: bool = False
+                  ):
     """:func:`resample` of ``np.vstack(rows)`` (records of equal length) without stacking
     them first: each row's mean is removed while it is copied into the stacked array, which
     saves one pass over the data. The means are the same numbers ``resample`` removes (numpy
-    sums each row the same way), so the output is bit-identical."""
+    sums each row the same way), so the output is bit-identical. With ``return_means`` also
+    the rows' means (``np.mean(row)`` of each, as float64), for a caller that needs them."""
     if method not in RESAMPLE_METHODS:
         raise ValueError(f"unknown resampling method {method!r}; use one of {RESAMPLE_METHODS}")
     if padtype not in ("line", "constant"):
@@ -123,7 +155,8 @@ def resample_rows(rows, up: int, down: int, *, kaiser_beta: float = 5.0,
     for i, r in enumerate(rows):
         m[i, 0] = r.mean()
         np.subtract(r, m[i, 0], out=xc[i])
-    return _resample_centred(xc, m, up, down, kaiser_beta, method, padtype)
+    y = _resample_centred(xc, m, up, down, kaiser_beta, method, padtype)
+    return (y, m[:, 0]) if return_means else y
 
 
 def _resample_centred(xc: np.ndarray, m: np.ndarray, up: int, down: int, kaiser_beta: float,
@@ -280,12 +313,26 @@ def zero_phase_cascade(filters_ba: list[tuple[np.ndarray, np.ndarray]], x: np.nd
     call per direction and the steady-state vector is computed once per filter."""
     y = np.asarray(x, dtype=np.float64)
     for b, a in filters_ba:
-        b, a = np.atleast_1d(np.asarray(b)), np.atleast_1d(np.asarray(a))
-        zi = signal.lfilter_zi(b, a).reshape([1] * (y.ndim - 1) + [-1])
+        b = np.atleast_1d(np.asarray(b, dtype=np.float64))
+        a = np.atleast_1d(np.asarray(a, dtype=np.float64))
+        # a cached (read-only) design, the high-pass, has its steady state cached too
+        zi = _lfilter_zi(b.tobytes(), a.tobytes()) if not (b.flags.writeable
+                                                           or a.flags.writeable) \
+            else signal.lfilter_zi(b, a)
+        zi = zi.reshape([1] * (y.ndim - 1) + [-1])
         y, _ = signal.lfilter(b, a, y, axis=-1, zi=zi * y[..., :1])
         y, _ = signal.lfilter(b, a, y[..., ::-1], axis=-1, zi=zi * y[..., -1:])
         y = y[..., ::-1]
     return y
+
+
+@functools.lru_cache(maxsize=16)
+def _lfilter_zi(b_bytes: bytes, a_bytes: bytes) -> np.ndarray:
+    """``lfilter_zi`` of float64 coefficients given as bytes (for filters whose design is
+    cached: configuration, not measurements); read-only."""
+    zi = signal.lfilter_zi(np.frombuffer(b_bytes), np.frombuffer(a_bytes))
+    zi.setflags(write=False)
+    return zi
 
 
 def notch_frequencies(rotation_hz: float, harmonics: tuple[int, ...], fs_hz: float
@@ -300,9 +347,14 @@ def settling_samples(ba: tuple[np.ndarray, np.ndarray], *, tol: float = 1e-6,
     (derived from the design; used as the padding length)."""
     b, a = ba
     n = 256
+    h = np.empty(0)
     while n <= max_samples:
-        h = signal.lfilter(b, a, np.r_[1.0, np.zeros(n - 1)])
-        above = np.flatnonzero(np.abs(h) > tol * np.abs(h).max())
+        if h.size < n:  # a causal filter's first n outputs do not depend on the length, so
+            # one response 8x longer serves the next three lengths tried
+            length = 8 * n if 8 * n <= max_samples else n
+            h = signal.lfilter(b, a, np.r_[1.0, np.zeros(length - 1)])
+        mag = np.abs(h[:n])
+        above = np.flatnonzero(mag > tol * mag.max())
         if above[-1] < n - n // 4:
             return int(above[-1]) + 1
         n *= 2
@@ -366,6 +418,29 @@ def model_padded(x: np.ndarray, fs_hz: float, tones_hz: list[float], pad: int
         out += coef[3 + 2 * k] * np.sin(2 * np.pi * f * t)
     out[pad:pad + n] = x - coef[0] - coef[1] * (t[pad:pad + n] - t_mid)
     return out, float(coef[0]), float(coef[1])
+
+
+def model_padded_rows(rows, fs_hz: float, tones_hz: list[float], pad: int
+                      ) -> list[tuple[np.ndarray, float, float]]:
+    """:func:`model_padded` of each record in ``rows`` (equal lengths), bit-identical, with the
+    tones' cosines and sines over the padded times evaluated once for all records."""
+    rows = [np.asarray(x, dtype=np.float64) for x in rows]
+    n = rows[0].size
+    t = np.arange(-pad, n + pad) / fs_hz
+    t_mid = (n - 1) / (2 * fs_hz)
+    trig: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+    result = []
+    for x in rows:
+        coef, kept = fit_line_and_tones(x, fs_hz, tones_hz)
+        out = np.zeros(n + 2 * pad)
+        for k, f in enumerate(kept):
+            if f not in trig:
+                trig[f] = (np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t))
+            out += coef[2 + 2 * k] * trig[f][0]
+            out += coef[3 + 2 * k] * trig[f][1]
+        out[pad:pad + n] = x - coef[0] - coef[1] * (t[pad:pad + n] - t_mid)
+        result.append((out, float(coef[0]), float(coef[1])))
+    return result
 
 
 def tone_free_mean(x: np.ndarray, fs_hz: float, tones_hz: list[float]) -> float:

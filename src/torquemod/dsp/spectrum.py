@@ -8,17 +8,37 @@ bounded scalar search, so the result is the exact maximiser of ``|X_w(f)|`` to `
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy import optimize, signal
 
 from ..errors import ProcessingError
-from .filters import lstsq, tone_design
+from .filters import LstsqFactor, lstsq, tone_design
 
 
 def windowed_dtft(x: np.ndarray, fs_hz: float, f_hz: float, window: np.ndarray) -> complex:
     """``X_w(f) = sum_n w[n] x[n] exp(-2j*pi*f*n/fs)`` at one frequency ``f_hz`` [Hz]."""
     n = np.arange(x.size)
     return complex(np.dot(window * x, np.exp(-2j * np.pi * f_hz / fs_hz * n)))
+
+
+@functools.lru_cache(maxsize=32)
+def _window(name: str, n: int) -> np.ndarray:
+    """``get_window(name, n, fftbins=False)``, cached (read-only): the same for every cycle of
+    a given length."""
+    w = signal.get_window(name, n, fftbins=False)
+    w.setflags(write=False)
+    return w
+
+
+@functools.lru_cache(maxsize=32)
+def _trend_design(n: int, fs_hz: float, line: bool) -> tuple[np.ndarray, LstsqFactor | None]:
+    """The detrending design of :func:`peak_frequency` without extra tones (constant, and the
+    line when ``line``) and its least-squares factor, cached (read-only)."""
+    design = tone_design(np.arange(n) / fs_hz, [], line=line)
+    design.setflags(write=False)
+    return design, LstsqFactor.of(design)
 
 
 def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] = (1.5, 2.5),
@@ -52,10 +72,15 @@ def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] 
     if not 0 <= lo < hi <= fs_hz / 2:
         raise ValueError(f"band {band_hz} Hz must lie within 0..fs/2 = {fs_hz / 2} Hz")
     tones = [f for f in remove_tones_hz if not lo - 0.5 <= f <= hi + 0.5 and 0 < f < fs_hz / 2]
-    design = tone_design(np.arange(n) / fs_hz, tones, line=detrend == "linear")
-    coef, _ = lstsq(design, x)
+    if tones:
+        design = tone_design(np.arange(n) / fs_hz, tones, line=detrend == "linear")
+        coef, _ = lstsq(design, x)
+    else:  # the same design for every record of this length: factored once
+        design, fac = _trend_design(n, fs_hz, detrend == "linear")
+        coef = fac.solve(x) if fac is not None else lstsq(design, x)[0]
     xd = x - design @ coef
-    w = signal.get_window(window, n, fftbins=False)
+    w = _window(window, n) if isinstance(window, str) else \
+        signal.get_window(window, n, fftbins=False)
     nfft = int(2 ** np.ceil(np.log2(zero_pad * n)))
     spec = np.abs(np.fft.rfft(xd * w, nfft))
     freqs = np.fft.rfftfreq(nfft, 1.0 / fs_hz)
@@ -87,9 +112,11 @@ def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] 
                                   f"the noise floor's median power; needs "
                                   f"{min_peak_to_floor:g})")
 
-    def neg_mag(f: float) -> float:
-        return -abs(windowed_dtft(xd, fs_hz, f, w))
+    wx, n_idx = w * xd, np.arange(n)
 
-    res = optimize.minimize_scalar(neg_mag, bounds=(freqs[k] - df, freqs[k] + df),
-                                   method="bounded", options={"xatol": xtol_hz})
-    return float(res.x)
+    def neg_mag(f: float) -> float:  # windowed_dtft with its product computed once
+        return -abs(complex(np.dot(wx, np.exp(-2j * np.pi * f / fs_hz * n_idx))))
+
+    # fminbound is minimize_scalar(method="bounded") without its option handling
+    return float(optimize.fminbound(neg_mag, freqs[k] - df, freqs[k] + df, xtol=xtol_hz,
+                                    maxfun=500, disp=0))
