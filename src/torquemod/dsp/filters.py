@@ -181,6 +181,7 @@ STAGE1_RIPPLE_DB = 120.0
 STAGE1_MIN_OVERSAMPLING = 8.0  # stage-1 output rate >= 8x the final rate
 
 
+@functools.lru_cache(maxsize=16)
 def two_stage_plan(up: int, down: int) -> tuple[int, int] | None:
     """``(q1, down2)``: the largest divisor ``q1`` of ``down`` leaving the stage-1 rate at
     least ``STAGE1_MIN_OVERSAMPLING`` times the final rate (``down/q1 >= 8*up``), and the
