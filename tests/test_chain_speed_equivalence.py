@@ -162,3 +162,20 @@ def test_speed_model_noise_depletion_without_forming_q():
     assert part is model.part("a", "slow") and not part.flags.writeable
     np.testing.assert_array_equal(part, model.design[:, 2:2 + model.n_slow]
                                   @ model.coef[2:2 + model.n_slow, 0])
+
+
+def test_tracked_orders_with_a_shared_first_factor_bit_for_bit():
+    n = 331
+    slow = filters.slow_basis(n, FS, 1.2)
+    base = chain._order_base(n, FS, slow, 2.03)
+    fac = filters.LstsqFactor.of(base)
+    for seed, f_rot in ((8, 4.6), (9, 0.35)):
+        t = np.arange(n) / FS
+        speed = 2 * np.pi * f_rot * (1 + 0.01 * np.cos(2 * np.pi * f_rot * t)) \
+            + 1e-3 * np.random.default_rng(seed).standard_normal(n)
+        ref = chain.tracked_orders(speed, FS, slow, (1, 2), above_hz=1.2, avoid_hz=2.03,
+                                   modulation_hz=2.03)
+        got = chain._tracked_orders(speed, FS, slow, (1, 2), base, fac, above_hz=1.2,
+                                    avoid_hz=2.03)
+        np.testing.assert_array_equal(got[0], ref[0])
+        assert got[1] == ref[1]

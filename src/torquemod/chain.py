@@ -232,16 +232,38 @@ def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
     integral, so they follow a wobble or a ramp (order tracking) and do not carry the
     modulation's own phase wobble into the angle.
     """
-    base = slow
-    if modulation_hz is not None:
-        t = np.arange(speed_rad_s.size) / fs_hz
-        w = 2 * np.pi * modulation_hz
-        base = np.column_stack([slow, np.cos(w * t), np.sin(w * t)])
+    base = _order_base(speed_rad_s.size, fs_hz, slow, modulation_hz)
+    return _tracked_orders(speed_rad_s, fs_hz, slow, harmonics, base, None,
+                           above_hz=above_hz, avoid_hz=avoid_hz)
+
+
+def _order_base(n: int, fs_hz: float, slow: np.ndarray, modulation_hz: float | None
+                ) -> np.ndarray:
+    """The columns :func:`tracked_orders` fits before any order: the slow basis, and the
+    modulation at ``modulation_hz`` when given; C order, the layout ``lstsq`` receives in
+    :func:`_tracked_orders` (BLAS sums a Fortran-ordered design's normal matrix in another
+    order, which changes the last bits)."""
+    if modulation_hz is None:
+        return np.ascontiguousarray(slow)
+    t = np.arange(n) / fs_hz
+    w = 2 * np.pi * modulation_hz
+    return np.ascontiguousarray(np.column_stack([slow, np.cos(w * t), np.sin(w * t)]))
+
+
+def _tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
+                    harmonics: tuple[int, ...], base: np.ndarray,
+                    base_factor: filters.LstsqFactor | None, *, above_hz: float,
+                    avoid_hz: float) -> tuple[np.ndarray, float]:
+    """:func:`tracked_orders` with its first design ``base`` given, and that design's
+    least-squares factor when already computed (wheel and platform share both)."""
     resolution = fs_hz / speed_rad_s.size
     cols = np.empty((speed_rad_s.size, 0))
     f_rot = float("nan")
-    for _ in range(2):  # the slow part is refitted with the first pass's orders
-        coef, _ = filters.lstsq(np.column_stack([base, cols]), speed_rad_s)
+    for it in range(2):  # the slow part is refitted with the first pass's orders
+        if it == 0 and base_factor is not None:
+            coef = base_factor.solve(speed_rad_s)
+        else:
+            coef, _ = filters.lstsq(np.column_stack([base, cols]), speed_rad_s)
         w_s = slow @ coef[:slow.shape[1]]
         mean = float(np.mean(w_s))
         f_rot = abs(mean) / (2 * np.pi)
@@ -312,10 +334,12 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                               degree=cfg.slow.polynomial_degree)
     f_start = nominal_hz if nominal_hz is not None else 0.5 * sum(fp.band_hz)
     cols = []
+    base = _order_base(n, fs_r, slow, f_start)  # the same first design for both speeds
+    base_factor = filters.LstsqFactor.of(base)
     for speed, harmonics in ((wh, nq.wheel_harmonics), (pl, nq.platform_harmonics)):
         if speed is not None:
-            cols.append(tracked_orders(speed, fs_r, slow, harmonics, above_hz=max_hz,
-                                       avoid_hz=f_start, modulation_hz=f_start)[0])
+            cols.append(_tracked_orders(speed, fs_r, slow, harmonics, base, base_factor,
+                                        above_hz=max_hz, avoid_hz=f_start)[0])
     orders = np.column_stack(cols)
     # Step 1: modulation frequency = mean of the torque's and wheel speed's peaks, taken on
     # the records less their slow part and rotation orders (their leakage would pull the

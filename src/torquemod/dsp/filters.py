@@ -388,15 +388,20 @@ def fit_line_and_tones(x: np.ndarray, fs_hz: float, tones_hz: list[float]
                        ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares ``x ~ c0 + c1*t + sum(a_k cos + b_k sin)(2 pi f_k t)``; returns the
     coefficients and the tone frequencies kept (those below Nyquist, one resolution apart)."""
-    n = x.size
+    design, kept = _line_and_tones_design(x.size, fs_hz, tones_hz)
+    coef, _ = lstsq(design, x)
+    return coef, np.asarray(kept)
+
+
+def _line_and_tones_design(n: int, fs_hz: float, tones_hz: list[float]
+                           ) -> tuple[np.ndarray, list[float]]:
+    """The design of :func:`fit_line_and_tones` for ``n`` samples and the tones it keeps."""
     res = fs_hz / n
     kept: list[float] = []
     for f in tones_hz:
         if 0 < f < fs_hz / 2 and all(abs(f - g) > res for g in kept):
             kept.append(f)
-    design = tone_design(np.arange(n) / fs_hz, kept, line=True)
-    coef, _ = lstsq(design, x)
-    return coef, np.asarray(kept)
+    return tone_design(np.arange(n) / fs_hz, kept, line=True), kept
 
 
 def model_padded(x: np.ndarray, fs_hz: float, tones_hz: list[float], pad: int
@@ -424,15 +429,18 @@ def model_padded(x: np.ndarray, fs_hz: float, tones_hz: list[float], pad: int
 def model_padded_rows(rows, fs_hz: float, tones_hz: list[float], pad: int
                       ) -> list[tuple[np.ndarray, float, float]]:
     """:func:`model_padded` of each record in ``rows`` (equal lengths), bit-identical, with the
-    tones' cosines and sines over the padded times evaluated once for all records."""
+    least-squares design factored once and the tones' cosines and sines over the padded times
+    evaluated once for all records."""
     rows = [np.asarray(x, dtype=np.float64) for x in rows]
     n = rows[0].size
     t = np.arange(-pad, n + pad) / fs_hz
     t_mid = (n - 1) / (2 * fs_hz)
+    design, kept = _line_and_tones_design(n, fs_hz, tones_hz)
+    fac = LstsqFactor.of(design)
     trig: dict[float, tuple[np.ndarray, np.ndarray]] = {}
     result = []
     for x in rows:
-        coef, kept = fit_line_and_tones(x, fs_hz, tones_hz)
+        coef = fac.solve(x) if fac is not None else lstsq(design, x)[0]
         out = np.zeros(n + 2 * pad)
         for k, f in enumerate(kept):
             if f not in trig:
