@@ -11,25 +11,28 @@
     python benchmarks/throughput.py [--chain-only] [--workdir DIR]
 
 Measured here (2 shared cores, best of 7, CPU time of one cycle: 107 733 samples x 6
-channels at 16 670 Hz -> 53.344 Hz; the decimator pass is the two-stage design at 204-211 M
-channel-samples/s, 3.1-3.2 ms):
+channels at 16 670 Hz -> 53.344 Hz; before = commit eed86d4 run the same way, interleaved):
 
-==================================  ==================  ==============  ===============
-chain (resample.method two_stage)   ms per cycle        M samples/s     / decimator pass
-==================================  ==================  ==============  ===============
-before the speed-up (2026-11-23)    10.9                9.9             3.26x
-after                               7.7-8.3             13.0-13.9       2.48-2.62x
-after, per-length caches cleared    10.1-10.7           10.1-10.6       3.3-3.4x
-==================================  ==================  ==============  ===============
+====================================  ============  ============  =================
+chain (resample.method two_stage)     ms / cycle    M samples/s   / decimator pass
+====================================  ============  ============  =================
+before the speed-up                   10.9-11.3     9.5-9.9       3.26-3.42x
+after                                 7.6-8.1       13.3-14.1     2.46-2.63x
+after, per-length caches cleared      9.6-10.2      10.6-11.3     3.1-3.3x
+====================================  ============  ============  =================
 
-Of the 7.7-8.3 ms, the chain's own decimation (channels stacked while their means are
-removed, then the two-stage decimator) is 3.1 ms and steps 1-8 after it about 4.9 ms: some
-25 small least-squares fits, filter designs, zero-phase filters and spectral searches on
-~330-sample records, each 30-250 us, mostly numpy/scipy per-call overhead. The issue's 1.5x
-would leave 1.6 ms for all of them. The speed-up kept every output bit-identical on three
-synthetic cycles except ``noise_kept`` (4e-12 relative; it scales only the standard error).
-The cold figure is for cycles whose lengths all differ (per-revolution cycles): the Slepian
-basis of :func:`torquemod.dsp.filters.slow_basis` (1.9 ms per new length) dominates it.
+The decimator pass (two-stage) is 193-196 M channel-samples/s before, 204-211 after (its
+plan is now cached), i.e. 3.1-3.2 ms. Of the chain's 7.6-8.1 ms, its own decimation
+(channels stacked while their means are removed, then the two-stage decimator) is 3.0-3.1
+ms and steps 1-8 after it 4.5-4.9 ms: about 25 small least-squares fits, filter designs,
+zero-phase filters and spectral searches on ~330-sample records, each 30-250 us and mostly
+numpy/scipy per-call overhead (the four spectral-peak searches ~1 ms, the filters ~0.5 ms,
+the band-pass design and its settling length ~0.2 ms, the phase step ~0.4 ms). The issue's
+1.5x would leave 1.6 ms for all of them: not reached. The speed-up kept every output
+bit-identical on three synthetic cycles except ``noise_kept`` (4e-12 relative; it scales
+only the standard error). The cold line is for cycles whose lengths all differ
+(per-revolution cycles): the Slepian basis of :func:`torquemod.dsp.filters.slow_basis`
+(1.9 ms per new length) dominates the difference.
 """
 
 from __future__ import annotations
