@@ -267,20 +267,29 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
         if cfg.nan_policy == "drop-cycle" and bad is not None and bad[a:b].any():
             actions.append(f"{cwhere}: dropped (NaN/inf samples)")
             continue
-        chain.check_cycle_length(seg.n_samples, seg.fs_hz, exp.test.modulation_frequency_hz,
-                                 cfg, where=cwhere)
-        sig = chain.process_cycle(seg, exp.rig, cfg, where=cwhere,
-                                  nominal_hz=exp.test.modulation_frequency_hz,
-                                  normal_load_n=exp.test.normal_load_n)
-        notes += sig.notes
-        info = {"step": entry.step, "cycle": cyc, "dc_torque_nm": entry.dc_torque_nm,
-                "source": where, "n_samples": seg.n_samples, "fs_hz": seg.fs_hz,
-                "t0_s": seg.t0_s}
-        raw = {"t_raw_s": _subsample(seg.time_s() - seg.t0_s),
-               "torque_raw_nm": _subsample(seg.channels["torque_nm"]),
-               "wheel_speed_raw_rad_s": _subsample(seg.channels["wheel_speed_rad_s"])}
-        out.append((cyc, sig, info, raw))
+        item = _cycle_item(entry, exp, cfg, where, cyc, seg)
+        notes += item[1].notes
+        out.append(item)
     return t1 - t0, time.perf_counter() - t1, digest_future.result(), actions, notes, out
+
+
+def _cycle_item(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig, where: str,
+                cyc: int, seg: Recording) -> tuple:
+    """Steps 1-5 and 8 of the chain on one cycle's samples: ``(cycle, CycleSignals, info,
+    raw traces)`` as :func:`_load_and_process` lists them."""
+    cwhere = f"{where} (step {entry.step} cycle {cyc})"
+    chain.check_cycle_length(seg.n_samples, seg.fs_hz, exp.test.modulation_frequency_hz,
+                             cfg, where=cwhere)
+    sig = chain.process_cycle(seg, exp.rig, cfg, where=cwhere,
+                              nominal_hz=exp.test.modulation_frequency_hz,
+                              normal_load_n=exp.test.normal_load_n)
+    info = {"step": entry.step, "cycle": cyc, "dc_torque_nm": entry.dc_torque_nm,
+            "source": where, "n_samples": seg.n_samples, "fs_hz": seg.fs_hz,
+            "t0_s": seg.t0_s}
+    raw = {"t_raw_s": _subsample(seg.time_s() - seg.t0_s),
+           "torque_raw_nm": _subsample(seg.channels["torque_nm"]),
+           "wheel_speed_raw_rad_s": _subsample(seg.channels["wheel_speed_rad_s"])}
+    return cyc, sig, info, raw
 
 
 #: steps 1-5 and 8 of one recording, for callers that distribute them (torquemod.fleet)

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..data import CHANNELS, OPTIONAL_CHANNELS, Recording, RecordingEntry
 from ..errors import InputError
-from ._stream_tables import DEFAULT_CHUNK_ROWS, _open_table
+from ._stream_tables import DEFAULT_CHUNK_ROWS, _open_table, _Table
 from .channels import (
     TIME,
     ChannelMap,
@@ -202,7 +202,8 @@ class RecordingStream:
             chunk, pending, held = _take(pending, held, held)
             yield self._convert(chunk, names)
 
-    def revolutions(self, chunk_rows: int = DEFAULT_CHUNK_ROWS
+    def revolutions(self, chunk_rows: int = DEFAULT_CHUNK_ROWS,
+                    channels: tuple[str, ...] | list[str] | None = None
                     ) -> Iterator[tuple[int, Recording, tuple[int, int]]]:
         """``(k, recording of revolution k, (start, stop))`` for every whole platform
         revolution, k = 1, 2, ..., read in one pass holding at most a revolution and a
@@ -210,8 +211,11 @@ class RecordingStream:
         whole platform speed (the angle is the same trapezoidal sum, accumulated in the same
         order, so bit for bit the same) and the same samples as ``Recording.slice``. After
         the last one, ``self.tail_samples`` holds the samples of the partial revolution
-        left at the end."""
+        left at the end. ``channels`` (default all) limits what is read and delivered; it
+        must hold ``platform_speed_rad_s`` (only that one finds the ranges cheaply)."""
         info = self.info
+        if channels is not None and "platform_speed_rad_s" not in channels:
+            raise ValueError("channels must include platform_speed_rad_s")
         if "platform_speed_rad_s" not in info.file_names:
             raise InputError("no platform speed to split the file by revolutions",
                              path=self.path, channel="platform_speed_rad_s",
@@ -230,7 +234,7 @@ class RecordingStream:
             ch = {c: v[a - held_start:b - held_start].copy() for c, v in held.items()}
             return Recording(ch, fs, info.t0_s + a / fs, info.source, [])
 
-        for chunk in self.chunks(None, chunk_rows):
+        for chunk in self.chunks(channels, chunk_rows):
             w = chunk["platform_speed_rad_s"]
             if pos == 0:
                 ang = np.cumsum(np.concatenate(([0.0], dx * (w[1:] + w[:-1]) / 2.0)))
@@ -269,6 +273,40 @@ class RecordingStream:
                 edge = b
             k += 1
         self.tail_samples = pos - edge
+
+    def read_rows(self, start: int, stop: int,
+                  channels: tuple[str, ...] | list[str] | None = None) -> Recording:
+        """Rows ``start:stop`` of ``channels`` (default all the file has) as a Recording:
+        the values and time base (``t0_s + start/fs_hz``) of the same rows of
+        :meth:`chunks` and :meth:`revolutions`. Formats with random access (HDF5, .mat
+        v7.3, TDMS, MDF4) read just those rows; Parquet and CSV are read in order up to
+        ``stop``."""
+        info = self.info
+        if not 0 <= start < stop <= info.n_samples:
+            raise ValueError(f"rows {start}:{stop} outside 0:{info.n_samples}")
+        want = list(info.channels if channels is None else channels)
+        missing = [c for c in want if c not in info.file_names]
+        if missing:
+            raise InputError(f"channel(s) {', '.join(missing)} not in the recording",
+                             path=self.path, channel=missing[0])
+        names = {c: info.file_names[c] for c in want}
+        if type(self.table).read is not _Table.read:  # random access
+            raw = self.table.read(list(dict.fromkeys(names.values())), start, stop)
+            ch = self._convert(raw, names)
+        else:
+            parts: dict[str, list[np.ndarray]] = {c: [] for c in want}
+            pos = 0
+            for chunk in self.chunks(want):
+                n = next(iter(chunk.values())).size
+                if pos + n > start:
+                    for c, v in chunk.items():
+                        parts[c].append(v[max(0, start - pos):stop - pos])
+                pos += n
+                if pos >= stop:
+                    break
+            ch = {c: np.concatenate(v) if len(v) > 1 else v[0].copy()
+                  for c, v in parts.items()}
+        return Recording(ch, info.fs_hz, info.t0_s + start / info.fs_hz, info.source, [])
 
     def _convert(self, raw: dict[str, np.ndarray], names: dict[str, str]
                  ) -> dict[str, np.ndarray]:

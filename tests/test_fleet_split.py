@@ -1,0 +1,139 @@
+"""A long rig recording cut into groups of revolutions (torquemod.revtasks), in this process:
+the merged groups must be exactly what `load_and_process` returns for the whole recording,
+in both of its ways of splitting a file (whole-file read; streaming, forced here by lowering
+`pipeline.STREAM_MIN_BYTES`), including notes, the NaN error and the file's SHA-256. The
+reference is `load_and_process` itself (an independent code path: whole-file
+`revolution_bounds` or `RecordingStream.revolutions`), compared bit for bit."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+
+import h5py
+import numpy as np
+import pytest
+
+from torquemod import pipeline
+from torquemod.errors import InputError
+from torquemod.io import read_experiment
+from torquemod.io.stream import open_stream
+from torquemod.revtasks import merge_revolutions, plan_revolutions, process_revolutions
+from torquemod.testing import write_synthetic_experiment
+
+
+@pytest.fixture(scope="module")
+def long_exp(tmp_path_factory):
+    """One step, one HDF5 file of 4 revolutions (6.5 s each) without a manifest cycle; the
+    lateral force clipped for 600 samples in revolution 2 and 3 (a clipping note per
+    revolution when streamed, one when read whole)."""
+    root = tmp_path_factory.mktemp("long")
+    write_synthetic_experiment(root, n_steps=1, n_cycles=4, files_per_cycle=False,
+                               fmt="hdf5", seed=5)
+    path = root / "step1.h5"
+    with h5py.File(path, "r+") as fh:
+        w = fh["fy_n"]
+        x = w[...]
+        top = float(x.max())
+        n = x.size // 4
+        for k in (1, 2):
+            x[k * n + 5000:k * n + 5600] = top
+        w[...] = x
+    return root
+
+
+def _same_items(got, ref) -> None:
+    """The tuples of load_and_process, equal in everything but the timings."""
+    assert got[2] == ref[2] and got[3] == ref[3] and got[4] == ref[4]
+    assert len(got[5]) == len(ref[5])
+    for (c1, s1, i1, r1), (c2, s2, i2, r2) in zip(got[5], ref[5], strict=True):
+        assert c1 == c2 and i1 == i2
+        assert r1.keys() == r2.keys() and all(np.array_equal(r1[k], r2[k]) for k in r1)
+        for f in dataclasses.fields(s1):
+            a, b = getattr(s1, f.name), getattr(s2, f.name)
+            if isinstance(a, np.ndarray):
+                assert np.array_equal(a, b, equal_nan=True), f.name
+            else:
+                assert repr(a) == repr(b), f.name  # dicts of floats, NaN-safe
+
+
+def _split(entry, exp, cfg, per_task):
+    plan = plan_revolutions(entry, exp, cfg, revolutions_per_task=per_task)
+    assert plan is not None
+    parts = [process_revolutions(entry, exp, cfg, plan, a, b)
+             for a, b in plan.groups(per_task)]
+    return plan, merge_revolutions(plan, parts)
+
+
+@pytest.mark.parametrize("mode", ["whole", "stream"])
+def test_groups_merge_to_load_and_process(long_exp, monkeypatch, mode):
+    if mode == "stream":
+        monkeypatch.setattr(pipeline, "STREAM_MIN_BYTES", 0)
+    exp = read_experiment(long_exp / "experiment.toml")
+    cfg = pipeline.resolve_config(exp)
+    entry = exp.recordings[0]
+    ref = pipeline.load_and_process(entry, exp, cfg)
+    assert len(ref[5]) == 4
+    clip = [n for n in ref[4] if "sits at its maximum" in n]
+    assert len(clip) == 1  # once per channel in both modes (whole: one record)
+    plan, got = _split(entry, exp, cfg, 1)
+    assert plan.mode == mode and plan.groups(1) == [(0, 1), (1, 2), (2, 3), (3, 4)]
+    assert plan.groups(3) == [(0, 3), (3, 4)]
+    assert got[2] == hashlib.sha256(entry.path.read_bytes()).hexdigest()
+    _same_items(got, ref)
+    _same_items(_split(entry, exp, cfg, 3)[1], ref)
+
+
+def test_nan_in_a_later_revolution(long_exp, tmp_path, monkeypatch):
+    """Streamed: the group holding the damaged revolution raises load_and_process's error
+    (the sample index within that revolution); earlier groups succeed. Read whole: the plan
+    raises the whole-record error (the caller then runs the recording as one task)."""
+    import shutil
+    folder = tmp_path / "nan"
+    shutil.copytree(long_exp, folder)
+    with h5py.File(folder / "step1.h5", "r+") as fh:
+        n = fh["torque_nm"].shape[0]
+        fh["torque_nm"][3 * n // 4 + 100] = np.nan  # in revolution 4
+    exp = read_experiment(folder / "experiment.toml")
+    cfg = pipeline.resolve_config(exp)
+    entry = exp.recordings[0]
+    with pytest.raises(InputError) as whole:
+        pipeline.load_and_process(entry, exp, cfg)
+    with pytest.raises(InputError) as planned:
+        plan_revolutions(entry, exp, cfg, revolutions_per_task=2)
+    assert str(planned.value) == str(whole.value)
+    monkeypatch.setattr(pipeline, "STREAM_MIN_BYTES", 0)
+    with pytest.raises(InputError) as streamed:
+        pipeline.load_and_process(entry, exp, cfg)
+    assert str(streamed.value) != str(whole.value)  # the two modes word it differently
+    plan = plan_revolutions(entry, exp, cfg, revolutions_per_task=2)
+    process_revolutions(entry, exp, cfg, plan, 0, 2)
+    with pytest.raises(InputError) as part:
+        process_revolutions(entry, exp, cfg, plan, 2, 4)
+    assert str(part.value) == str(streamed.value)
+
+
+def test_stays_one_task(long_exp, monkeypatch):
+    exp = read_experiment(long_exp / "experiment.toml")
+    cfg = pipeline.resolve_config(exp)
+    entry = exp.recordings[0]
+    assert plan_revolutions(entry, exp, cfg) is None  # 26 s: shorter than 1.5 tasks
+    assert plan_revolutions(entry, exp, cfg, revolutions_per_task=4) is None  # one group
+    other = dataclasses.replace(cfg, nan_policy="interpolate")
+    assert plan_revolutions(entry, exp, other, revolutions_per_task=1) is None
+    named = dataclasses.replace(entry, cycle=1)
+    assert plan_revolutions(named, exp, cfg, revolutions_per_task=1) is None
+
+
+def test_read_rows_matches_chunks(long_exp):
+    """RecordingStream.read_rows against the same rows cut from the streamed chunks."""
+    exp = read_experiment(long_exp / "experiment.toml")
+    with open_stream(exp.recordings[0], experiment=exp) as s:
+        whole = {c: np.concatenate([ch[c] for ch in s.chunks(None, 50_000)])
+                 for c in s.info.channels}
+        seg = s.read_rows(123_457, 201_001)
+        assert seg.t0_s == s.info.t0_s + 123_457 / s.info.fs_hz
+        for c, v in whole.items():
+            assert np.array_equal(seg.channels[c], v[123_457:201_001])
+        with pytest.raises(ValueError):
+            s.read_rows(5, s.info.n_samples + 1)
