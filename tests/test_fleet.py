@@ -251,3 +251,59 @@ def test_first_bad_recording_in_manifest_order_names_the_failure(fleet, tmp_path
     assert row["message"] == _one_line(exc.value)
     assert not list((out / "cycles").rglob("*.parquet"))
     assert not (out / "_state" / "r.json").exists()
+
+
+def _set_stream_min_bytes(value: int) -> int:
+    """On a worker: the size from which load_and_process streams a file; returns the old."""
+    from torquemod import pipeline
+    old = pipeline.STREAM_MIN_BYTES
+    pipeline.STREAM_MIN_BYTES = value
+    return old
+
+
+@pytest.mark.parametrize("mode", ["whole", "stream"])
+def test_long_recordings_one_task_per_revolution_group(cluster, tmp_path, monkeypatch, mode):
+    """Files of 3 revolutions without manifest cycles, one revolution per task: a scan task
+    and a task per revolution per file; the numbers identical to `process`. A NaN in the
+    last revolution of one file fails its run with `process`'s message: read whole (small
+    files) the scan meets it and the file becomes one task; streamed (forced on the workers
+    and here by lowering STREAM_MIN_BYTES) the revolution's task meets it."""
+    import h5py
+    import numpy as np
+    from dask.distributed import Client, get_task_stream
+
+    from torquemod import pipeline
+    root = tmp_path / "fleet"
+    write_synthetic_experiment(root / "long", n_steps=2, n_cycles=3, files_per_cycle=False,
+                               fmt="hdf5", seed=7)
+    shutil.copytree(root / "long", root / "long_bad")
+    with h5py.File(root / "long_bad" / "step2.h5", "r+") as fh:
+        n = fh["torque_nm"].shape[0]
+        fh["torque_nm"][n - n // 6] = np.nan  # in revolution 3
+    streamed = mode == "stream"
+    if streamed:
+        monkeypatch.setattr(pipeline, "STREAM_MIN_BYTES", 0)
+    with Client(cluster) as client, get_task_stream(client) as stream:
+        old = client.run(_set_stream_min_bytes, 0 if streamed else pipeline.STREAM_MIN_BYTES)
+        try:
+            res = run_fleet([root], tmp_path / "out", scheduler=cluster.scheduler_address,
+                            revolutions_per_task=1, report=False)
+        finally:
+            client.run(_set_stream_min_bytes, next(iter(old.values())))
+    kinds = sorted(t["key"].split("-")[1][:4] for t in stream.data)
+    # long: 2 scans, 6 revolutions; long_bad: step 1 the same, step 2 split when streamed,
+    # else one task (its scan met the NaN)
+    parts = 12 if streamed else 9
+    assert kinds == sorted(["fini"] * 2 + ["plan"] * 2 + ["scan"] * 4 + ["part"] * parts
+                           + ["item"] * (0 if streamed else 1))
+    status = dict(zip(res.summary["run"], res.summary["status"], strict=True))
+    assert status == {"long": "processed", "long_bad": "failed"}
+    alone = process_experiment(root / "long" / "experiment.toml", workers=1)
+    assert len(alone.cycles) == 6
+    for table, ref in (("cycles", alone.cycles), ("steps", alone.steps)):
+        got = pd.read_parquet(tmp_path / "out" / table)
+        _same(got.drop(columns=["run", "vehicle", "date"]), ref)
+    with pytest.raises(TorquemodError) as exc:
+        process_experiment(root / "long_bad" / "experiment.toml", workers=1)
+    assert res.failures["message"].tolist() == [_one_line(exc.value)]
+    assert "step2.h5" in res.failures["message"][0]

@@ -54,6 +54,7 @@ import pandas as pd
 
 from ._version import __version__
 from .errors import InputError, TorquemodError
+from .fleettasks import _recording_items, may_split, part_item, scan_item
 
 MANIFEST_NAME = "experiment.toml"
 RUN_NAME = "run.toml"
@@ -231,6 +232,7 @@ class Plan:
     old_parts: tuple[str, ...]
     fit: bool
     seconds: float
+    revolutions_per_task: int | None = None
 
     @property
     def n_items(self) -> int:
@@ -251,10 +253,10 @@ def _failed(row: dict, exc: BaseException | str, out_dir: str, old_parts) -> dic
 
 
 def plan_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
-             fit: bool = True) -> dict | Plan:
+             fit: bool = True, revolutions_per_task: int | None = None) -> dict | Plan:
     """Read and fingerprint one run manifest: a summary row when the run is done with
-    (``skipped``: unchanged; ``failed``: the manifest is bad), else its :class:`Plan`.
-    Never raises (a Dask task)."""
+    (``skipped``: unchanged; ``failed``: the manifest is bad), else its :class:`Plan`
+    (``revolutions_per_task``: see :func:`scan_item`). Never raises (a Dask task)."""
     t0 = time.perf_counter()
     row = dict.fromkeys(SUMMARY_COLUMNS)
     row.update(run=run, manifest=str(manifest), kind=manifest_kind(Path(manifest)),
@@ -276,7 +278,7 @@ def plan_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
         return {**row, **{k: old.get("row", {}).get(k) for k in _KEPT}, "status": "skipped",
                 "seconds": time.perf_counter() - t0}
     return Plan(prep, str(manifest), out_dir, run, row, old_parts, fit,
-                time.perf_counter() - t0)
+                time.perf_counter() - t0, revolutions_per_task)
 
 
 def work_item(plan: Plan, index: int) -> tuple:
@@ -338,14 +340,17 @@ def _train_tables(prep: Prepared, tracks: list) -> tuple[dict, dict]:
                       for a, t in sorted(zip(axles, tracks, strict=True))}}, info
 
 
-def finish_run(plan: Plan, *items: tuple) -> dict:
-    """Assemble the run from its items (in manifest order), write its partitions and state:
-    the summary row. The first failed item, in manifest order, fails the run with its
-    message (the one the sequential command meets first). Never raises (a Dask task)."""
+def finish_run(plan: Plan, *items: tuple, layout: list | None = None) -> dict:
+    """Assemble the run from its items (in manifest order; ``layout``: the parts of split
+    recordings, :func:`_recording_items`), write its partitions and state: the summary
+    row. The first failed item, in manifest order, fails the run with its message (the one
+    the sequential command meets first). Never raises (a Dask task)."""
     t0 = time.perf_counter()
     row = dict(plan.row)
-    seconds = plan.seconds + sum(it[2] for it in items)
+    seconds = plan.seconds
     try:
+        items = tuple(_recording_items(items, layout))
+        seconds += sum(it[2] for it in items)
         errors = [it[1] for it in items if it[0] != "ok"]
         if errors:
             raise _ItemError(errors[0])
@@ -381,14 +386,25 @@ class _ItemError(Exception):
 
 
 def process_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
-                fit: bool = True) -> dict:
+                fit: bool = True, revolutions_per_task: int | None = None) -> dict:
     """Process one run manifest (rig or train) into its partitions in this process: what
     :func:`run_fleet` does with tasks, in sequence. Never raises: the outcome is a summary
     row (``status`` processed, skipped or failed; :data:`SUMMARY_COLUMNS`)."""
-    plan = plan_run(manifest, out_dir, run, force, fit=fit)
+    plan = plan_run(manifest, out_dir, run, force, fit=fit,
+                    revolutions_per_task=revolutions_per_task)
     if isinstance(plan, dict):
         return plan
-    return finish_run(plan, *(work_item(plan, i) for i in range(plan.n_items)))
+    items, layout = [], []
+    for i in range(plan.n_items):
+        kind, rplan, groups, scan_s = (scan_item(plan, i) if may_split(plan, i)
+                                       else ("whole", None, None, 0.0))
+        if kind == "split":
+            items += [part_item(plan, i, rplan, a, b) for a, b in groups]
+            layout.append((rplan, len(groups), scan_s))
+        else:
+            items.append(work_item(plan, i))
+            layout.append(None)
+    return finish_run(plan, *items, layout=layout)
 
 
 def _write_partition(files: dict, folder: Path) -> None:
@@ -467,7 +483,8 @@ class FleetResult:
 def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
               scheduler: str | None = None, n_workers: int | None = None,
               force: bool = False, progress: bool = False, fit: bool = True,
-              report: bool = True, on_dashboard=None) -> FleetResult:
+              report: bool = True, on_dashboard=None,
+              revolutions_per_task: int | None = None) -> FleetResult:
     """Process many run manifests (rig experiments and train runs) in parallel on Dask and
     write the fleet's datasets, summary, failures and report.
 
@@ -477,7 +494,9 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     at the end. ``force`` reprocesses unchanged runs; ``fit`` fits the rig experiments'
     creep curves (mu in the summary); ``report`` writes ``fleet_report.html``.
     ``on_dashboard(link)`` is called with the dashboard address when there is one;
-    ``progress`` shows a bar on stderr.
+    ``progress`` shows a bar on stderr. A rig recording spanning many revolutions becomes
+    one task per ``revolutions_per_task`` revolutions (default: about
+    :data:`torquemod.revtasks.TASK_SECONDS` of recording each; :func:`scan_item`).
     """
     from .daskutil import dask_client
 
@@ -497,7 +516,8 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
             on_dashboard(link)
 
     with dask_client(scheduler, n_workers, dashboard) as client:
-        rows = _run_tasks(client, paths, names, str(out), force, fit, progress)
+        rows = _run_tasks(client, paths, names, str(out), force, fit, progress,
+                          revolutions_per_task)
     prune_empty(out)
     summary = pd.DataFrame(rows, columns=SUMMARY_COLUMNS).sort_values("run",
                                                                       ignore_index=True)
@@ -516,25 +536,63 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
 
 
 def _run_tasks(client, paths: list[Path], names: list[str], out: str, force: bool,
-               fit: bool, progress: bool) -> list[dict]:
-    """The fleet's task graph, grown as plans arrive: per run a :func:`plan_run` task; for a
-    run to process, one :func:`work_item` task per recording (axle) and a :func:`finish_run`
-    task on their results. Returns the summary rows; a task lost with its worker (killed,
-    out of memory) becomes a failed row."""
+               fit: bool, progress: bool, revolutions_per_task: int | None = None
+               ) -> list[dict]:
+    """The fleet's task graph, grown as results arrive: per run a :func:`plan_run` task; for
+    a run to process, per recording one :func:`work_item` task, or for a rig recording that
+    may be split a :func:`scan_item` task and then one :func:`part_item` task per group of
+    revolutions; once every recording of the run has its tasks, a :func:`finish_run` task on
+    their results. Returns the summary rows; a task lost with its worker (killed, out of
+    memory) becomes a failed row."""
     from dask.distributed import as_completed
     from tqdm import tqdm
 
     def key(kind: str, name: str) -> str:
         return f"torquemod-{kind}-{name}-{time.time_ns()}"
 
-    runs = {}
+    runs = {}  # plan and finish futures -> (run, manifest)
+    scans = {}  # scan futures -> (run, recording index)
+    open_runs: dict[str, dict] = {}  # run -> plan, per recording its futures and layout
     for p, name in zip(paths, names, strict=True):
-        runs[client.submit(plan_run, str(p), out, name, force, fit=fit, pure=False,
+        runs[client.submit(plan_run, str(p), out, name, force, fit=fit,
+                           revolutions_per_task=revolutions_per_task, pure=False,
                            key=key("plan", name))] = (name, str(p))
     rows = []
     bar = tqdm(total=len(runs), desc="fleet", unit="run", disable=not progress)
     done = as_completed(list(runs))
+
+    def whole(plan: Plan, name: str, i: int) -> tuple[list, None]:
+        return [client.submit(work_item, plan, i, pure=False, key=key(f"item{i}", name))], None
+
+    def finish_when_ready(name: str) -> None:
+        st = open_runs[name]
+        if st["waiting"]:
+            return
+        del open_runs[name]
+        futs = [f for slot in st["slots"] for f in slot[0]]
+        last = client.submit(finish_run, st["plan"], *futs,
+                             layout=[slot[1] for slot in st["slots"]], pure=False,
+                             key=key("finish", name))
+        runs[last] = (name, st["manifest"])
+        done.add(last)
+
     for fut in done:
+        if fut in scans:
+            name, i = scans.pop(fut)
+            st = open_runs[name]
+            try:
+                kind, rplan, groups, scan_s = fut.result()
+            except Exception:  # the worker died under the scan: one task for the file
+                kind = "whole"
+            if kind == "split":
+                st["slots"][i] = ([client.submit(part_item, st["plan"], i, rplan, a, b,
+                                                 pure=False, key=key(f"part{i}.{a}", name))
+                                   for a, b in groups], (rplan, len(groups), scan_s))
+            else:
+                st["slots"][i] = whole(st["plan"], name, i)
+            st["waiting"] -= 1
+            finish_when_ready(name)
+            continue
         name, manifest = runs.pop(fut)  # nothing held once handled
         try:
             res = fut.result()
@@ -546,11 +604,19 @@ def _run_tasks(client, paths: list[Path], names: list[str], out: str, force: boo
             bar.update()
             continue
         if isinstance(res, Plan):
-            items = [client.submit(work_item, res, i, pure=False, key=key(f"item{i}", name))
-                     for i in range(res.n_items)]
-            last = client.submit(finish_run, res, *items, pure=False, key=key("finish", name))
-            runs[last] = (name, manifest)
-            done.add(last)
+            st = {"plan": res, "manifest": manifest, "slots": [], "waiting": 0}
+            open_runs[name] = st
+            for i in range(res.n_items):
+                if may_split(res, i):
+                    scan = client.submit(scan_item, res, i, pure=False,
+                                         key=key(f"scan{i}", name))
+                    scans[scan] = (name, i)
+                    done.add(scan)
+                    st["slots"].append(None)
+                    st["waiting"] += 1
+                else:
+                    st["slots"].append(whole(res, name, i))
+            finish_when_ready(name)
             continue
         rows.append(res)
         bar.update()
