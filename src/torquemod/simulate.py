@@ -14,8 +14,11 @@ The torque steps run side by side on a pool of threads (each integrates a step a
 truth, noise and files; the compiled integrator and numpy release the GIL): every step
 starts from the steady state of the torque before it (:mod:`torquemod.rig.steps`), which
 moves the simulated phases by < 1e-6 deg against running the steps one after the other.
-The sensor noise of each step comes from its own stream (SFC64, a child of the seed's), so
-a run is deterministic for its seed whatever the threads' timing.
+The sensor noise of each step comes from its own stream (an SFC64 child of the seed's, which
+seeds the compiled splitmix64/ziggurat generator of :mod:`torquemod.rig.noise` per channel),
+so a run is deterministic for its seed whatever the threads' timing. The settling before the
+recorded revolutions is integrated at the longest stable RK4 step without output samples
+(:func:`torquemod.rig.steps.integrate_step`).
 
 ``truth.json`` holds the run's speed-loop wobble (``speed_wobble``: configuration, realised
 terms, reference RMS) and per step the steady state, the theory phases and what was simulated
@@ -67,7 +70,11 @@ from .rig.params import (
     SimConfig,
 )
 from .rig.sensors import measure
-from .rig.steps import integrate_step
+from .rig.steps import (  # MAX_LAMBDA_H, stiffest_rate: re-exported
+    MAX_LAMBDA_H,
+    integrate_step,
+    stiffest_rate,
+)
 from .rig.truth import (  # noqa: F401 - sine_fit_phase_deg, wobble_free_phase_deg re-exported
     _step_truth,
     _wobble_truth,
@@ -228,23 +235,6 @@ def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
                      procedure=procedure)
 
 
-#: largest |lambda*h| accepted for the integrator (RK4 is stable to 2.78 on the real axis)
-MAX_LAMBDA_H = 2.0
-
-
-def stiffest_rate(rig: RigParams) -> float:
-    """Estimate [1/s] of the fastest eigenvalue of the twin's equations: the platform's PI
-    loop ``Kp/Jp``, the torsional mode ``sqrt(k/J) + c/J`` (``1/J = 1/Jm + 1/Jw``) or the
-    creep-force damping ``(Rw^2/Jw + Rp^2/Jp)*dFx/dxi/V`` at zero creepage."""
-    c = rig.contact
-    inv_j = 1.0 / rig.drive_inertia_kg_m2 + 1.0 / rig.wheel_inertia_kg_m2
-    torsion = math.sqrt(rig.shaft_stiffness_nm_rad * inv_j) + rig.shaft_damping_nm_s_rad * inv_j
-    kx = 2.0 * (c.k_a + c.k_s) * c.stiffness_x_n / math.pi  # dFx/dxi at 0, P05 Eq. (8)
-    contact = (rig.wheel_radius_m ** 2 / rig.wheel_inertia_kg_m2
-               + rig.platform_radius_m ** 2 / rig.platform_inertia_kg_m2) * kx / rig.speed_m_s
-    return max(rig.platform_kp_nm_s_rad / rig.platform_inertia_kg_m2, torsion, contact)
-
-
 def _check_step(rig: RigParams, sensors: SensorParams, proc: ProcedureParams,
                 where: str) -> None:
     h = proc.samples_per_step / (proc.substeps * sensors.sample_rate_hz)
@@ -331,7 +321,7 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     def run(plan, before):
         start = None if plan.y0 is not None else before.result()[2]
         out, n_done, slipped, y_end = integrate_step(config, params, wobble, plan, n_step,
-                                                     start)
+                                                     start, n_settle)
         bar.update(1)
         if slipped:
             return None, [], y_end, plan.t0_s + n_done * dt

@@ -108,7 +108,7 @@ def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 
         config, rp, params = point
         start = None if plan.y0 is not None else before.result()[2]
         out, n_done, slipped, y_end = integrate_step(config, params, rp.wobble, plan,
-                                                     rp.n_step, start)
+                                                     rp.n_step, start, rp.n_settle)
         if slipped:
             return None, plan.t0_s + n_done * (1.0 / config.sensors.sample_rate_hz), y_end
         entry, _ = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done, plan.t0_s,

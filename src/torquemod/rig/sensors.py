@@ -16,6 +16,7 @@ from .dynamics import OUT_COLUMNS
 from .kernels import FLAGS as _FLAGS
 from .kernels import cos_small as _cos_small
 from .kernels import sin_small as _sin_small
+from .noise import add_normal
 from .params import DisturbanceParams, SensorParams
 
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
@@ -63,34 +64,36 @@ def measure(raw: np.ndarray, *, disturbances: DisturbanceParams, sensors: Sensor
     ``raw`` (columns :data:`torquemod.rig.dynamics.OUT_COLUMNS`). Forces keep the contact
     sign convention: ``fx_n`` > 0 is traction for positive drive torque.
 
-    The channels are the contiguous rows of one new float64 array. The noise is drawn channel
-    by channel in the order of :data:`_NOISY`, one ``standard_normal`` call per channel with
-    noise (the same numbers as ``rng.normal(0, sd, n)``)."""
+    The channels are the contiguous rows of one new float64 array. White Gaussian noise of
+    each channel's standard deviation comes from its own splitmix64 stream
+    (:mod:`torquemod.rig.noise`), whose 64-bit start states are drawn from ``rng`` in the
+    order of :data:`_NOISY` (one word per channel, drawn whether or not it has noise), and is
+    added in the same pass that copies the channel out of ``raw``."""
     d, s = disturbances, sensors
     n = raw.shape[0]
     block = np.empty((len(_NOISY), n))
-    ch = {}
-    for k, name in enumerate(_NOISY):
-        ch[name] = block[k]
-        if not (d.enabled and name in _ENCODER):
-            block[k] = raw[:, _COL[name]]
+    ch = {name: block[k] for k, name in enumerate(_NOISY)}
     if not d.enabled:
+        for k, name in enumerate(_NOISY):
+            block[k] = raw[:, _COL[name]]
         return ch
+    states = rng.integers(0, np.iinfo(np.uint64).max, size=len(_NOISY), dtype=np.uint64,
+                          endpoint=True)
     encs = {"wheel_speed_rad_s": (d.wheel_encoder_ecc1_rad, d.wheel_encoder_ecc2_rad,
                                   d.wheel_encoder_phase1_rad, d.wheel_encoder_phase2_rad),
             "platform_speed_rad_s": (d.platform_encoder_ecc1_rad, d.platform_encoder_ecc2_rad,
                                      d.platform_encoder_phase1_rad,
                                      d.platform_encoder_phase2_rad)}
-    for name, ecc in encs.items():
-        _encoder_kernel(raw[:, _COL[name]], raw[:, _COL[_ENCODER[name]]], *ecc, ch[name])
     sigma = {"torque_nm": s.torque_noise_nm, "wheel_speed_rad_s": s.wheel_speed_noise_rad_s,
              "platform_speed_rad_s": s.platform_speed_noise_rad_s, "fx_n": s.force_noise_n,
              "fy_n": s.force_noise_n, "fz_n": s.force_noise_n}
-    buf = np.empty(n)
-    for name in _NOISY:
-        sd = sigma[name]
-        if sd > 0:
-            rng.standard_normal(out=buf)
-            buf *= sd
-            ch[name] += buf
+    for k, name in enumerate(_NOISY):
+        src = raw[:, _COL[name]]
+        if name in encs:
+            _encoder_kernel(src, raw[:, _COL[_ENCODER[name]]], *encs[name], ch[name])
+            src = ch[name]
+        if sigma[name] > 0:
+            add_normal(src, sigma[name], int(states[k]), ch[name])
+        elif name not in encs:
+            ch[name][:] = src
     return ch
