@@ -58,7 +58,6 @@ per revolution; recorded forces of inner samples within 6e-6 N of the exact cont
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import tempfile
 import time
@@ -66,8 +65,10 @@ from pathlib import Path
 
 import numpy as np
 
+from torquemod.rig.batch import plan_run
 from torquemod.rig.dynamics import OUT_COLUMNS, initial_state, integrate, pack_parameters
 from torquemod.rig.sensors import measure
+from torquemod.rig.steps import integrate_step
 from torquemod.simulate import load_config, run_simulation, simulate_batch, sine_fit_phase_deg
 from torquemod.theory import operating_point
 
@@ -101,24 +102,19 @@ def first_run(config) -> float:
     return time.perf_counter() - t0
 
 
-def integrator_throughput(config) -> tuple[float, float]:
-    """(simulated seconds, wall seconds) of the bare integrator over the default procedure."""
-    rig, proc, mod = config.rig, config.procedure, config.modulation
+def integrator_throughput(config, coarse_settling: bool = True) -> tuple[float, float]:
+    """(simulated seconds, wall seconds) of the integrator over the first six steps of the
+    default procedure, settling included, one after the other in this thread, as the twin
+    integrates them (:func:`integrate_step`; ``coarse_settling``: the settling at the longest
+    stable step, else at the recorded step as before issue 12's second round)."""
+    rp = plan_run(config, 0)
+    p = pack_parameters(config.rig, config.disturbances)
     fs = config.sensors.sample_rate_hz
-    p = pack_parameters(rig, config.disturbances)
-    op = operating_point(proc.dc_torques_nm[0], rig)
-    n_step = math.ceil((proc.settle_s + proc.cycles_per_step * rig.revolution_s) * fs)
-    out = np.empty((n_step, len(OUT_COLUMNS)))
-    y = initial_state(rig, creepage=op.creepage, dc_torque_nm=proc.dc_torques_nm[0],
-                      contact_fx_n=op.fx_n)
-    t_sim, t0, prev = 0.0, time.perf_counter(), proc.dc_torques_nm[0]
-    for dc in proc.dc_torques_nm[:6]:
-        n, _slipped = integrate(y, t_sim, n_step, 1 / fs, proc.substeps, p, prev, dc, t_sim,
-                                proc.ramp_s, mod.amplitude_nm,
-                                2 * np.pi * mod.actual_frequency_hz, 0.3, t_sim,
-                                proc.slip_creepage, out, proc.samples_per_step)
+    t_sim, t0 = 0.0, time.perf_counter()
+    for plan in rp.steps[:6]:
+        _out, n, _slipped, _y = integrate_step(config, p, rp.wobble, plan, rp.n_step, None,
+                                               rp.n_settle if coarse_settling else 0)
         t_sim += n / fs
-        prev = dc
     return t_sim, time.perf_counter() - t0
 
 
@@ -181,11 +177,13 @@ def main() -> None:
           f"short first run_simulation {first_run(config):.2f} s -- not counted below")
     print(f"step: {proc.samples_per_step} sample(s) per {proc.substeps} RK4 step(s) at "
           f"{config.sensors.sample_rate_hz:g} Hz")
-    walls = []
-    for _ in range(args.repeat):
-        sim_s, wall = integrator_throughput(config)
-        walls.append(wall)
-    _report("integrator", sim_s, walls, "of rig time (settling included)")
+    for coarse in (False, True):
+        walls = []
+        for _ in range(args.repeat):
+            sim_s, wall = integrator_throughput(config, coarse)
+            walls.append(wall)
+        _report("integrator" + (", coarse settling" if coarse else ", settling at the "
+                                "recorded step"), sim_s, walls, "of rig time (settling included)")
     for fmt in ("hdf5", "csv"):
         walls = []
         for _ in range(args.repeat):

@@ -106,3 +106,20 @@ def test_coarse_settling_keeps_the_phases():
             got.append(entry["simulated"])
         assert got[0]["phase_deg"] == pytest.approx(got[1]["phase_deg"], abs=1e-5)
         assert got[0]["creepage_mean"] == pytest.approx(got[1]["creepage_mean"], abs=1e-9)
+
+
+def test_partition_moments_match_numpy():
+    """Means and standard deviations of the whole and of each part in two passes: numpy's
+    over each slice to rounding (1e-12 relative: summation order only)."""
+    from torquemod.rig.truth import _partition_moments
+
+    rng = np.random.default_rng(5)
+    raw = rng.standard_normal((3000, 9)) * np.arange(1, 10) + 50.0
+    cols, std_cols = np.array([8, 0, 3, 4, 5, 2]), np.array([0, 5])
+    edges = np.array([40, 1000, 1990, 2977])
+    mean, std = np.empty((4, cols.size)), np.empty((4, 2))
+    _partition_moments(raw, edges, cols, mean, std_cols, std)
+    spans = [(40, 2977), (40, 1000), (1000, 1990), (1990, 2977)]
+    for i, (a, b) in enumerate(spans):
+        np.testing.assert_allclose(mean[i], raw[a:b, cols].mean(axis=0), rtol=1e-13)
+        np.testing.assert_allclose(std[i], raw[a:b, cols[std_cols]].std(axis=0), rtol=1e-12)

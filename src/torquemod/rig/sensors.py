@@ -35,7 +35,7 @@ def encoder_speed(speed_rad_s: np.ndarray, angle_rad: np.ndarray, *, ecc1_rad: f
     return speed_rad_s * (1.0 + err)
 
 
-@numba.njit(cache=True, fastmath=_FLAGS)
+@numba.njit(cache=True, nogil=True, fastmath=_FLAGS)
 def _encoder_kernel(speed, angle, e1, e2, ph1, ph2, out):
     """:func:`encoder_speed` sample by sample. ``cos(angle + ph1)`` is carried along by rotating
     through each sample's small angle increment (exact sin/cos every 256 samples and after

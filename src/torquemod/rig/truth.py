@@ -170,6 +170,41 @@ def _span_moments(raw, a, b, cols, mean, std_cols, std):
         std[j] = math.sqrt(std[j] / (b - a))
 
 
+@numba.njit(cache=True, nogil=True)
+def _partition_moments(raw, edges, cols, mean, std_cols, std):
+    """:func:`_span_moments` of the whole ``edges[0]:edges[-1]`` (row 0 of ``mean`` and
+    ``std``) and of each part ``edges[j]:edges[j+1]`` (row ``j + 1``) in two passes over the
+    rows instead of two per span: the parts' sums give the whole's mean, and the second pass
+    gathers the squared deviations from both means."""
+    m = edges.size - 1
+    nc, ns = cols.size, std_cols.size
+    mean[:] = 0.0
+    for j in range(m):
+        for k in range(edges[j], edges[j + 1]):
+            for c in range(nc):
+                mean[j + 1, c] += raw[k, cols[c]]
+    for j in range(m):
+        for c in range(nc):
+            mean[0, c] += mean[j + 1, c]
+            mean[j + 1, c] /= edges[j + 1] - edges[j]
+    for c in range(nc):
+        mean[0, c] /= edges[m] - edges[0]
+    std[:] = 0.0
+    for j in range(m):
+        for k in range(edges[j], edges[j + 1]):
+            for c in range(ns):
+                x = raw[k, cols[std_cols[c]]]
+                d = x - mean[j + 1, std_cols[c]]
+                e = x - mean[0, std_cols[c]]
+                std[j + 1, c] += d * d
+                std[0, c] += e * e
+    for j in range(m):
+        for c in range(ns):
+            std[j + 1, c] = math.sqrt(std[j + 1, c] / (edges[j + 1] - edges[j]))
+    for c in range(ns):
+        std[0, c] = math.sqrt(std[0, c] / (edges[m] - edges[0]))
+
+
 #: fit samples between exact evaluations of the basis's sines (rotated in between)
 _BASIS_EXACT = 256
 
@@ -240,10 +275,21 @@ def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.nda
         ys = sub[:, [_COL["torque_nm"], _COL["wheel_speed_rad_s"]]]
     else:
         ref = np.zeros(idx.size)
-    mean, std = np.empty(_MEAN_COLS.size), np.empty(_STD_COLS.size)
+    edges = [a for a, _ in spans[1:]] + [spans[-1][1]] if len(spans) > 1 else []
+    partition = (len(spans) > 1 and spans[0] == (edges[0], edges[-1])
+                 and all(spans[j][1] == spans[j + 1][0] for j in range(1, len(spans) - 1)))
+    if partition:  # the whole and its revolutions: two passes in all
+        means = np.empty((len(spans), _MEAN_COLS.size))
+        stds = np.empty((len(spans), _STD_COLS.size))
+        _partition_moments(raw, np.array(edges, dtype=np.int64), _MEAN_COLS, means,
+                           _STD_COLS, stds)
     out = []
-    for a, b in spans:
-        _span_moments(raw, a, b, _MEAN_COLS, mean, _STD_COLS, std)
+    for i, (a, b) in enumerate(spans):
+        if partition:
+            mean, std = means[i], stds[i]
+        else:
+            mean, std = np.empty(_MEAN_COLS.size), np.empty(_STD_COLS.size)
+            _span_moments(raw, a, b, _MEAN_COLS, mean, _STD_COLS, std)
         m = dict(zip(_MEANS, mean.tolist(), strict=True))
         if nw:
             n = int(np.floor((b - a) / fs * f) * fs / f)  # whole modulation periods
