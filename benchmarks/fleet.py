@@ -12,10 +12,17 @@ processes (``force``: nothing skipped) and prints
   imports and numba caches loaded before the clock starts), and the scaling efficiency
   against 1 worker (speed-up / workers),
 * CPU seconds the workers spent (their own ``process_time``), hence the figure per core,
-* peak RSS per worker (``ru_maxrss``).
+* peak RSS per worker (``ru_maxrss``),
+* the number of Dask tasks the fleet ran.
+
+``--long-revolutions N`` adds a rig run of one HDF5 file spanning N platform revolutions
+(6.46 s each) without manifest cycles: the fleet cuts it into groups of revolutions
+(``--revolutions-per-task``, default about a minute of recording each) instead of one task
+for the whole file. ``--runs 0 --long-revolutions 40`` is a fleet of that file alone.
 
     python benchmarks/fleet.py 1 2 [--runs 8] [--cycles 3] [--train-runs 0]
-                                   [--train-length-m 2000] [--workdir DIR]
+                                   [--train-length-m 2000] [--long-revolutions 0]
+                                   [--revolutions-per-task K] [--workdir DIR]
 
 The script takes the machine as it finds it (``os.cpu_count()``) and runs unchanged on a
 bigger one; worker counts above the cores measure oversubscription.
@@ -48,7 +55,7 @@ def _warm_up() -> None:
 
 
 def write_fleet(root: Path, runs: int, cycles: int, train_runs: int = 0,
-                train_length_m: float = 2000.0) -> float:
+                train_length_m: float = 2000.0, long_revolutions: int = 0) -> float:
     """The fleet's folders; returns the recorded duration [s]."""
     import dataclasses
     import json
@@ -62,6 +69,9 @@ def write_fleet(root: Path, runs: int, cycles: int, train_runs: int = 0,
         folder = root / f"run{k:03d}"
         if not (folder / "experiment.toml").exists():
             write_synthetic_experiment(folder, n_steps=6, n_cycles=cycles, fmt="hdf5", seed=k)
+    if long_revolutions and not (root / "run_long" / "experiment.toml").exists():
+        write_synthetic_experiment(root / "run_long", n_steps=1, n_cycles=long_revolutions,
+                                   files_per_cycle=False, fmt="hdf5", seed=99)
     cfg = load_train_config()
     cfg = dataclasses.replace(cfg, track=dataclasses.replace(cfg.track,
                                                              length_m=train_length_m))
@@ -84,23 +94,31 @@ def main() -> None:
     ap.add_argument("--cycles", type=int, default=3)
     ap.add_argument("--train-runs", type=int, default=0)
     ap.add_argument("--train-length-m", type=float, default=2000.0)
+    ap.add_argument("--long-revolutions", type=int, default=0)
+    ap.add_argument("--revolutions-per-task", type=int, default=None)
     ap.add_argument("--workdir", default=None)
     args = ap.parse_args()
 
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import Client, LocalCluster, get_task_stream
 
     from torquemod.fleet import run_fleet
 
     with tempfile.TemporaryDirectory(dir=args.workdir) as tmp:
         root = Path(args.workdir or tmp) / "fleet"
         seconds = write_fleet(root, args.runs, args.cycles, args.train_runs,
-                              args.train_length_m)
+                              args.train_length_m, args.long_revolutions)
+        extra = ({} if args.revolutions_per_task is None
+                 else {"revolutions_per_task": args.revolutions_per_task})
         hours = seconds / 3600
+        long_text = (f"a rig file of {args.long_revolutions} revolutions, "
+                     if args.long_revolutions else "")
         print(f"cores visible: {os.cpu_count()}; load average {os.getloadavg()[0]:.1f}; "
               f"fleet: {args.runs} rig runs, {args.train_runs} train runs, "
+              f"{long_text}"
               f"{hours * 60:.1f} min of recording")
         print(f"{'workers':>7s} {'wall s':>7s} {'report s':>8s} {'h/min':>7s} {'efficiency':>10s} "
-              f"{'worker CPU s':>12s} {'h/min per CPU-core':>18s} {'peak RSS/worker':>15s}")
+              f"{'worker CPU s':>12s} {'h/min per CPU-core':>18s} {'peak RSS/worker':>15s} "
+              f"{'tasks':>6s}")
         base = None
         for n in args.workers:
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
@@ -109,8 +127,9 @@ def main() -> None:
             try:
                 client.run(_warm_up)
                 before = client.run(_worker_stats)
-                res = run_fleet([root], Path(tmp) / f"out{n}",
-                                scheduler=cluster.scheduler_address, force=True)
+                with get_task_stream(client) as tasks:
+                    res = run_fleet([root], Path(tmp) / f"out{n}",
+                                    scheduler=cluster.scheduler_address, force=True, **extra)
                 after = client.run(_worker_stats)
             finally:
                 client.close()
@@ -124,7 +143,8 @@ def main() -> None:
                 base = rate
             eff = f"{rate / (base * n):10.2f}" if base else f"{'-':>10s}"
             print(f"{n:7d} {res.wall_s:7.1f} {res.report_s:8.1f} {rate:7.2f} {eff} {cpu:12.1f} "
-                  f"{hours / (cpu / 60):18.2f} {rss:12.0f} MiB", flush=True)
+                  f"{hours / (cpu / 60):18.2f} {rss:12.0f} MiB {len(tasks.data):6d}",
+                  flush=True)
 
 
 if __name__ == "__main__":

@@ -56,7 +56,7 @@ class RevolutionPlan:
     ``load_and_process`` is reproduced), ``bounds`` the revolutions' row ranges [start,
     stop), ``fs_hz`` [Hz], ``head_notes``/``tail_notes`` what ``load_and_process`` notes
     before/after the cycles' own notes, ``channel_order`` the whole-file reader's channel
-    order (whole mode), ``sha256`` of the file, ``read_s`` [s] the plan's reading time."""
+    order (whole mode), ``read_s`` [s] the plan's reading time."""
 
     mode: str
     bounds: tuple[tuple[int, int], ...]
@@ -64,7 +64,6 @@ class RevolutionPlan:
     head_notes: tuple[str, ...]
     tail_notes: tuple[str, ...]
     channel_order: tuple[str, ...]
-    sha256: str
     read_s: float
 
     def groups(self, revolutions_per_task: int | None = None) -> list[tuple[int, int]]:
@@ -112,7 +111,6 @@ def plan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
         return None
     if revolutions_per_task is None and info.n_samples / info.fs_hz < 1.5 * TASK_SECONDS:
         return None  # one group: not worth a plan
-    digest = hash_file_async(entry.path)
     stream = _open_stream(entry, exp, cfg)  # the choice load_and_process makes
     if stream is not None:
         with stream:
@@ -123,7 +121,7 @@ def plan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
         plan = RevolutionPlan("stream", tuple(bounds), info.fs_hz, (),
                               tuple(_tail_note(where, tail, [b - a for a, b in bounds],
                                                info.fs_hz)),
-                              info.channels, digest.result(), time.perf_counter() - t0)
+                              info.channels, time.perf_counter() - t0)
     else:
         if entry.path.stat().st_size >= STREAM_MIN_BYTES:
             return None
@@ -138,8 +136,7 @@ def plan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
         check_finite(rec, path=where)
         cycles = _cycles_of(entry, rec, where, notes)  # notes the dropped tail
         plan = RevolutionPlan("whole", tuple(ab for _, _, ab in cycles), rec.fs_hz,
-                              tuple(notes), (), tuple(rec.channels), digest.result(),
-                              time.perf_counter() - t0)
+                              tuple(notes), (), tuple(rec.channels), time.perf_counter() - t0)
     if len(plan.groups(revolutions_per_task)) < 2:
         return None
     return plan
@@ -149,23 +146,27 @@ def plan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
 class RevolutionPart:
     """What :func:`process_revolutions` gives for one group: reading and compute time [s],
     the notes in order (``(clipping key or None, text)``; the key lets
-    :func:`merge_revolutions` keep a channel's clipping note once) and the cycles as
-    ``load_and_process`` lists them."""
+    :func:`merge_revolutions` keep a channel's clipping note once), the cycles as
+    ``load_and_process`` lists them, and the file's SHA-256 (the first group's only)."""
 
     read_s: float
     compute_s: float
     notes: tuple[tuple[str | None, str], ...]
     cycles: list
+    sha256: str | None = None
 
 
 def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig,
                         plan: RevolutionPlan, first: int, stop: int) -> RevolutionPart:
     """Revolutions ``first:stop`` (indices into ``plan.bounds``; cycle numbers ``first+1``
     ...) of a recording: each read by its rows alone, checked as ``load_and_process``
-    checks it in the plan's mode, and put through steps 1-5 and 8. Raises the error
-    ``load_and_process`` meets on these revolutions."""
+    checks it in the plan's mode, and put through steps 1-5 and 8. The first group
+    (``first == 0``) also hashes the file, in a background thread while it computes (as
+    ``load_and_process`` does). Raises the error ``load_and_process`` meets on these
+    revolutions."""
     from .pipeline import _cycle_item
     where = _where(entry)
+    digest = hash_file_async(entry.path) if first == 0 else None
     read_s = compute_s = 0.0
     notes: list[tuple[str | None, str]] = []
     out = []
@@ -186,7 +187,8 @@ def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingC
             out.append(item)
             read_s += t1 - t0
             compute_s += time.perf_counter() - t1
-    return RevolutionPart(read_s, compute_s, tuple(notes), out)
+    return RevolutionPart(read_s, compute_s, tuple(notes), out,
+                          None if digest is None else digest.result())
 
 
 def merge_revolutions(plan: RevolutionPlan, parts: list[RevolutionPart]) -> tuple:
@@ -203,8 +205,10 @@ def merge_revolutions(plan: RevolutionPlan, parts: list[RevolutionPart]) -> tupl
             notes.append(text)
     notes += plan.tail_notes
     cycles = [c for part in parts for c in part.cycles]
+    if parts[0].sha256 is None:
+        raise ValueError("the first group (which hashes the file) is missing")
     if len(cycles) != len(plan.bounds):
         raise ValueError(f"{len(cycles)} cycles merged for {len(plan.bounds)} revolutions")
     read_s = plan.read_s + math.fsum(p.read_s for p in parts)
     compute_s = math.fsum(p.compute_s for p in parts)
-    return read_s, compute_s, plan.sha256, [], notes, cycles
+    return read_s, compute_s, parts[0].sha256, [], notes, cycles
