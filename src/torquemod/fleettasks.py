@@ -1,10 +1,12 @@
-"""Fleet tasks for a rig recording spanning many revolutions (issue 11): a cheap scan, one
-task per group of revolutions, and their merge in the run's assembly
+"""The fleet's Dask task graph (:func:`run_tasks`, for :func:`torquemod.fleet.run_fleet`) and
+the tasks of a rig recording spanning many revolutions (issue 11): a cheap scan, one task per
+group of revolutions, and their merge in the run's assembly
 (:func:`torquemod.fleet.finish_run`). The work itself is :mod:`torquemod.revtasks`."""
 
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -89,3 +91,102 @@ def _recording_items(items: tuple, layout: list | None) -> list[tuple]:
         except Exception as exc:
             out.append(("error", _one_line(exc), secs))
     return out
+
+
+def run_tasks(client, paths: list[Path], names: list[str], out: str, force: bool,
+               fit: bool, progress: bool, revolutions_per_task: int | None = None
+               ) -> list[dict]:
+    """The fleet's task graph, grown as results arrive: per run a :func:`plan_run` task; for
+    a run to process, per recording one :func:`work_item` task, or for a rig recording that
+    may be split a :func:`scan_item` task and then one :func:`part_item` task per group of
+    revolutions; once every recording of the run has its tasks, a :func:`finish_run` task on
+    their results. Returns the summary rows; a task lost with its worker (killed, out of
+    memory) becomes a failed row."""
+    from dask.distributed import as_completed
+    from tqdm import tqdm
+
+    from .fleet import (
+        SUMMARY_COLUMNS,
+        Plan,
+        finish_run,
+        manifest_kind,
+        one_line,
+        plan_run,
+        work_item,
+    )
+
+    def key(kind: str, name: str) -> str:
+        return f"torquemod-{kind}-{name}-{time.time_ns()}"
+
+    runs = {}  # plan and finish futures -> (run, manifest)
+    scans = {}  # scan futures -> (run, recording index)
+    open_runs: dict[str, dict] = {}  # run -> plan, per recording its futures and layout
+    for p, name in zip(paths, names, strict=True):
+        runs[client.submit(plan_run, str(p), out, name, force, fit=fit,
+                           revolutions_per_task=revolutions_per_task, pure=False,
+                           key=key("plan", name))] = (name, str(p))
+    rows = []
+    bar = tqdm(total=len(runs), desc="fleet", unit="run", disable=not progress)
+    done = as_completed(list(runs))
+
+    def whole(plan: Plan, name: str, i: int) -> tuple[list, None]:
+        return [client.submit(work_item, plan, i, pure=False, key=key(f"item{i}", name))], None
+
+    def finish_when_ready(name: str) -> None:
+        st = open_runs[name]
+        if st["waiting"]:
+            return
+        del open_runs[name]
+        futs = [f for slot in st["slots"] for f in slot[0]]
+        last = client.submit(finish_run, st["plan"], *futs,
+                             layout=[slot[1] for slot in st["slots"]], pure=False,
+                             key=key("finish", name))
+        runs[last] = (name, st["manifest"])
+        done.add(last)
+
+    for fut in done:
+        if fut in scans:
+            name, i = scans.pop(fut)
+            st = open_runs[name]
+            try:
+                kind, rplan, groups, scan_s = fut.result()
+            except Exception:  # the worker died under the scan: one task for the file
+                kind = "whole"
+            if kind == "split":
+                st["slots"][i] = ([client.submit(part_item, st["plan"], i, rplan, a, b,
+                                                 pure=False, key=key(f"part{i}.{a}", name))
+                                   for a, b in groups], (rplan, len(groups), scan_s))
+            else:
+                st["slots"][i] = whole(st["plan"], name, i)
+            st["waiting"] -= 1
+            finish_when_ready(name)
+            continue
+        name, manifest = runs.pop(fut)  # nothing held once handled
+        try:
+            res = fut.result()
+        except Exception as exc:  # the worker died under the task
+            row = dict.fromkeys(SUMMARY_COLUMNS)
+            row.update(run=name, manifest=manifest, kind=manifest_kind(Path(manifest)),
+                       status="failed", message=one_line(exc))
+            rows.append(row)
+            bar.update()
+            continue
+        if isinstance(res, Plan):
+            st = {"plan": res, "manifest": manifest, "slots": [], "waiting": 0}
+            open_runs[name] = st
+            for i in range(res.n_items):
+                if may_split(res, i):
+                    scan = client.submit(scan_item, res, i, pure=False,
+                                         key=key(f"scan{i}", name))
+                    scans[scan] = (name, i)
+                    done.add(scan)
+                    st["slots"].append(None)
+                    st["waiting"] += 1
+                else:
+                    st["slots"].append(whole(res, name, i))
+            finish_when_ready(name)
+            continue
+        rows.append(res)
+        bar.update()
+    bar.close()
+    return rows
