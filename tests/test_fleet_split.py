@@ -137,3 +137,20 @@ def test_read_rows_matches_chunks(long_exp):
             assert np.array_equal(seg.channels[c], v[123_457:201_001])
         with pytest.raises(ValueError):
             s.read_rows(5, s.info.n_samples + 1)
+
+
+def test_process_run_in_sequence_splits_the_same(long_exp, tmp_path):
+    """process_run (the fleet's tasks in this process) with one revolution per task: the
+    partitions hold exactly `process_experiment`'s tables."""
+    import pandas as pd
+
+    from torquemod.fleet import process_run
+    row = process_run(str(long_exp / "experiment.toml"), str(tmp_path / "out"), "r",
+                      revolutions_per_task=1)
+    assert row["status"] == "processed" and row["n_cycles"] == 4
+    alone = pipeline.process_experiment(long_exp / "experiment.toml", workers=1)
+    for table, ref in (("cycles", alone.cycles), ("steps", alone.steps)):
+        got = pd.read_parquet(tmp_path / "out" / table).drop(columns=["run", "vehicle",
+                                                                      "date"])
+        pd.testing.assert_frame_equal(got, ref.reset_index(drop=True), check_dtype=False,
+                                      rtol=0, atol=0)
