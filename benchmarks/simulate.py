@@ -22,37 +22,44 @@ CPU (each step starts from the steady state of the torque before, rig/steps.py).
 figure. ``--repeat`` runs each measurement N times and prints every figure and the best; the
 machine's other load shows as spread between repeats.
 
-Measured (issue 12; 2-core machine shared with other agents, load average 0.7-2.4 during the
-runs, best of 3):
+Measured, second round of issue 12 (2-core AMD EPYC VM shared with up to 8 other agents, load
+average 1.9-3.1 during the runs; best of 3 in-process runs after a warm-up, "before" = commit
+ad67fc9 run from an exported copy, before and after alternated so that both see the same
+load; ranges over the alternations):
 
 =========================================  ======================  ======================
-                                           before                  after
+                                           before (ad67fc9)        after
 =========================================  ======================  ======================
-integrator                                 405-419x                504-526x
-run_simulation HDF5, 2 cores               142-202x                265-318x
-run_simulation HDF5, 1 core                126-146x                161-182x
-run_simulation CSV, 2 cores                63-67x                  132-139x
-batch, 4 points, 2 cores (points/s)        2.3 (run_simulation)    4.3 (simulate_batch)
-batch, 4 points, 1 core (points/s)         1.3 (run_simulation)    2.4 (simulate_batch)
+run_simulation HDF5, 2 cores               149-318x                337-366x
+run_simulation HDF5, 1 core                184-189x                220-225x
+integrator (six steps, one thread)         468x                    532x
+CPU of one run, one worker (s)             0.64                    0.53
+  integrator / noise / truth+theory / h5   0.31/0.14/0.12/0.07     0.27/0.07/0.11/0.08
 =========================================  ======================  ======================
 
-``simulate_batch(..., large_signal=False)``: 5.0 points/s on 2 cores; one point at a time
-4.1 points/s (each point's steps already run side by side).
+(The first round's table, on a quieter machine: integrator 405-419x -> 504-526x, HDF5 2 cores
+142-202x -> 265-318x, 1 core 126-146x -> 161-182x, CSV 63-67x -> 132-139x, batch of 4 points
+2.3 -> 4.3 points/s.) What changed in the second round: the settling before the recorded
+revolutions (17 % of the integrated samples) runs at the longest stable RK4 step (10 samples,
+``lambda*h = 2.0``) without output samples (phases move < 5e-7 deg, rig/steps.py); the sensor
+noise comes from a compiled splitmix64 + ziggurat generator added while the channel is copied
+out (4.4 ns per number against ~12 ns per sample for numpy's SFC64 normals, a buffer and the
+scaled add; noise values per seed changed); the truth's means and standard deviations of a
+step and its revolutions in two passes instead of eight; the encoder kernel releases the GIL.
 
-Where the time goes now (one core, cProfile of the default run, 0.76 CPU-s before the last
-integrator change): integrator 52 %, sensor noise 18 % (11.6 M normals at ~7.5 ns with SFC64),
-ground truth 16 % (of which the theory's periodic state and operating points ~60 %), HDF5
-writing 12 % (io/hdf5.py's ``write_hdf5``: ~5 ms per file, 18 files). What changed: the steps
-run side by side (was: one integrating thread and one finishing thread); the truth fit's basis
-by rotated sines in one compiled pass; the inner samples of a 4-sample step take the contact
-from a cubic through exact values (exact at the middle sample, at rail joints and in fast
-transients): integrator 419x -> 526x. Tried and dropped: the Polach force's ``exp``/``atan``
-advanced from a per-step anchor by their addition formulas (no gain: the kernel is bound by
-its divisions and square roots, ~50 ns per call either way); float32 normals (8.6 vs 9.4 ns);
-numba's own normal generator (29 ns). ``samples_per_step = 8`` (a config change, not made)
-moves the phases by 1.6e-5 deg but gains only ~12 %: the per-sample work dominates.
-Simulated phases against the sequential run before: < 7.1e-7 deg (whole record), < 1.8e-7 deg
-per revolution; recorded forces of inner samples within 6e-6 N of the exact contact.
+Why 1000x is out of reach (0.116 s wall for 116.3 s recorded on 2 cores, i.e. 0.23 CPU-s if
+both cores were busy the whole time): the integrator alone needs ~0.23 CPU-s. A recorded RK4
+step (4 samples) costs ~480 ns: ~400 ns for the bare step, of which ~260 ns is the serial
+dependency of the four Polach evaluations (each ~51 ns of latency: a division, two square
+roots, ``exp`` 11 ns and ``atan`` 22 ns in a chain; measured), ~100 ns the normal-load
+disturbances (sleepers, joints) and ~40 ns the speed wobble; the samples inside the step add
+~80-100 ns. Around it, per run: HDF5 writing ~75 ms (18 files, 108 MB; h5py holds the GIL),
+the truth ~80 ms and the large-signal theory ~35 ms (Python/scipy, GIL), noise ~65 ms. The
+floor with this integrator is ~0.5 CPU-s, ~0.26 s wall on 2 idle cores (~450x). Further
+options, measured but not taken: ``samples_per_step = 8`` (a change of the default config)
+gives ~115 against ~141 ns per sample (phases move 1.6e-5 deg); interleaving two torque steps
+in one integrator loop (their chains are independent) could hide most of the latency but
+needs a kernel rewritten across lanes.
 """
 
 from __future__ import annotations
