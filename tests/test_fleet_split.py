@@ -126,9 +126,10 @@ def test_stays_one_task(long_exp, monkeypatch):
 
 
 def test_read_rows_matches_chunks(long_exp):
-    """RecordingStream.read_rows against the same rows cut from the streamed chunks."""
+    """HDF5 (random access): RecordingStream.read_rows against the same rows of the chunks."""
     exp = read_experiment(long_exp / "experiment.toml")
     with open_stream(exp.recordings[0], experiment=exp) as s:
+        assert s.random_access
         whole = {c: np.concatenate([ch[c] for ch in s.chunks(None, 50_000)])
                  for c in s.info.channels}
         seg = s.read_rows(123_457, 201_001)
@@ -154,3 +155,20 @@ def test_process_run_in_sequence_splits_the_same(long_exp, tmp_path):
                                                                       "date"])
         pd.testing.assert_frame_equal(got, ref.reset_index(drop=True), check_dtype=False,
                                       rtol=0, atol=0)
+
+
+def test_csv_stays_one_task_and_reads_rows_in_order(tmp_path):
+    """A CSV file is read in order only: not split (each group would parse every row before
+    its own); its read_rows still gives the streamed rows."""
+    write_synthetic_experiment(tmp_path, n_steps=1, n_cycles=3, files_per_cycle=False,
+                               fmt="csv", seed=2)
+    exp = read_experiment(tmp_path / "experiment.toml")
+    cfg = pipeline.resolve_config(exp)
+    assert plan_revolutions(exp.recordings[0], exp, cfg, revolutions_per_task=1) is None
+    with open_stream(exp.recordings[0], experiment=exp) as s:
+        assert not s.random_access
+        whole = {c: np.concatenate([ch[c] for ch in s.chunks(None, 40_000)])
+                 for c in s.info.channels}
+        seg = s.read_rows(199_999, 300_001)  # across a 2**18-row chunk edge
+        for c, v in whole.items():
+            assert np.array_equal(seg.channels[c], v[199_999:300_001])

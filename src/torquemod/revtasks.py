@@ -28,7 +28,10 @@ task. Here the same work is cut in three:
 
 A recording stays one task (:func:`plan_revolutions` returns None) when the manifest names
 its cycle, the NaN policy is not ``raise``, the file cannot be streamed (channels on their
-own time bases, .mat v5), it has no platform speed, or it is short (one group).
+own time bases, .mat v5) or only in order (Parquet, CSV: each group would read every row
+before its own), it has no platform speed, or it is short (one group). Each group opens the
+file's stream, which finds its time base again (for a file with a time column, a pass over
+that column).
 """
 
 from __future__ import annotations
@@ -104,11 +107,11 @@ def plan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
     t0 = time.perf_counter()
     try:  # what can be streamed, and how long it is (the file's description only)
         with open_stream(entry, experiment=exp) as probe:
-            info = probe.info
+            info, random_access = probe.info, probe.random_access
     except (InputError, OSError):
         return None
-    if "platform_speed_rad_s" not in info.file_names:
-        return None
+    if "platform_speed_rad_s" not in info.file_names or not random_access:
+        return None  # Parquet, CSV: each group would read every row before its own
     if revolutions_per_task is None and info.n_samples / info.fs_hz < 1.5 * TASK_SECONDS:
         return None  # one group: not worth a plan
     stream = _open_stream(entry, exp, cfg)  # the choice load_and_process makes

@@ -274,6 +274,12 @@ class RecordingStream:
             k += 1
         self.tail_samples = pos - edge
 
+    @property
+    def random_access(self) -> bool:
+        """Whether :meth:`read_rows` reads just the rows asked for (HDF5, .mat v7.3, TDMS,
+        MDF4) rather than every row up to them (Parquet, CSV)."""
+        return type(self.table).read is not _Table.read
+
     def read_rows(self, start: int, stop: int,
                   channels: tuple[str, ...] | list[str] | None = None) -> Recording:
         """Rows ``start:stop`` of ``channels`` (default all the file has) as a Recording:
@@ -290,7 +296,7 @@ class RecordingStream:
             raise InputError(f"channel(s) {', '.join(missing)} not in the recording",
                              path=self.path, channel=missing[0])
         names = {c: info.file_names[c] for c in want}
-        if type(self.table).read is not _Table.read:  # random access
+        if self.random_access:
             raw = self.table.read(list(dict.fromkeys(names.values())), start, stop)
             ch = self._convert(raw, names)
         else:
