@@ -172,3 +172,54 @@ def test_csv_stays_one_task_and_reads_rows_in_order(tmp_path):
         seg = s.read_rows(199_999, 300_001)  # across a 2**18-row chunk edge
         for c, v in whole.items():
             assert np.array_equal(seg.channels[c], v[199_999:300_001])
+
+
+def test_train_axle_chunk_plumbing(tmp_path, monkeypatch):
+    """The fleet's train path through chunk tasks (scan, one task per chunk, assembly in
+    finish_run), with stand-ins for onboard.run's chunk API that count their calls and
+    assemble with estimate_axle: the track is estimate_axle's; a failed chunk fails the
+    run with its message; one chunk stays one task."""
+    import pandas as pd
+
+    from torquemod.fleet import process_run
+    from torquemod.onboard import run as onboard_run
+    from torquemod.train import load_train_config, run_train_simulation
+    cfg = load_train_config()
+    cfg = dataclasses.replace(cfg, track=dataclasses.replace(cfg.track, length_m=300.0))
+    run_train_simulation(cfg, tmp_path / "t", seed=3)
+    calls = []
+
+    def plan(run, entry, config=None, *, chunk_s=600.0):
+        calls.append(("plan", chunk_s))
+        return [(0, 10), (10, 25), (25, 30)]
+
+    def measure(run, entry, config, first, stop):
+        calls.append(("measure", first, stop))
+        if stop == 25 and calls[0] == ("fail",):
+            raise InputError("bad chunk", path=entry.path)
+        return (first, stop)
+
+    def assemble(run, entry, config, parts):
+        calls.append(("assemble", tuple(parts)))
+        return onboard_run.estimate_axle(run, entry, config)
+
+    for name, fn in (("plan_axle_chunks", plan), ("measure_axle_chunk", measure),
+                     ("assemble_axle", assemble)):
+        monkeypatch.setattr(onboard_run, name, fn, raising=False)
+    row = process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t")
+    assert row["status"] == "processed"
+    assert calls == [("plan", 600.0), ("measure", 0, 10), ("measure", 10, 25),
+                     ("measure", 25, 30), ("assemble", ((0, 10), (10, 25), (25, 30)))]
+    onboard_run.run_onboard(tmp_path / "t" / "run.toml", tmp_path / "alone")
+    alone = pd.read_parquet(tmp_path / "alone" / "track.parquet")
+    got = pd.read_parquet(next((tmp_path / "out" / "track").rglob("part-0.parquet")))
+    pd.testing.assert_frame_equal(got, alone, check_dtype=False, rtol=0, atol=0)
+    calls[:] = [("fail",)]
+    row = process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t",
+                      force=True)
+    assert row["status"] == "failed" and row["message"].endswith("bad chunk")
+    monkeypatch.setattr(onboard_run, "plan_axle_chunks", lambda *a, **k: [(0, 30)])
+    calls[:] = []
+    assert process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t",
+                       force=True)["status"] == "processed"
+    assert calls == []  # one chunk: estimate_axle as one task

@@ -349,7 +349,7 @@ def finish_run(plan: Plan, *items: tuple, layout: list | None = None) -> dict:
     row = dict(plan.row)
     seconds = plan.seconds
     try:
-        items = tuple(_recording_items(items, layout))
+        items = tuple(_recording_items(plan, items, layout))
         seconds += sum(it[2] for it in items)
         errors = [it[1] for it in items if it[0] != "ok"]
         if errors:

@@ -18,11 +18,23 @@ def _one_line(exc: BaseException) -> str:
     return one_line(exc)
 
 
+#: Seconds of recording per task of a train axle (chunks of the on-board estimator)
+AXLE_CHUNK_S = 600.0
+
+
+def _axle_api():
+    """:mod:`torquemod.onboard.run` when it can measure an axle in chunks, else None."""
+    from .onboard import run as onboard_run
+    names = ("plan_axle_chunks", "measure_axle_chunk", "assemble_axle")
+    return onboard_run if all(hasattr(onboard_run, n) for n in names) else None
+
+
 def may_split(plan: Plan, index: int) -> bool:
-    """Whether recording ``index`` may be cut into groups of revolutions (a rig recording
-    without a manifest cycle, NaN policy ``raise``): then :func:`scan_item` decides."""
-    if plan.prep.kind != "rig":
-        return False
+    """Whether recording ``index`` may be cut into several tasks (a rig recording without
+    a manifest cycle, NaN policy ``raise``: groups of revolutions; a train axle: chunks of
+    :data:`AXLE_CHUNK_S`): then :func:`scan_item` decides."""
+    if plan.prep.kind == "train":
+        return _axle_api() is not None
     entry = plan.prep.source.recordings[index]
     return entry.cycle is None and plan.prep.settings.nan_policy == "raise"
 
@@ -35,6 +47,15 @@ def scan_item(plan: Plan, index: int) -> tuple:
     one task then gives the error ``process`` gives). Never raises (a Dask task)."""
     t0 = time.perf_counter()
     prep = plan.prep
+    if prep.kind == "train":  # a train axle: the on-board estimator's chunks
+        try:
+            chunks = _axle_api().plan_axle_chunks(prep.source, prep.source.recordings[index],
+                                                  prep.settings, chunk_s=AXLE_CHUNK_S)
+        except Exception:
+            chunks = []
+        if len(chunks) < 2:
+            return "whole", None, None, time.perf_counter() - t0
+        return "split", None, [tuple(c) for c in chunks], time.perf_counter() - t0
     try:
         from .pipeline import resolve_config
         from .revtasks import plan_revolutions
@@ -56,6 +77,10 @@ def part_item(plan: Plan, index: int, rplan, first: int, stop: int) -> tuple:
     t0 = time.perf_counter()
     prep = plan.prep
     try:
+        if prep.kind == "train":
+            out = _axle_api().measure_axle_chunk(prep.source, prep.source.recordings[index],
+                                                 prep.settings, first, stop)
+            return "ok", out, time.perf_counter() - t0
         from .pipeline import resolve_config
         from .revtasks import process_revolutions
         out = process_revolutions(prep.source.recordings[index], prep.source,
@@ -65,15 +90,16 @@ def part_item(plan: Plan, index: int, rplan, first: int, stop: int) -> tuple:
         return "error", _one_line(exc), time.perf_counter() - t0
 
 
-def _recording_items(items: tuple, layout: list | None) -> list[tuple]:
+def _recording_items(plan: Plan, items: tuple, layout: list | None) -> list[tuple]:
     """One item per recording: ``layout`` (per recording None for one :func:`work_item`,
-    or ``(RevolutionPlan, number of parts, scan seconds)``) says which items are the parts
-    of a split recording; they are merged (the first failed part, in order, is the
-    recording's error: the one the sequential read meets first)."""
+    or ``(RevolutionPlan or None, number of parts, scan seconds)``) says which items are
+    the parts of a split recording; they are merged (rig: :func:`merge_revolutions`; train:
+    ``assemble_axle`` and the track table). The first failed part, in order, is the
+    recording's error: the one the sequential read meets first."""
     if layout is None:
         return list(items)
     out, pos = [], 0
-    for lay in layout:
+    for index, lay in enumerate(layout):
         if lay is None:
             out.append(items[pos])
             pos += 1
@@ -85,9 +111,16 @@ def _recording_items(items: tuple, layout: list | None) -> list[tuple]:
         if bad:
             out.append(("error", bad[0], secs))
             continue
-        from .revtasks import merge_revolutions
         try:
-            out.append(("ok", merge_revolutions(rplan, [p[1] for p in parts]), secs))
+            if plan.prep.kind == "train":
+                prep, api = plan.prep, _axle_api()
+                merged = api.track_table(api.assemble_axle(
+                    prep.source, prep.source.recordings[index], prep.settings,
+                    [p[1] for p in parts]))
+            else:
+                from .revtasks import merge_revolutions
+                merged = merge_revolutions(rplan, [p[1] for p in parts])
+            out.append(("ok", merged, secs))
         except Exception as exc:
             out.append(("error", _one_line(exc), secs))
     return out
