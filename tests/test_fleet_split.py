@@ -18,7 +18,12 @@ from torquemod import pipeline
 from torquemod.errors import InputError
 from torquemod.io import read_experiment
 from torquemod.io.stream import open_stream
-from torquemod.revtasks import merge_revolutions, plan_revolutions, process_revolutions
+from torquemod.revtasks import (
+    merge_revolutions,
+    plan_revolutions,
+    process_revolutions,
+    scan_revolutions,
+)
 from torquemod.testing import write_synthetic_experiment
 
 
@@ -82,6 +87,13 @@ def test_groups_merge_to_load_and_process(long_exp, monkeypatch, mode):
     assert got[2] == hashlib.sha256(entry.path.read_bytes()).hexdigest()
     _same_items(got, ref)
     _same_items(_split(entry, exp, cfg, 3)[1], ref)
+    # the scan computes the first group itself when it has read the file whole
+    plan, first = scan_revolutions(entry, exp, cfg, revolutions_per_task=3)
+    assert (first is None) == (mode == "stream")
+    if first is not None:
+        assert first.sha256 == got[2] and len(first.cycles) == 3
+        rest = [process_revolutions(entry, exp, cfg, plan, a, b) for a, b in plan.groups(3)[1:]]
+        _same_items(merge_revolutions(plan, [first, *rest]), ref)
 
 
 def test_nan_in_a_later_revolution(long_exp, tmp_path, monkeypatch):

@@ -396,10 +396,12 @@ def process_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
         return plan
     items, layout = [], []
     for i in range(plan.n_items):
-        kind, rplan, groups, scan_s = (scan_item(plan, i) if may_split(plan, i)
-                                       else ("whole", None, None, 0.0))
+        kind, rplan, groups, scan_s, first = (scan_item(plan, i) if may_split(plan, i)
+                                              else ("whole", None, None, 0.0, None))
         if kind == "split":
-            items += [part_item(plan, i, rplan, a, b) for a, b in groups]
+            items += [first] if first is not None else []
+            items += [part_item(plan, i, rplan, a, b)
+                      for a, b in groups[0 if first is None else 1:]]
             layout.append((rplan, len(groups), scan_s))
         else:
             items.append(work_item(plan, i))

@@ -40,11 +40,13 @@ def may_split(plan: Plan, index: int) -> bool:
 
 
 def scan_item(plan: Plan, index: int) -> tuple:
-    """Recording ``index`` of a rig plan, cheaply: ``("split", RevolutionPlan, groups,
-    seconds)`` when it becomes one task per group of revolutions (``plan.revolutions_per_task``
-    each, default about a minute of recording; :mod:`torquemod.revtasks`), else ``("whole",
-    None, None, seconds)``: one :func:`work_item` (also when the scan meets an error: the
-    one task then gives the error ``process`` gives). Never raises (a Dask task)."""
+    """Recording ``index`` of a plan, cheaply: ``("split", RevolutionPlan or None, groups,
+    seconds, first)`` when it becomes one task per group (rig: of revolutions,
+    ``plan.revolutions_per_task`` each, default about a minute of recording,
+    :mod:`torquemod.revtasks`; ``first`` the first group's item when the scan computed it,
+    else None; train: chunks of the axle), else ``("whole", None, None, seconds, None)``:
+    one :func:`work_item` (also when the scan meets an error: the one task then gives the
+    error ``process`` gives). Never raises (a Dask task)."""
     t0 = time.perf_counter()
     prep = plan.prep
     if prep.kind == "train":  # a train axle: the on-board estimator's chunks
@@ -54,20 +56,22 @@ def scan_item(plan: Plan, index: int) -> tuple:
         except Exception:
             chunks = []
         if len(chunks) < 2:
-            return "whole", None, None, time.perf_counter() - t0
-        return "split", None, [tuple(c) for c in chunks], time.perf_counter() - t0
+            return "whole", None, None, time.perf_counter() - t0, None
+        return "split", None, [tuple(c) for c in chunks], time.perf_counter() - t0, None
     try:
         from .pipeline import resolve_config
-        from .revtasks import plan_revolutions
-        rplan = plan_revolutions(prep.source.recordings[index], prep.source,
-                                 resolve_config(prep.source),
-                                 revolutions_per_task=plan.revolutions_per_task)
+        from .revtasks import scan_revolutions
+        got = scan_revolutions(prep.source.recordings[index], prep.source,
+                               resolve_config(prep.source),
+                               revolutions_per_task=plan.revolutions_per_task)
     except Exception:
-        rplan = None
-    if rplan is None:
-        return "whole", None, None, time.perf_counter() - t0
-    return ("split", rplan, rplan.groups(plan.revolutions_per_task),
-            time.perf_counter() - t0)
+        got = None
+    if got is None:
+        return "whole", None, None, time.perf_counter() - t0, None
+    rplan, first = got
+    seconds = time.perf_counter() - t0
+    return ("split", rplan, rplan.groups(plan.revolutions_per_task), seconds,
+            None if first is None else ("ok", first, 0.0))
 
 
 def part_item(plan: Plan, index: int, rplan, first: int, stop: int) -> tuple:
@@ -182,13 +186,15 @@ def run_tasks(client, paths: list[Path], names: list[str], out: str, force: bool
             name, i = scans.pop(fut)
             st = open_runs[name]
             try:
-                kind, rplan, groups, scan_s = fut.result()
+                kind, rplan, groups, scan_s, first = fut.result()
             except Exception:  # the worker died under the scan: one task for the file
                 kind = "whole"
             if kind == "split":
-                st["slots"][i] = ([client.submit(part_item, st["plan"], i, rplan, a, b,
-                                                 pure=False, key=key(f"part{i}.{a}", name))
-                                   for a, b in groups], (rplan, len(groups), scan_s))
+                done_first = [] if first is None else [first]
+                st["slots"][i] = (done_first + [
+                    client.submit(part_item, st["plan"], i, rplan, a, b, pure=False,
+                                  key=key(f"part{i}.{a}", name))
+                    for a, b in groups[len(done_first):]], (rplan, len(groups), scan_s))
             else:
                 st["slots"][i] = whole(st["plan"], name, i)
             st["waiting"] -= 1

@@ -100,7 +100,19 @@ def plan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
     None when it stays one task (see the module's docstring; also when it would make one
     group only). Raises what reading the file raises; the caller then processes the
     recording as one task, which meets the same error as ``load_and_process``."""
-    from .pipeline import STREAM_MIN_BYTES, _cycles_of, _open_stream
+    got = scan_revolutions(entry, exp, cfg, revolutions_per_task=revolutions_per_task,
+                           first_group=False)
+    return None if got is None else got[0]
+
+
+def scan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig, *,
+                     revolutions_per_task: int | None = None, first_group: bool = True
+                     ) -> tuple[RevolutionPlan, RevolutionPart | None] | None:
+    """:func:`plan_revolutions` and, with ``first_group`` in whole mode, the first group's
+    :class:`RevolutionPart` computed from the record the plan has read anyway (the other
+    groups then read their rows; a file read whole is read about once, not twice). In
+    stream mode (or without ``first_group``) the part is None."""
+    from .pipeline import STREAM_MIN_BYTES, _cycle_item, _cycles_of, _open_stream
     if entry.cycle is not None or cfg.nan_policy != "raise":
         return None
     where = _where(entry)
@@ -125,10 +137,12 @@ def plan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
                               tuple(_tail_note(where, tail, [b - a for a, b in bounds],
                                                info.fs_hz)),
                               info.channels, time.perf_counter() - t0)
+        first = None
     else:
         if entry.path.stat().st_size >= STREAM_MIN_BYTES:
             return None
         from .io import read_entry
+        digest = hash_file_async(entry.path) if first_group else None
         rec = read_entry(exp, entry)
         if (rec.fs_hz != info.fs_hz or rec.t0_s != info.t0_s
                 or rec.n_samples != info.n_samples or set(rec.channels) != set(info.channels)
@@ -140,9 +154,18 @@ def plan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
         cycles = _cycles_of(entry, rec, where, notes)  # notes the dropped tail
         plan = RevolutionPlan("whole", tuple(ab for _, _, ab in cycles), rec.fs_hz,
                               tuple(notes), (), tuple(rec.channels), time.perf_counter() - t0)
+        groups = plan.groups(revolutions_per_task)
+        first = None
+        if first_group and len(groups) > 1:  # the same segments load_and_process cuts
+            t1 = time.perf_counter()
+            out = [_cycle_item(entry, exp, cfg, where, cyc, seg)
+                   for cyc, seg, _ in cycles[:groups[0][1]]]
+            first = RevolutionPart(0.0, time.perf_counter() - t1,
+                                   tuple((None, n) for c in out for n in c[1].notes), out,
+                                   digest.result())
     if len(plan.groups(revolutions_per_task)) < 2:
         return None
-    return plan
+    return plan, first
 
 
 @dataclass(frozen=True)
