@@ -235,3 +235,22 @@ def test_train_axle_chunk_plumbing(tmp_path, monkeypatch):
     assert process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t",
                        force=True)["status"] == "processed"
     assert calls == []  # one chunk: estimate_axle as one task
+
+
+def test_digest_hashed_once_when_fresh(long_exp, tmp_path):
+    """The plan's fingerprint hashed the file just now: the first group takes that digest
+    (no second read); a digest kept from the last run's state (size and mtime unchanged)
+    is not taken, the group hashes the file itself."""
+    from torquemod.fleet import plan_run, process_run
+    from torquemod.fleettasks import _fresh_sha256
+    truth = hashlib.sha256((long_exp / "step1.h5").read_bytes()).hexdigest()
+    out = str(tmp_path / "out")
+    plan = plan_run(str(long_exp / "experiment.toml"), out, "r")
+    assert _fresh_sha256(plan, 0) == truth
+    exp, cfg = plan.prep.source, plan.prep.settings
+    rplan = plan_revolutions(exp.recordings[0], exp, cfg, revolutions_per_task=2)
+    given = process_revolutions(exp.recordings[0], exp, cfg, rplan, 0, 1, sha256="given")
+    assert given.sha256 == "given"
+    assert process_run(str(long_exp / "experiment.toml"), out, "r")["status"] == "processed"
+    again = plan_run(str(long_exp / "experiment.toml"), out, "r", force=True)
+    assert _fresh_sha256(again, 0) is None

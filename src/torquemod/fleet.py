@@ -174,6 +174,7 @@ class Prepared:
     files: dict
     vehicle: str
     date: str
+    fresh: frozenset = frozenset()  # files hashed now (not digests kept from the last run)
 
 
 def prepare(manifest: Path, known: dict | None = None, *, kind: str | None = None,
@@ -207,8 +208,9 @@ def prepare(manifest: Path, known: dict | None = None, *, kind: str | None = Non
         h.update(f"{path}\0{digest}\0".encode())
     h.update(json.dumps(params, sort_keys=True, default=str).encode())
     h.update(__version__.encode())
+    fresh = frozenset(p for p, d in files.items() if known.get(p) != d)
     return Prepared(kind, src, settings, h.hexdigest(), files,
-                    partition_value(vehicle), partition_value(date, day=True))
+                    partition_value(vehicle), partition_value(date, day=True), fresh)
 
 
 def fingerprint(manifest: Path, known: dict | None = None) -> tuple[str, object, dict]:

@@ -13,6 +13,13 @@ if TYPE_CHECKING:
     from .fleet import Plan
 
 
+def _fresh_sha256(plan: Plan, index: int) -> str | None:
+    """The recording's SHA-256 when the plan computed it just now (not kept from the last
+    run's state by size and modification time): then no task reads the file to hash it."""
+    path = str(plan.prep.source.recordings[index].path)
+    return plan.prep.files[path][2] if path in plan.prep.fresh else None
+
+
 def _one_line(exc: BaseException) -> str:
     from .fleet import one_line
     return one_line(exc)
@@ -63,7 +70,8 @@ def scan_item(plan: Plan, index: int) -> tuple:
         from .revtasks import scan_revolutions
         got = scan_revolutions(prep.source.recordings[index], prep.source,
                                resolve_config(prep.source),
-                               revolutions_per_task=plan.revolutions_per_task)
+                               revolutions_per_task=plan.revolutions_per_task,
+                               sha256=_fresh_sha256(plan, index))
     except Exception:
         got = None
     if got is None:
@@ -88,7 +96,8 @@ def part_item(plan: Plan, index: int, rplan, first: int, stop: int) -> tuple:
         from .pipeline import resolve_config
         from .revtasks import process_revolutions
         out = process_revolutions(prep.source.recordings[index], prep.source,
-                                  resolve_config(prep.source), rplan, first, stop)
+                                  resolve_config(prep.source), rplan, first, stop,
+                                  sha256=_fresh_sha256(plan, index) if first == 0 else None)
         return "ok", out, time.perf_counter() - t0
     except Exception as exc:
         return "error", _one_line(exc), time.perf_counter() - t0

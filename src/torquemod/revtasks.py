@@ -106,12 +106,14 @@ def plan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
 
 
 def scan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig, *,
-                     revolutions_per_task: int | None = None, first_group: bool = True
+                     revolutions_per_task: int | None = None, first_group: bool = True,
+                     sha256: str | None = None
                      ) -> tuple[RevolutionPlan, RevolutionPart | None] | None:
     """:func:`plan_revolutions` and, with ``first_group`` in whole mode, the first group's
     :class:`RevolutionPart` computed from the record the plan has read anyway (the other
     groups then read their rows; a file read whole is read about once, not twice). In
-    stream mode (or without ``first_group``) the part is None."""
+    stream mode (or without ``first_group``) the part is None. ``sha256``: the file's
+    digest when the caller has just computed it (else the file is hashed)."""
     from .pipeline import STREAM_MIN_BYTES, _cycle_item, _cycles_of, _open_stream
     if entry.cycle is not None or cfg.nan_policy != "raise":
         return None
@@ -142,7 +144,7 @@ def scan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
         if entry.path.stat().st_size >= STREAM_MIN_BYTES:
             return None
         from .io import read_entry
-        digest = hash_file_async(entry.path) if first_group else None
+        digest = hash_file_async(entry.path) if first_group and sha256 is None else None
         rec = read_entry(exp, entry)
         if (rec.fs_hz != info.fs_hz or rec.t0_s != info.t0_s
                 or rec.n_samples != info.n_samples or set(rec.channels) != set(info.channels)
@@ -162,7 +164,7 @@ def scan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
                    for cyc, seg, _ in cycles[:groups[0][1]]]
             first = RevolutionPart(0.0, time.perf_counter() - t1,
                                    tuple((None, n) for c in out for n in c[1].notes), out,
-                                   digest.result())
+                                   sha256 if digest is None else digest.result())
     if len(plan.groups(revolutions_per_task)) < 2:
         return None
     return plan, first
@@ -183,16 +185,18 @@ class RevolutionPart:
 
 
 def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig,
-                        plan: RevolutionPlan, first: int, stop: int) -> RevolutionPart:
+                        plan: RevolutionPlan, first: int, stop: int, *,
+                        sha256: str | None = None) -> RevolutionPart:
     """Revolutions ``first:stop`` (indices into ``plan.bounds``; cycle numbers ``first+1``
     ...) of a recording: each read by its rows alone, checked as ``load_and_process``
     checks it in the plan's mode, and put through steps 1-5 and 8. The first group
     (``first == 0``) also hashes the file, in a background thread while it computes (as
-    ``load_and_process`` does). Raises the error ``load_and_process`` meets on these
+    ``load_and_process`` does), unless the caller gives the digest it has just computed
+    (``sha256``). Raises the error ``load_and_process`` meets on these
     revolutions."""
     from .pipeline import _cycle_item
     where = _where(entry)
-    digest = hash_file_async(entry.path) if first == 0 else None
+    digest = hash_file_async(entry.path) if first == 0 and sha256 is None else None
     read_s = compute_s = 0.0
     notes: list[tuple[str | None, str]] = []
     out = []
@@ -214,7 +218,8 @@ def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingC
             read_s += t1 - t0
             compute_s += time.perf_counter() - t1
     return RevolutionPart(read_s, compute_s, tuple(notes), out,
-                          None if digest is None else digest.result())
+                          (sha256 if first == 0 else None) if digest is None
+                          else digest.result())
 
 
 def merge_revolutions(plan: RevolutionPlan, parts: list[RevolutionPart]) -> tuple:
