@@ -254,3 +254,20 @@ def test_digest_hashed_once_when_fresh(long_exp, tmp_path):
     assert process_run(str(long_exp / "experiment.toml"), out, "r")["status"] == "processed"
     again = plan_run(str(long_exp / "experiment.toml"), out, "r", force=True)
     assert _fresh_sha256(again, 0) is None
+
+
+def test_default_groups_hold_about_a_minute():
+    """groups() without revolutions_per_task: round(TASK_SECONDS / revolution length)
+    revolutions each (V-Track: 6.46 s revolutions -> 9 per group, 58 s); at least one."""
+    from torquemod.revtasks import TASK_SECONDS, RevolutionPlan
+    fs = 16_670.0
+    rev = round(6.46 * fs)
+    bounds = tuple((k * rev, (k + 1) * rev) for k in range(20))
+    plan = RevolutionPlan("stream", bounds, fs, (), (), (), 0.0)
+    assert TASK_SECONDS == 60.0
+    assert plan.groups() == [(0, 9), (9, 18), (18, 20)]
+    slow = RevolutionPlan("stream", ((0, int(100 * fs)), (int(100 * fs), int(200 * fs))), fs,
+                          (), (), (), 0.0)
+    assert slow.groups() == [(0, 1), (1, 2)]  # a revolution longer than a task: one each
+    with pytest.raises(ValueError):
+        plan.groups(0)
