@@ -5,7 +5,9 @@ worker processes.
 sized to the machine, or an existing scheduler). Per run manifest, a task reads and
 fingerprints it (:func:`plan_run`); a run to process becomes one task per recording
 (:func:`work_item`: for a rig experiment, steps 1-5 and 8 of the chain on one recording file,
-usually one cycle; for a train run, the on-board estimator on one axle) and a task that
+usually one cycle; for a train run, the on-board estimator on one axle), except that a long
+rig file of many revolutions becomes a scan task and one task per group of revolutions
+(:mod:`torquemod.fleettasks`, :mod:`torquemod.revtasks`), and a task that
 assembles them (:func:`finish_run`: for a rig, the alignment, phases, steps and creep-curve fit
 of ``process_experiment`` and ``torquemod process``; for a train run, the axles' tracks of
 ``torquemod onboard``). Each worker runs one thread (the processes are the parallelism: the
@@ -500,7 +502,8 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     ``on_dashboard(link)`` is called with the dashboard address when there is one;
     ``progress`` shows a bar on stderr. A rig recording spanning many revolutions becomes
     one task per ``revolutions_per_task`` revolutions (default: about
-    :data:`torquemod.revtasks.TASK_SECONDS` of recording each; :func:`scan_item`).
+    :data:`torquemod.revtasks.TASK_SECONDS` of recording each, and only for files that
+    ``process`` streams, >= 256 MiB; :func:`scan_item`, :mod:`torquemod.revtasks`).
     """
     from .daskutil import dask_client
 
