@@ -188,9 +188,10 @@ def test_csv_stays_one_task_and_reads_rows_in_order(tmp_path):
 
 def test_train_axle_chunk_plumbing(tmp_path, monkeypatch):
     """The fleet's train path through chunk tasks (scan, one task per chunk, assembly in
-    finish_run), with stand-ins for onboard.run's chunk API that count their calls and
-    assemble with estimate_axle: the track is estimate_axle's; a failed chunk fails the
-    run with its message; one chunk stays one task."""
+    finish_run; only with axle_chunk_s), with stand-ins for onboard.run's chunk API (helper
+    A's, not in the tree yet) that count their calls and assemble with estimate_axle: the
+    track is estimate_axle's; a failed chunk fails the run with its message; one chunk
+    stays one task. This tests the fleet's plumbing, not the chunked estimator."""
     import pandas as pd
 
     from torquemod.fleet import process_run
@@ -218,9 +219,13 @@ def test_train_axle_chunk_plumbing(tmp_path, monkeypatch):
     for name, fn in (("plan_axle_chunks", plan), ("measure_axle_chunk", measure),
                      ("assemble_axle", assemble)):
         monkeypatch.setattr(onboard_run, name, fn, raising=False)
-    row = process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t")
+    row = process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t",
+                      force=True)
+    assert row["status"] == "processed" and calls == []  # one task per axle by default
+    row = process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t",
+                      force=True, axle_chunk_s=5.0)
     assert row["status"] == "processed"
-    assert calls == [("plan", 600.0), ("measure", 0, 10), ("measure", 10, 25),
+    assert calls == [("plan", 5.0), ("measure", 0, 10), ("measure", 10, 25),
                      ("measure", 25, 30), ("assemble", ((0, 10), (10, 25), (25, 30)))]
     onboard_run.run_onboard(tmp_path / "t" / "run.toml", tmp_path / "alone")
     alone = pd.read_parquet(tmp_path / "alone" / "track.parquet")
@@ -228,12 +233,12 @@ def test_train_axle_chunk_plumbing(tmp_path, monkeypatch):
     pd.testing.assert_frame_equal(got, alone, check_dtype=False, rtol=0, atol=0)
     calls[:] = [("fail",)]
     row = process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t",
-                      force=True)
+                      force=True, axle_chunk_s=5.0)
     assert row["status"] == "failed" and row["message"].endswith("bad chunk")
     monkeypatch.setattr(onboard_run, "plan_axle_chunks", lambda *a, **k: [(0, 30)])
     calls[:] = []
     assert process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t",
-                       force=True)["status"] == "processed"
+                       force=True, axle_chunk_s=5.0)["status"] == "processed"
     assert calls == []  # one chunk: estimate_axle as one task
 
 

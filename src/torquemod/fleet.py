@@ -237,6 +237,7 @@ class Plan:
     fit: bool
     seconds: float
     revolutions_per_task: int | None = None
+    axle_chunk_s: float | None = None
 
     @property
     def n_items(self) -> int:
@@ -257,10 +258,12 @@ def _failed(row: dict, exc: BaseException | str, out_dir: str, old_parts) -> dic
 
 
 def plan_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
-             fit: bool = True, revolutions_per_task: int | None = None) -> dict | Plan:
+             fit: bool = True, revolutions_per_task: int | None = None,
+             axle_chunk_s: float | None = None) -> dict | Plan:
     """Read and fingerprint one run manifest: a summary row when the run is done with
     (``skipped``: unchanged; ``failed``: the manifest is bad), else its :class:`Plan`
-    (``revolutions_per_task``: see :func:`scan_item`). Never raises (a Dask task)."""
+    (``revolutions_per_task``, ``axle_chunk_s``: see :func:`scan_item`). Never raises (a
+    Dask task)."""
     t0 = time.perf_counter()
     row = dict.fromkeys(SUMMARY_COLUMNS)
     row.update(run=run, manifest=str(manifest), kind=manifest_kind(Path(manifest)),
@@ -282,7 +285,7 @@ def plan_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
         return {**row, **{k: old.get("row", {}).get(k) for k in _KEPT}, "status": "skipped",
                 "seconds": time.perf_counter() - t0}
     return Plan(prep, str(manifest), out_dir, run, row, old_parts, fit,
-                time.perf_counter() - t0, revolutions_per_task)
+                time.perf_counter() - t0, revolutions_per_task, axle_chunk_s)
 
 
 def work_item(plan: Plan, index: int) -> tuple:
@@ -390,12 +393,13 @@ class _ItemError(Exception):
 
 
 def process_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
-                fit: bool = True, revolutions_per_task: int | None = None) -> dict:
+                fit: bool = True, revolutions_per_task: int | None = None,
+                axle_chunk_s: float | None = None) -> dict:
     """Process one run manifest (rig or train) into its partitions in this process: what
     :func:`run_fleet` does with tasks, in sequence. Never raises: the outcome is a summary
     row (``status`` processed, skipped or failed; :data:`SUMMARY_COLUMNS`)."""
     plan = plan_run(manifest, out_dir, run, force, fit=fit,
-                    revolutions_per_task=revolutions_per_task)
+                    revolutions_per_task=revolutions_per_task, axle_chunk_s=axle_chunk_s)
     if isinstance(plan, dict):
         return plan
     items, layout = [], []
@@ -490,7 +494,8 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
               scheduler: str | None = None, n_workers: int | None = None,
               force: bool = False, progress: bool = False, fit: bool = True,
               report: bool = True, on_dashboard=None,
-              revolutions_per_task: int | None = None) -> FleetResult:
+              revolutions_per_task: int | None = None,
+              axle_chunk_s: float | None = None) -> FleetResult:
     """Process many run manifests (rig experiments and train runs) in parallel on Dask and
     write the fleet's datasets, summary, failures and report.
 
@@ -504,6 +509,9 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     one task per ``revolutions_per_task`` revolutions (default: about
     :data:`torquemod.revtasks.TASK_SECONDS` of recording each, and only for files that
     ``process`` streams, >= 256 MiB; :func:`scan_item`, :mod:`torquemod.revtasks`).
+    ``axle_chunk_s`` [s]: a train axle becomes one task per chunk of that length, when
+    :mod:`torquemod.onboard.run` offers chunked estimation (``plan_axle_chunks``,
+    ``measure_axle_chunk``, ``assemble_axle``); None (default): one task per axle.
     """
     from .daskutil import dask_client
 
@@ -524,7 +532,7 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
 
     with dask_client(scheduler, n_workers, dashboard) as client:
         rows = run_tasks(client, paths, names, str(out), force, fit, progress,
-                         revolutions_per_task)
+                         revolutions_per_task, axle_chunk_s)
     prune_empty(out)
     summary = pd.DataFrame(rows, columns=SUMMARY_COLUMNS).sort_values("run",
                                                                       ignore_index=True)

@@ -25,10 +25,6 @@ def _one_line(exc: BaseException) -> str:
     return one_line(exc)
 
 
-#: Seconds of recording per task of a train axle (chunks of the on-board estimator)
-AXLE_CHUNK_S = 600.0
-
-
 def _axle_api():
     """:mod:`torquemod.onboard.run` when it can measure an axle in chunks, else None."""
     from .onboard import run as onboard_run
@@ -38,10 +34,11 @@ def _axle_api():
 
 def may_split(plan: Plan, index: int) -> bool:
     """Whether recording ``index`` may be cut into several tasks (a rig recording without
-    a manifest cycle, NaN policy ``raise``: groups of revolutions; a train axle: chunks of
-    :data:`AXLE_CHUNK_S`): then :func:`scan_item` decides."""
+    a manifest cycle, NaN policy ``raise``: groups of revolutions; a train axle when the
+    plan asks for chunks of ``axle_chunk_s`` and the on-board estimator offers them): then
+    :func:`scan_item` decides."""
     if plan.prep.kind == "train":
-        return _axle_api() is not None
+        return plan.axle_chunk_s is not None and _axle_api() is not None
     entry = plan.prep.source.recordings[index]
     return entry.cycle is None and plan.prep.settings.nan_policy == "raise"
 
@@ -59,7 +56,7 @@ def scan_item(plan: Plan, index: int) -> tuple:
     if prep.kind == "train":  # a train axle: the on-board estimator's chunks
         try:
             chunks = _axle_api().plan_axle_chunks(prep.source, prep.source.recordings[index],
-                                                  prep.settings, chunk_s=AXLE_CHUNK_S)
+                                                  prep.settings, chunk_s=plan.axle_chunk_s)
         except Exception:
             chunks = []
         if len(chunks) < 2:
@@ -140,8 +137,8 @@ def _recording_items(plan: Plan, items: tuple, layout: list | None) -> list[tupl
 
 
 def run_tasks(client, paths: list[Path], names: list[str], out: str, force: bool,
-               fit: bool, progress: bool, revolutions_per_task: int | None = None
-               ) -> list[dict]:
+               fit: bool, progress: bool, revolutions_per_task: int | None = None,
+               axle_chunk_s: float | None = None) -> list[dict]:
     """The fleet's task graph, grown as results arrive: per run a :func:`plan_run` task; for
     a run to process, per recording one :func:`work_item` task, or for a rig recording that
     may be split a :func:`scan_item` task and then one :func:`part_item` task per group of
@@ -169,7 +166,8 @@ def run_tasks(client, paths: list[Path], names: list[str], out: str, force: bool
     open_runs: dict[str, dict] = {}  # run -> plan, per recording its futures and layout
     for p, name in zip(paths, names, strict=True):
         runs[client.submit(plan_run, str(p), out, name, force, fit=fit,
-                           revolutions_per_task=revolutions_per_task, pure=False,
+                           revolutions_per_task=revolutions_per_task,
+                           axle_chunk_s=axle_chunk_s, pure=False,
                            key=key("plan", name))] = (name, str(p))
     rows = []
     bar = tqdm(total=len(runs), desc="fleet", unit="run", disable=not progress)
