@@ -71,3 +71,86 @@ def test_unstreamable_layout_falls_back_to_the_whole_read(twin_run):
         RunStream(e.path, channel_map=cmap, sample_rate_hz=1000.0)
     assert str(streamed.value) == str(whole.value)
     assert "has 400 samples" in str(whole.value)
+
+
+def _whole_track(run, entry, chunk_s):
+    """The on-board track the way it was made before streaming: the recording read whole,
+    the position integrated over all of it, the rows fed in ``chunk_s`` blocks."""
+    import pandas as pd
+
+    from torquemod.onboard.estimator import OnboardConfig, OnboardEstimator
+    rec = read_recording(entry.path, group=entry.group, channel_map=run.channel_map,
+                         sample_rate_hz=entry.sample_rate_hz)
+    ch, g = rec.channels, run.vehicle.gear_ratio
+    torque, wheel, v = ch["torque_nm"], ch["wheel_speed_rad_s"], ch["vehicle_speed_m_s"]
+    if g:
+        torque, wheel = torque * g, wheel / g
+    x = ch["position_m"] if "position_m" in ch else np.concatenate(
+        [[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) / rec.fs_hz)])
+    est = OnboardEstimator(run.vehicle, run.modulation_frequency_hz, rec.fs_hz,
+                           config=OnboardConfig.from_dict(run.extra.get("onboard")),
+                           t0_s=rec.t0_s)
+    step, rows = round(chunk_s * rec.fs_hz), []
+    for a in range(0, torque.size, step):
+        rows += est.feed(torque[a:a + step], wheel[a:a + step], v[a:a + step], x[a:a + step])
+    return pd.DataFrame(rows)
+
+
+@pytest.fixture(scope="module")
+def stripped_run(twin_run, tmp_path_factory):
+    """The HDF5 run without its position channel, declared recorded at the motor
+    (gear_ratio 3.1): the streamed path integrates the position and scales the signals."""
+    import shutil
+
+    import h5py
+    folder = tmp_path_factory.mktemp("stripped")
+    shutil.copy(twin_run / "run.h5", folder / "run.h5")
+    with h5py.File(folder / "run.h5", "r+") as f:
+        del f["position_m"]
+    text = (twin_run / "run_h5.toml").read_text()
+    head, tail = text.split("[channels.position]")
+    text = head + "[truth]" + tail.split("[truth]")[1]
+    text = text.replace("[vehicle]\n", "[vehicle]\ngear_ratio = 3.1\n")
+    (folder / "run.toml").write_text(text)
+    return folder / "run.toml"
+
+
+@pytest.mark.parametrize("which", ["mf4", "h5_no_position_geared"])
+def test_estimate_axle_streamed_equals_the_whole_recording(twin_run, stripped_run, which):
+    """estimate_axle reads its recording in chunks (RunStream): the track is identical
+    (tolerance 0) to the recording read whole and fed in the same blocks, including the
+    position integrated across chunk edges and the motor-side scaling."""
+    import pandas as pd
+
+    from torquemod.onboard.run import estimate_axle
+    run = read_run(twin_run / "run.toml" if which == "mf4" else stripped_run)
+    e = run.recordings[0]
+    res = estimate_axle(run, e, chunk_s=2.7)
+    assert not any("read whole" in n for n in res.notes)
+    if which != "mf4":
+        assert any("position integrated" in n for n in res.notes)
+        assert any("recorded at the motor" in n for n in res.notes)
+    ref = _whole_track(run, e, 2.7)
+    assert len(ref) > 5
+    pd.testing.assert_frame_equal(res.track, ref, check_exact=True)
+
+
+def test_estimate_axle_nan_names_channel_and_time(stripped_run, tmp_path):
+    """A NaN in the torque stops the axle with the file, the channel and the time."""
+    import shutil
+
+    import h5py
+
+    from torquemod.errors import InputError
+    from torquemod.onboard.run import estimate_axle
+    folder = tmp_path / "nan"
+    shutil.copytree(stripped_run.parent, folder)
+    with h5py.File(folder / "run.h5", "r+") as f:
+        t = f["time_s"][:]
+        f["torque_nm"][5000] = np.nan
+    run = read_run(folder / "run.toml")
+    with pytest.raises(InputError) as err:
+        estimate_axle(run, run.recordings[0], chunk_s=2.7)
+    msg = str(err.value)
+    assert "run.h5" in msg and "torque_nm" in msg and "NaN/inf" in msg
+    assert f"t = {t[5000]:.3f} s" in msg

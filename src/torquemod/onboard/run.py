@@ -16,7 +16,6 @@ import numpy as np
 from .._version import __version__
 from ..errors import InputError
 from ..fsutil import atomic_dir, sha256_file
-from ..io.recording import read_recording
 from ..io.run import Run, RunRecording, read_run
 from ..jsonutil import dump_json
 from ..provenance import software_versions
@@ -54,53 +53,80 @@ class OnboardResult:
         return out
 
 
-def _channels(rec, run: Run, entry: RunRecording, notes: list[str]):
-    ch = rec.channels
-    veh = run.vehicle
-    torque = ch["torque_nm"]
-    wheel = ch["wheel_speed_rad_s"]
-    if veh.gear_ratio:  # recorded at the motor: to the axle
-        torque = torque * veh.gear_ratio
-        wheel = wheel / veh.gear_ratio
-        notes.append(f"torque and speed recorded at the motor: x{veh.gear_ratio:g} and "
-                     f"/{veh.gear_ratio:g} to the axle")
-    if "vehicle_speed_m_s" in ch:
-        v = ch["vehicle_speed_m_s"]
-    else:
-        raise InputError("no reference speed (vehicle_speed) in the recording", path=entry.path,
-                         channel="vehicle_speed_m_s",
-                         hint="map the radar, GNSS or an unpowered axle's speed as "
-                              "vehicle_speed in [channels] (docs/format.md)")
-    if "position_m" in ch:
-        x = ch["position_m"]
-    else:
-        x = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) / rec.fs_hz)])
-        notes.append("no position channel: position integrated from the reference speed")
-    return torque, wheel, v, x
+class _AxleSignals:
+    """A recording's rows as the estimator's four signals, chunk by chunk: torque [N*m] and
+    wheel speed [rad/s] at the axle (times / divided by ``gear_ratio`` when recorded at the
+    motor), reference speed [m/s] and position [m] (integrated from the reference speed by the
+    trapezoid rule when the run has no position channel; the running sum is carried across
+    chunks in the same order as over the whole recording, so it is bit for bit the same)."""
+
+    def __init__(self, run: Run, entry: RunRecording, channels, fs_hz: float,
+                 notes: list[str]) -> None:
+        veh = run.vehicle
+        self.entry, self.fs_hz, self.gear = entry, fs_hz, veh.gear_ratio
+        if self.gear:
+            notes.append(f"torque and speed recorded at the motor: x{self.gear:g} and "
+                         f"/{self.gear:g} to the axle")
+        if "vehicle_speed_m_s" not in channels:
+            raise InputError("no reference speed (vehicle_speed) in the recording",
+                             path=entry.path, channel="vehicle_speed_m_s",
+                             hint="map the radar, GNSS or an unpowered axle's speed as "
+                                  "vehicle_speed in [channels] (docs/format.md)")
+        self.integrate = "position_m" not in channels
+        if self.integrate:
+            notes.append("no position channel: position integrated from the reference speed")
+        self.v_last: float | None = None
+        self.x_last = 0.0
+
+    def __call__(self, ch: dict[str, np.ndarray], t_first_s: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        torque, wheel, v = ch["torque_nm"], ch["wheel_speed_rad_s"], ch["vehicle_speed_m_s"]
+        if self.gear:
+            torque = torque * self.gear
+            wheel = wheel / self.gear
+        if not self.integrate:
+            x = ch["position_m"]
+        elif v.size:
+            vv = v if self.v_last is None else np.concatenate([[self.v_last], v])
+            inc = 0.5 * (vv[1:] + vv[:-1]) / self.fs_hz
+            x = np.cumsum(np.concatenate([[self.x_last], inc]))
+            x = x if self.v_last is None else x[1:]
+            self.v_last, self.x_last = float(v[-1]), float(x[-1])
+        else:
+            x = np.zeros(0)
+        for name, arr in (("torque_nm", torque), ("wheel_speed_rad_s", wheel),
+                          ("vehicle_speed_m_s", v), ("position_m", x)):
+            bad = ~np.isfinite(arr)
+            if bad.any():
+                first = t_first_s + int(np.argmax(bad)) / self.fs_hz
+                raise InputError(f"NaN/inf values (the first at t = {first:.3f} s)",
+                                 path=self.entry.path, channel=name,
+                                 hint="repair the recording")
+        return torque, wheel, v, x
 
 
 def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = None,
                   *, chunk_s: float = CHUNK_S) -> OnboardResult:
-    """Read one axle's recording and run it through :class:`OnboardEstimator` in chunks."""
+    """Run one axle's recording through :class:`OnboardEstimator`, ``chunk_s`` [s] of rows
+    at a time as :class:`~torquemod.io.runstream.RunStream` reads them: memory does not
+    grow with the run (a layout the stream cannot read in parts is read whole; its note
+    says so). The track is the one the whole recording fed in the same chunks gives."""
     import pandas as pd
+
+    from ..io.runstream import RunStream
     config = config or OnboardConfig.from_dict(run.extra.get("onboard"),
                                                source=str(run.manifest_path))
     t_start = time.perf_counter()
-    rec = read_recording(entry.path, group=entry.group, channel_map=run.channel_map,
-                         sample_rate_hz=entry.sample_rate_hz)
-    notes = list(rec.notes)
-    torque, wheel, v, x = _channels(rec, run, entry, notes)
-    for name, arr in (("torque_nm", torque), ("wheel_speed_rad_s", wheel),
-                      ("vehicle_speed_m_s", v), ("position_m", x)):
-        if not np.isfinite(arr).all():
-            raise InputError(f"{int((~np.isfinite(arr)).sum())} NaN/inf values",
-                             path=entry.path, channel=name, hint="repair the recording")
-    est = OnboardEstimator(run.vehicle, run.modulation_frequency_hz, rec.fs_hz,
-                           config=config, t0_s=rec.t0_s)
-    step = max(1, round(chunk_s * rec.fs_hz))
-    rows = []
-    for a in range(0, torque.size, step):
-        rows += est.feed(torque[a:a + step], wheel[a:a + step], v[a:a + step], x[a:a + step])
+    rows: list[dict] = []
+    with RunStream(entry.path, group=entry.group, channel_map=run.channel_map,
+                   sample_rate_hz=entry.sample_rate_hz) as stream:
+        notes = list(stream.notes)
+        signals = _AxleSignals(run, entry, stream.channels, stream.fs_hz, notes)
+        est = OnboardEstimator(run.vehicle, run.modulation_frequency_hz, stream.fs_hz,
+                               config=config, t0_s=stream.t0_s)
+        step = max(1, round(chunk_s * stream.fs_hz))
+        for a, ch in stream.chunks(step):
+            rows += est.feed(*signals(ch, stream.t0_s + a / stream.fs_hz))
     track = pd.DataFrame(rows)
     if track.empty:
         raise InputError("the recording is shorter than one estimator window",
