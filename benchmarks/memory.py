@@ -22,6 +22,14 @@ one copy would not fit in the machine's memory. ``--chain`` adds a third case: s
 revolution by revolution (``RecordingStream.revolutions``) through the per-cycle chain.
 
     python benchmarks/memory.py --reading 0.1667 1 [--chain] [--workdir DIR] [--keep]
+
+``--train HOURS...`` (issues 10 and 11) measures a train run through the on-board estimator
+(``torquemod.onboard.run.estimate_axle``, which reads through ``RunStream`` 30 s at a time):
+an HDF5 run of the twin's layout (torque and wheel speed at 1 kHz, the reference speed and
+position at 20 Hz on their own time vector) written in blocks, processed in a fresh process
+streamed, and, for comparison, read whole first (the batch path before streaming).
+
+    python benchmarks/memory.py --train 0.25 1 10 [--workdir DIR]
 """
 
 from __future__ import annotations
@@ -226,6 +234,125 @@ def reading(hours_list: list[float], workdir: str | None, keep: bool,
             shutil.rmtree(tmp, ignore_errors=True)
 
 
+TRAIN_FS_HZ, TRAIN_REF_HZ = 1000.0, 20.0
+TRAIN_MANIFEST = """recording = [{{ file = "run.h5", axle = 1 }}]
+
+[vehicle]
+wheel_radius_m = 0.46
+normal_load_n = 200000.0
+inertia_kg_m2 = 380.0
+
+[test]
+modulation_frequency_hz = 5.0
+modulation_amplitude_nm = 1200.0
+
+[channels]
+time = "time_s"
+torque = "torque_nm"
+wheel_speed = "wheel_speed_rad_s"
+vehicle_speed = {{ name = "vehicle_speed_m_s", time = "reference_time_s" }}
+position = {{ name = "position_m", time = "reference_time_s" }}
+"""
+
+
+def generate_train(folder: Path, hours: float, block_s: float = 600.0) -> int:
+    """A train run of ``hours``: 20 m/s with a slow speed wobble, a DC torque that steps
+    every 60 s, a 5 Hz modulation and a wheel-speed response lagging it by 30-60 degrees
+    (more at higher torque), noise; written block by block [fast samples]."""
+    import h5py
+    import numpy as np
+
+    folder.mkdir(parents=True, exist_ok=True)
+    n = round(hours * 3600 * TRAIN_FS_HZ)
+    n_ref = round(hours * 3600 * TRAIN_REF_HZ) + 1
+    rng = np.random.default_rng(2)
+    radius, f_mod = 0.46, 5.0
+
+    def speed(t):
+        return 20.0 + 0.8 * np.sin(2 * np.pi * t / 400.0)
+
+    with h5py.File(folder / "run.h5", "w") as fh:
+        ds = {c: fh.create_dataset(c, shape=(n,), dtype="f8", chunks=(1 << 16,))
+              for c in ("time_s", "torque_nm", "wheel_speed_rad_s")}
+        for a in range(0, n, round(block_s * TRAIN_FS_HZ)):
+            b = min(n, a + round(block_s * TRAIN_FS_HZ))
+            t = np.arange(a, b) / TRAIN_FS_HZ
+            level = 0.2 + 0.15 * (np.floor(t / 60.0) % 4)  # share of the top torque
+            lag = np.deg2rad(30.0 + 60.0 * level)
+            ds["time_s"][a:b] = t
+            ds["torque_nm"][a:b] = (20e3 * level + 1200.0 * np.sin(2 * np.pi * f_mod * t)
+                                    + 30.0 * rng.standard_normal(b - a))
+            ds["wheel_speed_rad_s"][a:b] = (speed(t) / radius * (1 + 2e-3 * level)
+                                            + 0.004 * np.sin(2 * np.pi * f_mod * t - lag)
+                                            + 5e-4 * rng.standard_normal(b - a))
+        t_ref = np.arange(n_ref) / TRAIN_REF_HZ
+        v = speed(t_ref) + 0.02 * rng.standard_normal(n_ref)
+        x = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) / TRAIN_REF_HZ)])
+        for name, arr in (("reference_time_s", t_ref), ("vehicle_speed_m_s", v),
+                          ("position_m", x)):
+            fh.create_dataset(name, data=arr)
+    (folder / "run.toml").write_text(TRAIN_MANIFEST.format())
+    return n
+
+
+def measure_train(folder: Path, mode: str) -> dict:
+    """The run's axle through the estimator in this (fresh) process: ``streamed``
+    (estimate_axle) or ``whole`` (read_recording first, then the same estimator)."""
+    import numpy as np
+    import pandas  # noqa: F401  (imports count as baseline)
+
+    from torquemod.io.recording import read_recording
+    from torquemod.io.run import read_run
+    from torquemod.onboard.estimator import OnboardConfig, OnboardEstimator
+    from torquemod.onboard.run import estimate_axle
+
+    run = read_run(folder / "run.toml")
+    e = run.recordings[0]
+    base_now = _rss_now_bytes()
+    t0, c0 = time.perf_counter(), time.process_time()
+    if mode == "streamed":
+        windows = len(estimate_axle(run, e).track)
+    else:
+        rec = read_recording(e.path, group=e.group, channel_map=run.channel_map)
+        ch = rec.channels
+        est = OnboardEstimator(run.vehicle, run.modulation_frequency_hz, rec.fs_hz,
+                               config=OnboardConfig(), t0_s=rec.t0_s)
+        step, windows = round(30.0 * rec.fs_hz), 0
+        for a in range(0, rec.n_samples, step):
+            windows += len(est.feed(*(np.asarray(ch[c][a:a + step]) for c in (
+                "torque_nm", "wheel_speed_rad_s", "vehicle_speed_m_s", "position_m"))))
+    return {"baseline_rss": base_now, "peak_rss": _rss_peak_bytes(), "windows": windows,
+            "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
+
+
+def train(hours_list: list[float], workdir: str | None) -> None:
+    import shutil
+
+    mib = 2**20
+    print(f"a train run through the on-board estimator (HDF5: torque and wheel speed at "
+          f"{TRAIN_FS_HZ:.0f} Hz, reference speed and position at {TRAIN_REF_HZ:.0f} Hz)")
+    print(f"{'length':>8s} {'file MiB':>9s} {'mode':>9s} {'peak RSS above baseline':>24s} "
+          f"{'copies':>7s} {'windows':>8s} {'CPU s':>7s} {'x real time':>11s}")
+    tmp = Path(tempfile.mkdtemp(dir=workdir))
+    try:
+        for hours in hours_list:
+            folder = tmp / f"run_{hours:g}h"
+            n = generate_train(folder, hours)
+            one_copy = n * 4 * 8  # time, torque, wheel speed and the interpolated reference
+            size = (folder / "run.h5").stat().st_size
+            for mode in ("streamed", "whole"):
+                m = json.loads(subprocess.run(
+                    [sys.executable, __file__, "--_train", str(folder), "--_mode", mode],
+                    check=True, capture_output=True, text=True).stdout)
+                used = m["peak_rss"] - m["baseline_rss"]
+                print(f"{hours:7.3g}h {size / mib:9.0f} {mode:>9s} {used / mib:20.0f} MiB "
+                      f"{used / one_copy:7.3f} {m['windows']:8d} {m['cpu_s']:7.1f} "
+                      f"{hours * 3600 / m['cpu_s']:11.0f}", flush=True)
+            shutil.rmtree(folder)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reading", type=float, nargs="+", default=None, metavar="HOURS",
@@ -234,6 +361,9 @@ def main() -> None:
     ap.add_argument("--chain", action="store_true",
                     help="with --reading: also stream revolution by revolution through the "
                          "per-cycle chain (steps 1-5, 8 and the phase)")
+    ap.add_argument("--train", type=float, nargs="+", default=None, metavar="HOURS",
+                    help="a train run of these lengths [h] through the on-board estimator")
+    ap.add_argument("--_train", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--_read", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--_mode", default="whole", help=argparse.SUPPRESS)
     ap.add_argument("--minutes", type=float, default=15.0)
@@ -245,6 +375,12 @@ def main() -> None:
     args = ap.parse_args()
     if args._read:
         print(json.dumps(measure_read(Path(args._read), args._mode)))
+        return
+    if args._train:
+        print(json.dumps(measure_train(Path(args._train), args._mode)))
+        return
+    if args.train:
+        train(args.train, args.workdir)
         return
     if args.reading:
         reading(args.reading, args.workdir, args.keep, args.chain)

@@ -117,7 +117,7 @@ def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = 
     config = config or OnboardConfig.from_dict(run.extra.get("onboard"),
                                                source=str(run.manifest_path))
     t_start = time.perf_counter()
-    rows: list[dict] = []
+    frames = []  # one small columnar table per chunk: a dict per window would grow ~2 kB each
     with RunStream(entry.path, group=entry.group, channel_map=run.channel_map,
                    sample_rate_hz=entry.sample_rate_hz) as stream:
         notes = list(stream.notes)
@@ -126,8 +126,10 @@ def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = 
                                config=config, t0_s=stream.t0_s)
         step = max(1, round(chunk_s * stream.fs_hz))
         for a, ch in stream.chunks(step):
-            rows += est.feed(*signals(ch, stream.t0_s + a / stream.fs_hz))
-    track = pd.DataFrame(rows)
+            rows = est.feed(*signals(ch, stream.t0_s + a / stream.fs_hz))
+            if rows:
+                frames.append(pd.DataFrame(rows))
+    track = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
     if track.empty:
         raise InputError("the recording is shorter than one estimator window",
                          path=entry.path, hint="record longer or shorten [onboard] "
