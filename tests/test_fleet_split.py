@@ -276,3 +276,31 @@ def test_default_groups_hold_about_a_minute():
     assert slow.groups() == [(0, 1), (1, 2)]  # a revolution longer than a task: one each
     with pytest.raises(ValueError):
         plan.groups(0)
+
+
+def test_cli_passes_revolutions_per_task(monkeypatch, tmp_path, capsys):
+    """`torquemod fleet --revolutions-per-task N` reaches run_fleet; 0 is refused by the
+    parser (exit 2, a one-line message, no traceback)."""
+    import types
+
+    import pandas as pd
+
+    import torquemod.fleet as fleet
+    from torquemod.cli import main
+    seen = {}
+
+    def fake(runs, out, **kw):
+        seen.update(kw)
+        empty = pd.DataFrame()
+        return types.SimpleNamespace(summary=empty, count=lambda s: 0, wall_s=0.0,
+                                     failures=empty, out_dir=out, report=None)
+
+    monkeypatch.setattr(fleet, "run_fleet", fake)
+    assert main(["fleet", str(tmp_path), "--out", str(tmp_path / "o"), "--quiet",
+                 "--revolutions-per-task", "3"]) == 0
+    assert seen["revolutions_per_task"] == 3
+    with pytest.raises(SystemExit) as exit_:
+        main(["fleet", str(tmp_path), "--out", str(tmp_path / "o"),
+              "--revolutions-per-task", "0"])
+    assert exit_.value.code == 2
+    assert "positive whole number" in capsys.readouterr().err

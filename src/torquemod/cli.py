@@ -271,10 +271,21 @@ def cmd_convert(args: argparse.Namespace) -> int:
     return 0
 
 
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {text!r}")
+    return value
+
+
 def cmd_fleet(args: argparse.Namespace) -> int:
     from .fleet import run_fleet
     res = run_fleet(args.runs, Path(args.out), scheduler=args.scheduler,
                     n_workers=args.workers, force=args.force, progress=not args.quiet,
+                    revolutions_per_task=args.revolutions_per_task,
                     on_dashboard=lambda link: print(f"dashboard: {link}", file=sys.stderr,
                                                     flush=True))
     print(f"{res.summary.shape[0]} runs: {res.count('processed')} processed, "
@@ -293,6 +304,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from .sweep.run import run_sweep
     res = run_sweep(args.sweep, Path(args.out), scheduler=args.scheduler,
                     n_workers=args.workers, force=args.force, progress=not args.quiet,
+                    revolutions_per_task=args.revolutions_per_task,
                     on_dashboard=lambda link: print(f"dashboard: {link}", file=sys.stderr,
                                                     flush=True))
     print(f"{res.status.shape[0]} points: {res.count('done')} run, {res.count('skipped')} "
@@ -432,6 +444,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="worker processes of the local cluster (default: CPU count)")
     fl.add_argument("--force", action="store_true", help="reprocess unchanged runs too")
     fl.add_argument("--quiet", action="store_true", help="no progress bar")
+    fl.add_argument("--revolutions-per-task", type=_positive_int, default=None, metavar="N",
+                    help="split a rig recording with random row access (HDF5, MAT v7.3, "
+                    "TDMS, MDF4) into one task per N revolutions (default: only files of "
+                    ">= 256 MiB, ~60 s of recording a task); same numbers as one task")
     fl.set_defaults(func=cmd_fleet)
 
     sw = sub.add_parser("sweep", parents=[common],
