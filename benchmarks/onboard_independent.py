@@ -1,0 +1,139 @@
+"""The on-board estimator on runs NOT made by torquemod's twin (issue 10's hidden check):
+prints figures, asserts nothing.
+
+Runs come from :mod:`torquemod.testing_train` (its own vehicle, a tanh or Burckhardt creep
+law instead of Polach, a friction map dry 0.35 / wet 0.20 / leaves 0.10 / dry 0.35, a 4-Hz
+modulation, torque and speed at the motor behind a gear ratio, a 10-Hz radar in its own MDF4
+channel group, no position channel, logger names mapped in ``[channels]``). Each is written
+to MDF4 + run.toml and read back by ``torquemod.onboard.run.run_onboard`` with the default
+settings (what a hidden run.toml without ``[onboard]`` gets). Against the generator's truth,
+per friction segment: rows, the share with mu, the median |mu error|/mu where given, the
+coverage of the 95 % interval where given, how often the lower bound (``mu_low_95`` on rows
+without mu) exceeds the true mu, ``low_adhesion`` flags at <= 50 % true utilisation; and
+diagnostics: the median ratio of the measured creep coefficient to the truth on steady
+windows, the median phase standard error; and seconds of run per CPU second (end to end:
+reading MDF4, estimating, writing).
+
+    python benchmarks/onboard_independent.py [--seeds 2] [--laws tanh burckhardt]
+        [--depth 0.8 0.9] [--eccentricity 0.002 0.0] [--ratio-bounds 1 7]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from torquemod.onboard.run import run_onboard
+from torquemod.testing_train import IndependentRunSpec, segment_names, write_independent_run
+
+
+def evaluate(spec: IndependentRunSpec, track, truth) -> dict[str, dict]:
+    """Per segment figures of one run (rows matched to the truth by time)."""
+    t = track
+    ts = t["time_s"].to_numpy()
+    mu_t = np.interp(ts, truth["time_s"], truth["mu"])
+    util = np.interp(ts, truth["time_s"], truth["utilisation"])
+    k_t = np.interp(ts, truth["time_s"], truth["creep_coefficient"])
+    cond = segment_names(spec, np.interp(ts, truth["time_s"], truth["position_m"]))
+    mu = t["mu"].to_numpy()
+    lo, hi = t["mu_low_95"].to_numpy(), t["mu_high_95"].to_numpy()
+    given = np.isfinite(mu)
+    steady = (t["dc_step_ratio"] <= 0.25).to_numpy() if "dc_step_ratio" in t else \
+        np.ones(len(t), bool)
+    out = {}
+    for c in dict.fromkeys(cond):
+        s = cond == c
+        g = s & given
+        nb = s & ~given
+        low = s & (util <= 0.5)
+        ks = s & steady & np.isfinite(t["creep_coefficient"].to_numpy())
+        out[c] = {
+            "rows": int(s.sum()), "given": int(g.sum()),
+            "err": list(np.abs(mu[g] / mu_t[g] - 1)),
+            "mu_given": list(mu[g]), "mu_true": float(np.median(mu_t[s])),
+            "covered": int(((lo[g] <= mu_t[g]) & (mu_t[g] <= hi[g])).sum()),
+            "lb_rows": int(nb.sum()), "lb_above": int((lo[nb] > mu_t[nb]).sum()),
+            "la_low": int(t["low_adhesion"].to_numpy()[low].sum()), "low_rows": int(low.sum()),
+            "k_ratio": list(t["creep_coefficient"].to_numpy()[ks] / k_t[ks]),
+            "phase_se": list(t["phase_se_deg"].to_numpy()[s]),
+        }
+    return out
+
+
+def _merge(acc: dict, new: dict) -> None:
+    for c, d in new.items():
+        a = acc.setdefault(c, {k: ([] if isinstance(v, list) else 0) for k, v in d.items()})
+        for k, v in d.items():
+            if k == "mu_true":
+                a[k] = v
+            else:
+                a[k] = a[k] + v
+
+
+def scenario(spec: IndependentRunSpec, seeds: int, out: Path, title: str) -> None:
+    acc: dict = {}
+    run_s = cpu_s = 0.0
+    for seed in range(seeds):
+        s = replace(spec, seed=seed)
+        folder = out / f"run_{seed}"
+        path, _ = write_independent_run(s, folder)
+        c0 = time.process_time()
+        res = run_onboard(path, out / f"res_{seed}", force=True)[0]
+        cpu_s += time.process_time() - c0
+        import pandas as pd
+        truth = pd.read_parquet(folder / "truth.parquet")
+        run_s += float(truth["time_s"].iloc[-1] - truth["time_s"].iloc[0])
+        _merge(acc, evaluate(s, res.track, truth))
+    print(f"\n{title} ({seeds} seeds)")
+    print(f"{'segment':>8} {'true mu':>7} {'rows':>5} {'mu given':>8} {'median mu':>9} "
+          f"{'med |err|':>9} {'coverage':>8} {'LB>truth':>8} {'low_adh u<=.5':>13} "
+          f"{'k/k_true':>8} {'phase se':>8}")
+    for c, a in acc.items():
+        med_mu = f"{np.median(a['mu_given']):.3f}" if a["given"] else "-"
+        err = f"{100 * np.median(a['err']):.1f} %" if a["given"] else "-"
+        cov = f"{100 * a['covered'] / a['given']:.0f} %" if a["given"] else "-"
+        lb = f"{100 * a['lb_above'] / max(a['lb_rows'], 1):.1f} %"
+        la = f"{a['la_low']}/{a['low_rows']}"
+        kr = f"{np.median(a['k_ratio']):.3f}" if a["k_ratio"] else "-"
+        print(f"{c:>8} {a['mu_true']:>7.2f} {a['rows']:>5} {100 * a['given'] / a['rows']:>7.0f}% "
+              f"{med_mu:>9} {err:>9} {cov:>8} {lb:>8} {la:>13} {kr:>8} "
+              f"{np.median(a['phase_se']):>7.2f}°")
+    print(f"end to end (MDF4 read, estimate, write): {run_s / cpu_s:.0f} s of run per CPU s")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seeds", type=int, default=2)
+    ap.add_argument("--laws", nargs="+", default=["tanh", "burckhardt", "polach"])
+    ap.add_argument("--depth", type=float, nargs="+", default=[0.8])
+    ap.add_argument("--eccentricity", type=float, nargs="+", default=[0.002],
+                    help="the motor encoder's once-per-revolution speed error (relative)")
+    ap.add_argument("--ratio-bounds", type=float, nargs=2, default=None,
+                    help="[onboard] ratio_bounds written into run.toml (default: none, "
+                         "the estimator's defaults)")
+    args = ap.parse_args()
+    extra = {} if args.ratio_bounds is None else \
+        {"onboard": {"ratio_bounds": list(args.ratio_bounds)}}
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        for law in args.laws:
+            for depth in args.depth:
+                for ecc in args.eccentricity:
+                    spec = IndependentRunSpec(law=law, levels=tuple(np.linspace(0.2, depth, 4)),
+                                              encoder_eccentricity=ecc, extra_toml=extra)
+                    tag = f"{law}_{depth}_{ecc}"
+                    out = Path(tmp) / tag
+                    scenario(spec, args.seeds, out,
+                             f"{law} creep law, staircase to {depth:.0%} of the adhesion, "
+                             f"encoder eccentricity {ecc:g}"
+                             + (f", ratio_bounds {args.ratio_bounds}" if extra else ""))
+    print(f"\n(benchmark wall time {time.perf_counter() - t0:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
