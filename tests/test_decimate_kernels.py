@@ -1,0 +1,61 @@
+"""The numba decimation kernels of dsp/filters.py (issue 11, throughput) against independent
+references: ``np.convolve`` for the first stage and ``scipy.signal.resample_poly`` for the
+second. The kernels reorder their sums (numba fast-math ``reassoc``), so they agree with the
+references to rounding: the tolerances are 1e-13 of the data's size (measured up to 1.6e-15)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from torquemod.dsp import filters
+
+
+@pytest.mark.parametrize("n", [50, 1_000, 1_013, 5_003])
+@pytest.mark.parametrize(("up", "down"), [(2, 25), (3, 7), (1, 4), (5, 3), (4, 9)])
+def test_stage2_kernel_is_resample_poly(n, up, down):
+    x = np.random.default_rng(n + up).standard_normal(n)
+    ref = signal.resample_poly(x, up, down, window=filters._resampling_fir(up, down, 5.0),
+                               padtype="constant")
+    phases, taps = filters._stage2_phases(up, down, 5.0)
+    got = np.full(ref.size, np.nan)
+    filters._upfirdn_centred_row(x, phases, taps, up, down, got)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-13 * np.abs(x).max())
+
+
+@pytest.mark.parametrize("n", [100, 5_003, 5_025])
+def test_stage1_kernel_removes_the_offset_and_pads_with_zeros(n):
+    rng = np.random.default_rng(n)
+    x = 30.0 + rng.standard_normal(n)
+    offset = float(x.mean())
+    h = filters.stage1_fir(25, 2, 625)
+    half = (h.size - 1) // 2
+    got = np.full((n - 1) // 25 + 1, np.nan)
+    filters._fir_decimate_row(x, offset, h, 25, got)
+    full = np.convolve(x - offset, h)[half:half + n]  # centred; zeros outside the record
+    np.testing.assert_allclose(got, full[::25], rtol=0, atol=1e-13 * 30.0)
+
+
+def test_two_stage_equals_the_former_route():
+    """stage 1 by a full convolution, stage 2 by resample_poly (the code before the kernels),
+    on a DC-heavy record with a line and a tone, each row's mean removed and restored."""
+    rng = np.random.default_rng(2)
+    n = 60_013
+    t = np.arange(n) / 16_670.0
+    rows = [30.0 + 0.3 * t + 1e-3 * np.sin(2 * np.pi * 2.0 * t) + 1e-3 * rng.standard_normal(n),
+            5.0 * rng.standard_normal(n) - 7.0]
+    got, means = filters.resample_rows(rows, 2, 625, method="two_stage", padtype="constant",
+                                       return_means=True)
+    q1, down2 = filters.two_stage_plan(2, 625)
+    h = filters.stage1_fir(q1, 2, 625)
+    half = (h.size - 1) // 2
+    n_out = -(-n * 2 // 625)
+    for row, m, y in zip(rows, means, got, strict=True):
+        y1 = np.convolve(row - m, h)[half:half + n][::q1]
+        ref = signal.resample_poly(y1, 2, down2, window=filters._resampling_fir(2, down2, 5.0),
+                                   padtype="constant")[:n_out] + m
+        np.testing.assert_allclose(y, ref, rtol=0, atol=1e-13 * np.abs(row).max())
+    # the stacked entry point gives the same bits as the rows
+    np.testing.assert_array_equal(
+        filters.resample(np.vstack(rows), 2, 625, method="two_stage", padtype="constant"), got)
