@@ -12,7 +12,8 @@ coverage of the 95 % interval where given, how often the lower bound (``mu_low_9
 without mu) exceeds the true mu, ``low_adhesion`` flags at <= 50 % true utilisation; and
 diagnostics: the median ratio of the measured creep coefficient to the truth on steady
 windows, the median phase standard error; and seconds of run per CPU second (end to end:
-reading MDF4, estimating, writing).
+reading MDF4, estimating, writing figures and tables). Then a driver's constant demand into
+a leaf patch (low_adhesion delay, false flags on dry rail) and the estimator's own speed.
 
     python benchmarks/onboard_independent.py [--seeds 2] [--laws tanh burckhardt]
         [--depth 0.8 0.9] [--eccentricity 0.002 0.0] [--ratio-bounds 1 7]
@@ -29,7 +30,12 @@ from pathlib import Path
 import numpy as np
 
 from torquemod.onboard.run import run_onboard
-from torquemod.testing_train import IndependentRunSpec, segment_names, write_independent_run
+from torquemod.testing_train import (
+    FrictionSegment,
+    IndependentRunSpec,
+    segment_names,
+    write_independent_run,
+)
 
 
 def evaluate(spec: IndependentRunSpec, track, truth) -> dict[str, dict]:
@@ -106,6 +112,70 @@ def scenario(spec: IndependentRunSpec, seeds: int, out: Path, title: str) -> Non
     print(f"end to end (MDF4 read, estimate, write): {run_s / cpu_s:.0f} s of run per CPU s")
 
 
+def low_adhesion(seeds: int, out: Path, law: str) -> None:
+    """A driver's constant demand that needs 93 % of a leaf patch's adhesion, entered at
+    800 m from dry rail (where it is 27 % of the adhesion): the delay from the moment the
+    demand first needs >= 90 % of the available adhesion (truth) to the first low_adhesion
+    row (at its window's end, when a live system has it), and false flags on dry rail at
+    <= 50 % true utilisation (after the first 3 s)."""
+    import pandas as pd
+    spec0 = IndependentRunSpec(law=law, length_m=1400.0, segments=(
+        FrictionSegment("dry", 0.0, 0.35, 110.0), FrictionSegment("leaves", 800.0, 0.10, 40.0)))
+    n_r = spec0.normal_load_n * spec0.wheel_radius_m
+    spec0 = replace(spec0, constant_torque_nm=0.93 * 0.10 * n_r)
+    delays, false_rows, dry_rows = [], 0, 0
+    for seed in range(seeds):
+        spec = replace(spec0, seed=seed)
+        path, _ = write_independent_run(spec, out / f"la_{seed}")
+        res = run_onboard(path, out / f"la_res_{seed}", force=True)[0]
+        t = res.track
+        truth = pd.read_parquet(out / f"la_{seed}" / "truth.parquet")
+        need = truth["dc_torque_nm"] / n_r / truth["mu"]
+        t_90 = float(truth["time_s"][need >= 0.9].iloc[0])
+        t_avail = t["time_s"] + res.config.window_periods / (2 * spec.modulation_frequency_hz)
+        flagged = t_avail[(t_avail > t_90) & t["low_adhesion"]]
+        delays.append(float(flagged.iloc[0]) - t_90 if len(flagged) else np.inf)
+        ts = t["time_s"].to_numpy()
+        util = np.interp(ts, truth["time_s"], truth["utilisation"])
+        pos = np.interp(ts, truth["time_s"], truth["position_m"])
+        dry = (pos < 800.0 - spec.transition_m) & (util <= 0.5) & (ts > ts[0] + 3.0)
+        false_rows += int(t["low_adhesion"].to_numpy()[dry].sum())
+        dry_rows += int(dry.sum())
+    print(f"\nlow adhesion ({law} law): constant demand = 93 % of the leaf patch's adhesion "
+          f"({spec0.constant_torque_nm:.0f} N*m at the axle)")
+    print("  delay from the demand first needing >= 90 % of the adhesion to low_adhesion "
+          f"(window's end): {', '.join(f'{d:.2f} s' for d in delays)}")
+    print(f"  false low_adhesion on dry rail at <= 50 % utilisation: {false_rows}/{dry_rows} "
+          f"windows ({100 * false_rows / max(dry_rows, 1):.2f} %)")
+
+
+def speed(out: Path) -> None:
+    """CPU seconds of the estimator alone (arrays in memory, 30-s chunks as the batch command
+    feeds them) on the default independent run, best of three."""
+    from torquemod.io.recording import read_recording
+    from torquemod.io.run import read_run
+    from torquemod.onboard.estimator import OnboardEstimator
+    path, _ = write_independent_run(IndependentRunSpec(), out / "speed")
+    run = read_run(path)
+    e = run.recordings[0]
+    rec = read_recording(e.path, group=e.group, channel_map=run.channel_map)
+    ch, g = rec.channels, run.vehicle.gear_ratio
+    v = ch["vehicle_speed_m_s"]
+    x = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) / rec.fs_hz)])
+    arrays = (ch["torque_nm"] * g, ch["wheel_speed_rad_s"] / g, v, x)
+    n, step = v.size, round(30 * rec.fs_hz)
+    best = np.inf
+    for _ in range(3):
+        est = OnboardEstimator(run.vehicle, run.modulation_frequency_hz, rec.fs_hz)
+        c0 = time.process_time()
+        for a in range(0, n, step):
+            est.feed(*(arr[a:a + step] for arr in arrays))
+        best = min(best, time.process_time() - c0)
+    rec_s = n / rec.fs_hz
+    print(f"\nestimator alone: {rec_s:.0f} s recorded at {rec.fs_hz:g} Hz in {best:.2f} CPU s = "
+          f"{rec_s / best:.0f} x real time ({est.tracker.n_fits} mu fits)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=2)
@@ -132,6 +202,9 @@ def main() -> None:
                              f"{law} creep law, staircase to {depth:.0%} of the adhesion, "
                              f"encoder eccentricity {ecc:g}"
                              + (f", ratio_bounds {args.ratio_bounds}" if extra else ""))
+        for law in args.laws:
+            low_adhesion(args.seeds, Path(tmp) / f"la_{law}", law)
+        speed(Path(tmp))
     print(f"\n(benchmark wall time {time.perf_counter() - t0:.0f} s)")
 
 

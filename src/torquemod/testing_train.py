@@ -24,7 +24,9 @@ or ``torquemod.contact``, and it differs from the twin where a hidden run could 
 * **Friction map**: segments of (name, start, mu, k0) with linear transitions.
 * **Probe**: a DC torque staircase ``levels`` x the available adhesion (the smallest mu a
   little behind and ahead of the axle), a step every ``step_m`` metres, rate-limited, plus
-  the modulation ``amplitude_nm*sin(2*pi*f*t)`` at the axle.
+  the modulation ``amplitude_nm*sin(2*pi*f*t)`` at the axle; or a constant demand
+  ``constant_torque_nm`` (a driver's, blind to the friction), with a simple anti-slip cut
+  when the creepage exceeds 0.03.
 * **Sensors**: torque and speed recorded at the MOTOR (axle torque / gear ratio, axle speed x
   gear ratio, in rpm), the torque with a first-order lag, a gain error and white noise; the
   speed from an encoder with once-per-motor-revolution eccentricity, a once-per-axle ripple,
@@ -97,6 +99,7 @@ class IndependentRunSpec:
     modulation_amplitude_nm: float = 600.0  # at the axle
     levels: tuple[float, ...] = (0.2, 0.4, 0.6, 0.8)
     step_m: float = 50.0
+    constant_torque_nm: float | None = None  # instead of the staircase: a driver's demand
     torque_rate_nm_s: float = 30_000.0    # DC torque rate limit at the axle
     look_behind_m: float = 10.0
     look_ahead_m: float = 40.0
@@ -362,9 +365,13 @@ def simulate_independent(spec: IndependentRunSpec) -> IndependentRun:
                   spec.motor_time_constant_s, spec.modulation_frequency_hz,
                   spec.modulation_amplitude_nm, float(spec.law_code),
                   spec.shape, spec.speed_gain_n_s_m, spec.speed_m_s])
-    out = _simulate(n, fs, spec.substeps, p, xs, mus, ks, lam, lamp, lama,
-                    np.asarray(spec.levels, dtype=float), spec.step_m,
-                    _mu_around(spec, xs, mus), spec.torque_rate_nm_s, 0.03)
+    if spec.constant_torque_nm is None:
+        levels, mu_around = np.asarray(spec.levels, dtype=float), _mu_around(spec, xs, mus)
+    else:  # the demand as one "level" of a friction of 1
+        levels = np.array([spec.constant_torque_nm / (spec.normal_load_n * spec.wheel_radius_m)])
+        mu_around = np.ones(int(spec.length_m) + 2)
+    out = _simulate(n, fs, spec.substeps, p, xs, mus, ks, lam, lamp, lama, levels,
+                    spec.step_m, mu_around, spec.torque_rate_nm_s, 0.03)
     tm, w, v, x, coa, mu, nl, tdc = out
     t = spec.t0_s + np.arange(n) / fs
     # torque sensor: first-order lag (exact discretisation), gain, noise; at the motor
