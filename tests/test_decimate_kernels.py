@@ -59,3 +59,40 @@ def test_two_stage_equals_the_former_route():
     # the stacked entry point gives the same bits as the rows
     np.testing.assert_array_equal(
         filters.resample(np.vstack(rows), 2, 625, method="two_stage", padtype="constant"), got)
+
+
+@pytest.mark.parametrize("order", [1, 2, 3, 4])
+@pytest.mark.parametrize(("center", "width"), [(2.0, 0.36), (1.6, 0.1), (2.5, 1.0), (10.0, 3.0)])
+def test_bandpass_design_is_scipy_butter(order, center, width):
+    fs = 53.344
+    b, a = filters.design_bandpass(center, width, order, fs)
+    rb, ra = signal.butter(order, [center - width / 2, center + width / 2], "bandpass", fs=fs)
+    # rounding only: measured <= 5e-16 of the largest coefficient
+    np.testing.assert_allclose(b, rb, rtol=0, atol=1e-14 * np.abs(rb).max())
+    np.testing.assert_allclose(a, ra, rtol=0, atol=1e-14 * np.abs(ra).max())
+
+
+def test_steady_state_is_lfilter_zi_bit_for_bit():
+    fs = 53.344
+    for b, a in (filters.design_bandpass(2.0, 0.36, 2, fs), filters.design_notch(4.6, 3.0, fs),
+                 (np.array([0.5, 0.2]), np.array([2.0, -0.3, 0.1])),
+                 (np.array([0.3, 0.2, 0.1, 0.05]), np.array([1.0, -0.5]))):
+        np.testing.assert_array_equal(filters._steady_state(b, a), signal.lfilter_zi(b, a))
+
+
+def test_bounded_minimum_is_fminbound_bit_for_bit():
+    from scipy import optimize
+
+    from torquemod.dsp import spectrum
+    rng = np.random.default_rng(0)
+    for _ in range(300):
+        c = rng.uniform(-2, 2, 5)
+
+        def f(x, c=c):
+            return float(np.polyval(c, x) + 0.3 * np.sin(7 * x * c[0]))
+
+        lo = rng.uniform(-3, 0)
+        hi = lo + rng.uniform(1e-6, 4)
+        tol = 10 ** rng.uniform(-9, -2)
+        assert spectrum._bounded_minimum(f, lo, hi, tol) == \
+            optimize.fminbound(f, lo, hi, xtol=tol, maxfun=500, disp=0)

@@ -22,7 +22,7 @@ import numpy as np
 from scipy import signal
 
 from ..errors import ProcessingError
-from .filters import lstsq, tone_design
+from .filters import LstsqFactor, lstsq, tone_design
 
 
 def parabolic_vertex(y_m1: np.ndarray, y_0: np.ndarray, y_p1: np.ndarray) -> np.ndarray:
@@ -147,7 +147,8 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
     keep = tuple(f for f in nuisance_hz if abs(f - f_mod_hz) > resolution)
     design = _design(t, f_mod_hz, keep, trend)
     y = np.column_stack([torque[start:stop], wheel[start:stop]])
-    coef, rank = lstsq(design, y)
+    fac = LstsqFactor.of(design)  # one factor for both fits below (lstsq's own numbers)
+    coef, rank = (fac.solve(y), design.shape[1]) if fac is not None else lstsq(design, y)
     if rank < design.shape[1]:
         raise ProcessingError("sine-fit design matrix is rank deficient (nuisance tones "
                               "coincide)")
@@ -156,7 +157,7 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
     else:
         y_n = np.column_stack([np.asarray(noise_from[0])[start:stop],
                                np.asarray(noise_from[1])[start:stop]])
-        c_n, _ = lstsq(design, y_n)
+        c_n = fac.solve(y_n) if fac is not None else lstsq(design, y_n)[0]
         resid = y_n - design @ c_n
     t_win = n / fs_hz
     phases, amps, var_phi = [], [], 0.0
