@@ -186,12 +186,11 @@ def test_csv_stays_one_task_and_reads_rows_in_order(tmp_path):
             assert np.array_equal(seg.channels[c], v[199_999:300_001])
 
 
-def test_train_axle_chunk_plumbing(tmp_path, monkeypatch):
-    """The fleet's train path through chunk tasks (scan, one task per chunk, assembly in
-    finish_run; only with axle_chunk_s), with stand-ins for onboard.run's chunk API (helper
-    A's, not in the tree yet) that count their calls and assemble with estimate_axle: the
-    track is estimate_axle's; a failed chunk fails the run with its message; one chunk
-    stays one task. This tests the fleet's plumbing, not the chunked estimator."""
+def test_train_axle_in_chunk_tasks(tmp_path, monkeypatch):
+    """A train axle through the fleet's chunk tasks (scan, one task per chunk measuring its
+    windows, assembly in finish_run): the track is `onboard`'s with tolerance 0; a failed
+    chunk fails the run with its message; a run shorter than one chunk (the default
+    AXLE_TASK_S) stays one task."""
     import pandas as pd
 
     from torquemod.fleet import process_run
@@ -201,45 +200,29 @@ def test_train_axle_chunk_plumbing(tmp_path, monkeypatch):
     cfg = dataclasses.replace(cfg, track=dataclasses.replace(cfg.track, length_m=300.0))
     run_train_simulation(cfg, tmp_path / "t", seed=3)
     calls = []
-
-    def plan(run, entry, config=None, *, chunk_s=600.0):
-        calls.append(("plan", chunk_s))
-        return [(0, 10), (10, 25), (25, 30)]
+    real_measure = onboard_run.measure_axle_chunk
 
     def measure(run, entry, config, first, stop):
-        calls.append(("measure", first, stop))
-        if stop == 25 and calls[0] == ("fail",):
+        calls.append((first, stop))
+        if calls[0] == "fail" and len(calls) == 3:
             raise InputError("bad chunk", path=entry.path)
-        return (first, stop)
+        return real_measure(run, entry, config, first, stop)
 
-    def assemble(run, entry, config, parts):
-        calls.append(("assemble", tuple(parts)))
-        return onboard_run.estimate_axle(run, entry, config)
-
-    for name, fn in (("plan_axle_chunks", plan), ("measure_axle_chunk", measure),
-                     ("assemble_axle", assemble)):
-        monkeypatch.setattr(onboard_run, name, fn, raising=False)
-    row = process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t",
-                      force=True)
-    assert row["status"] == "processed" and calls == []  # one task per axle by default
-    row = process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t",
-                      force=True, axle_chunk_s=5.0)
-    assert row["status"] == "processed"
-    assert calls == [("plan", 5.0), ("measure", 0, 10), ("measure", 10, 25),
-                     ("measure", 25, 30), ("assemble", ((0, 10), (10, 25), (25, 30)))]
+    monkeypatch.setattr(onboard_run, "measure_axle_chunk", measure)
     onboard_run.run_onboard(tmp_path / "t" / "run.toml", tmp_path / "alone")
     alone = pd.read_parquet(tmp_path / "alone" / "track.parquet")
-    got = pd.read_parquet(next((tmp_path / "out" / "track").rglob("part-0.parquet")))
-    pd.testing.assert_frame_equal(got, alone, check_dtype=False, rtol=0, atol=0)
-    calls[:] = [("fail",)]
+    for chunk_s, tasks in ((None, 0), (4.0, 4)):
+        calls[:] = []
+        row = process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t",
+                          force=True, axle_chunk_s=chunk_s)
+        assert row["status"] == "processed"
+        assert len(calls) >= tasks and (tasks or not calls)
+        got = pd.read_parquet(next((tmp_path / "out" / "track").rglob("part-0.parquet")))
+        pd.testing.assert_frame_equal(got, alone, check_dtype=False, rtol=0, atol=0)
+    calls[:] = ["fail"]
     row = process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t",
-                      force=True, axle_chunk_s=5.0)
+                      force=True, axle_chunk_s=4.0)
     assert row["status"] == "failed" and row["message"].endswith("bad chunk")
-    monkeypatch.setattr(onboard_run, "plan_axle_chunks", lambda *a, **k: [(0, 30)])
-    calls[:] = []
-    assert process_run(str(tmp_path / "t" / "run.toml"), str(tmp_path / "out"), "t",
-                       force=True, axle_chunk_s=5.0)["status"] == "processed"
-    assert calls == []  # one chunk: estimate_axle as one task
 
 
 def test_digest_hashed_once_when_fresh(long_exp, tmp_path):

@@ -6,6 +6,7 @@ and HDF5 (its own time vector) runs of the twin."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
 import pytest
@@ -154,3 +155,46 @@ def test_estimate_axle_nan_names_channel_and_time(stripped_run, tmp_path):
     msg = str(err.value)
     assert "run.h5" in msg and "torque_nm" in msg and "NaN/inf" in msg
     assert f"t = {t[5000]:.3f} s" in msg
+
+
+@pytest.mark.parametrize("which", ["mf4", "h5_no_position_geared"])
+def test_axle_in_parts_equals_estimate_axle(twin_run, stripped_run, which):
+    """An axle measured in parts (plan_axle_chunks / measure_axle_chunk / assemble_axle, the
+    fleet's chunk tasks) gives estimate_axle's track with tolerance 0: the same windows,
+    the position integrated over the whole run, the state advanced in order."""
+    import pandas as pd
+
+    from torquemod.onboard.run import (
+        assemble_axle,
+        estimate_axle,
+        measure_axle_chunk,
+        plan_axle_chunks,
+    )
+    run = read_run(twin_run / "run.toml" if which == "mf4" else stripped_run)
+    e = run.recordings[0]
+    ranges = plan_axle_chunks(run, e, None, chunk_s=3.3)
+    assert len(ranges) > 3
+    assert ranges[0][0] == 0 and all(a[1] == b[0] for a, b in itertools.pairwise(ranges))
+    parts = [measure_axle_chunk(run, e, None, a, b) for a, b in ranges]
+    got = assemble_axle(run, e, None, parts)
+    ref = estimate_axle(run, e)
+    pd.testing.assert_frame_equal(got.track, ref.track, check_exact=True)
+    assert got.notes == ref.notes and got.n_fits == ref.n_fits
+
+
+def test_parts_not_planned_for_sequential_files(twin_run, tmp_path):
+    """A CSV run is read by passes from its start: no parts (one task)."""
+    import pandas as pd
+
+    from torquemod.onboard.run import plan_axle_chunks
+    rec = read_recording((twin_run / "run.h5"), channel_map={
+        "vehicle_speed": {"name": "vehicle_speed_m_s", "time": "reference_time_s"},
+        "position": {"name": "position_m", "time": "reference_time_s"}})
+    pd.DataFrame({"time_s": rec.t0_s + np.arange(rec.n_samples) / rec.fs_hz,
+                  **{c: rec.channels[c] for c in rec.channels}}).to_csv(
+        tmp_path / "run.csv", index=False)
+    text = (twin_run / "run_h5.toml").read_text().replace('"run.h5"', '"run.csv"')
+    head, tail = text.split("[channels.vehicle_speed]")
+    (tmp_path / "run.toml").write_text(head + "[truth]" + tail.split("[truth]")[1])
+    run = read_run(tmp_path / "run.toml")
+    assert plan_axle_chunks(run, run.recordings[0], None, chunk_s=3.0) == []

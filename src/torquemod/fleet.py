@@ -509,9 +509,11 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     one task per ``revolutions_per_task`` revolutions (default: about
     :data:`torquemod.revtasks.TASK_SECONDS` of recording each, and only for files that
     ``process`` streams, >= 256 MiB; :func:`scan_item`, :mod:`torquemod.revtasks`).
-    ``axle_chunk_s`` [s]: a train axle becomes one task per chunk of that length, when
-    :mod:`torquemod.onboard.run` offers chunked estimation (``plan_axle_chunks``,
-    ``measure_axle_chunk``, ``assemble_axle``); None (default): one task per axle.
+    ``axle_chunk_s`` [s]: a train axle recording with random row access (HDF5, MAT v7.3,
+    MDF4, TDMS) longer than that becomes one task per chunk of that length, measuring its
+    windows, and the run's assembly advances the estimator over them
+    (:mod:`torquemod.onboard.chunks`; the track is ``onboard``'s); None: about
+    :data:`torquemod.fleettasks.AXLE_TASK_S` (10 min).
     """
     from .daskutil import dask_client
 

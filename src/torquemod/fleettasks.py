@@ -13,6 +13,13 @@ if TYPE_CHECKING:
     from .fleet import Plan
 
 
+#: seconds of a train axle's recording per task (the windows it measures) by default
+AXLE_TASK_S = 600.0
+#: by default a train recording is scanned for chunks only from this size [bytes] (16 MiB:
+#: ~10 min of torque, wheel speed and time at 1 kHz in float64)
+AXLE_SCAN_MIN_BYTES = 16 * 2**20
+
+
 def _fresh_sha256(plan: Plan, index: int) -> str | None:
     """The recording's SHA-256 when the plan computed it just now (not kept from the last
     run's state by size and modification time): then no task reads the file to hash it."""
@@ -34,11 +41,19 @@ def _axle_api():
 
 def may_split(plan: Plan, index: int) -> bool:
     """Whether recording ``index`` may be cut into several tasks (a rig recording without
-    a manifest cycle, NaN policy ``raise``: groups of revolutions; a train axle when the
-    plan asks for chunks of ``axle_chunk_s`` and the on-board estimator offers them): then
-    :func:`scan_item` decides."""
+    a manifest cycle, NaN policy ``raise``: groups of revolutions; a train axle: chunks of
+    ``axle_chunk_s``, default :data:`AXLE_TASK_S` and only files of
+    :data:`AXLE_SCAN_MIN_BYTES` or more): then :func:`scan_item` decides."""
     if plan.prep.kind == "train":
-        return plan.axle_chunk_s is not None and _axle_api() is not None
+        if _axle_api() is None:
+            return False
+        if plan.axle_chunk_s is not None:
+            return True
+        try:  # by default no scan task for a recording far shorter than two chunks
+            size = plan.prep.source.recordings[index].path.stat().st_size
+        except OSError:
+            return False
+        return size >= AXLE_SCAN_MIN_BYTES
     entry = plan.prep.source.recordings[index]
     return entry.cycle is None and plan.prep.settings.nan_policy == "raise"
 
@@ -56,7 +71,8 @@ def scan_item(plan: Plan, index: int) -> tuple:
     if prep.kind == "train":  # a train axle: the on-board estimator's chunks
         try:
             chunks = _axle_api().plan_axle_chunks(prep.source, prep.source.recordings[index],
-                                                  prep.settings, chunk_s=plan.axle_chunk_s)
+                                                  prep.settings,
+                                                  chunk_s=plan.axle_chunk_s or AXLE_TASK_S)
         except Exception:
             chunks = []
         if len(chunks) < 2:

@@ -292,19 +292,26 @@ class RunStream:
         return {k: np.concatenate(v) if v else np.zeros(0) for k, v in parts.items()}
 
     # -- rows
-    def read(self, a: int, b: int) -> dict[str, np.ndarray]:
-        """Rows ``a..b-1`` (0 <= a <= b <= n_samples) of every channel, float64 in SI."""
+    def read(self, a: int, b: int, channels: tuple[str, ...] | None = None
+             ) -> dict[str, np.ndarray]:
+        """Rows ``a..b-1`` (0 <= a <= b <= n_samples) of every channel (or of
+        ``channels`` only: the slow ones then need no file access), float64 in SI."""
         if not 0 <= a <= b <= self.n_samples:
             raise ValueError(f"rows {a}..{b} outside 0..{self.n_samples}")
+        want = self.channels if channels is None else tuple(
+            c for c in self.channels if c in channels)
         if self.rec is not None:
-            return {c: self.rec.channels[c][a:b] for c in self.channels}
+            return {c: self.rec.channels[c][a:b] for c in want}
         out: dict[str, np.ndarray] = {}
         fa, fb = self.lo + a, self.lo + b
-        raw = self._raw_rows(list(dict.fromkeys(self.names.values())), fa, fb)
-        for c, name in self.names.items():
+        names = {c: name for c, name in self.names.items() if c in want}
+        raw = self._raw_rows(list(dict.fromkeys(names.values())), fa, fb) if names else {}
+        for c, name in names.items():
             x = _converted(self.cmap.spec(c), RawChannel(raw[name], self.units[c]), self.path)
             out[c] = np.asarray(x, dtype=np.float64)
         for c, plan in self.plans.items():
+            if c not in want:
+                continue
             x = self.slow[c]
             if plan.shift is not None:
                 out[c] = x[fa - plan.shift:fb - plan.shift]
@@ -312,7 +319,7 @@ class RunStream:
                 out[c] = _interpolated(x, plan, fa, fb - 1)
             else:
                 out[c] = np.zeros(0)
-        return {c: out[c] for c in self.channels}
+        return {c: out[c] for c in want}
 
     def chunks(self, chunk_rows: int, start: int = 0, stop: int | None = None
                ) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
@@ -359,6 +366,13 @@ class RunStream:
             out[c] = x[fa - plan.shift:fb - plan.shift] if plan.shift is not None \
                 else _interpolated(x, plan, fa, fb - 1)
         return {c: out[c] for c in self.channels}
+
+    @property
+    def random_access(self) -> bool:
+        """Whether ``read`` reaches any rows directly (HDF5, MAT v7.3, MDF4, TDMS, or read
+        whole), rather than by a pass over the file's blocks from its start (CSV,
+        Parquet)."""
+        return self.rec is not None or type(self.table).read is not _Table.read
 
     def __enter__(self) -> RunStream:
         return self

@@ -319,10 +319,22 @@ class OnboardEstimator:
         return float(np.median(low))
 
     def _window(self, seg: np.ndarray, t_end: float) -> dict | None:
+        w = self.measure(seg, t_end)
+        return None if w is None else self.update(w)
+
+    def measure(self, seg: np.ndarray, t_end: float) -> WindowResult | None:
+        """The window ``seg`` (4 x ``n_win``: torque, wheel speed, reference speed,
+        position) ending at ``t_end`` [s] measured on its own (no state; None when it
+        cannot be measured): the part of the work that chunks of a run can do apart."""
         try:
-            w = measure_window(seg[0], seg[1], seg[2], seg[3], self.fs, t_end, self.v, self.f)
+            return measure_window(seg[0], seg[1], seg[2], seg[3], self.fs, t_end, self.v,
+                                  self.f)
         except ProcessingError:
             return None
+
+    def update(self, w: WindowResult) -> dict:
+        """The row of a measured window, advancing the state (slip, reference creep
+        coefficient, mu tracker); windows must come in order."""
         slip = (w.creepage > self.cfg.slip_creepage
                 or w.wheel_excess_accel_m_s2 > self.cfg.slip_accel_m_s2)
         k = w.creep_coefficient

@@ -19,6 +19,12 @@ from ..fsutil import atomic_dir, sha256_file
 from ..io.run import Run, RunRecording, read_run
 from ..jsonutil import dump_json
 from ..provenance import software_versions
+from .chunks import (  # noqa: F401  (the fleet's chunk tasks: torquemod.fleettasks)
+    AxlePart,
+    assemble_axle,
+    measure_axle_chunk,
+    plan_axle_chunks,
+)
 from .estimator import TRACK_COLUMNS, OnboardConfig, OnboardEstimator
 
 #: samples handed to the estimator at a time by the batch command
@@ -78,12 +84,29 @@ class _AxleSignals:
         self.v_last: float | None = None
         self.x_last = 0.0
 
-    def __call__(self, ch: dict[str, np.ndarray], t_first_s: float
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _check(self, name: str, arr: np.ndarray, row: int, t0_s: float) -> None:
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            first = t0_s + (row + int(np.argmax(bad))) / self.fs_hz
+            raise InputError(f"NaN/inf values (the first at t = {first:.3f} s)",
+                             path=self.entry.path, channel=name, hint="repair the recording")
+
+    def fast(self, ch: dict[str, np.ndarray], row: int, t0_s: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Torque and wheel speed at the axle and the reference speed of the rows from
+        ``row`` on (``t0_s`` [s]: the time of row 0), checked for NaN/inf."""
         torque, wheel, v = ch["torque_nm"], ch["wheel_speed_rad_s"], ch["vehicle_speed_m_s"]
         if self.gear:
             torque = torque * self.gear
             wheel = wheel / self.gear
+        for name, arr in (("torque_nm", torque), ("wheel_speed_rad_s", wheel),
+                          ("vehicle_speed_m_s", v)):
+            self._check(name, arr, row, t0_s)
+        return torque, wheel, v
+
+    def position(self, ch: dict[str, np.ndarray], v: np.ndarray, row: int, t0_s: float
+                 ) -> np.ndarray:
+        """Position [m] of the rows from ``row`` on; consecutive calls when integrated."""
         if not self.integrate:
             x = ch["position_m"]
         elif v.size:
@@ -94,15 +117,13 @@ class _AxleSignals:
             self.v_last, self.x_last = float(v[-1]), float(x[-1])
         else:
             x = np.zeros(0)
-        for name, arr in (("torque_nm", torque), ("wheel_speed_rad_s", wheel),
-                          ("vehicle_speed_m_s", v), ("position_m", x)):
-            bad = ~np.isfinite(arr)
-            if bad.any():
-                first = t_first_s + int(np.argmax(bad)) / self.fs_hz
-                raise InputError(f"NaN/inf values (the first at t = {first:.3f} s)",
-                                 path=self.entry.path, channel=name,
-                                 hint="repair the recording")
-        return torque, wheel, v, x
+        self._check("position_m", x, row, t0_s)
+        return x
+
+    def __call__(self, ch: dict[str, np.ndarray], row: int, t0_s: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        torque, wheel, v = self.fast(ch, row, t0_s)
+        return torque, wheel, v, self.position(ch, v, row, t0_s)
 
 
 def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = None,
@@ -126,7 +147,7 @@ def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = 
                                config=config, t0_s=stream.t0_s)
         step = max(1, round(chunk_s * stream.fs_hz))
         for a, ch in stream.chunks(step):
-            rows = est.feed(*signals(ch, stream.t0_s + a / stream.fs_hz))
+            rows = est.feed(*signals(ch, a, stream.t0_s))
             if rows:
                 frames.append(pd.DataFrame(rows))
     track = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()

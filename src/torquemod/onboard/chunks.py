@@ -1,0 +1,167 @@
+"""One train axle in parts (issue 11): the windows of a run measured by several tasks, the
+estimator's state advanced over them by one.
+
+The on-board estimator's work splits in two (:class:`~torquemod.onboard.estimator.
+OnboardEstimator`): ``measure`` (the sine fit, CoA and creep coefficient of one window:
+about a third of the time, no state) and ``update`` (slip, the reference creep coefficient,
+the friction-change detector and the μ fit: state carried from window to window).
+
+* :func:`plan_axle_chunks` cuts the run's window starts (every ``hop`` rows from row 0, as
+  the estimator places them) into ranges of about ``chunk_s`` seconds;
+* :func:`measure_axle_chunk` reads only the rows its windows cover (random row access of
+  :class:`~torquemod.io.runstream.RunStream`) and measures them, the position left out;
+* :func:`assemble_axle` integrates the position over the run exactly as
+  :func:`~torquemod.onboard.run.estimate_axle` does (the slow reference channels only: no
+  pass over the fast ones), gives each window its mean position and runs ``update`` over
+  the windows in order.
+
+Each window then holds the very samples the whole run fed in chunks would give it, so the
+track is identical to :func:`~torquemod.onboard.run.estimate_axle`'s (tested with tolerance
+0). Memory: a part holds its rows; the assembly holds the windows' measurements (a few
+hundred bytes each) and one block of the reference channels. Files read by a pass from
+their start (CSV, Parquet) and layouts read whole are not cut (:func:`plan_axle_chunks`
+returns no ranges). When several channels are damaged, the part that fails first in row
+order names its channel; the position channel is checked only by the assembly.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..io.run import Run, RunRecording
+from ..io.runstream import RunStream
+from .estimator import OnboardConfig, OnboardEstimator
+from .window import WindowResult
+
+#: rows of the reference channels read at a time by the assembly (and by estimate_axle)
+_BLOCK_S = 30.0
+
+
+@dataclass
+class AxlePart:
+    """The windows starting in rows ``[first_row, stop_row)`` of an axle: their first rows
+    and measurements (``position_m`` NaN until :func:`assemble_axle`; windows that could
+    not be measured are absent, as they have no row)."""
+
+    first_row: int
+    stop_row: int
+    starts: list[int] = field(default_factory=list)
+    windows: list[WindowResult] = field(default_factory=list)
+
+
+def _config(run: Run, config: OnboardConfig | None) -> OnboardConfig:
+    return config or OnboardConfig.from_dict(run.extra.get("onboard"),
+                                             source=str(run.manifest_path))
+
+
+def _stream(run: Run, entry: RunRecording) -> RunStream:
+    return RunStream(entry.path, group=entry.group, channel_map=run.channel_map,
+                     sample_rate_hz=entry.sample_rate_hz)
+
+
+def _estimator(run: Run, stream: RunStream, config: OnboardConfig) -> OnboardEstimator:
+    return OnboardEstimator(run.vehicle, run.modulation_frequency_hz, stream.fs_hz,
+                            config=config, t0_s=stream.t0_s)
+
+
+def _n_windows(est: OnboardEstimator, n_samples: int) -> int:
+    """Windows the estimator completes over ``n_samples`` rows (starts every hop)."""
+    return max(0, (n_samples - est.n_win) // est.hop + 1)
+
+
+def plan_axle_chunks(run: Run, entry: RunRecording, config: OnboardConfig | None = None, *,
+                     chunk_s: float) -> list[tuple[int, int]]:
+    """Row ranges ``(first, stop)`` of the window starts, ``chunk_s`` [s] of them each (whole
+    hops); empty when the recording cannot be read by row ranges."""
+    from .run import _AxleSignals
+    config = _config(run, config)
+    with _stream(run, entry) as stream:
+        if not stream.streamed or not stream.random_access:
+            return []
+        _AxleSignals(run, entry, stream.channels, stream.fs_hz, [])  # the reference speed
+        est = _estimator(run, stream, config)
+        n = _n_windows(est, stream.n_samples)
+    per = max(1, round(chunk_s * stream.fs_hz / est.hop))
+    return [(k * est.hop, min(n, k + per) * est.hop) for k in range(0, n, per)]
+
+
+def measure_axle_chunk(run: Run, entry: RunRecording, config: OnboardConfig | None,
+                       first: int, stop: int) -> AxlePart:
+    """Measure the windows starting in rows ``[first, stop)`` (a range of
+    :func:`plan_axle_chunks`); raises the batch path's InputError on NaN/inf."""
+    from .run import _AxleSignals
+    config = _config(run, config)
+    part = AxlePart(first, stop)
+    with _stream(run, entry) as stream:
+        signals = _AxleSignals(run, entry, stream.channels, stream.fs_hz, [])
+        est = _estimator(run, stream, config)
+        starts = range(first, min(stop, _n_windows(est, stream.n_samples) * est.hop),
+                       est.hop)
+        if not starts:
+            return part
+        end = starts[-1] + est.n_win
+        ch = stream.read(first, end, channels=("torque_nm", "wheel_speed_rad_s",
+                                               "vehicle_speed_m_s"))
+        torque, wheel, v = signals.fast(ch, first, stream.t0_s)
+        buf = np.vstack([np.asarray(a, dtype=np.float64)
+                         for a in (torque, wheel, v, np.zeros(torque.size))])
+    for s in starts:
+        a = s - first
+        w = est.measure(buf[:, a:a + est.n_win], est.t0 + (s + est.n_win - 1) / est.fs)
+        if w is not None:
+            part.starts.append(s)
+            part.windows.append(dataclasses.replace(w, position_m=float("nan")))
+    return part
+
+
+def _window_positions(stream: RunStream, signals, starts: list[int], n_win: int
+                      ) -> np.ndarray:
+    """Mean position [m] over each window (first rows ``starts``, ascending), from the
+    position integrated block by block as :func:`~torquemod.onboard.run.estimate_axle`
+    integrates it."""
+    out = np.empty(len(starts))
+    step = max(1, round(_BLOCK_S * stream.fs_hz))
+    buf, buf_start, k = np.zeros(0), 0, 0
+    for a in range(0, stream.n_samples, step):
+        if k == len(starts):
+            break
+        ch = stream.read(a, min(stream.n_samples, a + step),
+                         channels=("vehicle_speed_m_s", "position_m"))
+        x = signals.position(ch, ch["vehicle_speed_m_s"], a, stream.t0_s)
+        buf = np.concatenate([buf, x])
+        end = buf_start + buf.size
+        while k < len(starts) and starts[k] + n_win <= end:
+            i = starts[k] - buf_start
+            out[k] = float(buf[i:i + n_win].mean())
+            k += 1
+        keep = starts[k] if k < len(starts) else end
+        buf, buf_start = buf[keep - buf_start:].copy(), keep
+    return out
+
+
+def assemble_axle(run: Run, entry: RunRecording, config: OnboardConfig | None,
+                  parts: list[AxlePart]):
+    """The axle's :class:`~torquemod.onboard.run.OnboardResult` from its parts (in row
+    order): positions, then the estimator's state over every window."""
+    import pandas as pd
+
+    from .run import OnboardResult, _AxleSignals, load_truth
+    config = _config(run, config)
+    t_start = time.perf_counter()
+    starts = [s for p in parts for s in p.starts]
+    windows = [w for p in parts for w in p.windows]
+    with _stream(run, entry) as stream:
+        notes = list(stream.notes)
+        signals = _AxleSignals(run, entry, stream.channels, stream.fs_hz, notes)
+        est = _estimator(run, stream, config)
+        positions = _window_positions(stream, signals, starts, est.n_win)
+    rows = [est.update(dataclasses.replace(w, position_m=float(x)))
+            for w, x in zip(windows, positions, strict=True)]
+    track = pd.DataFrame(rows)
+    return OnboardResult(run, entry.axle, track, config, notes,
+                         time.perf_counter() - t_start, est.tracker.n_fits,
+                         truth=load_truth(run))
