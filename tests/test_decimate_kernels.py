@@ -96,3 +96,18 @@ def test_bounded_minimum_is_fminbound_bit_for_bit():
         tol = 10 ** rng.uniform(-9, -2)
         assert spectrum._bounded_minimum(f, lo, hi, tol) == \
             optimize.fminbound(f, lo, hi, xtol=tol, maxfun=500, disp=0)
+
+
+def test_extrema_times_match_find_peaks_with_and_without_plateaus():
+    from torquemod.dsp import phase
+    rng = np.random.default_rng(4)
+    fs = 53.344
+    for case in range(40):
+        x = np.sin(2 * np.pi * 2.0 * np.arange(400) / fs) + 0.3 * rng.standard_normal(400)
+        if case % 2:  # plateaus (equal neighbours): find_peaks takes their middle sample
+            x = np.round(x, 1)
+        got = phase.extrema_times(x, fs)
+        for sgn, times in zip((1.0, -1.0), got, strict=True):
+            idx, _ = signal.find_peaks(sgn * x)
+            d = phase.parabolic_vertex(sgn * x[idx - 1], sgn * x[idx], sgn * x[idx + 1])
+            np.testing.assert_array_equal(times, (idx + d) / fs)

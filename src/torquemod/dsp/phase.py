@@ -38,8 +38,14 @@ def extrema_times(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
     parabolic interpolation (whole-sample peaks at 53 Hz are 13.5 deg apart at 2 Hz)."""
     x = np.asarray(x, dtype=np.float64)
     out = []
+    dx = np.diff(x)
+    flat = bool(np.any(dx == 0))  # a plateau: find_peaks's own handling (its middle sample)
     for sgn in (1.0, -1.0):
-        idx, _ = signal.find_peaks(sgn * x)
+        if flat:
+            idx, _ = signal.find_peaks(sgn * x)
+        else:  # find_peaks's strict local extrema without its per-call overhead
+            rise = dx > 0 if sgn > 0 else dx < 0
+            idx = np.flatnonzero(rise[:-1] & ~rise[1:]) + 1
         idx = idx[(idx > 0) & (idx < x.size - 1)]
         d = parabolic_vertex(sgn * x[idx - 1], sgn * x[idx], sgn * x[idx + 1])
         out.append((idx + d) / fs_hz)

@@ -43,6 +43,22 @@ def _trend_design(n: int, fs_hz: float, line: bool) -> tuple[np.ndarray, LstsqFa
     return design, LstsqFactor.of(design)
 
 
+@functools.lru_cache(maxsize=32)
+def _grid(nfft: int, fs_hz: float, lo: float, hi: float, n: int
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The frequencies [Hz] of an ``nfft``-point real FFT, the indices inside the band
+    ``lo..hi`` and the mask of the floor's range (1 Hz beyond the band, above the main lobe
+    of an ``n``-sample Hann window, below 0.45 fs) in :func:`peak_frequency`; cached
+    (read-only): the same for every record of a given length."""
+    freqs = np.fft.rfftfreq(nfft, 1.0 / fs_hz)
+    idx = np.flatnonzero((freqs >= lo) & (freqs <= hi))
+    lobe = 2.0 * fs_hz / n
+    wide = (freqs >= max(lo - 1.0, lobe)) & (freqs <= min(hi + 1.0, 0.45 * fs_hz))
+    for a in (freqs, idx, wide):
+        a.setflags(write=False)
+    return freqs, idx, wide
+
+
 def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] = (1.5, 2.5),
                    window: str = "hann", detrend: str = "linear", zero_pad: int = 8,
                    xtol_hz: float = 1e-6, remove_tones_hz: tuple[float, ...] = (),
@@ -85,8 +101,7 @@ def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] 
         signal.get_window(window, n, fftbins=False)
     nfft = int(2 ** np.ceil(np.log2(zero_pad * n)))
     spec = np.abs(np.fft.rfft(xd * w, nfft))
-    freqs = np.fft.rfftfreq(nfft, 1.0 / fs_hz)
-    idx = np.flatnonzero((freqs >= lo) & (freqs <= hi))
+    freqs, idx, wide = _grid(nfft, fs_hz, lo, hi, n)
     if idx.size < 3:
         raise ProcessingError(f"record of {n / fs_hz:.3g} s is too short to resolve the band "
                               f"{lo}-{hi} Hz")
@@ -104,7 +119,6 @@ def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] 
                               f"{freqs[j]:.4f} Hz outside the band)")
     # the floor: median power from 1 Hz below to 1 Hz above the band (about 3/T independent
     # bins, so the median is stable), outside the peak's main lobe
-    wide = (freqs >= max(lo - 1.0, lobe)) & (freqs <= min(hi + 1.0, 0.45 * fs_hz))
     floor_sel = np.flatnonzero(wide & (np.abs(freqs - freqs[k]) > lobe))
     if floor_sel.size:
         floor = float(np.median(spec[floor_sel] ** 2))
