@@ -17,6 +17,7 @@ a leaf patch (low_adhesion delay, false flags on dry rail) and the estimator's o
 
     python benchmarks/onboard_independent.py [--seeds 2] [--laws tanh burckhardt]
         [--depth 0.8 0.9] [--eccentricity 0.002 0.0] [--ratio-bounds 1 7]
+        [--coupling 2e6 [--declare-drive-line]]
 """
 
 from __future__ import annotations
@@ -186,6 +187,11 @@ def main() -> None:
     ap.add_argument("--ratio-bounds", type=float, nargs=2, default=None,
                     help="[onboard] ratio_bounds written into run.toml (default: none, "
                          "the estimator's defaults)")
+    ap.add_argument("--coupling", type=float, default=None,
+                    help="a compliant coupling motor-wheelset [N*m/rad, axle-referred] "
+                         "(default: rigid drive line)")
+    ap.add_argument("--declare-drive-line", action="store_true",
+                    help="write the coupling and motor inertia into run.toml")
     args = ap.parse_args()
     extra = {} if args.ratio_bounds is None else \
         {"onboard": {"ratio_bounds": list(args.ratio_bounds)}}
@@ -195,13 +201,18 @@ def main() -> None:
             for depth in args.depth:
                 for ecc in args.eccentricity:
                     spec = IndependentRunSpec(law=law, levels=tuple(np.linspace(0.2, depth, 4)),
-                                              encoder_eccentricity=ecc, extra_toml=extra)
+                                              encoder_eccentricity=ecc, extra_toml=extra,
+                                              coupling_stiffness_nm_rad=args.coupling,
+                                              declare_drive_line=args.declare_drive_line)
                     tag = f"{law}_{depth}_{ecc}"
                     out = Path(tmp) / tag
                     scenario(spec, args.seeds, out,
                              f"{law} creep law, staircase to {depth:.0%} of the adhesion, "
                              f"encoder eccentricity {ecc:g}"
-                             + (f", ratio_bounds {args.ratio_bounds}" if extra else ""))
+                             + (f", ratio_bounds {args.ratio_bounds}" if extra else "")
+                             + (f", coupling {args.coupling:g} N*m/rad"
+                                f"{' (declared)' if args.declare_drive_line else ''}"
+                                if args.coupling else ""))
         for law in args.laws:
             low_adhesion(args.seeds, Path(tmp) / f"la_{law}", law)
         speed(Path(tmp))

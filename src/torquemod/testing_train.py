@@ -16,7 +16,9 @@ or ``torquemod.contact``, and it differs from the twin where a hidden run could 
   ``x = xi*k0*pi/(2*mu*(1 + r))`` (so that dCoA/dxi = k0 at zero creepage) and
   ``r = kA/kS = polach_ratio``: the shape the estimator's model family contains, so that a
   failure on tanh/Burckhardt runs can be told from a failure of the run itself.
-* **Vehicle**: one powered axle, rigid drive line, a first-order traction motor (its torque
+* **Vehicle**: one powered axle, a rigid drive line (or, optionally, a compliant coupling
+  between the motor and the wheelset, the encoder then seeing the motor), a first-order
+  traction motor (its torque
   follows the command with ``motor_time_constant_s``), the vehicle's share of mass; the other
   axles cancel this axle's DC tractive force and the running resistance (a measurement train
   shifting torque between axles) with only a weak speed-holding term, so the speed stays
@@ -90,6 +92,13 @@ class IndependentRunSpec:
     mass_kg: float = 15_000.0             # the vehicle mass this axle moves
     gear_ratio: float = 5.2               # motor turns per axle turn
     motor_time_constant_s: float = 0.005
+    # a compliant coupling between motor and wheelset (None: rigid drive line); the motor's
+    # inertia is part of inertia_kg_m2, all referred to the axle; declare_drive_line writes
+    # them into run.toml (a hidden run may well not)
+    coupling_stiffness_nm_rad: float | None = None
+    coupling_damping_nm_s_rad: float = 400.0
+    motor_inertia_kg_m2: float = 100.0
+    declare_drive_line: bool = False
     speed_m_s: float = 22.0
     speed_gain_n_s_m: float = 3000.0      # the other axles' weak speed holding
     load_variation: tuple[tuple[float, float], ...] = ((2.9, 0.012), (9.7, 0.015),
@@ -223,50 +232,61 @@ def _interp(x, xs, ys, i):
 
 
 @njit(cache=True)
-def _rhs(t, w, v, x, tm, tdc, p, xs, mus, ks, lam, lamp, lama, i0):
-    # p: R, N0, J, M, tau, f, A, law, dfac, kp, vref
-    r, n0, jj, m, tau, f, amp, law, dfac, kp, vref = (p[0], p[1], p[2], p[3], p[4], p[5],
-                                                      p[6], p[7], p[8], p[9], p[10])
+def _rhs(t, y, tdc, p, xs, mus, ks, lam, lamp, lama, i0):
+    """Derivatives of the state y = (wheel speed [rad/s], vehicle speed [m/s], position [m],
+    motor torque [N*m], motor speed [rad/s], coupling twist [rad]), all referred to the axle.
+    p = (R, N0, J, M, tau, f, A, law, shape, kp, vref, k_c, c_c, J_m); k_c <= 0: rigid."""
+    r, n0, jj, m, tau, f, amp = p[0], p[1], p[2], p[3], p[4], p[5], p[6]
+    w, v, x, tm, wm, tw = y[0], y[1], y[2], y[3], y[4], y[5]
     mu = _interp(x, xs, mus, i0)
     k0 = _interp(x, xs, ks, i0)
     nl = n0
     for q in range(lam.size):
         nl += n0 * lama[q] * math.sin(2.0 * math.pi * x / lam[q] + lamp[q])
     xi = (w * r - v) / max(v, 0.5)
-    fx = nl * _coa(xi, mu, k0, law, dfac)
+    fx = nl * _coa(xi, mu, k0, int(p[7]), p[8])
     cmd = tdc + amp * math.sin(2.0 * math.pi * f * t)
-    dw = (tm - r * fx) / jj
-    dv = (fx - tdc / r + kp * (vref - v)) / m  # the other axles cancel the DC force
-    dtm = (cmd - tm) / tau
-    return dw, dv, v, dtm
+    d = np.empty(6)
+    if p[11] > 0:  # compliant coupling between the motor (J_m) and the wheelset (J - J_m)
+        tc = p[11] * tw + p[12] * (wm - w)
+        d[0] = (tc - r * fx) / (jj - p[13])
+        d[4] = (tm - tc) / p[13]
+        d[5] = wm - w
+    else:
+        d[0] = (tm - r * fx) / jj
+        d[4] = d[0]
+        d[5] = 0.0
+    d[1] = (fx - tdc / r + p[9] * (p[10] - v)) / m  # the other axles cancel the DC force
+    d[2] = v
+    d[3] = (cmd - tm) / tau
+    return d
 
 
 @njit(cache=True)
 def _simulate(n, fs, sub, p, xs, mus, ks, lam, lamp, lama, lvl, step_m, mu_ahead, rate,
               slip_xi):
-    out = np.empty((8, n))
+    out = np.empty((9, n))
     r = p[0]
     v = p[10]
-    x = 0.0
     tdc = lvl[0] * mu_ahead[0] * p[1] * r
-    tm = tdc
-    w = v / r  # started at zero creepage: the first samples settle within ~10 ms
-    # settle the creepage at the start DC torque: solve CoA(xi) = tdc/(N R) by bisection
+    # start at the creepage of the first DC torque: CoA(xi) = tdc/(N R) by bisection
     target = tdc / (p[1] * r)
     lo, hi = 0.0, 0.5
     for _ in range(80):
         mid = 0.5 * (lo + hi)
-        if _coa(mid, mus[0], ks[0], p[7], p[8]) < target:
+        if _coa(mid, mus[0], ks[0], int(p[7]), p[8]) < target:
             lo = mid
         else:
             hi = mid
     w = v * (1.0 + lo) / r
+    y = np.array([w, v, 0.0, tdc, w, tdc / p[11] if p[11] > 0 else 0.0])
     h = 1.0 / (fs * sub)
     t = 0.0
     i0 = 0
     cut = 1.0
     for s in range(n):
         for _ in range(sub):
+            x = y[2]
             while i0 < xs.size - 2 and x > xs[i0 + 1]:
                 i0 += 1
             # DC target: staircase level x smallest mu around the axle, rate-limited;
@@ -277,23 +297,18 @@ def _simulate(n, fs, sub, p, xs, mus, ks, lam, lamp, lama, lvl, step_m, mu_ahead
             d = target - tdc
             lim = rate * h
             tdc += min(max(d, -lim), lim)
-            xi = (w * r - v) / max(v, 0.5)
+            xi = (y[0] * r - y[1]) / max(y[1], 0.5)
             if xi > slip_xi:
                 cut = max(0.2, cut - 4.0 * h)
             elif cut < 1.0 and xi < 0.5 * slip_xi:
                 cut = min(1.0, cut + 0.4 * h)
-            a1, b1, c1, d1 = _rhs(t, w, v, x, tm, tdc, p, xs, mus, ks, lam, lamp, lama, i0)
-            a2, b2, c2, d2 = _rhs(t + h / 2, w + h / 2 * a1, v + h / 2 * b1, x + h / 2 * c1,
-                                  tm + h / 2 * d1, tdc, p, xs, mus, ks, lam, lamp, lama, i0)
-            a3, b3, c3, d3 = _rhs(t + h / 2, w + h / 2 * a2, v + h / 2 * b2, x + h / 2 * c2,
-                                  tm + h / 2 * d2, tdc, p, xs, mus, ks, lam, lamp, lama, i0)
-            a4, b4, c4, d4 = _rhs(t + h, w + h * a3, v + h * b3, x + h * c3, tm + h * d3,
-                                  tdc, p, xs, mus, ks, lam, lamp, lama, i0)
-            w += h / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
-            v += h / 6 * (b1 + 2 * b2 + 2 * b3 + b4)
-            x += h / 6 * (c1 + 2 * c2 + 2 * c3 + c4)
-            tm += h / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
+            k1 = _rhs(t, y, tdc, p, xs, mus, ks, lam, lamp, lama, i0)
+            k2 = _rhs(t + h / 2, y + h / 2 * k1, tdc, p, xs, mus, ks, lam, lamp, lama, i0)
+            k3 = _rhs(t + h / 2, y + h / 2 * k2, tdc, p, xs, mus, ks, lam, lamp, lama, i0)
+            k4 = _rhs(t + h, y + h * k3, tdc, p, xs, mus, ks, lam, lamp, lama, i0)
+            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
             t += h
+        x = y[2]
         while i0 < xs.size - 2 and x > xs[i0 + 1]:
             i0 += 1
         mu = _interp(x, xs, mus, i0)
@@ -301,15 +316,16 @@ def _simulate(n, fs, sub, p, xs, mus, ks, lam, lamp, lama, lvl, step_m, mu_ahead
         nl = p[1]
         for q in range(lam.size):
             nl += p[1] * lama[q] * math.sin(2.0 * math.pi * x / lam[q] + lamp[q])
-        xi = (w * r - v) / max(v, 0.5)
-        out[0, s] = tm
-        out[1, s] = w
-        out[2, s] = v
+        xi = (y[0] * r - y[1]) / max(y[1], 0.5)
+        out[0, s] = y[3]
+        out[1, s] = y[0]
+        out[2, s] = y[1]
         out[3, s] = x
-        out[4, s] = _coa(xi, mu, k0, p[7], p[8])
+        out[4, s] = _coa(xi, mu, k0, int(p[7]), p[8])
         out[5, s] = mu
         out[6, s] = nl
         out[7, s] = tdc
+        out[8, s] = y[4]
     return out
 
 
@@ -364,7 +380,9 @@ def simulate_independent(spec: IndependentRunSpec) -> IndependentRun:
     p = np.array([spec.wheel_radius_m, spec.normal_load_n, spec.inertia_kg_m2, spec.mass_kg,
                   spec.motor_time_constant_s, spec.modulation_frequency_hz,
                   spec.modulation_amplitude_nm, float(spec.law_code),
-                  spec.shape, spec.speed_gain_n_s_m, spec.speed_m_s])
+                  spec.shape, spec.speed_gain_n_s_m, spec.speed_m_s,
+                  spec.coupling_stiffness_nm_rad or 0.0, spec.coupling_damping_nm_s_rad,
+                  spec.motor_inertia_kg_m2])
     if spec.constant_torque_nm is None:
         levels, mu_around = np.asarray(spec.levels, dtype=float), _mu_around(spec, xs, mus)
     else:  # the demand as one "level" of a friction of 1
@@ -372,7 +390,7 @@ def simulate_independent(spec: IndependentRunSpec) -> IndependentRun:
         mu_around = np.ones(int(spec.length_m) + 2)
     out = _simulate(n, fs, spec.substeps, p, xs, mus, ks, lam, lamp, lama, levels,
                     spec.step_m, mu_around, spec.torque_rate_nm_s, 0.03)
-    tm, w, v, x, coa, mu, nl, tdc = out
+    tm, w, v, x, coa, mu, nl, tdc, wm = out
     t = spec.t0_s + np.arange(n) / fs
     # torque sensor: first-order lag (exact discretisation), gain, noise; at the motor
     g = spec.gear_ratio
@@ -380,8 +398,8 @@ def simulate_independent(spec: IndependentRunSpec) -> IndependentRun:
     from scipy.signal import lfilter
     lagged = lfilter([1 - a], [1, -a], tm, zi=[a * tm[0]])[0]
     motor_torque = spec.torque_gain * lagged / g + rng.normal(0, spec.torque_noise_nm, n)
-    # encoder: the motor angle, ripple, a counting gate, quantisation
-    theta_axle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) / fs)])
+    # encoder on the motor shaft: its angle, ripple, a counting gate, quantisation
+    theta_axle = np.concatenate([[0.0], np.cumsum(0.5 * (wm[1:] + wm[:-1]) / fs)])
     theta_m = g * theta_axle + rng.uniform(0, 2 * np.pi)
     ripple_phase = rng.uniform(0, 2 * np.pi)
     angle = theta_m + spec.encoder_eccentricity * np.sin(theta_m) \
@@ -462,6 +480,10 @@ def write_independent_run(spec: IndependentRunSpec, folder: str | Path
              f"inertia_kg_m2 = {spec.inertia_kg_m2!r}",
              f"gear_ratio = {spec.gear_ratio!r}",
              'vehicle = "independent test loco"',
+             *([f"motor_inertia_kg_m2 = {spec.motor_inertia_kg_m2!r}",
+                f"coupling_stiffness_nm_rad = {spec.coupling_stiffness_nm_rad!r}",
+                f"coupling_damping_nm_s_rad = {spec.coupling_damping_nm_s_rad!r}"]
+               if spec.declare_drive_line and spec.coupling_stiffness_nm_rad else []),
              "", "[test]",
              f"modulation_frequency_hz = {spec.modulation_frequency_hz!r}",
              f"modulation_amplitude_nm = {spec.modulation_amplitude_nm!r}",
