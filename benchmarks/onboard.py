@@ -155,13 +155,13 @@ def speed(out: Path) -> None:
     from torquemod.io import read_recording
     from torquemod.io.run import read_run
     from torquemod.onboard.estimator import OnboardEstimator
-    from torquemod.onboard.run import _channels
+    from torquemod.onboard.run import _AxleSignals
     run_train_simulation(load_train_config(), out / "speed", seed=0, force=True)
     run = read_run(out / "speed" / "run.toml")
     e = run.recordings[0]
     rec = read_recording(e.path, group=e.group, channel_map=run.channel_map,
                          sample_rate_hz=e.sample_rate_hz)
-    arrays = _channels(rec, run, e, [])
+    arrays = _AxleSignals(run, e, rec.channels, rec.fs_hz, [])(rec.channels, 0, rec.t0_s)
     n, step = arrays[0].size, round(30 * rec.fs_hz)
     best = np.inf
     for _ in range(3):
