@@ -36,7 +36,8 @@ or ``torquemod.contact``, and it differs from the twin where a hidden run could 
   own clock offset, scale error and noise, in its own MDF4 channel group; NO position
   channel; logger names ``EM1_Trq``, ``EM1_Spd``, ``Radar_v``; logger time starting at ``t0_s``.
 
-:func:`write_independent_run` writes ``run.mf4``, ``run.toml`` (docs/format.md) and
+:func:`write_independent_run` writes ``run.mf4`` (or a logger-style ``run.h5``), ``run.toml``
+(docs/format.md) and
 ``truth.parquet`` (one row per modulation period, on the logger's clock; NOT named in
 run.toml, as a hidden run would not name it).
 
@@ -455,23 +456,56 @@ def _toml_value(v) -> str:
     return repr(float(v)) if isinstance(v, float) else str(v)
 
 
-def write_independent_run(spec: IndependentRunSpec, folder: str | Path
-                          ) -> tuple[Path, IndependentRun]:
-    """Simulate ``spec`` and write ``run.mf4`` (group 0: EM1_Trq [Nm], EM1_Spd [rpm] at
-    ``sample_rate_hz``; group 1: Radar_v [km/h] at ``radar_rate_hz``), ``run.toml`` and
-    ``truth.parquet`` into ``folder``. Returns (run.toml path, the run)."""
+def _write_mdf4(run: IndependentRun, path: Path) -> None:
     from asammdf import MDF, Signal
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    run = simulate_independent(spec)
     mdf = MDF(version="4.10")
     mdf.append([Signal(run.motor_torque_nm, run.t_s, name="EM1_Trq", unit="Nm"),
                 Signal(run.motor_speed_rpm, run.t_s, name="EM1_Spd", unit="rpm")],
                comment="traction motor 1")
     mdf.append([Signal(run.radar_km_h, run.radar_t_s, name="Radar_v", unit="km/h")],
                comment="Doppler radar")
-    mdf.save(folder / "run.mf4", overwrite=True)
+    mdf.save(path, overwrite=True)
     mdf.close()
+
+
+def _write_hdf5(run: IndependentRun, path: Path) -> None:
+    """A logger export: groups ``logger`` (time ``t`` in ms, EM1_Trq, EM1_Spd) and ``radar``
+    (its own time ``t`` in ms, ``v``); no unit attributes (the manifest gives them)."""
+    import h5py
+    with h5py.File(path, "w") as f:
+        f["logger/t"] = run.t_s * 1e3
+        f["logger/EM1_Trq"] = run.motor_torque_nm
+        f["logger/EM1_Spd"] = run.motor_speed_rpm
+        f["radar/t"] = run.radar_t_s * 1e3
+        f["radar/v"] = run.radar_km_h
+
+
+def write_independent_run(spec: IndependentRunSpec, folder: str | Path, *, fmt: str = "mdf4"
+                          ) -> tuple[Path, IndependentRun]:
+    """Simulate ``spec`` and write the recording, ``run.toml`` and ``truth.parquet`` into
+    ``folder``. ``fmt="mdf4"``: ``run.mf4``, channel group 0 EM1_Trq [Nm] and EM1_Spd [rpm]
+    at ``sample_rate_hz``, group 1 Radar_v [km/h] at ``radar_rate_hz`` (each group with its
+    own master); ``fmt="hdf5"``: ``run.h5`` as :func:`_write_hdf5` (times in ms, the radar's
+    own time vector named in ``[channels]``). Returns (run.toml path, the run)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    run = simulate_independent(spec)
+    if fmt == "mdf4":
+        name = "run.mf4"
+        _write_mdf4(run, folder / name)
+        channels = ['torque = { name = "EM1_Trq", unit = "N*m" }',
+                    'wheel_speed = { name = "EM1_Spd", unit = "rpm" }',
+                    'vehicle_speed = { name = "Radar_v", unit = "km/h" }']
+    elif fmt == "hdf5":
+        name = "run.h5"
+        _write_hdf5(run, folder / name)
+        channels = ['time = { name = "logger/t", unit = "ms" }',
+                    'torque = { name = "logger/EM1_Trq", unit = "N*m" }',
+                    'wheel_speed = { name = "logger/EM1_Spd", unit = "rpm" }',
+                    'vehicle_speed = { name = "radar/v", unit = "km/h", '
+                    'time = { name = "radar/t", unit = "ms" } }']
+    else:
+        raise ValueError(f"fmt must be 'mdf4' or 'hdf5', not {fmt!r}")
     truth_table(run).to_parquet(folder / "truth.parquet", index=False)
     lines = ["# independent test run (torquemod.testing_train): not made by torquemod's twin",
              "[vehicle]",
@@ -487,11 +521,8 @@ def write_independent_run(spec: IndependentRunSpec, folder: str | Path
              "", "[test]",
              f"modulation_frequency_hz = {spec.modulation_frequency_hz!r}",
              f"modulation_amplitude_nm = {spec.modulation_amplitude_nm!r}",
-             "", "[[recording]]", 'file = "run.mf4"', "axle = 1",
-             "", "[channels]",
-             'torque = { name = "EM1_Trq", unit = "N*m" }',
-             'wheel_speed = { name = "EM1_Spd", unit = "rpm" }',
-             'vehicle_speed = { name = "Radar_v", unit = "km/h" }']
+             "", "[[recording]]", f'file = "{name}"', "axle = 1",
+             "", "[channels]", *channels]
     for table, body in spec.extra_toml.items():
         lines += ["", f"[{table}]"] + [f"{k} = {_toml_value(v)}" for k, v in body.items()]
     path = folder / "run.toml"
