@@ -430,7 +430,8 @@ def zero_phase_cascade(filters_ba: list[tuple[np.ndarray, np.ndarray]], x: np.nd
     (``filtfilt(b, a, x, padlen=0)``: initial state ``lfilter_zi`` times the first sample,
     each way), so the results are bit-identical, but every row goes through one ``lfilter``
     call per direction and the steady-state vector is computed once per filter."""
-    y = np.asarray(x, dtype=np.float64)
+    y = np.array(x, dtype=np.float64)  # a copy, filtered in place
+    rows = y.reshape(-1, y.shape[-1])
     for b, a in filters_ba:
         b = np.atleast_1d(np.asarray(b, dtype=np.float64))
         a = np.atleast_1d(np.asarray(a, dtype=np.float64))
@@ -438,11 +439,48 @@ def zero_phase_cascade(filters_ba: list[tuple[np.ndarray, np.ndarray]], x: np.nd
         zi = _lfilter_zi(b.tobytes(), a.tobytes()) if not (b.flags.writeable
                                                            or a.flags.writeable) \
             else _steady_state(b, a)
-        zi = zi.reshape([1] * (y.ndim - 1) + [-1])
-        y, _ = signal.lfilter(b, a, y, axis=-1, zi=zi * y[..., :1])
-        y, _ = signal.lfilter(b, a, y[..., ::-1], axis=-1, zi=zi * y[..., -1:])
-        y = y[..., ::-1]
+        if a[0] != 1.0 or a.size != b.size or b.size < 2:  # lfilter's general case
+            y = _cascade_scipy(b, a, zi, y)
+            rows = y.reshape(-1, y.shape[-1])
+            continue
+        _filtfilt_rows(b, a, zi, rows)
     return y
+
+
+def _cascade_scipy(b: np.ndarray, a: np.ndarray, zi: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """One filter of :func:`zero_phase_cascade` through ``scipy.signal.lfilter``."""
+    zi = zi.reshape([1] * (y.ndim - 1) + [-1])
+    y, _ = signal.lfilter(b, a, y, axis=-1, zi=zi * y[..., :1])
+    y, _ = signal.lfilter(b, a, y[..., ::-1], axis=-1, zi=zi * y[..., -1:])
+    return np.ascontiguousarray(y[..., ::-1])
+
+
+@numba.njit(cache=True, nogil=True)
+def _filtfilt_rows(b: np.ndarray, a: np.ndarray, zi: np.ndarray, x: np.ndarray) -> None:
+    """Each row of ``x`` through ``b/a`` forward, then backward, in place, each way from the
+    steady state ``zi`` times the first sample it meets: ``filtfilt(b, a, row, padlen=0)``.
+    The direct form II transposed with scipy's order of operations (``y = z0 + b0*x``,
+    ``z_i = z_(i+1) + x*b_(i+1) - y*a_(i+1)``; ``a[0] = 1``, ``b`` and ``a`` of one length)
+    and no fast-math, so the same bits as ``lfilter`` (tests/test_chain_speed_equivalence.py
+    and tests/test_decimate_kernels.py). The rows advance together: their recursions are
+    independent, so the processor overlaps them."""
+    n_rows, n = x.shape
+    m = b.size - 1
+    z = np.empty((n_rows, m))
+    for direction in range(2):
+        first = 0 if direction == 0 else n - 1
+        for r in range(n_rows):
+            for i in range(m):
+                z[r, i] = zi[i] * x[r, first]
+        for k in range(n):
+            j = k if direction == 0 else n - 1 - k
+            for r in range(n_rows):
+                xn = x[r, j]
+                yn = z[r, 0] + b[0] * xn
+                for i in range(m - 1):
+                    z[r, i] = z[r, i + 1] + xn * b[i + 1] - yn * a[i + 1]
+                z[r, m - 1] = xn * b[m] - yn * a[m]
+                x[r, j] = yn
 
 
 def _steady_state(b: np.ndarray, a: np.ndarray) -> np.ndarray:
@@ -570,10 +608,28 @@ def model_padded(x: np.ndarray, fs_hz: float, tones_hz: list[float], pad: int
     t_mid = (n - 1) / (2 * fs_hz)
     out = np.zeros(n + 2 * pad)
     for k, f in enumerate(kept):
-        out += coef[2 + 2 * k] * np.cos(2 * np.pi * f * t)
-        out += coef[3 + 2 * k] * np.sin(2 * np.pi * f * t)
+        cos, sin = _cos_sin(2 * np.pi * f / fs_hz, -pad, n + 2 * pad)
+        out += coef[2 + 2 * k] * cos
+        out += coef[3 + 2 * k] * sin
     out[pad:pad + n] = x - coef[0] - coef[1] * (t[pad:pad + n] - t_mid)
     return out, float(coef[0]), float(coef[1])
+
+
+def _cos_sin(omega: float, start: int, count: int, block: int = 64
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """``cos`` and ``sin`` of ``omega*(start + i)`` [rad] for ``i = 0..count-1`` by the
+    angle-addition formulas ``cos(a + b) = cos a cos b - sin a sin b`` (and the sine's) over
+    blocks of ``block`` samples: ``count/block + block`` evaluations of each function instead of
+    ``count`` (numpy evaluates them one element at a time here). Within a few units in the
+    last place of the direct evaluation, whose own argument is rounded to the same order
+    (tests/test_decimate_kernels.py)."""
+    n_blocks = -(-count // block)
+    fine = omega * np.arange(block)
+    coarse = omega * (start + block * np.arange(n_blocks))
+    cf, sf, cc, sc = np.cos(fine), np.sin(fine), np.cos(coarse), np.sin(coarse)
+    cos = (np.multiply.outer(cc, cf) - np.multiply.outer(sc, sf)).reshape(-1)[:count]
+    sin = (np.multiply.outer(sc, cf) + np.multiply.outer(cc, sf)).reshape(-1)[:count]
+    return cos, sin
 
 
 def model_padded_rows(rows, fs_hz: float, tones_hz: list[float], pad: int
@@ -594,7 +650,7 @@ def model_padded_rows(rows, fs_hz: float, tones_hz: list[float], pad: int
         out = np.zeros(n + 2 * pad)
         for k, f in enumerate(kept):
             if f not in trig:
-                trig[f] = (np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t))
+                trig[f] = _cos_sin(2 * np.pi * f / fs_hz, -pad, n + 2 * pad)
             out += coef[2 + 2 * k] * trig[f][0]
             out += coef[3 + 2 * k] * trig[f][1]
         out[pad:pad + n] = x - coef[0] - coef[1] * (t[pad:pad + n] - t_mid)
