@@ -52,17 +52,25 @@ def load_impedance(ratio: complex, vehicle: Vehicle, frequency_hz: float) -> com
 
     Rigid drive line: ``T = (j*Omega*J + G)*w``. With the drive line of ``vehicle`` (motor
     inertia J_m, coupling Z = k_c/(j*Omega) + c_c, both referred to the axle; the torque acts
-    on the motor, the speed is the axle's; derived for this model)::
+    on the motor; derived for this model from ``T = j*Omega*J_m*w_m + Z*(w_m - w)`` and
+    ``Z*(w_m - w) = (j*Omega*J_w + G)*w``). The speed is the axle's ``w``::
 
         G = Z/(j*Omega*J_m + Z) * T/w - j*Omega*J_w - Z*j*Omega*J_m/(j*Omega*J_m + Z)
+
+    or, when ``vehicle.gear_ratio`` says torque and speed were recorded at the motor, the
+    motor's ``w_m`` (referred to the axle: the coupling and the wheelset in series)::
+
+        1/(T/w_m - j*Omega*J_m) = 1/Z + 1/(j*Omega*J_w + G)
     """
     jw_om = 2j * math.pi * frequency_hz
     if not vehicle.has_drive_line:
         return ratio - jw_om * vehicle.inertia_kg_m2
     jm = vehicle.motor_inertia_kg_m2
+    jw = vehicle.inertia_kg_m2 - jm
     z = vehicle.coupling_stiffness_nm_rad / jw_om + vehicle.coupling_damping_nm_s_rad
-    return z / (jw_om * jm + z) * ratio - jw_om * (vehicle.inertia_kg_m2 - jm) \
-        - z * jw_om * jm / (jw_om * jm + z)
+    if vehicle.gear_ratio:  # the speed is the motor's (referred to the axle): see above
+        return 1.0 / (1.0 / (ratio - jw_om * jm) - 1.0 / z) - jw_om * jw
+    return z / (jw_om * jm + z) * ratio - jw_om * jw - z * jw_om * jm / (jw_om * jm + z)
 
 
 def damping_from_ratio(ratio: complex, vehicle: Vehicle, frequency_hz: float
@@ -87,13 +95,31 @@ def damping_from_ratio(ratio: complex, vehicle: Vehicle, frequency_hz: float
     return d, m
 
 
+def rotation_orders_hz(f_rot_hz: float, gear_ratio: float | None, fs_hz: float,
+                       duration_s: float) -> tuple[float, ...]:
+    """The encoder's once- and twice-per-revolution lines (eccentricity, tooth errors) fitted
+    out of a window [Hz]: of the axle at ``f_rot_hz`` and, when the speed was recorded at
+    the motor (``gear_ratio``), of the motor at ``gear_ratio`` times that. Lines below
+    0.2 Hz or above 0.45*fs are left out, and a line within one resolution step
+    (1/``duration_s``) of one already kept (the fit would be rank deficient)."""
+    lines = [f_rot_hz, 2 * f_rot_hz]
+    if gear_ratio:
+        lines += [gear_ratio * f_rot_hz, 2 * gear_ratio * f_rot_hz]
+    kept: list[float] = []
+    for f in lines:
+        if 0.2 < f < 0.45 * fs_hz and all(abs(f - k) > 1.0 / duration_s for k in kept):
+            kept.append(f)
+    return tuple(kept)
+
+
 def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
                    speed_m_s: np.ndarray, position_m: np.ndarray, fs_hz: float,
                    t_end_s: float, vehicle: Vehicle, frequency_hz: float) -> WindowResult:
     """Measure one window of whole modulation periods (the arrays are the window).
 
     Phase: the sine fit at the modulation frequency with a line and the first two orders of
-    the axle revolution (eccentricity, tooth errors) as nuisance terms, standard error at
+    the axle's (and the motor's, :func:`rotation_orders_hz`) revolution (eccentricity, tooth
+    errors) as nuisance terms, standard error at
     the Cramer-Rao bound (FACTS §5). CoA = (T - J*dw/dt)/(N*R) with dw/dt the slope of the
     axle speed. Creep coefficient k = D*V/(R^2*N) with D from the phase and amplitude ratio
     (:func:`damping_from_ratio`); its standard error from k's change over one standard
@@ -104,7 +130,7 @@ def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
     t = (np.arange(n) - (n - 1) / 2) / fs_hz
     w_mean = float(wheel_speed_rad_s.mean())
     f_rot = abs(w_mean) / (2 * math.pi)
-    nuisance = tuple(f for f in (f_rot, 2 * f_rot) if f > 0.2)
+    nuisance = rotation_orders_hz(f_rot, vehicle.gear_ratio, fs_hz, n / fs_hz)
     fit = sinefit_phase(torque_nm, wheel_speed_rad_s, fs_hz, frequency_hz,
                         nuisance_hz=nuisance, trend=True)
     tt = t - t.mean()
