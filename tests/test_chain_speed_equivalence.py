@@ -134,7 +134,10 @@ def _peak_reference(x, fs_hz, band_hz=(1.5, 2.5), zero_pad=8, xtol_hz=1e-6):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_peak_frequency_equals_the_former_refinement(seed):
     x = _record(331 + seed, seed)
-    assert spectrum.peak_frequency(x, FS) == _peak_reference(x, FS)
+    # the |DTFT| by angle addition (numba) rounds differently from numpy's complex exp: the
+    # search lands within 2.1e-10 Hz of the former one over 2805 random records (measured;
+    # the search's own distance to the true maximiser is ~2e-8 Hz)
+    assert spectrum.peak_frequency(x, FS) == pytest.approx(_peak_reference(x, FS), abs=5e-10)
 
 
 def test_speed_model_noise_depletion_without_forming_q():

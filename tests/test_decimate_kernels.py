@@ -141,3 +141,49 @@ def test_numba_zero_phase_cascade_is_filtfilt_bit_for_bit():
     np.testing.assert_array_equal(filters.zero_phase_cascade(bas[2:3], rows[1]),
                                   signal.filtfilt(*bas[2], rows[1], padlen=0))
     assert rows[0, 0] != got[0, 0]  # the input is left alone
+
+
+def _neg_numpy_dtft(f, wx, fs):
+    return -abs(np.dot(wx, np.exp(-2j * np.pi * f / fs * np.arange(wx.size))))
+
+
+def test_dtft_magnitude_and_peak_frequency_against_the_numpy_route():
+    """|DTFT| by angle addition against numpy's complex exponentials (a few ulp), and the
+    peak search built on it against the former one (scipy's fminbound on the numpy |DTFT|):
+    within 5e-10 Hz on random records (measured up to 2.1e-10 Hz over 2805 records; the
+    search's own distance to the true maximiser is ~2e-8 Hz)."""
+    from scipy import optimize
+
+    from torquemod.dsp import spectrum
+    from torquemod.errors import ProcessingError
+    fs = 53.344
+    rng = np.random.default_rng(123)
+    worst = 0.0
+    for _ in range(150):
+        n = int(rng.integers(200, 700))
+        t = np.arange(n) / fs
+        x = (rng.uniform(-50, 50) + rng.uniform(-1, 1) * t
+             + rng.uniform(1e-3, 1) * np.sin(2 * np.pi * rng.uniform(1.6, 2.4) * t + 1.0)
+             + rng.uniform(0, 0.5) * np.sin(2 * np.pi * rng.uniform(3, 20) * t)
+             + rng.uniform(1e-4, 0.3) * rng.standard_normal(n))
+        step = 2 * np.pi * 2.01 / fs
+        direct = abs(np.dot(x, np.exp(-1j * step * np.arange(n))))
+        assert spectrum._dtft_magnitude(x, step) == pytest.approx(direct, rel=1e-13)
+        try:
+            got = spectrum.peak_frequency(x, fs)
+        except ProcessingError:
+            continue
+        # the former search: the same detrending, window and grid, fminbound on numpy's |DTFT|
+        design, fac = spectrum._trend_design(n, fs, True)
+        xd = x - design @ fac.solve(x)
+        w = signal.get_window("hann", n, fftbins=False)
+        nfft = int(2 ** np.ceil(np.log2(8 * n)))
+        freqs = np.fft.rfftfreq(nfft, 1.0 / fs)
+        spec = np.abs(np.fft.rfft(xd * w, nfft))
+        idx = np.flatnonzero((freqs >= 1.5) & (freqs <= 2.5))
+        k = int(idx[np.argmax(spec[idx])])
+        df = freqs[1] - freqs[0]
+        ref = optimize.fminbound(_neg_numpy_dtft, freqs[k] - df, freqs[k] + df,
+                                 args=(w * xd, fs), xtol=1e-6, maxfun=500, disp=0)
+        worst = max(worst, abs(got - ref))
+    assert worst < 5e-10
