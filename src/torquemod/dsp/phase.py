@@ -28,9 +28,9 @@ from .filters import LstsqFactor, lstsq, tone_design
 def parabolic_vertex(y_m1: np.ndarray, y_0: np.ndarray, y_p1: np.ndarray) -> np.ndarray:
     """Offset in samples (-0.5..0.5) of the vertex of the parabola through three samples."""
     den = y_m1 - 2.0 * y_0 + y_p1
-    with np.errstate(invalid="ignore", divide="ignore"):
-        d = 0.5 * (y_m1 - y_p1) / den
-    return np.where(den != 0, np.clip(d, -0.5, 0.5), 0.0)
+    d = np.zeros(np.broadcast(y_m1, y_0, y_p1).shape)
+    np.divide(0.5 * (y_m1 - y_p1), den, out=d, where=den != 0)  # 0 where den == 0
+    return np.minimum(np.maximum(d, -0.5), 0.5)
 
 
 def extrema_times(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -43,11 +43,13 @@ def extrema_times(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
     for sgn in (1.0, -1.0):
         if flat:
             idx, _ = signal.find_peaks(sgn * x)
+            idx = idx[(idx > 0) & (idx < x.size - 1)]
         else:  # find_peaks's strict local extrema without its per-call overhead
             rise = dx > 0 if sgn > 0 else dx < 0
             idx = np.flatnonzero(rise[:-1] & ~rise[1:]) + 1
-        idx = idx[(idx > 0) & (idx < x.size - 1)]
-        d = parabolic_vertex(sgn * x[idx - 1], sgn * x[idx], sgn * x[idx + 1])
+        # the vertex of -x is the same number as that of x (negation is exact in IEEE
+        # arithmetic, and so symmetric in its rounding)
+        d = parabolic_vertex(x[idx - 1], x[idx], x[idx + 1])
         out.append((idx + d) / fs_hz)
     return out[0], out[1]
 
