@@ -683,14 +683,49 @@ def tone_free_mean(x: np.ndarray, fs_hz: float, tones_hz: list[float]) -> float:
 @functools.lru_cache(maxsize=64)
 def _slow_basis_cached(n: int, nw: float, k: int, degree: int) -> np.ndarray:
     from numpy.polynomial import legendre
-    from scipy.signal.windows import dpss
     x = np.linspace(-1.0, 1.0, n)
     cols = [legendre.legvander(x, degree)]
     if k > 0:
-        cols.append(np.atleast_2d(dpss(n, nw, k)).T)
+        cols.append(np.atleast_2d(_dpss(n, nw, k)).T)
     basis = np.column_stack(cols)
     basis.setflags(write=False)
     return basis
+
+
+def _dpss(n: int, nw: float, k: int) -> np.ndarray:
+    """``scipy.signal.windows.dpss(n, nw, k)`` (rows, unit norm, scipy's sign conventions):
+    the ``k`` largest eigenvectors of the same tridiagonal matrix (Percival and Walden 1993,
+    ch. 8), with its eigenvalues located by bisection (LAPACK ``stebz``) to 1e-9 of their
+    size instead of to full precision, then inverse iteration (``stein``) as scipy does. The
+    eigenvalues are ~1e-3 of their size apart, so the vectors come out the same to rounding
+    (measured <= 2e-14 against scipy for n = 323..1000) in 60 % of the time (the cost of a
+    cycle of a new length). Falls back to scipy outside the usual case."""
+    from scipy.linalg import lapack
+    from scipy.signal.windows import dpss
+    if not (0 < k <= n and 0 < nw < n / 2):
+        return dpss(n, nw, k)
+    w_half = nw / n
+    idx = np.arange(n)
+    d = ((n - 1 - 2 * idx) / 2.0) ** 2 * np.cos(2 * np.pi * w_half)
+    e = idx[1:] * (n - idx[1:]) / 2.0
+    scale = float(np.max(np.abs(d)) + 2.0 * np.max(e, initial=0.0))  # Gershgorin bound
+    m, w, iblock, isplit, info = lapack.dstebz(d, e, 3, 0.0, 1.0, n - k + 1, n, 1e-9 * scale,
+                                               "B")
+    if info != 0 or m != k:
+        return dpss(n, nw, k)
+    z, info = lapack.dstein(d, e, w[:m], iblock, isplit)
+    if info != 0:
+        return dpss(n, nw, k)
+    windows = z[:, ::-1].T.copy()  # largest eigenvalue first
+    for i in range(0, k, 2):  # symmetric tapers: positive mean (scipy's convention)
+        if windows[i].sum() < 0:
+            windows[i] *= -1
+    thresh = max(1e-7, 1.0 / n)
+    for i in range(1, k, 2):  # antisymmetric tapers: a positive first lobe
+        row = windows[i]
+        if row[row * row > thresh][0] < 0:
+            windows[i] *= -1
+    return windows
 
 
 def slow_basis(n_samples: int, fs_hz: float, max_hz: float, *, extra: int = 2,
