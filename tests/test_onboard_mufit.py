@@ -129,3 +129,48 @@ def test_periodogram_density_matches_scipy(n):
     f, p = periodogram_density(x, 1000.0)
     np.testing.assert_array_equal(f, f_ref)
     np.testing.assert_allclose(p, p_ref, rtol=1e-12, atol=1e-15 * p_ref.max())
+
+
+def _burckhardt_k(coa, mu, k0, d_over_mu=3.0):
+    """k at the CoA values of Burckhardt's law CoA = mu_B*(1 - exp(-c*xi)) - d*xi scaled
+    so that its peak is mu and its initial slope k0, by inverting the curve on a fine grid
+    (an independent reference: no use of the fit's tables)."""
+    d = d_over_mu * mu
+    c = (k0 - d * np.log1p(k0 / d)) / mu
+    mub = (k0 + d) / c
+    xi = np.linspace(0.0, 1.0, 200_001)
+    curve = mub * (1 - np.exp(-c * xi)) - d * xi
+    top = int(np.argmax(curve))
+    x = np.interp(coa, curve[:top], xi[:top])
+    return mub * c * np.exp(-c * x) - d
+
+
+@pytest.mark.parametrize("law", ["burckhardt", "exponential", "tanh"])
+def test_saturating_laws_outside_polach_are_covered(law):
+    """Creep laws other than Polach's (Burckhardt, a pure exponential approach, tanh), k
+    measured to 4 % with the estimator's 5 % model error, 8 points up to 85 % of mu, 40
+    replicates: the 95 % interval of the default family (Polach + the saturating
+    g = 1 - u^p) holds the true mu in >= 36/40 (binomial: 90 % coverage is what the issue
+    asks; at a true 95 % rate fewer than 36 happens with probability ~5 %). Burckhardt
+    and the exponential law are determined in most replicates, within 5 % (median);
+    tanh's mu stays undetermined (honestly: the data do not fix it)."""
+    mu, k0 = 0.2, 60.0
+    u = np.linspace(0.1, 0.85, 8)
+    coa = u * mu
+    k_true = {"burckhardt": _burckhardt_k(coa, mu, k0), "exponential": k0 * (1 - u),
+              "tanh": k0 * (1 - u ** 2)}[law]
+    covered, errors = 0, []
+    for rep in range(40):
+        rng = np.random.default_rng(rep)
+        k = k_true * (1 + 0.04 * rng.standard_normal(u.size))
+        fit = fit_creep_progression(coa, k, math.hypot(0.04, 0.05) * k_true,
+                                    coa_now=coa[-1], max_rel_half_width=0.25)
+        high = fit.mu_high if math.isfinite(fit.mu_high) else math.inf
+        covered += fit.mu_low <= mu <= high
+        if fit.determined:
+            errors.append(abs(fit.mu / mu - 1))
+    assert covered >= 36
+    if law == "tanh":
+        assert not errors
+    else:
+        assert len(errors) >= 25 and np.median(errors) < 0.05

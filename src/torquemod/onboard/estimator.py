@@ -82,6 +82,7 @@ class OnboardConfig:
     min_windows: int = 12
     min_coa_ratio: float = 2.0
     ratio_bounds: tuple[float, float] = R_BOUNDS
+    power_shapes: int = 1
     baseline_m: float = 600.0
     low_adhesion_ratio: float = 0.25
     slip_creepage: float = 0.03
@@ -96,7 +97,11 @@ class OnboardConfig:
         cfg = cls(**table)
         for f in fields(cls):
             v = getattr(cfg, f.name)
-            if f.name != "ratio_bounds" and not (isinstance(v, int | float) and v > 0):
+            if f.name == "power_shapes":
+                if v not in (0, 1):
+                    raise InputError(f"[onboard] power_shapes must be 0 or 1, got {v!r}",
+                                     path=source)
+            elif f.name != "ratio_bounds" and not (isinstance(v, int | float) and v > 0):
                 raise InputError(f"[onboard] {f.name} must be a positive number, got {v!r}",
                                  path=source)
         return cfg
@@ -236,6 +241,7 @@ class MuTracker:
         pts = self._points()
         res = None if pts is None else fit_creep_progression(
             *pts.T, coa_now=w.coa, ratio_bounds=self.cfg.ratio_bounds,
+            power=bool(self.cfg.power_shapes),
             max_rel_half_width=self.cfg.max_rel_half_width)
         self.n_fits += pts is not None
         if res is None:
