@@ -207,3 +207,12 @@ def test_dpss_is_scipy_dpss(n, max_hz):
     np.testing.assert_allclose(got, ref, rtol=0, atol=2e-13)
     orth = max(5e-14, 2 * np.max(np.abs(ref @ ref.T - np.eye(k))))
     np.testing.assert_allclose(got @ got.T, np.eye(k), rtol=0, atol=orth)
+
+
+def test_median_is_numpy_median():
+    from torquemod.dsp import spectrum
+    rng = np.random.default_rng(9)
+    for m in (1, 2, 3, 10, 11, 200, 201):
+        for _ in range(20):
+            a = rng.standard_normal(m) ** 2
+            assert spectrum._median(a) == float(np.median(a))
