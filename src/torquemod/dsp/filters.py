@@ -126,8 +126,9 @@ def resample(x: np.ndarray, up: int, down: int, *, kaiser_beta: float = 5.0,
     saves the padding's cost (tests/test_decimate.py verifies both claims).
 
     ``method="two_stage"`` gives the same output samples at the same times through a cheaper
-    route (:func:`decimate_two_stage`): an integer decimation by a long Kaiser FIR first
-    (numba), then ``resample_poly`` for the rest of the ratio. It falls back to
+    route (:func:`decimate_two_stage`): an integer decimation by a long Kaiser FIR first,
+    then ``resample_poly``'s arithmetic for the rest of the ratio, both in numba row by row
+    with each row's mean removed inside the kernel (no centred copy). It falls back to
     ``"polyphase"`` when ``down`` has no suitable integer factor.
     """
     if method not in RESAMPLE_METHODS:
