@@ -304,7 +304,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from .sweep.run import run_sweep
     res = run_sweep(args.sweep, Path(args.out), scheduler=args.scheduler,
                     n_workers=args.workers, force=args.force, progress=not args.quiet,
-                    revolutions_per_task=args.revolutions_per_task,
                     on_dashboard=lambda link: print(f"dashboard: {link}", file=sys.stderr,
                                                     flush=True))
     print(f"{res.status.shape[0]} points: {res.count('done')} run, {res.count('skipped')} "
