@@ -46,6 +46,9 @@ from pathlib import Path
 
 FS_HZ = 16_670.0
 N_CHANNELS = 7  # time + the 6 method channels
+#: the rig's six channels (torquemod.data.CHANNELS also lists the train run's two)
+RIG_CHANNELS = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", "fy_n",
+                "fz_n")
 
 
 def generate(folder: Path, minutes: float) -> dict:
@@ -53,7 +56,7 @@ def generate(folder: Path, minutes: float) -> dict:
     import h5py
     import numpy as np
 
-    from torquemod.data import CHANNEL_UNITS, CHANNELS
+    from torquemod.data import CHANNEL_UNITS
     from torquemod.io import write_manifest
     from torquemod.testing import SyntheticSpec, synthetic_recording
 
@@ -67,15 +70,15 @@ def generate(folder: Path, minutes: float) -> dict:
         fh.attrs["sample_rate_hz"] = FS_HZ
         fh.attrs["t0_s"] = 0.0
         ds = {c: fh.create_dataset(c, shape=(0,), maxshape=(None,), dtype="f8",
-                                   chunks=(1 << 16,)) for c in CHANNELS}
-        for c in CHANNELS:
+                                   chunks=(1 << 16,)) for c in RIG_CHANNELS}
+        for c in RIG_CHANNELS:
             ds[c].attrs["unit"] = CHANNEL_UNITS[c]
         n = 0
         for k in range(n_rev):
             rec = synthetic_recording(dataclasses.replace(
                 base, n_revolutions=1.0, seed=k, modulation_phase_rad=0.37 * k))
             m = rec.n_samples
-            for c in CHANNELS:
+            for c in RIG_CHANNELS:
                 ds[c].resize((n + m,))
                 ds[c][n:n + m] = rec.channels[c]
             n += m
@@ -135,7 +138,7 @@ def generate_plain(path: Path, hours: float, block: int = 1 << 20) -> int:
     import h5py
     import numpy as np
 
-    from torquemod.data import CHANNEL_UNITS, CHANNELS
+    from torquemod.data import CHANNEL_UNITS
 
     n = round(hours * 3600 * FS_HZ)
     rng = np.random.default_rng(1)
@@ -143,17 +146,17 @@ def generate_plain(path: Path, hours: float, block: int = 1 << 20) -> int:
              "fx_n": 900.0, "fy_n": 150.0, "fz_n": 4200.0}
     with h5py.File(path, "w") as fh:
         fh.attrs["torquemod_layout"] = 1
-        names = ["time_s", *CHANNELS]
+        names = ["time_s", *RIG_CHANNELS]
         ds = {c: fh.create_dataset(c, shape=(n,), dtype="f8", chunks=(1 << 16,))
               for c in names}
-        for c in CHANNELS:
+        for c in RIG_CHANNELS:
             ds[c].attrs["unit"] = CHANNEL_UNITS[c]
         ds["time_s"].attrs["unit"] = "s"
         for a in range(0, n, block):
             b = min(n, a + block)
             t = np.arange(a, b) / FS_HZ
             ds["time_s"][a:b] = t
-            for k, c in enumerate(CHANNELS):
+            for k, c in enumerate(RIG_CHANNELS):
                 x = level[c] * (1 + 0.01 * np.sin(2 * np.pi * 2.0 * t + k)
                                 + 0.002 * np.sin(2 * np.pi * 4.6 * t))
                 x += 1e-3 * level[c] * rng.standard_normal(b - a)
