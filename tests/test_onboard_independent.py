@@ -149,3 +149,60 @@ def test_hdf5_logger_export_reads_like_the_mdf4(processed, tmp_path):
     for col in ("time_s", "position_m", "speed_m_s", "coa", "phase_deg", "creep_coefficient"):
         np.testing.assert_allclose(h5[col], t[col], rtol=1e-9, atol=1e-9, err_msg=col)
     assert h5["mu"].isna().equals(t["mu"].isna())
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet", "mat", "tdms"])
+def test_other_logger_formats_read_like_the_mdf4(processed, tmp_path, fmt):
+    """The MDF4 run's samples exported the way other loggers and tools write them give the
+    same track: CSV and Parquet as one table with the 10 Hz radar's time and value columns
+    padded with empty cells below their last sample (cut off, with a note), MATLAB v5 with
+    vectors of different lengths, TDMS with the radar in its own group (waveform
+    properties). Tolerance: exact for the tables and .mat (the same float64 stamps); TDMS
+    carries a rate instead of stamps (the logger's median step): 1e-6 relative (measured
+    2e-8 on the creep coefficient, 3e-7 deg on the phase)."""
+    from asammdf import MDF
+    res, t, _ = processed
+    src = res.run.recordings[0].path
+    with MDF(src) as m:
+        tq, sp, rv = (m.get(c) for c in ("EM1_Trq", "EM1_Spd", "Radar_v"))
+    text = res.run.manifest_path.read_text()
+    name = {"csv": "run.csv", "parquet": "run.parquet", "mat": "run.mat", "tdms": "run.tdms"}[fmt]
+    if fmt in ("csv", "parquet", "mat"):
+        text = text.replace('vehicle_speed = { name = "Radar_v", unit = "km/h" }',
+                            'time = "t"\nvehicle_speed = { name = "Radar_v", unit = "km/h", '
+                            'time = "radar_t" }')
+    n, nr = tq.samples.size, rv.samples.size
+    if fmt in ("csv", "parquet"):
+        pad = np.full(n - nr, np.nan)
+        table = pd.DataFrame({"t": tq.timestamps, "EM1_Trq": tq.samples, "EM1_Spd": sp.samples,
+                              "radar_t": np.concatenate([rv.timestamps, pad]),
+                              "Radar_v": np.concatenate([rv.samples, pad])})
+        if fmt == "csv":
+            table.to_csv(tmp_path / name, index=False)
+        else:
+            table.to_parquet(tmp_path / name, index=False)
+    elif fmt == "mat":
+        import scipy.io
+        scipy.io.savemat(tmp_path / name, {"t": tq.timestamps, "EM1_Trq": tq.samples,
+                                           "EM1_Spd": sp.samples, "radar_t": rv.timestamps,
+                                           "Radar_v": rv.samples})
+    else:
+        pytest.importorskip("nptdms")
+        from nptdms import ChannelObject, TdmsWriter
+        dt = float(np.median(np.diff(tq.timestamps)))
+        with TdmsWriter(tmp_path / name) as w:
+            w.write_segment([ChannelObject("logger", c, x.samples, properties={
+                "wf_increment": dt, "wf_start_offset": float(tq.timestamps[0]),
+                "unit_string": u}) for c, x, u in (("EM1_Trq", tq, "N*m"),
+                                                   ("EM1_Spd", sp, "rpm"))]
+                            + [ChannelObject("radar", "Radar_v", rv.samples, properties={
+                                "wf_increment": 0.1, "wf_start_offset": float(rv.timestamps[0]),
+                                "unit_string": "km/h"})])
+    (tmp_path / "run.toml").write_text(text.replace('"run.mf4"', f'"{name}"'))
+    got = run_onboard(tmp_path / "run.toml", tmp_path / "out", force=True)[0]
+    if fmt in ("csv", "parquet"):
+        assert any(f"{n - nr} empty rows below its last sample" in s for s in got.notes)
+    rtol, atol = (1e-6, 1e-5) if fmt == "tdms" else (0.0, 0.0)
+    assert len(got.track) == len(t)
+    for col in ("position_m", "speed_m_s", "coa", "phase_deg", "creep_coefficient"):
+        np.testing.assert_allclose(got.track[col], t[col], rtol=rtol, atol=atol, err_msg=col)

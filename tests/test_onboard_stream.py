@@ -198,3 +198,33 @@ def test_parts_not_planned_for_sequential_files(twin_run, tmp_path):
     (tmp_path / "run.toml").write_text(head + "[truth]" + tail.split("[truth]")[1])
     run = read_run(tmp_path / "run.toml")
     assert plan_axle_chunks(run, run.recordings[0], None, chunk_s=3.0) == []
+
+
+def test_padded_slow_channel_in_a_table(tmp_path):
+    """A slow channel with its own time column in a CSV: empty cells below its last sample
+    are cut off (noted); an empty cell inside it is still an error naming the channel."""
+    import pandas as pd
+
+    from torquemod.errors import InputError
+    n, nr = 2000, 21
+    t = np.arange(n) / 1000.0
+    radar_t = np.concatenate([np.arange(nr) / 10.0 - 0.01, np.full(n - nr, np.nan)])
+    radar_v = np.concatenate([np.linspace(20, 21, nr), np.full(n - nr, np.nan)])
+    cmap = {"time": "t", "torque": "tq", "wheel_speed": "w",
+            "vehicle_speed": {"name": "v", "time": "vt"}}
+    for bad in (False, True):
+        table = pd.DataFrame({"t": t, "tq": np.sin(t), "w": 40 + np.cos(t), "vt": radar_t,
+                              "v": radar_v})
+        if bad:
+            table.loc[5, "vt"] = np.nan
+        table.to_csv(tmp_path / "r.csv", index=False)
+        if bad:
+            with pytest.raises(InputError) as err:
+                read_recording(tmp_path / "r.csv", channel_map=cmap)
+            assert "vehicle_speed" in str(err.value) and "r.csv" in str(err.value)
+            continue
+        rec = read_recording(tmp_path / "r.csv", channel_map=cmap)
+        assert any(f"{n - nr} empty rows below its last sample" in s for s in rec.notes)
+        np.testing.assert_allclose(rec.channels["vehicle_speed_m_s"],
+                                   np.interp(rec.t0_s + np.arange(rec.n_samples) / 1000.0,
+                                             radar_t[:nr], radar_v[:nr]), rtol=1e-12)

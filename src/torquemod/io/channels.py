@@ -518,8 +518,14 @@ def _own_grid(raw: RawChannel, n: int, path: object, channel: str,
 
 def _with_own_time(spec: ChannelSpec, raw: RawChannel,
                    lookup: Callable[[str], RawChannel | None], path: object,
-                   available: Callable[[], list[str]] | None) -> RawChannel:
-    """``raw`` with the time vector the manifest maps for it (the entry's ``time`` key)."""
+                   available: Callable[[], list[str]] | None,
+                   notes: list[str] | None = None) -> RawChannel:
+    """``raw`` with the time vector the manifest maps for it (the entry's ``time`` key).
+
+    A slow channel exported beside fast ones in one table (CSV, Parquet) is padded with
+    empty cells below its last sample: rows where both its time and its value are empty
+    at the end are cut off (a note says how many); empty cells anywhere else stay an
+    error."""
     if not spec.time:
         return raw
     t_raw = lookup(spec.time)
@@ -531,6 +537,16 @@ def _with_own_time(spec: ChannelSpec, raw: RawChannel,
                          channel=spec.channel, hint="map a numeric time vector (seconds)")
     unit = spec.time_unit or (str(t_raw.unit).strip() if t_raw.unit else None)
     t = convert_units(t_values, unit, "time", path=path, channel=spec.channel)
+    values = as_vector(raw.values, path=path, channel=spec.channel)
+    if t.size == values.size and t.size and not math.isfinite(float(t[-1])):
+        finite = np.flatnonzero(np.isfinite(t))
+        k = int(finite[-1]) + 1 if finite.size else 0
+        tail = values[k:]
+        if k >= 2 and tail.dtype.kind == "f" and not np.isfinite(tail).any():
+            t, raw = t[:k], replace(raw, values=values[:k])
+            if notes is not None:
+                notes.append(f"channel '{spec.channel}': {values.size - k} empty rows below "
+                             f"its last sample (time '{spec.time}') cut off")
     return replace(raw, time_s=t, fs_hz=None)
 
 
@@ -743,6 +759,7 @@ def assemble_recording(cmap: ChannelMap, lookup: Callable[[str], RawChannel | No
     when a channel is missing.
     """
     found: dict[str, RawChannel] = {}
+    padding: list[str] = []  # slow channels' empty rows cut off (notes)
     for channel in CHANNELS:
         spec = cmap.spec(channel)
         raw = lookup(spec.name)
@@ -750,7 +767,7 @@ def assemble_recording(cmap: ChannelMap, lookup: Callable[[str], RawChannel | No
             if channel in OPTIONAL_CHANNELS and not spec.explicit:
                 continue  # an optional channel the file does not hold
             raise _missing(spec, path, available)
-        found[channel] = _with_own_time(spec, raw, lookup, path, available)
+        found[channel] = _with_own_time(spec, raw, lookup, path, available, padding)
     forces = [c for c in ("fx_n", "fz_n") if c in found]
     if len(forces) == 1 or ("fy_n" in found and not forces):
         lacking = "fz_n" if "fx_n" in found else "fx_n"
@@ -761,7 +778,7 @@ def assemble_recording(cmap: ChannelMap, lookup: Callable[[str], RawChannel | No
                          f"{_available_text(available)}", path=path, channel=lacking,
                          hint="map the missing force in [channels], or leave all force "
                               "channels out (the CoA then comes from the torque)")
-    notes = list(notes or [])
+    notes = [*(notes or []), *padding]
     channels = {c: _converted(cmap.spec(c), raw, path, notes) for c, raw in found.items()}
     n = channels[TORQUE].size
     if n < 2:

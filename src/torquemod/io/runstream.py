@@ -122,6 +122,7 @@ class RunStream:
         base = table.own_base(found[TORQUE])
         lookup = _whole_lookup(table, path)
         streamed, own = [], {}
+        padding: list[str] = []
         for c, name in found.items():
             spec = cmap.spec(c)
             if c in FAST_CHANNELS or (not spec.time and table.own_base(name) == base):
@@ -133,7 +134,7 @@ class RunStream:
                                     f"{path.suffix} file")
             else:
                 raw = lookup(name)
-                own[c] = _with_own_time(spec, raw, lookup, path, None)
+                own[c] = _with_own_time(spec, raw, lookup, path, None, padding)
         if not table.sequential:
             sizes = {table.column_length(found[c]) for c in streamed}
             if len(sizes) > 1:
@@ -143,7 +144,7 @@ class RunStream:
         self.units = {c: table.unit(found[c]) for c in streamed}
         n = table.length()
         # notes in the whole-file order: the reader's, then the conversions', then alignment
-        notes = list(_reader_notes(table))
+        notes = [*_reader_notes(table), *padding]
         head = self._raw_rows(list(dict.fromkeys(self.names.values())), 0, min(n, 2))
         slow: dict[str, np.ndarray] = {}
         for c in found:
