@@ -242,3 +242,23 @@ def test_local_noise_psd_of_white_noise_and_a_far_line():
     t = np.arange(n) / FS
     x = sigma * rng.standard_normal(n) + 50.0 * np.cos(2 * np.pi * 10.0 * t)  # 8 Hz away
     assert local_noise_psd(x, FS, 2.0) == pytest.approx(2 * sigma**2 / FS, rel=0.20)
+
+
+def test_sine_fit_design_matches_direct_trigonometry():
+    """The sine fit's design (fixed columns cached per window, nuisance tones by rotation
+    between exact anchors every 64 samples) equals cos/sin evaluated directly: the fixed
+    columns exactly, the tones to 1e-12 (the argument 2*pi*f*t itself is only defined to
+    |2*pi*f*t|*eps ~ 2e-13 at 500 Hz over 1.25 s)."""
+    from torquemod.dsp.filters import tone_design
+    from torquemod.dsp.phase import _design
+    for n, fs, f, tones, trend in ((2500, 2000.0, 4.0, (7.9, 15.8, 41.2, 82.4, 499.0), True),
+                                   (1001, 1000.0, 5.0, (6.9,), False), (345, 53.344, 2.0, (),
+                                                                        True)):
+        t = (np.arange(n) - (n - 1) / 2) / fs
+        ref = np.column_stack([np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t),
+                               tone_design(t, tones, line=trend)])
+        got = _design(n, fs, f, tones, trend)
+        fixed = 4 if trend else 3
+        assert got.shape == ref.shape
+        assert np.array_equal(got[:, :fixed], ref[:, :fixed])
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)

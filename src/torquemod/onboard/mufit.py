@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
+from numba import njit
 
 from ..phasefit import CHI2_95, polach_h, polach_h_slope
 
@@ -135,6 +136,59 @@ def _tables(r_lo: float, r_hi: float, power: bool = False) -> tuple[np.ndarray, 
     return g, phi
 
 
+@njit(cache=True, nogil=True)
+def _chi_table(g_tab: np.ndarray, u: np.ndarray, k: np.ndarray, w: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """For every shape s (rows of ``g_tab`` on the uniform u grid) and trial mu j (rows of
+    ``u`` = CoA/mu): ``k0 = sum(w*g*k)/sum(w*g^2)`` (weighted least squares in closed form)
+    and ``chi2 = sum(w*(k - k0*g)^2)`` with g linearly interpolated as :func:`_lookup` does;
+    chi2 = inf where a point lies beyond the shape's peak (g NaN), u >= 1 or k0 <= 0. One
+    compiled pass, no (shapes x mu x points) temporaries."""
+    n_s, n_u = g_tab.shape
+    n_m, n = u.shape
+    chi = np.full((n_s, n_m), np.inf)
+    k0s = np.full((n_s, n_m), np.nan)
+    i0 = np.empty((n_m, n), np.int64)
+    fr = np.empty((n_m, n))
+    inside = np.ones(n_m, np.bool_)
+    for j in range(n_m):
+        for i in range(n):
+            x = u[j, i]
+            if not x < 1.0:
+                inside[j] = False
+            pos = min(max(x, 0.0), 1.0) * (n_u - 1)
+            a = min(int(pos), n_u - 2)
+            i0[j, i] = a
+            fr[j, i] = pos - a
+    g = np.empty(n)
+    for s in range(n_s):
+        row = g_tab[s]
+        for j in range(n_m):
+            if not inside[j]:
+                continue
+            swgk = 0.0
+            swgg = 0.0
+            for i in range(n):
+                a = i0[j, i]
+                gi = row[a] * (1.0 - fr[j, i]) + row[a + 1] * fr[j, i]
+                g[i] = gi
+                swgk += w[i] * gi * k[i]
+                swgg += w[i] * gi * gi
+            if not (swgg > 0.0):  # NaN (beyond the peak) or zero
+                continue
+            k0 = swgk / swgg
+            k0s[s, j] = k0
+            if not k0 > 0.0:
+                continue
+            c = 0.0
+            for i in range(n):
+                r = k[i] - k0 * g[i]
+                c += w[i] * r * r
+            if math.isfinite(c):
+                chi[s, j] = c
+    return chi, k0s
+
+
 def _lookup(table: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Linear interpolation of every row of ``table`` (on the uniform u grid) at ``u``:
     shape ``table.shape[:1] + u.shape``; NaN for u >= 1."""
@@ -206,12 +260,7 @@ def fit_creep_progression(coa, k, k_se, *, coa_now: float | None = None,
     u = coa[None, :] / mus[:, None]  # (n_mu, n)
     u_now = c_now / mus
     g_tab, phi_tab = _tables(float(ratio_bounds[0]), float(ratio_bounds[1]), power)
-    g = _lookup(g_tab, u)  # (shapes, n_mu, n)
-    wg = w * g
-    with np.errstate(invalid="ignore", divide="ignore"):
-        k0s = (wg * k).sum(axis=2) / (wg * g).sum(axis=2)
-        c = (w * (k - k0s[:, :, None] * g) ** 2).sum(axis=2)
-    chi = np.where(np.isfinite(c) & (k0s > 0), c, np.inf)
+    chi, k0s = _chi_table(g_tab, u, k, w)  # (shapes, n_mu) each
     mu_op = mus * _lookup(phi_tab, u_now)
     chi = _refine_over_r(chi, len(FALLING) + power)
     i_best, j_best = np.unravel_index(int(np.argmin(chi)), chi.shape)
