@@ -11,7 +11,8 @@ run_simulation`, HDF5) -> the processing chain (:func:`torquemod.api.process`) -
 
 ``utilisation`` is ``T_dc / T_peak`` = longitudinal CoA / mu_true, with ``mu_true`` the peak of
 the twin's creep curve (``T_peak/(R_w*N)``: the adhesion the wheel can use; truth.json's
-``creep_curve_peak``).
+``creep_curve_peak``). mu from the phase is judged against ``mu_friction``, the friction at
+the slip velocity of the highest step it used (its curves have constant friction).
 """
 
 from __future__ import annotations
@@ -241,6 +242,21 @@ def _full_steps(config, t_peak: float, seed: int, workdir: Path,
     return rows, point
 
 
+def _friction_at_top(df: pd.DataFrame, use: pd.Series, rig) -> float:
+    """The twin's friction coefficient (Polach 2005 Eq. 9) at the slip velocity of the
+    highest step the mu-from-phase fit used (creepage x speed at its operating point): the
+    quantity that fit estimates, since its curves have constant friction. ``mu_true`` (the
+    creep curve's peak, the available adhesion) lies below it where friction falls with
+    slip. NaN when no step was used."""
+    from ..contact.polach import friction_coefficient
+    used = df[use]
+    if not len(used) or not np.isfinite(used["creepage_true"].iloc[-1]):
+        return math.nan
+    c = rig.contact
+    w = abs(float(used["creepage_true"].iloc[-1])) * rig.speed_m_s
+    return float(friction_coefficient(w, mu0=c.mu0, a_ratio=c.a_ratio, b_s_m=c.b_s_m))
+
+
 def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.DataFrame:
     """The rows of one point (raises :class:`~torquemod.errors.TorquemodError` when the
     point cannot be evaluated: a bad parameter, a wheel that slips at the first step).
@@ -287,8 +303,10 @@ def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.
                            swing[use].to_numpy(float) if np.isfinite(swing[use]).all()
                            else None))
     point["mu_phase_n_steps"] = int(use.sum())
-    point["mu_phase_error"] = point["mu_phase"] / mu_true - 1.0
-    point["mu_phase_lo_error"] = point["mu_phase_lo"] / mu_true - 1.0
+    mu_friction = _friction_at_top(df, use, rig)
+    point["mu_friction"] = mu_friction
+    point["mu_phase_error"] = point["mu_phase"] / mu_friction - 1.0
+    point["mu_phase_lo_error"] = point["mu_phase_lo"] / mu_friction - 1.0
     df["phase_twin_minus_theory_deg"] = df["phase_simulated_deg"] - df["phase_theory_deg"]
     head = {"point_id": task.point_id, "point_index": task.index,
             **{k: v for k, v in task.params.items()}, "seed": task.seed, "kind": "rig",

@@ -28,7 +28,8 @@ MAX_TABLE_ROWS = 2000
 _STEP_COLUMNS = ("point_index", "seed", "step", "dc_torque_nm", "utilisation", "coa",
                  "creepage", "phase_deg", "phase_se_deg", "phase_theory_deg",
                  "phase_simulated_deg", "creep_coefficient", "creepage_swing",
-                 "torque_ripple_pct", "mu_true", "mu_forces", "mu_phase", "mu_phase_lo",
+                 "torque_ripple_pct", "mu_true", "mu_friction", "mu_forces", "mu_phase",
+                 "mu_phase_lo",
                  "mu_phase_hi")
 
 
@@ -92,18 +93,23 @@ def _settings_html(rec: dict) -> str:
 
 def _points_html(summary: pd.DataFrame, spec: SweepSpec) -> str:
     keys = [k for k in spec.swept if k in summary]
-    head = ["#", *keys, "seed", "mu true", "mu phase", "95 % lo", "95 % hi", "error [%]",
+    head = ["#", *keys, "seed", "peak CoA", "friction", "mu phase", "95 % lo", "95 % hi",
+            "error [%]",
             "covered", "dphi/du [deg/%]", "swing", "ripple [%]", "twin-theory [deg]",
             "slip at step"]
     body = [[int(r["point_index"]), *[str(r[k]) for k in keys], int(r["seed"]), r["mu_true"],
-             r["mu_phase"], r["mu_phase_lo"], r["mu_phase_hi"], r["effective_error_pct"],
+             r.get("mu_friction", r["mu_true"]), r["mu_phase"], r["mu_phase_lo"],
+             r["mu_phase_hi"], r["effective_error_pct"],
              bool(r["covered"]), r["dphi_du_theory"], r["creepage_swing_max"],
              r["torque_ripple_pct_max"],
              r["twin_minus_theory_max_deg"],
              "—" if r["slipped_at_step"] is None or pd.isna(r["slipped_at_step"])
              else int(r["slipped_at_step"])] for _, r in summary.iterrows()]
-    return table(head, body, caption="One row per point (error: of mu from the phase, or of "
-                 "its lower bound when not determined)", left=1 + len(keys))
+    return table(head, body, caption="One row per point (peak CoA: the twin's available "
+                 "adhesion; friction: its friction coefficient at the slip velocity of the "
+                 "highest step the fit used, Polach Eq. 9, the truth for mu from the phase; "
+                 "error: of mu from the phase, or of its lower bound when not determined)",
+                 left=1 + len(keys))
 
 
 def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
