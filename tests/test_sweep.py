@@ -163,6 +163,28 @@ def test_theory_sweep_table(theory_sweep):
     assert doc["recommendation"]["setting"]["modulation_amplitude_nm"] == 8.0
 
 
+def test_mu_from_phase_judged_against_the_friction_at_the_top_step(theory_sweep):
+    """mu_friction is Polach's Eq. 9 friction at the creepage x speed of the highest step at
+    or below the utilisation limit (recomputed here from the table and the condition's
+    parameters); on these falling-friction conditions it lies between the creep curve's
+    peak (mu_true) and mu0, and the errors in the summary are taken against it."""
+    from torquemod.sweep.spec import conditions
+    from torquemod.sweep.summary import point_summary
+    out, spec, _ = theory_sweep
+    tab = pd.read_parquet(out / "sweep.parquet")
+    for _, g in tab.groupby("point_id"):
+        used = g[(~g["slipped"].astype(bool)) & (g["utilisation"] <= 0.8 + 1e-9)]
+        c = conditions()[g["contact.condition"].iloc[0]]
+        w = used["creepage_true"].iloc[-1] * g["speed_m_s"].iloc[0]
+        expect = c.mu0 * ((1 - c.a_ratio) * np.exp(-c.b_s_m * w) + c.a_ratio)
+        assert g["mu_friction"].iloc[0] == pytest.approx(expect, rel=1e-12)
+        assert g["mu_true"].iloc[0] < expect <= c.mu0
+    summ = point_summary(tab, spec)
+    det = summ[summ["mu_phase_determined"]]
+    np.testing.assert_allclose(det["mu_phase_error_pct"],
+                               100 * (det["mu_phase"] / det["mu_friction"] - 1), rtol=1e-12)
+
+
 def test_resume_skips_finished_points_and_force_reruns(theory_sweep):
     out, spec, first = theory_sweep
     again = run_sweep(spec, out, in_process=True, report=False)
