@@ -185,6 +185,20 @@ def test_mu_from_phase_judged_against_the_friction_at_the_top_step(theory_sweep)
                                100 * (det["mu_phase"] / det["mu_friction"] - 1), rtol=1e-12)
 
 
+def test_mu_from_phase_leaves_out_steps_that_reverse_the_torque(theory_sweep):
+    """Steps whose DC torque does not exceed the modulation amplitude (the torque changes
+    sign each period; at zero DC torque the large-signal phase lies 1-2 deg below the
+    linearised model) are not given to the mu-from-phase fit: the count of steps it used
+    is that of the others at or below the utilisation limit."""
+    out, _, _ = theory_sweep
+    tab = pd.read_parquet(out / "sweep.parquet")
+    for _, g in tab.groupby("point_id"):
+        assert (g["dc_torque_nm"] <= g["modulation_amplitude_nm"]).any()  # a zero step
+        ok = (~g["slipped"].astype(bool)) & (g["utilisation"] <= 0.8 + 1e-9) \
+            & (g["dc_torque_nm"].abs() > g["modulation_amplitude_nm"])
+        assert g["mu_phase_n_steps"].iloc[0] == int(ok.sum())
+
+
 def test_resume_skips_finished_points_and_force_reruns(theory_sweep):
     out, spec, first = theory_sweep
     again = run_sweep(spec, out, in_process=True, report=False)
