@@ -201,3 +201,22 @@ def test_compiled_chi_table_equals_the_array_formula():
         assert fin.sum() > 1000
         np.testing.assert_allclose(chi[fin], ref[fin], rtol=1e-11, atol=1e-9)
         np.testing.assert_allclose(k0s[fin], k0[fin], rtol=1e-12)
+
+
+def test_mu_between_grid_points():
+    """The reported mu is the vertex of the profile's parabola between mu grid points: on
+    an exact parabola in grid steps the offset is recovered; on noise-free Polach points
+    (r = 2.5, to 90 % of mu) mu comes within 0.2 % of the truth with the default 1.4 % grid
+    (the grid point alone was 0.66 % off)."""
+    from torquemod.onboard.mufit import _vertex_offset, slope_ratio
+    x = np.arange(7.0)
+    for v in (2.8, 3.0, 3.37):
+        assert _vertex_offset(2.0 * (x - v) ** 2 + 1.0, round(v)) == \
+            pytest.approx(v - round(v), abs=1e-12)
+    assert _vertex_offset(np.array([1.0, 0.5, 0.2]), 2) == 0.0  # at the grid's end
+    u = np.linspace(0.1, 0.9, 8)
+    k = 60.0 * slope_ratio(u, 2.5)
+    fit = fit_creep_progression(0.35 * u, k, 0.05 * k, coa_now=0.35 * 0.9,
+                                max_rel_half_width=0.25)
+    assert fit.determined and fit.mu == pytest.approx(0.35, rel=2e-3)
+    assert fit.mu_low <= fit.mu <= fit.mu_high

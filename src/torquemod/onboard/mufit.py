@@ -230,6 +230,19 @@ def _refine_over_r(chi: np.ndarray, n_fam: int) -> np.ndarray:
     return out.reshape(chi.shape)
 
 
+def _vertex_offset(profile: np.ndarray, j: int) -> float:
+    """Offset [grid steps, within +-0.5] of the vertex of the parabola through
+    ``profile[j-1:j+2]`` from j (0 at the ends of the grid or where the three points are
+    not finite or not convex)."""
+    if not 0 < j < profile.size - 1:
+        return 0.0
+    a, b, c = (float(v) for v in profile[j - 1:j + 2])
+    curv = a - 2.0 * b + c
+    if not (math.isfinite(curv) and curv > 0.0):
+        return 0.0
+    return min(0.5, max(-0.5, 0.5 * (a - c) / curv))
+
+
 def slope_ratio(u, r: float) -> np.ndarray:
     """``g(u; r) = k/k0`` at the utilisations u = CoA/mu [-] of the constant-friction curve
     (NaN for u >= 1)."""
@@ -274,10 +287,15 @@ def fit_creep_progression(coa, k, k_se, *, coa_now: float | None = None,
     lo = float(mu_op[inside].min()) / step
     open_high = bool(inside[:, -1].any())
     hi = math.nan if open_high else float(mu_op[inside].max()) * step
-    mu = float(mu_op[i_best, j_best])
+    # the best mu between grid points: the vertex of the parabola through the profile (the
+    # minimum over shapes) at the best grid point and its neighbours, in log mu (at most half
+    # a step away; the interval above already reaches a step beyond its grid points)
+    shift = _vertex_offset(chi.min(axis=0), int(j_best))
+    mu = float(mu_op[i_best, j_best]) * step ** shift
     open_low = bool(inside[:, 0].any())
     determined = (not open_high and not open_low
                   and max(mu - lo, hi - mu) <= max_rel_half_width * mu)
     sh = shapes[i_best]
-    return CreepFit(mu, lo, hi, bool(determined), float(mus[j_best]), sh.r, sh.a, sh.beta,
+    return CreepFit(mu, lo, hi, bool(determined), float(mus[j_best]) * step ** shift, sh.r,
+                    sh.a, sh.beta,
                     float(k0s[i_best, j_best]), chi_min, dof, sh.u, sh.g, sh.law)
