@@ -670,8 +670,31 @@ def _align(channels: dict[str, np.ndarray], grids: dict[str, _Grid | None], ref:
         if x.size < 2:
             raise InputError(f"fewer than two samples ({x.size})", path=path, channel=name)
         plans[name] = _plan(name, grid, x.size, ref, n, path)
-    if all(p.shift == 0 and p.m == n for p in plans.values()):
+    span = shared_span(plans, ref, n, path)
+    if span is None:
         return channels, 0
+    lo, hi = span
+    out: dict[str, np.ndarray] = {}
+    for name, x in channels.items():
+        plan = plans.get(name)
+        if plan is None:
+            out[name] = x[lo:hi + 1]
+        elif plan.shift is not None:
+            prepared(name, x, plan, ref, notes)
+            out[name] = x[lo - plan.shift:hi + 1 - plan.shift]
+        else:
+            out[name] = _interpolated(prepared(name, x, plan, ref, notes), plan, lo, hi)
+    note_cut(lo, hi, n, notes)
+    return out, lo
+
+
+def shared_span(plans: dict[str, _Plan], ref: _Grid, n: int, path: object
+                ) -> tuple[int, int] | None:
+    """First and last of the torque's ``n`` samples that every planned channel covers
+    (within :data:`SAME_INSTANT_SAMPLES`); None when every channel lies on the torque's
+    samples already. Raises the coverage error below :data:`MIN_COVERAGE`."""
+    if all(p.shift == 0 and p.m == n for p in plans.values()):
+        return None
     eps = SAME_INSTANT_SAMPLES
     lo = max([0, *(math.ceil(p.start - eps) for p in plans.values())])
     hi = min([n - 1, *(math.floor(p.end + eps) for p in plans.values())])
@@ -681,43 +704,46 @@ def _align(channels: dict[str, np.ndarray], grids: dict[str, _Grid | None], ref:
             return min(p.end, n - 1.0) - max(p.start, 0.0)
         worst = min(plans, key=lambda k: covered(plans[k]))
         raise _coverage_error(worst, plans[worst], ref, n, shared, path)
-    out: dict[str, np.ndarray] = {}
-    for name, x in channels.items():
-        plan = plans.get(name)
-        if plan is None:
-            out[name] = x[lo:hi + 1]
-            continue
-        offset_ms = plan.start / ref.fs_hz * 1e3
-        if plan.shift is not None:
-            out[name] = x[lo - plan.shift:hi + 1 - plan.shift]
-            if plan.shift:
-                notes.append(f"channel '{name}' starts {plan.shift:+d} samples "
-                             f"({offset_ms:+.4f} ms) from {TORQUE}: shifted by whole samples "
-                             "(no interpolation)")
-            continue
-        what = "interpolated linearly"
-        if plan.ratio > 1.0:
-            if np.isfinite(x).all():
-                x = _lowpass(x, plan.grid.fs_hz, ANTI_ALIAS_SHARE * ref.fs_hz)
-                what = (f"low-passed at {ANTI_ALIAS_SHARE * ref.fs_hz:.6g} Hz (zero-phase "
-                        f"Butterworth, order {ANTI_ALIAS_ORDER}) and interpolated linearly")
-            else:
-                what = "interpolated linearly (not low-passed: it holds NaN/inf)"
-        out[name] = _interpolated(x, plan, lo, hi)
-        if plan.grid.fs_hz > 2 * SIGNAL_BAND_HZ:
-            err = (2 * math.pi * SIGNAL_BAND_HZ / plan.grid.fs_hz) ** 2 / 8
-            bound = (f"error < {err:.1e} of the amplitude of a {SIGNAL_BAND_HZ:.0f} Hz "
-                     "component")
-        else:  # a slow reference (radar, GNSS): it carries no component that fast
-            bound = (f"a slow channel: components above {plan.grid.fs_hz / 2:.6g} Hz are "
-                     "not in it")
-        notes.append(f"channel '{name}' on its own time base (starts {offset_ms:+.4f} ms from "
-                     f"{TORQUE}, {plan.grid.fs_hz:.6g} Hz vs {ref.fs_hz:.6g} Hz): {what} "
-                     f"onto {TORQUE}'s sample times ({bound})")
+    return lo, hi
+
+
+def prepared(name: str, x: np.ndarray, plan: _Plan, ref: _Grid, notes: list[str]
+             ) -> np.ndarray:
+    """Channel ``x`` ready to be put on the torque's times by ``plan`` (low-passed when it is
+    sampled faster and holds no NaN/inf), with the note saying what is done to it."""
+    offset_ms = plan.start / ref.fs_hz * 1e3
+    if plan.shift is not None:
+        if plan.shift:
+            notes.append(f"channel '{name}' starts {plan.shift:+d} samples "
+                         f"({offset_ms:+.4f} ms) from {TORQUE}: shifted by whole samples "
+                         "(no interpolation)")
+        return x
+    what = "interpolated linearly"
+    if plan.ratio > 1.0:
+        if np.isfinite(x).all():
+            x = _lowpass(x, plan.grid.fs_hz, ANTI_ALIAS_SHARE * ref.fs_hz)
+            what = (f"low-passed at {ANTI_ALIAS_SHARE * ref.fs_hz:.6g} Hz (zero-phase "
+                    f"Butterworth, order {ANTI_ALIAS_ORDER}) and interpolated linearly")
+        else:
+            what = "interpolated linearly (not low-passed: it holds NaN/inf)"
+    if plan.grid.fs_hz > 2 * SIGNAL_BAND_HZ:
+        err = (2 * math.pi * SIGNAL_BAND_HZ / plan.grid.fs_hz) ** 2 / 8
+        bound = (f"error < {err:.1e} of the amplitude of a {SIGNAL_BAND_HZ:.0f} Hz "
+                 "component")
+    else:  # a slow reference (radar, GNSS): it carries no component that fast
+        bound = (f"a slow channel: components above {plan.grid.fs_hz / 2:.6g} Hz are "
+                 "not in it")
+    notes.append(f"channel '{name}' on its own time base (starts {offset_ms:+.4f} ms from "
+                 f"{TORQUE}, {plan.grid.fs_hz:.6g} Hz vs {ref.fs_hz:.6g} Hz): {what} "
+                 f"onto {TORQUE}'s sample times ({bound})")
+    return x
+
+
+def note_cut(lo: int, hi: int, n: int, notes: list[str]) -> None:
+    """The note of a cut to the shared span (none when nothing was cut)."""
     if lo > 0 or hi < n - 1:
         notes.append(f"cut to the span all channels share: {lo} samples of {TORQUE} dropped "
                      f"at the start and {n - 1 - hi} at the end ({hi + 1 - lo} of {n} kept)")
-    return out, lo
 
 
 def _check_one_time_base(grids: dict[str, _Grid | None], n: int, path: object) -> None:

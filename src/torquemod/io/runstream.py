@@ -33,25 +33,21 @@ from ..data import CHANNELS, OPTIONAL_CHANNELS, Recording
 from ..errors import InputError
 from ._stream_tables import DEFAULT_CHUNK_ROWS, _open_table, _Table
 from .channels import (
-    ANTI_ALIAS_ORDER,
-    ANTI_ALIAS_SHARE,
-    MIN_COVERAGE,
-    SAME_INSTANT_SAMPLES,
-    SIGNAL_BAND_HZ,
     TIME,
     TORQUE,
     ChannelMap,
     RawChannel,
     _converted,
-    _coverage_error,
     _Grid,
     _interpolated,
-    _lowpass,
     _own_grid,
     _Plan,
     _plan,
     _with_own_time,
+    note_cut,
+    prepared,
     resolve_channel_map,
+    shared_span,
 )
 from .recording import read_recording
 from .validate import TIME_FIT_BLOCK, fit_time_grid_blocks
@@ -225,50 +221,14 @@ class RunStream:
              notes: list[str]) -> tuple[int, int]:
         """First and last torque row kept, and the notes, as ``channels._align`` gives them
         (the slow channels faster than the torque are low-passed here, whole)."""
-        if all(p.shift == 0 and p.m == n for p in plans.values()):
+        span = shared_span(plans, ref, n, self.path)
+        if span is None:
             return 0, n - 1
-        eps = SAME_INSTANT_SAMPLES
-        lo = max([0, *(math.ceil(p.start - eps) for p in plans.values())])
-        hi = min([n - 1, *(math.floor(p.end + eps) for p in plans.values())])
-        shared = max(hi - lo, 0) / (n - 1)
-        if shared < MIN_COVERAGE:
-            def covered(p: _Plan) -> float:
-                return min(p.end, n - 1.0) - max(p.start, 0.0)
-            worst = min(plans, key=lambda k: covered(plans[k]))
-            raise _coverage_error(worst, plans[worst], ref, n, shared, self.path)
+        lo, hi = span
         for c in RUN_CHANNELS:
-            plan = plans.get(c)
-            if plan is None:
-                continue
-            offset_ms = plan.start / ref.fs_hz * 1e3
-            if plan.shift is not None:
-                if plan.shift:
-                    notes.append(f"channel '{c}' starts {plan.shift:+d} samples "
-                                 f"({offset_ms:+.4f} ms) from {TORQUE}: shifted by whole "
-                                 "samples (no interpolation)")
-                continue
-            what = "interpolated linearly"
-            if plan.ratio > 1.0:
-                if np.isfinite(slow[c]).all():
-                    slow[c] = _lowpass(slow[c], plan.grid.fs_hz, ANTI_ALIAS_SHARE * ref.fs_hz)
-                    what = (f"low-passed at {ANTI_ALIAS_SHARE * ref.fs_hz:.6g} Hz (zero-phase "
-                            f"Butterworth, order {ANTI_ALIAS_ORDER}) and interpolated linearly")
-                else:
-                    what = "interpolated linearly (not low-passed: it holds NaN/inf)"
-            if plan.grid.fs_hz > 2 * SIGNAL_BAND_HZ:
-                err = (2 * math.pi * SIGNAL_BAND_HZ / plan.grid.fs_hz) ** 2 / 8
-                bound = (f"error < {err:.1e} of the amplitude of a {SIGNAL_BAND_HZ:.0f} Hz "
-                         "component")
-            else:
-                bound = (f"a slow channel: components above {plan.grid.fs_hz / 2:.6g} Hz are "
-                         "not in it")
-            notes.append(f"channel '{c}' on its own time base (starts {offset_ms:+.4f} ms "
-                         f"from {TORQUE}, {plan.grid.fs_hz:.6g} Hz vs {ref.fs_hz:.6g} Hz): "
-                         f"{what} onto {TORQUE}'s sample times ({bound})")
-        if lo > 0 or hi < n - 1:
-            notes.append(f"cut to the span all channels share: {lo} samples of {TORQUE} "
-                         f"dropped at the start and {n - 1 - hi} at the end "
-                         f"({hi + 1 - lo} of {n} kept)")
+            if c in plans:
+                slow[c] = prepared(c, slow[c], plans[c], ref, notes)
+        note_cut(lo, hi, n, notes)
         return lo, hi
 
     # -- raw access
