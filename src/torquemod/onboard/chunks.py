@@ -1,5 +1,7 @@
-"""One train axle in parts (issue 11): the windows of a run measured by several tasks, the
-estimator's state advanced over them by one.
+"""One train axle read and estimated: the pieces the batch path
+(:func:`~torquemod.onboard.run.estimate_axle`) and the fleet's tasks share (the axle's
+stream, signals and estimator), and the axle in parts (issue 11): the windows of a run
+measured by several tasks, the estimator's state advanced over them by one.
 
 The on-board estimator's work splits in two (:class:`~torquemod.onboard.estimator.
 OnboardEstimator`): ``measure`` (the sine fit, CoA and creep coefficient of one window:
@@ -32,13 +34,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import InputError
 from ..io.run import Run, RunRecording
 from ..io.runstream import RunStream
 from .estimator import OnboardConfig, OnboardEstimator
 from .window import WindowResult
 
-#: rows of the reference channels read at a time by the assembly (and by estimate_axle)
-_BLOCK_S = 30.0
+#: seconds of rows read at a time by the batch path (estimate_axle) and the assembly
+CHUNK_S = 30.0
 
 
 @dataclass
@@ -53,17 +56,88 @@ class AxlePart:
     windows: list[WindowResult] = field(default_factory=list)
 
 
-def _config(run: Run, config: OnboardConfig | None) -> OnboardConfig:
+class _AxleSignals:
+    """A recording's rows as the estimator's four signals, chunk by chunk: torque [N*m] and
+    wheel speed [rad/s] at the axle (times / divided by ``gear_ratio`` when recorded at the
+    motor), reference speed [m/s] and position [m] (integrated from the reference speed by the
+    trapezoid rule when the run has no position channel; the running sum is carried across
+    chunks in the same order as over the whole recording, so it is bit for bit the same)."""
+
+    def __init__(self, run: Run, entry: RunRecording, channels, fs_hz: float,
+                 notes: list[str]) -> None:
+        veh = run.vehicle
+        self.entry, self.fs_hz, self.gear = entry, fs_hz, veh.gear_ratio
+        if self.gear:
+            notes.append(f"torque and speed recorded at the motor: x{self.gear:g} and "
+                         f"/{self.gear:g} to the axle")
+        if "vehicle_speed_m_s" not in channels:
+            raise InputError("no reference speed (vehicle_speed) in the recording",
+                             path=entry.path, channel="vehicle_speed_m_s",
+                             hint="map the radar, GNSS or an unpowered axle's speed as "
+                                  "vehicle_speed in [channels] (docs/format.md)")
+        self.integrate = "position_m" not in channels
+        if self.integrate:
+            notes.append("no position channel: position integrated from the reference speed")
+        self.v_last: float | None = None
+        self.x_last = 0.0
+
+    def _check(self, name: str, arr: np.ndarray, row: int, t0_s: float) -> None:
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            first = t0_s + (row + int(np.argmax(bad))) / self.fs_hz
+            raise InputError(f"NaN/inf values (the first at t = {first:.3f} s)",
+                             path=self.entry.path, channel=name, hint="repair the recording")
+
+    def fast(self, ch: dict[str, np.ndarray], row: int, t0_s: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Torque and wheel speed at the axle and the reference speed of the rows from
+        ``row`` on (``t0_s`` [s]: the time of row 0), checked for NaN/inf."""
+        torque, wheel, v = ch["torque_nm"], ch["wheel_speed_rad_s"], ch["vehicle_speed_m_s"]
+        if self.gear:
+            torque = torque * self.gear
+            wheel = wheel / self.gear
+        for name, arr in (("torque_nm", torque), ("wheel_speed_rad_s", wheel),
+                          ("vehicle_speed_m_s", v)):
+            self._check(name, arr, row, t0_s)
+        return torque, wheel, v
+
+    def position(self, ch: dict[str, np.ndarray], v: np.ndarray, row: int, t0_s: float
+                 ) -> np.ndarray:
+        """Position [m] of the rows from ``row`` on; consecutive calls when integrated."""
+        if not self.integrate:
+            x = ch["position_m"]
+        elif v.size:
+            vv = v if self.v_last is None else np.concatenate([[self.v_last], v])
+            inc = 0.5 * (vv[1:] + vv[:-1]) / self.fs_hz
+            x = np.cumsum(np.concatenate([[self.x_last], inc]))
+            x = x if self.v_last is None else x[1:]
+            self.v_last, self.x_last = float(v[-1]), float(x[-1])
+        else:
+            x = np.zeros(0)
+        self._check("position_m", x, row, t0_s)
+        return x
+
+    def __call__(self, ch: dict[str, np.ndarray], row: int, t0_s: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        torque, wheel, v = self.fast(ch, row, t0_s)
+        return torque, wheel, v, self.position(ch, v, row, t0_s)
+
+
+def axle_config(run: Run, config: OnboardConfig | None) -> OnboardConfig:
+    """``config``, or the run's ``[onboard]`` table."""
     return config or OnboardConfig.from_dict(run.extra.get("onboard"),
                                              source=str(run.manifest_path))
 
 
-def _stream(run: Run, entry: RunRecording) -> RunStream:
+def axle_stream(run: Run, entry: RunRecording) -> RunStream:
+    """The axle's recording, read by row ranges."""
     return RunStream(entry.path, group=entry.group, channel_map=run.channel_map,
                      sample_rate_hz=entry.sample_rate_hz)
 
 
-def _estimator(run: Run, stream: RunStream, config: OnboardConfig) -> OnboardEstimator:
+def axle_estimator(run: Run, stream: RunStream, config: OnboardConfig
+                   ) -> OnboardEstimator:
+    """A fresh estimator on the stream's sample times."""
     return OnboardEstimator(run.vehicle, run.modulation_frequency_hz, stream.fs_hz,
                             config=config, t0_s=stream.t0_s)
 
@@ -77,13 +151,12 @@ def plan_axle_chunks(run: Run, entry: RunRecording, config: OnboardConfig | None
                      chunk_s: float) -> list[tuple[int, int]]:
     """Row ranges ``(first, stop)`` of the window starts, ``chunk_s`` [s] of them each (whole
     hops); empty when the recording cannot be read by row ranges."""
-    from .run import _AxleSignals
-    config = _config(run, config)
-    with _stream(run, entry) as stream:
+    config = axle_config(run, config)
+    with axle_stream(run, entry) as stream:
         if not stream.streamed or not stream.random_access:
             return []
         _AxleSignals(run, entry, stream.channels, stream.fs_hz, [])  # the reference speed
-        est = _estimator(run, stream, config)
+        est = axle_estimator(run, stream, config)
         n = _n_windows(est, stream.n_samples)
     per = max(1, round(chunk_s * stream.fs_hz / est.hop))
     return [(k * est.hop, min(n, k + per) * est.hop) for k in range(0, n, per)]
@@ -93,12 +166,11 @@ def measure_axle_chunk(run: Run, entry: RunRecording, config: OnboardConfig | No
                        first: int, stop: int) -> AxlePart:
     """Measure the windows starting in rows ``[first, stop)`` (a range of
     :func:`plan_axle_chunks`); raises the batch path's InputError on NaN/inf."""
-    from .run import _AxleSignals
-    config = _config(run, config)
+    config = axle_config(run, config)
     part = AxlePart(first, stop)
-    with _stream(run, entry) as stream:
+    with axle_stream(run, entry) as stream:
         signals = _AxleSignals(run, entry, stream.channels, stream.fs_hz, [])
-        est = _estimator(run, stream, config)
+        est = axle_estimator(run, stream, config)
         starts = range(first, min(stop, _n_windows(est, stream.n_samples) * est.hop),
                        est.hop)
         if not starts:
@@ -124,7 +196,7 @@ def _window_positions(stream: RunStream, signals, starts: list[int], n_win: int
     position integrated block by block as :func:`~torquemod.onboard.run.estimate_axle`
     integrates it."""
     out = np.empty(len(starts))
-    step = max(1, round(_BLOCK_S * stream.fs_hz))
+    step = max(1, round(CHUNK_S * stream.fs_hz))
     buf, buf_start, k = np.zeros(0), 0, 0
     for a in range(0, stream.n_samples, step):
         if k == len(starts):
@@ -150,14 +222,14 @@ def assemble_axle(run: Run, entry: RunRecording, config: OnboardConfig | None,
     import pandas as pd
 
     from .run import OnboardResult, _AxleSignals, load_truth
-    config = _config(run, config)
+    config = axle_config(run, config)
     t_start = time.perf_counter()
     starts = [s for p in parts for s in p.starts]
     windows = [w for p in parts for w in p.windows]
-    with _stream(run, entry) as stream:
+    with axle_stream(run, entry) as stream:
         notes = list(stream.notes)
         signals = _AxleSignals(run, entry, stream.channels, stream.fs_hz, notes)
-        est = _estimator(run, stream, config)
+        est = axle_estimator(run, stream, config)
         positions = _window_positions(stream, signals, starts, est.n_win)
     rows = [est.update(dataclasses.replace(w, position_m=float(x)))
             for w, x in zip(windows, positions, strict=True)]

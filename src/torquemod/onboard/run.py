@@ -11,8 +11,6 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
-import numpy as np
-
 from .._version import __version__
 from ..errors import InputError
 from ..fsutil import atomic_dir, sha256_file
@@ -20,15 +18,17 @@ from ..io.run import Run, RunRecording, read_run
 from ..jsonutil import dump_json
 from ..provenance import software_versions
 from .chunks import (  # noqa: F401  (the fleet's chunk tasks: torquemod.fleettasks)
+    CHUNK_S,
     AxlePart,
+    _AxleSignals,
     assemble_axle,
+    axle_config,
+    axle_estimator,
+    axle_stream,
     measure_axle_chunk,
     plan_axle_chunks,
 )
-from .estimator import TRACK_COLUMNS, OnboardConfig, OnboardEstimator
-
-#: samples handed to the estimator at a time by the batch command
-CHUNK_S = 30.0
+from .estimator import TRACK_COLUMNS, OnboardConfig
 
 
 @dataclass
@@ -59,73 +59,6 @@ class OnboardResult:
         return out
 
 
-class _AxleSignals:
-    """A recording's rows as the estimator's four signals, chunk by chunk: torque [N*m] and
-    wheel speed [rad/s] at the axle (times / divided by ``gear_ratio`` when recorded at the
-    motor), reference speed [m/s] and position [m] (integrated from the reference speed by the
-    trapezoid rule when the run has no position channel; the running sum is carried across
-    chunks in the same order as over the whole recording, so it is bit for bit the same)."""
-
-    def __init__(self, run: Run, entry: RunRecording, channels, fs_hz: float,
-                 notes: list[str]) -> None:
-        veh = run.vehicle
-        self.entry, self.fs_hz, self.gear = entry, fs_hz, veh.gear_ratio
-        if self.gear:
-            notes.append(f"torque and speed recorded at the motor: x{self.gear:g} and "
-                         f"/{self.gear:g} to the axle")
-        if "vehicle_speed_m_s" not in channels:
-            raise InputError("no reference speed (vehicle_speed) in the recording",
-                             path=entry.path, channel="vehicle_speed_m_s",
-                             hint="map the radar, GNSS or an unpowered axle's speed as "
-                                  "vehicle_speed in [channels] (docs/format.md)")
-        self.integrate = "position_m" not in channels
-        if self.integrate:
-            notes.append("no position channel: position integrated from the reference speed")
-        self.v_last: float | None = None
-        self.x_last = 0.0
-
-    def _check(self, name: str, arr: np.ndarray, row: int, t0_s: float) -> None:
-        bad = ~np.isfinite(arr)
-        if bad.any():
-            first = t0_s + (row + int(np.argmax(bad))) / self.fs_hz
-            raise InputError(f"NaN/inf values (the first at t = {first:.3f} s)",
-                             path=self.entry.path, channel=name, hint="repair the recording")
-
-    def fast(self, ch: dict[str, np.ndarray], row: int, t0_s: float
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Torque and wheel speed at the axle and the reference speed of the rows from
-        ``row`` on (``t0_s`` [s]: the time of row 0), checked for NaN/inf."""
-        torque, wheel, v = ch["torque_nm"], ch["wheel_speed_rad_s"], ch["vehicle_speed_m_s"]
-        if self.gear:
-            torque = torque * self.gear
-            wheel = wheel / self.gear
-        for name, arr in (("torque_nm", torque), ("wheel_speed_rad_s", wheel),
-                          ("vehicle_speed_m_s", v)):
-            self._check(name, arr, row, t0_s)
-        return torque, wheel, v
-
-    def position(self, ch: dict[str, np.ndarray], v: np.ndarray, row: int, t0_s: float
-                 ) -> np.ndarray:
-        """Position [m] of the rows from ``row`` on; consecutive calls when integrated."""
-        if not self.integrate:
-            x = ch["position_m"]
-        elif v.size:
-            vv = v if self.v_last is None else np.concatenate([[self.v_last], v])
-            inc = 0.5 * (vv[1:] + vv[:-1]) / self.fs_hz
-            x = np.cumsum(np.concatenate([[self.x_last], inc]))
-            x = x if self.v_last is None else x[1:]
-            self.v_last, self.x_last = float(v[-1]), float(x[-1])
-        else:
-            x = np.zeros(0)
-        self._check("position_m", x, row, t0_s)
-        return x
-
-    def __call__(self, ch: dict[str, np.ndarray], row: int, t0_s: float
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        torque, wheel, v = self.fast(ch, row, t0_s)
-        return torque, wheel, v, self.position(ch, v, row, t0_s)
-
-
 def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = None,
                   *, chunk_s: float = CHUNK_S) -> OnboardResult:
     """Run one axle's recording through :class:`OnboardEstimator`, ``chunk_s`` [s] of rows
@@ -133,18 +66,13 @@ def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = 
     grow with the run (a layout the stream cannot read in parts is read whole; its note
     says so). The track is the one the whole recording fed in the same chunks gives."""
     import pandas as pd
-
-    from ..io.runstream import RunStream
-    config = config or OnboardConfig.from_dict(run.extra.get("onboard"),
-                                               source=str(run.manifest_path))
+    config = axle_config(run, config)
     t_start = time.perf_counter()
     frames = []  # one small columnar table per chunk: a dict per window would grow ~2 kB each
-    with RunStream(entry.path, group=entry.group, channel_map=run.channel_map,
-                   sample_rate_hz=entry.sample_rate_hz) as stream:
+    with axle_stream(run, entry) as stream:
         notes = list(stream.notes)
         signals = _AxleSignals(run, entry, stream.channels, stream.fs_hz, notes)
-        est = OnboardEstimator(run.vehicle, run.modulation_frequency_hz, stream.fs_hz,
-                               config=config, t0_s=stream.t0_s)
+        est = axle_estimator(run, stream, config)
         step = max(1, round(chunk_s * stream.fs_hz))
         for a, ch in stream.chunks(step):
             rows = est.feed(*signals(ch, a, stream.t0_s))
