@@ -201,6 +201,14 @@ def measure_read(path: Path, mode: str) -> dict:
             "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
 
 
+def _in_fresh_process(*args: str) -> tuple[dict, int]:
+    """This script run with ``args`` in a fresh Python process: the figures it prints (JSON)
+    and its peak RSS above its post-import baseline [bytes]."""
+    m = json.loads(subprocess.run([sys.executable, __file__, *args], check=True,
+                                  capture_output=True, text=True).stdout)
+    return m, m["peak_rss"] - m["baseline_rss"]
+
+
 def reading(hours_list: list[float], workdir: str | None, keep: bool,
             chain: bool = False) -> None:
     import os
@@ -222,10 +230,7 @@ def reading(hours_list: list[float], workdir: str | None, keep: bool,
                     print(f"{hours:7.3g}h {path.stat().st_size / mib:9.0f} {mode:>11s} "
                           f"{'skipped: does not fit':>24s}")
                     continue
-                m = json.loads(subprocess.run(
-                    [sys.executable, __file__, "--_read", str(path), "--_mode", mode],
-                    check=True, capture_output=True, text=True).stdout)
-                used = m["peak_rss"] - m["baseline_rss"]
+                m, used = _in_fresh_process("--_read", str(path), "--_mode", mode)
                 print(f"{hours:7.3g}h {path.stat().st_size / mib:9.0f} {mode:>11s} "
                       f"{used / mib:20.0f} MiB {used / one_copy:7.3f} {m['wall_s']:7.1f} "
                       f"{m['cpu_s']:7.1f}", flush=True)
@@ -344,10 +349,7 @@ def train(hours_list: list[float], workdir: str | None) -> None:
             one_copy = n * 4 * 8  # time, torque, wheel speed and the interpolated reference
             size = (folder / "run.h5").stat().st_size
             for mode in ("streamed", "whole"):
-                m = json.loads(subprocess.run(
-                    [sys.executable, __file__, "--_train", str(folder), "--_mode", mode],
-                    check=True, capture_output=True, text=True).stdout)
-                used = m["peak_rss"] - m["baseline_rss"]
+                m, used = _in_fresh_process("--_train", str(folder), "--_mode", mode)
                 print(f"{hours:7.3g}h {size / mib:9.0f} {mode:>9s} {used / mib:20.0f} MiB "
                       f"{used / one_copy:7.3f} {m['windows']:8d} {m['cpu_s']:7.1f} "
                       f"{hours * 3600 / m['cpu_s']:11.0f}", flush=True)

@@ -149,31 +149,37 @@ def low_adhesion(seeds: int, out: Path) -> None:
           f"windows ({100 * false_rows / max(dry_rows, 1):.2f} %)")
 
 
-def speed(out: Path) -> None:
-    """CPU seconds of the estimator alone (arrays in memory, fed in 30-s chunks as the batch
-    command does) on the default run, best of three: simulated seconds per CPU second."""
+def estimator_cpu_s(run_toml: Path, repeat: int = 3) -> tuple[float, float, float, int]:
+    """The estimator alone on the first axle of ``run_toml`` (arrays in memory, fed in 30-s
+    chunks as the batch command does), best of ``repeat``: (recorded s, sample rate [Hz],
+    CPU s, mu fits)."""
     from torquemod.io import read_recording
     from torquemod.io.run import read_run
     from torquemod.onboard.estimator import OnboardEstimator
     from torquemod.onboard.run import _AxleSignals
-    run_train_simulation(load_train_config(), out / "speed", seed=0, force=True)
-    run = read_run(out / "speed" / "run.toml")
+    run = read_run(run_toml)
     e = run.recordings[0]
     rec = read_recording(e.path, group=e.group, channel_map=run.channel_map,
                          sample_rate_hz=e.sample_rate_hz)
     arrays = _AxleSignals(run, e, rec.channels, rec.fs_hz, [])(rec.channels, 0, rec.t0_s)
     n, step = arrays[0].size, round(30 * rec.fs_hz)
     best = np.inf
-    for _ in range(3):
+    for _ in range(repeat):
         est = OnboardEstimator(run.vehicle, run.modulation_frequency_hz, rec.fs_hz)
         t0 = time.process_time()
         for a in range(0, n, step):
             est.feed(*(x[a:a + step] for x in arrays))
         best = min(best, time.process_time() - t0)
-    rec_s = n / rec.fs_hz
+    return n / rec.fs_hz, rec.fs_hz, best, est.tracker.n_fits
+
+
+def speed(out: Path) -> None:
+    """CPU seconds of the estimator alone on the default twin run: simulated seconds per
+    CPU second (:func:`estimator_cpu_s`)."""
+    run_train_simulation(load_train_config(), out / "speed", seed=0, force=True)
+    rec_s, _, best, fits = estimator_cpu_s(out / "speed" / "run.toml")
     print(f"\nestimator alone: {rec_s:.0f} s recorded in {best:.2f} CPU s = "
-          f"{rec_s / best:.0f} x real time per axle on one core "
-          f"({est.tracker.n_fits} mu fits)")
+          f"{rec_s / best:.0f} x real time per axle on one core ({fits} mu fits)")
 
 
 def main() -> None:

@@ -151,30 +151,13 @@ def low_adhesion(seeds: int, out: Path, law: str) -> None:
 
 
 def speed(out: Path) -> None:
-    """CPU seconds of the estimator alone (arrays in memory, 30-s chunks as the batch command
-    feeds them) on the default independent run, best of three."""
-    from torquemod.io.recording import read_recording
-    from torquemod.io.run import read_run
-    from torquemod.onboard.estimator import OnboardEstimator
+    """CPU seconds of the estimator alone on the default independent run, best of three
+    (:func:`onboard.estimator_cpu_s`, the twin benchmark's own timing)."""
+    from onboard import estimator_cpu_s  # benchmarks/onboard.py, beside this script
     path, _ = write_independent_run(IndependentRunSpec(), out / "speed")
-    run = read_run(path)
-    e = run.recordings[0]
-    rec = read_recording(e.path, group=e.group, channel_map=run.channel_map)
-    ch, g = rec.channels, run.vehicle.gear_ratio
-    v = ch["vehicle_speed_m_s"]
-    x = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) / rec.fs_hz)])
-    arrays = (ch["torque_nm"] * g, ch["wheel_speed_rad_s"] / g, v, x)
-    n, step = v.size, round(30 * rec.fs_hz)
-    best = np.inf
-    for _ in range(3):
-        est = OnboardEstimator(run.vehicle, run.modulation_frequency_hz, rec.fs_hz)
-        c0 = time.process_time()
-        for a in range(0, n, step):
-            est.feed(*(arr[a:a + step] for arr in arrays))
-        best = min(best, time.process_time() - c0)
-    rec_s = n / rec.fs_hz
-    print(f"\nestimator alone: {rec_s:.0f} s recorded at {rec.fs_hz:g} Hz in {best:.2f} CPU s = "
-          f"{rec_s / best:.0f} x real time ({est.tracker.n_fits} mu fits)")
+    rec_s, fs, best, fits = estimator_cpu_s(path)
+    print(f"\nestimator alone: {rec_s:.0f} s recorded at {fs:g} Hz in {best:.2f} CPU s = "
+          f"{rec_s / best:.0f} x real time ({fits} mu fits)")
 
 
 def main() -> None:
