@@ -3,24 +3,19 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import duckdb  # the [test] extra
 import pandas as pd
 import pytest
 
 from torquemod.fleet import process_run
-from torquemod.testing import write_synthetic_experiment
+from torquemod.testing import write_short_train_run, write_synthetic_experiment
 
 
 @pytest.fixture(scope="module")
 def results(tmp_path_factory):
-    from torquemod.train import load_train_config, run_train_simulation
     root = tmp_path_factory.mktemp("duck")
     write_synthetic_experiment(root / "rig", n_steps=2, n_cycles=1, fmt="hdf5", seed=5)
-    cfg = load_train_config()
-    cfg = dataclasses.replace(cfg, track=dataclasses.replace(cfg.track, length_m=300.0))
-    run_train_simulation(cfg, root / "train", seed=4)
+    write_short_train_run(root / "train", length_m=300.0, seed=4)
     out = root / "out"
     for name, manifest in (("rig", "rig/experiment.toml"), ("train", "train/run.toml")):
         row = process_run(str(root / manifest), str(out), name)

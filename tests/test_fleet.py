@@ -4,7 +4,6 @@ rig experiments and train runs with damaged ones, against the same runs processe
 
 from __future__ import annotations
 
-import dataclasses
 import datetime as dt
 import shutil
 import tomllib
@@ -22,7 +21,7 @@ from torquemod.fleet import (
     run_names,
 )
 from torquemod.pipeline import process_experiment
-from torquemod.testing import write_synthetic_experiment
+from torquemod.testing import write_short_train_run, write_synthetic_experiment
 
 
 def _edit_toml(path, change) -> None:
@@ -33,7 +32,6 @@ def _edit_toml(path, change) -> None:
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory):
-    from torquemod.train import load_train_config, run_train_simulation
     root = tmp_path_factory.mktemp("fleet")
     for k, name in enumerate(("axle1", "axle2")):
         write_synthetic_experiment(root / name, n_steps=2, n_cycles=1, fmt="hdf5", seed=k)
@@ -44,9 +42,7 @@ def fleet(tmp_path_factory):
     bad = root / "damaged" / "step2_cycle1.h5"
     bad.write_bytes(bad.read_bytes()[:5000])  # truncated, as by a full disk
     # a short train run of the twin (300 m, 15 s), dated; and a copy with a truncated MDF4
-    cfg = load_train_config()
-    cfg = dataclasses.replace(cfg, track=dataclasses.replace(cfg.track, length_m=300.0))
-    run_train_simulation(cfg, root / "train1", seed=3)
+    write_short_train_run(root / "train1", length_m=300.0, seed=3)
     # two axles (the second a copy of the first's recording), dated
     shutil.copy(root / "train1" / "run.mf4", root / "train1" / "axle2.mf4")
     _edit_toml(root / "train1" / "run.toml",

@@ -195,10 +195,8 @@ def test_train_axle_in_chunk_tasks(tmp_path, monkeypatch):
 
     from torquemod.fleet import process_run
     from torquemod.onboard import run as onboard_run
-    from torquemod.train import load_train_config, run_train_simulation
-    cfg = load_train_config()
-    cfg = dataclasses.replace(cfg, track=dataclasses.replace(cfg.track, length_m=300.0))
-    run_train_simulation(cfg, tmp_path / "t", seed=3)
+    from torquemod.testing import write_short_train_run
+    write_short_train_run(tmp_path / "t", length_m=300.0, seed=3)
     calls = []
     real_measure = onboard_run.measure_axle_chunk
 

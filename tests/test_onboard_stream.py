@@ -5,7 +5,6 @@ and HDF5 (its own time vector) runs of the twin."""
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 
 import numpy as np
@@ -14,17 +13,13 @@ import pytest
 from torquemod.io.recording import read_recording
 from torquemod.io.run import read_run
 from torquemod.io.runstream import RunStream
-from torquemod.train import load_train_config
 
 
 @pytest.fixture(scope="module")
 def twin_run(tmp_path_factory):
-    from torquemod.train import run_train_simulation
-    cfg = load_train_config()
-    cfg = dataclasses.replace(cfg, track=dataclasses.replace(cfg.track, length_m=400.0))
-    folder = tmp_path_factory.mktemp("train") / "run"
-    run_train_simulation(cfg, folder, seed=5)
-    return folder
+    from torquemod.testing import write_short_train_run
+    return write_short_train_run(tmp_path_factory.mktemp("train") / "run", length_m=400.0,
+                                 seed=5)
 
 
 def _open(toml):

@@ -23,7 +23,6 @@ from torquemod.onboard import (
     damping_from_ratio,
     measure_window,
 )
-from torquemod.train import load_train_config
 
 RIGID = Vehicle(wheel_radius_m=0.46, normal_load_n=2e5, inertia_kg_m2=270.0)
 LINE = dataclasses.replace(RIGID, motor_inertia_kg_m2=110.0, coupling_stiffness_nm_rad=2e6,
@@ -167,12 +166,9 @@ def test_run_manifest_errors(tmp_path):
 
 @pytest.fixture(scope="module")
 def short_run(tmp_path_factory):
-    from torquemod.train import run_train_simulation
-    cfg = load_train_config()
-    cfg = dataclasses.replace(cfg, track=dataclasses.replace(cfg.track, length_m=700.0))
-    folder = tmp_path_factory.mktemp("train") / "run"
-    run_train_simulation(cfg, folder, seed=3)
-    return folder
+    from torquemod.testing import write_short_train_run
+    return write_short_train_run(tmp_path_factory.mktemp("train") / "run", length_m=700.0,
+                                 seed=3)
 
 
 def _onboard(run, out) -> subprocess.CompletedProcess:

@@ -16,6 +16,7 @@ frequency) is therefore known exactly.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -255,3 +256,16 @@ def synthetic_phase_progression(mu: float, ratio_ka_ks: float, k_scale: float, u
             k = k_scale * swing_slope(lambda z: polach_h(z, r), 0.5 * (lo + hi), a,
                                       slope=lambda z: polach_h_slope(z, r))
     return u * mu, np.degrees(np.arctan2(constant, k)), sw
+
+
+def write_short_train_run(folder, *, length_m: float, seed: int) -> Path:
+    """The default train twin's run (``torquemod simulate --train``) cut to ``length_m`` [m]
+    of track, written into ``folder`` (run.toml + MDF4, run_h5.toml + HDF5, truth.parquet);
+    returns ``folder``."""
+    from dataclasses import replace
+
+    from .train import load_train_config, run_train_simulation
+    cfg = load_train_config()
+    cfg = replace(cfg, track=replace(cfg.track, length_m=length_m))
+    run_train_simulation(cfg, folder, seed=seed)
+    return Path(folder)
