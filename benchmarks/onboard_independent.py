@@ -17,7 +17,7 @@ a leaf patch (low_adhesion delay, false flags on dry rail) and the estimator's o
 
     python benchmarks/onboard_independent.py [--seeds 2] [--laws tanh burckhardt]
         [--depth 0.8 0.9] [--eccentricity 0.002 0.0] [--ratio-bounds 1 7]
-        [--coupling 2e6 [--declare-drive-line]]
+        [--coupling 2e6 [--declare-drive-line]] [--torque-lag 0.004] [--declare-sensors]
 """
 
 from __future__ import annotations
@@ -175,6 +175,12 @@ def main() -> None:
                          "(default: rigid drive line)")
     ap.add_argument("--declare-drive-line", action="store_true",
                     help="write the coupling and motor inertia into run.toml")
+    ap.add_argument("--scenarios-only", action="store_true",
+                    help="skip the driver's-demand runs and the speed measurement")
+    ap.add_argument("--declare-sensors", action="store_true",
+                    help="write the torque's lag and the speed's delay into run.toml")
+    ap.add_argument("--torque-lag", type=float, default=None,
+                    help="the torque signal's first-order lag [s] (default: the generator's)")
     args = ap.parse_args()
     extra = {} if args.ratio_bounds is None else \
         {"onboard": {"ratio_bounds": list(args.ratio_bounds)}}
@@ -186,7 +192,10 @@ def main() -> None:
                     spec = IndependentRunSpec(law=law, levels=tuple(np.linspace(0.2, depth, 4)),
                                               encoder_eccentricity=ecc, extra_toml=extra,
                                               coupling_stiffness_nm_rad=args.coupling,
-                                              declare_drive_line=args.declare_drive_line)
+                                              declare_drive_line=args.declare_drive_line,
+                                              declare_sensor_dynamics=args.declare_sensors)
+                    if args.torque_lag is not None:
+                        spec = replace(spec, torque_lag_s=args.torque_lag)
                     tag = f"{law}_{depth}_{ecc}"
                     out = Path(tmp) / tag
                     scenario(spec, args.seeds, out,
@@ -195,7 +204,11 @@ def main() -> None:
                              + (f", ratio_bounds {args.ratio_bounds}" if extra else "")
                              + (f", coupling {args.coupling:g} N*m/rad"
                                 f"{' (declared)' if args.declare_drive_line else ''}"
-                                if args.coupling else ""))
+                                if args.coupling else "")
+                             + f", torque lag {spec.torque_lag_s * 1e3:g} ms"
+                             + (" (declared)" if args.declare_sensors else ""))
+        if args.scenarios_only:
+            return
         for law in args.laws:
             low_adhesion(args.seeds, Path(tmp) / f"la_{law}", law)
         speed(Path(tmp))

@@ -123,6 +123,9 @@ class IndependentRunSpec:
     encoder_eccentricity: float = 0.002   # once per motor revolution, relative
     axle_ripple: float = 0.001            # once per axle revolution, relative
     encoder_gate_samples: int = 2         # speed = angle change over this many samples
+    # write the sensors' dynamics into run.toml: torque_lag_s, and speed_delay_s = half the
+    # counting gate (a hidden run may well not declare them)
+    declare_sensor_dynamics: bool = False
     speed_quantum_rpm: float = 0.25
     radar_rate_hz: float = 10.0
     radar_offset_s: float = -0.037        # its first sample before the logger's first
@@ -518,6 +521,9 @@ def write_independent_run(spec: IndependentRunSpec, folder: str | Path, *, fmt: 
                 f"coupling_stiffness_nm_rad = {spec.coupling_stiffness_nm_rad!r}",
                 f"coupling_damping_nm_s_rad = {spec.coupling_damping_nm_s_rad!r}"]
                if spec.declare_drive_line and spec.coupling_stiffness_nm_rad else []),
+             *([f"torque_lag_s = {spec.torque_lag_s!r}",
+                f"speed_delay_s = {spec.encoder_gate_samples / (2 * spec.sample_rate_hz)!r}"]
+               if spec.declare_sensor_dynamics else []),
              "", "[test]",
              f"modulation_frequency_hz = {spec.modulation_frequency_hz!r}",
              f"modulation_amplitude_nm = {spec.modulation_amplitude_nm!r}",

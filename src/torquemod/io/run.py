@@ -9,6 +9,8 @@ tables and ``[channels]`` map (read by the same readers), with ``[vehicle]`` in 
     normal_load_n = 200000.0       # the axle's (both wheels)
     inertia_kg_m2 = 270.0          # wheelset + gears + motor rotor, referred to the axle
     # gear_ratio = 4.5             # only when torque and speed are recorded at the motor
+    # torque_lag_s = 0.002         # the torque signal's first-order lag (drive's estimate)
+    # speed_delay_s = 0.0005       # the speed signal's delay (half an encoder gate)
 
     [test]
     modulation_frequency_hz = 5.0
@@ -21,6 +23,7 @@ tables and ``[channels]`` map (read by the same readers), with ``[vehicle]`` in 
 
 from __future__ import annotations
 
+import cmath
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,7 +33,10 @@ from .manifest import _load_toml, check_keys, checked_channel_map, recording_fil
 
 _VEHICLE_REQUIRED = ("wheel_radius_m", "normal_load_n", "inertia_kg_m2")
 _VEHICLE_OPTIONAL = ("gear_ratio", "motor_inertia_kg_m2", "coupling_stiffness_nm_rad",
-                     "coupling_damping_nm_s_rad", "vehicle", "mass_kg")
+                     "coupling_damping_nm_s_rad", "vehicle", "mass_kg", "torque_lag_s",
+                     "torque_delay_s", "speed_delay_s")
+#: the sensors' dynamics: time constants and delays [s], each >= 0
+_SENSOR_DELAYS = ("torque_lag_s", "torque_delay_s", "speed_delay_s")
 _TEST_REQUIRED = ("modulation_frequency_hz", "modulation_amplitude_nm")
 _RECORDING_KEYS = ("file", "axle", "group", "sample_rate_hz", "date", "note", "comment")
 
@@ -40,7 +46,12 @@ class Vehicle:
     """``[vehicle]``: rolling radius [m], axle load [N] (both wheels), the inertia referred
     to the axle [kg*m^2]; ``gear_ratio`` (motor turns per axle turn) when torque and speed
     are recorded at the motor; the drive line (``motor_inertia_kg_m2`` of the total,
-    referred to the axle, and the coupling [N*m/rad], [N*m*s/rad]) when known."""
+    referred to the axle, and the coupling [N*m/rad], [N*m*s/rad]) when known. The
+    recorded signals' own dynamics when known [s]: ``torque_lag_s`` the time constant of a
+    first-order lag of the torque (a drive's torque estimated from motor current is
+    filtered), ``torque_delay_s`` and ``speed_delay_s`` pure delays (transmission, a speed
+    from counting encoder pulses over a gate is late by half the gate); the estimator
+    removes them from the measured torque-to-speed ratio (:meth:`sensor_response`)."""
 
     wheel_radius_m: float
     normal_load_n: float
@@ -50,11 +61,23 @@ class Vehicle:
     coupling_stiffness_nm_rad: float | None = None
     coupling_damping_nm_s_rad: float = 0.0
     name: str = ""
+    torque_lag_s: float = 0.0
+    torque_delay_s: float = 0.0
+    speed_delay_s: float = 0.0
 
     @property
     def has_drive_line(self) -> bool:
         return self.motor_inertia_kg_m2 is not None and \
             self.coupling_stiffness_nm_rad is not None
+
+    def sensor_response(self, frequency_hz: float) -> complex:
+        """H = (recorded torque / recorded speed) / (true torque / true speed) at
+        ``frequency_hz`` [Hz]: ``exp(-j*Omega*(tau_T - tau_w)) / (1 + j*Omega*tau_lag)``
+        for the declared delays tau_T, tau_w and the torque's first-order lag tau_lag
+        (1 when none is declared). Divide a measured ratio by it."""
+        om = 2.0 * cmath.pi * frequency_hz
+        net = self.torque_delay_s - self.speed_delay_s
+        return cmath.exp(-1j * om * net) / (1.0 + 1j * om * self.torque_lag_s)
 
 
 @dataclass(frozen=True)
@@ -114,6 +137,14 @@ def read_run(path: str | Path) -> Run:
         if isinstance(d, bool) or not isinstance(d, int | float) or d < 0:
             raise ManifestError("vehicle.coupling_damping_nm_s_rad must be >= 0", path=path)
         opt["coupling_damping_nm_s_rad"] = float(d)
+    for key in _SENSOR_DELAYS:
+        if key in vt:
+            d = vt[key]
+            if isinstance(d, bool) or not isinstance(d, int | float) or not 0 <= d < 1:
+                raise ManifestError(f"vehicle.{key} must be a time in seconds, >= 0 and "
+                                    f"< 1, got {d!r}", path=path,
+                                    hint="e.g. 0.002 for 2 ms; leave it out when unknown")
+            opt[key] = float(d)
     if ("motor_inertia_kg_m2" in opt) != ("coupling_stiffness_nm_rad" in opt):
         raise ManifestError("the drive line needs motor_inertia_kg_m2 and "
                             "coupling_stiffness_nm_rad together", path=path,

@@ -5,6 +5,7 @@ coefficient from the phase (issue 10). Pure functions; the same DSP core as the 
 
 from __future__ import annotations
 
+import cmath
 import math
 from dataclasses import dataclass
 
@@ -120,7 +121,10 @@ def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
     Phase: the sine fit at the modulation frequency with a line and the first two orders of
     the axle's (and the motor's, :func:`rotation_orders_hz`) revolution (eccentricity, tooth
     errors) as nuisance terms, standard error at
-    the Cramer-Rao bound (FACTS §5). CoA = (T - J*dw/dt)/(N*R) with dw/dt the slope of the
+    the Cramer-Rao bound (FACTS §5); the declared sensor dynamics
+    (:meth:`~torquemod.io.run.Vehicle.sensor_response`) are divided out of the
+    torque-to-speed ratio, so ``phase_deg`` is the lag behind the true torque.
+    CoA = (T - J*dw/dt)/(N*R) with dw/dt the slope of the
     axle speed. Creep coefficient k = D*V/(R^2*N) with D from the phase and amplitude ratio
     (:func:`damping_from_ratio`); its standard error from k's change over one standard
     error of the phase and of the (log) amplitude ratio.
@@ -143,8 +147,11 @@ def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
     coa_se = float(np.std(torque_nm)) / math.sqrt(n) / (n_load * r)
     v_ref = max(abs(v_mean), 0.5)
     creepage = (w_mean * r - v_mean) / v_ref
-    phase = fit.phase_deg
-    phi, rho = math.radians(phase), fit.torque_amplitude / fit.wheel_amplitude
+    # the ratio of the true signals: the declared sensor dynamics divided out
+    ratio = fit.torque_amplitude / fit.wheel_amplitude * cmath.exp(
+        1j * math.radians(fit.phase_deg)) / vehicle.sensor_response(frequency_hz)
+    phi, rho = cmath.phase(ratio), abs(ratio)
+    phase = math.degrees(phi)
     e = math.radians(fit.phase_stderr_deg)  # also the relative se of the amplitude ratio
 
     def k_of(ph, rh):

@@ -178,14 +178,18 @@ def _channels_table(fmt: str) -> dict:
 
 
 def run_manifest(cfg: TrainConfig, file: str, fmt: str) -> dict:
-    """The ``run.toml`` document of a simulated run (drive line included: the twin knows)."""
+    """The ``run.toml`` document of a simulated run (drive line and the torque signal's lag
+    included: the twin knows them)."""
     v = cfg.vehicle
+    vehicle = {"vehicle": "torquemod train twin", "wheel_radius_m": v.wheel_radius_m,
+               "normal_load_n": v.normal_load_n, "inertia_kg_m2": v.inertia_kg_m2,
+               "motor_inertia_kg_m2": v.motor_inertia_kg_m2,
+               "coupling_stiffness_nm_rad": v.coupling_stiffness_nm_rad,
+               "coupling_damping_nm_s_rad": v.coupling_damping_nm_s_rad}
+    if cfg.sensors.torque_lag_s > 0:  # the drive's torque estimate is filtered: declared
+        vehicle["torque_lag_s"] = cfg.sensors.torque_lag_s
     return {
-        "vehicle": {"vehicle": "torquemod train twin", "wheel_radius_m": v.wheel_radius_m,
-                    "normal_load_n": v.normal_load_n, "inertia_kg_m2": v.inertia_kg_m2,
-                    "motor_inertia_kg_m2": v.motor_inertia_kg_m2,
-                    "coupling_stiffness_nm_rad": v.coupling_stiffness_nm_rad,
-                    "coupling_damping_nm_s_rad": v.coupling_damping_nm_s_rad},
+        "vehicle": vehicle,
         "test": {"modulation_frequency_hz": cfg.modulation_frequency_hz,
                  "modulation_amplitude_nm": cfg.modulation_amplitude_nm},
         "recording": [{"file": file, "axle": 1}],
