@@ -286,8 +286,9 @@ def _write_step(folder: Path, plan, channels: dict, bounds: list[int], fs: float
                         t0_s=plan.t0_s + a * dt, source="torquemod simulate")
         name = f"step{plan.index:02d}_cycle{j}" if files_per_cycle else f"step{plan.index:02d}"
         file = name + _SUFFIX[fmt]
-        if fmt == "hdf5":
-            write_recording(folder / file, rec, fmt=fmt, write_time=True)
+        if fmt == "hdf5":  # the values copied in after h5py closes the file: no GIL held
+            write_recording(folder / file, rec, fmt=fmt, write_time=True,
+                            data_after_close=True)
         else:
             write_recording(folder / file, rec, fmt=fmt)
         entry = {"step": plan.index, "dc_torque_nm": plan.dc_nm, "file": file}
@@ -335,9 +336,11 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
 
     steps, recordings = [], []
     slip_step = slip_time = None
-    # threads that integrate and finish steps at once (the compiled integrator, numpy's
-    # noise and array work release the GIL): the CPUs this process may use, at most 4
-    with ThreadPoolExecutor(max_workers=workers or min(4, default_workers())) as pool:
+    # threads that integrate and finish steps at once (the compiled integrator, noise and
+    # truth kernels and the files' data writes release the GIL): the CPUs this process may
+    # use, at most one per step
+    with ThreadPoolExecutor(max_workers=workers or min(len(plans),
+                                                       default_workers())) as pool:
         futures = []
         for plan in plans:  # in step order: a step waiting for the one before never blocks
             futures.append(pool.submit(run, plan, futures[-1] if futures else None))
@@ -395,8 +398,8 @@ def run_simulation(config: SimConfig, out_dir: Path, *, seed: int = 0, fmt: str 
     interrupted run leaves no half-written experiment. An existing non-empty ``out_dir``
     raises :class:`~torquemod.errors.OutputError` unless ``force`` (then it is replaced).
     Deterministic for a given ``seed`` (and the same for any ``workers``: the threads that
-    run the steps side by side, default the CPUs available up to 4; 1 runs them one after
-    the other, e.g. inside a process pool that already fills the cores).
+    run the steps side by side, default the CPUs available, at most one per step; 1 runs
+    them one after the other, e.g. inside a process pool that already fills the cores).
     """
     if fmt not in _SUFFIX:
         raise InputError(f"unknown output format '{fmt}'", hint="use csv or hdf5")

@@ -26,6 +26,8 @@ from .kernels import SMALL, cos_small, sin_small
 from .params import SimConfig
 
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
+#: columns of the output the truth fit reads: platform angle, torque, wheel speed
+_FIT_COLS = np.array([_COL["platform_angle_rad"], _COL["torque_nm"], _COL["wheel_speed_rad_s"]])
 
 
 def _cycle_bounds(theta: np.ndarray, start: int, cycles: int) -> list[int]:
@@ -39,7 +41,7 @@ def _cycle_bounds(theta: np.ndarray, start: int, cycles: int) -> list[int]:
     return [start, *(int(i) for i in idx)]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _sine_fit_sums(x, y, n, dw, gram, rhs):
     """Normal equations of the fit of ``cos(k*dw)``, ``sin(k*dw)``, 1 to ``x[:n]`` and
     ``y[:n]``: ``gram`` (3, 3) and ``rhs`` (3, 2). The basis is rotated sample by sample
@@ -250,31 +252,94 @@ _MEAN_COLS = np.array([_COL[c] for c in _MEANS])
 _STD_COLS = np.array([_MEANS.index("creepage"), _MEANS.index("platform_speed_rad_s")])
 
 
+@numba.njit(cache=True, nogil=True)
+def _fit_sums(raw, t0_s, fs, stride, w, wob, coef, cols, win_lo, win_hi, gram, rhs, ref):
+    """The truth fit's normal equations over windows of one step, without the GIL.
+
+    The fit's samples are the rows ``i*stride`` of ``raw`` (sample ``k`` at
+    ``t0_s + k/fs`` [s]); their basis is :func:`_fit_basis` (modulation cos, sin, DC, then the
+    wobble rows of ``wob``; ``cols = (platform angle, torque, wheel speed)`` columns of
+    ``raw``). For each window ``j`` (fit samples ``win_lo[j] <= i < win_hi[j]``):
+    ``gram[j] = X^T X`` and ``rhs[j] = X^T [torque, speed]``. ``ref[i]``: the speed
+    reference's wobble at fit sample ``i``, ``X[i, 3:] @ coef``. The windows overlap (the
+    whole step and its revolutions), so the sums are taken over the pieces between
+    consecutive window edges (each sample once) and added up per window."""
+    n = (raw.shape[0] + stride - 1) // stride
+    m = 3 + 2 * wob.shape[0]
+    t, theta = np.empty(n), np.empty(n)
+    for i in range(n):
+        t[i] = t0_s + (i * stride) / fs
+        theta[i] = raw[i * stride, cols[0]]
+    x = np.empty((n, m))
+    _fit_basis(t, w, wob, theta, x)
+    for i in range(n):
+        r = 0.0
+        for q in range(m - 3):
+            r += x[i, 3 + q] * coef[q]
+        ref[i] = r
+    edges = np.unique(np.concatenate((win_lo, win_hi)))
+    nseg = edges.size - 1
+    sg = np.zeros((max(nseg, 1), m, m))
+    sr = np.zeros((max(nseg, 1), m, 2))
+    nw = win_lo.size
+    gram[:] = 0.0
+    rhs[:] = 0.0
+    for g in range(nseg):
+        for i in range(edges[g], edges[g + 1]):
+            u, v = raw[i * stride, cols[1]], raw[i * stride, cols[2]]
+            for p in range(m):
+                bp = x[i, p]
+                sr[g, p, 0] += bp * u
+                sr[g, p, 1] += bp * v
+                for q in range(p, m):
+                    sg[g, p, q] += bp * x[i, q]
+        for j in range(nw):
+            if win_lo[j] <= edges[g] and edges[g + 1] <= win_hi[j]:
+                gram[j] += sg[g]
+                rhs[j] += sr[g]
+    for j in range(nw):
+        for p in range(m):
+            for q in range(p):
+                gram[j, p, q] = gram[j, q, p]
+
+
+def _phase_from_sums(gram: np.ndarray, rhs: np.ndarray) -> float:
+    """:func:`_phase_from_basis` from its normal equations (``gram = X^T X``,
+    ``rhs = X^T [torque, speed]``)."""
+    coef = np.linalg.lstsq(gram, rhs, rcond=1e-12)[0]
+    ang = np.angle(coef[0] - 1j * coef[1])
+    return float((np.degrees(ang[0] - ang[1]) + 180.0) % 360.0 - 180.0)
+
+
 def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.ndarray,
                  spans: list[tuple[int, int]]) -> list[dict]:
     """What was simulated over each span ``(a, b)`` of sample indices into ``raw`` (sample 0
     at ``t0_s`` [s]): means, CoA of the mean forces, the phase with the wobble fitted out
-    (:func:`wobble_free_phase_deg`), the creepage's and the platform speed's variation
-    (``std``; the latter ``/mean`` [%]) and that of the speed reference over the same
-    samples. One basis at the fit's stride serves every span (and gives the reference:
-    ``amp*sin(arg + ph) = amp*(sin(arg)*cos(ph) + cos(arg)*sin(ph))``)."""
+    (:func:`wobble_free_phase_deg`: least squares on every ``_WOBBLE_FIT_STRIDE``-th sample
+    of the span's whole modulation periods), the creepage's and the platform speed's
+    variation (``std``; the latter ``/mean`` [%]) and that of the speed reference over the
+    same samples (``amp*sin(arg + ph) = amp*(sin(arg)*cos(ph) + cos(arg)*sin(ph))`` from the
+    fit's basis). The sums run in compiled kernels that release the GIL
+    (:func:`_fit_sums`, :func:`_partition_moments`), so that steps finish side by side."""
     f, fs = config.modulation.actual_frequency_hz, config.sensors.sample_rate_hz
     w0 = config.rig.platform_speed_rad_s
-    idx = np.arange(0, raw.shape[0], _WOBBLE_FIT_STRIDE)
-    t = t0_s + idx / fs
-    sub = raw[idx]  # the fit's samples, all columns: one gather
+    stride = _WOBBLE_FIT_STRIDE
+    n_fit = (raw.shape[0] + stride - 1) // stride
     nw = wobble.shape[0]
+    ref = np.zeros(n_fit)
     if nw:
-        w = 2.0 * np.pi * f
-        x = np.empty((idx.size, 3 + 2 * nw))
-        _fit_basis(t, w, np.ascontiguousarray(wobble, dtype=np.float64),
-                   np.ascontiguousarray(sub[:, _COL["platform_angle_rad"]]), x)
-        coef = np.column_stack([wobble[:, 0] * np.sin(wobble[:, 2]),
-                                wobble[:, 0] * np.cos(wobble[:, 2])]).ravel()
-        ref = x[:, 3:] @ coef
-        ys = sub[:, [_COL["torque_nm"], _COL["wheel_speed_rad_s"]]]
-    else:
-        ref = np.zeros(idx.size)
+        windows = []
+        for a, b in spans:
+            n = int(np.floor((b - a) / fs * f) * fs / f)  # whole modulation periods
+            windows.append((-(-a // stride), -(-(a + n) // stride)))
+        lo, hi = (np.array(v, dtype=np.int64) for v in zip(*windows, strict=True))
+        m = 3 + 2 * nw
+        gram, rhs = np.empty((len(spans), m, m)), np.empty((len(spans), m, 2))
+        wob = np.ascontiguousarray(wobble, dtype=np.float64)
+        coef = np.column_stack([wob[:, 0] * np.sin(wob[:, 2]),
+                                wob[:, 0] * np.cos(wob[:, 2])]).ravel()
+        _fit_sums(raw, t0_s, fs, stride, 2.0 * np.pi * f, wob, coef, _FIT_COLS, lo, hi,
+                  gram, rhs, ref)
     edges = [a for a, _ in spans[1:]] + [spans[-1][1]] if len(spans) > 1 else []
     partition = (len(spans) > 1 and spans[0] == (edges[0], edges[-1])
                  and all(spans[j][1] == spans[j + 1][0] for j in range(1, len(spans) - 1)))
@@ -292,14 +357,12 @@ def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.nda
             _span_moments(raw, a, b, _MEAN_COLS, mean, _STD_COLS, std)
         m = dict(zip(_MEANS, mean.tolist(), strict=True))
         if nw:
-            n = int(np.floor((b - a) / fs * f) * fs / f)  # whole modulation periods
-            k = slice(np.searchsorted(idx, a), np.searchsorted(idx, a + n))
-            phase = _phase_from_basis(x[k], ys[k, 0], ys[k, 1])
+            phase = _phase_from_sums(gram[i], rhs[i])
         else:
             seg = raw[a:b]
             phase = sine_fit_phase_deg(seg[:, _COL["torque_nm"]],
                                        seg[:, _COL["wheel_speed_rad_s"]], fs, f)
-        r = ref[np.searchsorted(idx, a):np.searchsorted(idx, b)]
+        r = ref[-(-a // stride):-(-b // stride)]
         out.append({"creepage_mean": m["creepage"],
                     "creepage_std": float(std[0]),
                     "coa_mean": float(np.hypot(m["fx_n"], m["fy_n"]) / m["fz_n"]),
