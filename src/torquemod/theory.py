@@ -233,7 +233,7 @@ class LargeSignalResult:
     slipped: bool
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _dense_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a^-1 b`` by Gaussian elimination with partial pivoting, single-threaded.
 

@@ -14,6 +14,7 @@ recording's notes.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import h5py
@@ -147,14 +148,19 @@ def read_hdf5(path: Path, *, group: str | None = None,
 
 def write_hdf5(path: Path, rec: Recording, *, group: str | None = None,
                write_time: bool = False, compression: str | None = None,
-               attrs: dict | None = None) -> Path:
+               attrs: dict | None = None, data_after_close: bool = False) -> Path:
     """Write ``rec`` into ``group`` (root by default) of ``path`` (appending to the file).
 
     The channels ``rec`` has are written (absent optional channels are left out, and any
     left from an earlier write to the same group are removed). The sample rate goes into the
     ``sample_rate_hz`` attribute; ``write_time`` also writes the ``time_s`` dataset;
-    ``rec.notes`` go into the ``torquemod_notes`` attribute.
+    ``rec.notes`` go into the ``torquemod_notes`` attribute. ``data_after_close`` (without
+    compression): the datasets' contiguous storage is allocated when they are created and
+    the values are copied into it by plain positional writes after HDF5 has closed the file
+    (the same float64 values and layout); those writes run without the GIL and outside
+    h5py's lock, so that threads writing files overlap (the twin, issue 12).
     """
+    raw_writes = []
     with h5py.File(path, "a") as fh:
         g = fh.require_group(group) if group else fh
         g.attrs["torquemod_layout"] = LAYOUT_VERSION
@@ -175,7 +181,24 @@ def write_hdf5(path: Path, rec: Recording, *, group: str | None = None,
             data = rec.time_s() if name == "time_s" else rec.channels[name]
             if name in g:
                 del g[name]
-            ds = g.create_dataset(name, data=np.asarray(data, dtype=np.float64),
-                                  compression=compression)
+            if data_after_close and compression is None and len(data):
+                arr = np.ascontiguousarray(data, dtype="<f8")
+                dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+                dcpl.set_alloc_time(h5py.h5d.ALLOC_TIME_EARLY)
+                dcpl.set_fill_time(h5py.h5d.FILL_TIME_NEVER)
+                ds = g.create_dataset(name, shape=arr.shape, dtype="<f8", dcpl=dcpl)
+                raw_writes.append((ds.id.get_offset(), memoryview(arr).cast("B")))
+            else:
+                ds = g.create_dataset(name, data=np.asarray(data, dtype=np.float64),
+                                      compression=compression)
             ds.attrs["unit"] = CHANNEL_UNITS[name]
+    if raw_writes:
+        fd = os.open(path, os.O_WRONLY)
+        try:
+            for offset, buf in raw_writes:
+                while buf:  # pwrite may write less than asked
+                    done = os.pwrite(fd, buf, offset)
+                    offset, buf = offset + done, buf[done:]
+        finally:
+            os.close(fd)
     return path
