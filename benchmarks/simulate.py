@@ -68,10 +68,18 @@ import argparse
 import os
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+import torquemod.io.hdf5 as _hdf5
+import torquemod.rig.noise as _noise
+import torquemod.rig.sensors as _sensors
+import torquemod.rig.steps as _steps
+import torquemod.rig.truth as _truth
+import torquemod.simulate as _simulate
+import torquemod.theory as _theory
 from torquemod.rig.batch import plan_run
 from torquemod.rig.dynamics import OUT_COLUMNS, initial_state, integrate, pack_parameters
 from torquemod.rig.sensors import measure
@@ -160,6 +168,143 @@ def batch_throughput(configs, repeat: int) -> None:
               f"{len(configs) / best:.2f} points/s{extra}")
 
 
+#: the phases of a step as the twin runs them (module, function name, label); nested calls
+#: are charged to the innermost phase
+_PHASES = ((_simulate, "integrate_step", "integrator"),
+           (_simulate, "recorded_step_truth", "truth: steady state, small-signal theory"),
+           (_truth, "_large_signal", "truth: large-signal theory"),
+           (_truth, "_spans_truth", "truth: simulated statistics and phase"),
+           (_simulate, "measure", "sensor noise"),
+           (_simulate, "_write_step", "HDF5 files"))
+#: the compiled kernels (numba, nogil=True) and system calls that run without the GIL
+_GIL_FREE = ((_steps, "integrate"), (_truth, "_fit_sums"), (_truth, "_partition_moments"),
+             (_truth, "_span_moments"), (_truth, "_sine_fit_sums"),
+             (_sensors, "_encoder_kernel"), (_noise, "_add_normal"), (_theory, "_dense_solve"),
+             (_hdf5.os, "pwrite"))
+
+
+@dataclass
+class CpuSplit:
+    """CPU seconds of one run (``run_simulation`` on one worker thread): per phase
+    ``phases[label] = (cpu_s, gil_free_cpu_s)``; ``total_s`` the process's CPU over the run,
+    ``step_max_s`` the CPU of its longest step (integration to files)."""
+
+    phases: dict
+    total_s: float
+    step_max_s: float
+
+    @property
+    def parallel_s(self) -> float:
+        """CPU inside GIL-free kernels and system calls [s]."""
+        return sum(free for _cpu, free in self.phases.values())
+
+    @property
+    def serial_s(self) -> float:
+        """CPU with the GIL held (or not known to be without it) [s]."""
+        return self.total_s - self.parallel_s
+
+
+def cpu_split(config, seed: int = 0) -> CpuSplit:
+    """Run ``run_simulation`` (HDF5) on one worker thread with every phase of a step
+    (:data:`_PHASES`) and every GIL-free kernel (:data:`_GIL_FREE`, each checked to be
+    compiled with ``nogil``) wrapped by a thread-CPU clock; the wrappers are removed after.
+    What is not inside a GIL-free kernel counts as serial (holding the GIL, or h5py's lock):
+    conservative, numpy's own loops release the GIL too."""
+    stack, acc, steps = [], {}, []
+
+    def phase(fn, label):
+        def wrapped(*a, **k):
+            stack.append([label, time.thread_time(), 0.0, 0.0])  # label, start, inner, free
+            try:
+                return fn(*a, **k)
+            finally:
+                lab, t0, inner, free = stack.pop()
+                cpu = time.thread_time() - t0
+                tot = acc.setdefault(lab, [0.0, 0.0])
+                tot[0] += cpu - inner
+                tot[1] += free
+                if stack:
+                    stack[-1][2] += cpu
+                if label == "integrator":
+                    steps.append([t0, None])
+                elif label == "HDF5 files":
+                    steps[-1][1] = time.thread_time()
+        return wrapped
+
+    def gil_free(fn):
+        def wrapped(*a, **k):
+            t0 = time.thread_time()
+            try:
+                return fn(*a, **k)
+            finally:
+                if stack:
+                    stack[-1][3] += time.thread_time() - t0
+        return wrapped
+
+    saved = []
+    for mod, name in _GIL_FREE:
+        fn = getattr(mod, name)
+        if hasattr(fn, "targetoptions") and not fn.targetoptions.get("nogil"):
+            raise RuntimeError(f"{name} is not compiled with nogil=True")
+        saved.append((mod, name, fn))
+        setattr(mod, name, gil_free(fn))
+    for mod, name, label in _PHASES:
+        fn = getattr(mod, name)
+        saved.append((mod, name, fn))
+        setattr(mod, name, phase(fn, label))
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            c0 = time.process_time()
+            run_simulation(config, Path(tmp) / "exp", seed=seed, fmt="hdf5", progress=False,
+                           workers=1)
+            total = time.process_time() - c0
+    finally:
+        for mod, name, fn in reversed(saved):
+            setattr(mod, name, fn)
+    phases = {label: tuple(acc.get(label, (0.0, 0.0))) for _m, _n, label in _PHASES}
+    inside = sum(cpu for cpu, _free in phases.values())
+    phases["run set-up, truth.json, manifest"] = (max(total - inside, 0.0), 0.0)
+    step_max = max((b - a for a, b in steps if b is not None), default=0.0)
+    return CpuSplit(phases, total, step_max)
+
+
+def print_split(split: CpuSplit, rec_s: float) -> None:
+    """The CPU split of one run and the Amdahl projection from it."""
+    print(f"CPU of one run (one worker thread): {split.total_s:.3f} s, of which GIL-free "
+          f"{split.parallel_s:.3f} s and serial (GIL held) {split.serial_s:.3f} s "
+          f"({100 * split.serial_s / split.total_s:.0f} %); longest step "
+          f"{split.step_max_s:.3f} s")
+    for label, (cpu, free) in split.phases.items():
+        print(f"  {label:42s} {1e3 * cpu:6.1f} ms CPU, {1e3 * (cpu - free):6.1f} ms serial")
+    print(f"PROJECTION (Amdahl, from the measured {split.parallel_s:.3f} s parallel and "
+          f"{split.serial_s:.3f} s serial CPU; the longest step {split.step_max_s:.3f} s "
+          "bounds any core count; not measured):")
+    for n in (1, 2, 4, 8, 16):
+        amdahl = max(split.serial_s + split.parallel_s / n, split.step_max_s)
+        best = max(split.serial_s, split.total_s / n, split.step_max_s)
+        print(f"  {n:2d} cores: {rec_s / amdahl:5.0f} x real time (serial part never "
+              f"overlapped) to {rec_s / best:5.0f} x (serial part fully overlapped)")
+
+
+def threads_speedup(config, repeat: int, rec_s: float) -> None:
+    """Wall seconds of ``run_simulation`` (HDF5) on 1 and on 2 worker threads, alternated,
+    and the serial share Amdahl's law infers from them: ``s = 2*T2/T1 - 1``."""
+    if len(os.sched_getaffinity(0)) < 2:
+        print("threads 1 vs 2: needs 2 CPUs")
+        return
+    walls = {1: [], 2: []}
+    for _ in range(repeat):
+        for w in (1, 2):
+            with tempfile.TemporaryDirectory() as tmp:
+                t0 = time.perf_counter()
+                run_simulation(config, Path(tmp) / "exp", seed=0, fmt="hdf5", progress=False,
+                               workers=w)
+                walls[w].append(time.perf_counter() - t0)
+    t1, t2 = min(walls[1]), min(walls[2])
+    print(f"threads 1 vs 2 (HDF5, best of {repeat}): {rec_s / t1:.0f} x and {rec_s / t2:.0f} x "
+          f"real time -> speed-up {t1 / t2:.2f}, serial share (Amdahl) {2 * t2 / t1 - 1:.2f}")
+
+
 def _report(label: str, sim_s: float, walls: list[float], what: str) -> None:
     runs = ", ".join(f"{w:.2f} s" for w in walls)
     best = min(walls)
@@ -203,6 +348,9 @@ def main() -> None:
         rec_s = n_rec * proc.cycles_per_step * config.rig.revolution_s
         _report(f"run_simulation ({fmt})", rec_s, walls,
                 f"recorded (7 columns at {config.sensors.sample_rate_hz:g} Hz)")
+    splits = [cpu_split(config) for _ in range(args.repeat)]
+    print_split(min(splits, key=lambda sp: sp.total_s), rec_s)
+    threads_speedup(config, args.repeat, rec_s)
     if args.points > 0:
         batch_throughput(batch_configs(args.points), args.repeat)
 

@@ -28,6 +28,7 @@ nonlinear model is computed by harmonic balance and its first harmonics give tha
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import numba
@@ -160,7 +161,15 @@ def _fx(xi_x, params: RigParams):
 
 def creep_curve_peak(params: RigParams, *, max_creepage: float = 0.5) -> tuple[float, float]:
     """``(creepage, torque_nm)`` at the maximum of ``R_w*F_x(xi_x)``: the largest DC torque
-    the wheel can carry in steady rolling (beyond it the wheel slips)."""
+    the wheel can carry in steady rolling (beyond it the wheel slips). Remembered per
+    (hashable, frozen) parameter set: every :func:`operating_point` needs it (~1 ms)."""
+    try:
+        return _creep_curve_peak_memo(params, float(max_creepage))
+    except TypeError:  # parameters that cannot be hashed: computed every time
+        return _creep_curve_peak(params, max_creepage)
+
+
+def _creep_curve_peak(params: RigParams, max_creepage: float) -> tuple[float, float]:
     grid = np.geomspace(1e-7, max_creepage, 4000)
     fx = _fx(grid, params)[0]
     i = int(np.argmax(fx))
@@ -169,6 +178,9 @@ def creep_curve_peak(params: RigParams, *, max_creepage: float = 0.5) -> tuple[f
                           method="bounded", options={"xatol": 1e-12})
     xi = float(res.x)
     return xi, float(_fx(xi, params)[0]) * params.wheel_radius_m
+
+
+_creep_curve_peak_memo = functools.lru_cache(maxsize=256)(_creep_curve_peak)
 
 
 def operating_point(dc_torque_nm: float, params: RigParams) -> OperatingPoint:
