@@ -210,14 +210,14 @@ def test_mean_creepage_matches_steady_state(oracle_run):
 
 
 def test_integrator_step_is_configurable_and_checked():
-    """``procedure.samples_per_step`` (default 4) is validated, and a step too long for the
+    """``procedure.samples_per_step`` (default 8) is validated, and a step too long for the
     rig's fastest mode (RK4 stability) is refused with a hint."""
     assert load_config(overrides={"procedure": {"samples_per_step": 1}}
                        ).procedure.samples_per_step == 1
     with pytest.raises(InputError, match="samples_per_step"):
         load_config(overrides={"procedure": {"samples_per_step": 0}})
     stiff = {"rig": {"platform_kp_nm_s_rad": 1.0e8}}  # lambda = 33 000 1/s
-    with pytest.raises(InputError, match=r"lambda\*h = 8\.00"):  # default h = 4/16670 s
+    with pytest.raises(InputError, match=r"lambda\*h = 16\.00"):  # default h = 8/16670 s
         load_config(overrides=stiff)
     cfg = load_config(overrides={**stiff, "procedure": {"samples_per_step": 1, "substeps": 2}})
     assert cfg.procedure.substeps == 2

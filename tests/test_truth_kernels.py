@@ -36,3 +36,37 @@ def test_span_moments_match_numpy():
     _span_moments(raw, 100, 700, cols, mean, np.array([0, 5]), std)
     np.testing.assert_allclose(mean, raw[100:700, cols].mean(axis=0), rtol=1e-14)
     np.testing.assert_allclose(std, raw[100:700, cols[[0, 5]]].std(axis=0), rtol=1e-12)
+
+
+def test_fit_sums_match_the_basis_matrix():
+    """The truth fit's normal equations over overlapping windows (the whole and its
+    revolutions, each sample summed once per piece between window edges) and the speed
+    reference, against numpy's products of the basis matrix of :func:`_fit_basis` over each
+    window: summation order only (1e-12 of the largest entry of each matrix; the sums run
+    over ~400 samples of values up to ~60)."""
+    from torquemod.rig.truth import _FIT_COLS, _fit_sums
+
+    cfg = load_config()
+    wob = wobble_table(cfg.disturbances, cfg.rig.platform_speed_rad_s,
+                       np.random.default_rng(4))
+    rng = np.random.default_rng(6)
+    n_rows, stride, fs, t0 = 3301, 8, 16670.0, 12.5
+    raw = rng.standard_normal((n_rows, 9)) + np.arange(9) * 7.0
+    raw[:, _FIT_COLS[0]] = 0.97 * (t0 + np.arange(n_rows) / fs) + 0.2
+    lo, hi = np.array([0, 0, 150, 290]), np.array([410, 140, 280, 413])
+    m = 3 + 2 * wob.shape[0]
+    gram, rhs = np.empty((4, m, m)), np.empty((4, m, 2))
+    coef = rng.standard_normal(m - 3)
+    ref = np.empty(413)
+    w = 2 * np.pi * 2.0024
+    _fit_sums(raw, t0, fs, stride, w, wob, coef, _FIT_COLS, lo, hi, gram, rhs, ref)
+    idx = np.arange(0, n_rows, stride)
+    x = np.empty((idx.size, m))
+    _fit_basis(t0 + idx / fs, w, wob, raw[idx, _FIT_COLS[0]], x)
+    y = raw[idx][:, _FIT_COLS[1:]]
+    for j in range(4):
+        xs = x[lo[j]:hi[j]]
+        g, r = xs.T @ xs, xs.T @ y[lo[j]:hi[j]]
+        np.testing.assert_allclose(gram[j], g, rtol=0, atol=1e-12 * np.abs(g).max())
+        np.testing.assert_allclose(rhs[j], r, rtol=0, atol=1e-12 * np.abs(r).max())
+    np.testing.assert_allclose(ref, x[:, 3:] @ coef, rtol=0, atol=1e-14 * np.abs(coef).sum())

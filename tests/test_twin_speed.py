@@ -76,14 +76,18 @@ def test_streams_are_deterministic_and_independent(draws):
 
 def test_settling_step_is_stable_and_longer():
     """Default rig: 10 samples per RK4 step while settling (lambda*h = 2.0 <= MAX_LAMBDA_H)
-    against the recorded 4; a rig twice as stiff gets half the step."""
+    against the recorded 8; a rig twice as stiff (recording at 4 samples per step, as it
+    must) gets half the step; never shorter than the recorded step."""
     cfg = load_config()
     fs = cfg.sensors.sample_rate_hz
     r = settle_samples_per_step(cfg)
-    assert r == 10
+    assert r == 10 and cfg.procedure.samples_per_step == 8
     assert stiffest_rate(cfg.rig) * r / fs <= MAX_LAMBDA_H
-    stiff = load_config(overrides={"rig": {"platform_kp_nm_s_rad": 2.0e7}})
+    stiff = load_config(overrides={"rig": {"platform_kp_nm_s_rad": 2.0e7},
+                                   "procedure": {"samples_per_step": 4}})
     assert settle_samples_per_step(stiff) == 5
+    stiff = load_config(overrides={"rig": {"platform_kp_nm_s_rad": 1.25e7}})
+    assert settle_samples_per_step(stiff) == 8  # 2.0*16670/4167 = 8.0: the recorded step
 
 
 def test_coarse_settling_keeps_the_phases():
@@ -123,3 +127,59 @@ def test_partition_moments_match_numpy():
     for i, (a, b) in enumerate(spans):
         np.testing.assert_allclose(mean[i], raw[a:b, cols].mean(axis=0), rtol=1e-13)
         np.testing.assert_allclose(std[i], raw[a:b, cols[std_cols]].std(axis=0), rtol=1e-12)
+
+
+def test_hdf5_data_written_after_close_is_the_same(tmp_path):
+    """``write_hdf5(..., data_after_close=True)`` (the twin's files: values copied in by
+    ``os.pwrite`` after h5py closes the file) gives the datasets, dtypes, attributes and
+    values -- bit for bit -- of the ordinary write, read back by h5py and by the project's
+    reader; an empty channel falls back to the ordinary write."""
+    import h5py
+
+    from torquemod.data import Recording
+    from torquemod.io import read_recording, write_recording
+
+    rng = np.random.default_rng(9)
+    names = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", "fy_n", "fz_n")
+    block = rng.standard_normal((len(names), 12345)) * 40.0
+    rec = Recording({k: block[i, 17:] for i, k in enumerate(names)}, fs_hz=16670.0,
+                    t0_s=4.25, source="test")
+    files = {}
+    for flag in (False, True):
+        files[flag] = tmp_path / f"r{int(flag)}.h5"
+        write_recording(files[flag], rec, fmt="hdf5", write_time=True, data_after_close=flag)
+    with h5py.File(files[False]) as a, h5py.File(files[True]) as b:
+        assert sorted(a) == sorted(b) and dict(a.attrs) == dict(b.attrs)
+        for k in a:
+            assert a[k].dtype == b[k].dtype == np.float64 and dict(a[k].attrs) == dict(b[k].attrs)
+            assert np.array_equal(a[k][()], b[k][()])
+    got = read_recording(files[True])
+    for k in names:
+        assert np.array_equal(got.channels[k], rec.channels[k])
+    empty = Recording({k: np.empty(0) for k in names}, fs_hz=100.0, source="test")
+    write_recording(tmp_path / "e.h5", empty, fmt="hdf5", data_after_close=True)
+    with h5py.File(tmp_path / "e.h5") as fh:
+        assert fh["torque_nm"].shape == (0,)
+
+
+def test_creep_curve_peak_is_remembered_per_parameter_set():
+    """The memo returns what the computation gives, per parameter set (another friction
+    gives another peak), and parameters that cannot be hashed are computed directly."""
+    import dataclasses
+
+    from torquemod.theory import _creep_curve_peak, creep_curve_peak
+
+    rig = load_config().rig
+    assert creep_curve_peak(rig) == _creep_curve_peak(rig, 0.5)
+    assert creep_curve_peak(rig) is creep_curve_peak(rig)
+    wet = dataclasses.replace(rig, contact=dataclasses.replace(rig.contact, mu0=0.15))
+    assert creep_curve_peak(wet) == _creep_curve_peak(wet, 0.5)
+    assert creep_curve_peak(wet)[1] < creep_curve_peak(rig)[1]
+
+    class Unhashable:  # the same parameters, not hashable
+        __hash__ = None
+
+        def __getattr__(self, name):
+            return getattr(rig, name)
+
+    assert creep_curve_peak(Unhashable()) == creep_curve_peak(rig)
