@@ -142,6 +142,8 @@ class SpeedModel:
     n_slow: int
     coef: np.ndarray  # (columns, channels)
     names: tuple[str, ...]
+    #: the design's least-squares factor (None when lstsq fell back to the SVD)
+    factor: filters.LstsqFactor | None = field(default=None, repr=False, compare=False)
     _parts: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def part(self, name: str, which: str) -> np.ndarray:
@@ -171,7 +173,9 @@ class SpeedModel:
         m = d[:, :2]
         alone = np.linalg.inv(m.T @ m)
         # (D'D)^-1 restricted to the modulation is (M'(I - P_B)M)^-1, P_B the projection on
-        # the other columns (the Schur complement)
+        # the other columns (the Schur complement). Not from the fit's factor: the normal
+        # equations square the design's condition number (~1e6 here), and the block of their
+        # inverse came out 6e-5 relative off the SVD's (this route: 5e-12, measured)
         other = d[:, 2:]
         if other.shape[1]:
             c_o, _ = filters.lstsq(other, m)
@@ -196,8 +200,10 @@ class SpeedModel:
         sel = k[(off <= half_width_hz) & (off > 1.5 * df)]
         if sel.size < 2:
             return 1.0
-        scale = np.sqrt(np.einsum("ij,ij->j", d, d))
-        dn = d / scale
+        if self.factor is not None:  # the fit's normalised design (the same numbers)
+            dn = self.factor.dn
+        else:
+            dn = d / np.sqrt(np.einsum("ij,ij->j", d, d))
         chol = np.linalg.cholesky(dn.T @ dn)
         v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
         # Q = D L^-T has orthonormal columns spanning D, and Q^H v = L^-1 (D^T v): a solve with
@@ -206,7 +212,8 @@ class SpeedModel:
         # through the normal equations, which square the design's condition number: against
         # an SVD of the design the fraction is off by ~1.5e-5 relative (measured on
         # tests/test_chain_speed_equivalence.py's design), and rounding-level changes of
-        # the inputs move it by up to that much.
+        # the inputs move it by up to that much (the fit's own upper factor, transposed,
+        # moved it by 1e-6: not used here).
         qv = np.linalg.solve(chol, dn.T @ v)
         kept = 1.0 - np.sum(np.abs(qv) ** 2, axis=0) / v_power
         return float(np.clip(np.mean(kept), 0.05, 1.0))
@@ -230,8 +237,9 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     w = 2 * np.pi * modulation_hz
     design = np.column_stack([np.cos(w * t), np.sin(w * t), slow, orders])
     y = np.column_stack([channels[k] for k in names])
-    coef, _ = filters.lstsq(design, y)
-    return SpeedModel(modulation_hz, fs_hz, design, slow.shape[1], coef, names)
+    fac = filters.LstsqFactor.of(design)  # kept: the model's statistics reuse it
+    coef = fac.solve(y) if fac is not None else filters.lstsq(design, y)[0]
+    return SpeedModel(modulation_hz, fs_hz, design, slow.shape[1], coef, names, fac)
 
 
 def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,

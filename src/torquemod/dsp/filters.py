@@ -365,7 +365,13 @@ def _settling_cached(b_bytes: bytes, a_bytes: bytes, tol: float, max_samples: in
 
 
 def _settling_search(b, a, tol: float, max_samples: int) -> int:
-    """:func:`settling_samples` of the filter ``b/a``: the doubling search."""
+    """:func:`settling_samples` of the filter ``b/a``: the doubling search (compiled for the
+    chain's designs, ``a[0] = 1`` and ``b``, ``a`` of one length; scipy's ``lfilter``
+    otherwise)."""
+    b = np.atleast_1d(np.asarray(b, dtype=np.float64))
+    a = np.atleast_1d(np.asarray(a, dtype=np.float64))
+    if a[0] == 1.0 and a.size == b.size >= 2:
+        return int(_settling_kernel(b, a, float(tol), int(max_samples)))
     n = 256
     h = np.empty(0)
     while n <= max_samples:
@@ -377,6 +383,38 @@ def _settling_search(b, a, tol: float, max_samples: int) -> int:
         above = np.flatnonzero(mag > tol * mag.max())
         if above[-1] < n - n // 4:
             return int(above[-1]) + 1
+        n *= 2
+    return max_samples
+
+
+@numba.njit(cache=True, nogil=True)
+def _settling_kernel(b: np.ndarray, a: np.ndarray, tol: float, max_samples: int) -> int:
+    """The doubling search of :func:`_settling_search` on the impulse response computed in
+    the direct form II transposed with ``lfilter``'s order of operations (as
+    :func:`_filtfilt_rows`: the same bits), extended only as far as the search reads it."""
+    m = b.size - 1
+    z = np.zeros(m)
+    h = np.empty(max_samples)
+    done = 0
+    n = 256
+    while n <= max_samples:
+        for k in range(done, n):  # the response's first n samples
+            xn = 1.0 if k == 0 else 0.0
+            yn = z[0] + b[0] * xn
+            for i in range(m - 1):
+                z[i] = z[i + 1] + xn * b[i + 1] - yn * a[i + 1]
+            z[m - 1] = xn * b[m] - yn * a[m]
+            h[k] = yn
+        done = n
+        peak = 0.0
+        for k in range(n):
+            peak = max(peak, abs(h[k]))
+        last = -1
+        for k in range(n):
+            if abs(h[k]) > tol * peak:
+                last = k
+        if last < n - n // 4:
+            return last + 1
         n *= 2
     return max_samples
 
@@ -420,7 +458,11 @@ def _line_and_tones_design(n: int, fs_hz: float, tones_hz: list[float]
     for f in tones_hz:
         if 0 < f < fs_hz / 2 and all(abs(f - g) > res for g in kept):
             kept.append(f)
-    return tone_design(np.arange(n) / fs_hz, kept, line=True), kept
+    design = np.empty((n, 2 + 2 * len(kept)))
+    design[:, 0] = 1.0
+    design[:, 1] = (np.arange(n) - (n - 1) / 2) / fs_hz  # t - mean t
+    _fill_cos_sin(design, 2, 2 * np.pi * np.array(kept, dtype=np.float64) / fs_hz, 0)
+    return design, kept
 
 
 def model_padded(x: np.ndarray, fs_hz: float, tones_hz: list[float], pad: int
@@ -432,35 +474,36 @@ def model_padded(x: np.ndarray, fs_hz: float, tones_hz: list[float], pad: int
     padding, where the signal continues smoothly, instead of inside the data. Returns the
     padded record, the line's mean value and slope [per s] (to restore it later).
     """
-    x = np.asarray(x, dtype=np.float64)
-    n = x.size
-    coef, kept = fit_line_and_tones(x, fs_hz, tones_hz)
-    t = np.arange(-pad, n + pad) / fs_hz
-    t_mid = (n - 1) / (2 * fs_hz)
-    out = np.zeros(n + 2 * pad)
-    for k, f in enumerate(kept):
-        cos, sin = _cos_sin(2 * np.pi * f / fs_hz, -pad, n + 2 * pad)
-        out += coef[2 + 2 * k] * cos
-        out += coef[3 + 2 * k] * sin
-    out[pad:pad + n] = x - coef[0] - coef[1] * (t[pad:pad + n] - t_mid)
-    return out, float(coef[0]), float(coef[1])
+    return model_padded_rows([x], fs_hz, tones_hz, pad)[0]
 
 
-def _cos_sin(omega: float, start: int, count: int, block: int = 64
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """``cos`` and ``sin`` of ``omega*(start + i)`` [rad] for ``i = 0..count-1`` by the
-    angle-addition formulas ``cos(a + b) = cos a cos b - sin a sin b`` (and the sine's) over
-    blocks of ``block`` samples: ``count/block + block`` evaluations of each function instead of
-    ``count`` (numpy evaluates them one element at a time here). Within a few units in the
-    last place of the direct evaluation, whose own argument is rounded to the same order
-    (tests/test_decimate_kernels.py)."""
-    n_blocks = -(-count // block)
-    fine = omega * np.arange(block)
-    coarse = omega * (start + block * np.arange(n_blocks))
-    cf, sf, cc, sc = np.cos(fine), np.sin(fine), np.cos(coarse), np.sin(coarse)
-    cos = (np.multiply.outer(cc, cf) - np.multiply.outer(sc, sf)).reshape(-1)[:count]
-    sin = (np.multiply.outer(sc, cf) + np.multiply.outer(cc, sf)).reshape(-1)[:count]
-    return cos, sin
+def _cos_sin(omega: float, start: int, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """``cos`` and ``sin`` of ``omega*(start + i)`` [rad] for ``i = 0..count-1``
+    (:func:`_fill_cos_sin` with one tone)."""
+    out = np.empty((count, 2))
+    _fill_cos_sin(out, 0, np.array([float(omega)]), int(start))
+    return out[:, 0].copy(), out[:, 1].copy()
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill_cos_sin(out: np.ndarray, col0: int, omegas: np.ndarray, start: int) -> None:
+    """``cos`` and ``sin`` of ``omegas[m]*(start + i)`` [rad] into ``out[i, col0 + 2m]`` and
+    ``out[i, col0 + 2m + 1]`` for every row i: the exact values every 64 samples and a
+    rotation by one sample between (``cos(a + w) = cos a cos w - sin a sin w``, and the
+    sine's): two evaluations per 64 samples instead of 128. The rotation adds ~1e-16 of
+    the amplitude per step (< 1e-14 here; tests/test_decimate_kernels.py compares with the
+    direct evaluation, whose own argument is rounded to that order)."""
+    n = out.shape[0]
+    for m in range(omegas.size):
+        om = omegas[m]
+        cd, sd = math.cos(om), math.sin(om)
+        for blk in range(0, n, 64):
+            arg = om * (start + blk)
+            c, s = math.cos(arg), math.sin(arg)
+            for i in range(blk, min(n, blk + 64)):
+                out[i, col0 + 2 * m] = c
+                out[i, col0 + 2 * m + 1] = s
+                c, s = c * cd - s * sd, s * cd + c * sd
 
 
 def model_padded_rows(rows, fs_hz: float, tones_hz: list[float], pad: int
@@ -470,21 +513,16 @@ def model_padded_rows(rows, fs_hz: float, tones_hz: list[float], pad: int
     evaluated once for all records."""
     rows = [np.asarray(x, dtype=np.float64) for x in rows]
     n = rows[0].size
-    t = np.arange(-pad, n + pad) / fs_hz
-    t_mid = (n - 1) / (2 * fs_hz)
     design, kept = _line_and_tones_design(n, fs_hz, tones_hz)
     fac = LstsqFactor.of(design)
-    trig: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+    trig = np.empty((n + 2 * pad, 2 * len(kept)))
+    _fill_cos_sin(trig, 0, 2 * np.pi * np.array(kept, dtype=np.float64) / fs_hz, -pad)
+    line = design[:, 1]  # t - mean t over the record [s]
     result = []
     for x in rows:
         coef = fac.solve(x) if fac is not None else lstsq(design, x)[0]
-        out = np.zeros(n + 2 * pad)
-        for k, f in enumerate(kept):
-            if f not in trig:
-                trig[f] = _cos_sin(2 * np.pi * f / fs_hz, -pad, n + 2 * pad)
-            out += coef[2 + 2 * k] * trig[f][0]
-            out += coef[3 + 2 * k] * trig[f][1]
-        out[pad:pad + n] = x - coef[0] - coef[1] * (t[pad:pad + n] - t_mid)
+        out = trig @ coef[2:] if kept else np.zeros(n + 2 * pad)
+        out[pad:pad + n] = x - coef[0] - coef[1] * line
         result.append((out, float(coef[0]), float(coef[1])))
     return result
 
@@ -594,9 +632,38 @@ def unwrapped_angle(speed_rad_s: np.ndarray, fs_hz: float) -> np.ndarray:
 def order_design(angle_rad: np.ndarray, orders) -> np.ndarray:
     """Columns ``cos(k*theta), sin(k*theta)`` for each rotation order k at the angle
     ``theta`` [rad]: an encoder's eccentricity error follows the angle, so when the speed moves
-    its tones move with it (order tracking); fixed-frequency tones would leave sidebands."""
+    its tones move with it (order tracking); fixed-frequency tones would leave sidebands.
+    The orders above 1 are powers of ``exp(1j*theta)`` (:func:`_order_columns`)."""
     theta = np.asarray(angle_rad, dtype=np.float64)
-    cols = []
+    orders = np.array([int(k) for k in orders], dtype=np.int64)
+    if orders.size == 0:
+        return np.empty((theta.size, 0))
+    return _order_columns(theta, orders)
+
+
+@numba.njit(cache=True, nogil=True)
+def _order_columns(theta: np.ndarray, orders: np.ndarray) -> np.ndarray:
+    """``cos(k*theta)``, ``sin(k*theta)`` for each k of ``orders`` (positive integers): one
+    ``cos`` and ``sin`` of theta per sample, then ``exp(1j*k*theta)`` by repeated complex
+    multiplication (k - 1 products, ~k units in the last place from the direct evaluation;
+    tests/test_chain_kernels.py); a non-positive order is evaluated directly."""
+    n = theta.size
+    out = np.empty((n, 2 * orders.size))
+    k_max = 0
     for k in orders:
-        cols += [np.cos(k * theta), np.sin(k * theta)]
-    return np.column_stack(cols) if cols else np.empty((theta.size, 0))
+        k_max = max(k_max, k)
+    for i in range(n):
+        c1, s1 = math.cos(theta[i]), math.sin(theta[i])
+        c, s = c1, s1
+        for k in range(1, k_max + 1):
+            if k > 1:
+                c, s = c * c1 - s * s1, s * c1 + c * s1
+            for j in range(orders.size):
+                if orders[j] == k:
+                    out[i, 2 * j] = c
+                    out[i, 2 * j + 1] = s
+        for j in range(orders.size):
+            if orders[j] <= 0:
+                out[i, 2 * j] = math.cos(orders[j] * theta[i])
+                out[i, 2 * j + 1] = math.sin(orders[j] * theta[i])
+    return out

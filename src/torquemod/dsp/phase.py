@@ -39,6 +39,10 @@ def extrema_times(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
     """Times [s from the first sample] of the local maxima and minima of ``x``, refined by
     parabolic interpolation (whole-sample peaks at 53 Hz are 13.5 deg apart at 2 Hz)."""
     x = np.asarray(x, dtype=np.float64)
+    if x.ndim == 1 and x.size >= 3:  # find_peaks's strict local extrema, compiled
+        pk, vl, flat = _strict_extrema_times(x, float(fs_hz))
+        if not flat:
+            return pk, vl
     out = []
     dx = np.diff(x)
     flat = bool(np.any(dx == 0))  # a plateau: find_peaks's own handling (its middle sample)
@@ -54,6 +58,37 @@ def extrema_times(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
         d = parabolic_vertex(x[idx - 1], x[idx], x[idx + 1])
         out.append((idx + d) / fs_hz)
     return out[0], out[1]
+
+
+@njit(cache=True, nogil=True)
+def _strict_extrema_times(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    """:func:`extrema_times` of a record without plateaus in one pass: the samples above
+    (below) both neighbours, each moved to the vertex of the parabola through it and its
+    neighbours with :func:`parabolic_vertex`'s arithmetic (so the same bits,
+    tests/test_chain_kernels.py). The third value is True, and the times empty, when two
+    neighbouring samples are equal (a plateau: left to ``find_peaks``)."""
+    n = x.size
+    for i in range(n - 1):
+        if x[i + 1] - x[i] == 0:
+            return np.empty(0), np.empty(0), True
+    peaks = np.empty(n)
+    valleys = np.empty(n)
+    n_pk = 0
+    n_vl = 0
+    for i in range(1, n - 1):
+        d0 = x[i] - x[i - 1]
+        d1 = x[i + 1] - x[i]
+        if (d0 > 0 and not d1 > 0) or (d0 < 0 and not d1 < 0):
+            den = x[i - 1] - 2.0 * x[i] + x[i + 1]
+            d = 0.5 * (x[i - 1] - x[i + 1]) / den if den != 0 else 0.0
+            d = min(max(d, -0.5), 0.5)
+            if d0 > 0:
+                peaks[n_pk] = (i + d) / fs_hz
+                n_pk += 1
+            else:
+                valleys[n_vl] = (i + d) / fs_hz
+                n_vl += 1
+    return peaks[:n_pk].copy(), valleys[:n_vl].copy(), False
 
 
 def _closest(times: np.ndarray, center_s: float, count: int) -> np.ndarray:

@@ -129,12 +129,8 @@ def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] 
                                   f"the noise floor's median power; needs "
                                   f"{min_peak_to_floor:g})")
 
-    wx = w * xd
-
-    def neg_mag(f: float) -> float:  # |windowed_dtft| with its product computed once
-        return -_dtft_magnitude(wx, 2 * math.pi * f / fs_hz)
-
-    return _bounded_minimum(neg_mag, float(freqs[k] - df), float(freqs[k] + df), xtol_hz)
+    return float(_dtft_peak(w * xd, float(fs_hz), float(freqs[k] - df), float(freqs[k] + df),
+                            float(xtol_hz), 500))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -172,13 +168,91 @@ def _median(a: np.ndarray) -> float:
     return float((part[m // 2 - 1] + part[m // 2]) / 2)
 
 
+@numba.njit(cache=True, nogil=True)
+def _dtft_peak(wx: np.ndarray, fs_hz: float, lo: float, hi: float, xatol: float,
+               maxfun: int) -> float:
+    """The frequency [Hz] in ``[lo, hi]`` that maximises ``|X_w(f)|``
+    (:func:`_dtft_magnitude` of the windowed record ``wx`` at ``2*pi*f/fs_hz`` rad per
+    sample), by Brent's bounded search (Brent 1973, ch. 5: golden-section steps with
+    parabolic interpolation) with the same steps and the same arithmetic as
+    ``scipy.optimize.fminbound(lambda f: -|X_w(f)|, lo, hi, xtol=xatol, maxfun=maxfun)``,
+    so the same result bit for bit (tests/test_chain_kernels.py), in one compiled call."""
+    sqrt_eps = 1.4832396974191326e-08  # math.sqrt(2.2e-16), as scipy's
+    golden = 0.3819660112501051  # 0.5*(3 - sqrt(5))
+    two_pi = 2.0 * math.pi
+    a, b = lo, hi
+    fulc = a + golden * (b - a)
+    nfc = xf = fulc
+    rat = e = 0.0
+    fx = -_dtft_magnitude(wx, two_pi * xf / fs_hz)
+    num = 1
+    ffulc = fnfc = fx
+    xm = 0.5 * (a + b)
+    tol1 = sqrt_eps * abs(xf) + xatol / 3.0
+    tol2 = 2.0 * tol1
+    while abs(xf - xm) > (tol2 - 0.5 * (b - a)):
+        use_golden = True
+        if abs(e) > tol1:  # try a parabolic step
+            use_golden = False
+            r = (xf - nfc) * (fx - ffulc)
+            q = (xf - fulc) * (fx - fnfc)
+            p = (xf - fulc) * q - (xf - nfc) * r
+            q = 2.0 * (q - r)
+            if q > 0.0:
+                p = -p
+            q = abs(q)
+            r = e
+            e = rat
+            if abs(p) < abs(0.5 * q * r) and q * (a - xf) < p < q * (b - xf):
+                rat = (p + 0.0) / q
+                x = xf + rat
+                if (x - a) < tol2 or (b - x) < tol2:
+                    rat = tol1 * (_sign(xm - xf) + (1.0 if xm - xf == 0 else 0.0))
+            else:
+                use_golden = True
+        if use_golden:
+            e = (a - xf) if xf >= xm else (b - xf)
+            rat = golden * e
+        step = abs(rat)
+        x = xf + (_sign(rat) + (1.0 if rat == 0 else 0.0)) * (
+            step if (step >= tol1 or step != step) else tol1)
+        fu = -_dtft_magnitude(wx, two_pi * x / fs_hz)
+        num += 1
+        if fu <= fx:
+            if x >= xf:
+                a = xf
+            else:
+                b = xf
+            fulc, ffulc = nfc, fnfc
+            nfc, fnfc = xf, fx
+            xf, fx = x, fu
+        else:
+            if x < xf:
+                a = x
+            else:
+                b = x
+            if fu <= fnfc or nfc == xf:
+                fulc, ffulc = nfc, fnfc
+                nfc, fnfc = x, fu
+            elif fu <= ffulc or fulc == xf or fulc == nfc:
+                fulc, ffulc = x, fu
+        xm = 0.5 * (a + b)
+        tol1 = sqrt_eps * abs(xf) + xatol / 3.0
+        tol2 = 2.0 * tol1
+        if num >= maxfun:
+            break
+    return xf
+
+
 _SQRT_EPS = math.sqrt(2.2e-16)
 _GOLDEN = 0.5 * (3.0 - math.sqrt(5.0))
 
 
 def _bounded_minimum(func, lo: float, hi: float, xatol: float, maxfun: int = 500) -> float:
-    """The minimiser of ``func`` on ``[lo, hi]`` by Brent's bounded search (Brent 1973,
-    ch. 5: golden-section steps with parabolic interpolation): the same steps and the same
+    """The minimiser of ``func`` (any Python function; the chain uses the compiled
+    :func:`_dtft_peak`, the same steps, bit for bit) on ``[lo, hi]`` by Brent's bounded
+    search (Brent 1973, ch. 5: golden-section steps with parabolic interpolation): the same
+    steps and the same
     arithmetic as ``scipy.optimize.fminbound(func, lo, hi, xtol=xatol, maxfun=maxfun)`` (so
     the same result, bit for bit: tests/test_chain_speed_equivalence.py), on Python floats
     instead of numpy scalars, which made scipy's loop cost three times the function's own
@@ -245,6 +319,7 @@ def _bounded_minimum(func, lo: float, hi: float, xatol: float, maxfun: int = 500
     return float(xf)
 
 
+@numba.njit(cache=True, nogil=True)
 def _sign(v: float) -> float:
     """``numpy.sign`` of a float (NaN stays NaN)."""
     return 1.0 if v > 0 else -1.0 if v < 0 else v * 0.0 if v != v else 0.0

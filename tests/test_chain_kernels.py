@@ -1,0 +1,136 @@
+"""The compiled kernels of the chain's per-cycle steps (issue 11, fourth round) against the
+scipy/numpy computations they replace. Bit for bit where the kernel repeats the reference's
+arithmetic; otherwise the tolerance is stated with where it comes from."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import optimize, signal
+
+from torquemod import chain
+from torquemod.dsp import filters, phase, spectrum
+
+FS = 53.344
+
+
+def _record(n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / FS
+    f = rng.uniform(1.6, 2.4)
+    return (rng.uniform(0.01, 10) * np.sin(2 * np.pi * f * t + rng.uniform(0, 6))
+            + 0.3 * np.sin(2 * np.pi * rng.uniform(3, 20) * t) + rng.standard_normal(n))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_dtft_peak_is_the_python_brent_search_and_fminbound_bit_for_bit(seed):
+    x = _record(300 + 7 * seed, seed)
+    wx = signal.get_window("hann", x.size, fftbins=False) * x
+    rng = np.random.default_rng(seed)
+    lo = rng.uniform(1.7, 2.1)
+    hi = lo + rng.uniform(0.005, 0.2)
+    xtol = 10 ** rng.uniform(-9, -4)
+
+    def neg_mag(f: float) -> float:
+        return -spectrum._dtft_magnitude(wx, 2 * math.pi * f / FS)
+
+    got = spectrum._dtft_peak(wx, FS, lo, hi, xtol, 500)
+    assert got == spectrum._bounded_minimum(neg_mag, lo, hi, xtol)
+    assert got == optimize.fminbound(neg_mag, lo, hi, xtol=xtol, maxfun=500, disp=0)
+
+
+def _settling_lfilter(ba, tol=1e-6, max_samples=1_000_000):
+    """The former search: a fresh ``lfilter`` impulse response at every length tried."""
+    b, a = ba
+    n = 256
+    while n <= max_samples:
+        h = signal.lfilter(b, a, np.r_[1.0, np.zeros(n - 1)])
+        above = np.flatnonzero(np.abs(h) > tol * np.abs(h).max())
+        if above[-1] < n - n // 4:
+            return int(above[-1]) + 1
+        n *= 2
+    return max_samples
+
+
+def test_settling_kernel_equals_the_lfilter_search():
+    rng = np.random.default_rng(3)
+    designs = [filters.design_highpass(0.5, 2, FS), filters.design_bandpass(2.0, 0.36, 2, FS)]
+    for _ in range(12):
+        designs.append(filters.design_notch(rng.uniform(0.2, 20), rng.uniform(1, 40), FS))
+        designs.append(filters.design_bandpass(rng.uniform(1.5, 2.5), rng.uniform(0.05, 0.5),
+                                               int(rng.integers(1, 4)), FS))
+    for ba in designs:
+        b, a = (np.array(v, dtype=float) for v in ba)  # writeable: the uncached route
+        assert filters.settling_samples((b, a)) == _settling_lfilter((b, a))
+        assert filters.settling_samples((b, a), tol=1e-9) == _settling_lfilter((b, a), 1e-9)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_strict_extrema_times_are_find_peaks_and_the_vertex_bit_for_bit(seed):
+    x = _record(400, 10 + seed)
+    # a plateau (two equal neighbours) leaves the kernel for find_peaks (its middle sample)
+    plateau = np.array([0.0, 1.0, 1.0, 1.0, 0.0, -1.0, -1.0, 0.0, 2.0, 0.5])
+    for rec in (x, plateau):
+        pk, vl = phase.extrema_times(rec, FS)
+        for sgn, got in ((1.0, pk), (-1.0, vl)):
+            idx, _ = signal.find_peaks(sgn * rec)
+            d = phase.parabolic_vertex(rec[idx - 1], rec[idx], rec[idx + 1])
+            np.testing.assert_array_equal(got, (idx + d) / FS)
+    assert phase.extrema_times(plateau, 1.0)[0].size == 2
+
+
+def test_order_columns_match_the_direct_cos_sin():
+    rng = np.random.default_rng(4)
+    theta = np.cumsum(rng.uniform(0.2, 0.8, 2000))  # up to ~1000 rad
+    orders = [1, 2, 3, 5]
+    got = filters.order_design(theta, orders)
+    for j, k in enumerate(orders):
+        # the direct argument k*theta is itself rounded (half a unit in the last place of
+        # k*max(theta), 5.7e-14 rad at 5000 rad), and each of the k - 1 complex products adds
+        # about one unit in the last place of 1
+        tol = 4 * np.spacing(k * theta.max()) + 4 * k * np.spacing(1.0)
+        np.testing.assert_allclose(got[:, 2 * j], np.cos(k * theta), rtol=0, atol=tol)
+        np.testing.assert_allclose(got[:, 2 * j + 1], np.sin(k * theta), rtol=0, atol=tol)
+    assert filters.order_design(theta, []).shape == (theta.size, 0)
+
+
+def test_model_padded_rows_against_the_direct_tone_model():
+    n, pad = 331, 700
+    rng = np.random.default_rng(5)
+    t = np.arange(n) / FS
+    tones = [2.03, 4.6, 9.2]
+    rows = [30 + 0.2 * t + sum(rng.uniform(0.1, 1) * np.cos(2 * np.pi * f * t + rng.uniform(0, 6))
+                               for f in tones) + 0.01 * rng.standard_normal(n) for _ in range(2)]
+    got = filters.model_padded_rows(rows, FS, tones, pad)
+    t_all = np.arange(-pad, n + pad) / FS
+    for x, (out, level, slope) in zip(rows, got, strict=True):
+        design = filters.tone_design(t, tones, line=True)  # the direct evaluation
+        coef = np.linalg.lstsq(design, x, rcond=None)[0]
+        ref = sum(coef[2 + 2 * k] * np.cos(2 * np.pi * f * t_all)
+                  + coef[3 + 2 * k] * np.sin(2 * np.pi * f * t_all)
+                  for k, f in enumerate(tones))
+        ref[pad:pad + n] = x - coef[0] - coef[1] * (t - t.mean())
+        # the SVD and the normal equations agree to ~1e-13 of the data's size, and the
+        # tones by rotation to ~1e-14 of their amplitude: 1e-11 absolute at a level of 30
+        np.testing.assert_allclose(out, ref, rtol=0, atol=1e-11)
+        assert level == pytest.approx(coef[0], rel=1e-13)
+        assert slope == pytest.approx(coef[1], rel=1e-9, abs=1e-12)
+        # model_padded is the same computation for one record
+        single = filters.model_padded(x, FS, tones, pad)
+        np.testing.assert_array_equal(single[0], out)
+
+
+def test_noise_depletion_reuses_the_fits_normalised_design_bit_for_bit():
+    n = 331
+    slow = filters.slow_basis(n, FS, 1.2)
+    orders = filters.order_design(2 * np.pi * 4.6 * np.arange(n) / FS, [1, 2])
+    model = chain.fit_speed_model({"a": _record(n, 7), "b": _record(n, 8)}, FS, 2.03, slow,
+                                  orders)
+    d = model.design
+    np.testing.assert_array_equal(model.factor.dn, d / np.sqrt(np.einsum("ij,ij->j", d, d)))
+    bare = chain.SpeedModel(model.modulation_hz, model.fs_hz, d, model.n_slow, model.coef,
+                            model.names)  # no factor: the model computes dn itself
+    assert model.noise_depletion() == bare.noise_depletion()
+    assert model.variance_factor() == bare.variance_factor()
