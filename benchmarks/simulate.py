@@ -66,6 +66,8 @@ from __future__ import annotations
 
 import argparse
 import os
+import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -180,7 +182,7 @@ _PHASES = ((_simulate, "integrate_step", "integrator"),
 _GIL_FREE = ((_steps, "integrate"), (_truth, "_fit_sums"), (_truth, "_partition_moments"),
              (_truth, "_span_moments"), (_truth, "_sine_fit_sums"),
              (_sensors, "_encoder_kernel"), (_noise, "_add_normal"), (_theory, "_dense_solve"),
-             (_hdf5.os, "pwrite"))
+             (_simulate, "_sample_times"), (_hdf5.os, "pwrite"))
 
 
 @dataclass
@@ -305,6 +307,29 @@ def threads_speedup(config, repeat: int, rec_s: float) -> None:
           f"real time -> speed-up {t1 / t2:.2f}, serial share (Amdahl) {2 * t2 / t1 - 1:.2f}")
 
 
+def fresh_process(repeat: int, rec_s: float) -> None:
+    """Wall seconds of ``torquemod simulate --format hdf5`` in a new process (what a user
+    starting the CLI waits for: imports, loading the compiled kernels, the run), and of the
+    bare ``import torquemod.simulate`` in a new process."""
+    cli = Path(sys.executable).with_name("torquemod")
+    if not cli.exists():
+        print("fresh process: no torquemod console script next to this Python")
+        return
+    walls, imports = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            subprocess.run([str(cli), "simulate", "--out", str(Path(tmp) / "exp"), "--format",
+                            "hdf5", "--force", "--quiet"], check=True, capture_output=True)
+            walls.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-c", "import torquemod.simulate"], check=True)
+            imports.append(time.perf_counter() - t0)
+    print(f"fresh process: torquemod simulate --format hdf5 {min(walls):.2f} s wall -> "
+          f"{rec_s / min(walls):.0f} x real time, of which starting Python and importing "
+          f"torquemod.simulate {min(imports):.2f} s")
+
+
 def _report(label: str, sim_s: float, walls: list[float], what: str) -> None:
     runs = ", ".join(f"{w:.2f} s" for w in walls)
     best = min(walls)
@@ -351,6 +376,7 @@ def main() -> None:
     splits = [cpu_split(config) for _ in range(args.repeat)]
     print_split(min(splits, key=lambda sp: sp.total_s), rec_s)
     threads_speedup(config, args.repeat, rec_s)
+    fresh_process(args.repeat, rec_s)
     if args.points > 0:
         batch_throughput(batch_configs(args.points), args.repeat)
 

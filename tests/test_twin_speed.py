@@ -183,3 +183,16 @@ def test_creep_curve_peak_is_remembered_per_parameter_set():
             return getattr(rig, name)
 
     assert creep_curve_peak(Unhashable()) == creep_curve_peak(rig)
+
+
+def test_twin_recording_times_are_the_recordings():
+    """The twin's files take their ``time_s`` from a compiled kernel: bit for bit
+    :meth:`Recording.time_s` (``t0 + k/fs``)."""
+    from torquemod.data import Recording
+    from torquemod.simulate import _TwinRecording
+
+    for n, t0, fs in [(107001, 12.3456789, 16670.0), (7, 0.0, 3.0), (0, 1.0, 2.0),
+                      (99991, 1e4 / 3, 16670.0)]:
+        ch = {"torque_nm": np.zeros(n)}
+        want = Recording(ch, fs_hz=fs, t0_s=t0).time_s()
+        assert np.array_equal(_TwinRecording(ch, fs_hz=fs, t0_s=t0).time_s(), want)

@@ -41,6 +41,7 @@ from dataclasses import asdict
 from importlib import resources
 from pathlib import Path
 
+import numba
 import numpy as np
 
 from . import __version__
@@ -272,6 +273,24 @@ def load_config(path: str | Path | None = None, *, overrides: dict | None = None
 # Simulation
 # --------------------------------------------------------------------------------------------
 
+@numba.njit(cache=True, nogil=True)
+def _sample_times(t0_s, fs_hz, out):
+    """``out[k] = t0_s + k/fs_hz`` [s]: :meth:`Recording.time_s`, value for value (the same
+    two IEEE operations per sample), without the GIL."""
+    for k in range(out.size):
+        out[k] = t0_s + k / fs_hz
+
+
+class _TwinRecording(Recording):
+    """A :class:`Recording` whose sample times come from a compiled kernel that releases the
+    GIL (the files of several steps are written side by side)."""
+
+    def time_s(self) -> np.ndarray:
+        out = np.empty(self.n_samples)
+        _sample_times(float(self.t0_s), float(self.fs_hz), out)
+        return out
+
+
 def _write_step(folder: Path, plan, channels: dict, bounds: list[int], fs: float, fmt: str,
                 files_per_cycle: bool) -> list[dict]:
     """Write a step's sensor ``channels`` (sample 0 at ``bounds[0]`` of the step) as one
@@ -282,8 +301,8 @@ def _write_step(folder: Path, plan, channels: dict, bounds: list[int], fs: float
     recs = []
     for j, (a, b) in enumerate(spans, start=1):
         sl = slice(a - bounds[0], b - bounds[0])
-        rec = Recording({k: v[sl] for k, v in channels.items()}, fs_hz=fs,
-                        t0_s=plan.t0_s + a * dt, source="torquemod simulate")
+        rec = _TwinRecording({k: v[sl] for k, v in channels.items()}, fs_hz=fs,
+                             t0_s=plan.t0_s + a * dt, source="torquemod simulate")
         name = f"step{plan.index:02d}_cycle{j}" if files_per_cycle else f"step{plan.index:02d}"
         file = name + _SUFFIX[fmt]
         if fmt == "hdf5":  # the values copied in after h5py closes the file: no GIL held
