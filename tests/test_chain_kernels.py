@@ -134,3 +134,30 @@ def test_noise_depletion_reuses_the_fits_normalised_design_bit_for_bit():
                             model.names)  # no factor: the model computes dn itself
     assert model.noise_depletion() == bare.noise_depletion()
     assert model.variance_factor() == bare.variance_factor()
+
+
+def _line_search_numpy(spec, freqs, idx, wide, lobe):
+    """The former numpy route of peak_frequency's bin checks."""
+    k = int(idx[np.argmax(spec[idx])])
+    near = np.flatnonzero(np.abs(freqs - freqs[k]) <= 2 * lobe)
+    j = int(near[np.argmax(spec[near])])
+    sel = np.flatnonzero(wide & (np.abs(freqs - freqs[k]) > lobe))
+    floor = float(np.median(spec[sel] ** 2)) if sel.size else float("nan")
+    return k, j, floor
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_line_search_is_the_numpy_route(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(200, 700))
+    nfft = int(2 ** np.ceil(np.log2(8 * n)))
+    x = _record(n, seed)
+    spec = np.abs(np.fft.rfft(x * signal.get_window("hann", n, fftbins=False), nfft))
+    if seed % 2:
+        spec = np.round(spec, 1)  # ties: the first maximum wins in both
+    lo, hi = 1.5, rng.uniform(2.0, 3.0)
+    freqs, idx, wide = spectrum._grid(nfft, FS, lo, hi, n)
+    lobe = 2.0 * FS / n
+    got = spectrum._line_search(spec, freqs, idx, wide, lobe)
+    ref = _line_search_numpy(spec, freqs, idx, wide, lobe)
+    assert got[:2] == ref[:2] and got[2] == ref[2]

@@ -508,9 +508,10 @@ def _fill_cos_sin(out: np.ndarray, col0: int, omegas: np.ndarray, start: int) ->
 
 def model_padded_rows(rows, fs_hz: float, tones_hz: list[float], pad: int
                       ) -> list[tuple[np.ndarray, float, float]]:
-    """:func:`model_padded` of each record in ``rows`` (equal lengths), bit-identical, with the
-    least-squares design factored once and the tones' cosines and sines over the padded times
-    evaluated once for all records."""
+    """:func:`model_padded` of each record in ``rows`` (equal lengths; the same numbers): the
+    least-squares design factored once, the tones' cosines and sines over the padded times
+    evaluated once (:func:`_fill_cos_sin`), each padding their product with the record's
+    coefficients."""
     rows = [np.asarray(x, dtype=np.float64) for x in rows]
     n = rows[0].size
     design, kept = _line_and_tones_design(n, fs_hz, tones_hz)

@@ -227,17 +227,18 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
     design = _design(n, fs_hz, f_mod_hz, keep, trend)
     y = np.column_stack([torque[start:stop], wheel[start:stop]])
     fac = LstsqFactor.of(design)  # one factor for both fits below (lstsq's own numbers)
-    coef, rank = (fac.solve(y), design.shape[1]) if fac is not None else lstsq(design, y)
-    if rank < design.shape[1]:
+    if fac is None and lstsq(design, y[:, 0])[1] < design.shape[1]:
         raise ProcessingError("sine-fit design matrix is rank deficient (nuisance tones "
                               "coincide)")
     if noise_from is None:
+        coef = fac.solve(y) if fac is not None else lstsq(design, y)[0]
         resid = y - design @ coef
-    else:
-        y_n = np.column_stack([np.asarray(noise_from[0])[start:stop],
-                               np.asarray(noise_from[1])[start:stop]])
-        c_n = fac.solve(y_n) if fac is not None else lstsq(design, y_n)[0]
-        resid = y_n - design @ c_n
+    else:  # the four records in one solve
+        y_all = np.column_stack([y, np.asarray(noise_from[0])[start:stop],
+                                 np.asarray(noise_from[1])[start:stop]])
+        c_all = fac.solve(y_all) if fac is not None else lstsq(design, y_all)[0]
+        coef = c_all[:, :2]
+        resid = y_all[:, 2:] - design @ c_all[:, 2:]
     t_win = n / fs_hz
     phases, amps, var_phi = [], [], 0.0
     for ch in range(2):

@@ -106,31 +106,55 @@ def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] 
     if idx.size < 3:
         raise ProcessingError(f"record of {n / fs_hz:.3g} s is too short to resolve the band "
                               f"{lo}-{hi} Hz")
-    k = int(idx[np.argmax(spec[idx])])
+    lobe = 2.0 * fs_hz / n  # Hann main-lobe half-width: 2 bins of the unpadded record
+    k, j, floor = _line_search(spec, freqs, idx, wide, lobe)
     if k in (idx[0], idx[-1]) or spec[k] <= 0:
         raise ProcessingError(f"no spectral peak inside {lo}-{hi} Hz (the largest value is at "
                               f"the band edge, {freqs[k]:.4f} Hz)")
     df = freqs[1] - freqs[0]
-    lobe = 2.0 * fs_hz / n  # Hann main-lobe half-width: 2 bins of the unpadded record
-    near = np.flatnonzero(np.abs(freqs - freqs[k]) <= 2 * lobe)
-    j = int(near[np.argmax(spec[near])])
     if spec[j] > spec[k]:
         raise ProcessingError(f"no spectral line inside {lo}-{hi} Hz (the largest value, at "
                               f"{freqs[k]:.4f} Hz, is leakage from a stronger line at "
                               f"{freqs[j]:.4f} Hz outside the band)")
-    # the floor: median power from 1 Hz below to 1 Hz above the band (about 3/T independent
-    # bins, so the median is stable), outside the peak's main lobe
-    floor_sel = np.flatnonzero(wide & (np.abs(freqs - freqs[k]) > lobe))
-    if floor_sel.size:
-        floor = _median(spec[floor_sel] ** 2)
-        if floor > 0 and spec[k] ** 2 < min_peak_to_floor * floor:
-            raise ProcessingError(f"no spectral line inside {lo}-{hi} Hz (the largest peak, at "
-                                  f"{freqs[k]:.4f} Hz, is only {spec[k] ** 2 / floor:.1f} times "
-                                  f"the noise floor's median power; needs "
-                                  f"{min_peak_to_floor:g})")
+    if floor > 0 and spec[k] ** 2 < min_peak_to_floor * floor:
+        raise ProcessingError(f"no spectral line inside {lo}-{hi} Hz (the largest peak, at "
+                              f"{freqs[k]:.4f} Hz, is only {spec[k] ** 2 / floor:.1f} times "
+                              f"the noise floor's median power; needs "
+                              f"{min_peak_to_floor:g})")
 
     return float(_dtft_peak(w * xd, float(fs_hz), float(freqs[k] - df), float(freqs[k] + df),
                             float(xtol_hz), 500))
+
+
+@numba.njit(cache=True, nogil=True)
+def _line_search(spec: np.ndarray, freqs: np.ndarray, idx: np.ndarray, wide: np.ndarray,
+                 lobe: float) -> tuple[int, int, float]:
+    """The FFT bins :func:`peak_frequency` judges, in one pass: ``k``, the largest of
+    ``spec`` among the band's bins ``idx`` (the first on a tie, as ``np.argmax``); ``j``,
+    the largest within ``2*lobe`` [Hz] of it; and the floor, the median of ``spec**2`` over
+    the bins of ``wide`` farther than ``lobe`` from it (NaN when there are none), the
+    median as ``np.median`` takes it (the middle value, or the mean of the two middle
+    ones; the same numbers, tests/test_chain_kernels.py)."""
+    k = idx[0]
+    for i in idx:
+        if spec[i] > spec[k]:
+            k = i
+    j = -1
+    sel = np.empty(spec.size)
+    m = 0
+    for i in range(spec.size):
+        off = abs(freqs[i] - freqs[k])
+        if off <= 2 * lobe and (j < 0 or spec[i] > spec[j]):
+            j = i
+        if wide[i] and off > lobe:
+            sel[m] = spec[i] ** 2
+            m += 1
+    if m == 0:
+        return k, j, np.nan
+    vals = np.sort(sel[:m])
+    if m % 2:
+        return k, j, vals[m // 2]
+    return k, j, (vals[m // 2 - 1] + vals[m // 2]) / 2
 
 
 @numba.njit(cache=True, nogil=True)
@@ -160,7 +184,8 @@ def _dtft_magnitude(wx: np.ndarray, step_rad: float) -> float:
 
 def _median(a: np.ndarray) -> float:
     """``np.median`` of a 1-D float array without NaN: the same partition and the same mean
-    of the two middle values (so the same number, tested) without its per-call overhead."""
+    of the two middle values (so the same number, tested) without its per-call overhead
+    (the chain's floor median is now inside :func:`_line_search`)."""
     m = a.size
     if m % 2:
         return float(np.partition(a, m // 2)[m // 2])
