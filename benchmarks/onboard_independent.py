@@ -85,6 +85,7 @@ def _merge(acc: dict, new: dict) -> None:
 def scenario(spec: IndependentRunSpec, seeds: int, out: Path, title: str) -> None:
     acc: dict = {}
     run_s = cpu_s = 0.0
+    delays: list[float] = []
     for seed in range(seeds):
         s = replace(spec, seed=seed)
         folder = out / f"run_{seed}"
@@ -92,6 +93,7 @@ def scenario(spec: IndependentRunSpec, seeds: int, out: Path, title: str) -> Non
         c0 = time.process_time()
         res = run_onboard(path, out / f"res_{seed}", force=True)[0]
         cpu_s += time.process_time() - c0
+        delays.append(1e3 * res.summary().get("measured_delay_s", float("nan")))
         import pandas as pd
         truth = pd.read_parquet(folder / "truth.parquet")
         run_s += float(truth["time_s"].iloc[-1] - truth["time_s"].iloc[0])
@@ -110,6 +112,8 @@ def scenario(spec: IndependentRunSpec, seeds: int, out: Path, title: str) -> Non
         print(f"{c:>8} {a['mu_true']:>7.2f} {a['rows']:>5} {100 * a['given'] / a['rows']:>7.0f}% "
               f"{med_mu:>9} {err:>9} {cov:>8} {lb:>8} {la:>13} {kr:>8} "
               f"{np.median(a['phase_se']):>7.2f}°")
+    print("net torque-behind-speed delay measured from the run and taken out: "
+          + ", ".join(f"{d:.2f} ms" for d in delays))
     print(f"end to end (MDF4 read, estimate, write): {run_s / cpu_s:.0f} s of run per CPU s")
 
 
@@ -181,9 +185,13 @@ def main() -> None:
                     help="write the torque's lag and the speed's delay into run.toml")
     ap.add_argument("--torque-lag", type=float, default=None,
                     help="the torque signal's first-order lag [s] (default: the generator's)")
+    ap.add_argument("--no-calibrate", action="store_true",
+                    help="[onboard] calibrate_delay = 0 (no delay measured from the run)")
     args = ap.parse_args()
-    extra = {} if args.ratio_bounds is None else \
-        {"onboard": {"ratio_bounds": list(args.ratio_bounds)}}
+    onboard = {} if args.ratio_bounds is None else {"ratio_bounds": list(args.ratio_bounds)}
+    if args.no_calibrate:
+        onboard["calibrate_delay"] = 0
+    extra = {"onboard": onboard} if onboard else {}
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for law in args.laws:
@@ -201,7 +209,7 @@ def main() -> None:
                     scenario(spec, args.seeds, out,
                              f"{law} creep law, staircase to {depth:.0%} of the adhesion, "
                              f"encoder eccentricity {ecc:g}"
-                             + (f", ratio_bounds {args.ratio_bounds}" if extra else "")
+                             + (f", [onboard] {onboard}" if onboard else "")
                              + (f", coupling {args.coupling:g} N*m/rad"
                                 f"{' (declared)' if args.declare_drive_line else ''}"
                                 if args.coupling else "")

@@ -39,6 +39,15 @@ last ``baseline_m`` metres whose CoA is in the lowest 40 %: its value at low uti
 robust to the heavy-tailed k of single windows; a 90th percentile was inflated 4x at 8 Hz)
 in a steady window (a DC torque step inside a window corrupts its k: measured, all false
 flags on dry rail came from such windows), or the axle slips.
+
+Delay between torque and speed
+------------------------------
+A net delay of the torque signal behind the speed's that run.toml does not declare biases k
+(~4 % per ms at 4 Hz). With ``calibrate_delay`` (default) :class:`~torquemod.onboard.delay.
+DelayCalibrator` measures it from the steady windows seen so far (the vehicle's impedance
+does not change with the operating point); once its standard error is below
+``delay_max_se_s`` every window's phase and k are taken with it, and the windows the mu fit
+holds are corrected too (when the estimate moves by more than a quarter of that).
 """
 
 from __future__ import annotations
@@ -53,8 +62,9 @@ from ..errors import InputError, ProcessingError
 from ..io.manifest import check_keys
 from ..io.run import Vehicle
 from ..phasefit import R_BOUNDS
+from .delay import DelayCalibrator
 from .mufit import CreepFit, fit_creep_progression
-from .window import WindowResult, measure_window
+from .window import WindowResult, measure_window, with_delay
 
 #: The columns of track.parquet, in order (issue 10).
 TRACK_COLUMNS = ("time_s", "position_m", "speed_m_s", "coa", "phase_deg", "phase_se_deg",
@@ -87,6 +97,10 @@ class OnboardConfig:
     low_adhesion_ratio: float = 0.25
     slip_creepage: float = 0.03
     slip_accel_m_s2: float = 0.8
+    calibrate_delay: int = 1
+    delay_max_s: float = 0.02
+    delay_max_se_s: float = 5e-4
+    delay_min_windows: int = 40
 
     @classmethod
     def from_dict(cls, table: dict | None, *, source: str = "[onboard]") -> OnboardConfig:
@@ -97,9 +111,9 @@ class OnboardConfig:
         cfg = cls(**table)
         for f in fields(cls):
             v = getattr(cfg, f.name)
-            if f.name == "power_shapes":
+            if f.name in ("power_shapes", "calibrate_delay"):
                 if v not in (0, 1):
-                    raise InputError(f"[onboard] power_shapes must be 0 or 1, got {v!r}",
+                    raise InputError(f"[onboard] {f.name} must be 0 or 1, got {v!r}",
                                      path=source)
             elif f.name != "ratio_bounds" and not (isinstance(v, int | float) and v > 0):
                 raise InputError(f"[onboard] {f.name} must be a positive number, got {v!r}",
@@ -250,6 +264,14 @@ class MuTracker:
             return _Fit(w.position_m, res.mu, res.mu_low, res.mu_high, res)
         return _Fit(w.position_m, None, math.nan, None, res)
 
+    def shift_delay(self, delay_s: float) -> None:
+        """Take a further net delay ``delay_s`` [s] out of the windows held (the delay
+        estimate moved); the next regular refit uses them."""
+        for q in (self.mem, self.recent):
+            kept = [with_delay(m, self.v, self.f, delay_s) for m in q]
+            q.clear()
+            q.extend(kept)
+
     def informed(self, position_m: float, mu: float) -> bool:
         """A steady window worked at ``info_utilisation`` of mu or more within the last
         ``info_m`` metres: at low utilisation the creep coefficient hardly depends on mu
@@ -293,6 +315,11 @@ class OnboardEstimator:
         self.next_start = 0  # global index of the next window's first sample
         self.tracker = MuTracker(vehicle, self.f, self.cfg, self.n_win / self.hop)
         self.k_hist: deque[tuple[float, float, float]] = deque()  # (position, CoA, k)
+        c = self.cfg
+        grid = np.arange(-0.25 * c.delay_max_s, c.delay_max_s + 1e-12, 2.5e-4)
+        self.delay = DelayCalibrator(vehicle, self.f, grid, min_windows=c.delay_min_windows,
+                                     max_se_s=c.delay_max_se_s)
+        self.delay_s = 0.0  # the net delay taken out of every window now [s]
 
     def feed(self, torque_nm, wheel_speed_rad_s, vehicle_speed_m_s, position_m) -> list[dict]:
         chunk = np.vstack([np.asarray(a, dtype=np.float64) for a in
@@ -338,14 +365,27 @@ class OnboardEstimator:
         except ProcessingError:
             return None
 
+    def _calibrated(self, w: WindowResult, steady: bool) -> WindowResult:
+        """``w`` with the net delay measured so far taken out (module docstring)."""
+        if steady and math.isfinite(w.creep_coefficient):
+            self.delay.add(w.torque_speed_ratio, math.radians(w.phase_se_deg))
+            est = self.delay.estimate() if self.delay.n % 4 == 0 else None  # every 4th
+            if est is not None and abs(est.delay_s - self.delay_s) > \
+                    0.25 * self.cfg.delay_max_se_s:
+                self.tracker.shift_delay(est.delay_s - self.delay_s)
+                self.delay_s = est.delay_s
+        return with_delay(w, self.v, self.f, self.delay_s)
+
     def update(self, w: WindowResult) -> dict:
         """The row of a measured window, advancing the state (slip, reference creep
         coefficient, mu tracker); windows must come in order."""
         slip = (w.creepage > self.cfg.slip_creepage
                 or w.wheel_excess_accel_m_s2 > self.cfg.slip_accel_m_s2)
+        steady = w.dc_step_ratio <= self.cfg.max_dc_step_ratio  # a step corrupts k
+        if self.cfg.calibrate_delay:
+            w = self._calibrated(w, steady and not slip)
         k = w.creep_coefficient
         ref = self._baseline(w)
-        steady = w.dc_step_ratio <= self.cfg.max_dc_step_ratio  # a step corrupts k
         low = bool(slip or (steady and math.isfinite(k) and math.isfinite(ref)
                             and k < self.cfg.low_adhesion_ratio * ref))
         if math.isfinite(k) and not slip and steady:
@@ -371,4 +411,4 @@ class OnboardEstimator:
                 "low_adhesion": low, "slip": bool(slip),
                 "creepage": w.creepage, "dc_torque_nm": w.dc_torque_nm,
                 "accel_m_s2": w.accel_m_s2, "creep_coefficient_ref": ref,
-                "dc_step_ratio": w.dc_step_ratio}
+                "dc_step_ratio": w.dc_step_ratio, "delay_s": self.delay_s}

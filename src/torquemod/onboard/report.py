@@ -124,6 +124,22 @@ def _segments_table(result) -> str:
             + "</table>")
 
 
+def _delay_sentence(result, s: dict) -> str:
+    """What the report says about the torque-speed delay (declared and measured)."""
+    v = result.run.vehicle
+    declared = (f"declared: torque lag {1e3 * v.torque_lag_s:g} ms, torque delay "
+                f"{1e3 * v.torque_delay_s:g} ms, speed delay {1e3 * v.speed_delay_s:g} ms")
+    if not result.config.calibrate_delay:
+        return f"Sensor dynamics {declared}; no delay measured (calibrate_delay = 0)."
+    d = s.get("measured_delay_s", 0.0)
+    if d == 0.0:
+        return (f"Sensor dynamics {declared}; the run did not determine a further delay "
+                "between torque and speed (none taken out).")
+    return (f"Sensor dynamics {declared}; a further net delay of the torque behind the "
+            f"speed of {1e3 * d:.2f} ms was measured from the run and taken out of the "
+            "phase and creep coefficient.")
+
+
 def write_report(path: Path, result, meta: dict, figures: dict[str, bytes]) -> None:
     """A one-page HTML report: what was run, the summary, the figures, the notes."""
     s = result.summary()
@@ -146,6 +162,7 @@ torquemod {html.escape(meta['torquemod_version'])}.</p>
 {100 * s['mu_given_share']:.0f} % of them (elsewhere only a lower bound: the data do not fix
 mu when the axle works far from saturation); low adhesion flagged in
 {100 * s['low_adhesion_share']:.1f} %, slip in {100 * s['slip_share']:.1f} %.</p>
+<p>{_delay_sentence(result, s)}</p>
 {_segments_table(result)}
 <h2>Figures</h2>{imgs}
 <h2>Notes</h2><ul>{notes}</ul>

@@ -56,6 +56,10 @@ class OnboardResult:
                if len(t) else 0.0}
         if given.any():
             out["mu_median"] = float(t.loc[given, "mu"].median())
+        if "delay_s" in t and len(t):
+            # the net torque-behind-speed delay measured from the run and taken out
+            # (beyond the declared one; 0 while the windows did not determine it)
+            out["measured_delay_s"] = float(t["delay_s"].iloc[-1])
         return out
 
 

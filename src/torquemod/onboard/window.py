@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import cmath
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -26,7 +26,9 @@ class WindowResult:
     ``creep_coefficient_se``), ``creepage_swing`` [-] the modulation's creepage amplitude,
     ``wheel_excess_accel_m_s2`` [m/s^2] (R*dw/dt - dV/dt); ``dc_step_ratio`` [-] the change of
     the mean torque from the first to the last modulation period over the modulation's
-    amplitude (a DC step inside the window leaks into the sine fit)."""
+    amplitude (a DC step inside the window leaks into the sine fit); ``torque_speed_ratio``
+    [N*m*s/rad] the complex ratio T/w at the modulation frequency (declared sensor dynamics
+    divided out) that phase and k come from (:func:`with_delay`)."""
 
     time_s: float
     position_m: float
@@ -44,6 +46,7 @@ class WindowResult:
     creepage_swing: float
     wheel_excess_accel_m_s2: float
     dc_step_ratio: float = 0.0
+    torque_speed_ratio: complex = complex("nan")
 
 
 def load_impedance(ratio: complex, vehicle: Vehicle, frequency_hz: float) -> complex:
@@ -150,19 +153,11 @@ def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
     # the ratio of the true signals: the declared sensor dynamics divided out
     ratio = fit.torque_amplitude / fit.wheel_amplitude * cmath.exp(
         1j * math.radians(fit.phase_deg)) / vehicle.sensor_response(frequency_hz)
-    phi, rho = cmath.phase(ratio), abs(ratio)
-    phase = math.degrees(phi)
-    e = math.radians(fit.phase_stderr_deg)  # also the relative se of the amplitude ratio
-
-    def k_of(ph, rh):
-        d, _ = damping_from_ratio(rh * complex(math.cos(ph), math.sin(ph)), vehicle,
-                                  frequency_hz)
-        return d * v_ref / (r * r * n_load)
-
+    phase = math.degrees(cmath.phase(ratio))
+    k, k_se = _creep_coefficient(ratio, math.radians(fit.phase_stderr_deg), v_ref, vehicle,
+                                 frequency_hz)
     per = max(1, round(fs_hz / frequency_hz))
     step = abs(float(torque_nm[-per:].mean() - torque_nm[:per].mean()))
-    k = k_of(phi, rho)
-    k_se = math.hypot(k_of(phi + e, rho) - k, k_of(phi, rho * (1 + e)) - k)
     return WindowResult(
         time_s=float(t_end_s) - (n - 1) / (2 * fs_hz), position_m=float(position_m.mean()),
         speed_m_s=v_mean, wheel_speed_rad_s=w_mean, dc_torque_nm=t_dc, accel_m_s2=dv_dt,
@@ -171,4 +166,35 @@ def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
         phase_se_deg=fit.phase_stderr_deg, creep_coefficient=k, creep_coefficient_se=k_se,
         creepage_swing=r * fit.wheel_amplitude / v_ref,
         wheel_excess_accel_m_s2=r * dw_dt - dv_dt,
-        dc_step_ratio=step / max(fit.torque_amplitude, 1e-12))
+        dc_step_ratio=step / max(fit.torque_amplitude, 1e-12), torque_speed_ratio=ratio)
+
+
+def _creep_coefficient(ratio: complex, e: float, v_ref: float, vehicle: Vehicle,
+                       frequency_hz: float) -> tuple[float, float]:
+    """k = D*V/(R^2*N) from the ratio T/w (:func:`damping_from_ratio`) and its standard
+    error from k's change over one standard error ``e`` [rad] of the phase and of the (log)
+    amplitude ratio."""
+    scale = v_ref / (vehicle.wheel_radius_m ** 2 * vehicle.normal_load_n)
+
+    def k_of(x: complex) -> float:
+        return damping_from_ratio(x, vehicle, frequency_hz)[0] * scale
+
+    k = k_of(ratio)
+    k_se = math.hypot(k_of(ratio * complex(math.cos(e), math.sin(e))) - k,
+                      k_of(ratio * (1 + e)) - k)
+    return k, k_se
+
+
+def with_delay(w: WindowResult, vehicle: Vehicle, frequency_hz: float,
+               delay_s: float) -> WindowResult:
+    """``w`` with a further net delay ``delay_s`` [s] of the torque behind the speed divided
+    out of its ratio (:mod:`torquemod.onboard.delay`): phase, k and its standard error
+    recomputed; ``w`` itself when ``delay_s`` is 0."""
+    if delay_s == 0.0:
+        return w
+    ratio = w.torque_speed_ratio * cmath.exp(2j * math.pi * frequency_hz * delay_s)
+    v_ref = max(abs(w.speed_m_s), 0.5)
+    k, k_se = _creep_coefficient(ratio, math.radians(w.phase_se_deg), v_ref, vehicle,
+                                 frequency_hz)
+    return replace(w, phase_deg=math.degrees(cmath.phase(ratio)), creep_coefficient=k,
+                   creep_coefficient_se=k_se, torque_speed_ratio=ratio)
