@@ -114,10 +114,12 @@ def _hann(n: int) -> np.ndarray:
 @functools.lru_cache(maxsize=16)
 def _hann_fourier(n: int, bins: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
     """The Hann-windowed Fourier vectors ``w[t]*exp(-2j*pi*t*k/n)`` of the DFT bins ``k`` of an
-    ``n``-sample record (columns) and their squared norms, cached read-only (the bins near
-    the modulation are the same for most cycles of a given length)."""
+    ``n``-sample record and their squared norms, cached read-only (the bins near the
+    modulation are the same for most cycles of a given length). Real columns: the real
+    parts of all bins, then their imaginary parts (real products with the design)."""
     v = _hann(n)[:, None] * np.exp(-2j * np.pi * np.outer(np.arange(n), np.array(bins)) / n)
     power = np.sum(np.abs(v) ** 2, axis=0)
+    v = np.hstack([v.real, v.imag])
     v.setflags(write=False)
     power.setflags(write=False)
     return v, power
@@ -173,12 +175,14 @@ class SpeedModel:
         m = d[:, :2]
         alone = np.linalg.inv(m.T @ m)
         # (D'D)^-1 restricted to the modulation is (M'(I - P_B)M)^-1, P_B the projection on
-        # the other columns (the Schur complement). Not from the fit's factor: the normal
-        # equations square the design's condition number (~1e6 here), and the block of their
-        # inverse came out 6e-5 relative off the SVD's (this route: 5e-12, measured)
+        # the other columns (the Schur complement), by a refined least-squares fit on them.
+        # Not the block of the inverse of the fit's normal matrix: that squares the design's
+        # condition number (~1e6 here) and came out 6e-5 relative off the SVD's (this route:
+        # 1e-11, measured). The fit's normal matrix gives the other columns' factor.
         other = d[:, 2:]
+        sub = self.factor.trailing(2) if self.factor is not None else None
         if other.shape[1]:
-            c_o, _ = filters.lstsq(other, m)
+            c_o = sub.solve(m) if sub is not None else filters.lstsq(other, m)[0]
             m_res = m - other @ c_o
         else:
             m_res = m
@@ -200,11 +204,13 @@ class SpeedModel:
         sel = k[(off <= half_width_hz) & (off > 1.5 * df)]
         if sel.size < 2:
             return 1.0
-        if self.factor is not None:  # the fit's normalised design (the same numbers)
-            dn = self.factor.dn
+        fac = self.factor
+        if fac is not None and fac.gram is not None:  # the fit's own numbers
+            dn, gram = fac.dn, fac.gram
         else:
             dn = d / np.sqrt(np.einsum("ij,ij->j", d, d))
-        chol = np.linalg.cholesky(dn.T @ dn)
+            gram = dn.T @ dn
+        chol = np.linalg.cholesky(gram)
         v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
         # Q = D L^-T has orthonormal columns spanning D, and Q^H v = L^-1 (D^T v): a solve with
         # the small factor instead of forming Q (the fraction kept agrees with forming Q to
@@ -214,8 +220,8 @@ class SpeedModel:
         # tests/test_chain_speed_equivalence.py's design), and rounding-level changes of
         # the inputs move it by up to that much (the fit's own upper factor, transposed,
         # moved it by 1e-6: not used here).
-        qv = np.linalg.solve(chol, dn.T @ v)
-        kept = 1.0 - np.sum(np.abs(qv) ** 2, axis=0) / v_power
+        qv = np.linalg.solve(chol, dn.T @ v)  # v: the real parts, then the imaginary parts
+        kept = 1.0 - (qv * qv).sum(axis=0).reshape(2, -1).sum(axis=0) / v_power
         return float(np.clip(np.mean(kept), 0.05, 1.0))
 
     def mean(self, name: str) -> float:
@@ -237,7 +243,7 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     w = 2 * np.pi * modulation_hz
     design = np.column_stack([np.cos(w * t), np.sin(w * t), slow, orders])
     y = np.column_stack([channels[k] for k in names])
-    fac = filters.LstsqFactor.of(design)  # kept: the model's statistics reuse it
+    fac = filters.LstsqFactor.of(design, keep_gram=True)  # the model's statistics reuse it
     coef = fac.solve(y) if fac is not None else filters.lstsq(design, y)[0]
     return SpeedModel(modulation_hz, fs_hz, design, slow.shape[1], coef, names, fac)
 

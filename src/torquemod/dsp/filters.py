@@ -60,11 +60,13 @@ class LstsqFactor:
     dn: np.ndarray  # design with unit-norm columns
     scale: np.ndarray  # the columns' norms
     factor: np.ndarray  # upper Cholesky factor of dn.T @ dn (LAPACK layout)
+    gram: np.ndarray | None = None  # dn.T @ dn itself, when asked for (keep_gram)
 
     @classmethod
-    def of(cls, design: np.ndarray) -> LstsqFactor | None:
+    def of(cls, design: np.ndarray, *, keep_gram: bool = False) -> LstsqFactor | None:
         """The factor, or None when :func:`lstsq` would fall back to the SVD (no columns, a
-        zero column, or a normalised normal matrix with condition number above 1e10)."""
+        zero column, or a normalised normal matrix with condition number above 1e10). With
+        ``keep_gram`` the normal matrix is kept too (read-only)."""
         d = np.asarray(design, dtype=np.float64)
         scale = np.sqrt(np.einsum("ij,ij->j", d, d))
         if not (d.shape[1] and np.all(scale > 0)):
@@ -74,13 +76,33 @@ class LstsqFactor:
         # LAPACK's potrf/potrs called directly: the same routines and arguments as
         # scipy.linalg.cho_factor/cho_solve (bit-identical results) without their
         # per-call validation, which cost more than the factorisation at this size
-        factor, info = _POTRF(dn.T @ dn, lower=False, overwrite_a=True, clean=False)
+        gram = dn.T @ dn
+        factor, info = _POTRF(gram, lower=False, overwrite_a=not keep_gram, clean=False)
         if info != 0:
             return None
         diag = np.diag(factor) ** 2
         if not diag.min() > 1e-10 * diag.max():
             return None
+        if keep_gram:
+            gram.setflags(write=False)
+            return cls(dn, scale, factor, gram)
         return cls(dn, scale, factor)
+
+    def trailing(self, k: int) -> LstsqFactor | None:
+        """The factor of the design without its first ``k`` columns, from the kept normal
+        matrix (``keep_gram``): its trailing block is that design's normalised normal
+        matrix (the column norms do not depend on the other columns), so only the Cholesky
+        factorisation is new. None without the normal matrix or where :meth:`of` would
+        give None."""
+        if self.gram is None or not 0 <= k < self.gram.shape[0]:
+            return None
+        factor, info = _POTRF(self.gram[k:, k:], lower=False, overwrite_a=False, clean=False)
+        if info != 0:
+            return None
+        diag = np.diag(factor) ** 2
+        if not diag.min() > 1e-10 * diag.max():
+            return None
+        return LstsqFactor(self.dn[:, k:], self.scale[k:], factor)
 
     def solve(self, y: np.ndarray) -> np.ndarray:
         """Least-squares coefficients for ``y`` (one or more columns)."""
