@@ -193,3 +193,16 @@ def test_variance_factor_against_the_qr_of_the_design():
     # the Schur complement by a refined fit: 1e-11 relative measured on the chain's designs
     # (the inverse of the normal matrix would be 6e-5 off)
     assert model.variance_factor() == pytest.approx(ref, rel=1e-9)
+
+
+def test_steady_state_is_lfilter_zi_bit_for_bit():
+    rng = np.random.default_rng(9)
+    for _ in range(60):
+        designs = [filters.design_notch(rng.uniform(0.2, 20), rng.uniform(1, 40), FS),
+                   filters.design_bandpass(rng.uniform(1.5, 2.5), rng.uniform(0.05, 0.5),
+                                           int(rng.integers(1, 4)), FS),
+                   (rng.standard_normal(3), np.r_[2.0, rng.uniform(-0.5, 0.5, 1)])]
+        for b, a in designs:
+            np.testing.assert_array_equal(filters._steady_state(np.asarray(b, float),
+                                                                np.asarray(a, float)),
+                                          signal.lfilter_zi(b, a))

@@ -348,10 +348,29 @@ def _steady_state(b: np.ndarray, a: np.ndarray) -> np.ndarray:
         a = np.concatenate((a, np.zeros(n - a.size)))
     elif b.size < n:
         b = np.concatenate((b, np.zeros(n - b.size)))
-    companion = np.zeros((n - 1, n - 1))
-    companion[0] = -a[1:] / a[0]
-    companion[np.arange(1, n - 1), np.arange(n - 2)] = 1.0
-    return np.linalg.solve(np.eye(n - 1) - companion.T, b[1:] - a[1:] * b[0])
+    if n < 2:
+        return np.zeros(0)
+    return _steady_state_solve(np.ascontiguousarray(b, dtype=np.float64),
+                               np.ascontiguousarray(a, dtype=np.float64))
+
+
+@numba.njit(cache=True, nogil=True)
+def _steady_state_solve(b: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """``lfilter_zi``'s system ``(I - C^T) zi = b[1:] - a[1:]*b[0]`` (C the companion matrix
+    of ``a``: first row ``-a[1:]/a[0]``, ones below the diagonal) built entry by entry with
+    the same arithmetic and solved by LAPACK ``gesv`` as ``numpy.linalg.solve`` does: the
+    same bits (tests/test_decimate_kernels.py and tests/test_chain_kernels.py)."""
+    n = a.size
+    m = np.zeros((n - 1, n - 1))
+    for i in range(n - 1):
+        for j in range(n - 1):
+            c = 0.0
+            if j == 0:
+                c = -a[i + 1] / a[0]  # C^T[i, 0] = C[0, i]
+            elif j == i + 1:
+                c = 1.0  # C^T[i, i + 1] = C[i + 1, i]
+            m[i, j] = (1.0 if i == j else 0.0) - c
+    return np.linalg.solve(m, b[1:] - a[1:] * b[0])
 
 
 @functools.lru_cache(maxsize=16)
