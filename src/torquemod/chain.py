@@ -229,7 +229,8 @@ class SpeedModel:
         mean of the slow part; the residual has zero mean since the constant is fitted)."""
         key = (name, "mean")
         if key not in self._parts:
-            self._parts[key] = float(np.mean(self.part(name, "slow")))
+            slow = self.part(name, "slow")
+            self._parts[key] = float(slow.sum()) / slow.size  # np.mean's numbers, cheaper
         return self._parts[key]
 
 
@@ -241,7 +242,12 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     n = slow.shape[0]
     t = (np.arange(n) - (n - 1) / 2) / fs_hz
     w = 2 * np.pi * modulation_hz
-    design = np.column_stack([np.cos(w * t), np.sin(w * t), slow, orders])
+    n_s = slow.shape[1]
+    design = np.empty((n, 2 + n_s + orders.shape[1]))  # [cos, sin, slow, orders]
+    design[:, 0] = np.cos(w * t)
+    design[:, 1] = np.sin(w * t)
+    design[:, 2:2 + n_s] = slow
+    design[:, 2 + n_s:] = orders
     y = np.column_stack([channels[k] for k in names])
     fac = filters.LstsqFactor.of(design, keep_gram=True)  # the model's statistics reuse it
     coef = fac.solve(y) if fac is not None else filters.lstsq(design, y)[0]
@@ -295,7 +301,7 @@ def _tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
         else:
             coef, _ = filters.lstsq(np.column_stack([base, cols]), speed_rad_s)
         w_s = slow @ coef[:slow.shape[1]]
-        mean = float(np.mean(w_s))
+        mean = float(w_s.sum()) / w_s.size  # np.mean's numbers
         f_rot = abs(mean) / (2 * np.pi)
         kept = [h for h in harmonics if above_hz < h * f_rot < 0.45 * fs_hz
                 and abs(h * f_rot - avoid_hz) > 2 * resolution]
@@ -475,14 +481,17 @@ def creepage_and_drift(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float
     q = p * platform_radius_m / (w * wheel_radius_m)
     n = q.size
     t = np.arange(n) / fs_hz
-    c0 = float(np.mean(q))
+    c0 = float(q.sum()) / n  # np.mean's numbers
+    design = np.empty((n, 2 + 2 * len(platform_harmonics)))  # [1, t - mean t, orders]
+    design[:, 0] = 1.0
+    design[:, 1] = t - t.mean()
     for _ in range(2):
         # the platform's true angle from the wheel's speed (free of the platform encoder's
         # own error, whose square would otherwise bias c0 by e^2/2)
         theta = filters.unwrapped_angle(w * c0 * wheel_radius_m / platform_radius_m, fs_hz)
         kept = [k for k in platform_harmonics if k * abs(theta[-1]) / (2 * np.pi) > 0.5]
-        design = np.column_stack([np.ones(n), t - t.mean(), filters.order_design(theta, kept)])
-        coef, _ = filters.lstsq(design, q)
+        design[:, 2:2 + 2 * len(kept)] = filters.order_design(theta, kept)
+        coef, _ = filters.lstsq(design[:, :2 + 2 * len(kept)], q)
         c0, c1 = float(coef[0]), float(coef[1])
     return 1.0 / c0 - 1.0, -c1 * (n / fs_hz) / c0**2
 

@@ -77,7 +77,7 @@ class LstsqFactor:
         ``keep_gram`` the normal matrix is kept too (read-only)."""
         d = np.asarray(design, dtype=np.float64)
         scale = np.sqrt(np.einsum("ij,ij->j", d, d))
-        if not (d.shape[1] and np.all(scale > 0)):
+        if not (d.shape[1] and scale.min() > 0):  # (NaN fails too)
             return None
         dn = d / scale
         dn.setflags(write=False)
@@ -88,8 +88,8 @@ class LstsqFactor:
         factor, info = _POTRF(gram, lower=False, overwrite_a=not keep_gram, clean=False)
         if info != 0:
             return None
-        diag = np.diag(factor) ** 2
-        if not diag.min() > 1e-10 * diag.max():
+        diag = factor.diagonal()
+        if not diag.min() ** 2 > 1e-10 * diag.max() ** 2:  # (potrf's diagonal is positive)
             return None
         if keep_gram:
             gram.setflags(write=False)
