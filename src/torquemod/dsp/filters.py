@@ -443,10 +443,14 @@ def _settling_kernel(b: np.ndarray, a: np.ndarray, tol: float, max_samples: int)
     :func:`_filtfilt_rows`: the same bits), extended only as far as the search reads it."""
     m = b.size - 1
     z = np.zeros(m)
-    h = np.empty(max_samples)
+    h = np.empty(min(max_samples, 4096))  # grown when the search goes further
     done = 0
     n = 256
     while n <= max_samples:
+        if n > h.size:
+            grown = np.empty(min(max_samples, 4 * n))
+            grown[:done] = h[:done]
+            h = grown
         for k in range(done, n):  # the response's first n samples
             xn = 1.0 if k == 0 else 0.0
             yn = z[0] + b[0] * xn
