@@ -254,6 +254,41 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     return SpeedModel(modulation_hz, fs_hz, design, slow.shape[1], coef, names, fac)
 
 
+class _SlowOrdersRemoval:
+    """Records ``y`` (columns) less the slow part and the rotation orders of the
+    :class:`SpeedModel` fitted with the modulation at a frequency f: ``y - B c_B`` of the
+    least-squares fit ``y ~ M c_M + B c_B`` with ``B = [slow, orders]`` and M the cos and sin
+    at f (time from the record's middle). By Frisch-Waugh-Lovell, with ``r(z)`` the
+    residual of z fitted on B alone, ``c_M = (r(M)'r(M))^-1 r(M)'r(y)`` and
+    ``y - B c_B = r(y) + (M - r(M)) c_M``: B is factored and ``r(y)`` computed once for every
+    f, and each f costs the fit of M's two columns on B (instead of a new factorisation of
+    the whole design). The same numbers as :func:`fit_speed_model`'s parts to rounding
+    (tests/test_chain_kernels.py)."""
+
+    def __init__(self, y: np.ndarray, slow: np.ndarray, orders: np.ndarray, fs_hz: float):
+        self.y, self.fs_hz = y, fs_hz
+        self.slow, self.orders = slow, orders
+        self.b = np.hstack([slow, orders])
+        self.fac = filters.LstsqFactor.of(self.b)
+        if self.fac is not None:
+            self.r_y = y - self.b @ self.fac.solve(y)
+
+    def at(self, modulation_hz: float) -> np.ndarray:
+        """``y`` less its slow part and orders with the modulation at ``modulation_hz``."""
+        if self.fac is None:  # (nearly) rank-deficient: the whole model, fitted by the SVD
+            model = fit_speed_model({str(i): c for i, c in enumerate(self.y.T)}, self.fs_hz,
+                                    modulation_hz, self.slow, self.orders)
+            fit = model.design[:, 2:] @ model.coef[2:]
+            return self.y - fit
+        n = self.y.shape[0]
+        t = (np.arange(n) - (n - 1) / 2) / self.fs_hz
+        w = 2 * np.pi * modulation_hz
+        m = np.column_stack([np.cos(w * t), np.sin(w * t)])
+        r_m = m - self.b @ self.fac.solve(m)
+        c_m = np.linalg.solve(r_m.T @ r_m, r_m.T @ self.r_y)
+        return self.r_y + (m - r_m) @ c_m
+
+
 def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
                    harmonics: tuple[int, ...], *, above_hz: float, avoid_hz: float,
                    modulation_hz: float | None = None) -> tuple[np.ndarray, float]:
@@ -382,14 +417,14 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # peak); twice, since the model's modulation term starts from the nominal frequency.
     f_mod = f_start
     peaks: dict[str, float] = {}
+    cleaner = _SlowOrdersRemoval(np.column_stack([tq, wh]), slow, orders, fs_r)
     for _ in range(2):
-        model = fit_speed_model({"torque_nm": tq, "wheel_speed_rad_s": wh}, fs_r, f_mod,
-                                slow, orders)
-        for name in ("torque_nm", "wheel_speed_rad_s"):
-            x = sig[name] - model.part(name, "slow") - model.part(name, "orders")
+        cleaned = cleaner.at(f_mod)
+        for i, name in enumerate(("torque_nm", "wheel_speed_rad_s")):
             try:
-                peaks[name] = peak_frequency(x, fs_r, band_hz=fp.band_hz, window=fp.window,
-                                             detrend=fp.detrend, zero_pad=fp.zero_pad)
+                peaks[name] = peak_frequency(cleaned[:, i], fs_r, band_hz=fp.band_hz,
+                                             window=fp.window, detrend=fp.detrend,
+                                             zero_pad=fp.zero_pad)
             except ProcessingError as exc:
                 raise InputError(f"no modulation found: {exc}", path=where, channel=name,
                                  hint="check the modulation was on and [processing] "
