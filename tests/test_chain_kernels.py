@@ -231,3 +231,17 @@ def test_slow_orders_removal_is_the_speed_models_parts():
         # 1.3e-9 of the QR solution (measured), bound 5e-9
         np.testing.assert_allclose(removal.at(f), exact, rtol=0, atol=5e-9)
         np.testing.assert_allclose(ref, exact, rtol=0, atol=5e-9)
+
+
+def test_design_notch_is_scipy_iirnotch_bit_for_bit():
+    rng = np.random.default_rng(13)
+    for _ in range(300):
+        fs = rng.uniform(20, 20_000)
+        f0, q = rng.uniform(1e-3, 0.499) * fs, rng.uniform(0.5, 100)
+        got = filters.design_notch(f0, q, fs)
+        ref = signal.iirnotch(f0, q, fs=fs)
+        for g, r in zip(got, ref, strict=True):
+            np.testing.assert_array_equal(g, r)
+    with pytest.raises(ValueError):
+        filters.design_notch(30.0, 3.0, 50.0)  # above Nyquist: scipy's error
+    assert filters.resample_ratio(16_670.0, 53.344) == (2, 625)

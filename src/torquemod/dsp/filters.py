@@ -137,7 +137,14 @@ def _cho_solve(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
 def resample_ratio(fs_in_hz: float, fs_target_hz: float, *, max_denominator: int = 1000
                    ) -> tuple[int, int]:
     """Integers (up, down) with ``fs_in*up/down`` closest to ``fs_target`` (16 670 Hz to
-    53.344 Hz gives exactly 2/625)."""
+    53.344 Hz gives exactly 2/625). Cached: the same rates for every cycle of a run, and
+    ``Fraction.limit_denominator`` costs ~50 us."""
+    return _resample_ratio(float(fs_in_hz), float(fs_target_hz), int(max_denominator))
+
+
+@functools.lru_cache(maxsize=64)
+def _resample_ratio(fs_in_hz: float, fs_target_hz: float, max_denominator: int
+                    ) -> tuple[int, int]:
     frac = Fraction(fs_target_hz / fs_in_hz).limit_denominator(max_denominator)
     if frac.numerator == 0:
         raise ValueError(f"cannot resample {fs_in_hz} Hz to {fs_target_hz} Hz")
@@ -219,8 +226,21 @@ def _resample_centred(xc: np.ndarray, m: np.ndarray, up: int, down: int, kaiser_
 
 
 def design_notch(f0_hz: float, q: float, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Second-order IIR notch at ``f0_hz`` with quality factor ``q`` (bandwidth f0/q)."""
-    return signal.iirnotch(f0_hz, q, fs=fs_hz)
+    """Second-order IIR notch at ``f0_hz`` with quality factor ``q`` (bandwidth f0/q):
+    ``scipy.signal.iirnotch(f0_hz, q, fs=fs_hz)`` by its own arithmetic on Python floats
+    (Orfanidis, Introduction to Signal Processing, eqs. 11.3.4-11.3.7: ``beta = tan(bw/2)``,
+    ``gain = 1/(1 + beta)``), the same bits (tests/test_chain_kernels.py) without its
+    per-call array handling."""
+    fs = float(fs_hz)
+    w0 = 2 * float(f0_hz) / fs
+    if w0 > 1.0 or w0 < 0.0 or not fs > 0:
+        return signal.iirnotch(f0_hz, q, fs=fs_hz)  # scipy's own error message
+    bw = w0 / float(q) * math.pi
+    w0 = w0 * math.pi
+    gain = 1.0 / (1.0 + math.tan(bw / 2.0))
+    b = np.array([gain * 1.0, gain * (-2.0 * math.cos(w0)), gain * 1.0])
+    a = np.array([1.0, -2.0 * gain * math.cos(w0), 2.0 * gain - 1.0])
+    return b, a
 
 
 @functools.lru_cache(maxsize=32)
