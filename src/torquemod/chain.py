@@ -173,7 +173,6 @@ class SpeedModel:
         model (white noise)."""
         d = self.design
         m = d[:, :2]
-        alone = np.linalg.inv(m.T @ m)
         # (D'D)^-1 restricted to the modulation is (M'(I - P_B)M)^-1, P_B the projection on
         # the other columns (the Schur complement), by a refined least-squares fit on them.
         # Not the block of the inverse of the fit's normal matrix: that squares the design's
@@ -186,8 +185,8 @@ class SpeedModel:
             m_res = m - other @ c_o
         else:
             m_res = m
-        joint = np.linalg.inv(m_res.T @ m_res)
-        return float(max(1.0, np.trace(joint) / np.trace(alone)))
+        return float(max(1.0, _trace_of_inverse_2x2(m_res.T @ m_res)
+                         / _trace_of_inverse_2x2(m.T @ m)))
 
     def noise_depletion(self, *, half_width_hz: float = 0.75) -> float:
         """Fraction (<= 1) of white noise's power near the modulation that the model's
@@ -232,6 +231,12 @@ class SpeedModel:
             slow = self.part(name, "slow")
             self._parts[key] = float(slow.sum()) / slow.size  # np.mean's numbers, cheaper
         return self._parts[key]
+
+
+def _trace_of_inverse_2x2(a: np.ndarray) -> float:
+    """``trace(inv(a))`` of a 2x2 matrix: ``(a00 + a11)/det(a)``."""
+    a00, a01, a10, a11 = (float(v) for v in a.ravel())
+    return (a00 + a11) / (a00 * a11 - a01 * a10)
 
 
 def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz: float,
