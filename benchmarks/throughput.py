@@ -40,6 +40,39 @@ phase's standard error moves by up to 1e-5 relative (``noise_kept``, 1.4e-5, is 
 sensitive to rounding: see :meth:`torquemod.chain.SpeedModel.noise_depletion`).
 The cold line is for cycles whose lengths all differ (per-revolution cycles): the Slepian basis
 (:func:`torquemod.dsp.filters.slow_basis`, 1.2 ms per new length, was 2.1) dominates it.
+
+Fourth round, the rest after the decimation ("before" = commit a2b9601, "after" = this
+version, both run by this script, interleaved before/after three times at load 1.0):
+
+===================================  ==============  ==============
+two_stage chain, one cycle           before          after
+===================================  ==============  ==============
+chain, steps 1-8                     3.94-4.25 ms    3.04-3.12 ms
+M samples/s per core                 26.0-27.0       33.4-33.9
+its own decimation (resample_rows)   0.83-0.94 ms    0.84-0.94 ms
+the rest (steps 1-8 after it)        3.09-3.31 ms    2.10-2.25 ms
+stacked 2-D two-stage pass           0.82-0.92 ms    0.83-0.92 ms
+chain / stacked decimator pass       4.65-4.86x      3.33-3.70x
+chain / its own decimation pass      4.52-4.78x      3.24-3.66x
+per-length caches cleared            5.45-5.77 ms    4.70-4.88 ms
+sinefit phase (M samples/s)          28.1-28.5       34.6-35.9
+===================================  ==============  ==============
+
+The rest went from ~3.2 to ~2.2 ms (Python function calls per cycle 2600 -> ~1450, cProfile):
+Brent's |DTFT| search, the bin checks of the peak search, the filters' settling search, the
+strict extrema, lfilter_zi's system and the order and tone columns are compiled kernels (one
+call per step); step 1 removes the slow part and orders by Frisch-Waugh-Lovell on one factor
+of [slow, orders] instead of fitting a whole speed model per trial frequency; the speed
+model keeps its normal matrix for its noise and variance statistics; the notch design and
+the resampling ratio skip scipy's and Fraction's per-call overhead. Issue 11's 1.5x (the rest
+<= ~0.45 ms) is not reached: what is left is ~16 small refined least-squares solves and ~9
+factorisations (LAPACK and BLAS at ~20-40 us each on 330 x 29 designs, most of it numpy's
+per-call cost; tests pin lstsq/LstsqFactor to scipy's route bit for bit), four zero-padded
+4096-point FFTs and the zero-phase filters. Compiled replacements for the 29-column normal
+equations measured slower than BLAS here (126 us against 44 us for a factorisation).
+Every change keeps the phase within 8e-11 deg and the creepage within 2.2e-16 of a2b9601 (the
+benchmark's cycle and four other synthetic cycles with both decimators and both phase
+methods, and the 18-cycle demo experiment); the standard error moves by up to 8.4e-7 deg.
 """
 
 from __future__ import annotations
