@@ -90,6 +90,13 @@ from torquemod.simulate import load_config, run_simulation, simulate_batch, sine
 from torquemod.theory import operating_point
 
 
+def cold_theory() -> None:
+    """Forget the theory's remembered creep-curve peaks and operating points, so that every
+    timed run computes them as a fresh process does (theory.py memoises them per rig)."""
+    _theory._creep_curve_peak_memo.cache_clear()
+    _theory._operating_point_memo.cache_clear()
+
+
 def warm_up(config) -> float:
     """Wall seconds of the first call of every compiled kernel the simulation uses (numba
     compiles them on the very first run, later runs load them from numba's cache)."""
@@ -161,6 +168,7 @@ def batch_throughput(configs, repeat: int) -> None:
     for label, fn in runs.items():
         walls = []
         for _ in range(repeat):
+            cold_theory()
             t0 = time.perf_counter()
             fn()
             walls.append(time.perf_counter() - t0)
@@ -256,6 +264,7 @@ def cpu_split(config, seed: int = 0) -> CpuSplit:
         setattr(mod, name, phase(fn, label))
     try:
         with tempfile.TemporaryDirectory() as tmp:
+            cold_theory()
             c0 = time.process_time()
             run_simulation(config, Path(tmp) / "exp", seed=seed, fmt="hdf5", progress=False,
                            workers=1)
@@ -298,6 +307,7 @@ def threads_speedup(config, repeat: int, rec_s: float) -> None:
     for _ in range(repeat):
         for w in (1, 2):
             with tempfile.TemporaryDirectory() as tmp:
+                cold_theory()
                 t0 = time.perf_counter()
                 run_simulation(config, Path(tmp) / "exp", seed=0, fmt="hdf5", progress=False,
                                workers=w)
@@ -365,6 +375,7 @@ def main() -> None:
         walls = []
         for _ in range(args.repeat):
             with tempfile.TemporaryDirectory() as tmp:
+                cold_theory()
                 t0 = time.perf_counter()
                 truth = run_simulation(config, Path(tmp) / "exp", seed=0, fmt=fmt,
                                        progress=False)

@@ -163,11 +163,16 @@ def test_hdf5_data_written_after_close_is_the_same(tmp_path):
 
 
 def test_creep_curve_peak_is_remembered_per_parameter_set():
-    """The memo returns what the computation gives, per parameter set (another friction
-    gives another peak), and parameters that cannot be hashed are computed directly."""
+    """The memos return what the computations give, per parameter set (another friction
+    gives another peak) and DC torque, and other parameter objects are computed directly."""
     import dataclasses
 
-    from torquemod.theory import _creep_curve_peak, creep_curve_peak
+    from torquemod.theory import (
+        _creep_curve_peak,
+        _operating_point,
+        creep_curve_peak,
+        operating_point,
+    )
 
     rig = load_config().rig
     assert creep_curve_peak(rig) == _creep_curve_peak(rig, 0.5)
@@ -183,6 +188,13 @@ def test_creep_curve_peak_is_remembered_per_parameter_set():
             return getattr(rig, name)
 
     assert creep_curve_peak(Unhashable()) == creep_curve_peak(rig)
+    for dc in (0.23, 44.47, 65.82, 72.0):
+        for params in (rig, wet):
+            assert operating_point(dc, params) == _operating_point(dc, params) or \
+                operating_point(dc, params).slipped
+        assert operating_point(dc, rig) is operating_point(dc, rig)
+    assert operating_point(44.47, Unhashable()) == operating_point(44.47, rig)
+    assert operating_point(72.0, rig).slipped and not operating_point(65.82, rig).slipped
 
 
 def test_twin_recording_times_are_the_recordings():

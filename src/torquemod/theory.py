@@ -162,11 +162,11 @@ def _fx(xi_x, params: RigParams):
 def creep_curve_peak(params: RigParams, *, max_creepage: float = 0.5) -> tuple[float, float]:
     """``(creepage, torque_nm)`` at the maximum of ``R_w*F_x(xi_x)``: the largest DC torque
     the wheel can carry in steady rolling (beyond it the wheel slips). Remembered per
-    (hashable, frozen) parameter set: every :func:`operating_point` needs it (~1 ms)."""
-    try:
+    parameter set when ``params`` is a (frozen) :class:`RigParams`: every
+    :func:`operating_point` needs it (~1 ms); other objects are computed every time."""
+    if type(params) is RigParams:
         return _creep_curve_peak_memo(params, float(max_creepage))
-    except TypeError:  # parameters that cannot be hashed: computed every time
-        return _creep_curve_peak(params, max_creepage)
+    return _creep_curve_peak(params, max_creepage)
 
 
 def _creep_curve_peak(params: RigParams, max_creepage: float) -> tuple[float, float]:
@@ -185,7 +185,16 @@ _creep_curve_peak_memo = functools.lru_cache(maxsize=256)(_creep_curve_peak)
 
 def operating_point(dc_torque_nm: float, params: RigParams) -> OperatingPoint:
     """Solve ``T_dc = R_w*F_x(xi_x, xi_y)`` for xi_x on the rising branch (scipy brentq) and
-    return the steady-state creepage, CoA and creep coefficients (central differences)."""
+    return the steady-state creepage, CoA and creep coefficients (central differences).
+    Remembered per (DC torque, parameter set) when ``params`` is a (frozen)
+    :class:`RigParams`: a twin run asks for each step's point three times (its plan, the
+    step's truth and the large-signal theory), ~0.7 ms each with the GIL held."""
+    if type(params) is RigParams:
+        return _operating_point_memo(float(dc_torque_nm), params)
+    return _operating_point(dc_torque_nm, params)
+
+
+def _operating_point(dc_torque_nm: float, params: RigParams) -> OperatingPoint:
     xi_peak, t_peak = creep_curve_peak(params)
     rw, n = params.wheel_radius_m, params.normal_load_n
     if dc_torque_nm >= t_peak:
@@ -204,6 +213,9 @@ def operating_point(dc_torque_nm: float, params: RigParams) -> OperatingPoint:
                           coa=float(np.hypot(fx, fy) / n), creep_coefficient=k,
                           dcoa_dxi=float(coa_p - coa_m) / (2 * h), fx_n=float(fx),
                           fy_n=float(fy), slipped=False)
+
+
+_operating_point_memo = functools.lru_cache(maxsize=4096)(_operating_point)
 
 
 # --------------------------------------------------------------------------------------------
