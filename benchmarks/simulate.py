@@ -14,52 +14,86 @@ Run: ``python benchmarks/simulate.py [--repeat N] [--cores N] [--points N]``. Pr
 * the batch mode (issue 12): ``--points`` sweep points of the default experiment (mu0 from
   0.22 to 0.30, modulation at 2 and 3 Hz) as points per second: ``simulate_batch`` of all
   points at once (also without the large-signal theory column), the same one point at a
-  time, and ``run_simulation`` (HDF5) one at a time.
+  time, and ``run_simulation`` (HDF5) one at a time;
+* the CPU split of one run (``run_simulation`` HDF5 on one worker thread): per phase of a
+  step its CPU and the part of it outside the compiled kernels that release the GIL (the
+  "serial" part: h5py, the theory's Python, the run's set-up), and from it an Amdahl
+  PROJECTION to 2-16 cores (a projection, not a measurement: serial part never overlapped /
+  fully overlapped, and never below the longest single step);
+* threads 1 vs 2: ``run_simulation`` on 1 and on 2 worker threads, alternated, and the serial
+  share Amdahl's law infers from the two (``2*T2/T1 - 1``);
+* a fresh process: ``torquemod simulate --format hdf5`` as a user starts it (imports and
+  loading the compiled kernels included).
 
-``run_simulation`` and ``simulate_batch`` run the torque steps side by side on one thread per
-CPU (each step starts from the steady state of the torque before, rig/steps.py).
-``--cores N`` pins the process to N CPUs (Linux ``sched_setaffinity``) to show the one-core
-figure. ``--repeat`` runs each measurement N times and prints every figure and the best; the
-machine's other load shows as spread between repeats.
+``run_simulation`` and ``simulate_batch`` run the torque steps side by side, one thread per
+CPU and at most one per step (each step starts from the steady state of the torque before,
+rig/steps.py). ``--cores N`` pins the process to N CPUs (Linux ``sched_setaffinity``) to show
+the one-core figure. ``--repeat`` runs each measurement N times and prints every figure and
+the best; the machine's other load shows as spread between repeats. Every timed run starts
+with the theory's memos cleared (:func:`cold_theory`), as a fresh process would.
 
-Measured, second round of issue 12 (2-core AMD EPYC VM shared with up to 8 other agents, load
-average 1.9-3.1 during the runs; best of 3 in-process runs after a warm-up, "before" = commit
-ad67fc9 run from an exported copy, before and after alternated so that both see the same
-load; ranges over the alternations):
+Measured, fourth round of issue 12 (2-core AMD EPYC VM shared with up to 8 other agents,
+load average 0.8-4.0 during the runs; "before" = commit a2b9601 run from an exported copy,
+before and after alternated so that both see the same load; x real time is the best of 3-5
+in-process runs after a warm-up, ranges over 6-7 alternations, the quieter ones in brackets):
 
 =========================================  ======================  ======================
-                                           before (ad67fc9)        after
+                                           before (a2b9601)        after
 =========================================  ======================  ======================
-run_simulation HDF5, 2 cores               149-318x                337-366x
-run_simulation HDF5, 1 core                184-189x                220-225x
-integrator (six steps, one thread)         468x                    532x
-CPU of one run, one worker (s)             0.64                    0.53
-  integrator / noise / truth+theory / h5   0.31/0.14/0.12/0.07     0.27/0.07/0.11/0.08
+run_simulation HDF5, 2 cores               142-375x (239-375x)     197-539x (394-539x)
+run_simulation HDF5, 1 core                152-232x (217-232x)     186-292x (276-292x)
+integrator (six steps, one thread)         480-566x                621-836x
+CPU of one run (s, whole process)          0.49-0.69               0.39-0.60
+  integrator / noise / truth / theory /    0.27/0.07/0.07/0.05/    0.17/0.07/0.05/0.03/
+  HDF5 / set-up (one thread, best run)     0.09/0.02               0.07/0.01
+serial (GIL-held) CPU of one run           --                      0.073-0.089 s (18-21 %)
+2 cores / 1 core (quieter rounds)          1.46-1.64               1.85-1.88
+threads 1 -> 2 (serial share, Amdahl)      --                      1.70-1.84 (0.09-0.18)
+batch, 4 points at once                    4.7 points/s            7.5 points/s
+fresh process (CLI, HDF5)                  --                      2.5-3.0 s: 39-47x
 =========================================  ======================  ======================
 
-(The first round's table, on a quieter machine: integrator 405-419x -> 504-526x, HDF5 2 cores
-142-202x -> 265-318x, 1 core 126-146x -> 161-182x, CSV 63-67x -> 132-139x, batch of 4 points
-2.3 -> 4.3 points/s.) What changed in the second round: the settling before the recorded
-revolutions (17 % of the integrated samples) runs at the longest stable RK4 step (10 samples,
-``lambda*h = 2.0``) without output samples (phases move < 5e-7 deg, rig/steps.py); the sensor
-noise comes from a compiled splitmix64 + ziggurat generator added while the channel is copied
-out (4.4 ns per number against ~12 ns per sample for numpy's SFC64 normals, a buffer and the
-scaled add; noise values per seed changed); the truth's means and standard deviations of a
-step and its revolutions in two passes instead of eight; the encoder kernel releases the GIL.
+Projection from the measured split (0.318 s GIL-free, 0.073 s serial, longest step 0.073 s;
+Amdahl with the serial part never overlapped .. fully overlapped): 2 cores 501-594x, 4 cores
+761-1189x, 8 cores 1029-1588x, 16 cores 1249-1588x. 1000x needs about 8 free cores; with 7
+torque steps (6 recorded, the last slips) nothing gains beyond 7 threads, and the longest
+step (~0.073 s of CPU, about a sixth of each phase above) caps a run at ~1600x. Where the
+serial 0.073 s goes: h5py's metadata of 18 files x 7 datasets (~42 ms: opening, 10
+attributes and 7 dataset headers per file; h5py's lock serialises it across threads even
+where the GIL is released), the large-signal theory's Newton loop in Python (~12 ms), the
+run's set-up before the threads start and truth.json (~11 ms), the rest ~8 ms. A CLI run
+is dominated by starting Python and importing the package (1.8-2.4 s: ``import torquemod``
+loads the processing chain, scipy.signal and the report modules before the twin), not by the
+simulation.
 
-Why 1000x is out of reach (0.116 s wall for 116.3 s recorded on 2 cores, i.e. 0.23 CPU-s if
-both cores were busy the whole time): the integrator alone needs ~0.23 CPU-s. A recorded RK4
-step (4 samples) costs ~480 ns: ~400 ns for the bare step, of which ~260 ns is the serial
-dependency of the four Polach evaluations (each ~51 ns of latency: a division, two square
-roots, ``exp`` 11 ns and ``atan`` 22 ns in a chain; measured), ~100 ns the normal-load
-disturbances (sleepers, joints) and ~40 ns the speed wobble; the samples inside the step add
-~80-100 ns. Around it, per run: HDF5 writing ~75 ms (18 files, 108 MB; h5py holds the GIL),
-the truth ~80 ms and the large-signal theory ~35 ms (Python/scipy, GIL), noise ~65 ms. The
-floor with this integrator is ~0.5 CPU-s, ~0.26 s wall on 2 idle cores (~450x). Further
-options, measured but not taken: ``samples_per_step = 8`` (a change of the default config)
-gives ~115 against ~141 ns per sample (phases move 1.6e-5 deg); interleaving two torque steps
-in one integrator loop (their chains are independent) could hide most of the latency but
-needs a kernel rewritten across lanes.
+What changed in the fourth round: the truth's fit sums (normal equations of the whole step
+and each revolution, the speed reference) in one compiled kernel without the GIL instead of
+numpy gathers and BLAS products (phases move <= 2.1e-9 deg by summation order; every other
+truth value and every recorded value unchanged); the HDF5 values copied into
+early-allocated contiguous datasets by ``os.pwrite`` after h5py has closed the file (the same
+float64 values, bit for bit), the files' sample times from a compiled kernel (bit for bit);
+the theory's dense Newton solve releases the GIL, its creep-curve peak and operating points
+are remembered per rig (a run asked for the same point three times, the peak ~20 times); the
+step threads are no longer capped at 4; ``samples_per_step = 8`` by default (RK4 at
+``lambda*h = 1.6``; still fourth order, difference ratios 16.05; the default experiment's
+phases move by <= 1.6e-5 deg per step and 3.3e-5 deg per revolution, the recorded channels by
+<= 4.5e-6 of their range: Fx 0.0033 N, torque 3.3e-4 N*m, wheel speed 3.4e-6 rad/s).
+
+History: second round (commit ad67fc9 -> its successor, best of 3, load 1.9-3.1): HDF5 2
+cores 149-318x -> 337-366x, 1 core 184-189x -> 220-225x, integrator 468x -> 532x, CPU of one
+run 0.64 -> 0.53 s; the settling at the longest stable RK4 step without output samples, the
+compiled splitmix64 + ziggurat noise (noise values per seed changed then), the truth's moments
+in two passes, the encoder kernel without the GIL. First round, on a quieter machine:
+integrator 405-419x -> 504-526x, HDF5 2 cores 142-202x -> 265-318x, 1 core 126-146x ->
+161-182x, CSV 63-67x -> 132-139x, batch of 4 points 2.3 -> 4.3 points/s.
+
+Why the integrator cannot give 1000x on 2 cores: the default procedure takes ~330 000 RK4
+steps (settling at 10 samples per step, recording at 8), ~0.5 us each with their output
+samples (the four Polach evaluations form a dependency chain of ~51 ns latency each, measured
+in the second round, plus the normal-load disturbances and the wobble), i.e. ~0.17 CPU-s,
+while 1000x on 2 cores allows 0.23 CPU-s for everything (noise, truth, theory, files ~0.22
+CPU-s more). Not taken: interleaving two torque steps in one integrator loop (their chains are
+independent) could hide most of the latency but needs a kernel rewritten across lanes.
 """
 
 from __future__ import annotations
