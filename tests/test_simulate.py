@@ -210,16 +210,24 @@ def test_mean_creepage_matches_steady_state(oracle_run):
 
 
 def test_integrator_step_is_configurable_and_checked():
-    """``procedure.samples_per_step`` (default 8) is validated, and a step too long for the
-    rig's fastest mode (RK4 stability) is refused with a hint."""
+    """``procedure.samples_per_step`` (default 8) is validated; a step too long for the
+    rig's fastest mode (RK4 stability) is shortened by halving samples_per_step (a lower
+    sample rate or a stiffer rig runs slower, never unstable), and refused with a hint when
+    even one sample per step is too long."""
     assert load_config(overrides={"procedure": {"samples_per_step": 1}}
                        ).procedure.samples_per_step == 1
     with pytest.raises(InputError, match="samples_per_step"):
         load_config(overrides={"procedure": {"samples_per_step": 0}})
+    # a 10 kHz logger: 8 samples would be lambda*h = 2.7; 4 are 1.33
+    slow = load_config(overrides={"sensors": {"sample_rate_hz": 10_000.0}})
+    assert slow.procedure.samples_per_step == 4
     stiff = {"rig": {"platform_kp_nm_s_rad": 1.0e8}}  # lambda = 33 000 1/s
-    with pytest.raises(InputError, match=r"lambda\*h = 16\.00"):  # default h = 8/16670 s
-        load_config(overrides=stiff)
-    cfg = load_config(overrides={**stiff, "procedure": {"samples_per_step": 1, "substeps": 2}})
+    assert load_config(overrides=stiff).procedure.samples_per_step == 1  # lambda*h = 1.98
+    stiffer = {"rig": {"platform_kp_nm_s_rad": 2.0e8}}
+    with pytest.raises(InputError, match=r"lambda\*h = 4\.00 .*substeps"):
+        load_config(overrides=stiffer)
+    cfg = load_config(overrides={**stiffer, "procedure": {"samples_per_step": 1,
+                                                          "substeps": 2}})
     assert cfg.procedure.substeps == 2
 
 

@@ -41,7 +41,7 @@ import math
 import sys
 import tomllib
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from importlib import resources
 from pathlib import Path
 
@@ -235,19 +235,27 @@ def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
                                 slip_creepage=_positive(doc, "procedure", "slip_creepage", where),
                                 substeps=int(p["substeps"]),
                                 samples_per_step=int(p["samples_per_step"]))
-    _check_step(rig, sensors, procedure, where)
+    procedure = _check_step(rig, sensors, procedure, where)
     return SimConfig(rig=rig, modulation=modulation, disturbances=dist, sensors=sensors,
                      procedure=procedure)
 
 
 def _check_step(rig: RigParams, sensors: SensorParams, proc: ProcedureParams,
-                where: str) -> None:
-    h = proc.samples_per_step / (proc.substeps * sensors.sample_rate_hz)
-    lam_h = stiffest_rate(rig) * h
-    if lam_h > MAX_LAMBDA_H:
+                where: str) -> ProcedureParams:
+    """``proc`` with an RK4 step the rig's fastest mode allows (lambda*h <= MAX_LAMBDA_H):
+    ``samples_per_step`` is halved (8, 4, 2, 1) while the step is too long -- a shorter step
+    is only more accurate, so a stiffer rig or a lower sample rate just runs slower; refused
+    when even one sample per step is too long (raise ``substeps``)."""
+    lam = stiffest_rate(rig)
+    sps = proc.samples_per_step
+    while sps > 1 and lam * sps / (proc.substeps * sensors.sample_rate_hz) > MAX_LAMBDA_H:
+        sps //= 2
+    h = sps / (proc.substeps * sensors.sample_rate_hz)
+    if lam * h > MAX_LAMBDA_H:
         raise InputError(f"integrator step {h:.3g} s too long for the rig's fastest mode "
-                         f"(lambda*h = {lam_h:.2f} > {MAX_LAMBDA_H})", path=where,
-                         hint="lower procedure.samples_per_step or raise procedure.substeps")
+                         f"(lambda*h = {lam * h:.2f} > {MAX_LAMBDA_H} with one sample per "
+                         "step)", path=where, hint="raise procedure.substeps")
+    return proc if sps == proc.samples_per_step else replace(proc, samples_per_step=sps)
 
 
 def load_config(path: str | Path | None = None, *, overrides: dict | None = None) -> SimConfig:
