@@ -12,13 +12,15 @@ The digital twin lives under ``tm.twin`` (imported on first use).
 """
 
 from ._version import __version__
-from .analysis import FitOptions
-from .analysisresult import Analysis
-from .api import analyze, load, process, read_experiment, run, save
-from .config import ProcessingConfig
-from .data import Experiment, Recording
 from .errors import InputError, OutputError, ProcessingError, TorquemodError
-from .pipeline import ProcessResult
+
+# the public names and the modules they live in: imported on first use (PEP 562), so that
+# `import torquemod` -- and every command, the twin's included -- does not pay for scipy,
+# pandas and matplotlib before it needs them
+_LAZY = {"FitOptions": "analysis", "Analysis": "analysisresult", "analyze": "api",
+         "load": "api", "process": "api", "read_experiment": "api", "run": "api",
+         "save": "api", "ProcessingConfig": "config", "Experiment": "data",
+         "Recording": "data", "ProcessResult": "pipeline"}
 
 __all__ = ["Analysis", "Experiment", "FitOptions", "InputError", "OutputError",
            "ProcessResult", "ProcessingConfig", "ProcessingError", "Recording",
@@ -27,8 +29,17 @@ __all__ = ["Analysis", "Experiment", "FitOptions", "InputError", "OutputError",
 
 
 def __getattr__(name: str):
-    """``tm.twin``: the simulator (numba) is imported only when asked for."""
+    """The public names of :data:`_LAZY` and ``tm.twin`` (the simulator, numba), imported
+    when first asked for."""
+    import importlib
     if name == "twin":
-        import importlib
         return importlib.import_module(".twin", __name__)
+    if name in _LAZY:
+        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -90,14 +90,15 @@ def _train_config(args: argparse.Namespace):
     """The train configuration when --train is given or the config says kind = "train"."""
     import tomllib
 
-    from .train import config_from_dict, is_train_config, load_train_config
     if args.train:
+        from .train import load_train_config
         return load_train_config(args.config)
     if args.config:
         try:
             doc = tomllib.loads(Path(args.config).read_text(encoding="utf-8"))
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
             return None  # the rig's loader names the problem
+        from .train import config_from_dict, is_train_config
         if is_train_config(doc):
             return config_from_dict(doc, where=str(args.config))
     return None

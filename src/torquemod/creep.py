@@ -9,11 +9,14 @@ lagging the torque by ``phi = atan(C/k)`` with ``C = Omega*J*V/(R^2*N)`` [-].
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from .errors import InputError
+
+if TYPE_CHECKING:  # pandas is slow to import; only the annotation needs it
+    import pandas as pd
 
 __all__ = [
     "ONSET_CRITERIA",

@@ -17,7 +17,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
 from ..errors import InputError
@@ -74,6 +73,7 @@ def hertz_ellipse(normal_load_n: float, *, curvature_x_1_m: float, curvature_y_1
         major = (3.0 * normal_load_n / (8.0 * e_star * small)) ** (1.0 / 3.0)
         minor = major
     else:
+        from scipy.optimize import brentq  # here: scipy.optimize costs ~0.4 s to import
         m = brentq(lambda m: _ratio_b_over_a_curv(m) - ratio, 1e-12, 1.0 - 1e-15,
                    xtol=1e-15, rtol=1e-14, maxiter=500)
         k, e = ellipk(m), ellipe(m)

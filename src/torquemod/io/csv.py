@@ -10,7 +10,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pyarrow as pa
 from pyarrow import csv as pa_csv
 
@@ -95,6 +94,7 @@ def read_csv(path: Path, *, group: str | None = None,
         if not (pa.types.is_floating(col.type) or pa.types.is_integer(col.type)
                 or pa.types.is_null(col.type)):
             values = col.to_pylist()
+            import pandas as pd  # only for the error message; pandas is slow to import
             bad = pd.to_numeric(pd.Series(values), errors="coerce")
             rows = np.flatnonzero(bad.isna().to_numpy() & pd.Series(values).notna().to_numpy())
             row = int(rows[0]) if rows.size else 0
