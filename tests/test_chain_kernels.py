@@ -24,8 +24,8 @@ def _record(n: int, seed: int) -> np.ndarray:
             + 0.3 * np.sin(2 * np.pi * rng.uniform(3, 20) * t) + rng.standard_normal(n))
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_dtft_peak_is_the_python_brent_search_and_fminbound_bit_for_bit(seed):
+@pytest.mark.parametrize("seed", range(20))
+def test_dtft_peak_is_fminbound_bit_for_bit(seed):
     x = _record(300 + 7 * seed, seed)
     wx = signal.get_window("hann", x.size, fftbins=False) * x
     rng = np.random.default_rng(seed)
@@ -37,34 +37,7 @@ def test_dtft_peak_is_the_python_brent_search_and_fminbound_bit_for_bit(seed):
         return -spectrum._dtft_magnitude(wx, 2 * math.pi * f / FS)
 
     got = spectrum._dtft_peak(wx, FS, lo, hi, xtol, 500)
-    assert got == spectrum._bounded_minimum(neg_mag, lo, hi, xtol)
     assert got == optimize.fminbound(neg_mag, lo, hi, xtol=xtol, maxfun=500, disp=0)
-
-
-def _settling_lfilter(ba, tol=1e-6, max_samples=1_000_000):
-    """The former search: a fresh ``lfilter`` impulse response at every length tried."""
-    b, a = ba
-    n = 256
-    while n <= max_samples:
-        h = signal.lfilter(b, a, np.r_[1.0, np.zeros(n - 1)])
-        above = np.flatnonzero(np.abs(h) > tol * np.abs(h).max())
-        if above[-1] < n - n // 4:
-            return int(above[-1]) + 1
-        n *= 2
-    return max_samples
-
-
-def test_settling_kernel_equals_the_lfilter_search():
-    rng = np.random.default_rng(3)
-    designs = [filters.design_highpass(0.5, 2, FS), filters.design_bandpass(2.0, 0.36, 2, FS)]
-    for _ in range(12):
-        designs.append(filters.design_notch(rng.uniform(0.2, 20), rng.uniform(1, 40), FS))
-        designs.append(filters.design_bandpass(rng.uniform(1.5, 2.5), rng.uniform(0.05, 0.5),
-                                               int(rng.integers(1, 4)), FS))
-    for ba in designs:
-        b, a = (np.array(v, dtype=float) for v in ba)  # writeable: the uncached route
-        assert filters.settling_samples((b, a)) == _settling_lfilter((b, a))
-        assert filters.settling_samples((b, a), tol=1e-9) == _settling_lfilter((b, a), 1e-9)
 
 
 @pytest.mark.parametrize("seed", range(4))

@@ -112,6 +112,19 @@ def test_settling_samples_equals_the_doubling_search(ba):
     assert filters.settling_samples(ba) == _settling_reference(ba)
 
 
+def test_settling_kernel_equals_the_lfilter_search():
+    rng = np.random.default_rng(3)
+    designs = [filters.design_highpass(0.5, 2, FS), filters.design_bandpass(2.0, 0.36, 2, FS)]
+    for _ in range(12):
+        designs.append(filters.design_notch(rng.uniform(0.2, 20), rng.uniform(1, 40), FS))
+        designs.append(filters.design_bandpass(rng.uniform(1.5, 2.5), rng.uniform(0.05, 0.5),
+                                               int(rng.integers(1, 4)), FS))
+    for ba in designs:
+        b, a = (np.array(v, dtype=float) for v in ba)  # writeable: the uncached route
+        assert filters.settling_samples((b, a)) == _settling_reference((b, a))
+        assert filters.settling_samples((b, a), tol=1e-9) == _settling_reference((b, a), 1e-9)
+
+
 def _peak_reference(x, fs_hz, band_hz=(1.5, 2.5), zero_pad=8, xtol_hz=1e-6):
     """The former refinement (detrend, Hann, zero-padded FFT, minimize_scalar on |DTFT|)
     without the line-detection checks."""

@@ -80,24 +80,6 @@ def test_steady_state_is_lfilter_zi_bit_for_bit():
         np.testing.assert_array_equal(filters._steady_state(b, a), signal.lfilter_zi(b, a))
 
 
-def test_bounded_minimum_is_fminbound_bit_for_bit():
-    from scipy import optimize
-
-    from torquemod.dsp import spectrum
-    rng = np.random.default_rng(0)
-    for _ in range(300):
-        c = rng.uniform(-2, 2, 5)
-
-        def f(x, c=c):
-            return float(np.polyval(c, x) + 0.3 * np.sin(7 * x * c[0]))
-
-        lo = rng.uniform(-3, 0)
-        hi = lo + rng.uniform(1e-6, 4)
-        tol = 10 ** rng.uniform(-9, -2)
-        assert spectrum._bounded_minimum(f, lo, hi, tol) == \
-            optimize.fminbound(f, lo, hi, xtol=tol, maxfun=500, disp=0)
-
-
 def test_extrema_times_match_find_peaks_with_and_without_plateaus():
     from torquemod.dsp import phase
     rng = np.random.default_rng(4)
@@ -207,12 +189,3 @@ def test_dpss_is_scipy_dpss(n, max_hz):
     np.testing.assert_allclose(got, ref, rtol=0, atol=2e-13)
     orth = max(5e-14, 2 * np.max(np.abs(ref @ ref.T - np.eye(k))))
     np.testing.assert_allclose(got @ got.T, np.eye(k), rtol=0, atol=orth)
-
-
-def test_median_is_numpy_median():
-    from torquemod.dsp import spectrum
-    rng = np.random.default_rng(9)
-    for m in (1, 2, 3, 10, 11, 200, 201):
-        for _ in range(20):
-            a = rng.standard_normal(m) ** 2
-            assert spectrum._median(a) == float(np.median(a))

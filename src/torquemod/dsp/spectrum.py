@@ -182,17 +182,6 @@ def _dtft_magnitude(wx: np.ndarray, step_rad: float) -> float:
     return math.hypot(re, im)
 
 
-def _median(a: np.ndarray) -> float:
-    """``np.median`` of a 1-D float array without NaN: the same partition and the same mean
-    of the two middle values (so the same number, tested) without its per-call overhead
-    (the chain's floor median is now inside :func:`_line_search`)."""
-    m = a.size
-    if m % 2:
-        return float(np.partition(a, m // 2)[m // 2])
-    part = np.partition(a, [m // 2 - 1, m // 2])
-    return float((part[m // 2 - 1] + part[m // 2]) / 2)
-
-
 @numba.njit(cache=True, nogil=True)
 def _dtft_peak(wx: np.ndarray, fs_hz: float, lo: float, hi: float, xatol: float,
                maxfun: int) -> float:
@@ -267,81 +256,6 @@ def _dtft_peak(wx: np.ndarray, fs_hz: float, lo: float, hi: float, xatol: float,
         if num >= maxfun:
             break
     return xf
-
-
-_SQRT_EPS = math.sqrt(2.2e-16)
-_GOLDEN = 0.5 * (3.0 - math.sqrt(5.0))
-
-
-def _bounded_minimum(func, lo: float, hi: float, xatol: float, maxfun: int = 500) -> float:
-    """The minimiser of ``func`` (any Python function; the chain uses the compiled
-    :func:`_dtft_peak`, the same steps, bit for bit) on ``[lo, hi]`` by Brent's bounded
-    search (Brent 1973, ch. 5: golden-section steps with parabolic interpolation): the same
-    steps and the same
-    arithmetic as ``scipy.optimize.fminbound(func, lo, hi, xtol=xatol, maxfun=maxfun)`` (so
-    the same result, bit for bit: tests/test_chain_speed_equivalence.py), on Python floats
-    instead of numpy scalars, which made scipy's loop cost three times the function's own
-    evaluations here."""
-    a, b = lo, hi
-    fulc = a + _GOLDEN * (b - a)
-    nfc = xf = fulc
-    rat = e = 0.0
-    fx = func(xf)
-    num = 1
-    ffulc = fnfc = fx
-    xm = 0.5 * (a + b)
-    tol1 = _SQRT_EPS * abs(xf) + xatol / 3.0
-    tol2 = 2.0 * tol1
-    while abs(xf - xm) > (tol2 - 0.5 * (b - a)):
-        golden = True
-        if abs(e) > tol1:  # try a parabolic step
-            golden = False
-            r = (xf - nfc) * (fx - ffulc)
-            q = (xf - fulc) * (fx - fnfc)
-            p = (xf - fulc) * q - (xf - nfc) * r
-            q = 2.0 * (q - r)
-            if q > 0.0:
-                p = -p
-            q = abs(q)
-            r, e = e, rat
-            if abs(p) < abs(0.5 * q * r) and q * (a - xf) < p < q * (b - xf):
-                rat = (p + 0.0) / q
-                x = xf + rat
-                if (x - a) < tol2 or (b - x) < tol2:
-                    rat = tol1 * (_sign(xm - xf) + (xm - xf == 0))
-            else:
-                golden = True
-        if golden:
-            e = (a - xf) if xf >= xm else (b - xf)
-            rat = _GOLDEN * e
-        step = abs(rat)
-        x = xf + (_sign(rat) + (rat == 0)) * (step if step >= tol1 or step != step else tol1)
-        fu = func(x)
-        num += 1
-        if fu <= fx:
-            if x >= xf:
-                a = xf
-            else:
-                b = xf
-            fulc, ffulc = nfc, fnfc
-            nfc, fnfc = xf, fx
-            xf, fx = x, fu
-        else:
-            if x < xf:
-                a = x
-            else:
-                b = x
-            if fu <= fnfc or nfc == xf:
-                fulc, ffulc = nfc, fnfc
-                nfc, fnfc = x, fu
-            elif fu <= ffulc or fulc == xf or fulc == nfc:
-                fulc, ffulc = x, fu
-        xm = 0.5 * (a + b)
-        tol1 = _SQRT_EPS * abs(xf) + xatol / 3.0
-        tol2 = 2.0 * tol1
-        if num >= maxfun:
-            break
-    return float(xf)
 
 
 @numba.njit(cache=True, nogil=True)
