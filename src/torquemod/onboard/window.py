@@ -148,7 +148,7 @@ def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
     t_dc = float(torque_nm.mean())
     coa = (t_dc - j * dw_dt) / (n_load * r)
     coa_se = float(np.std(torque_nm)) / math.sqrt(n) / (n_load * r)
-    v_ref = max(abs(v_mean), 0.5)
+    v_ref = _reference_speed(v_mean)
     creepage = (w_mean * r - v_mean) / v_ref
     # the ratio of the true signals: the declared sensor dynamics divided out
     ratio = fit.torque_amplitude / fit.wheel_amplitude * cmath.exp(
@@ -167,6 +167,11 @@ def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
         creepage_swing=r * fit.wheel_amplitude / v_ref,
         wheel_excess_accel_m_s2=r * dw_dt - dv_dt,
         dc_step_ratio=step / max(fit.torque_amplitude, 1e-12), torque_speed_ratio=ratio)
+
+
+def _reference_speed(speed_m_s: float) -> float:
+    """The speed [m/s] creepage and k are referred to: |V|, at least 0.5 m/s (standstill)."""
+    return max(abs(speed_m_s), 0.5)
 
 
 def _creep_coefficient(ratio: complex, e: float, v_ref: float, vehicle: Vehicle,
@@ -193,8 +198,8 @@ def with_delay(w: WindowResult, vehicle: Vehicle, frequency_hz: float,
     if delay_s == 0.0:
         return w
     ratio = w.torque_speed_ratio * cmath.exp(2j * math.pi * frequency_hz * delay_s)
-    v_ref = max(abs(w.speed_m_s), 0.5)
-    k, k_se = _creep_coefficient(ratio, math.radians(w.phase_se_deg), v_ref, vehicle,
+    k, k_se = _creep_coefficient(ratio, math.radians(w.phase_se_deg),
+                                 _reference_speed(w.speed_m_s), vehicle,
                                  frequency_hz)
     return replace(w, phase_deg=math.degrees(cmath.phase(ratio)), creep_coefficient=k,
                    creep_coefficient_se=k_se, torque_speed_ratio=ratio)
