@@ -18,6 +18,7 @@ a leaf patch (low_adhesion delay, false flags on dry rail) and the estimator's o
     python benchmarks/onboard_independent.py [--seeds 2] [--laws tanh burckhardt]
         [--depth 0.8 0.9] [--eccentricity 0.002 0.0] [--ratio-bounds 1 7]
         [--coupling 2e6 [--declare-drive-line]] [--torque-lag 0.004] [--declare-sensors]
+        [--sample-rate 500]
 """
 
 from __future__ import annotations
@@ -185,6 +186,8 @@ def main() -> None:
                     help="write the torque's lag and the speed's delay into run.toml")
     ap.add_argument("--torque-lag", type=float, default=None,
                     help="the torque signal's first-order lag [s] (default: the generator's)")
+    ap.add_argument("--sample-rate", type=float, default=None,
+                    help="the logger's sample rate [Hz] (default: the generator's 2000 Hz)")
     ap.add_argument("--no-calibrate", action="store_true",
                     help="[onboard] calibrate_delay = 0 (no delay measured from the run)")
     args = ap.parse_args()
@@ -204,6 +207,8 @@ def main() -> None:
                                               declare_sensor_dynamics=args.declare_sensors)
                     if args.torque_lag is not None:
                         spec = replace(spec, torque_lag_s=args.torque_lag)
+                    if args.sample_rate is not None:
+                        spec = replace(spec, sample_rate_hz=args.sample_rate)
                     tag = f"{law}_{depth}_{ecc}"
                     out = Path(tmp) / tag
                     scenario(spec, args.seeds, out,
@@ -214,7 +219,8 @@ def main() -> None:
                                 f"{' (declared)' if args.declare_drive_line else ''}"
                                 if args.coupling else "")
                              + f", torque lag {spec.torque_lag_s * 1e3:g} ms"
-                             + (" (declared)" if args.declare_sensors else ""))
+                             + (" (declared)" if args.declare_sensors else "")
+                             + f", logger {spec.sample_rate_hz:g} Hz")
         if args.scenarios_only:
             return
         for law in args.laws:

@@ -17,7 +17,7 @@ import pytest
 
 from torquemod.io.run import Vehicle
 from torquemod.onboard import OnboardConfig, OnboardEstimator, measure_window
-from torquemod.onboard.delay import DelayCalibrator
+from torquemod.onboard.delay import DelayCalibrator, delay_grid
 
 VEH = Vehicle(wheel_radius_m=0.43, normal_load_n=1.6e5, inertia_kg_m2=250.0)
 F_HZ, M_VEH, V_M_S = 4.0, 2773.0, 22.0  # modulation, vehicle inertia at the wheel, speed
@@ -119,3 +119,41 @@ def test_estimator_takes_the_measured_delay_out():
     assert rows[1][-1]["delay_s"] == pytest.approx(0.003, abs=2e-5)
     assert np.max(np.abs(got / ks[late] - 1)) < 0.005
     assert np.max(np.abs(raw / ks[late] - 1)) > 0.05
+
+
+def test_grid_searches_both_signs_within_a_sixth_of_the_period():
+    """delay_grid: -tau..tau in 0.25 ms steps, tau = min(delay_max_s, 1/(6 f))."""
+    g = delay_grid(0.02, 4.0)
+    assert g[0] == pytest.approx(-0.02) and g[-1] == pytest.approx(0.02)
+    assert np.allclose(np.diff(g), 2.5e-4) and np.any(np.abs(g) < 1e-15)
+    g10 = delay_grid(0.02, 10.0)  # 1/60 s = 16.7 ms caps it
+    assert g10[-1] == pytest.approx(0.0165) and g10[0] == pytest.approx(-0.0165)
+    assert 2 * math.pi * 10.0 * g10[-1] <= math.pi / 3
+
+
+def test_speed_behind_the_torque_found():
+    """A speed counted over a gate lags the torque: a net delay of -5 ms (e.g. a two-sample
+    gate at 200 Hz) is found on the default grid within 3 standard errors."""
+    cal = DelayCalibrator(VEH, F_HZ, delay_grid(0.02, F_HZ))
+    for r, se in _windows(-0.005, np.random.default_rng(5)):
+        cal.add(r, se)
+    est = cal.estimate()
+    assert est.trusted and abs(est.delay_s + 0.005) < 3 * est.se_s
+
+
+def test_estimator_keeps_the_last_trusted_delay():
+    """120 windows with the torque 3 ms late make the delay trusted; then 120 windows whose
+    delays scatter by +-15 ms (the stated phase error far too small) inflate the standard
+    error until the estimate is no longer trusted: the rows keep the 3 ms found before
+    instead of falling back to no correction."""
+    rng = np.random.default_rng(6)
+    ks = np.exp(rng.uniform(np.log(4.0), np.log(60.0), 240))
+    delays = np.concatenate([np.full(120, 0.003), rng.uniform(-0.015, 0.015, 120)])
+    wins = [measure_window(*_window_signals(k, d), 1000.0, 1.0, VEH, F_HZ)
+            for k, d in zip(ks, delays, strict=True)]
+    wins = [w.__class__(**{**w.__dict__, "phase_se_deg": 1.0}) for w in wins]
+    est = OnboardEstimator(VEH, F_HZ, 1000.0, config=OnboardConfig(min_windows=1000))
+    rows = [est.update(w) for w in wins]
+    assert rows[119]["delay_s"] == pytest.approx(0.003, abs=2e-5)
+    assert not est.delay.estimate().trusted
+    assert rows[-1]["delay_s"] == pytest.approx(0.003, abs=5e-4)

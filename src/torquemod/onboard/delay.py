@@ -105,3 +105,15 @@ class DelayCalibrator:
         tau_se = float((1 - frac) * se[i] + frac * se[i + 1]) / abs(dbdtau)
         trusted = tau_se <= self.max_se_s
         return DelayEstimate(tau if trusted else 0.0, tau_se, self.n, trusted)
+
+
+def delay_grid(delay_max_s: float, frequency_hz: float, step_s: float = 2.5e-4) -> np.ndarray:
+    """The candidate delays [s] of :class:`DelayCalibrator`: ``-tau_max .. tau_max`` in steps
+    of ``step_s``, with ``tau_max = min(delay_max_s, 1/(6*f))``. Both signs: a filtered torque
+    lags the speed, a speed counted over a gate lags the torque. At most a sixth of the
+    period (60 degrees of rotation at the modulation frequency ``f`` [Hz]), so that the
+    slope of Im(1/G) on Re(1/G) crosses zero once on the grid."""
+    tau = min(float(delay_max_s), 1.0 / (6.0 * float(frequency_hz)))
+    n = max(1, math.floor(tau / step_s + 1e-9))
+    return step_s * np.arange(-n, n + 1, dtype=float)
+

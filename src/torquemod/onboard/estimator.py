@@ -47,7 +47,11 @@ A net delay of the torque signal behind the speed's that run.toml does not decla
 DelayCalibrator` measures it from the steady windows seen so far (the vehicle's impedance
 does not change with the operating point); once its standard error is below
 ``delay_max_se_s`` every window's phase and k are taken with it, and the windows the mu fit
-holds are corrected too (when the estimate moves by more than a quarter of that).
+holds are corrected too (when the estimate moves by more than a quarter of that). An
+estimate that is not trusted (too few operating points yet, or the crossing lost) leaves the
+last trusted one in place. Delays are searched in both directions (a speed counted over a
+gate is half a gate late: 5 ms at 200 Hz with a two-sample gate), within ``delay_max_s``
+and a sixth of the modulation period (:func:`~torquemod.onboard.delay.delay_grid`).
 """
 
 from __future__ import annotations
@@ -62,7 +66,7 @@ from ..errors import InputError, ProcessingError
 from ..io.manifest import check_keys
 from ..io.run import Vehicle
 from ..phasefit import R_BOUNDS
-from .delay import DelayCalibrator
+from .delay import DelayCalibrator, delay_grid
 from .mufit import CreepFit, fit_creep_progression
 from .window import WindowResult, measure_window, with_delay
 
@@ -316,8 +320,8 @@ class OnboardEstimator:
         self.tracker = MuTracker(vehicle, self.f, self.cfg, self.n_win / self.hop)
         self.k_hist: deque[tuple[float, float, float]] = deque()  # (position, CoA, k)
         c = self.cfg
-        grid = np.arange(-0.25 * c.delay_max_s, c.delay_max_s + 1e-12, 2.5e-4)
-        self.delay = DelayCalibrator(vehicle, self.f, grid, min_windows=c.delay_min_windows,
+        self.delay = DelayCalibrator(vehicle, self.f, delay_grid(c.delay_max_s, self.f),
+                                     min_windows=c.delay_min_windows,
                                      max_se_s=c.delay_max_se_s)
         self.delay_s = 0.0  # the net delay taken out of every window now [s]
 
@@ -370,7 +374,8 @@ class OnboardEstimator:
         if steady and math.isfinite(w.creep_coefficient):
             self.delay.add(w.torque_speed_ratio, math.radians(w.phase_se_deg))
             est = self.delay.estimate() if self.delay.n % 4 == 0 else None  # every 4th
-            if est is not None and abs(est.delay_s - self.delay_s) > \
+            # an estimate that is not (or no longer) trusted leaves the last trusted one
+            if est is not None and est.trusted and abs(est.delay_s - self.delay_s) > \
                     0.25 * self.cfg.delay_max_se_s:
                 self.tracker.shift_delay(est.delay_s - self.delay_s)
                 self.delay_s = est.delay_s
