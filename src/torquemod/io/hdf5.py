@@ -14,11 +14,13 @@ recording's notes.
 
 from __future__ import annotations
 
+import functools
 import os
 from pathlib import Path
 
 import h5py
 import numpy as np
+from h5py import h5a, h5d, h5f, h5g, h5p, h5s, h5t
 
 from ..data import CHANNEL_UNITS, CHANNELS, Recording
 from ..errors import InputError
@@ -160,6 +162,11 @@ def write_hdf5(path: Path, rec: Recording, *, group: str | None = None,
     (the same float64 values and layout); those writes run without the GIL and outside
     h5py's lock, so that threads writing files overlap (the twin, issue 12).
     """
+    names = (["time_s"] if write_time else []) + [c for c in CHANNELS if c in rec.channels]
+    if (data_after_close and compression is None and group is None and not attrs
+            and not rec.notes and rec.n_samples > 0 and not os.path.exists(path)):
+        _pwrite_all(path, _create_flat(path, rec, names))
+        return path
     raw_writes = []
     with h5py.File(path, "a") as fh:
         g = fh.require_group(group) if group else fh
@@ -172,8 +179,6 @@ def write_hdf5(path: Path, rec: Recording, *, group: str | None = None,
             del g.attrs[NOTES_ATTR]
         for k, v in (attrs or {}).items():
             g.attrs[k] = v
-        names = (["time_s"] if write_time else []) + [c for c in CHANNELS
-                                                      if c in rec.channels]
         for name in ["time_s", *CHANNELS]:
             if name in g and name not in names:
                 del g[name]
@@ -193,12 +198,76 @@ def write_hdf5(path: Path, rec: Recording, *, group: str | None = None,
                                       compression=compression)
             ds.attrs["unit"] = CHANNEL_UNITS[name]
     if raw_writes:
-        fd = os.open(path, os.O_WRONLY)
-        try:
-            for offset, buf in raw_writes:
-                while buf:  # pwrite may write less than asked
-                    done = os.pwrite(fd, buf, offset)
-                    offset, buf = offset + done, buf[done:]
-        finally:
-            os.close(fd)
+        _pwrite_all(path, raw_writes)
     return path
+
+
+def _pwrite_all(path: Path, raw_writes: list[tuple[int, memoryview]]) -> None:
+    """Copy each ``(offset, bytes)`` of ``raw_writes`` into ``path`` by positional writes
+    (no GIL held while the kernel copies)."""
+    fd = os.open(path, os.O_WRONLY)
+    try:
+        for offset, buf in raw_writes:
+            while buf:  # pwrite may write less than asked
+                done = os.pwrite(fd, buf, offset)
+                offset, buf = offset + done, buf[done:]
+    finally:
+        os.close(fd)
+
+
+@functools.cache
+def _flat_plists() -> tuple:
+    """The property lists, HDF5 types and scalar dataspace :func:`_create_flat` uses:
+    those h5py's ``File(path, "a")``, ``attrs[name] = value`` and ``create_dataset`` use by
+    default (libver earliest..latest, alignment 1, no object times, no attribute creation
+    order), made once per process."""
+    fapl = h5p.create(h5p.FILE_ACCESS)
+    fapl.set_libver_bounds(h5f.LIBVER_EARLIEST, h5f.LIBVER_LATEST)
+    fapl.set_alignment(1, 1)
+    fcpl = h5p.create(h5p.FILE_CREATE)
+    fcpl.set_obj_track_times(False)
+    dcpl = h5p.create(h5p.DATASET_CREATE)
+    dcpl.set_alloc_time(h5d.ALLOC_TIME_EARLY)
+    dcpl.set_fill_time(h5d.FILL_TIME_NEVER)
+    dcpl.set_obj_track_times(False)
+    dcpl.set_attr_creation_order(0)
+    text = h5py.string_dtype()
+    types = {kind: (h5t.py_create(np.dtype(kind), logical=True), h5t.py_create(np.dtype(kind)))
+             for kind in ("<f8", "<i8")}
+    types["str"] = (h5t.py_create(text, logical=True), h5t.py_create(text))
+    units = {name: np.asarray(unit, dtype=text) for name, unit in CHANNEL_UNITS.items()}
+    return fapl, fcpl, dcpl, types, h5s.create_simple(()), units
+
+
+def _create_flat(path: Path, rec: Recording, names: list[str]) -> list[tuple[int, memoryview]]:
+    """Create the new file ``path`` holding ``rec`` at its root in the project's layout with
+    h5py's low-level calls -- the same bytes as :func:`write_hdf5`'s h5py ``File`` path with
+    ``data_after_close`` (tested byte for byte), in a third of its calls (h5py's high-level
+    objects cost ~2.5 ms a file with the GIL held, this ~0.7 ms). The datasets' storage is
+    allocated but not written; returns each dataset's ``(file offset, bytes)`` for
+    :func:`_pwrite_all` after the file is closed."""
+    fapl, fcpl, dcpl, types, scalar, units = _flat_plists()
+
+    def attr(obj, name: bytes, value: np.ndarray, kind: str) -> None:
+        file_type, mem_type = types[kind]
+        h5a.create(obj, name, file_type, scalar).write(value, mem_type)
+
+    raw_writes = []
+    fid = h5f.create(os.fsencode(path), h5f.ACC_EXCL, fapl=fapl, fcpl=fcpl)
+    try:
+        root = h5g.open(fid, b"/")
+        attr(root, b"torquemod_layout", np.asarray(LAYOUT_VERSION, dtype="<i8"), "<i8")
+        attr(root, b"sample_rate_hz", np.asarray(float(rec.fs_hz)), "<f8")
+        attr(root, b"t0_s", np.asarray(float(rec.t0_s)), "<f8")
+        for name in names:
+            data = rec.time_s() if name == "time_s" else rec.channels[name]
+            arr = np.ascontiguousarray(data, dtype="<f8")
+            ds = h5d.create(root, name.encode(), types["<f8"][0],
+                            h5s.create_simple(arr.shape), dcpl=dcpl)
+            attr(ds, b"unit", units[name], "str")
+            raw_writes.append((ds.get_offset(), memoryview(arr).cast("B")))
+            ds.close()
+        root.close()
+    finally:
+        fid.close()
+    return raw_writes
