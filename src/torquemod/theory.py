@@ -31,7 +31,6 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass, replace
 
-import numba
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
@@ -39,6 +38,11 @@ from .contact.polach import creep_force
 from .creep import phase_from_constant_deg, theory_constant
 from .errors import InputError
 from .rig.params import RigParams
+from .theory_kernels import (
+    _dense_solve,  # noqa: F401 - its old home
+    newton_periodic,
+    pack_constants,
+)
 
 
 def rigid_wheel_phase_deg(creep_coefficient, *, inertia_kg_m2: float, speed_m_s: float,
@@ -257,44 +261,6 @@ class LargeSignalResult:
     slipped: bool
 
 
-@numba.njit(cache=True, nogil=True)
-def _dense_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a^-1 b`` by Gaussian elimination with partial pivoting, single-threaded.
-
-    The Newton systems here are small (64-512 unknowns); a threaded BLAS ``gesv`` on a busy
-    machine spent 10-100x longer waiting for its threads than computing. ``a`` is copied."""
-    m = a.shape[0]
-    lu = a.copy()
-    x = b.copy()
-    for k in range(m):
-        piv = k
-        big = abs(lu[k, k])
-        for i in range(k + 1, m):
-            if abs(lu[i, k]) > big:
-                big = abs(lu[i, k])
-                piv = i
-        if big == 0.0:
-            x[:] = np.nan
-            return x
-        if piv != k:
-            for j in range(m):
-                lu[k, j], lu[piv, j] = lu[piv, j], lu[k, j]
-            x[k], x[piv] = x[piv], x[k]
-        inv = 1.0 / lu[k, k]
-        for i in range(k + 1, m):
-            fac = lu[i, k] * inv
-            if fac != 0.0:
-                for j in range(k + 1, m):
-                    lu[i, j] -= fac * lu[k, j]
-                x[i] -= fac * x[k]
-    for i in range(m - 1, -1, -1):
-        acc = x[i]
-        for j in range(i + 1, m):
-            acc -= lu[i, j] * x[j]
-        x[i] = acc / lu[i, i]
-    return x
-
-
 def _circulant(symbol: np.ndarray, n: int) -> np.ndarray:
     """Real ``n x n`` matrix of the periodic linear operator whose frequency response at
     harmonic k = 0..n/2 is ``symbol[k]`` (the Nyquist bin is set to zero)."""
@@ -347,49 +313,13 @@ def _periodic_state(dc_torque_nm, p: RigParams, op: OperatingPoint, f: float, am
     def split(x):
         return x[:n], (x[n:] if platform else np.zeros(n))
 
-    def residual(x, amp):
-        u, w = split(x)
-        fx = force(u, w)[0]
-        r1 = lin_w @ u - (dc_torque_nm + amp * sine) + rw * fx
-        return np.concatenate([r1, w - p_op @ fx]) if platform else r1
+    consts = pack_constants(rw, rp, n0, wref, v0, float(op.creepage), xiy, kw)
+    p_mat = np.ascontiguousarray(p_op) if platform else np.zeros((0, 0))
+    sine_c, lin_c = np.ascontiguousarray(sine), np.ascontiguousarray(lin_w)
 
-    def jacobian(x):
-        u, w = split(x)
-        hu = 1e-7 * (1.0 + np.abs(u).max())
-        fu = (force(u + hu, w)[0] - force(u - hu, w)[0]) / (2.0 * hu)
-        if not platform:
-            return lin_w + rw * np.diag(fu)
-        hw = 1e-7 * (1e-3 + np.abs(w).max())
-        fw = (force(u, w + hw)[0] - force(u, w - hw)[0]) / (2.0 * hw)
-        jac = np.empty((2 * n, 2 * n))
-        jac[:n, :n] = lin_w + rw * np.diag(fu)
-        jac[:n, n:] = rw * np.diag(fw)
-        jac[n:, :n] = -p_op * fu[None, :]
-        jac[n:, n:] = np.eye(n) - p_op * fw[None, :]
-        return jac
-
-    def newton(x, amp):
-        r = residual(x, amp)
-        norm = np.linalg.norm(r)
-        for it in range(1, max_iter + 1):
-            dx = _dense_solve(jacobian(x), -r)
-            if not np.all(np.isfinite(dx)):
-                return x, it, False
-            small = np.abs(dx[:n]).max() <= rtol * max(np.abs(x[:n]).max(), 1e-9)
-            lam = 1.0
-            while True:  # backtracking on the residual norm
-                xn = x + lam * dx
-                rn = residual(xn, amp)
-                nn = np.linalg.norm(rn)
-                if np.isfinite(nn) and (nn < norm or small):
-                    break
-                lam *= 0.5
-                if lam < 1e-4:
-                    return x, it, False
-            x, r, norm = xn, rn, nn
-            if small:
-                return x, it, True
-        return x, max_iter, False
+    def newton(x, amp):  # compiled, without the GIL (theory_kernels.py)
+        return newton_periodic(x, float(amp), float(dc_torque_nm), sine_c, lin_c, p_mat,
+                               platform, n, consts, float(rtol), int(max_iter))
 
     # start: the steady state plus the small-signal response of the wheel speed
     h_t, h_w = drive_line_response(op.creep_coefficient, p, f, creepage=op.creepage)
@@ -450,8 +380,9 @@ def large_signal_phase_deg(dc_torque_nm: float, params: RigParams, frequency_hz:
     speeds at ``n_samples`` equispaced instants of one period; d/dt and the linear transfer
     functions act as circulant matrices built by FFT, the Polach force pointwise in time.
     Newton-Raphson (dense Jacobian, finite differences of the contact force, backtracking on
-    the residual) from the steady state plus the small-signal response, with amplitude
-    continuation as a fallback; ``rtol`` is the last Newton step relative to the speed swing.
+    the residual; compiled without the GIL, :func:`torquemod.theory_kernels.newton_periodic`)
+    from the steady state plus the small-signal response, with amplitude continuation as a
+    fallback; ``rtol`` is the last Newton step relative to the speed swing.
     The phase and amplitudes are DFT bin 1 of the converged signals. If the wheel speed's
     harmonics in the top eighth of the resolved band (3n/8 to n/2) exceed 1e-6 of the first,
     ``n_samples`` is doubled (up to 1024). On the default rig at 8 N*m the default 64 points
