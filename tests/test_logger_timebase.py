@@ -23,7 +23,7 @@ from torquemod.convert import convert_file
 from torquemod.data import CHANNELS, OPTIONAL_CHANNELS, REQUIRED_CHANNELS, Recording
 from torquemod.errors import InputError
 from torquemod.io import read_recording, write_recording
-from torquemod.io.channels import SAME_INSTANT_SAMPLES
+from torquemod.io.timebase import SAME_INSTANT_SAMPLES
 from torquemod.io.validate import fit_time_grid, sample_rate_from_time
 
 FS = 10_000.0

@@ -19,10 +19,10 @@ from .channels import (
     TIME,
     ChannelMap,
     RawChannel,
-    assemble_recording,
     library_error,
     resolve_channel_map,
 )
+from .timebase import assemble_recording
 
 TIME_COLUMN = TIME
 

@@ -27,11 +27,11 @@ from ..errors import InputError
 from .channels import (
     ChannelMap,
     RawChannel,
-    assemble_recording,
     library_error,
     resolve_channel_map,
     source_name,
 )
+from .timebase import assemble_recording
 
 LAYOUT_VERSION = 1
 #: Group attribute holding the notes of the recording the file was written from.

@@ -26,11 +26,11 @@ from ..errors import InputError
 from .channels import (
     ChannelMap,
     RawChannel,
-    assemble_recording,
     library_error,
     resolve_channel_map,
     source_name,
 )
+from .timebase import assemble_recording
 
 #: Scalar variables giving the sample rate [Hz] when there is no time vector.
 RATE_NAMES = ("sample_rate_hz", "fs")

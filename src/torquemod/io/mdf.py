@@ -21,12 +21,12 @@ from ..errors import InputError
 from .channels import (
     ChannelMap,
     RawChannel,
-    assemble_recording,
     import_optional,
     library_error,
     resolve_channel_map,
     source_name,
 )
+from .timebase import assemble_recording
 
 _HINT = "is the file complete and really MDF?"
 #: Largest ratio of a group's data to the file size: deflate, MDF4's usual compression,

@@ -20,10 +20,10 @@ from ..errors import InputError
 from .channels import (
     ChannelMap,
     RawChannel,
-    assemble_recording,
     library_error,
     resolve_channel_map,
 )
+from .timebase import assemble_recording
 
 _HINT = "is the file complete and really Parquet?"
 

@@ -7,11 +7,11 @@ blocks). The slow channels (``vehicle_speed_m_s``, ``position_m``: a radar, GNSS
 odometer, often in their own MDF channel group or with their own time vector) are small
 (a 10 Hz radar over 10 h is 360 000 samples) and are read whole, each with its own time
 base, then brought onto the rows asked for with the whole-file reader's own functions
-(:func:`torquemod.io.channels._plan` and ``_interpolated``: linear interpolation at the
+(:func:`torquemod.io.timebase._plan` and ``_interpolated``: linear interpolation at the
 torque's sample times, or a whole-sample shift). Those act element by element, so every
 row holds bit for bit the value :func:`torquemod.io.read_recording` gives for it; the time
 base, the cut to the span all channels share and the notes are found the way
-:func:`torquemod.io.channels.assemble_recording` finds them (tests/test_onboard_stream.py
+:func:`torquemod.io.timebase.assemble_recording` finds them (tests/test_onboard_stream.py
 compares all of it with the whole-file reader on MDF4 and HDF5 twin runs).
 
 Anything this module does not handle (a channel of the rig besides the run's, a sample rate
@@ -38,6 +38,10 @@ from .channels import (
     ChannelMap,
     RawChannel,
     _converted,
+    resolve_channel_map,
+)
+from .recording import read_recording
+from .timebase import (
     _Grid,
     _interpolated,
     _own_grid,
@@ -46,10 +50,8 @@ from .channels import (
     _with_own_time,
     note_cut,
     prepared,
-    resolve_channel_map,
     shared_span,
 )
-from .recording import read_recording
 from .validate import TIME_FIT_BLOCK, fit_time_grid_blocks
 
 #: The channels of a train run (docs/format.md), in :data:`~torquemod.data.CHANNELS` order.
@@ -219,7 +221,7 @@ class RunStream:
 
     def _cut(self, plans: dict[str, _Plan], slow: dict[str, np.ndarray], ref: _Grid, n: int,
              notes: list[str]) -> tuple[int, int]:
-        """First and last torque row kept, and the notes, as ``channels._align`` gives them
+        """First and last torque row kept, and the notes, as ``timebase._align`` gives them
         (the slow channels faster than the torque are low-passed here, whole)."""
         span = shared_span(plans, ref, n, self.path)
         if span is None:

@@ -20,12 +20,12 @@ from ..errors import InputError
 from .channels import (
     ChannelMap,
     RawChannel,
-    assemble_recording,
     import_optional,
     library_error,
     resolve_channel_map,
     source_name,
 )
+from .timebase import assemble_recording
 
 _TDMS_PATH = re.compile(r"^/'(.+)'/'(.+)'$")
 _HINT = "is the file complete and really TDMS?"
