@@ -1,8 +1,9 @@
-"""Single source of the package version (kept in step with pyproject.toml)."""
+"""Single source of the package version.
 
-from importlib.metadata import PackageNotFoundError, version
+pyproject.toml reads ``__version__`` from here (setuptools ``dynamic`` version, ``attr``, read
+from this file's text without importing the package), so the installed metadata and
+``torquemod.__version__`` cannot disagree. A plain string: asking ``importlib.metadata`` at
+import cost ~35 ms of every process's start-up (issue 12).
+"""
 
-try:
-    __version__ = version("torquemod")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.0.0+unknown"
+__version__ = "0.1.0"
