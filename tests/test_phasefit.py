@@ -22,12 +22,10 @@ from scipy.stats import binom
 
 from torquemod.contact.polach import adhesion_curve, adhesion_slope, swing_average, swing_slope
 from torquemod.errors import InputError
-from torquemod.phasefit import (
-    _Data,
-    _Engine,
-    _inv_h,
-    _invert,
-    fit_mu_from_phase,
+from torquemod.phasefit import _Data, _Engine, fit_mu_from_phase
+from torquemod.polachshape import (
+    inverse_polach_h,
+    invert_polach_h,
     polach_h,
     polach_h_curvature,
     polach_h_slope,
@@ -79,9 +77,9 @@ def test_shape_function_against_the_library_and_finite_differences():
         np.testing.assert_allclose(polach_h_curvature(x, r), (polach_h_slope(x + e, r)
                                    - polach_h_slope(x - e, r)) / (2 * e), rtol=1e-6, atol=1e-9)
         u = polach_h(x, r)
-        np.testing.assert_allclose(_inv_h(u, r), x, rtol=1e-9)
-        np.testing.assert_allclose(_invert(u, r), x, rtol=1e-9)
-    assert np.isnan(_inv_h(1.0, 2.0))
+        np.testing.assert_allclose(inverse_polach_h(u, r), x, rtol=1e-9)
+        np.testing.assert_allclose(invert_polach_h(u, r), x, rtol=1e-9)
+    assert np.isnan(inverse_polach_h(1.0, 2.0))
     # initial slope of the lumped curve: 2*(kA + kS)*s/pi (FACTS §2)
     assert polach_h_slope(0.0, 2.5) == pytest.approx(2 / np.pi * 3.5)
 
@@ -97,7 +95,7 @@ def test_swing_model_matches_a_brute_force_reference():
         d = _Data(coa, np.radians(phase), np.full(6, 1e-3), np.zeros(6), a, C)
         eng = _Engine(d, n_nodes=16)
         p = np.array([[np.log(r), np.log(C / k0)]])
-        res, _ = eng.residuals(np.array([[mu]]), p, _inv_h(coa / mu, r)[None, :])
+        res, _ = eng.residuals(np.array([[mu]]), p, inverse_polach_h(coa / mu, r)[None, :])
         np.testing.assert_allclose(np.degrees(res[0] * 1e-3), 0.0, atol=1e-6)
 
 

@@ -61,18 +61,14 @@ CoA (adhesion cannot exceed friction). Coverage measured in Monte Carlo: tests a
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from .contact.polach import (
-    force_function,
-    force_function_slope,
-    swing_average,
-    swing_slope,
-)
+from .contact.polach import swing_average, swing_slope
 from .errors import InputError
-from .jsonutil import to_jsonable
+from .phasefitresult import PhaseMuFit
+from .polachshape import inverse_polach_h, polach_h, polach_h_curvature, polach_h_slope
 
 __all__ = ["CHI2_95", "K0_BOUNDS", "R_BOUNDS", "PhaseMuFit", "fit_mu_from_phase", "polach_h",
            "polach_h_curvature", "polach_h_slope"]
@@ -84,70 +80,6 @@ _Z975 = 1.959963984540054
 R_BOUNDS = (1.0, 7.0)
 #: bounds of the initial creep coefficient k0 = K*h'(0) [-] when the swing makes K free
 K0_BOUNDS = (3.0, 3000.0)
-
-
-# ------------------------------------------------------------------------------------------
-# the Polach shape function (P05 Eq. 8 with x = kS*eps, r = kA/kS)
-# ------------------------------------------------------------------------------------------
-
-def polach_h(x, r):
-    """Normalised Polach force ``h(x; r) = (2/pi)*(r*x/(1+(r*x)^2) + arctan(x))`` (P05 Eq. 8
-    with ``x = kS*eps``, ``r = kA/kS``), odd in x: the library's
-    :func:`torquemod.contact.polach.force_function` with kA = r, kS = 1."""
-    return force_function(np.asarray(x, dtype=float), k_a=r, k_s=1.0)
-
-
-def polach_h_slope(x, r):
-    """``dh/dx`` of :func:`polach_h`: ``(2/pi)*(r*(1-(rx)^2)/(1+(rx)^2)^2 + 1/(1+x^2))``
-    (:func:`torquemod.contact.polach.force_function_slope`)."""
-    return force_function_slope(np.asarray(x, dtype=float), k_a=r, k_s=1.0)
-
-
-def polach_h_curvature(x, r):
-    """``d2h/dx2`` of :func:`polach_h`: ``(2/pi)*(2 r^2 y (y^2-3)/(1+y^2)^3 - 2x/(1+x^2)^2)``,
-    ``y = r*x``."""
-    x = np.asarray(x, dtype=float)
-    y = r * x
-    return (2.0 / np.pi) * (2.0 * r * r * y * (y * y - 3.0) / (1.0 + y * y) ** 3
-                            - 2.0 * x / (1.0 + x * x) ** 2)
-
-
-def _branch(r: float) -> tuple[np.ndarray, np.ndarray]:
-    """(x, h) on a dense grid of the rising branch of h (up to its first maximum)."""
-    x = np.concatenate([[0.0], np.logspace(-5, 3, 3000)])
-    h = polach_h(x, r)
-    falling = np.flatnonzero(np.diff(h) <= 0)
-    stop = falling[0] + 1 if falling.size else x.size
-    return x[:stop], h[:stop]
-
-
-def _invert(u, r: float) -> np.ndarray:
-    """x with h(x; r) = u on the rising branch, any scalar r (NaN beyond the branch's top)."""
-    xg, hg = _branch(r)
-    u = np.asarray(u, dtype=float)
-    x = np.interp(np.abs(u), hg, xg)
-    for _ in range(3):  # Newton polish
-        x = x - (polach_h(x, r) - np.abs(u)) / np.maximum(polach_h_slope(x, r), 1e-12)
-    x = np.where(np.abs(u) < hg[-1], x, np.nan)
-    return np.sign(u) * x
-
-
-def _inv_h(u, r) -> np.ndarray:
-    """x >= 0 with h(x; r) = |u| for r in R_BOUNDS (h monotone there), broadcasting u and r:
-    bisection in s = x/(1 + x), then Newton. NaN where |u| >= 1."""
-    u, r = np.broadcast_arrays(np.abs(np.asarray(u, dtype=float)), np.asarray(r, float))
-    lo = np.zeros(u.shape)
-    hi = np.ones(u.shape)
-    for _ in range(34):
-        mid = 0.5 * (lo + hi)
-        below = polach_h(mid / (1.0 - mid), r) < u
-        lo = np.where(below, mid, lo)
-        hi = np.where(below, hi, mid)
-    s = 0.5 * (lo + hi)
-    x = s / (1.0 - s)
-    for _ in range(2):
-        x = x - (polach_h(x, r) - u) / np.maximum(polach_h_slope(x, r), 1e-300)
-    return np.where(u < 1.0, np.maximum(x, 0.0), np.nan)
 
 
 # ------------------------------------------------------------------------------------------
@@ -164,19 +96,13 @@ class _Data:
     constant: float | None    # C [-]
 
 
-def _slope_ratio_small(coa, mu, r):
-    """(x, h'(0)/h'(x)) of the small-signal model at x = h^-1(CoA/mu; r)."""
-    x = _inv_h(coa / mu, r)
-    return x, 2.0 * (r + 1.0) / np.pi / polach_h_slope(x, r)
-
-
 def _inverse_near(u, r, x):
     """x >= 0 with h(x; r) = u by Newton from a nearby start; bisection where that fails."""
     for _ in range(5):
         x = np.maximum(x - (polach_h(x, r) - u) / polach_h_slope(x, r), 0.0)
     bad = ~(np.abs(polach_h(x, r) - u) <= 1e-12)
     if np.any(bad & (u < 1.0)):
-        x = np.where(bad, _inv_h(u, r), x)
+        x = np.where(bad, inverse_polach_h(u, r), x)
     return np.where(u < 1.0, x, np.nan)
 
 
@@ -271,7 +197,7 @@ class _Engine:
         q, nk = log_r.size, log_k.size
         mu_b = mu[:, None, None, None]
         r_b = np.exp(log_r)[None, :, None, None]
-        x = _inv_h(d.coa / mu_b, r_b)  # (m, q, 1, n)
+        x = inverse_polach_h(d.coa / mu_b, r_b)  # (m, q, 1, n)
         rs = 2.0 * (r_b + 1.0) / np.pi / polach_h_slope(x, r_b)
         j0 = int(np.argmin(d.coa))
         log_l = np.log(np.tan(d.phase_rad[j0]) / rs[..., j0:j0 + 1])
@@ -358,95 +284,6 @@ class _Engine:
 # ------------------------------------------------------------------------------------------
 # result
 # ------------------------------------------------------------------------------------------
-
-@dataclass
-class PhaseMuFit:
-    """Result of :func:`fit_mu_from_phase` (CoA, mu, k, C dimensionless; phases [deg]).
-
-    ``constant`` is C (given, or fitted: ``L*k0``); when neither C nor a swing fixes the
-    scale of k, k is relative to its initial value (``k0 = 1``) and ``constant`` is ``L``.
-    """
-
-    mu_estimate: float
-    mu_determined: bool
-    mu_interval_95: tuple
-    mu_lower_bound: float
-    mu_stderr_estimate: float | None
-    constant: float
-    constant_given: bool
-    ratio_ka_ks: float
-    initial_slope: float
-    k_relative: bool
-    level: float
-    chi2: float
-    dof: int
-    chi2_scale: float
-    coa: np.ndarray
-    phase_deg: np.ndarray
-    sigma_deg: np.ndarray
-    profile: dict
-    warnings: list = field(default_factory=list)
-
-    @property
-    def mu(self) -> float | None:
-        """mu from the phase [-]; None when the steps do not determine it."""
-        return self.mu_estimate if self.mu_determined else None
-
-    @property
-    def mu_stderr(self) -> float | None:
-        """Half the 95 % interval / 1.96 [-]; None when mu is not determined."""
-        return self.mu_stderr_estimate if self.mu_determined else None
-
-    @property
-    def utilisation(self) -> np.ndarray:
-        """CoA_i/mu per step (NaN when mu is not determined)."""
-        if not self.mu_determined:
-            return np.full(self.coa.size, np.nan)
-        return self.coa / self.mu_estimate
-
-    def creep_coefficient(self, coa) -> np.ndarray:
-        """Fitted small-signal creep coefficient dCoA/dxi [-] at the CoA values (relative to
-        k0 = 1 when ``k_relative``): ``k0*h'(x)/h'(0)``, ``x = h^-1(CoA/mu)``."""
-        coa = np.abs(np.asarray(coa, dtype=float))
-        _, ratio = _slope_ratio_small(coa, self.mu_estimate, self.ratio_ka_ks)
-        return self.initial_slope / ratio
-
-    def phase_curve(self, coa) -> np.ndarray:
-        """Predicted phase [deg] at the CoA values, ``atan(C/k(CoA))`` (small-signal slope: a
-        smooth curve; NaN at CoA >= mu)."""
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.degrees(np.arctan(self.constant / self.creep_coefficient(coa)))
-
-    def report(self) -> str:
-        """A few lines of text."""
-        lo, hi = self.mu_interval_95
-        head = (f"mu from the phase = {self.mu_estimate:.4f} (95 % {lo:.4f} .. {hi:.4f})"
-                if self.mu_determined else
-                f"mu from the phase NOT determined by these steps; mu >= "
-                f"{self.mu_lower_bound:.4f} (best fit {self.mu_estimate:.4f})")
-        given = "given" if self.constant_given else "fitted"
-        rel = " (relative)" if self.k_relative else ""
-        par = (f"  C = {self.constant:.4g} ({given}), kA/kS = {self.ratio_ka_ks:.3g}, "
-               f"k0 = {self.initial_slope:.4g}{rel}, chi2 = {self.chi2:.3g} (dof {self.dof})")
-        lines = ["[[mu from the phase]] tan(phi) = C/k(CoA), Polach family", "  " + head, par]
-        lines += [f"  WARNING: {w}" for w in self.warnings]
-        return "\n".join(lines)
-
-    def to_dict(self) -> dict:
-        """JSON-ready dict (non-finite numbers as None)."""
-        return to_jsonable({
-            "mu": self.mu, "mu_stderr": self.mu_stderr, "mu_estimate": self.mu_estimate,
-            "mu_determined": self.mu_determined, "mu_interval_95": list(self.mu_interval_95),
-            "mu_lower_bound": self.mu_lower_bound, "constant": self.constant,
-            "constant_given": self.constant_given, "ratio_ka_ks": self.ratio_ka_ks,
-            "initial_slope": self.initial_slope, "k_relative": self.k_relative,
-            "chi2": self.chi2, "dof": self.dof, "chi2_scale": self.chi2_scale,
-            "utilisation": self.utilisation, "profile": self.profile,
-            "warnings": list(self.warnings),
-        })
-
-
-
 
 # ------------------------------------------------------------------------------------------
 # the fit

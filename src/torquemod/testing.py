@@ -236,11 +236,11 @@ def synthetic_phase_progression(mu: float, ratio_ka_ks: float, k_scale: float, u
     N = 4200 N, V = 1.944 m/s: |dw| = T/|j*Omega*J + R^2*N*k/V|, swing = |dw|*R/V) is
     found self-consistently and k is the describing-function slope over it."""
     from .contact.polach import swing_average, swing_slope
-    from .phasefit import _invert, polach_h, polach_h_slope
+    from .polachshape import invert_polach_h, polach_h, polach_h_slope
 
     r = ratio_ka_ks
     u = np.asarray(fractions, dtype=float) * u_max
-    x = _invert(u, r)
+    x = invert_polach_h(u, r)
     k = k_scale * polach_h_slope(x, r)
     sw = None
     if swing:

@@ -6,7 +6,7 @@ Model (the Polach family of :mod:`torquemod.phasefit`, Polach 2005 Eq. 8 with ``
 
     k(CoA) = k0 * g(CoA/mu; r),   g(u; r) = h'(h^-1(u; r); r) / h'(0; r)
 
-``h(x; r) = (2/pi)*(r*x/(1+(r*x)^2) + arctan(x))`` (:func:`torquemod.phasefit.polach_h`). The
+``h(x; r) = (2/pi)*(r*x/(1+(r*x)^2) + arctan(x))`` (:func:`torquemod.polachshape.polach_h`). The
 on-board windows give k directly (with its standard error), so the fit is in k, not in the
 phase: k0 enters linearly and is solved in closed form (weighted least squares), and g is
 read from a table over (u, r) made once. The profile ``chi2_p(mu) = min_{r, k0} chi2`` is
@@ -38,7 +38,8 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
-from ..phasefit import CHI2_95, polach_h, polach_h_slope
+from ..phasefit import CHI2_95
+from ..polachshape import polach_h, polach_h_slope
 
 
 @dataclass(frozen=True)
