@@ -223,7 +223,7 @@ _PHASES = ((_simulate, "integrate_step", "integrator"),
 #: the compiled kernels (numba, nogil=True) and system calls that run without the GIL
 _GIL_FREE = ((_steps, "integrate"), (_truth, "_fit_sums"), (_truth, "_partition_moments"),
              (_truth, "_span_moments"), (_truth, "_sine_fit_sums"),
-             (_sensors, "_encoder_kernel"), (_noise, "_add_normal"), (_theory, "_dense_solve"),
+             (_sensors, "_encoder_kernel"), (_noise, "_add_normal"), (_theory, "newton_periodic"),
              (_simulate, "_sample_times"), (_hdf5.os, "pwrite"))
 
 

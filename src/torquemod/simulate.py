@@ -81,6 +81,7 @@ from .rig.steps import (  # MAX_LAMBDA_H, stiffest_rate: re-exported
     stiffest_rate,
 )
 from .rig.truth import (  # noqa: F401 - sine_fit_phase_deg, wobble_free_phase_deg re-exported
+    _cycle_bounds,
     _step_truth,
     _wobble_truth,
     recorded_step_truth,
@@ -350,6 +351,10 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     bar = tqdm(total=len(torques), desc="simulate", unit="step", file=sys.stderr,
                disable=not progress)
 
+    def step_truth(plan, out, n_done):
+        return recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done, plan.t0_s,
+                                   wobble, n_settle)[0]
+
     def run(plan, before):
         start = None if plan.y0 is not None else before.result()[2]
         out, n_done, slipped, y_end = integrate_step(config, params, wobble, plan, n_step,
@@ -357,21 +362,32 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         bar.update(1)
         if slipped:
             return None, [], y_end, plan.t0_s + n_done * dt
-        entry, bounds = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done,
-                                            plan.t0_s, wobble, n_settle)
+        # the step's truth and its sensors + files are independent: the truth is offered to
+        # the pool (a thread without a step left takes it, so that the run does not end
+        # with one thread finishing its step alone) and taken back when no thread has
+        # started it by the time the files are written (the step's output is not kept
+        # waiting behind the other steps)
+        try:
+            entry = pool.submit(step_truth, plan, out, n_done)
+        except RuntimeError:  # the pool is shutting down (a step after a slip)
+            entry = None
+        bounds = _cycle_bounds(out[:n_done, _COL["platform_angle_rad"]], n_settle,
+                               proc.cycles_per_step)
         noise_rng = np.random.Generator(np.random.SFC64(rp.noise_seeds[plan.index - 1]))
         channels = measure(out[bounds[0]:bounds[-1]], disturbances=config.disturbances,
                            sensors=config.sensors, rng=noise_rng)
-        return entry, _write_step(folder, plan, channels, bounds, fs, fmt,
-                                  files_per_cycle), y_end, None
+        recs = _write_step(folder, plan, channels, bounds, fs, fmt, files_per_cycle)
+        if entry is None or entry.cancel():
+            entry = step_truth(plan, out, n_done)
+        return entry, recs, y_end, None
 
     steps, recordings = [], []
     slip_step = slip_time = None
     # threads that integrate and finish steps at once (the compiled integrator, noise and
     # truth kernels and the files' data writes release the GIL): the CPUs this process may
     # use, at most one per step
-    with ThreadPoolExecutor(max_workers=workers or min(len(plans),
-                                                       default_workers())) as pool:
+    pool = ThreadPoolExecutor(max_workers=workers or min(len(plans), default_workers()))
+    with pool:
         futures = []
         for plan in plans:  # in step order: a step waiting for the one before never blocks
             futures.append(pool.submit(run, plan, futures[-1] if futures else None))
@@ -381,7 +397,7 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
                 if entry is None:
                     slip_step, slip_time = plan.index, t_slip
                     break
-                steps.append(entry)
+                steps.append(entry if isinstance(entry, dict) else entry.result())
                 recordings.extend(recs)
         finally:
             for fut in futures:  # the steps after a slip are not needed
