@@ -31,9 +31,10 @@ LINE = dataclasses.replace(RIGID, motor_inertia_kg_m2=110.0, coupling_stiffness_
 
 def _ratio(d: float, m: float, veh: Vehicle, f: float) -> complex:
     """T/w of the wheel (+ drive line) loaded by the contact D in series with the vehicle
-    M', solved directly from the equations of motion (independent of load_impedance)."""
+    M' (and its declared damping c*R^2), solved directly from the equations of motion
+    (independent of load_impedance)."""
     jw = 2j * math.pi * f
-    g = 1 / (1 / d + 1 / (jw * m))
+    g = 1 / (1 / d + 1 / (jw * m + veh.vehicle_damping_n_s_m * veh.wheel_radius_m ** 2))
     if not veh.has_drive_line:
         return jw * veh.inertia_kg_m2 + g
     jm, jwh = veh.motor_inertia_kg_m2, veh.inertia_kg_m2 - veh.motor_inertia_kg_m2
@@ -50,6 +51,23 @@ def test_damping_and_vehicle_inertia_recovered_from_the_ratio(veh, d, m):
     d_hat, m_hat = damping_from_ratio(_ratio(d, m, veh, 5.0), veh, 5.0)
     assert d_hat == pytest.approx(d, rel=1e-9)
     assert m_hat == pytest.approx(m, rel=1e-6)
+
+
+@pytest.mark.parametrize("veh", [RIGID, LINE], ids=["rigid", "drive-line"])
+@pytest.mark.parametrize("d,m", [(1.8e5, 4444.0), (3e4, 2.1e4), (5e5, 2e4)])
+def test_declared_vehicle_damping_taken_out(veh, d, m):
+    """A vehicle that damps (other axles holding the speed, 40 kN*s/m at the rim) in series
+    with the contact: declared, D and M' come back exactly; taken as an inertia, D is
+    biased by -D*Re(1/Z_v) (up to 10 % low here)."""
+    damped = dataclasses.replace(veh, vehicle_damping_n_s_m=4e4)
+    ratio = _ratio(d, m, damped, 5.0)
+    d_hat, m_hat = damping_from_ratio(ratio, damped, 5.0)
+    assert d_hat == pytest.approx(d, rel=1e-9)
+    assert m_hat == pytest.approx(m, rel=1e-9)
+    c = 4e4 * veh.wheel_radius_m ** 2
+    bias = d * (c / (c * c + (2 * math.pi * 5.0 * m) ** 2))
+    d_plain, _ = damping_from_ratio(ratio, veh, 5.0)
+    assert d_plain == pytest.approx(d / (1 + bias), rel=1e-9)
 
 
 def _motor_ratio(d: float, m: float, veh: Vehicle, f: float) -> complex:
@@ -204,6 +222,13 @@ def test_run_manifest_errors(tmp_path):
                               "torque_delay_s = -0.002"))
     with pytest.raises(ManifestError, match=r"vehicle\.torque_delay_s must be a time"):
         read_run(p)
+    p.write_text(base.replace("inertia_kg_m2 = 270.0", "inertia_kg_m2 = 270.0\n"
+                              "vehicle_damping_n_s_m = 4e4"))
+    assert read_run(p).vehicle.vehicle_damping_n_s_m == 4e4
+    p.write_text(base.replace("inertia_kg_m2 = 270.0", "inertia_kg_m2 = 270.0\n"
+                              "vehicle_damping_n_s_m = -1.0"))
+    with pytest.raises(ManifestError, match=r"vehicle\.vehicle_damping_n_s_m must be"):
+        read_run(p)
 
 
 def test_twin_declares_its_torque_lag():
@@ -216,6 +241,27 @@ def test_twin_declares_its_torque_lag():
     lagged = dataclasses.replace(cfg, sensors=dataclasses.replace(cfg.sensors,
                                                                   torque_lag_s=0.003))
     assert run_manifest(lagged, "run.mf4", "mdf")["vehicle"]["torque_lag_s"] == 0.003
+
+
+def test_twin_declares_its_vehicle_damping():
+    """In probes the twin's other axles hold the speed (speed_gain_n_s_m): declared; in a
+    run without probes the running resistance's slope; none when they mix."""
+    from torquemod.train import load_train_config
+    from torquemod.train.params import Leg
+    from torquemod.train.simulate import run_manifest
+    cfg = load_train_config()
+    assert {leg.mode for leg in cfg.controller.legs} == {"probe"}
+    veh = run_manifest(cfg, "run.mf4", "mdf")["vehicle"]
+    assert veh["vehicle_damping_n_s_m"] == cfg.controller.speed_gain_n_s_m
+    drive = dataclasses.replace(cfg, controller=dataclasses.replace(
+        cfg.controller, legs=(Leg(until_m=500.0, mode="torque", torque_nm=8000.0),)))
+    v = cfg.vehicle
+    assert run_manifest(drive, "run.mf4", "mdf")["vehicle"]["vehicle_damping_n_s_m"] == \
+        pytest.approx(v.davis_b_n_s_m + 2 * v.davis_c_n_s2_m2 * cfg.initial_speed_m_s)
+    mixed = dataclasses.replace(cfg, controller=dataclasses.replace(
+        cfg.controller, legs=(Leg(until_m=500.0, mode="torque", torque_nm=8000.0),
+                              *cfg.controller.legs)))
+    assert "vehicle_damping_n_s_m" not in run_manifest(mixed, "run.mf4", "mdf")["vehicle"]
 
 
 @pytest.fixture(scope="module")

@@ -11,6 +11,7 @@ tables and ``[channels]`` map (read by the same readers), with ``[vehicle]`` in 
     # gear_ratio = 4.5             # only when torque and speed are recorded at the motor
     # torque_lag_s = 0.002         # the torque signal's first-order lag (drive's estimate)
     # speed_delay_s = 0.0005       # the speed signal's delay (half an encoder gate)
+    # vehicle_damping_n_s_m = 0.0  # the vehicle's force per speed change beyond its inertia
 
     [test]
     modulation_frequency_hz = 5.0
@@ -34,7 +35,7 @@ from .manifest import _load_toml, check_keys, checked_channel_map, recording_fil
 _VEHICLE_REQUIRED = ("wheel_radius_m", "normal_load_n", "inertia_kg_m2")
 _VEHICLE_OPTIONAL = ("gear_ratio", "motor_inertia_kg_m2", "coupling_stiffness_nm_rad",
                      "coupling_damping_nm_s_rad", "vehicle", "mass_kg", "torque_lag_s",
-                     "torque_delay_s", "speed_delay_s")
+                     "torque_delay_s", "speed_delay_s", "vehicle_damping_n_s_m")
 #: the sensors' dynamics: time constants and delays [s], each >= 0
 _SENSOR_DELAYS = ("torque_lag_s", "torque_delay_s", "speed_delay_s")
 _TEST_REQUIRED = ("modulation_frequency_hz", "modulation_amplitude_nm")
@@ -51,7 +52,11 @@ class Vehicle:
     first-order lag of the torque (a drive's torque estimated from motor current is
     filtered), ``torque_delay_s`` and ``speed_delay_s`` pure delays (transmission, a speed
     from counting encoder pulses over a gate is late by half the gate); the estimator
-    removes them from the measured torque-to-speed ratio (:meth:`sensor_response`)."""
+    removes them from the measured torque-to-speed ratio (:meth:`sensor_response`).
+    ``vehicle_damping_n_s_m`` [N*s/m]: the force with which the vehicle resists a change of
+    its speed at the modulation frequency beyond its inertia (other axles holding the speed,
+    the running resistance's slope); 0 takes the vehicle as an inertia
+    (:func:`torquemod.onboard.window.damping_from_ratio`)."""
 
     wheel_radius_m: float
     normal_load_n: float
@@ -64,6 +69,7 @@ class Vehicle:
     torque_lag_s: float = 0.0
     torque_delay_s: float = 0.0
     speed_delay_s: float = 0.0
+    vehicle_damping_n_s_m: float = 0.0
 
     @property
     def has_drive_line(self) -> bool:
@@ -137,6 +143,14 @@ def read_run(path: str | Path) -> Run:
         if isinstance(d, bool) or not isinstance(d, int | float) or d < 0:
             raise ManifestError("vehicle.coupling_damping_nm_s_rad must be >= 0", path=path)
         opt["coupling_damping_nm_s_rad"] = float(d)
+    if "vehicle_damping_n_s_m" in vt:
+        d = vt["vehicle_damping_n_s_m"]
+        if isinstance(d, bool) or not isinstance(d, int | float) or not 0 <= d < 1e9:
+            raise ManifestError(f"vehicle.vehicle_damping_n_s_m must be a damping in N*s/m, "
+                                f">= 0, got {d!r}", path=path,
+                                hint="leave it out when unknown (the vehicle is then taken "
+                                     "as an inertia)")
+        opt["vehicle_damping_n_s_m"] = float(d)
     for key in _SENSOR_DELAYS:
         if key in vt:
             d = vt[key]

@@ -128,7 +128,8 @@ def _delay_sentence(result, s: dict) -> str:
     """What the report says about the torque-speed delay (declared and measured)."""
     v = result.run.vehicle
     declared = (f"declared: torque lag {1e3 * v.torque_lag_s:g} ms, torque delay "
-                f"{1e3 * v.torque_delay_s:g} ms, speed delay {1e3 * v.speed_delay_s:g} ms")
+                f"{1e3 * v.torque_delay_s:g} ms, speed delay {1e3 * v.speed_delay_s:g} ms, "
+                f"vehicle damping {v.vehicle_damping_n_s_m:g} N*s/m")
     if not result.config.calibrate_delay:
         return f"Sensor dynamics {declared}; no delay measured (calibrate_delay = 0)."
     d = s.get("measured_delay_s", 0.0)

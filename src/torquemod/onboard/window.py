@@ -82,20 +82,32 @@ def damping_from_ratio(ratio: complex, vehicle: Vehicle, frequency_hz: float
     """Contact damping D = R^2*N*k/V [N*m*s/rad] and the vehicle inertia seen at the wheel
     M' = M*R^2 [kg*m^2] from the torque-to-speed ratio (:func:`load_impedance`).
 
-    The contact (D) and the vehicle's inertia (j*Omega*M') act in series between wheel and
-    track, ``1/G = 1/D + 1/(j*Omega*M')``, so ``D = 1/Re(1/G)`` and
-    ``M' = -1/(Omega*Im(1/G))``. A train moves with the modulating force (the rig's
+    The contact (D) and the vehicle (Z_v = c' + j*Omega*M') act in series between wheel and
+    track, ``1/G = 1/D + 1/Z_v``. A train moves with the modulating force (the rig's
     platform hardly does): the rigid-wheel relation ``tan(phi) = Omega*J/D`` (V-Track paper
-    Eq. 1) is the limit M' -> infinity. Needs the torque's calibration (amplitude); NaN
-    when ``Re(1/G) <= 0``.
+    Eq. 1) is the limit M' -> infinity. D is real, so ``Im(1/G) = Im(1/Z_v) = y``; with the
+    vehicle's declared damping ``c' = vehicle_damping_n_s_m*R^2`` (0: an inertia)
+    ``Re(1/Z_v) = x`` solves ``c'*(x^2 + y^2) = x`` (the root with Omega*M' > c')::
+
+        x = 2*c'*y^2 / (1 + sqrt(1 - 4*c'^2*y^2)),   D = 1/(Re(1/G) - x),
+        M' = -y/((x^2 + y^2)*Omega)
+
+    Needs the torque's calibration (amplitude); D NaN when ``Re(1/G) <= x`` or the declared
+    damping exceeds what the measured inertia allows (``2*c'*|y| > 1``).
     """
     g = load_impedance(ratio, vehicle, frequency_hz)
     if g == 0:
         return math.nan, math.nan
     inv = 1.0 / g
-    d = 1.0 / inv.real if inv.real > 0 else math.nan
+    y = inv.imag
+    c = vehicle.vehicle_damping_n_s_m * vehicle.wheel_radius_m ** 2
+    disc = 1.0 - 4.0 * c * c * y * y
+    if disc < 0.0:
+        return math.nan, math.nan
+    x = 2.0 * c * y * y / (1.0 + math.sqrt(disc))
+    d = 1.0 / (inv.real - x) if inv.real > x else math.nan
     om = 2 * math.pi * frequency_hz
-    m = -1.0 / (om * inv.imag) if inv.imag < 0 else math.inf
+    m = -y / ((x * x + y * y) * om) if y < 0 else math.inf
     return d, m
 
 

@@ -177,9 +177,25 @@ def _channels_table(fmt: str) -> dict:
             "position": {"name": "position_m", "time": "reference_time_s"}}
 
 
+def vehicle_damping_n_s_m(cfg: TrainConfig) -> float | None:
+    """The vehicle's force per unit speed change beyond its inertia [N*s/m] that the twin
+    simulates, when one value holds for the whole run: in a probe the other axles hold the
+    speed with ``speed_gain_n_s_m`` and cancel the running resistance
+    (:func:`~torquemod.train.dynamics._control`), elsewhere the vehicle meets the running
+    resistance's slope ``B + 2*C*v`` at the starting speed; None when probes and other legs
+    mix (no single value; the estimator then takes the vehicle as an inertia)."""
+    modes = {leg.mode for leg in cfg.controller.legs}
+    if modes == {"probe"}:
+        return float(cfg.controller.speed_gain_n_s_m)
+    if "probe" not in modes:
+        v = cfg.vehicle
+        return float(v.davis_b_n_s_m + 2.0 * v.davis_c_n_s2_m2 * cfg.initial_speed_m_s)
+    return None
+
+
 def run_manifest(cfg: TrainConfig, file: str, fmt: str) -> dict:
-    """The ``run.toml`` document of a simulated run (drive line and the torque signal's lag
-    included: the twin knows them)."""
+    """The ``run.toml`` document of a simulated run (drive line, the torque signal's lag and
+    the vehicle's damping included: the twin knows them)."""
     v = cfg.vehicle
     vehicle = {"vehicle": "torquemod train twin", "wheel_radius_m": v.wheel_radius_m,
                "normal_load_n": v.normal_load_n, "inertia_kg_m2": v.inertia_kg_m2,
@@ -188,6 +204,9 @@ def run_manifest(cfg: TrainConfig, file: str, fmt: str) -> dict:
                "coupling_damping_nm_s_rad": v.coupling_damping_nm_s_rad}
     if cfg.sensors.torque_lag_s > 0:  # the drive's torque estimate is filtered: declared
         vehicle["torque_lag_s"] = cfg.sensors.torque_lag_s
+    damping = vehicle_damping_n_s_m(cfg)
+    if damping is not None:
+        vehicle["vehicle_damping_n_s_m"] = damping
     return {
         "vehicle": vehicle,
         "test": {"modulation_frequency_hz": cfg.modulation_frequency_hz,
