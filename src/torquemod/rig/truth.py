@@ -217,31 +217,43 @@ def _fit_basis(t, w, wob, theta, x):
     ``theta`` [rad] into ``x``: ``cos(w*t)``, ``sin(w*t)``, 1, then per wobble row
     (:func:`~torquemod.rig.dynamics.wobble_table`) cos and sin of ``rate*t`` (band rows) or
     ``order*theta`` (revolution rows) -- :func:`~torquemod.rig.dynamics.wobble_basis` and the
-    modulation's columns, each sine rotated from sample to sample (through ``rate*dt`` or
-    the angle's small increment, :mod:`torquemod.rig.kernels`) and exact every
-    ``_BASIS_EXACT`` samples."""
+    modulation's columns, each sine rotated from sample to sample (through ``rate*dt``, whose
+    small-angle sin and cos are computed once per column, or the angle's small increment,
+    :mod:`torquemod.rig.kernels`) and exact every ``_BASIS_EXACT`` samples."""
     n = t.size
     nw = wob.shape[0]
     dt = t[1] - t[0] if n > 1 else 0.0
-    rates = np.empty(nw + 1)
+    m1 = nw + 1
+    rates = np.empty(m1)
+    rev = np.zeros(m1, dtype=np.bool_)
     rates[0] = w
     for j in range(nw):
         rates[j + 1] = wob[j, 1]
-    c, s = np.empty(nw + 1), np.empty(nw + 1)
+        rev[j + 1] = wob[j, 3] > 0.5
+    # time columns turn by the same rates[j]*dt every sample
+    c_dt, s_dt = np.empty(m1), np.empty(m1)
+    small = np.zeros(m1, dtype=np.bool_)
+    for j in range(m1):
+        d = rates[j] * dt
+        small[j] = abs(d) <= SMALL
+        c_dt[j], s_dt[j] = cos_small(d), sin_small(d)
+    c, s = np.empty(m1), np.empty(m1)
     for k in range(n):
         exact = k % _BASIS_EXACT == 0
-        for j in range(nw + 1):
-            rev = j > 0 and wob[j - 1, 3] > 0.5
-            if rev:
+        for j in range(m1):
+            if rev[j]:
                 d = rates[j] * (theta[k] - theta[k - 1]) if k > 0 else 0.0
-                arg = rates[j] * theta[k]
-            else:
-                d = rates[j] * dt
+                if exact or not abs(d) <= SMALL:
+                    arg = rates[j] * theta[k]
+                    c[j], s[j] = math.cos(arg), math.sin(arg)
+                else:
+                    cd, sd = cos_small(d), sin_small(d)
+                    c[j], s[j] = c[j] * cd - s[j] * sd, s[j] * cd + c[j] * sd
+            elif exact or not small[j]:
                 arg = rates[j] * t[k]
-            if exact or not abs(d) <= SMALL:
                 c[j], s[j] = math.cos(arg), math.sin(arg)
             else:
-                cd, sd = cos_small(d), sin_small(d)
+                cd, sd = c_dt[j], s_dt[j]
                 c[j], s[j] = c[j] * cd - s[j] * sd, s[j] * cd + c[j] * sd
         x[k, 0], x[k, 1], x[k, 2] = c[0], s[0], 1.0
         for j in range(nw):
