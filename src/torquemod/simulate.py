@@ -345,20 +345,17 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     # can be finished in any order and the run stays deterministic; every step starts from
     # the steady state of the torque before (rig/steps.py), so that they run side by side:
     # each worker integrates a step and finishes it (truth, noise, files)
-    rp = plan_run(config, seed)
-    wobble, n_settle, n_step = rp.wobble, rp.n_settle, rp.n_step
-    plans = rp.steps
     bar = tqdm(total=len(torques), desc="simulate", unit="step", file=sys.stderr,
                disable=not progress)
 
-    def step_truth(plan, out, n_done):
+    def step_truth(rp, plan, out, n_done):
         return recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done, plan.t0_s,
-                                   wobble, n_settle)[0]
+                                   rp.wobble, rp.n_settle)[0]
 
-    def run(plan, before):
+    def run(rp, plan, before):
         start = None if plan.y0 is not None else before.result()[2]
-        out, n_done, slipped, y_end = integrate_step(config, params, wobble, plan, n_step,
-                                                     start, n_settle)
+        out, n_done, slipped, y_end = integrate_step(config, params, rp.wobble, plan,
+                                                     rp.n_step, start, rp.n_settle)
         bar.update(1)
         if slipped:
             return None, [], y_end, plan.t0_s + n_done * dt
@@ -368,17 +365,17 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         # started it by the time the files are written (the step's output is not kept
         # waiting behind the other steps)
         try:
-            entry = pool.submit(step_truth, plan, out, n_done)
+            entry = pool.submit(step_truth, rp, plan, out, n_done)
         except RuntimeError:  # the pool is shutting down (a step after a slip)
             entry = None
-        bounds = _cycle_bounds(out[:n_done, _COL["platform_angle_rad"]], n_settle,
+        bounds = _cycle_bounds(out[:n_done, _COL["platform_angle_rad"]], rp.n_settle,
                                proc.cycles_per_step)
         noise_rng = np.random.Generator(np.random.SFC64(rp.noise_seeds[plan.index - 1]))
         channels = measure(out[bounds[0]:bounds[-1]], disturbances=config.disturbances,
                            sensors=config.sensors, rng=noise_rng)
         recs = _write_step(folder, plan, channels, bounds, fs, fmt, files_per_cycle)
         if entry is None or entry.cancel():
-            entry = step_truth(plan, out, n_done)
+            entry = step_truth(rp, plan, out, n_done)
         return entry, recs, y_end, None
 
     steps, recordings = [], []
@@ -386,11 +383,17 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     # threads that integrate and finish steps at once (the compiled integrator, noise and
     # truth kernels and the files' data writes release the GIL): the CPUs this process may
     # use, at most one per step
-    pool = ThreadPoolExecutor(max_workers=workers or min(len(plans), default_workers()))
+    pool = ThreadPoolExecutor(max_workers=workers or min(len(torques), default_workers()))
+    futures = []
     with pool:
-        futures = []
-        for plan in plans:  # in step order: a step waiting for the one before never blocks
-            futures.append(pool.submit(run, plan, futures[-1] if futures else None))
+        # step 1 starts integrating as soon as its plan is known, while the others are
+        # planned (their operating points and the speed loop's reference angle, ~6 ms)
+        rp = plan_run(config, seed,
+                      first=lambda head, plan: futures.append(pool.submit(run, head, plan,
+                                                                          None)))
+        wobble, plans = rp.wobble, rp.steps
+        for plan in plans[1:]:  # in step order: a step waiting for the one before never blocks
+            futures.append(pool.submit(run, rp, plan, futures[-1]))
         try:
             for plan, fut in zip(plans, futures, strict=True):
                 entry, recs, _y, t_slip = fut.result()

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -69,10 +69,14 @@ class RunPlan:
     n_step: int
 
 
-def plan_run(config: SimConfig, seed: int) -> RunPlan:
+def plan_run(config: SimConfig, seed: int,
+             first: Callable[[RunPlan, StepPlan], None] | None = None) -> RunPlan:
     """The :class:`RunPlan` of ``config`` for ``seed`` (shared by
     :func:`torquemod.simulate.run_simulation` and :func:`simulate_batch`): the wobble drawn
-    first, then the noise streams spawned (no draw), then one generator phase per step."""
+    first, then the noise streams spawned (no draw), then one generator phase per step.
+    ``first`` is called with the plan so far (no steps yet) and the first step's plan as
+    soon as they are known (:func:`~torquemod.rig.steps.plan_steps`), so that the caller can
+    start integrating step 1 while the other steps are planned."""
     proc, fs = config.procedure, config.sensors.sample_rate_hz
     rng = np.random.default_rng(seed)
     wobble = wobble_table(config.disturbances, config.rig.platform_speed_rad_s, rng)
@@ -81,7 +85,14 @@ def plan_run(config: SimConfig, seed: int) -> RunPlan:
               for _ in proc.dc_torques_nm]
     n_settle = round(proc.settle_s * fs)
     n_rec = math.ceil((proc.cycles_per_step * config.rig.revolution_s * 1.01 + 0.1) * fs)
-    return RunPlan(wobble, noise_seeds, plan_steps(config, wobble, phases, n_settle + n_rec),
+    hook = None
+    if first is not None:
+        head = RunPlan(wobble, noise_seeds, [], n_settle, n_settle + n_rec)
+
+        def hook(plan: StepPlan) -> None:
+            first(head, plan)
+    return RunPlan(wobble, noise_seeds,
+                   plan_steps(config, wobble, phases, n_settle + n_rec, hook),
                    n_settle, n_settle + n_rec)
 
 

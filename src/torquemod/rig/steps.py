@@ -28,6 +28,7 @@ from the end of the step before, as in a sequential run.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numba
@@ -107,9 +108,12 @@ class StepPlan:
 
 
 def plan_steps(config: SimConfig, wobble: np.ndarray, phases: list[float],
-               n_step_samples: int) -> list[StepPlan]:
+               n_step_samples: int, first: Callable[[StepPlan], None] | None = None
+               ) -> list[StepPlan]:
     """The steps of ``config``'s procedure, each ``n_step_samples`` long at the sample rate,
-    with their start states (module docstring); ``phases`` [rad] per step."""
+    with their start states (module docstring); ``phases`` [rad] per step. ``first`` is
+    called with the first step's plan as soon as it is known (before the operating points
+    and the reference angle of the others), so that a caller can start integrating it."""
     rig, proc = config.rig, config.procedure
     dt = 1.0 / config.sensors.sample_rate_hz
     torques = proc.dc_torques_nm
@@ -118,6 +122,9 @@ def plan_steps(config: SimConfig, wobble: np.ndarray, phases: list[float],
     if op0.slipped:
         op0, start = operating_point(0.0, rig), 0.0
     y1 = initial_state(rig, creepage=op0.creepage, dc_torque_nm=start, contact_fx_n=op0.fx_n)
+    plan1 = StepPlan(1, start, torques[0], 0.0, phases[0], y1)
+    if first is not None:
+        first(plan1)
     # step starts as the sequential run accumulates them
     t_starts, t = [], 0.0
     for _ in torques:
@@ -132,7 +139,7 @@ def plan_steps(config: SimConfig, wobble: np.ndarray, phases: list[float],
     w0 = rig.platform_speed_rad_s
     phi = _reference_angle(np.asarray(t_starts[1:] or [0.0]), y1[4] + y1[6], w0, ipi,
                            np.ascontiguousarray(wobble, dtype=np.float64))
-    plans = [StepPlan(1, start, torques[0], 0.0, phases[0], y1)]
+    plans = [plan1]
     th_w, th_prev = y1[3], y1[4]
     for i in range(1, len(torques)):
         y = steady[i]
