@@ -231,7 +231,8 @@ _GIL_FREE = ((_steps, "integrate"), (_truth, "_fit_sums"), (_truth, "_partition_
 class CpuSplit:
     """CPU seconds of one run (``run_simulation`` on one worker thread): per phase
     ``phases[label] = (cpu_s, gil_free_cpu_s)``; ``total_s`` the process's CPU over the run,
-    ``step_max_s`` the CPU of its longest step (integration to files)."""
+    ``step_max_s`` the CPU of its longest step (integration, noise, files and truth one after
+    the other; on more cores the truth runs beside the noise and files)."""
 
     phases: dict
     total_s: float
@@ -271,7 +272,8 @@ def cpu_split(config, seed: int = 0) -> CpuSplit:
                     stack[-1][2] += cpu
                 if label == "integrator":
                     steps.append([t0, None])
-                elif label == "HDF5 files":
+                elif label == "truth: steady state, small-signal theory":
+                    # with one worker a step's truth runs after its files (simulate.py)
                     steps[-1][1] = time.thread_time()
         return wrapped
 

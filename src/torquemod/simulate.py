@@ -11,13 +11,16 @@ Public entry points (the CLI in :mod:`torquemod.cli` only parses arguments and c
   configurations (sweep points) at once, without sensors or files.
 
 The torque steps run side by side on a pool of threads, one per CPU up to one per step (each
-integrates a step and draws its truth, noise and files): every step starts from the steady
-state of the torque before it (:mod:`torquemod.rig.steps`), which moves the simulated phases
-by < 1e-6 deg against running the steps one after the other. Most of a step's work runs in
-compiled kernels that release the GIL (integrator, truth sums, noise, sample times) and the
+integrates a step and draws its truth, noise and files; a step's truth is offered to the
+pool while its thread draws the noise and writes the files, and step 1 starts while the
+other steps are planned): every step starts from the steady state of the torque before it
+(:mod:`torquemod.rig.steps`), which moves the simulated phases by < 1e-6 deg against running
+the steps one after the other. Most of a step's work runs in compiled kernels that release
+the GIL (integrator, truth sums, the theory's Newton solve, noise, sample times) and the
 files' values are copied in by ``os.pwrite`` after h5py has closed them; what holds the GIL
-(h5py's metadata, the theory's Python, the run's set-up) is ~20 % of a run's CPU
-(benchmarks/simulate.py prints the split and the projection to more cores).
+(h5py's metadata through its low-level calls, the theory's set-up, the run's set-up) is
+~12 % of a run's CPU (benchmarks/simulate.py prints the split and the projection to more
+cores).
 The sensor noise of each step comes from its own stream (an SFC64 child of the seed's, which
 seeds the compiled splitmix64/ziggurat generator of :mod:`torquemod.rig.noise` per channel),
 so a run is deterministic for its seed whatever the threads' timing. The settling before the
