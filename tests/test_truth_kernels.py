@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from torquemod.rig.dynamics import wobble_basis, wobble_table
 from torquemod.rig.truth import _fit_basis, _span_moments
@@ -70,3 +71,54 @@ def test_fit_sums_match_the_basis_matrix():
         np.testing.assert_allclose(gram[j], g, rtol=0, atol=1e-12 * np.abs(g).max())
         np.testing.assert_allclose(rhs[j], r, rtol=0, atol=1e-12 * np.abs(r).max())
     np.testing.assert_allclose(ref, x[:, 3:] @ coef, rtol=0, atol=1e-14 * np.abs(coef).sum())
+
+
+def _moments_reference(raw, edges, cols, std_cols):
+    """Plain-Python two-pass moments, adding in the kernel's order (row by row per part;
+    the whole's mean from the parts' sums; its squared deviations over the parts in turn)."""
+    m, nc = len(edges) - 1, len(cols)
+    sums = [[0.0] * nc for _ in range(m)]
+    for j in range(m):
+        for k in range(edges[j], edges[j + 1]):
+            for c in range(nc):
+                sums[j][c] += float(raw[k, cols[c]])
+    whole = [0.0] * nc
+    for j in range(m):
+        for c in range(nc):
+            whole[c] += sums[j][c]
+    means = [[s / (edges[j + 1] - edges[j]) for s in sums[j]] for j in range(m)]
+    whole = [w / (edges[m] - edges[0]) for w in whole]
+    part_sq = [[0.0] * len(std_cols) for _ in range(m)]
+    whole_sq = [0.0] * len(std_cols)
+    for j in range(m):
+        for k in range(edges[j], edges[j + 1]):
+            for c, sc in enumerate(std_cols):
+                x = float(raw[k, cols[sc]])
+                d, e = x - means[j][sc], x - whole[sc]
+                part_sq[j][c] += d * d
+                whole_sq[c] += e * e
+    mean = np.array([whole, *means])
+    std = np.sqrt(np.array([[w / (edges[m] - edges[0]) for w in whole_sq],
+                            *([q / (edges[j + 1] - edges[j]) for q in part_sq[j]]
+                              for j in range(m))]))
+    return mean, std
+
+
+@pytest.mark.parametrize(("cols", "std_cols"), [([8, 0, 3, 4, 5, 2], [0, 5]),
+                                                ([1, 7, 6, 2], [3])])
+def test_partition_moments_add_in_order(cols, std_cols):
+    """The truth's 6-mean/2-deviation layout (sums in local variables) and any other layout
+    (sums in the arrays) give exactly the plain-Python sums in the same order (bit for bit:
+    the register sums change the speed, not the arithmetic)."""
+    from torquemod.rig.truth import _partition_moments
+
+    rng = np.random.default_rng(9)
+    raw = rng.standard_normal((2000, 9)) * np.arange(1, 10) + 30.0
+    edges = np.array([17, 640, 1300, 1999])
+    cols, std_cols = np.array(cols), np.array(std_cols)
+    mean, std = np.empty((4, cols.size)), np.empty((4, std_cols.size))
+    _partition_moments(raw, edges, cols, mean, std_cols, std)
+    ref_mean, ref_std = _moments_reference(raw, edges.tolist(), cols.tolist(),
+                                           std_cols.tolist())
+    np.testing.assert_array_equal(mean, ref_mean)
+    np.testing.assert_array_equal(std, ref_std)

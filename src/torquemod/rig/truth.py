@@ -177,34 +177,87 @@ def _partition_moments(raw, edges, cols, mean, std_cols, std):
     """:func:`_span_moments` of the whole ``edges[0]:edges[-1]`` (row 0 of ``mean`` and
     ``std``) and of each part ``edges[j]:edges[j+1]`` (row ``j + 1``) in two passes over the
     rows instead of two per span: the parts' sums give the whole's mean, and the second pass
-    gathers the squared deviations from both means."""
+    gathers the squared deviations from both means. The truth's layout (6 means, 2 standard
+    deviations) sums in local variables (:func:`_partition_sums_6_2`: a third of the time
+    of sums kept in the output arrays, the same additions in the same order)."""
     m = edges.size - 1
     nc, ns = cols.size, std_cols.size
     mean[:] = 0.0
-    for j in range(m):
-        for k in range(edges[j], edges[j + 1]):
-            for c in range(nc):
-                mean[j + 1, c] += raw[k, cols[c]]
-    for j in range(m):
-        for c in range(nc):
-            mean[0, c] += mean[j + 1, c]
-            mean[j + 1, c] /= edges[j + 1] - edges[j]
-    for c in range(nc):
-        mean[0, c] /= edges[m] - edges[0]
     std[:] = 0.0
-    for j in range(m):
-        for k in range(edges[j], edges[j + 1]):
-            for c in range(ns):
-                x = raw[k, cols[std_cols[c]]]
-                d = x - mean[j + 1, std_cols[c]]
-                e = x - mean[0, std_cols[c]]
-                std[j + 1, c] += d * d
-                std[0, c] += e * e
+    if nc == 6 and ns == 2:
+        _partition_sums_6_2(raw, edges, cols, mean, std_cols, std)
+    else:
+        for j in range(m):
+            for k in range(edges[j], edges[j + 1]):
+                for c in range(nc):
+                    mean[j + 1, c] += raw[k, cols[c]]
+        _means_from_sums(edges, mean)
+        for j in range(m):
+            for k in range(edges[j], edges[j + 1]):
+                for c in range(ns):
+                    x = raw[k, cols[std_cols[c]]]
+                    d = x - mean[j + 1, std_cols[c]]
+                    e = x - mean[0, std_cols[c]]
+                    std[j + 1, c] += d * d
+                    std[0, c] += e * e
     for j in range(m):
         for c in range(ns):
             std[j + 1, c] = math.sqrt(std[j + 1, c] / (edges[j + 1] - edges[j]))
     for c in range(ns):
         std[0, c] = math.sqrt(std[0, c] / (edges[m] - edges[0]))
+
+
+@numba.njit(cache=True, nogil=True)
+def _means_from_sums(edges, mean):
+    """Rows ``1..m`` of ``mean`` hold the parts' sums: make them means and row 0 the
+    whole's (the sum of the parts' sums over all rows)."""
+    m = edges.size - 1
+    for j in range(m):
+        for c in range(mean.shape[1]):
+            mean[0, c] += mean[j + 1, c]
+            mean[j + 1, c] /= edges[j + 1] - edges[j]
+    for c in range(mean.shape[1]):
+        mean[0, c] /= edges[m] - edges[0]
+
+
+@numba.njit(cache=True, nogil=True)
+def _partition_sums_6_2(raw, edges, cols, mean, std_cols, std):
+    """:func:`_partition_moments`' two passes for 6 mean and 2 deviation columns with the
+    running sums in local variables (registers) instead of the output arrays; leaves the
+    means and the sums of squared deviations (rows as there) in ``mean`` and ``std``."""
+    m = edges.size - 1
+    c0, c1, c2, c3, c4, c5 = cols[0], cols[1], cols[2], cols[3], cols[4], cols[5]
+    for j in range(m):
+        s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+        for k in range(edges[j], edges[j + 1]):
+            s0 += raw[k, c0]
+            s1 += raw[k, c1]
+            s2 += raw[k, c2]
+            s3 += raw[k, c3]
+            s4 += raw[k, c4]
+            s5 += raw[k, c5]
+        mean[j + 1, 0], mean[j + 1, 1], mean[j + 1, 2] = s0, s1, s2
+        mean[j + 1, 3], mean[j + 1, 4], mean[j + 1, 5] = s3, s4, s5
+    _means_from_sums(edges, mean)
+    a0, a1 = std_cols[0], std_cols[1]
+    k0, k1 = cols[a0], cols[a1]
+    w0 = w1 = 0.0  # the whole's
+    for j in range(m):
+        p0 = p1 = 0.0  # the part's
+        mj0, mj1, mw0, mw1 = mean[j + 1, a0], mean[j + 1, a1], mean[0, a0], mean[0, a1]
+        for k in range(edges[j], edges[j + 1]):
+            x = raw[k, k0]
+            d = x - mj0
+            e = x - mw0
+            p0 += d * d
+            w0 += e * e
+            x = raw[k, k1]
+            d = x - mj1
+            e = x - mw1
+            p1 += d * d
+            w1 += e * e
+        std[j + 1, 0], std[j + 1, 1] = p0, p1
+    std[0, 0], std[0, 1] = w0, w1
 
 
 #: fit samples between exact evaluations of the basis's sines (rotated in between)
