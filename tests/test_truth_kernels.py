@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -122,3 +124,48 @@ def test_partition_moments_add_in_order(cols, std_cols):
                                            std_cols.tolist())
     np.testing.assert_array_equal(mean, ref_mean)
     np.testing.assert_array_equal(std, ref_std)
+
+
+def test_fit_sums_add_row_by_row():
+    """The fit's sums taken four rows per load of each sum (_add_rows4) are exactly those of
+    one row at a time in row order, piece by piece between window edges (plain Python over
+    the kernel's own basis; pieces of 3, 4, 5 and 130 rows cover the remainder loop)."""
+    from torquemod.rig.truth import _FIT_COLS, _fit_sums
+
+    cfg = load_config()
+    wob = wobble_table(cfg.disturbances, cfg.rig.platform_speed_rad_s,
+                       np.random.default_rng(4))
+    rng = np.random.default_rng(8)
+    n_rows, stride, fs, t0 = 1130, 8, 16670.0, 3.25
+    raw = rng.standard_normal((n_rows, 9)) + np.arange(9) * 5.0
+    raw[:, _FIT_COLS[0]] = 0.97 * (t0 + np.arange(n_rows) / fs) + 0.4
+    lo, hi = np.array([0, 3, 7, 12]), np.array([142, 7, 12, 142])
+    m = 3 + 2 * wob.shape[0]
+    gram, rhs, ref = np.empty((4, m, m)), np.empty((4, m, 2)), np.empty(142)
+    w = 2 * np.pi * 2.0024
+    _fit_sums(raw, t0, fs, stride, w, wob, np.zeros(m - 3), _FIT_COLS, lo, hi, gram, rhs, ref)
+    idx = np.arange(0, n_rows, stride)
+    x = np.empty((idx.size, m))
+    _fit_basis(t0 + idx / fs, w, wob, raw[idx, _FIT_COLS[0]], x)
+    edges = [0, 3, 7, 12, 142]
+    pieces = []
+    for a, b in itertools.pairwise(edges):
+        g, r = [[0.0] * m for _ in range(m)], [[0.0, 0.0] for _ in range(m)]
+        for i in range(a, b):
+            u, v = float(raw[idx[i], _FIT_COLS[1]]), float(raw[idx[i], _FIT_COLS[2]])
+            for p in range(m):
+                bp = float(x[i, p])
+                r[p][0] += bp * u
+                r[p][1] += bp * v
+                for q in range(p, m):
+                    g[p][q] += bp * float(x[i, q])
+        pieces.append((np.array(g), np.array(r)))
+    for j in range(4):
+        g_ref, r_ref = np.zeros((m, m)), np.zeros((m, 2))
+        for (a, b), (g, r) in zip(itertools.pairwise(edges), pieces, strict=True):
+            if lo[j] <= a and b <= hi[j]:
+                g_ref += g
+                r_ref += r
+        np.testing.assert_array_equal(np.triu(gram[j]), np.triu(g_ref))
+        np.testing.assert_array_equal(gram[j], gram[j].T)
+        np.testing.assert_array_equal(rhs[j], r_ref)
