@@ -231,8 +231,7 @@ _GIL_FREE = ((_steps, "integrate"), (_truth, "_fit_sums"), (_truth, "_partition_
 class CpuSplit:
     """CPU seconds of one run (``run_simulation`` on one worker thread): per phase
     ``phases[label] = (cpu_s, gil_free_cpu_s)``; ``total_s`` the process's CPU over the run,
-    ``step_max_s`` the CPU of its longest step (integration, noise, files and truth one after
-    the other; on more cores the truth runs beside the noise and files)."""
+    ``step_max_s`` the CPU of its longest step (integration to files)."""
 
     phases: dict
     total_s: float
@@ -272,8 +271,7 @@ def cpu_split(config, seed: int = 0) -> CpuSplit:
                     stack[-1][2] += cpu
                 if label == "integrator":
                     steps.append([t0, None])
-                elif label == "truth: steady state, small-signal theory":
-                    # with one worker a step's truth runs after its files (simulate.py)
+                elif label == "HDF5 files":
                     steps[-1][1] = time.thread_time()
         return wrapped
 

@@ -52,9 +52,9 @@ def test_existing_file_takes_the_append_path(tmp_path):
 
 
 def test_run_is_the_same_for_any_number_of_workers(tmp_path):
-    """The steps' scheduling (step 1 started while the others are planned, a step's truth
-    offered to the pool) does not change a run: every file of a short run with a slipping
-    last step is byte-identical on 1 and 3 threads, and the slipping step leaves no files."""
+    """The steps' scheduling (side by side, step 1 started while the others are planned)
+    does not change a run: every file of a short run with a slipping last step is
+    byte-identical on 1 and 3 threads, and the slipping step leaves no files."""
     from torquemod.simulate import load_config, run_simulation
 
     cfg = load_config(overrides={"procedure": {"dc_torques_nm": [22.84, 44.47, 72.0],

@@ -11,9 +11,8 @@ Public entry points (the CLI in :mod:`torquemod.cli` only parses arguments and c
   configurations (sweep points) at once, without sensors or files.
 
 The torque steps run side by side on a pool of threads, one per CPU up to one per step (each
-integrates a step and draws its truth, noise and files; a step's truth is offered to the
-pool while its thread draws the noise and writes the files, and step 1 starts while the
-other steps are planned): every step starts from the steady state of the torque before it
+integrates a step and draws its truth, noise and files; step 1 starts while the other steps
+are planned): every step starts from the steady state of the torque before it
 (:mod:`torquemod.rig.steps`), which moves the simulated phases by < 1e-6 deg against running
 the steps one after the other. Most of a step's work runs in compiled kernels that release
 the GIL (integrator, truth sums, the theory's Newton solve, noise, sample times) and the
@@ -84,7 +83,6 @@ from .rig.steps import (  # MAX_LAMBDA_H, stiffest_rate: re-exported
     stiffest_rate,
 )
 from .rig.truth import (  # noqa: F401 - sine_fit_phase_deg, wobble_free_phase_deg re-exported
-    _cycle_bounds,
     _step_truth,
     _wobble_truth,
     recorded_step_truth,
@@ -351,10 +349,6 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     bar = tqdm(total=len(torques), desc="simulate", unit="step", file=sys.stderr,
                disable=not progress)
 
-    def step_truth(rp, plan, out, n_done):
-        return recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done, plan.t0_s,
-                                   rp.wobble, rp.n_settle)[0]
-
     def run(rp, plan, before):
         start = None if plan.y0 is not None else before.result()[2]
         out, n_done, slipped, y_end = integrate_step(config, params, rp.wobble, plan,
@@ -362,24 +356,17 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         bar.update(1)
         if slipped:
             return None, [], y_end, plan.t0_s + n_done * dt
-        # the step's truth and its sensors + files are independent: the truth is offered to
-        # the pool (a thread without a step left takes it, so that the run does not end
-        # with one thread finishing its step alone) and taken back when no thread has
-        # started it by the time the files are written (the step's output is not kept
-        # waiting behind the other steps)
-        try:
-            entry = pool.submit(step_truth, rp, plan, out, n_done)
-        except RuntimeError:  # the pool is shutting down (a step after a slip)
-            entry = None
-        bounds = _cycle_bounds(out[:n_done, _COL["platform_angle_rad"]], rp.n_settle,
-                               proc.cycles_per_step)
+        # (offering a step's truth to the pool while its thread draws the noise and writes
+        # the files was tried in issue 12's fifth round: 2 cores, 30 alternations, median
+        # 271 against 248 ms a run -- two threads wanting the GIL at once wait for each
+        # other's switch interval)
+        entry, bounds = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done,
+                                            plan.t0_s, rp.wobble, rp.n_settle)
         noise_rng = np.random.Generator(np.random.SFC64(rp.noise_seeds[plan.index - 1]))
         channels = measure(out[bounds[0]:bounds[-1]], disturbances=config.disturbances,
                            sensors=config.sensors, rng=noise_rng)
-        recs = _write_step(folder, plan, channels, bounds, fs, fmt, files_per_cycle)
-        if entry is None or entry.cancel():
-            entry = step_truth(rp, plan, out, n_done)
-        return entry, recs, y_end, None
+        return entry, _write_step(folder, plan, channels, bounds, fs, fmt,
+                                  files_per_cycle), y_end, None
 
     steps, recordings = [], []
     slip_step = slip_time = None
@@ -403,7 +390,7 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
                 if entry is None:
                     slip_step, slip_time = plan.index, t_slip
                     break
-                steps.append(entry if isinstance(entry, dict) else entry.result())
+                steps.append(entry)
                 recordings.extend(recs)
         finally:
             for fut in futures:  # the steps after a slip are not needed
