@@ -40,6 +40,7 @@ from per-step phasors (:func:`_wob_step`), and the states are kept in registers
 from __future__ import annotations
 
 import math
+import types
 
 import numba
 import numpy as np
@@ -63,8 +64,24 @@ from .wobble import (  # noqa: F401 - the wobble's names, re-exported from their
 N_STATES = 7
 
 _FLAGS = FLAGS
-# the Polach kernel compiled for this integrator
-_creep_force = numba.njit(cache=True, fastmath=_FLAGS)(creep_force_scalar)
+
+
+def _renamed(fn, name: str):
+    """``fn`` as a new function object called ``name`` (same code and globals)."""
+    out = types.FunctionType(fn.__code__, fn.__globals__, name, fn.__defaults__,
+                             fn.__closure__)
+    out.__qualname__ = name
+    out.__doc__ = fn.__doc__
+    return out
+
+
+# the Polach kernel compiled for this integrator (fast-math), under its own name: numba's
+# cache tells compiled functions apart by source file, name and argument types, not by the
+# compile options, so with polach.creep_force_kernel (no fast-math) both loaded whichever
+# had been compiled first into the cache directory -- the twin's values moved by ~1e-13
+# with the cache's history (issue 12, fifth round)
+_creep_force = numba.njit(cache=True, fastmath=_FLAGS)(
+    _renamed(creep_force_scalar, "creep_force_scalar_fastmath"))
 _FAST = {"fastmath": _FLAGS, "cache": True}
 #: Columns of the per-sample output of :func:`integrate`.
 OUT_COLUMNS = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", "fy_n",
