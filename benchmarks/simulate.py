@@ -32,6 +32,84 @@ the one-core figure. ``--repeat`` runs each measurement N times and prints every
 the best; the machine's other load shows as spread between repeats. Every timed run starts
 with the theory's memos cleared (:func:`cold_theory`), as a fresh process would.
 
+Measured, fifth round of issue 12 (the same 2-core VM, load average 0.1-1.2 from other
+agents; "before" = commit 472e5c0 from an exported copy, before and after alternated in 3
+rounds with the final code; x real time is the best of 3 in-process runs after a warm-up;
+the CPU split is the best run's):
+
+=========================================  ======================  ======================
+                                           before (472e5c0)        after
+=========================================  ======================  ======================
+run_simulation HDF5, 2 cores               367-387x                452-591x
+run_simulation HDF5, 1 core                257-289x                296-320x
+integrator (six steps, one thread)         605-846x                649-840x (code as before)
+CPU of one run (s, one worker thread)      0.411-0.520             0.354-0.480
+  best run of both sessions: integrator / 0.162/0.062/0.045/      0.171/0.063/0.031/
+  noise / truth statistics / large-signal 0.030/0.066/0.011       0.025/0.051/0.012
+  theory / HDF5 / set-up
+serial (GIL-held) CPU of one run           0.082-0.111 s (19-22 %) 0.049-0.067 s (14-15 %)
+  of which HDF5 files / large-signal       40-45 / 12-13 ms        20-23 / 4-5 ms
+  theory's Python
+fresh process (CLI, HDF5), 6 alternations  1.71-2.39 s (median     1.65-1.81 s (median
+                                           1.95), CPU 2.19-2.58 s  1.80), CPU 2.10-2.30 s
+=========================================  ======================  ======================
+
+An earlier session (3 alternations, with the truth offered to the pool, since removed, see
+below) measured before 492-554x / after 402-564x on 2 cores and 273-297x / 309-330x on one:
+on this machine the 2-core figure moves with the other agents' load more than with these
+changes; the CPU and serial figures are the steadier comparison.
+
+Projection from the best after-run's split (0.305 s GIL-free, 0.049 s serial, longest step
+0.066 s; Amdahl, serial part never overlapped .. fully overlapped): 2 cores 577-657x, 4 cores
+928-1314x, 8 cores 1335-1765x, 16 cores 1709-1765x (before: 520-617x, 791-1234x, 1069-1651x,
+1298-1651x). 1000x on 2 cores (0.116 s wall, ~0.23 s of CPU for everything) stays out of
+reach: the integrator alone is ~0.17 s of CPU.
+
+What changed in the fifth round (against a fresh compile of 472e5c0 the recorded files
+are the same bit for bit, truth.json's large-signal phases move by <= 2.8e-14 deg and
+everything else in it is the same; against a checkout whose numba cache held the other
+Polach kernel, every value moves by ~1e-13 relative, see the last item):
+
+* HDF5: a new file of the flat layout is created by h5py's low-level calls with property
+  lists made once per process -- the same bytes as h5py's File path (tested byte for byte),
+  ~0.7 ms of GIL-held metadata a file instead of ~2.5 ms (18 files: 65 -> 14 ms CPU
+  measured alone);
+* the large-signal theory's Newton loop (residual, finite-difference Jacobian, solve,
+  backtracking) compiled without the GIL (theory_kernels.py; ~11 -> ~4 ms of Python a run;
+  agrees with the Python loop to 1e-14 deg, tested);
+* the truth's sums: the fit basis's time columns turn by one precomputed small rotation,
+  the fit's normal equations take four rows per load and store of each sum, the moments
+  sum in local variables (truth of a step 10.3 -> 6.6 ms; the same additions in the same
+  order, tested bit for bit against plain Python);
+* the ziggurat's common case inside the channel's loop (add_normal 1.27 -> 1.11 ms per
+  323 000 numbers, the same numbers);
+* step 1 starts integrating while the other steps are planned (~6 ms off the critical
+  path; on 2 cores not measurable: 40 alternations, medians 259 and 256 ms);
+* ``torquemod._version`` is a plain string (pyproject reads it as a dynamic version) instead
+  of importlib.metadata (~35 ms of each start-up);
+* the integrator's fast-math Polach kernel has its own numba cache entry: it shared one with
+  polach.creep_force_kernel (numba keys its cache by file, name and types, not by compile
+  options), so which of the two a process loaded depended on the cache's history and the
+  twin's values moved by ~1e-13 between checkouts (fx 1.1e-13 N); now always the fast-math
+  kernel, as a fresh compile gave.
+
+Tried and not kept: offering a step's truth to the pool while its thread writes the files
+(2 cores, 30 alternations: median 271 against 248 ms a run -- two threads wanting the GIL
+at once wait for each other's switch interval); submitting the steps by falling DC torque
+(no measurable difference); one fused pass for all six noisy channels (15.2 against 10.8 ms
+a step: the channels' generators interleaved lose more than the shared reads of the
+integrator's rows save); the encoder kernel in blocks of 256 or with a countdown (no gain).
+Not done: a shorter settling (4 s a step, 17 ms of the integrator's ~165 ms; it would move
+every recorded value, since the recordings' start times follow it); the dense Newton solve
+blocked over two pivots (~19 ms of GIL-free CPU a run).
+
+A fresh ``torquemod simulate`` (~1.6-1.8 s) is mostly fixed costs: importing numba (~0.2
+s), scipy.optimize with scipy.special (~0.25 s; brentq and minimize_scalar are on the
+twin's path), the io package (~0.1 s, of which pyarrow, scipy.io and the parquet writer
+~65 ms that an HDF5 run does not use: io/__init__ imports every format), numba's first
+cached kernel initialising its CPU target (~0.18 s), loading ~10 cached kernels (5-20 ms
+each) and the run itself.
+
 Measured, fourth round of issue 12 (2-core AMD EPYC VM shared with up to 8 other agents,
 load average 0.8-4.0 during the runs; "before" = commit a2b9601 run from an exported copy,
 before and after alternated so that both see the same load; x real time is the best of 3-5
