@@ -259,11 +259,15 @@ def _create_flat(path: Path, rec: Recording, names: list[str]) -> list[tuple[int
         attr(root, b"torquemod_layout", np.asarray(LAYOUT_VERSION, dtype="<i8"), "<i8")
         attr(root, b"sample_rate_hz", np.asarray(float(rec.fs_hz)), "<f8")
         attr(root, b"t0_s", np.asarray(float(rec.t0_s)), "<f8")
+        space = h5s.create_simple((rec.n_samples,))  # every dataset's
         for name in names:
             data = rec.time_s() if name == "time_s" else rec.channels[name]
             arr = np.ascontiguousarray(data, dtype="<f8")
-            ds = h5d.create(root, name.encode(), types["<f8"][0],
-                            h5s.create_simple(arr.shape), dcpl=dcpl)
+            if arr.shape != (rec.n_samples,):
+                raise InputError(f"{arr.size} samples where the recording has "
+                                 f"{rec.n_samples}", path=path, channel=name,
+                                 hint="give every channel the same length")
+            ds = h5d.create(root, name.encode(), types["<f8"][0], space, dcpl=dcpl)
             attr(ds, b"unit", units[name], "str")
             raw_writes.append((ds.get_offset(), memoryview(arr).cast("B")))
             ds.close()
