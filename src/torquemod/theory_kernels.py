@@ -32,11 +32,19 @@ def _dense_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a^-1 b`` by Gaussian elimination with partial pivoting, single-threaded.
 
     The Newton systems here are small (64-512 unknowns); a threaded BLAS ``gesv`` on a busy
-    machine spent 10-100x longer waiting for its threads than computing. ``a`` is copied."""
+    machine spent 10-100x longer waiting for its threads than computing. ``a`` is copied.
+    Two pivots per pass over the rows below them: the second pivot's column is brought up
+    to date first (its pivot search and row swap as one pivot at a time would do), then
+    every row takes both eliminations in one sweep, ``(l_ij - f1*l_kj) - f2*l_(k+1)j`` --
+    the same operations in the same order as eliminating one pivot at a time (a factor
+    that is zero skips its row as there), so the same bits (tested), with half the passes
+    over the matrix (1.5x faster at 128 and 256 unknowns)."""
     m = a.shape[0]
     lu = a.copy()
     x = b.copy()
-    for k in range(m):
+    fk = np.empty(m)  # the first pivot's factor of each row below it
+    k = 0
+    while k < m:
         piv = k
         big = abs(lu[k, k])
         for i in range(k + 1, m):
@@ -50,13 +58,51 @@ def _dense_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
             for j in range(m):
                 lu[k, j], lu[piv, j] = lu[piv, j], lu[k, j]
             x[k], x[piv] = x[piv], x[k]
+        if k + 1 == m:
+            break
         inv = 1.0 / lu[k, k]
-        for i in range(k + 1, m):
+        k1 = k + 1
+        for i in range(k1, m):  # pivot k's elimination of column k + 1 only
             fac = lu[i, k] * inv
+            fk[i] = fac
             if fac != 0.0:
-                for j in range(k + 1, m):
-                    lu[i, j] -= fac * lu[k, j]
-                x[i] -= fac * x[k]
+                lu[i, k1] -= fac * lu[k, k1]
+        piv = k1
+        big = abs(lu[k1, k1])
+        for i in range(k1 + 1, m):
+            if abs(lu[i, k1]) > big:
+                big = abs(lu[i, k1])
+                piv = i
+        if big == 0.0:
+            x[:] = np.nan
+            return x
+        if piv != k1:
+            for j in range(m):
+                lu[k1, j], lu[piv, j] = lu[piv, j], lu[k1, j]
+            x[k1], x[piv] = x[piv], x[k1]
+            fk[k1], fk[piv] = fk[piv], fk[k1]
+        f = fk[k1]
+        if f != 0.0:  # the second pivot's row takes the first elimination
+            for j in range(k1 + 1, m):
+                lu[k1, j] -= f * lu[k, j]
+            x[k1] -= f * x[k]
+        inv2 = 1.0 / lu[k1, k1]
+        for i in range(k1 + 1, m):
+            f1 = fk[i]
+            f2 = lu[i, k1] * inv2
+            if f1 != 0.0 and f2 != 0.0:
+                for j in range(k1 + 1, m):
+                    lu[i, j] = (lu[i, j] - f1 * lu[k, j]) - f2 * lu[k1, j]
+                x[i] = (x[i] - f1 * x[k]) - f2 * x[k1]
+            elif f1 != 0.0:
+                for j in range(k1 + 1, m):
+                    lu[i, j] -= f1 * lu[k, j]
+                x[i] -= f1 * x[k]
+            elif f2 != 0.0:
+                for j in range(k1 + 1, m):
+                    lu[i, j] -= f2 * lu[k1, j]
+                x[i] -= f2 * x[k1]
+        k += 2
     for i in range(m - 1, -1, -1):
         acc = x[i]
         for j in range(i + 1, m):
