@@ -81,6 +81,11 @@ Polach kernel, every value moves by ~1e-13 relative, see the last item):
   the fit's normal equations take four rows per load and store of each sum, the moments
   sum in local variables (truth of a step 10.3 -> 6.6 ms; the same additions in the same
   order, tested bit for bit against plain Python);
+* after the alternations above: the dense Newton solve eliminates two pivots per pass
+  over the rows, the same operations in the same order (bit for bit, tested; 4.8 -> 3.1 ms
+  at 256 unknowns); the large-signal theory of a run 24.7 -> 18.7 ms of CPU (one split,
+  0.354 s in all), tqdm imported only when the progress bar is shown, one HDF5 dataspace
+  per file;
 * the ziggurat's common case inside the channel's loop (add_normal 1.27 -> 1.11 ms per
   323 000 numbers, the same numbers);
 * step 1 starts integrating while the other steps are planned (~6 ms off the critical
@@ -100,8 +105,7 @@ at once wait for each other's switch interval); submitting the steps by falling 
 a step: the channels' generators interleaved lose more than the shared reads of the
 integrator's rows save); the encoder kernel in blocks of 256 or with a countdown (no gain).
 Not done: a shorter settling (4 s a step, 17 ms of the integrator's ~165 ms; it would move
-every recorded value, since the recordings' start times follow it); the dense Newton solve
-blocked over two pivots (~19 ms of GIL-free CPU a run).
+every recorded value, since the recordings' start times follow it).
 
 A fresh ``torquemod simulate`` (~1.6-1.8 s) is mostly fixed costs: importing numba (~0.2
 s), scipy.optimize with scipy.special (~0.25 s; brentq and minimize_scalar are on the
