@@ -68,7 +68,7 @@ reach: the integrator alone is ~0.17 s of CPU.
 What changed in the fifth round (against a fresh compile of 472e5c0 the recorded files
 are the same bit for bit, truth.json's large-signal phases move by <= 2.8e-14 deg and
 everything else in it is the same; against a checkout whose numba cache held the other
-Polach kernel, every value moves by ~1e-13 relative, see the last item):
+Polach kernel, every value moves by ~1e-13 relative, see the item on numba's cache):
 
 * HDF5: a new file of the flat layout is created by h5py's low-level calls with property
   lists made once per process -- the same bytes as h5py's File path (tested byte for byte),
@@ -81,11 +81,6 @@ Polach kernel, every value moves by ~1e-13 relative, see the last item):
   the fit's normal equations take four rows per load and store of each sum, the moments
   sum in local variables (truth of a step 10.3 -> 6.6 ms; the same additions in the same
   order, tested bit for bit against plain Python);
-* after the alternations above: the dense Newton solve eliminates two pivots per pass
-  over the rows, the same operations in the same order (bit for bit, tested; 4.8 -> 3.1 ms
-  at 256 unknowns); the large-signal theory of a run 24.7 -> 18.7 ms of CPU (one split,
-  0.354 s in all), tqdm imported only when the progress bar is shown, one HDF5 dataspace
-  per file;
 * the ziggurat's common case inside the channel's loop (add_normal 1.27 -> 1.11 ms per
   323 000 numbers, the same numbers);
 * step 1 starts integrating while the other steps are planned (~6 ms off the critical
@@ -96,7 +91,12 @@ Polach kernel, every value moves by ~1e-13 relative, see the last item):
   polach.creep_force_kernel (numba keys its cache by file, name and types, not by compile
   options), so which of the two a process loaded depended on the cache's history and the
   twin's values moved by ~1e-13 between checkouts (fx 1.1e-13 N); now always the fast-math
-  kernel, as a fresh compile gave.
+  kernel, as a fresh compile gave;
+* after the alternations above: the dense Newton solve eliminates two pivots per pass
+  over the rows, the same operations in the same order (bit for bit, tested; 4.8 -> 3.1 ms
+  at 256 unknowns); the large-signal theory of a run 24.7 -> 18.7 ms of CPU (one split,
+  0.354 s in all), tqdm imported only when the progress bar is shown, one HDF5 dataspace
+  per file.
 
 Tried and not kept: offering a step's truth to the pool while its thread writes the files
 (2 cores, 30 alternations: median 271 against 248 ms a run -- two threads wanting the GIL
