@@ -28,6 +28,27 @@ import numpy as np
 
 
 @numba.njit(cache=True, nogil=True)
+def _pivot(lu: np.ndarray, x: np.ndarray, col: int) -> int:
+    """Partial pivoting at column ``col``: the first row at or below ``col`` with the
+    largest |lu[i, col]| is swapped with row ``col`` (in ``lu`` and ``x``); returns its
+    index (``col`` when no swap), -1 when the column is zero there."""
+    m = lu.shape[0]
+    piv = col
+    big = abs(lu[col, col])
+    for i in range(col + 1, m):
+        if abs(lu[i, col]) > big:
+            big = abs(lu[i, col])
+            piv = i
+    if big == 0.0:
+        return -1
+    if piv != col:
+        for j in range(m):
+            lu[col, j], lu[piv, j] = lu[piv, j], lu[col, j]
+        x[col], x[piv] = x[piv], x[col]
+    return piv
+
+
+@numba.njit(cache=True, nogil=True)
 def _dense_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a^-1 b`` by Gaussian elimination with partial pivoting, single-threaded.
 
@@ -45,19 +66,9 @@ def _dense_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     fk = np.empty(m)  # the first pivot's factor of each row below it
     k = 0
     while k < m:
-        piv = k
-        big = abs(lu[k, k])
-        for i in range(k + 1, m):
-            if abs(lu[i, k]) > big:
-                big = abs(lu[i, k])
-                piv = i
-        if big == 0.0:
+        if _pivot(lu, x, k) < 0:
             x[:] = np.nan
             return x
-        if piv != k:
-            for j in range(m):
-                lu[k, j], lu[piv, j] = lu[piv, j], lu[k, j]
-            x[k], x[piv] = x[piv], x[k]
         if k + 1 == m:
             break
         inv = 1.0 / lu[k, k]
@@ -67,20 +78,11 @@ def _dense_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
             fk[i] = fac
             if fac != 0.0:
                 lu[i, k1] -= fac * lu[k, k1]
-        piv = k1
-        big = abs(lu[k1, k1])
-        for i in range(k1 + 1, m):
-            if abs(lu[i, k1]) > big:
-                big = abs(lu[i, k1])
-                piv = i
-        if big == 0.0:
+        piv = _pivot(lu, x, k1)
+        if piv < 0:
             x[:] = np.nan
             return x
-        if piv != k1:
-            for j in range(m):
-                lu[k1, j], lu[piv, j] = lu[piv, j], lu[k1, j]
-            x[k1], x[piv] = x[piv], x[k1]
-            fk[k1], fk[piv] = fk[piv], fk[k1]
+        fk[k1], fk[piv] = fk[piv], fk[k1]  # the row's first factor moves with it
         f = fk[k1]
         if f != 0.0:  # the second pivot's row takes the first elimination
             for j in range(k1 + 1, m):
