@@ -25,6 +25,7 @@ tables and ``[channels]`` map (read by the same readers), with ``[vehicle]`` in 
 from __future__ import annotations
 
 import cmath
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,6 +39,15 @@ _VEHICLE_OPTIONAL = ("gear_ratio", "motor_inertia_kg_m2", "coupling_stiffness_nm
                      "torque_delay_s", "speed_delay_s", "vehicle_damping_n_s_m")
 #: the sensors' dynamics: time constants and delays [s], each >= 0
 _SENSOR_DELAYS = ("torque_lag_s", "torque_delay_s", "speed_delay_s")
+#: optional [vehicle] numbers that may be 0: (key, upper bound (excluded), what the error
+#: says it must be, hint)
+_NON_NEGATIVE = (
+    ("coupling_damping_nm_s_rad", math.inf, ">= 0", None),
+    ("vehicle_damping_n_s_m", 1e9, "a damping in N*s/m, >= 0",
+     "leave it out when unknown (the vehicle is then taken as an inertia)"),
+    *((key, 1.0, "a time in seconds, >= 0 and < 1",
+       "e.g. 0.002 for 2 ms; leave it out when unknown") for key in _SENSOR_DELAYS),
+)
 _TEST_REQUIRED = ("modulation_frequency_hz", "modulation_amplitude_nm")
 _RECORDING_KEYS = ("file", "axle", "group", "sample_rate_hz", "date", "note", "comment")
 
@@ -138,26 +148,12 @@ def read_run(path: str | Path) -> Run:
     vt, tt = doc["vehicle"], doc["test"]
     check_keys(vt, _VEHICLE_REQUIRED + _VEHICLE_OPTIONAL, "[vehicle]", path)
     opt = {k: _number(vt, k, "vehicle", path) for k in _VEHICLE_OPTIONAL[:4] if k in vt}
-    if "coupling_damping_nm_s_rad" in vt:
-        d = vt["coupling_damping_nm_s_rad"]
-        if isinstance(d, bool) or not isinstance(d, int | float) or d < 0:
-            raise ManifestError("vehicle.coupling_damping_nm_s_rad must be >= 0", path=path)
-        opt["coupling_damping_nm_s_rad"] = float(d)
-    if "vehicle_damping_n_s_m" in vt:
-        d = vt["vehicle_damping_n_s_m"]
-        if isinstance(d, bool) or not isinstance(d, int | float) or not 0 <= d < 1e9:
-            raise ManifestError(f"vehicle.vehicle_damping_n_s_m must be a damping in N*s/m, "
-                                f">= 0, got {d!r}", path=path,
-                                hint="leave it out when unknown (the vehicle is then taken "
-                                     "as an inertia)")
-        opt["vehicle_damping_n_s_m"] = float(d)
-    for key in _SENSOR_DELAYS:
+    for key, below, what, hint in _NON_NEGATIVE:
         if key in vt:
             d = vt[key]
-            if isinstance(d, bool) or not isinstance(d, int | float) or not 0 <= d < 1:
-                raise ManifestError(f"vehicle.{key} must be a time in seconds, >= 0 and "
-                                    f"< 1, got {d!r}", path=path,
-                                    hint="e.g. 0.002 for 2 ms; leave it out when unknown")
+            if isinstance(d, bool) or not isinstance(d, int | float) or not 0 <= d < below:
+                raise ManifestError(f"vehicle.{key} must be {what}, got {d!r}", path=path,
+                                    hint=hint)
             opt[key] = float(d)
     if ("motor_inertia_kg_m2" in opt) != ("coupling_stiffness_nm_rad" in opt):
         raise ManifestError("the drive line needs motor_inertia_kg_m2 and "
