@@ -229,6 +229,14 @@ def test_run_manifest_errors(tmp_path):
                               "vehicle_damping_n_s_m = -1.0"))
     with pytest.raises(ManifestError, match=r"vehicle\.vehicle_damping_n_s_m must be"):
         read_run(p)
+    # an undamped coupling is a valid drive line; a negative damping is not
+    p.write_text(base.replace("inertia_kg_m2 = 270.0", "inertia_kg_m2 = 270.0\n"
+                              "coupling_damping_nm_s_rad = 0.0"))
+    assert read_run(p).vehicle.coupling_damping_nm_s_rad == 0.0
+    p.write_text(base.replace("inertia_kg_m2 = 270.0", "inertia_kg_m2 = 270.0\n"
+                              "coupling_damping_nm_s_rad = -3"))
+    with pytest.raises(ManifestError, match=r"coupling_damping_nm_s_rad must be >= 0"):
+        read_run(p)
 
 
 def test_twin_declares_its_torque_lag():

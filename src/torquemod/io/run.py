@@ -147,7 +147,7 @@ def read_run(path: str | Path) -> Run:
                                 hint="see docs/format.md for the run manifest")
     vt, tt = doc["vehicle"], doc["test"]
     check_keys(vt, _VEHICLE_REQUIRED + _VEHICLE_OPTIONAL, "[vehicle]", path)
-    opt = {k: _number(vt, k, "vehicle", path) for k in _VEHICLE_OPTIONAL[:4] if k in vt}
+    opt = {k: _number(vt, k, "vehicle", path) for k in _VEHICLE_OPTIONAL[:3] if k in vt}
     for key, below, what, hint in _NON_NEGATIVE:
         if key in vt:
             d = vt[key]
