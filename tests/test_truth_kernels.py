@@ -41,6 +41,21 @@ def test_span_moments_match_numpy():
     np.testing.assert_allclose(std, raw[100:700, cols[[0, 5]]].std(axis=0), rtol=1e-12)
 
 
+def _fit_inputs(seed: int, n_rows: int, fs: float, t0: float, *, spread: float,
+                offset: float):
+    """(wobble table, raw rows, the generator that made them) for the fit-sum tests: nine
+    noisy columns spread apart by ``spread``, the platform angle a line from ``t0`` [s]."""
+    from torquemod.rig.truth import _FIT_COLS
+
+    cfg = load_config()
+    wob = wobble_table(cfg.disturbances, cfg.rig.platform_speed_rad_s,
+                       np.random.default_rng(4))
+    rng = np.random.default_rng(seed)
+    raw = rng.standard_normal((n_rows, 9)) + np.arange(9) * spread
+    raw[:, _FIT_COLS[0]] = 0.97 * (t0 + np.arange(n_rows) / fs) + offset
+    return wob, raw, rng
+
+
 def test_fit_sums_match_the_basis_matrix():
     """The truth fit's normal equations over overlapping windows (the whole and its
     revolutions, each sample summed once per piece between window edges) and the speed
@@ -49,13 +64,8 @@ def test_fit_sums_match_the_basis_matrix():
     over ~400 samples of values up to ~60)."""
     from torquemod.rig.truth import _FIT_COLS, _fit_sums
 
-    cfg = load_config()
-    wob = wobble_table(cfg.disturbances, cfg.rig.platform_speed_rad_s,
-                       np.random.default_rng(4))
-    rng = np.random.default_rng(6)
     n_rows, stride, fs, t0 = 3301, 8, 16670.0, 12.5
-    raw = rng.standard_normal((n_rows, 9)) + np.arange(9) * 7.0
-    raw[:, _FIT_COLS[0]] = 0.97 * (t0 + np.arange(n_rows) / fs) + 0.2
+    wob, raw, rng = _fit_inputs(6, n_rows, fs, t0, spread=7.0, offset=0.2)
     lo, hi = np.array([0, 0, 150, 290]), np.array([410, 140, 280, 413])
     m = 3 + 2 * wob.shape[0]
     gram, rhs = np.empty((4, m, m)), np.empty((4, m, 2))
@@ -132,13 +142,8 @@ def test_fit_sums_add_row_by_row():
     the kernel's own basis; pieces of 3, 4, 5 and 130 rows cover the remainder loop)."""
     from torquemod.rig.truth import _FIT_COLS, _fit_sums
 
-    cfg = load_config()
-    wob = wobble_table(cfg.disturbances, cfg.rig.platform_speed_rad_s,
-                       np.random.default_rng(4))
-    rng = np.random.default_rng(8)
     n_rows, stride, fs, t0 = 1130, 8, 16670.0, 3.25
-    raw = rng.standard_normal((n_rows, 9)) + np.arange(9) * 5.0
-    raw[:, _FIT_COLS[0]] = 0.97 * (t0 + np.arange(n_rows) / fs) + 0.4
+    wob, raw, _ = _fit_inputs(8, n_rows, fs, t0, spread=5.0, offset=0.4)
     lo, hi = np.array([0, 3, 7, 12]), np.array([142, 7, 12, 142])
     m = 3 + 2 * wob.shape[0]
     gram, rhs, ref = np.empty((4, m, m)), np.empty((4, m, 2)), np.empty(142)
