@@ -163,13 +163,13 @@ class ProcedureParams:
     classical RK4 steps per ``samples_per_step`` output samples (samples inside a step are
     interpolated, see :func:`torquemod.rig.dynamics.integrate`)."""
 
-    dc_torques_nm: tuple[float, ...] = (0.23, 22.84, 44.47, 55.22, 60.45, 65.82)
+    dc_torques_nm: tuple[float, ...] = (0.23, 22.84, 44.47, 55.22, 60.45, 65.82, 72.0)
     cycles_per_step: int = 3
     settle_s: float = 4.0
     ramp_s: float = 0.5
     slip_creepage: float = 0.05
     substeps: int = 1
-    samples_per_step: int = 4
+    samples_per_step: int = 8
 
 
 @dataclass(frozen=True)
