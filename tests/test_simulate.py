@@ -231,6 +231,14 @@ def test_integrator_step_is_configurable_and_checked():
     assert cfg.procedure.substeps == 2
 
 
+def test_procedure_defaults_match_the_shipped_configuration():
+    """A :class:`ProcedureParams` built in code has the procedure of the shipped
+    ``vtrack_default.toml`` (its step and its seven DC torques), not an older one."""
+    from torquemod.rig.params import ProcedureParams
+
+    assert load_config().procedure == ProcedureParams()
+
+
 def test_speed_wobble_is_on_by_default(short_run):
     """The twin's speed loop wobbles (issue 8), one wobble per run recorded in truth.json:
     three band lines of equal amplitude in 0.2-0.6 Hz, together 0.2 % RMS, and 0.1 % / 0.05 %
