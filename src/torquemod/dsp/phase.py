@@ -24,7 +24,8 @@ from numba import njit
 from scipy import signal
 
 from ..errors import ProcessingError
-from .filters import LstsqFactor, lstsq, tone_design
+from .filters import tone_design
+from .lstsq import LstsqFactor, lstsq
 
 
 def parabolic_vertex(y_m1: np.ndarray, y_0: np.ndarray, y_p1: np.ndarray) -> np.ndarray:

@@ -17,7 +17,8 @@ import numpy as np
 from scipy import signal
 
 from ..errors import ProcessingError
-from .filters import LstsqFactor, lstsq, tone_design
+from .filters import tone_design
+from .lstsq import LstsqFactor, lstsq
 
 
 def windowed_dtft(x: np.ndarray, fs_hz: float, f_hz: float, window: np.ndarray) -> complex:
