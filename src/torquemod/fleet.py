@@ -73,6 +73,19 @@ def find_manifests(runs: Iterable[str | Path]) -> list[Path]:
     """Run manifests from ``runs``: manifest files, folders (every ``experiment.toml`` and
     ``run.toml`` below them), glob patterns, or list files (``.txt``/``.lst``: one of the
     above a line, ``#`` comments). Sorted, without duplicates."""
+    return sorted(_spellings(runs))
+
+
+def _spellings(runs: Iterable[str | Path]) -> dict[Path, str]:
+    """{resolved manifest path: the path as found} (the first spelling: a folder's or a
+    list file's path joined with what was found there, as the user wrote it)."""
+    out: dict[Path, str] = {}
+    for p in _found(runs):
+        out.setdefault(p.resolve(), str(p))
+    return out
+
+
+def _found(runs: Iterable[str | Path]) -> list[Path]:
     found: list[Path] = []
     for item in runs:
         text = str(item)
@@ -81,16 +94,16 @@ def find_manifests(runs: Iterable[str | Path]) -> list[Path]:
             found += sorted([*path.rglob(MANIFEST_NAME), *path.rglob(RUN_NAME)])
         elif path.is_file() and path.suffix.lower() in (".txt", ".lst"):
             lines = [ln.split("#", 1)[0].strip() for ln in path.read_text().splitlines()]
-            found += find_manifests([path.parent / ln for ln in lines if ln])
+            found += _found([path.parent / ln for ln in lines if ln])
         elif path.is_file():
             found.append(path)
         elif any(ch in text for ch in "*?["):
-            found += find_manifests(sorted(glob.glob(text, recursive=True)))
+            found += _found(sorted(glob.glob(text, recursive=True)))
         else:
             raise InputError("no such run manifest, folder or list", path=path,
                              hint="give experiment.toml or run.toml files, folders holding "
                                   "them, a glob or a .txt list of them")
-    return sorted(dict.fromkeys(p.resolve() for p in found))
+    return found
 
 
 def manifest_kind(path: Path) -> str:
@@ -267,7 +280,8 @@ def plan_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
     t0 = time.perf_counter()
     row = dict.fromkeys(SUMMARY_COLUMNS)
     row.update(run=run, manifest=str(manifest), kind=manifest_kind(Path(manifest)),
-               n_steps=0, n_cycles=0, n_rows=0, message="")
+               vehicle="unknown", date="unknown", n_steps=0, n_cycles=0, n_rows=0,
+               message="")
     state = _state_path(out_dir, run)
     try:
         old = json.loads(state.read_text()) if state.is_file() else {}
@@ -517,7 +531,8 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     """
     from .daskutil import dask_client
 
-    paths = find_manifests(manifests)
+    spelled = _spellings(manifests)
+    paths = sorted(spelled)
     if not paths:
         raise InputError("no run manifests found", hint="give experiment.toml or run.toml "
                          "files, folders holding them, a glob or a list file")
@@ -532,10 +547,14 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
         if on_dashboard is not None:
             on_dashboard(link)
 
-    with dask_client(scheduler, n_workers, dashboard) as client:
+    with dask_client(scheduler, n_workers, dashboard, same_blas=True) as client:
         rows = run_tasks(client, paths, names, str(out), force, fit, progress,
                          revolutions_per_task, axle_chunk_s)
     prune_empty(out)
+    for row in rows:  # the manifest named as `torquemod process PATH` names it
+        given = spelled.get(Path(row["manifest"]))
+        if row["status"] == "failed" and given and given != row["manifest"]:
+            row["message"] = str(row["message"]).replace(row["manifest"], given)
     summary = pd.DataFrame(rows, columns=SUMMARY_COLUMNS).sort_values("run",
                                                                       ignore_index=True)
     counts = ["n_rows", "n_steps", "n_cycles", "low_adhesion_windows", "slip_windows"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime as _dt
 import json
 import math
 from pathlib import Path
@@ -10,7 +11,8 @@ import numpy as np
 
 
 def to_jsonable(obj):
-    """``obj`` with dicts, sequences, numpy arrays and scalars and paths made JSON-ready;
+    """``obj`` with dicts, sequences, numpy arrays and scalars, paths and dates (ISO text)
+    made JSON-ready;
     non-finite floats become None so that the file is valid JSON."""
     if isinstance(obj, dict):
         return {str(k): to_jsonable(v) for k, v in obj.items()}
@@ -26,6 +28,8 @@ def to_jsonable(obj):
         return float(obj) if math.isfinite(obj) else None
     if isinstance(obj, Path):
         return str(obj)
+    if isinstance(obj, _dt.date | _dt.time):  # TOML dates and times (e.g. [test] date)
+        return obj.isoformat()
     return obj
 
 
