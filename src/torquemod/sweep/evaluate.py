@@ -31,7 +31,7 @@ import pandas as pd
 from ..creep import theory_constant
 from ..errors import InputError, ProcessingError
 
-__all__ = ["SETTLE_TIME_CONSTANTS", "PointTask", "chain_config", "evaluate_point",
+__all__ = ["SETTLE_RULE", "SETTLE_TIME_CONSTANTS", "PointTask", "chain_config", "evaluate_point",
            "phase_crlb_deg", "point_config", "settle_time_s"]
 
 _Z95 = 1.959963984540054
@@ -39,6 +39,8 @@ _Z95 = 1.959963984540054
 #: full mode: each step's run-in lasts at least this many time constants of the wheel's
 #: slowest creep mode among the simulated steps (:func:`settle_time_s`)
 SETTLE_TIME_CONSTANTS = 8.0
+#: the rule's description, part of a full-mode point's fingerprint (a changed rule reruns)
+SETTLE_RULE = "8 creep-mode time constants of the slowest recorded step (< slip_creepage)"
 
 
 @dataclass(frozen=True)
@@ -101,14 +103,19 @@ def creep_time_constant_s(config, creep_coefficient) -> np.ndarray:
 def settle_time_s(config, rows: list[dict]) -> float:
     """Run-in [s] of every step in full mode: the configured ``procedure.settle_s``, or
     :data:`SETTLE_TIME_CONSTANTS` time constants (:func:`creep_time_constant_s`) of the
-    slowest step that does not slip, whichever is longer.
+    slowest step the twin records (below the peak and below ``procedure.slip_creepage``),
+    whichever is longer.
 
     A step starts from the previous step's steady state and ramps its DC torque; near the
     creep curve's peak that transient decays slowly (tau ~ 1 s at 90 % utilisation on
     leaves) and, not settled, it biases the recorded phase: measured (issue 12 audit) twin
     minus large-signal theory -0.24 deg on leaves at 90 %, 2 Hz, after the 3 s the example
     gave, and 3e-5 deg after 10 s. exp(-8) leaves ~0.002 deg there."""
+    # the steps the twin records: below the creep curve's peak and below the creepage at
+    # which it counts the wheel as slipping (procedure.slip_creepage; it stops there)
+    slip = config.procedure.slip_creepage
     ks = [r["creep_coefficient"] for r in rows if not r.get("slipped")
+          and abs(r.get("creepage_true", np.inf)) < slip
           and np.isfinite(r.get("creep_coefficient", np.nan)) and r["creep_coefficient"] > 0]
     tau = float(np.max(creep_time_constant_s(config, ks))) if ks else 0.0
     return max(float(config.procedure.settle_s), SETTLE_TIME_CONSTANTS * tau)

@@ -78,7 +78,13 @@ def _draw_family(ax, sub: pd.DataFrame, param: str) -> None:
             ax.errorbar(100 * g["utilisation"], g["phase_deg"],
                         yerr=1.96 * g["phase_se_deg"].fillna(0), fmt="o", ms=4, color=color,
                         capsize=2)
-    ax.axvspan(100 * BAND[0], 100 * BAND[1], color="0.9", zorder=0)
+    ax.axvspan(100 * BAND[0], 100 * BAND[1], color="0.9", zorder=0,
+               label=f"dphi/du band {100 * BAND[0]:.0f}-{100 * BAND[1]:.0f} %")
+    # what the line and the markers are (colours: the parameter's values above)
+    ax.plot([], [], "-", color="0.3", label="large-signal theory")
+    if sub["phase_deg"].notna().any():
+        ax.errorbar([], [], yerr=[], fmt="o", ms=4, color="0.3", capsize=2,
+                    label="twin + chain (95 %)")
     ax.set_xlabel("utilisation CoA/mu [%]")
     ax.set_ylabel("phase lag [deg]")
     ax.grid(True, alpha=0.3)
@@ -176,11 +182,11 @@ def sensitivity_figure(summary: pd.DataFrame, param: str, swept, *, ax=None) -> 
         if g["dphi_du_chain"].notna().any():
             ax.plot(x, g["dphi_du_chain"], _MARKERS[k % len(_MARKERS)], color=color, ms=4)
     ax.set_ylabel(f"dphi/du, {BAND[0]:.0%}-{BAND[1]:.0%} [deg per %]")
-    ax.set_title(f"sensitivity of the phase to utilisation vs {_label(param)} (lines: "
+    ax.set_title(f"sensitivity of the phase to utilisation vs {_label(param)}\n(lines: "
                  "theory, markers: chain)", fontsize=9)
     ax.grid(True, alpha=0.3)
     if proxies:
-        ax.legend(handles=proxies, fontsize=7)
+        ax.legend(handles=proxies, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return fig
 
 
@@ -208,12 +214,13 @@ def mu_error_figure(summary: pd.DataFrame, param: str, swept, *, ax=None) -> Fig
             ax.plot(x[~det], lo[~det], m, mfc="none", color=color, ms=6)
     ax.axhline(0.0, color="k", lw=0.8)
     ax.set_ylabel("mu from phase / true mu - 1 [%]")
-    ax.set_title(f"mu-from-phase error vs {_label(param)} (filled: determined, 95 %; "
+    ax.set_title(f"mu-from-phase error vs {_label(param)} \n(filled: determined, 95 %; "
                  "open: lower bound)", fontsize=9)
     ax.grid(True, alpha=0.3)
     proxies.append(Line2D([], [], color="0.35", marker="o", mfc="none", ls="",
                           label="lower bound (mu not determined)"))
-    ax.legend(handles=proxies, fontsize=7)
+    # outside the axes: inside, it covered markers of the example sweep (issue 12 audit)
+    ax.legend(handles=proxies, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return fig
 
 

@@ -63,8 +63,8 @@ def fingerprint(task: PointTask) -> str:
     base_text = (Path(task.base).read_text(encoding="utf-8") if task.base else default())
     extra = {"kind": task.kind, "max_mu_error": task.max_mu_error} if task.kind != "rig" else {}
     if task.kind == "rig" and task.mode == "full":  # the run-in rule (evaluate.settle_time_s)
-        from .evaluate import SETTLE_TIME_CONSTANTS
-        extra["settle_time_constants"] = SETTLE_TIME_CONSTANTS
+        from .evaluate import SETTLE_RULE, SETTLE_TIME_CONSTANTS
+        extra["settle"] = [SETTLE_RULE, SETTLE_TIME_CONSTANTS]
     blob = json.dumps({**extra, "params": task.params, "seed": task.seed, "mode": task.mode,
                        "fractions": task.fractions_of_peak,
                        "max_utilisation": task.max_utilisation, "version": __version__,
