@@ -150,3 +150,37 @@ def test_twin_near_the_peak_agrees_with_an_independent_simulation(fixed_point):
 def test_theory_mode_has_no_run_in():
     df = ev.evaluate_point(tasks(parse_sweep(_SWEEP.replace('"full"', '"theory"')))[0])
     assert np.isnan(df["settle_s"]).all()
+
+
+def test_a_list_valued_parameter_is_swept_and_reported(tmp_path):
+    """Sweeping procedure.dc_torques_nm (a list per point) crashed the report: the column
+    comes back from Parquet as arrays, which pandas cannot group ("unhashable type")."""
+    from torquemod.sweep.run import run_sweep
+    spec = parse_sweep("""
+mode = "theory"
+[[point]]
+procedure.dc_torques_nm = [10.0, 50.0]
+[[point]]
+procedure.dc_torques_nm = [20.0, 40.0, 60.0]
+""")
+    res = run_sweep(spec, tmp_path / "dc", in_process=True)
+    assert res.count("done") == 2, res.failures
+    assert res.report is not None and res.report.is_file()
+    assert list(res.table.groupby("point_index").size()) == [2, 3]
+    # the Parquet table keeps the lists as lists of numbers
+    import pandas as pd
+    tab = pd.read_parquet(tmp_path / "dc" / "sweep.parquet")
+    assert [list(v) for v in tab.groupby("point_index")["procedure.dc_torques_nm"].first()] \
+        == [[10.0, 50.0], [20.0, 40.0, 60.0]]
+    assert (tmp_path / "dc" / "figures" / "phase_family_procedure_dc_torques_nm.png").is_file()
+
+
+def test_dc_torques_together_with_fractions_of_peak_is_refused():
+    from torquemod.errors import InputError
+    with pytest.raises(InputError, match=r"dc_torques_nm.*\[steps\]"):
+        parse_sweep("""
+[steps]
+fractions_of_peak = [0.3, 0.6]
+[grid]
+procedure.dc_torques_nm = [[10.0, 20.0]]
+""")

@@ -97,6 +97,21 @@ def _write_parquet(df: pd.DataFrame, path: Path, metadata: dict | None = None) -
         tmp.unlink(missing_ok=True)
 
 
+def _hashable_params(table: pd.DataFrame, keys) -> pd.DataFrame:
+    """``table`` with list- or array-valued cells of the columns ``keys`` as JSON text
+    (e.g. ``"[80.0, 90.0]"``); the table itself when there are none."""
+    import numpy as np
+    cols = [k for k in keys if k in table and table[k].map(
+        lambda v: isinstance(v, list | tuple | np.ndarray)).any()]
+    if not cols:
+        return table
+    view = table.copy()
+    for k in cols:
+        view[k] = view[k].map(lambda v: json.dumps(np.asarray(v).tolist())
+                              if isinstance(v, list | tuple | np.ndarray) else v)
+    return view
+
+
 def _one_line(exc: BaseException) -> str:
     text = " ".join(str(exc).split())
     if isinstance(exc, TorquemodError):
@@ -266,13 +281,16 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
         (out / "sweep.parquet").unlink(missing_ok=True)
     from .report import recommend, write_report
     from .summary import agreement
+    # the summaries group by the swept values: a list-valued one (procedure.dc_torques_nm)
+    # comes back from Parquet as an array, which cannot be grouped; they see it as text
+    table_view = _hashable_params(table, spec.swept)
     if spec.kind == "train":
         from .trainreport import recommend_train as recommend
         from .trainreport import write_train_report as write_report
 
         def agreement(_table):  # the large-signal theory is the rig's
             return None
-    rec = recommend(table, spec) if not table.empty else {"setting": None,
+    rec = recommend(table_view, spec) if not table.empty else {"setting": None,
                                                           "reasoning": "no point finished"}
     wall = time.perf_counter() - t0
     doc = {"generator": "torquemod sweep", "version": __version__, "spec": spec.to_dict(),
@@ -281,10 +299,10 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
                       for s in ("done", "skipped", "failed")},
            "status": status.to_dict(orient="records"), "wall_s": wall,
            "recommendation": rec,
-           "agreement": agreement(table) if not table.empty else None}
+           "agreement": agreement(table_view) if not table.empty else None}
     report_path = None
     if report and not table.empty:
-        report_path = write_report(out, table, spec, rec, status=status,
+        report_path = write_report(out, table_view, spec, rec, status=status,
                                    failures=failures, wall_s=wall)
     write_atomic(out / "sweep.json", lambda fh: fh.write(dump_json(doc)))
     return SweepResult(out, table, status, failures, rec, report_path, link,

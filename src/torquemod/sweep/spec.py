@@ -289,6 +289,9 @@ def _train_only(doc: dict, mode: str, where) -> None:
                              path=where, hint=f"use {instead}")
 
 
+_DC_KEY = "procedure.dc_torques_nm"
+
+
 def parse_sweep(text: str, *, path: str | Path | None = None) -> SweepSpec:
     """Parse and check the sweep file's ``text`` (``path`` names it in errors and anchors a
     relative ``base``)."""
@@ -343,6 +346,12 @@ def parse_sweep(text: str, *, path: str | Path | None = None) -> SweepSpec:
                     points.append(pt)
     swept = tuple(dict.fromkeys([*(k for r in rows for k in r), *grid]))
     fr = _fractions(doc, where)
+    if fr is not None and any(_DC_KEY in p.params for p in points):
+        # [steps] sets every point's DC torques: a given list would be ignored silently
+        raise InputError(f"'{_DC_KEY}' is given together with [steps] fractions_of_peak, "
+                         "which sets every point's DC torques", path=where,
+                         hint=f"drop one of the two: [steps] for fractions of each point's "
+                              f"creep-curve peak, {_DC_KEY} for torques in N*m")
     return SweepSpec(path=None if path is None else Path(path), text=text,
                      name=str(doc.get("name", Path(str(where)).stem)),
                      description=str(doc.get("description", "")), base=base_path, mode=mode,
