@@ -98,3 +98,69 @@ def test_fleet_equals_process_on_the_twin_with_relative_paths(runs, monkeypatch)
         got = got.drop(columns=["vehicle", "date", "run"]).reset_index(drop=True)
         pd.testing.assert_frame_equal(got, ref.reset_index(drop=True), check_dtype=False,
                                       rtol=0, atol=0)
+
+
+def test_out_holding_a_manifest_is_refused(runs):
+    """As `process` refuses an --out that is or holds an input (README, Outputs): nothing is
+    written, no cluster is started."""
+    from torquemod.errors import OutputError
+    from torquemod.fleet import run_fleet
+    before = sorted(p.name for p in (runs / "runs").iterdir())
+    with pytest.raises(OutputError, match="holds the input"):
+        run_fleet([runs / "runs" / "twin"], runs / "runs", n_workers=1)
+    assert sorted(p.name for p in (runs / "runs").iterdir()) == before
+
+
+def test_second_fleet_on_the_same_out_fails_at_once(runs, tmp_path):
+    """One run at a time writes an --out: while another holder has its lock (here a
+    thread), run_fleet fails before any work with OutputError naming the folder."""
+    import threading
+
+    from torquemod.errors import OutputError
+    from torquemod.fleet import run_fleet
+    from torquemod.fsutil import output_lock
+    out = tmp_path / "fleet"
+    held, release = threading.Event(), threading.Event()
+
+    def hold() -> None:
+        with output_lock(out):
+            held.set()
+            release.wait(30)
+
+    t = threading.Thread(target=hold)
+    t.start()
+    try:
+        assert held.wait(30)
+        with pytest.raises(OutputError, match="fleet"):
+            run_fleet([runs / "runs" / "twin"], out, n_workers=1)
+    finally:
+        release.set()
+        t.join()
+    assert not (out / "fleet_summary.csv").exists()
+
+
+def test_run_failing_while_written_leaves_no_partition(runs, tmp_path, monkeypatch):
+    """The disk fills up after the run's cycles partition was written and before its steps:
+    the run is a failure naming the path, and its cycles partition is removed again (before
+    the fix it stayed, a run half in the datasets). Sequential path, same finish_run."""
+    import errno
+
+    from torquemod import fleet as fleetmod
+    real, calls = fleetmod._write_partition, []
+
+    def full_disk(files, folder):
+        calls.append(folder)
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, "No space left on device", str(folder))
+        real(files, folder)
+
+    monkeypatch.setattr(fleetmod, "_write_partition", full_disk)
+    out = tmp_path / "out"
+    row = fleetmod.process_run(str(runs / "runs" / "twin" / "experiment.toml"), str(out),
+                               "twin", fit=False)
+    assert [c.parent.parent.parent.name for c in calls] == ["cycles", "steps"]
+    assert row["status"] == "failed"
+    assert "No space left on device" in row["message"] and "steps" in row["message"]
+    assert not calls[0].exists()
+    fleetmod.prune_empty(out)
+    assert not any(p.is_file() for p in out.rglob("*"))

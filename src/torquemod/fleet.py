@@ -78,7 +78,10 @@ def find_manifests(runs: Iterable[str | Path]) -> list[Path]:
 
 def _spellings(runs: Iterable[str | Path]) -> dict[Path, str]:
     """{resolved manifest path: the path as found} (the first spelling: a folder's or a
-    list file's path joined with what was found there, as the user wrote it)."""
+    list file's path joined with what was found there, as the user wrote it). ``runs`` may
+    also be a single path or pattern."""
+    if isinstance(runs, str | Path):
+        runs = [runs]
     out: dict[Path, str] = {}
     for p in _found(runs):
         out.setdefault(p.resolve(), str(p))
@@ -369,6 +372,7 @@ def finish_run(plan: Plan, *items: tuple, layout: list | None = None) -> dict:
     t0 = time.perf_counter()
     row = dict(plan.row)
     seconds = plan.seconds
+    parts: list[str] = []  # written by this task: removed again if the run fails after all
     try:
         items = tuple(_recording_items(plan, items, layout))
         seconds += sum(it[2] for it in items)
@@ -381,10 +385,9 @@ def finish_run(plan: Plan, *items: tuple, layout: list | None = None) -> dict:
                         else _rig_tables(prep, results, plan.fit))
         out = Path(plan.out_dir)
         where = f"vehicle={prep.vehicle}/date={prep.date}/run={plan.run}"
-        parts = []
         for table, files in tables.items():
-            _write_partition(files, out / table / where)
             parts.append(f"{table}/{where}")
+            _write_partition(files, out / table / where)
         _remove(out, [p for p in plan.old_parts if p not in parts])
         row.update(info, status="processed")
         state = _state_path(plan.out_dir, plan.run)
@@ -397,7 +400,7 @@ def finish_run(plan: Plan, *items: tuple, layout: list | None = None) -> dict:
     except _ItemError as exc:
         _failed(row, str(exc), plan.out_dir, plan.old_parts)
     except Exception as exc:  # a bad run (or a bug) is reported; the fleet goes on
-        _failed(row, exc, plan.out_dir, plan.old_parts)
+        _failed(row, exc, plan.out_dir, (*plan.old_parts, *parts))
     row["seconds"] = seconds + time.perf_counter() - t0
     return row
 
@@ -529,14 +532,31 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     (:mod:`torquemod.onboard.chunks`; the track is ``onboard``'s); None: about
     :data:`torquemod.fleettasks.AXLE_TASK_S` (10 min).
     """
-    from .daskutil import dask_client
-
     spelled = _spellings(manifests)
     paths = sorted(spelled)
     if not paths:
-        raise InputError("no run manifests found", hint="give experiment.toml or run.toml "
-                         "files, folders holding them, a glob or a list file")
+        given = [str(manifests)] if isinstance(manifests, str | Path) else [
+            str(m) for m in manifests]
+        raise InputError("no run manifests found (no experiment.toml or run.toml)",
+                         path=", ".join(given) or None,
+                         hint="give experiment.toml or run.toml files, folders holding "
+                              "them, a glob or a list file")
     out = Path(out_dir).resolve()
+    from .fsutil import output_lock, refuse_inputs
+    refuse_inputs(out, paths)  # the datasets never go into a folder holding a manifest
+    with output_lock(out):  # one fleet at a time writes OUT (a second one fails at once)
+        return _run_locked(paths, spelled, out, scheduler=scheduler, n_workers=n_workers,
+                           force=force, progress=progress, fit=fit, report=report,
+                           on_dashboard=on_dashboard,
+                           revolutions_per_task=revolutions_per_task,
+                           axle_chunk_s=axle_chunk_s)
+
+
+def _run_locked(paths: list[Path], spelled: dict, out: Path, *, scheduler, n_workers, force,
+                progress, fit, report, on_dashboard, revolutions_per_task,
+                axle_chunk_s) -> FleetResult:
+    from .daskutil import dask_client
+
     out.mkdir(parents=True, exist_ok=True)
     names = run_names(paths)
     t0 = time.perf_counter()
