@@ -55,16 +55,16 @@ def tasks(spec: SweepSpec) -> list[PointTask]:
 def fingerprint(task: PointTask) -> str:
     """SHA-256 over what a point's rows depend on: its parameters and seed, the mode, the
     torque fractions, the utilisation limit of the phase fit, the base config's text (the
-    default config's when none), the torquemod version and, in full mode, the run-in rule's
-    number of time constants."""
+    default config's when none), the torquemod version and, in full mode, the run-in rule
+    and the chain's frequency scaling (a changed rule reruns the points)."""
     from ..simulate import default_config_text
     from ..train.params import default_train_config_text
     default = default_train_config_text if task.kind == "train" else default_config_text
     base_text = (Path(task.base).read_text(encoding="utf-8") if task.base else default())
     extra = {"kind": task.kind, "max_mu_error": task.max_mu_error} if task.kind != "rig" else {}
     if task.kind == "rig" and task.mode == "full":  # the run-in rule (evaluate.settle_time_s)
-        from .evaluate import SETTLE_RULE, SETTLE_TIME_CONSTANTS
-        extra["settle"] = [SETTLE_RULE, SETTLE_TIME_CONSTANTS]
+        from .evaluate import CHAIN_RULE, SETTLE_RULE, SETTLE_TIME_CONSTANTS
+        extra["rules"] = [SETTLE_RULE, SETTLE_TIME_CONSTANTS, CHAIN_RULE]
     blob = json.dumps({**extra, "params": task.params, "seed": task.seed, "mode": task.mode,
                        "fractions": task.fractions_of_peak,
                        "max_utilisation": task.max_utilisation, "version": __version__,
