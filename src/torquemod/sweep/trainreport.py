@@ -265,6 +265,10 @@ def band_figure(table: pd.DataFrame, curve: str | None) -> Figure:
     axes[1, 0].set_ylabel("creep coefficient [-]")
     if curve is not None:
         axes[0, 0].legend(fontsize=7)
+    # what markers and dashes are in the creep-coefficient row
+    axes[1, 0].plot([], [], "o", color="0.3", label="on-board estimate (median)")
+    axes[1, 0].plot([], [], "--", color="0.3", label="twin's truth (median)")
+    axes[1, 0].legend(fontsize=7)
     return fig
 
 
