@@ -6,9 +6,10 @@ Regressions found by the audit of 2026-11-23:
 
 * the fleet's numbers differed from `torquemod process` by up to 6.5e-6 deg (a cycle's phase
   standard error) and 1e-10 deg (its phase): Dask starts workers with one BLAS thread, a
-  plain process uses every core, and the chain's least-squares products then sum in another
-  order. The synthetic recordings happen to give the same bits on 1 and 2 threads; the twin's
-  do not (measured), hence the twin here. On a one-core machine the check is trivially true;
+  plain process used every core, and the chain's least-squares products then sum in another
+  order. The processing entry points now run on one BLAS thread (torquemod.blas). The
+  synthetic recordings happen to give the same bits on 1 and 2 threads; the twin's do not
+  (measured), hence the twin here. On a one-core machine the check is trivially true;
 * `torquemod process` ended with an internal error on `[test] date = 2025-03-04` (a TOML
   date, the form docs/fleet.md suggests): the provenance JSON could not hold a date;
 * a manifest that fails to read was named by its absolute path in failures.csv while
@@ -65,14 +66,34 @@ def test_process_accepts_a_toml_date(runs, tmp_path):
     assert "2025-03-04" in json.dumps(prov)
 
 
-def test_local_workers_use_the_callers_blas_threads():
-    """The workers' BLAS thread count is the calling process's (without the plugin Dask
-    sets it to 1)."""
-    from torquemod.daskutil import blas_threads, dask_client
-    here = blas_threads()
-    assert here is not None and here >= 1
-    with dask_client(None, 1, same_blas=True) as client:
-        assert set(client.run(blas_threads).values()) == {here}
+def test_processing_runs_on_one_blas_thread_and_restores_the_count():
+    """Inside the processing entry points every BLAS library runs on one thread (the
+    fleet's Dask workers start with one); the caller's count is back afterwards."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from torquemod.blas import single_blas
+
+    def counts():
+        return {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = counts()
+        assert single_blas(counts)() == {1}
+        assert counts() == before
+
+
+def test_process_numbers_do_not_depend_on_the_callers_blas_threads(runs):
+    """`process_experiment` under a 2-thread and a 1-thread BLAS: the same bits (before
+    the fix the twin's phase standard errors differed by up to 6.5e-6 deg on 2 cores)."""
+    from threadpoolctl import threadpool_limits
+
+    from torquemod.pipeline import process_experiment
+    manifest = runs / "runs" / "twin" / "experiment.toml"
+    got = {}
+    for n in (2, 1):
+        with threadpool_limits(limits=n, user_api="blas"):
+            got[n] = process_experiment(manifest, workers=1).cycles
+    pd.testing.assert_frame_equal(got[2], got[1], check_exact=True)
 
 
 def test_fleet_equals_process_on_the_twin_with_relative_paths(runs, monkeypatch):

@@ -55,6 +55,7 @@ from pathlib import Path
 import pandas as pd
 
 from ._version import __version__
+from .blas import single_blas
 from .errors import InputError, TorquemodError
 from .fleettasks import _recording_items, may_split, part_item, run_tasks, scan_item
 
@@ -305,6 +306,7 @@ def plan_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
                 time.perf_counter() - t0, revolutions_per_task, axle_chunk_s)
 
 
+@single_blas
 def work_item(plan: Plan, index: int) -> tuple:
     """Recording ``index`` of the plan: ``("ok", result, seconds)`` or ``("error", one-line
     message, seconds)``. Never raises (a Dask task)."""
@@ -364,6 +366,7 @@ def _train_tables(prep: Prepared, tracks: list) -> tuple[dict, dict]:
                       for a, t in sorted(zip(axles, tracks, strict=True))}}, info
 
 
+@single_blas
 def finish_run(plan: Plan, *items: tuple, layout: list | None = None) -> dict:
     """Assemble the run from its items (in manifest order; ``layout``: the parts of split
     recordings, :func:`_recording_items`), write its partitions and state: the summary
@@ -567,7 +570,7 @@ def _run_locked(paths: list[Path], spelled: dict, out: Path, *, scheduler, n_wor
         if on_dashboard is not None:
             on_dashboard(link)
 
-    with dask_client(scheduler, n_workers, dashboard, same_blas=True) as client:
+    with dask_client(scheduler, n_workers, dashboard) as client:
         rows = run_tasks(client, paths, names, str(out), force, fit, progress,
                          revolutions_per_task, axle_chunk_s)
     prune_empty(out)

@@ -9,6 +9,8 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from .blas import single_blas
+
 if TYPE_CHECKING:
     from .fleet import Plan
 
@@ -58,6 +60,7 @@ def may_split(plan: Plan, index: int) -> bool:
     return entry.cycle is None and plan.prep.settings.nan_policy == "raise"
 
 
+@single_blas
 def scan_item(plan: Plan, index: int) -> tuple:
     """Recording ``index`` of a plan, cheaply: ``("split", RevolutionPlan or None, groups,
     seconds, first)`` when it becomes one task per group (rig: of revolutions,
@@ -95,6 +98,7 @@ def scan_item(plan: Plan, index: int) -> tuple:
             None if first is None else ("ok", first, 0.0))
 
 
+@single_blas
 def part_item(plan: Plan, index: int, rplan, first: int, stop: int) -> tuple:
     """Revolutions ``first:stop`` of recording ``index`` (:func:`scan_item`'s plan):
     ``("ok", RevolutionPart, seconds)`` or ``("error", one-line message, seconds)``. Never

@@ -23,6 +23,7 @@ from tqdm import tqdm
 
 from . import chain
 from ._version import __version__
+from .blas import single_blas
 from .config import ProcessingConfig, SlipParams
 from .cycles import revolution_bounds
 from .data import Experiment, Recording, RecordingEntry
@@ -324,6 +325,7 @@ def _prefetched(exp: Experiment, cfg: ProcessingConfig, workers: int):
                 raise
 
 
+@single_blas
 def process_experiment(experiment: Experiment | str | Path, *,
                        config: ProcessingConfig | None = None, progress: bool = False,
                        workers: int | None = None, loaded=None) -> ProcessResult:

@@ -12,6 +12,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from .._version import __version__
+from ..blas import single_blas
 from ..errors import InputError
 from ..fsutil import atomic_dir, sha256_file
 from ..io.run import Run, RunRecording, read_run
@@ -63,6 +64,7 @@ class OnboardResult:
         return out
 
 
+@single_blas
 def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = None,
                   *, chunk_s: float = CHUNK_S) -> OnboardResult:
     """Run one axle's recording through :class:`OnboardEstimator`, ``chunk_s`` [s] of rows
