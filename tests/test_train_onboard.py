@@ -214,27 +214,26 @@ def test_run_manifest_errors(tmp_path):
     with pytest.raises(ManifestError, match="train run"):
         read_experiment(p)
     base = p.read_text()
-    p.write_text(base.replace("inertia_kg_m2 = 270.0", "inertia_kg_m2 = 270.0\n"
-                              "torque_lag_s = 0.003\nspeed_delay_s = 0.0005"))
+
+    def vehicle_with(lines: str) -> str:
+        """The manifest with ``lines`` added to its [vehicle] table."""
+        return base.replace("inertia_kg_m2 = 270.0", "inertia_kg_m2 = 270.0\n" + lines)
+
+    p.write_text(vehicle_with("torque_lag_s = 0.003\nspeed_delay_s = 0.0005"))
     veh = read_run(p).vehicle
     assert (veh.torque_lag_s, veh.torque_delay_s, veh.speed_delay_s) == (0.003, 0.0, 0.0005)
-    p.write_text(base.replace("inertia_kg_m2 = 270.0", "inertia_kg_m2 = 270.0\n"
-                              "torque_delay_s = -0.002"))
+    p.write_text(vehicle_with("torque_delay_s = -0.002"))
     with pytest.raises(ManifestError, match=r"vehicle\.torque_delay_s must be a time"):
         read_run(p)
-    p.write_text(base.replace("inertia_kg_m2 = 270.0", "inertia_kg_m2 = 270.0\n"
-                              "vehicle_damping_n_s_m = 4e4"))
+    p.write_text(vehicle_with("vehicle_damping_n_s_m = 4e4"))
     assert read_run(p).vehicle.vehicle_damping_n_s_m == 4e4
-    p.write_text(base.replace("inertia_kg_m2 = 270.0", "inertia_kg_m2 = 270.0\n"
-                              "vehicle_damping_n_s_m = -1.0"))
+    p.write_text(vehicle_with("vehicle_damping_n_s_m = -1.0"))
     with pytest.raises(ManifestError, match=r"vehicle\.vehicle_damping_n_s_m must be"):
         read_run(p)
     # an undamped coupling is a valid drive line; a negative damping is not
-    p.write_text(base.replace("inertia_kg_m2 = 270.0", "inertia_kg_m2 = 270.0\n"
-                              "coupling_damping_nm_s_rad = 0.0"))
+    p.write_text(vehicle_with("coupling_damping_nm_s_rad = 0.0"))
     assert read_run(p).vehicle.coupling_damping_nm_s_rad == 0.0
-    p.write_text(base.replace("inertia_kg_m2 = 270.0", "inertia_kg_m2 = 270.0\n"
-                              "coupling_damping_nm_s_rad = -3"))
+    p.write_text(vehicle_with("coupling_damping_nm_s_rad = -3"))
     with pytest.raises(ManifestError, match=r"coupling_damping_nm_s_rad must be >= 0"):
         read_run(p)
 
