@@ -81,12 +81,15 @@ def _spellings(runs: Iterable[str | Path]) -> dict[Path, str]:
     """{resolved manifest path: the path as found} (the first spelling: a folder's or a
     list file's path joined with what was found there, as the user wrote it). ``runs`` may
     also be a single path or pattern."""
-    if isinstance(runs, str | Path):
-        runs = [runs]
     out: dict[Path, str] = {}
-    for p in _found(runs):
+    for p in _found(_as_list(runs)):
         out.setdefault(p.resolve(), str(p))
     return out
+
+
+def _as_list(runs: Iterable[str | Path] | str | Path) -> list[str | Path]:
+    """``runs`` as a list: a single path or pattern is a list of one (not its characters)."""
+    return [runs] if isinstance(runs, str | Path) else list(runs)
 
 
 def _found(runs: Iterable[str | Path]) -> list[Path]:
@@ -535,13 +538,12 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     (:mod:`torquemod.onboard.chunks`; the track is ``onboard``'s); None: about
     :data:`torquemod.fleettasks.AXLE_TASK_S` (10 min).
     """
+    manifests = _as_list(manifests)  # read twice below (a generator would be used up)
     spelled = _spellings(manifests)
     paths = sorted(spelled)
     if not paths:
-        given = [str(manifests)] if isinstance(manifests, str | Path) else [
-            str(m) for m in manifests]
         raise InputError("no run manifests found (no experiment.toml or run.toml)",
-                         path=", ".join(given) or None,
+                         path=", ".join(map(str, manifests)) or None,
                          hint="give experiment.toml or run.toml files, folders holding "
                               "them, a glob or a list file")
     out = Path(out_dir).resolve()
