@@ -18,6 +18,7 @@ from torquemod.creep import (
     saturation_onset,
     theory_check,
     theory_constant,
+    time_constant_s,
 )
 from torquemod.demo import SYNTHETIC_TRUTH, write_synthetic_results
 from torquemod.errors import InputError
@@ -174,6 +175,11 @@ def test_theory_phase_and_constant():
     c = theory_constant(inertia_kg_m2=1.0, speed_m_s=2.0, wheel_radius_m=0.5,
                         normal_load_n=1000.0, frequency_hz=1.0)
     assert c == pytest.approx(2 * np.pi * 2.0 / (0.25 * 1000.0))
+    # the same rigid wheel's time constant: tan(phi) = Omega*tau = C/k
+    tau = time_constant_s(inertia_kg_m2=1.0, speed_m_s=2.0, wheel_radius_m=0.5,
+                          normal_load_n=1000.0, creep_coefficient=np.array([4.0, 0.0]))
+    assert tau[0] == pytest.approx(2.0 / (0.25 * 1000.0 * 4.0))
+    assert 2 * np.pi * 1.0 * tau[0] == pytest.approx(c / 4.0) and tau[1] == np.inf
     k = np.array([200.0, 100.0, 20.0, 5.0, 2.0])
     phase = phase_from_constant_deg(3.0, k)
     c_fit, se, m = fit_theory_constant(phase, k)

@@ -29,6 +29,7 @@ __all__ = [
     "saturation_onset",
     "theory_check",
     "theory_constant",
+    "time_constant_s",
 ]
 
 REQUIRED_COLUMNS = ("step", "creepage", "coa")
@@ -95,6 +96,19 @@ def theory_constant(*, inertia_kg_m2, speed_m_s, wheel_radius_m, normal_load_n, 
     omega = 2.0 * np.pi * np.asarray(frequency_hz, dtype=float)
     return (omega * inertia_kg_m2 * np.asarray(speed_m_s, dtype=float)
             / (np.asarray(wheel_radius_m, dtype=float) ** 2 * np.asarray(normal_load_n, float)))
+
+
+def time_constant_s(*, inertia_kg_m2, speed_m_s, wheel_radius_m, normal_load_n,
+                    creep_coefficient):
+    """``tau = J*V/(R^2*N*k)`` [s]: the time constant with which the rigid wheel's speed
+    relative to the rail settles at creep coefficient ``k`` (the same model as
+    :func:`theory_constant`: ``tan(phi) = Omega*tau = C/k``). It grows without bound
+    towards the creep curve's peak (k -> 0)."""
+    k = np.asarray(creep_coefficient, dtype=float)
+    with np.errstate(divide="ignore"):
+        return (inertia_kg_m2 * np.asarray(speed_m_s, dtype=float)
+                / (np.asarray(wheel_radius_m, dtype=float) ** 2
+                   * np.asarray(normal_load_n, dtype=float) * k))
 
 
 def phase_from_constant_deg(constant, creep_coefficient):

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..creep import theory_constant
+from ..creep import theory_constant, time_constant_s
 from ..errors import InputError, ProcessingError
 
 __all__ = ["CHAIN_RULE", "SETTLE_RULE", "SETTLE_TIME_CONSTANTS", "PointTask", "chain_config",
@@ -91,15 +91,14 @@ def phase_crlb_deg(torque_amplitude_nm, speed_amplitude_rad_s, *, torque_noise_n
 
 def creep_time_constant_s(config, creep_coefficient) -> np.ndarray:
     """Time constant [s] of the wheel's speed relative to the platform at an operating point
-    of creep coefficient k = dCoA/dxi [-]: the drive line turns as one body below its
-    torsional mode, so ``tau = (J_w + J_m)*V/(R_w^2*N*k)`` (the rigid-wheel model behind the
-    V-Track paper's Eq. 1, with the motor side's inertia added). It grows without bound
-    towards the creep curve's peak (k -> 0)."""
+    of creep coefficient k = dCoA/dxi [-] (:func:`torquemod.creep.time_constant_s`): the
+    drive line turns as one body below its torsional mode, so its inertia is the wheel's
+    and the motor side's, ``J_w + J_m``."""
     rig = config.rig
-    k = np.asarray(creep_coefficient, dtype=float)
-    j = rig.wheel_inertia_kg_m2 + rig.drive_inertia_kg_m2
-    with np.errstate(divide="ignore"):
-        return j * rig.speed_m_s / (rig.wheel_radius_m ** 2 * rig.normal_load_n * k)
+    return time_constant_s(inertia_kg_m2=rig.wheel_inertia_kg_m2 + rig.drive_inertia_kg_m2,
+                           speed_m_s=rig.speed_m_s, wheel_radius_m=rig.wheel_radius_m,
+                           normal_load_n=rig.normal_load_n,
+                           creep_coefficient=creep_coefficient)
 
 
 def settle_time_s(config, rows: list[dict]) -> float:
