@@ -23,6 +23,16 @@ revolution by revolution (``RecordingStream.revolutions``) through the per-cycle
 
     python benchmarks/memory.py --reading 0.1667 1 [--chain] [--workdir DIR] [--keep]
 
+``--command MINUTES...`` measures the command itself: for each length it writes an HDF5
+recording (one step, no ``cycle``: the file is split into revolutions while it is read;
+``--dtype f4`` stores the samples as float32 to halve the disk it takes, the reader works in
+float64 either way), runs ``torquemod process`` on it as a subprocess (fit and report
+included) and prints the child's peak RSS (``os.wait4``'s ``ru_maxrss``), its CPU time and
+the growth of the peak against the shortest length. The free disk is checked first; a length
+that does not fit is skipped with a line saying so.
+
+    python benchmarks/memory.py --command 10 60 180 600 [--dtype f4] [--workdir DIR]
+
 ``--train HOURS...`` (issues 10 and 11) measures a train run through the on-board estimator
 (``torquemod.onboard.run.estimate_axle``, which reads through ``RunStream`` 30 s at a time):
 an HDF5 run of the twin's layout (torque and wheel speed at 1 kHz, the reference speed and
@@ -127,6 +137,124 @@ def measure(folder: Path, workers: int, trace: bool, out_dir: Path) -> dict:
     return {"baseline_rss": base_now, "baseline_peak_rss": base_peak,
             "peak_rss": _rss_peak_bytes(), "traced_peak": traced, "wall_s": wall,
             "n_cycles": len(res.cycles)}
+
+
+def generate_long(folder: Path, minutes: float, dtype: str = "f8",
+                  block_s: float = 60.0) -> dict:
+    """One HDF5 file of ``minutes`` of continuous rig signals, written block by block: the
+    platform and wheel at the default synthetic speeds with 1x/2x encoder eccentricity, a
+    2 Hz torque modulation answered 20 deg later by the wheel speed, constant forces, white
+    noise (levels of :class:`torquemod.testing.SyntheticSpec`)."""
+    import h5py
+    import numpy as np
+
+    from torquemod.data import CHANNEL_UNITS
+    from torquemod.io import write_manifest
+    from torquemod.testing import SyntheticSpec
+
+    folder.mkdir(parents=True, exist_ok=True)
+    sp = SyntheticSpec(fs_hz=FS_HZ)
+    n_total = round(minutes * 60 * FS_HZ)
+    rng = np.random.default_rng(5)
+    wp, ww = sp.platform_speed_rad_s, sp.wheel_speed_rad_s
+    w_mod = 2 * np.pi * sp.modulation_hz
+    lag = np.deg2rad(sp.phase_lag_deg)
+    with h5py.File(folder / "long.h5", "w") as fh:
+        fh.attrs["torquemod_layout"] = 1
+        fh.attrs["sample_rate_hz"] = FS_HZ
+        fh.attrs["t0_s"] = 0.0
+        ds = {}
+        for c in RIG_CHANNELS:
+            ds[c] = fh.create_dataset(c, shape=(n_total,), dtype=dtype, chunks=(1 << 16,))
+            ds[c].attrs["unit"] = CHANNEL_UNITS[c]
+        step = round(block_s * FS_HZ)
+        for a in range(0, n_total, step):
+            b = min(n_total, a + step)
+            t = np.arange(a, b) / FS_HZ
+            m = b - a
+            ecc_p = 1 + 5e-3 * np.cos(wp * t) + 2e-3 * np.cos(2 * wp * t + 1.0)
+            ecc_w = 1 + 7e-3 * np.cos(ww * t) + 3e-3 * np.cos(2 * ww * t + 0.5)
+            x = {"platform_speed_rad_s": wp * ecc_p
+                 + sp.platform_noise_rad_s * rng.standard_normal(m),
+                 "wheel_speed_rad_s": (ww + sp.wheel_mod_amplitude_rad_s
+                                       * np.sin(w_mod * t + sp.modulation_phase_rad - lag))
+                 * ecc_w + sp.wheel_noise_rad_s * rng.standard_normal(m),
+                 "torque_nm": sp.dc_torque_nm + sp.modulation_amplitude_nm
+                 * np.sin(w_mod * t + sp.modulation_phase_rad)
+                 + sp.torque_noise_nm * rng.standard_normal(m),
+                 "fx_n": sp.dc_torque_nm / sp.wheel_radius_m
+                 + sp.force_noise_n * rng.standard_normal(m),
+                 "fy_n": sp.lateral_force_n + sp.force_noise_n * rng.standard_normal(m),
+                 "fz_n": sp.normal_load_n + sp.force_noise_n * rng.standard_normal(m)}
+            for c in RIG_CHANNELS:
+                ds[c][a:b] = x[c]
+    write_manifest(folder / "experiment.toml",
+                   rig={"wheel_radius_m": sp.wheel_radius_m,
+                        "platform_radius_m": sp.platform_radius_m},
+                   test={"normal_load_n": sp.normal_load_n, "modulation_frequency_hz": 2.0,
+                         "modulation_amplitude_nm": sp.modulation_amplitude_nm},
+                   recordings=[{"step": 1, "dc_torque_nm": sp.dc_torque_nm,
+                                "file": "long.h5"}])
+    return {"n_samples": n_total, "revolutions": int(n_total / FS_HZ * wp / (2 * np.pi)),
+            "duration_s": n_total / FS_HZ}
+
+
+def run_measured(cmd: list[str], env: dict | None = None) -> dict:
+    """Run ``cmd``; its peak RSS [bytes] (``os.wait4``: this child alone), CPU and wall [s]."""
+    import os
+
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    err = proc.stderr.read().decode(errors="replace")
+    proc.stderr.close()
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{err}")
+    peak = usage.ru_maxrss if sys.platform == "darwin" else usage.ru_maxrss * 1024
+    return {"peak_rss": peak, "cpu_s": usage.ru_utime + usage.ru_stime,
+            "wall_s": time.perf_counter() - t0}
+
+
+def command(minutes_list: list[float], workdir: str | None, dtype: str) -> None:
+    """Peak RSS of ``torquemod process`` on recordings of these lengths (see module doc)."""
+    import os
+    import shutil
+
+    mib = 2**20
+    itemsize = 4 if dtype == "f4" else 8
+    tmp = Path(tempfile.mkdtemp(dir=workdir))
+    print(f"torquemod process on one HDF5 recording ({len(RIG_CHANNELS)} channels {dtype}, "
+          f"{FS_HZ:.0f} Hz, one step split into revolutions while read); load "
+          f"{os.getloadavg()[0]:.2f}")
+    print(f"{'length':>8s} {'file MiB':>9s} {'revs':>6s} {'peak RSS MiB':>13s} "
+          f"{'vs first':>9s} {'CPU s':>8s} {'wall s':>8s} {'x real time':>11s}")
+    first = None
+    try:
+        for minutes in minutes_list:
+            need = minutes * 60 * FS_HZ * len(RIG_CHANNELS) * itemsize
+            free = shutil.disk_usage(tmp).free
+            if need > 0.7 * free:
+                print(f"{minutes:6.0f}min {need / mib:9.0f} skipped: needs more than 70 % of "
+                      f"the {free / 2**30:.0f} GiB free in {tmp}", flush=True)
+                continue
+            folder = tmp / f"exp_{minutes:g}"
+            gen = generate_long(folder, minutes, dtype)
+            size = (folder / "long.h5").stat().st_size
+            env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+                [str(Path(__file__).resolve().parents[1] / "src"),
+                 os.environ.get("PYTHONPATH", "")])}
+            m = run_measured([sys.executable, "-m", "torquemod.cli", "process",
+                              str(folder / "experiment.toml"), "--out", str(tmp / "results"),
+                              "--force", "--quiet"], env=env)
+            first = first or m["peak_rss"]
+            print(f"{minutes:6.0f}min {size / mib:9.0f} {gen['revolutions']:6d} "
+                  f"{m['peak_rss'] / mib:13.0f} {100 * (m['peak_rss'] / first - 1):8.1f}% "
+                  f"{m['cpu_s']:8.1f} {m['wall_s']:8.1f} "
+                  f"{gen['duration_s'] / m['cpu_s']:11.0f}", flush=True)
+            shutil.rmtree(folder)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 READ_CHANNELS = 7  # time_s and the 6 method channels
@@ -368,6 +496,11 @@ def main() -> None:
                          "per-cycle chain (steps 1-5, 8 and the phase)")
     ap.add_argument("--train", type=float, nargs="+", default=None, metavar="HOURS",
                     help="a train run of these lengths [h] through the on-board estimator")
+    ap.add_argument("--command", type=float, nargs="+", default=None, metavar="MINUTES",
+                    help="peak RSS of `torquemod process` itself on recordings of these "
+                         "lengths [min]")
+    ap.add_argument("--dtype", choices=["f8", "f4"], default="f8",
+                    help="with --command: sample type stored in the HDF5 file")
     ap.add_argument("--_train", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--_read", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--_mode", default="whole", help=argparse.SUPPRESS)
@@ -386,6 +519,9 @@ def main() -> None:
         return
     if args.train:
         train(args.train, args.workdir)
+        return
+    if args.command:
+        command(args.command, args.workdir, args.dtype)
         return
     if args.reading:
         reading(args.reading, args.workdir, args.keep, args.chain)

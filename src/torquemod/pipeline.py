@@ -173,10 +173,18 @@ def _subsample(x: np.ndarray) -> np.ndarray:
     return x[::stride].astype(np.float32)
 
 
-#: Files of at least this size [bytes] that span several revolutions are split while they
-#: are read (:meth:`torquemod.io.stream.RecordingStream.revolutions`): memory holds one
-#: revolution and one chunk instead of the whole file; the cycles are identical (tests).
+#: Files that span several revolutions and are at least this size [bytes], or whose
+#: samples take at least this much memory as float64 (a binary file of float32 or integer
+#: samples: half or less on disk), are split while they are read
+#: (:meth:`torquemod.io.stream.RecordingStream.revolutions`): memory holds one revolution
+#: and one chunk instead of the whole file; the cycles are identical (tests).
 STREAM_MIN_BYTES = 256 * 2**20
+#: Rows read at a time from a streamed file (1 << 16: 3.9 s at 16.67 kHz, 0.5 MiB per
+#: channel): the revolutions cut are the same for any chunk size (tests), a smaller one
+#: holds less beside the revolution being cut.
+STREAM_CHUNK_ROWS = 1 << 16
+#: Binary formats whose decoded size is known from the file's description alone.
+_DECODED_SIZE_SUFFIXES = (".h5", ".hdf5", ".mat", ".parquet", ".pq")
 
 
 def _open_stream(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig):
@@ -186,15 +194,40 @@ def _open_stream(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig):
     if entry.cycle is not None or cfg.nan_policy != "raise":
         return None
     try:
-        if entry.path.stat().st_size < STREAM_MIN_BYTES:
+        size = entry.path.stat().st_size
+        if size < STREAM_MIN_BYTES and (size < STREAM_MIN_BYTES // 8 or entry.path.suffix.lower()
+                                        not in _DECODED_SIZE_SUFFIXES):
             return None
         stream = open_stream(entry, experiment=exp)
     except (InputError, OSError):
         return None  # the whole-file reader aligns it, or names what is wrong
-    if "platform_speed_rad_s" not in stream.info.file_names:
+    decoded = 8 * stream.info.n_samples * (len(stream.info.channels) + 1)  # with the time
+    if "platform_speed_rad_s" not in stream.info.file_names or (
+            size < STREAM_MIN_BYTES and decoded < STREAM_MIN_BYTES):
         stream.close()
         return None
     return stream
+
+
+_TRIM = []
+
+
+def release_freed_memory() -> None:
+    """Hand the heap pages freed so far back to the system (glibc's ``malloc_trim``; a no-op
+    elsewhere). The chain frees its per-cycle arrays at once, but the allocator keeps the
+    pages, and a long run's resident size would creep up with the fragments."""
+    if not _TRIM:
+        try:
+            import ctypes
+            _TRIM.append(ctypes.CDLL("libc.so.6").malloc_trim)
+        except (OSError, AttributeError):
+            _TRIM.append(None)
+    if _TRIM[0] is not None:
+        _TRIM[0](0)
+
+
+#: A streamed file's freed memory is handed back every this-many revolutions.
+TRIM_EVERY = 32
 
 
 def _streamed_cycles(stream, where: str, notes: list[str]):
@@ -203,7 +236,7 @@ def _streamed_cycles(stream, where: str, notes: list[str]):
     seen: set[str] = set()
     with stream:
         revs = []
-        for k, seg, ab in stream.revolutions():
+        for k, seg, ab in stream.revolutions(chunk_rows=STREAM_CHUNK_ROWS):
             check_finite(seg, path=where)
             for note in clipping_notes(seg, path=where):
                 key = note.split(" sits at ")[0]
@@ -212,6 +245,8 @@ def _streamed_cycles(stream, where: str, notes: list[str]):
                     notes.append(note)
             revs.append(ab[1] - ab[0])
             yield k, seg, ab
+            if k % TRIM_EVERY == 0:
+                release_freed_memory()
         if not revs:
             raise InputError("recording spans less than one platform revolution", path=where,
                              channel="platform_speed_rad_s",
@@ -223,11 +258,13 @@ def _streamed_cycles(stream, where: str, notes: list[str]):
                          f"({100 * tail / rev:.0f} % of a platform revolution)")
 
 
-def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig
-                      ) -> tuple[float, float, str, list[str], list[str], list]:
+def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig,
+                      reduce=None) -> tuple[float, float, str, list[str], list[str], list]:
     """Read one recording, apply the NaN policy, split it into cycles and run steps 1-5 and 8
     on each. Runs in a worker thread, so it reports by return value, not by warnings:
-    (read s, compute s, sha256, NaN actions, notes, cycles)."""
+    (read s, compute s, sha256, NaN actions, notes, cycles). ``reduce`` (optional) maps each
+    cycle's item to what is kept of it, as soon as the cycle is done, so that a long file's
+    cycles are not all held at once."""
     where = str(entry.path) + (f":{entry.group}" if entry.group else "")
     t0 = time.perf_counter()
     # the input's SHA-256 (provenance) in a background thread while the file is read and
@@ -270,7 +307,7 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
             continue
         item = _cycle_item(entry, exp, cfg, where, cyc, seg)
         notes += item[1].notes
-        out.append(item)
+        out.append(item if reduce is None else reduce(item))
     return t1 - t0, time.perf_counter() - t1, digest_future.result(), actions, notes, out
 
 
@@ -296,27 +333,123 @@ def _cycle_item(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig, w
 #: steps 1-5 and 8 of one recording, for callers that distribute them (torquemod.fleet)
 load_and_process = _load_and_process
 
+#: Figure traces (:data:`TRACE_NAMES`) are kept for the first this-many cycles of each step,
+#: by cycle number: the paper records three cycles a step, so an ordinary experiment keeps
+#: them all, while a recording of thousands of revolutions keeps a bounded amount.
+TRACE_CYCLES = 5
 
-def _prefetched(exp: Experiment, cfg: ProcessingConfig, workers: int):
+
+def _phase_parts(step: int, cyc: int, sig: chain.CycleSignals, info: dict, lag: int,
+                 n_ref: int, cfg: ProcessingConfig) -> tuple[dict, dict, dict]:
+    """Step 7 of one aligned cycle: its row of the cycle table, its details (``slip`` None
+    until the step's slip check) and its resampled/filtered traces."""
+    try:
+        phase, stderr, window = chain.cycle_phase(sig, cfg, center_index=n_ref / 2 + lag)
+    except ProcessingError as exc:
+        raise InputError(f"phase not measurable: {exc}", path=info["source"],
+                         hint="check the modulation in both channels") from None
+    row = {"step": step, "cycle": cyc, "torque_peak_hz": sig.torque_peak_hz,
+           "wheel_peak_hz": sig.wheel_peak_hz, "modulation_hz": sig.modulation_hz,
+           "phase_deg": phase, "creepage": sig.creepage, "coa": sig.coa,
+           "phase_se_deg": stderr, "creepage_drift": sig.creepage_drift, **sig.extra}
+    detail = {**info, "phase_stderr_deg": stderr, "align_lag_samples": lag,
+              "align_lag_s": lag / sig.fs_hz,
+              "phase_window_s": [sig.t0_s + w for w in window], "resampled_hz": sig.fs_hz,
+              "wheel_rotation_hz": sig.wheel_rotation_hz,
+              "platform_rotation_hz": sig.platform_rotation_hz,
+              "notches_hz": sig.notches_hz, "speed_m_s": sig.extra["speed_m_s"],
+              "creepage_drift": sig.creepage_drift, "slip": None, **sig.means}
+    trace = {"t_s": sig.t0_s + np.arange(sig.torque_filtered.size) / sig.fs_hz,
+             "torque_resampled_nm": sig.torque_resampled,
+             "wheel_speed_resampled_rad_s": sig.wheel_resampled,
+             "torque_filtered_nm": sig.torque_filtered,
+             "wheel_speed_filtered_rad_s": sig.wheel_filtered,
+             "phase_window_s": sig.t0_s + np.asarray(window)}
+    return row, detail, trace
+
+
+def _table_row(row: dict) -> dict:
+    """A cycle row with only the table's columns (what ``pd.DataFrame(rows, columns=...)``
+    keeps): a long recording's rows then hold no speed model."""
+    return {k: row[k] for k in CYCLE_COLUMNS if k in row}
+
+
+@dataclass
+class _Measured:
+    """A cycle measured as soon as it was done (:class:`_InOrderStep`): what the step's slip
+    check needs, its row and details, or the error its phase met (raised in step order)."""
+
+    creepage: float
+    coa: float
+    creepage_drift: float
+    row: dict | None = None
+    detail: dict | None = None
+    error: InputError | None = None
+
+
+class _InOrderStep:
+    """Steps 6 and 7 of a step whose cycles arrive in cycle order (the step is one recording
+    split into revolutions), applied to each cycle as it is done: the first is the alignment
+    reference (:func:`torquemod.chain.align_lags`), only it is held, and a cycle keeps its
+    row, details and, for the first :data:`TRACE_CYCLES`, its traces. The numbers are those
+    of aligning the whole step at the end (tests)."""
+
+    def __init__(self, step: int, cfg: ProcessingConfig):
+        self.step, self.cfg, self.ref, self.count = step, cfg, None, 0
+
+    def __call__(self, item: tuple) -> tuple:
+        cyc, sig, info, raw = item
+        if self.ref is None:
+            self.ref, lag = sig, chain.align_lags([sig], self.cfg)[0]
+        else:
+            lag = chain.align_lags([self.ref, sig], self.cfg)[1]
+        out = _Measured(sig.creepage, sig.coa, sig.creepage_drift)
+        trace = None
+        try:
+            row, out.detail, tr = _phase_parts(self.step, cyc, sig, info, lag,
+                                               self.ref.torque_filtered.size, self.cfg)
+            out.row = _table_row(row)
+            if self.count < TRACE_CYCLES:
+                trace = {**raw, **tr}
+        except InputError as exc:
+            out.error = exc
+        self.count += 1
+        return cyc, out, info, trace
+
+
+def _in_order_steps(exp: Experiment) -> set[int]:
+    """The steps that are one recording without a manifest cycle: their cycles are that
+    file's revolutions, numbered and done in order."""
+    entries: dict[int, list[RecordingEntry]] = {}
+    for e in exp.recordings:
+        entries.setdefault(e.step, []).append(e)
+    return {s for s, es in entries.items() if len(es) == 1 and es[0].cycle is None}
+
+
+def _prefetched(exp: Experiment, cfg: ProcessingConfig, workers: int, reducers=None):
     """Yield (entry, result of :func:`_load_and_process`) in manifest order, with at most
-    ``workers + 1`` recordings in flight so memory stays bounded on long experiments."""
+    ``workers + 1`` recordings in flight so memory stays bounded on long experiments.
+    ``reducers`` (step -> the ``reduce`` of :func:`_load_and_process`) applies to the
+    recordings of those steps."""
     entries = list(exp.recordings)
+    red = reducers or {}
     if workers <= 1:
         for e in entries:
-            yield e, _load_and_process(e, exp, cfg)
+            yield e, _load_and_process(e, exp, cfg, red.get(e.step))
         return
     with ThreadPoolExecutor(max_workers=workers) as pool:
         pending: deque = deque()
         it = iter(entries)
         for e in it:
-            pending.append((e, pool.submit(_load_and_process, e, exp, cfg)))
+            pending.append((e, pool.submit(_load_and_process, e, exp, cfg, red.get(e.step))))
             if len(pending) > workers:
                 break
         while pending:
             e, fut = pending.popleft()
             nxt = next(it, None)
             if nxt is not None:
-                pending.append((nxt, pool.submit(_load_and_process, nxt, exp, cfg)))
+                pending.append((nxt, pool.submit(_load_and_process, nxt, exp, cfg,
+                                                 red.get(nxt.step))))
             try:
                 yield e, fut.result()
             except BaseException:
@@ -352,10 +485,16 @@ def process_experiment(experiment: Experiment | str | Path, *,
         hashes[str(exp.manifest_path)] = sha256_file(exp.manifest_path)
     t_read = t_compute = 0.0
     t_start = time.perf_counter()
+    # a step that is one long recording is aligned and measured cycle by cycle while it is
+    # read, so that memory does not grow with its revolutions (only with the fleet's
+    # precomputed results, which hold their cycles anyway, is it done at the end)
+    in_order = ({s: _InOrderStep(s, cfg) for s in _in_order_steps(exp)} if loaded is None
+                else {})
     bar = tqdm(total=len(exp.recordings), desc="processing", unit="rec", disable=not progress,
                leave=False)
     try:  # the bar is cleared before any error line is printed
-        for entry, done in (_prefetched(exp, cfg, workers) if loaded is None else loaded):
+        for entry, done in (_prefetched(exp, cfg, workers, in_order) if loaded is None
+                            else loaded):
             read_s, compute_s, digest, actions, rec_notes, cycles_out = done
             hashes[str(entry.path)] = digest
             t_read += read_s
@@ -364,7 +503,8 @@ def process_experiment(experiment: Experiment | str | Path, *,
             notes += rec_notes
             for cyc, sig, info, raw in cycles_out:
                 per_step.setdefault(entry.step, []).append((cyc, sig, info))
-                traces[(entry.step, cyc)] = dict(raw)
+                if raw is not None:
+                    traces[(entry.step, cyc)] = dict(raw)
             bar.update()
     finally:
         bar.close()
@@ -389,8 +529,6 @@ def process_experiment(experiment: Experiment | str | Path, *,
                              "(a file spanning cycles and single-cycle files overlap)",
                              path=exp.manifest_path, hint="give each cycle once")
         sigs = [s for _, s, _ in items]
-        lags = chain.align_lags(sigs, cfg)
-        n_ref = sigs[0].torque_filtered.size
         slip = detect_slip([s.creepage for s in sigs], [s.coa for s in sigs],
                            [s.creepage_drift for s in sigs], cfg.slip)
         slipped[step] = any(slip)
@@ -398,34 +536,29 @@ def process_experiment(experiment: Experiment | str | Path, *,
             if why:
                 notes.append(f"step {step}: slip detected in cycle {cyc} ({why}); the step is "
                              "flagged in steps.csv 'slip' and left out of the creep-curve fit")
-        for (cyc, sig, info), lag, why in zip(items, lags, slip, strict=True):
-            try:
-                phase, stderr, window = chain.cycle_phase(sig, cfg,
-                                                          center_index=n_ref / 2 + lag)
-            except ProcessingError as exc:
-                raise InputError(f"phase not measurable: {exc}", path=info["source"],
-                                 hint="check the modulation in both channels") from None
-            rows.append({"step": step, "cycle": cyc, "torque_peak_hz": sig.torque_peak_hz,
-                         "wheel_peak_hz": sig.wheel_peak_hz,
-                         "modulation_hz": sig.modulation_hz, "phase_deg": phase,
-                         "creepage": sig.creepage, "coa": sig.coa, "phase_se_deg": stderr,
-                         "creepage_drift": sig.creepage_drift, **sig.extra})
-            speed = sig.extra["speed_m_s"]
-            details.append({**info, "phase_stderr_deg": stderr,
-                            "align_lag_samples": lag, "align_lag_s": lag / sig.fs_hz,
-                            "phase_window_s": [sig.t0_s + w for w in window],
-                            "resampled_hz": sig.fs_hz,
-                            "wheel_rotation_hz": sig.wheel_rotation_hz,
-                            "platform_rotation_hz": sig.platform_rotation_hz,
-                            "notches_hz": sig.notches_hz, "speed_m_s": speed,
-                            "creepage_drift": sig.creepage_drift, "slip": why, **sig.means})
-            traces[(step, cyc)].update({
-                "t_s": sig.t0_s + np.arange(sig.torque_filtered.size) / sig.fs_hz,
-                "torque_resampled_nm": sig.torque_resampled,
-                "wheel_speed_resampled_rad_s": sig.wheel_resampled,
-                "torque_filtered_nm": sig.torque_filtered,
-                "wheel_speed_filtered_rad_s": sig.wheel_filtered,
-                "phase_window_s": sig.t0_s + np.asarray(window)})
+        if step in in_order:  # measured while read (_InOrderStep)
+            measured = []
+            for (_, m, _), why in zip(items, slip, strict=True):
+                if m.error is not None:
+                    raise m.error
+                m.detail["slip"] = why
+                measured.append((m.row, m.detail, None))
+        else:
+            lags = chain.align_lags(sigs, cfg)
+            n_ref = sigs[0].torque_filtered.size
+            measured = []
+            for (cyc, sig, info), lag, why in zip(items, lags, slip, strict=True):
+                row, detail, tr = _phase_parts(step, cyc, sig, info, lag, n_ref, cfg)
+                detail["slip"] = why
+                measured.append((row, detail, tr))
+            for k, (cyc, _, _) in enumerate(items):  # traces of the first cycles only
+                if k >= TRACE_CYCLES:
+                    traces.pop((step, cyc), None)
+        for (cyc, _, _), (row, detail, tr) in zip(items, measured, strict=True):
+            rows.append(row)
+            details.append(detail)
+            if tr is not None and (step, cyc) in traces:
+                traces[(step, cyc)].update(tr)
     t_compute += time.perf_counter() - t1
     if not rows:
         raise InputError("no cycle could be processed", path=exp.manifest_path,
@@ -435,6 +568,7 @@ def process_experiment(experiment: Experiment | str | Path, *,
     steps = aggregate_steps(cycles, dc, slipped)
     timing = {"wall_s": time.perf_counter() - t_start, "read_thread_s": t_read,
               "compute_thread_s": t_compute, "workers": workers}
+    release_freed_memory()  # what the cycles used, before the fit and the report
     return ProcessResult(exp, cfg, cycles, steps, details, traces, notes + nan_actions,
                          timing, nan_actions, hashes, created)
 
