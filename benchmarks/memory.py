@@ -32,6 +32,7 @@ the growth of the peak against the shortest length. The free disk is checked fir
 that does not fit is skipped with a line saying so.
 
     python benchmarks/memory.py --command 10 60 180 600 [--dtype f4] [--workdir DIR]
+                                [--src OTHER_CHECKOUT/src]
 
 ``--train HOURS...`` (issues 10 and 11) measures a train run through the on-board estimator
 (``torquemod.onboard.run.estimate_axle``, which reads through ``RunStream`` 30 s at a time):
@@ -216,7 +217,8 @@ def run_measured(cmd: list[str], env: dict | None = None) -> dict:
             "wall_s": time.perf_counter() - t0}
 
 
-def command(minutes_list: list[float], workdir: str | None, dtype: str) -> None:
+def command(minutes_list: list[float], workdir: str | None, dtype: str,
+            src: str | None = None) -> None:
     """Peak RSS of ``torquemod process`` on recordings of these lengths (see module doc)."""
     import os
     import shutil
@@ -242,7 +244,7 @@ def command(minutes_list: list[float], workdir: str | None, dtype: str) -> None:
             gen = generate_long(folder, minutes, dtype)
             size = (folder / "long.h5").stat().st_size
             env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-                [str(Path(__file__).resolve().parents[1] / "src"),
+                [src or str(Path(__file__).resolve().parents[1] / "src"),
                  os.environ.get("PYTHONPATH", "")])}
             m = run_measured([sys.executable, "-m", "torquemod.cli", "process",
                               str(folder / "experiment.toml"), "--out", str(tmp / "results"),
@@ -501,6 +503,9 @@ def main() -> None:
                          "lengths [min]")
     ap.add_argument("--dtype", choices=["f8", "f4"], default="f8",
                     help="with --command: sample type stored in the HDF5 file")
+    ap.add_argument("--src", default=None,
+                    help="with --command: the torquemod sources to run (default: this "
+                         "checkout's src; another checkout's for a before/after pair)")
     ap.add_argument("--_train", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--_read", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--_mode", default="whole", help=argparse.SUPPRESS)
@@ -521,7 +526,7 @@ def main() -> None:
         train(args.train, args.workdir)
         return
     if args.command:
-        command(args.command, args.workdir, args.dtype)
+        command(args.command, args.workdir, args.dtype, args.src)
         return
     if args.reading:
         reading(args.reading, args.workdir, args.keep, args.chain)

@@ -15,24 +15,52 @@ callback and never print.
 
 from __future__ import annotations
 
+import importlib
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from . import io as _io
-from .analysis import FitOptions, analyze
-from .analysisresult import Analysis
 from .config import ProcessingConfig
 from .data import Experiment
 from .errors import OutputError
-from .layout import load, save, update
-from .pipeline import ProcessResult, process_experiment, resolve_config
+
+if TYPE_CHECKING:  # imported when first used (_LAZY)
+    from .analysis import FitOptions, analyze
+    from .analysisresult import Analysis
+    from .layout import load, save, update
+    from .pipeline import ProcessResult, process_experiment, resolve_config
 
 __all__ = ["RunOutcome", "analyze", "fit_folder", "load", "process", "read_experiment",
            "report_folder", "run", "save"]
 
 Stage = Callable[[str], object] | None
+
+#: Names this module offers from the heavier ones (scipy, matplotlib, pandas behind them),
+#: imported when first used, so that a command prints its first stage line before it
+#: waits for them.
+_LAZY = {"analyze": ".analysis", "FitOptions": ".analysis", "Analysis": ".analysisresult",
+         "load": ".layout", "save": ".layout", "update": ".layout",
+         "ProcessResult": ".pipeline", "process_experiment": ".pipeline",
+         "resolve_config": ".pipeline"}
+
+
+def __getattr__(name: str):
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_LAZY[name], __package__), name)
+    globals()[name] = value
+    return value
+
+
+def _bind(*names: str) -> None:
+    """The lazy ``names`` as globals of this module for the functions below (a name already
+    set, e.g. by a test's monkeypatch, is kept)."""
+    for name in names:
+        if name not in globals():
+            __getattr__(name)
 
 
 def read_experiment(path) -> Experiment:
@@ -55,6 +83,7 @@ def process(experiment, config: ProcessingConfig | None = None, *,
     applied over either. The CLI's ``--phase-method``/``--nan-policy`` do the same, so the
     library and the command line give the same result.
     """
+    _bind("resolve_config", "process_experiment")
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
     cfg = resolve_config(exp, config, phase_method=phase_method, nan_policy=nan_policy)
     return process_experiment(exp, config=cfg, progress=progress, workers=workers)
@@ -101,6 +130,7 @@ def run(experiment, out, *, config: ProcessingConfig | None = None,
         check_output_dir(out, force=force)  # refuse an occupied --out before any work
         say(f"processing {len(exp.recordings)} recordings (the first run compiles the numba "
             "decimation filter, a few seconds; later runs reuse the compiled cache) ...")
+        _bind("analyze", "save")
         res = process(exp, config, phase_method=phase_method, nan_policy=nan_policy,
                       progress=progress)
         t1 = time.perf_counter()
@@ -125,6 +155,7 @@ def fit_folder(folder, options: FitOptions | dict | None = None, *, report_optio
     ``torquemod fit``."""
     from .fsutil import output_lock
     say = on_stage or (lambda _text: None)
+    _bind("load", "analyze", "update")
     with output_lock(folder):  # one run at a time updates the folder (update re-enters)
         res, _ = load(folder)
         say("fitting the creep curve and mu from the phase ...")
@@ -140,6 +171,7 @@ def report_folder(folder, *, report_options=None, on_stage: Stage = None) -> Pat
     options first)."""
     from .fsutil import output_lock
     say = on_stage or (lambda _text: None)
+    _bind("load", "analyze", "update")
     with output_lock(folder):  # one run at a time updates the folder (update re-enters)
         res, ana = load(folder)
         if ana is None:

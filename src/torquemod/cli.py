@@ -98,8 +98,9 @@ def _train_config(args: argparse.Namespace):
             doc = tomllib.loads(Path(args.config).read_text(encoding="utf-8"))
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
             return None  # the rig's loader names the problem
-        from .train import config_from_dict, is_train_config
-        if is_train_config(doc):
+        # torquemod.train.is_train_config, without importing the train twin for a rig config
+        if doc.get("kind") == "train":
+            from .train import config_from_dict
             return config_from_dict(doc, where=str(args.config))
     return None
 
@@ -139,12 +140,12 @@ def cmd_onboard(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from . import simulate
     if args.print_config and args.train:
         from .train import default_train_config_text
         sys.stdout.write(default_train_config_text())
         return 0
     if args.print_config:
+        from . import simulate
         sys.stdout.write(simulate.default_config_text())
         return 0
     if args.out is None:
@@ -152,10 +153,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     train = _train_config(args)
     if train is not None:
         return cmd_simulate_train(args, train)
-    config = simulate.load_config(args.config)
     say = _stage_printer(args)
-    if say:
+    if say:  # before the simulator's modules load (numba, scipy: most of a second)
         say(_COMPILE_NOTE)
+    from . import simulate
+    config = simulate.load_config(args.config)
     truth = simulate.run_simulation(config, Path(args.out), seed=args.seed, fmt=args.format,
                                     progress=not args.quiet, force=args.force)
     print(f"experiment written to {args.out}/experiment.toml")

@@ -271,9 +271,10 @@ def _range_problems(cfg: ProcessingConfig) -> list[str]:
                            ("notch.platform_harmonics", cfg.notch.platform_harmonics)):
         if any(isinstance(h, bool) or not isinstance(h, int) or h < 1 for h in harmonics):
             out.append(f"{key} must be positive integers, got {harmonics}")
-    try:
-        from scipy.signal import get_window
-        get_window(cfg.frequency.window, 8)
+    try:  # the default needs no check (and no scipy.signal import at start-up)
+        if cfg.frequency.window != FrequencyParams.window:
+            from scipy.signal import get_window
+            get_window(cfg.frequency.window, 8)
     except (ValueError, TypeError):
         out.append(f"frequency.window '{cfg.frequency.window}' is not a scipy window name")
     if cfg.frequency.detrend not in ("linear", "constant"):

@@ -2,35 +2,36 @@
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
 
 from ..data import Experiment, Recording, RecordingEntry
 from ..errors import InputError
-from . import csv as csv_io
-from . import hdf5 as hdf5_io
-from . import matlab as matlab_io
-from . import mdf as mdf_io
-from . import parquet as parquet_io
-from . import tdms as tdms_io
 from .channels import ChannelMap, resolve_channel_map
 from .validate import check_channels
 
+#: suffix -> (module of this package, its reader); a format's module (h5py, scipy.io,
+#: pyarrow behind them) is imported when a file of that format is first read
 _READERS = {
-    ".csv": csv_io.read_csv,
-    ".txt": csv_io.read_csv,
-    ".h5": hdf5_io.read_hdf5,
-    ".hdf5": hdf5_io.read_hdf5,
-    ".tdms": tdms_io.read_tdms,
-    ".mf4": mdf_io.read_mdf,
-    ".mdf": mdf_io.read_mdf,
-    ".mat": matlab_io.read_mat,
-    ".parquet": parquet_io.read_parquet,
-    ".pq": parquet_io.read_parquet,
+    ".csv": ("csv", "read_csv"),
+    ".txt": ("csv", "read_csv"),
+    ".h5": ("hdf5", "read_hdf5"),
+    ".hdf5": ("hdf5", "read_hdf5"),
+    ".tdms": ("tdms", "read_tdms"),
+    ".mf4": ("mdf", "read_mdf"),
+    ".mdf": ("mdf", "read_mdf"),
+    ".mat": ("matlab", "read_mat"),
+    ".parquet": ("parquet", "read_parquet"),
+    ".pq": ("parquet", "read_parquet"),
 }
 _WRITERS = {
-    "csv": csv_io.write_csv,
-    "hdf5": hdf5_io.write_hdf5,
+    "csv": ("csv", "write_csv"),
+    "hdf5": ("hdf5", "write_hdf5"),
 }
+
+
+def _function(module: str, name: str):
+    return getattr(importlib.import_module(f".{module}", __package__), name)
 
 
 def supported_suffixes() -> list[str]:
@@ -63,6 +64,8 @@ def read_recording(path: str | Path, *, group: str | None = None,
         raise InputError(f"cannot read the recording ({exc.strerror})", path=path,
                          hint="check the file's permissions") from None
     reader = _READERS.get(path.suffix.lower())
+    if reader is not None:
+        reader = _function(*reader)
     if reader is None:
         known = ", ".join(sorted(_READERS))
         raise InputError(f"unknown recording format '{path.suffix}'", path=path,
@@ -83,7 +86,7 @@ def read_entry(experiment: Experiment, entry: RecordingEntry) -> Recording:
 def write_recording(path: str | Path, rec: Recording, *, fmt: str = "csv", **kwargs) -> Path:
     """Write ``rec`` in the project's ``csv`` or ``hdf5`` layout (docs/format.md)."""
     try:
-        writer = _WRITERS[fmt]
+        writer = _function(*_WRITERS[fmt])
     except KeyError:
         raise InputError(f"unknown output format '{fmt}'", hint="use csv or hdf5") from None
     return writer(Path(path), rec, **kwargs)
