@@ -80,8 +80,9 @@ def test_phase_error_is_raised_in_step_order(tmp_path, monkeypatch):
 
 
 def test_binary_file_streamed_by_its_decoded_size(tmp_path, monkeypatch):
-    """An HDF5 file smaller on disk than STREAM_MIN_BYTES whose samples take more than that
-    as float64 (with the time base) is streamed, with the whole-file path's numbers."""
+    """An HDF5 file smaller on disk than STREAM_MIN_BYTES whose samples take at least
+    STREAM_MIN_DECODED_BYTES as float64 (with the time base) is streamed, with the
+    whole-file path's numbers."""
     write_synthetic_experiment(tmp_path, n_steps=1, n_cycles=2, files_per_cycle=False,
                                fmt="hdf5", seed=5)
     manifest = tmp_path / "experiment.toml"
@@ -97,9 +98,10 @@ def test_binary_file_streamed_by_its_decoded_size(tmp_path, monkeypatch):
     monkeypatch.setattr(pl, "_streamed_cycles",
                         lambda *a, **k: streamed.append(a) or real(*a, **k))
     monkeypatch.setattr(pl, "STREAM_MIN_BYTES", size + 1)
+    monkeypatch.setattr(pl, "STREAM_MIN_DECODED_BYTES", decoded)
     same = pl.process_experiment(manifest, workers=1)
     assert len(streamed) == 1
     pd.testing.assert_frame_equal(same.cycles, whole.cycles, check_exact=True)
-    monkeypatch.setattr(pl, "STREAM_MIN_BYTES", decoded + 1)  # neither: read whole
+    monkeypatch.setattr(pl, "STREAM_MIN_DECODED_BYTES", decoded + 1)  # neither: read whole
     pl.process_experiment(manifest, workers=1)
     assert len(streamed) == 1
