@@ -372,23 +372,30 @@ def _phase_parts(step: int, cyc: int, sig: chain.CycleSignals, info: dict, lag: 
     return row, detail, trace
 
 
-def _table_row(row: dict) -> dict:
-    """A cycle row with only the table's columns (what ``pd.DataFrame(rows, columns=...)``
-    keeps): a long recording's rows then hold no speed model."""
-    return {k: row[k] for k in CYCLE_COLUMNS if k in row}
+_ABSENT = object()
 
 
 @dataclass
 class _Measured:
     """A cycle measured as soon as it was done (:class:`_InOrderStep`): what the step's slip
-    check needs, its row and details, or the error its phase met (raised in step order)."""
+    check needs, its row (the values of :data:`CYCLE_COLUMNS`, :data:`_ABSENT` where the
+    row has none: what ``pd.DataFrame(rows, columns=...)`` keeps) and its details (values,
+    with the step's shared tuple of keys), or the error its phase met (raised in step
+    order). Tuples, not dicts: a recording of thousands of revolutions holds one a cycle."""
 
     creepage: float
     coa: float
     creepage_drift: float
-    row: dict | None = None
-    detail: dict | None = None
+    row: tuple | None = None
+    detail_keys: tuple | None = None
+    detail_values: tuple | None = None
     error: InputError | None = None
+
+    def row_dict(self) -> dict:
+        return {k: v for k, v in zip(CYCLE_COLUMNS, self.row, strict=True) if v is not _ABSENT}
+
+    def detail_dict(self) -> dict:
+        return dict(zip(self.detail_keys, self.detail_values, strict=True))
 
 
 class _InOrderStep:
@@ -400,6 +407,7 @@ class _InOrderStep:
 
     def __init__(self, step: int, cfg: ProcessingConfig):
         self.step, self.cfg, self.ref, self.count = step, cfg, None, 0
+        self.keys: tuple = ()
 
     def __call__(self, item: tuple) -> tuple:
         cyc, sig, info, raw = item
@@ -410,15 +418,19 @@ class _InOrderStep:
         out = _Measured(sig.creepage, sig.coa, sig.creepage_drift)
         trace = None
         try:
-            row, out.detail, tr = _phase_parts(self.step, cyc, sig, info, lag,
-                                               self.ref.torque_filtered.size, self.cfg)
-            out.row = _table_row(row)
+            row, detail, tr = _phase_parts(self.step, cyc, sig, info, lag,
+                                           self.ref.torque_filtered.size, self.cfg)
+            out.row = tuple(row.get(k, _ABSENT) for k in CYCLE_COLUMNS)
+            keys = tuple(detail)
+            if keys != self.keys:
+                self.keys = keys  # one tuple of keys for the step's cycles
+            out.detail_keys, out.detail_values = self.keys, tuple(detail.values())
             if self.count < TRACE_CYCLES:
                 trace = {**raw, **tr}
         except InputError as exc:
             out.error = exc
         self.count += 1
-        return cyc, out, info, trace
+        return cyc, out, None, trace
 
 
 def _in_order_steps(exp: Experiment) -> set[int]:
@@ -545,8 +557,9 @@ def process_experiment(experiment: Experiment | str | Path, *,
             for (_, m, _), why in zip(items, slip, strict=True):
                 if m.error is not None:
                     raise m.error
-                m.detail["slip"] = why
-                measured.append((m.row, m.detail, None))
+                detail = m.detail_dict()
+                detail["slip"] = why
+                measured.append((m.row_dict(), detail, None))
         else:
             lags = chain.align_lags(sigs, cfg)
             n_ref = sigs[0].torque_filtered.size
