@@ -36,3 +36,13 @@ def to_jsonable(obj):
 def dump_json(obj) -> str:
     """Indented strict JSON text of :func:`to_jsonable` ``(obj)``."""
     return json.dumps(to_jsonable(obj), indent=2, allow_nan=False)
+
+
+def write_json(path, obj) -> None:
+    """``dump_json(obj)`` and a newline into the file ``path`` (UTF-8), written as it is
+    encoded: the indented encoder makes a piece of text per key and value, which
+    :func:`json.dumps` holds all at once (tens of MiB for the per-cycle details of a
+    recording of thousands of revolutions)."""
+    with open(path, "w", encoding="utf-8") as fh:
+        json.dump(to_jsonable(obj), fh, indent=2, allow_nan=False)
+        fh.write("\n")

@@ -37,7 +37,7 @@ from .analysis import ADDED_STEP_COLUMNS, FitOptions, analyze
 from .config import ProcessingConfig
 from .data import Experiment, RecordingEntry, Rig, TestSetup
 from .errors import InputError, OutputError, TorquemodError
-from .jsonutil import dump_json
+from .jsonutil import dump_json, write_json
 from .pipeline import CYCLE_COLUMNS, STEP_COLUMNS, ProcessResult
 from .provenance import provenance
 from .report import write_report
@@ -108,9 +108,8 @@ def _write_all(tmp: Path, final: Path, result: ProcessResult, analysis: Analysis
         steps = analysis.steps if analysis is not None else result.steps
         result.cycles.to_csv(tmp / "cycles.csv", index=False, lineterminator="\n")
         steps.to_csv(tmp / "steps.csv", index=False, lineterminator="\n")
-        (tmp / "provenance.json").write_text(dump_json(prov) + "\n", encoding="utf-8")
-        (tmp / STATE_FILE).write_text(dump_json(_state(result, analysis)) + "\n",
-                                      encoding="utf-8")
+        write_json(tmp / "provenance.json", prov)
+        write_json(tmp / STATE_FILE, _state(result, analysis))
         np.savez(tmp / "traces.npz", **{f"s{s}c{c}__{name}": x
                                         for (s, c), arrays in sorted(result.traces.items())
                                         for name, x in arrays.items()})
