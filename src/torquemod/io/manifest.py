@@ -6,7 +6,6 @@ file, the key and what to do.
 
 from __future__ import annotations
 
-import difflib
 import math
 import tomllib
 from pathlib import Path
@@ -16,6 +15,7 @@ import tomli_w
 from ..checks import positive_number
 from ..data import Experiment, RecordingEntry, Rig, TestSetup
 from ..errors import InputError, ManifestError
+from ..tomlcheck import unknown_keys
 from .channels import resolve_channel_map
 
 _RIG_KEYS = ("wheel_radius_m", "platform_radius_m")
@@ -76,14 +76,9 @@ def _load_toml(path: Path, name: str = "experiment.toml") -> dict:
 def check_keys(table: dict, allowed, where: str, path: object, *,
                takes: str = "known keys:", error: type[InputError] = ManifestError) -> None:
     """Raise ``error`` naming the first key of ``table`` not in ``allowed`` (a typo such as
-    'dc_torque' or 'stpe' must not pass unnoticed), with the nearest allowed key."""
-    allowed = tuple(allowed)
-    for key in table:
-        if key not in allowed:
-            near = difflib.get_close_matches(str(key), allowed, n=1)
-            raise error(f"{where}: unknown key '{key}'", path=path, hint=(
-                f"did you mean '{near[0]}'? " if near else "") + f"{takes} "
-                + ", ".join(allowed))
+    'dc_torque' or 'stpe' must not pass unnoticed), with the nearest allowed key
+    (:func:`torquemod.tomlcheck.unknown_keys`; a manifest error by default)."""
+    unknown_keys(table, allowed, where, path, takes=takes, error=error)
 
 
 def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEntry:

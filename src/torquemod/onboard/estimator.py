@@ -58,14 +58,14 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from ..errors import InputError, ProcessingError
-from ..io.manifest import check_keys
 from ..io.run import Vehicle
 from ..phasefit import R_BOUNDS
+from ..tomlcheck import NON_NEGATIVE, between, default_checks, one_of, read_table
 from .delay import DelayCalibrator, delay_grid
 from .mufit import CreepFit, fit_creep_progression
 from .window import WindowResult, measure_window, with_delay
@@ -108,20 +108,14 @@ class OnboardConfig:
 
     @classmethod
     def from_dict(cls, table: dict | None, *, source: str = "[onboard]") -> OnboardConfig:
-        table = dict(table or {})
-        check_keys(table, [f.name for f in fields(cls)], "[onboard]", source, error=InputError)
-        if "ratio_bounds" in table:
-            table["ratio_bounds"] = tuple(float(v) for v in table["ratio_bounds"])
-        cfg = cls(**table)
-        for f in fields(cls):
-            v = getattr(cfg, f.name)
-            if f.name in ("power_shapes", "calibrate_delay"):
-                if v not in (0, 1):
-                    raise InputError(f"[onboard] {f.name} must be 0 or 1, got {v!r}",
-                                     path=source)
-            elif f.name != "ratio_bounds" and not (isinstance(v, int | float) and v > 0):
-                raise InputError(f"[onboard] {f.name} must be a positive number, got {v!r}",
-                                 path=source)
+        """The settings from run.toml's ``[onboard]`` table (None: the defaults); every key
+        and value checked (:func:`torquemod.tomlcheck.read_table`), an :class:`InputError`
+        naming ``source`` and the key otherwise."""
+        cfg = read_table(cls, table, section="onboard", path=source, checks=_CHECKS)
+        lo, hi = cfg.ratio_bounds
+        if not lo < hi:
+            raise InputError(f"'onboard.ratio_bounds' must be [low, high] with low < high, got "
+                             f"{list(cfg.ratio_bounds)}", path=source)
         return cfg
 
     def to_dict(self) -> dict:
@@ -137,6 +131,16 @@ class _Fit:
     low: float
     high: float | None
     model: CreepFit | None = None
+
+
+#: ranges of the [onboard] settings (besides their types): positive unless listed here
+_CHECKS = default_checks(OnboardConfig, {
+    "power_shapes": one_of(0, 1), "calibrate_delay": one_of(0, 1),
+    "window_periods": between(1, None), "n_bins": between(1, None),
+    "min_windows": between(1, None), "delay_min_windows": between(1, None),
+    "info_utilisation": between(0.0, 1.0, lo_open=True),
+    "low_adhesion_ratio": between(0.0, 1.0, lo_open=True),
+    "change_drift": NON_NEGATIVE, "delay_max_s": NON_NEGATIVE})
 
 
 class ChangeDetector:
