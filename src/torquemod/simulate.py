@@ -120,7 +120,8 @@ def _check_and_merge(default: dict, user: dict, where: str) -> dict:
     for section, table in user.items():
         if not isinstance(table, dict):
             raise InputError(f"'{section}' must be a table", path=where)
-        unknown_keys(table, default[section], f"[{section}]", where)
+        unknown_keys(table, default[section], "", where, prefix=f"{section}.",
+                     takes=f"[{section}] takes")
         for key, value in table.items():
             ref = default[section][key]
             ok = (isinstance(value, bool) if isinstance(ref, bool)

@@ -23,7 +23,7 @@ Tyre(radius_m=0.5, teeth=60)
 ...     read_table(Tyre, {"radius": 0.5}, section="wheel", path="car.toml")
 ... except InputError as exc:
 ...     print(str(exc).split(";")[0] + "; " + exc.hint.split("?")[0] + "?")
-car.toml: [wheel]: unknown key 'radius'; did you mean 'radius_m'?
+car.toml: unknown key 'wheel.radius'; did you mean 'radius_m'?
 """
 
 from __future__ import annotations
@@ -101,14 +101,17 @@ def default_checks(cls, given: Mapping[str, Check | None], default: Check | None
 
 
 def unknown_keys(table: Mapping, allowed: Iterable, where: str, path: object, *,
-                 takes: str = "known keys:", error: type[InputError] = InputError) -> None:
+                 takes: str = "known keys:", error: type[InputError] = InputError,
+                 prefix: str = "") -> None:
     """Raise ``error`` naming the first key of ``table`` not in ``allowed`` (a typo such as
-    'modulation_frequncy_hz' must not pass unnoticed), with the nearest allowed key."""
+    'modulation_frequncy_hz' must not pass unnoticed), with the nearest allowed key;
+    ``where`` ("" for none) and the key's ``prefix`` (its section, ``"test."``) name it."""
     allowed = tuple(allowed)
     for key in table:
         if key not in allowed:
             near = difflib.get_close_matches(str(key), allowed, n=1)
-            raise error(f"{where}: unknown key '{key}'", path=path, hint=(
+            text = f"unknown key '{prefix}{key}'"
+            raise error(f"{where}: {text}" if where else text, path=path, hint=(
                 f"did you mean '{near[0]}'? " if near else "") + f"{takes} "
                 + ", ".join(allowed))
 
@@ -182,20 +185,21 @@ def read_table(cls, table: object, *, section: str, path: object,
     """An instance of the frozen dataclass ``cls`` from the TOML ``table`` ``[section]`` of
     the file ``path``: unknown keys refused (with the nearest known one), every value
     converted to its field's type and checked by ``checks[field]`` (or the field's
-    ``metadata["check"]``); fields in ``skip`` are not read from the table (sub-tables the
-    caller reads itself) and ``given`` supplies fields the caller built. Missing keys keep
+    ``metadata["check"]``); keys in ``skip`` may be in the table but are not read (sub-tables
+    the caller reads itself) and ``given`` supplies fields the caller built (not keys of
+    the table). Missing keys keep
     their defaults."""
     if table is None:
         table = {}
     if not isinstance(table, Mapping):
         raise error(f"[{section}] must be a table, got {table!r}", path=path)
-    skip = set(skip)
+    skip, given = tuple(skip), dict(given or {})
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
-    unknown_keys(table, [n for n in fields if n not in skip and n != "raw"], f"[{section}]",
-                 path, error=error)
+    unknown_keys(table, [*(n for n in fields if n not in given and n != "raw"), *skip],
+                 "", path, error=error, prefix=f"{section}.", takes=f"[{section}] takes")
     hints = typing.get_type_hints(cls)
     checks = dict(checks or {})
-    kwargs = dict(given or {})
+    kwargs = dict(given)
     for key, value in table.items():
         if key in skip:
             continue

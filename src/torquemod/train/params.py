@@ -288,7 +288,7 @@ def config_from_dict(doc: dict, *, where: str = "<train config>") -> TrainConfig
         raise InputError("missing key 'track.length_m'", path=where,
                          hint="add 'length_m = <metres>' under [track]")
     track = read_table(TrackParams, tr, section="track", path=where,
-                       checks=default_checks(TrackParams, _TRACK), skip=("segment", "segments"),
+                       checks=default_checks(TrackParams, _TRACK), skip=("segment",),
                        given={"segments": tuple(segs)})
     if segs[0].start_m >= track.length_m:
         raise InputError(f"the first [[track.segment]] starts at {segs[0].start_m:g} m, at or "
@@ -305,7 +305,7 @@ def config_from_dict(doc: dict, *, where: str = "<train config>") -> TrainConfig
         raise InputError("the driver needs at least one [[controller.leg]]", path=where)
     controller = read_table(ControllerParams, ctl, section="controller", path=where,
                             checks=default_checks(ControllerParams, _CONTROLLER),
-                            skip=("leg", "legs"), given={"legs": tuple(legs)})
+                            skip=("leg",), given={"legs": tuple(legs)})
     sensors = read_table(TrainSensorParams, _table(doc, "sensors", where), section="sensors",
                          path=where, checks=default_checks(TrainSensorParams, _SENSORS))
     test = read_table(_Test, _table(doc, "test", where), section="test", path=where,
