@@ -15,10 +15,13 @@ import threading
 from pathlib import Path
 
 from ._version import __version__
+from .daskutil import CONNECT_TIMEOUT_S
 from .errors import TorquemodError
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERNAL = 3
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports Ctrl-C
+EXIT_TERMINATED = 143  # 128 + SIGTERM
 
 
 def _fmt(x: object, spec: str) -> str:
@@ -282,11 +285,22 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0 < value < 1e6:
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
+
+
 def cmd_fleet(args: argparse.Namespace) -> int:
     from .fleet import run_fleet
     res = run_fleet(args.runs, Path(args.out), scheduler=args.scheduler,
                     n_workers=args.workers, force=args.force, progress=not args.quiet,
                     revolutions_per_task=args.revolutions_per_task,
+                    connect_timeout_s=args.connect_timeout,
                     on_dashboard=lambda link: print(f"dashboard: {link}", file=sys.stderr,
                                                     flush=True))
     print(f"{res.summary.shape[0]} runs: {res.count('processed')} processed, "
@@ -305,6 +319,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from .sweep.run import run_sweep
     res = run_sweep(args.sweep, Path(args.out), scheduler=args.scheduler,
                     n_workers=args.workers, force=args.force, progress=not args.quiet,
+                    connect_timeout_s=args.connect_timeout,
                     on_dashboard=lambda link: print(f"dashboard: {link}", file=sys.stderr,
                                                     flush=True))
     print(f"{res.status.shape[0]} points: {res.count('done')} run, {res.count('skipped')} "
@@ -440,8 +455,11 @@ def build_parser() -> argparse.ArgumentParser:
     fl.add_argument("--scheduler", default=None, metavar="ADDRESS",
                     help="address of an existing Dask scheduler (default: a local cluster "
                     "sized to the machine)")
-    fl.add_argument("--workers", type=int, default=None,
+    fl.add_argument("--workers", type=int, default=None, metavar="N",
                     help="worker processes of the local cluster (default: CPU count)")
+    fl.add_argument("--connect-timeout", type=_positive_seconds, default=CONNECT_TIMEOUT_S,
+                    metavar="S", help="seconds to wait for --scheduler to answer (default "
+                    f"{CONNECT_TIMEOUT_S:g})")
     fl.add_argument("--force", action="store_true", help="reprocess unchanged runs too")
     fl.add_argument("--quiet", action="store_true", help="no progress bar")
     fl.add_argument("--revolutions-per-task", type=_positive_int, default=None, metavar="N",
@@ -460,8 +478,11 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--scheduler", default=None, metavar="ADDRESS",
                     help="address of an existing Dask scheduler (default: a local cluster "
                     "sized to the machine)")
-    sw.add_argument("--workers", type=int, default=None,
+    sw.add_argument("--workers", type=int, default=None, metavar="N",
                     help="worker processes of the local cluster (default: CPU count)")
+    sw.add_argument("--connect-timeout", type=_positive_seconds, default=CONNECT_TIMEOUT_S,
+                    metavar="S", help="seconds to wait for --scheduler to answer (default "
+                    f"{CONNECT_TIMEOUT_S:g})")
     sw.add_argument("--force", action="store_true", help="rerun finished points too")
     sw.add_argument("--quiet", action="store_true", help="no progress bar")
     sw.set_defaults(func=cmd_sweep)
@@ -477,9 +498,12 @@ def main(argv: list[str] | None = None) -> int:
     except TorquemodError as exc:
         print(f"torquemod: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # Ctrl-C: 128 + SIGINT; kill: 128 + SIGTERM
+        if isinstance(exc, _Terminated):
+            print("torquemod: terminated", file=sys.stderr)
+            return EXIT_TERMINATED
         print("torquemod: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except Exception as exc:
         from .fsutil import environment_error
         env = environment_error(exc)  # full disk, read-only, no permission, ... (also deep
@@ -493,16 +517,21 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INTERNAL
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, unwinding as Ctrl-C does (exit code 143 instead of 130)."""
+
+
 @contextlib.contextmanager
 def _terminate_as_interrupt():
     """SIGTERM (``kill``, a job scheduler's stop) unwinds like Ctrl-C, so temporary outputs
-    are removed and nothing half-written is left (main thread only)."""
+    are removed and nothing half-written is left (main thread only); the exit code is
+    143."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def stop(_signum, _frame):
-        raise KeyboardInterrupt
+        raise _Terminated
 
     previous = signal.signal(signal.SIGTERM, stop)
     try:

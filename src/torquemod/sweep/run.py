@@ -17,11 +17,11 @@ first step, ...) becomes a row of failures.csv and the sweep goes on.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import hashlib
 import json
 import os
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,8 +29,9 @@ from pathlib import Path
 import pandas as pd
 
 from .._version import __version__
+from ..daskutil import CONNECT_TIMEOUT_S, check_cluster
 from ..errors import InputError, TorquemodError
-from ..fsutil import output_lock, write_atomic
+from ..fsutil import output_lock, removed_if_left_empty, write_atomic
 from ..jsonutil import dump_json
 from .evaluate import PointTask, evaluate_point
 from .spec import SweepSpec, load_sweep
@@ -176,11 +177,13 @@ class SweepResult:
 
 
 def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, scheduler,
-                  n_workers, force: bool, progress: bool, on_dashboard) -> tuple[list, str]:
+                  n_workers, force: bool, progress: bool, on_dashboard,
+                  connect_timeout_s: float = CONNECT_TIMEOUT_S) -> tuple[list, str]:
     from tqdm import tqdm
-    bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
     rows, links = [], []
     if in_process:
+        out.mkdir(parents=True, exist_ok=True)
+        bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
         for task in todo:
             rows.append(run_point(task, str(out), force))
             bar.update()
@@ -195,7 +198,10 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
         if on_dashboard is not None:
             on_dashboard(link)
 
-    with dask_client(scheduler, n_workers, dashboard) as client:
+    with dask_client(scheduler, n_workers, dashboard,
+                     connect_timeout_s=connect_timeout_s) as client:
+        out.mkdir(parents=True, exist_ok=True)  # once the cluster answers
+        bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
         futures = {client.submit(run_point, t, str(out), force, pure=False,
                                  key=f"torquemod-sweep-{t.point_id}-{time.time_ns()}"): t
                    for t in todo}
@@ -229,7 +235,8 @@ def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
 def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
               in_process: bool = False, scheduler: str | None = None,
               n_workers: int | None = None, force: bool = False, progress: bool = False,
-              report: bool = True, on_dashboard=None) -> SweepResult:
+              report: bool = True, on_dashboard=None,
+              connect_timeout_s: float = CONNECT_TIMEOUT_S) -> SweepResult:
     """Run a sweep (a :class:`SweepSpec` or the path of ``SWEEP.toml``) into ``out_dir``.
 
     Points run as Dask tasks: on the scheduler at ``scheduler`` (``tcp://host:8786``), else on
@@ -240,6 +247,7 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
     address; ``progress`` shows a bar on stderr.
     """
     t0 = time.perf_counter()
+    scheduler = None if in_process else check_cluster(scheduler, n_workers, connect_timeout_s)
     spec = sweep if isinstance(sweep, SweepSpec) else load_sweep(sweep)
     if not spec.points:
         raise InputError("the sweep has no points", path=spec.path,
@@ -250,18 +258,21 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
     with output_lock(out):  # one sweep at a time writes OUT (a second one fails at once)
         return _run_locked(spec, out, t0, in_process=in_process, scheduler=scheduler,
                            n_workers=n_workers, force=force, progress=progress,
-                           report=report, on_dashboard=on_dashboard)
+                           report=report, on_dashboard=on_dashboard,
+                           connect_timeout_s=connect_timeout_s)
 
 
 def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler, n_workers,
-                force, progress, report, on_dashboard) -> SweepResult:
-    out.mkdir(parents=True, exist_ok=True)
+                force, progress, report, on_dashboard, connect_timeout_s) -> SweepResult:
     todo = tasks(spec)
-    rows, link = _evaluate_all(todo, out, in_process=in_process, scheduler=scheduler,
-                               n_workers=n_workers, force=force, progress=progress,
-                               on_dashboard=on_dashboard)
-    with contextlib.suppress(OSError):  # the twin's experiments are gone: drop the folder
-        (out / "_work").rmdir()
+    with removed_if_left_empty(out):
+        try:
+            rows, link = _evaluate_all(todo, out, in_process=in_process, scheduler=scheduler,
+                                       n_workers=n_workers, force=force, progress=progress,
+                                       on_dashboard=on_dashboard,
+                                       connect_timeout_s=connect_timeout_s)
+        finally:  # the twin's experiments, also of points cut short by an interrupt
+            shutil.rmtree(out / "_work", ignore_errors=True)
     status = pd.DataFrame(rows).sort_values("point_index", ignore_index=True)
     table = assemble(out, spec, status)
     params = {p.point_id: json.dumps(p.params, sort_keys=True, default=str)
