@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import os
 import signal
 import sys
 import threading
@@ -22,6 +23,7 @@ EXIT_BAD_INPUT = 2
 EXIT_INTERNAL = 3
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports Ctrl-C
 EXIT_TERMINATED = 143  # 128 + SIGTERM
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, as a shell reports `torquemod ... | head`
 
 
 def _fmt(x: object, spec: str) -> str:
@@ -170,6 +172,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+_MAX_POINTS = 2000  # torquemod.sweep.spec.MAX_POINTS (not imported for --help's sake)
+
 _COMPILE_NOTE = ("simulating the experiment (the first run compiles the simulator's numba "
                  "kernels, which can take a minute; later runs reuse the compiled cache) ...")
 
@@ -316,8 +320,15 @@ def cmd_fleet(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from .sweep.run import run_sweep
-    res = run_sweep(args.sweep, Path(args.out), scheduler=args.scheduler,
+    from .daskutil import check_cluster
+    from .sweep.run import plan_line, run_sweep
+    from .sweep.spec import MAX_POINTS, load_sweep
+    check_cluster(args.scheduler, args.workers, args.connect_timeout)
+    spec = load_sweep(args.sweep, max_points=None if args.yes else args.max_points or MAX_POINTS)
+    say = _stage_printer(args)
+    res = run_sweep(spec, Path(args.out), scheduler=args.scheduler, on_start=say and (
+                        lambda: say(plan_line(spec, args.out, n_workers=args.workers,
+                                              scheduler=args.scheduler))),
                     n_workers=args.workers, force=args.force, progress=not args.quiet,
                     connect_timeout_s=args.connect_timeout,
                     on_dashboard=lambda link: print(f"dashboard: {link}", file=sys.stderr,
@@ -483,7 +494,12 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--connect-timeout", type=_positive_seconds, default=CONNECT_TIMEOUT_S,
                     metavar="S", help="seconds to wait for --scheduler to answer (default "
                     f"{CONNECT_TIMEOUT_S:g})")
-    sw.add_argument("--force", action="store_true", help="rerun finished points too")
+    sw.add_argument("--force", action="store_true", help="rerun finished points too; start "
+                    "a new study in an --out that holds another sweep's points")
+    sw.add_argument("--max-points", type=_positive_int, default=None, metavar="N",
+                    help="refuse a sweep of more than N points (default: "
+                    f"{_MAX_POINTS})")
+    sw.add_argument("--yes", action="store_true", help="run a sweep of any size")
     sw.add_argument("--quiet", action="store_true", help="no progress bar")
     sw.set_defaults(func=cmd_sweep)
     return p
@@ -498,6 +514,10 @@ def main(argv: list[str] | None = None) -> int:
     except TorquemodError as exc:
         print(f"torquemod: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except BrokenPipeError:  # the reader of stdout went away (`| head`): nothing to say
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
     except KeyboardInterrupt as exc:  # Ctrl-C: 128 + SIGINT; kill: 128 + SIGTERM
         if isinstance(exc, _Terminated):
             print("torquemod: terminated", file=sys.stderr)
