@@ -132,10 +132,12 @@ def cmd_onboard(args: argparse.Namespace) -> int:
         say("estimating the friction along the run ...")
     results = run_onboard(args.run, Path(args.out), force=args.force,
                           command=sys.argv)
+    _print_warnings([w for r in results for w in r.warnings])
     for r in results:
         s = r.summary()
         print(f"axle {s['axle']}: {s['windows']} windows over {s['length_m']:.0f} m, mu "
               f"determined in {100 * s['mu_given_share']:.0f} % (elsewhere a lower bound), "
+              f"measurable in {100 * s['measurable_share']:.0f} %, "
               f"low adhesion {100 * s['low_adhesion_share']:.1f} %, slip "
               f"{100 * s['slip_share']:.1f} %; {s['seconds']:.1f} s")
     print(f"track:  {Path(args.out) / 'track.parquet'}")

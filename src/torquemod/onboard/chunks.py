@@ -139,7 +139,8 @@ def axle_estimator(run: Run, stream: RunStream, config: OnboardConfig
                    ) -> OnboardEstimator:
     """A fresh estimator on the stream's sample times."""
     return OnboardEstimator(run.vehicle, run.modulation_frequency_hz, stream.fs_hz,
-                            config=config, t0_s=stream.t0_s)
+                            config=config, t0_s=stream.t0_s,
+                            amplitude_nm=run.modulation_amplitude_nm)
 
 
 def _n_windows(est: OnboardEstimator, n_samples: int) -> int:
@@ -221,7 +222,7 @@ def assemble_axle(run: Run, entry: RunRecording, config: OnboardConfig | None,
     order): positions, then the estimator's state over every window."""
     import pandas as pd
 
-    from .run import OnboardResult, _AxleSignals, load_truth
+    from .run import OnboardResult, _AxleSignals, load_truth, premise_warnings
     config = axle_config(run, config)
     t_start = time.perf_counter()
     starts = [s for p in parts for s in p.starts]
@@ -234,6 +235,8 @@ def assemble_axle(run: Run, entry: RunRecording, config: OnboardConfig | None,
     rows = [est.update(dataclasses.replace(w, position_m=float(x)))
             for w, x in zip(windows, positions, strict=True)]
     track = pd.DataFrame(rows)
+    track, warnings = premise_warnings(run, entry, track, config) if len(track) else (track,
+                                                                                      [])
     return OnboardResult(run, entry.axle, track, config, notes,
                          time.perf_counter() - t_start, est.tracker.n_fits,
-                         truth=load_truth(run))
+                         truth=load_truth(run), warnings=warnings)
