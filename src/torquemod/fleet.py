@@ -22,7 +22,7 @@ datasets::
     OUT/fleet_report.html     the summary, the failures and figures (torquemod.fleetreport)
     OUT/_state/<run>.json     fingerprint of what produced the partitions
 
-The ``track`` files hold exactly the 13 columns of ``torquemod onboard``'s ``track.parquet``;
+The ``track`` files hold exactly the 14 columns of ``torquemod onboard``'s ``track.parquet``;
 the partition keys (hive layout) add ``vehicle``, ``date``, ``run`` (and ``axle``) when pandas,
 Dask or DuckDB read ``OUT/track`` (or ``OUT/cycles``, ``OUT/steps``) as a dataset.
 ``vehicle`` is the free text ``[vehicle] vehicle`` of run.toml or ``[rig] vehicle`` of

@@ -401,10 +401,12 @@ class OnboardEstimator:
         coefficient, mu tracker); windows must come in order. A window without the
         method's premise (:func:`~torquemod.onboard.quality.window_quality`) keeps its time,
         position and speed, the rest empty, and leaves the state alone."""
+        step_nm = w.dc_step_ratio * max(w.torque_amplitude_nm, 1e-12)
         quality = window_quality(w.speed_m_s, w.wheel_speed_rad_s, w.torque_amplitude_nm,
                                  amplitude_nm=self.amplitude_nm,
                                  min_speed_m_s=self.cfg.min_speed_m_s,
-                                 min_modulation_ratio=self.cfg.min_modulation_ratio)
+                                 min_modulation_ratio=self.cfg.min_modulation_ratio,
+                                 dc_step_nm=step_nm, max_step_ratio=self.cfg.max_dc_step_ratio)
         if quality != QUALITY_OK:
             nan = math.nan
             return {"time_s": w.time_s, "position_m": w.position_m, "speed_m_s": w.speed_m_s,
@@ -414,7 +416,8 @@ class OnboardEstimator:
                     "low_adhesion": False, "slip": False, "quality": quality,
                     "creepage": nan, "dc_torque_nm": w.dc_torque_nm,
                     "accel_m_s2": w.accel_m_s2, "creep_coefficient_ref": nan,
-                    "dc_step_ratio": w.dc_step_ratio, "delay_s": self.delay_s}
+                    "dc_step_ratio": w.dc_step_ratio, "dc_step_nm": step_nm,
+                    "delay_s": self.delay_s}
         slip = (w.creepage > self.cfg.slip_creepage
                 or w.wheel_excess_accel_m_s2 > self.cfg.slip_accel_m_s2)
         steady = w.dc_step_ratio <= self.cfg.max_dc_step_ratio  # a step corrupts k
@@ -447,4 +450,5 @@ class OnboardEstimator:
                 "low_adhesion": low, "slip": bool(slip), "quality": QUALITY_OK,
                 "creepage": w.creepage, "dc_torque_nm": w.dc_torque_nm,
                 "accel_m_s2": w.accel_m_s2, "creep_coefficient_ref": ref,
-                "dc_step_ratio": w.dc_step_ratio, "delay_s": self.delay_s}
+                "dc_step_ratio": w.dc_step_ratio, "dc_step_nm": step_nm,
+                "delay_s": self.delay_s}

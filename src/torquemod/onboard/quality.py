@@ -33,26 +33,38 @@ REASONS = {"no_modulation": "no modulation line at the declared frequency in the
            "reverse": "the train runs backwards (negative speed)"}
 
 
+def stepping(dc_step_nm, amplitude_nm: float | None, max_step_ratio: float):
+    """True where the mean torque changes inside the window by more than ``max_step_ratio``
+    of the declared modulation amplitude ``amplitude_nm`` [N*m] (``dc_step_nm`` [N*m]: from
+    its first to its last modulation period): such a window's line cannot be judged alone."""
+    return (np.asarray(dc_step_nm, dtype=float) > max_step_ratio * amplitude_nm
+            if amplitude_nm else np.zeros(np.shape(dc_step_nm), dtype=bool))
+
+
 def window_quality(speed_m_s: float, wheel_speed_rad_s: float, torque_amplitude_nm: float, *,
                    amplitude_nm: float | None, min_speed_m_s: float,
-                   min_modulation_ratio: float) -> str:
+                   min_modulation_ratio: float, dc_step_nm: float = 0.0,
+                   max_step_ratio: float = math.inf) -> str:
     """The window's quality flag: :data:`QUALITY_OK` or a key of :data:`REASONS`.
 
     ``speed_m_s`` [m/s] the mean reference speed, ``wheel_speed_rad_s`` [rad/s] the axle's,
     ``torque_amplitude_nm`` [N*m] the torque's amplitude at the modulation frequency,
-    ``amplitude_nm`` [N*m] the declared modulation amplitude (None: not checked).
+    ``amplitude_nm`` [N*m] the declared modulation amplitude (None: not checked). A window
+    whose torque steps (:func:`stepping`) is not judged by its line here (a step leaks
+    into the sine fit either way; :func:`without_line_nearby` judges it by its neighbours).
     """
     if speed_m_s < 0 or wheel_speed_rad_s < 0:
         return "reverse"
     if not speed_m_s >= min_speed_m_s:
         return "standstill"
-    if amplitude_nm and not torque_amplitude_nm >= min_modulation_ratio * amplitude_nm:
+    if (amplitude_nm and not stepping(dc_step_nm, amplitude_nm, max_step_ratio)
+            and not torque_amplitude_nm >= min_modulation_ratio * amplitude_nm):
         return "no_modulation"
     return QUALITY_OK
 
 
 def without_line_nearby(quality, steady, *, half_width: int = 10) -> np.ndarray:
-    """``quality`` with the torque-stepping windows (``steady`` False) flagged
+    """``quality`` with the torque-stepping windows (``steady`` False, :func:`stepping`) flagged
     ``no_modulation`` where most of the windows around them (``half_width`` each side) that
     can tell lack the line: a DC step inside a window leaks into the sine fit and can fake
     a line's amplitude, so such a window is judged by its neighbours. The others unchanged."""

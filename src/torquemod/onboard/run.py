@@ -36,6 +36,7 @@ from .quality import (
     REASONS,
     modulation_line_hz,
     quality_warnings,
+    stepping,
     without_line_nearby,
 )
 
@@ -136,8 +137,8 @@ def premise_warnings(run: Run, entry: RunRecording, track, config: OnboardConfig
     without a modulation line), naming the line the torque has instead when ``torque_nm``
     (a stretch of the axle's torque at ``fs_hz`` [Hz]) shows one."""
     f = run.modulation_frequency_hz
-    q = without_line_nearby(track["quality"].to_numpy(object),
-                            track["dc_step_ratio"].to_numpy(float) <= config.max_dc_step_ratio)
+    q = without_line_nearby(track["quality"].to_numpy(object), ~stepping(
+        track["dc_step_nm"], run.modulation_amplitude_nm, config.max_dc_step_ratio))
     lost = q != track["quality"].to_numpy(object)
     if lost.any():
         track = track.copy()
