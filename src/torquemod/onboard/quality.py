@@ -120,6 +120,21 @@ def quality_warnings(position_m, quality, *, axle: int, frequency_hz: float,
     return out
 
 
+def reference_rate_hz(speed_m_s: np.ndarray, fs_hz: float) -> float:
+    """How often [Hz] the reference speed is really updated: the samples where it changes
+    or where its slope changes, whichever are fewer, per second (a speed held between
+    updates changes once per update, one interpolated linearly between them bends once; a
+    speed sampled at ``fs_hz`` does both at nearly every sample). 0 for a speed that
+    neither changes nor bends (constant, or a constant ramp)."""
+    v = np.asarray(speed_m_s, dtype=float)
+    if v.size < 3:
+        return 0.0
+    tiny = 1e-9 * max(1.0, float(np.max(np.abs(v))))
+    changes = np.count_nonzero(np.abs(np.diff(v)) > tiny)
+    bends = np.count_nonzero(np.abs(np.diff(v, 2)) > tiny)
+    return float(min(changes, bends)) * fs_hz / v.size
+
+
 def modulation_line_hz(torque_nm: np.ndarray, fs_hz: float, declared_hz: float,
                        min_amplitude_nm: float = 0.0) -> float | None:
     """The frequency [Hz] of the torque's strongest line within 0.7-1.4 times the declared

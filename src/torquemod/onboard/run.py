@@ -36,6 +36,7 @@ from .quality import (
     REASONS,
     modulation_line_hz,
     quality_warnings,
+    reference_rate_hz,
     stepping,
     without_line_nearby,
 )
@@ -95,11 +96,14 @@ def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = 
         est = axle_estimator(run, stream, config)
         step = max(1, round(chunk_s * stream.fs_hz))
         first = None  # the first chunk's torque: which line it has, if not the declared
+        coarse = None  # a note when the reference speed updates too rarely
         for a, ch in stream.chunks(step):
             sig = signals(ch, a, stream.t0_s)
             if first is None:
                 first = sig[0]
                 check_modulation_line(run, first, stream.fs_hz, config)
+                coarse = coarse_reference(sig[2], stream.fs_hz, est.n_win / stream.fs_hz,
+                                          entry.axle)
             rows = est.feed(*sig)
             if rows:
                 frames.append(pd.DataFrame(rows))
@@ -109,9 +113,22 @@ def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = 
                          path=entry.path, hint="record longer or shorten [onboard] "
                          "window_periods")
     track, warnings = premise_warnings(run, entry, track, config, first, stream.fs_hz)
+    warnings += [coarse] if coarse else []
     return OnboardResult(run, entry.axle, track, config, notes,
                          time.perf_counter() - t_start, est.tracker.n_fits,
                          truth=load_truth(run), warnings=warnings)
+
+
+def coarse_reference(speed_m_s, fs_hz: float, window_s: float, axle: int) -> str | None:
+    """A warning when the reference speed (a stretch of it at ``fs_hz`` [Hz]) changes
+    course less than twice per window of ``window_s`` [s]: the windows' speed and
+    acceleration, hence creepage and the slip flag, are then coarse."""
+    rate = reference_rate_hz(speed_m_s, fs_hz)
+    if 0.0 < rate < 2.0 / window_s:
+        return (f"axle {axle}: the reference speed is updated only about {rate:.2g} times a "
+                f"second, less than twice per {window_s:.3g} s window: creepage, "
+                "acceleration and the slip flag are coarse (record the reference faster)")
+    return None
 
 
 def check_modulation_line(run: Run, torque_nm, fs_hz: float, config: OnboardConfig) -> None:
