@@ -30,8 +30,8 @@ import pandas as pd
 
 from .._version import __version__
 from ..daskutil import CONNECT_TIMEOUT_S, check_cluster
-from ..errors import InputError, TorquemodError
-from ..fsutil import output_lock, removed_if_left_empty, write_atomic
+from ..errors import InputError, OutputError, TorquemodError
+from ..fsutil import environment_error, output_lock, removed_if_left_empty, write_atomic
 from ..jsonutil import dump_json
 from .evaluate import PointTask, evaluate_point
 from .spec import SweepSpec, load_sweep
@@ -117,6 +117,10 @@ def _one_line(exc: BaseException) -> str:
     text = " ".join(str(exc).split())
     if isinstance(exc, TorquemodError):
         return text
+    env = environment_error(exc)  # a full disk, a read-only folder: the system's
+    if env is not None:
+        reason = env.strerror or " ".join(str(env).split())
+        return f"{env.filename}: {reason}" if env.filename else reason
     return f"internal error: {type(exc).__name__}: {text}"
 
 
@@ -150,6 +154,8 @@ def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
         row.update(status="done", n_rows=len(df))
     except Exception as exc:  # a bad point never stops the sweep: it becomes a failure row
         row["message"] = _one_line(exc)
+        if not isinstance(exc, TorquemodError) and environment_error(exc) is not None:
+            row["system"] = True  # the sweep stops (the next points would fail alike)
         part.unlink(missing_ok=True)  # no stale rows of an earlier good run
         state.unlink(missing_ok=True)
     row["seconds"] = time.perf_counter() - t0
@@ -393,6 +399,10 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
                                        connect_timeout_s=connect_timeout_s)
         finally:  # the twin's experiments, also of points cut short by an interrupt
             shutil.rmtree(out / "_work", ignore_errors=True)
+    system = [r["message"] for r in rows if r.pop("system", False)]
+    if system:  # the finished points stay: a rerun resumes once there is room
+        raise OutputError(system[0] if system[0].startswith(str(out)) else
+                          f"{out}: {system[0]}")
     status = pd.DataFrame(rows).sort_values("point_index", ignore_index=True)
     table = assemble(out, spec, status)
     params = {p.point_id: json.dumps(p.params, sort_keys=True, default=str)
