@@ -521,7 +521,7 @@ def main(argv: list[str] | None = None) -> int:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_BROKEN_PIPE
     except KeyboardInterrupt as exc:  # Ctrl-C: 128 + SIGINT; kill: 128 + SIGTERM
-        if isinstance(exc, _Terminated):
+        if isinstance(exc, _Terminated) or _TERMINATED.is_set():
             print("torquemod: terminated", file=sys.stderr)
             return EXIT_TERMINATED
         print("torquemod: interrupted", file=sys.stderr)
@@ -539,6 +539,9 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INTERNAL
 
 
+_TERMINATED = threading.Event()
+
+
 class _Terminated(KeyboardInterrupt):
     """SIGTERM, unwinding as Ctrl-C does (exit code 143 instead of 130)."""
 
@@ -553,6 +556,7 @@ def _terminate_as_interrupt():
         return
 
     def stop(_signum, _frame):
+        _TERMINATED.set()  # also when a library turns the exception into a new one
         raise _Terminated
 
     previous = signal.signal(signal.SIGTERM, stop)
