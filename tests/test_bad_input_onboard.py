@@ -219,3 +219,13 @@ def test_the_inputs_are_untouched(good_run, tmp_path, capsys):
     rc, _ = _onboard(good_run, good_run.parent, capsys)  # --out onto the run's folder
     assert rc == 2
     assert {p.name: p.read_bytes() for p in good_run.parent.iterdir()} == before
+
+
+def test_recording_sample_rate_clash_names_the_recording_and_key(signals, tmp_path, capsys):
+    run = _write(tmp_path / "run", signals.iloc[:2000])
+    text = run.read_text(encoding="utf-8").replace(
+        'file = "run.csv"', 'file = "run.csv"\nsample_rate_hz = 1000.0')
+    run.write_text(text + '[channels]\ntime = "time_s"\n', encoding="utf-8")
+    rc, err = _onboard(run, tmp_path / "out", capsys)
+    assert rc == 2
+    one_error_line(err, str(run), "recording #1", "'sample_rate_hz'", "time channel")

@@ -135,12 +135,18 @@ def checked_channel_map(channel_map: object, path: Path, rates=()) -> dict:
         raise ManifestError("[channels] must be a table", path=path)
     try:  # checked here so a mistake in [channels] shows before any recording is read
         cmap = resolve_channel_map(channel_map, path)
-        for fs in rates:
-            cmap.with_sample_rate(fs, path=path)
     except InputError as exc:  # same text, raised as a manifest error
         err = ManifestError(str(exc))
         err.path, err.channel, err.hint = exc.path, exc.channel, exc.hint
         raise err from None
+    for i, fs in enumerate(rates):
+        try:
+            cmap.with_sample_rate(fs)
+        except InputError as exc:  # named by the recording and its key
+            raise ManifestError(f"recording #{i + 1}: 'sample_rate_hz' = {fs!r} cannot be "
+                                f"used: {exc}", path=path, hint="give the sample rate either "
+                                "in the [[recording]] or as the recording's time channel in "
+                                "[channels], not both") from None
     return channel_map
 
 
