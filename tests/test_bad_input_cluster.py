@@ -96,6 +96,12 @@ def test_unreachable_scheduler_fails_within_the_timeout(command, inputs, tmp_pat
     no_leftovers(tmp_path, "in")
 
 
+def test_the_help_states_the_sweep_limit_in_force():
+    from torquemod.cli import _MAX_POINTS
+    from torquemod.sweep.spec import MAX_POINTS
+    assert _MAX_POINTS == MAX_POINTS
+
+
 def test_default_connect_timeout_is_at_most_ten_seconds():
     assert 0 < daskutil.CONNECT_TIMEOUT_S <= 10.0
     assert daskutil.check_scheduler("10.0.0.5:8786") == "tcp://10.0.0.5:8786"

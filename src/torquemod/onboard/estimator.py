@@ -40,6 +40,12 @@ robust to the heavy-tailed k of single windows; a 90th percentile was inflated 4
 in a steady window (a DC torque step inside a window corrupts its k: measured, all false
 flags on dry rail came from such windows), or the axle slips.
 
+The premise of a window
+-----------------------
+A window whose torque has no modulation line at the declared frequency, whose train stands
+or runs backwards gives no numbers: its row keeps time, position and speed, ``quality`` says
+why (:mod:`torquemod.onboard.quality`), and it leaves the state alone.
+
 Delay between torque and speed
 ------------------------------
 A net delay of the torque signal behind the speed's that run.toml does not declare biases k
