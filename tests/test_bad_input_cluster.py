@@ -330,3 +330,11 @@ def test_read_only_target(command, inputs, tmp_path, capsys, readonly):  # noqa:
     assert main(_cmd(command, inputs, parent / "out")) == 2
     one_error_line(capsys.readouterr().err, "Permission denied")
     assert list(parent.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", ["fleet", "sweep"])
+def test_out_that_is_a_file_is_refused_before_any_cluster(command, inputs, tmp_path, capsys):
+    (tmp_path / "out").write_text("x", encoding="utf-8")
+    assert main(_cmd(command, inputs, tmp_path / "out")) == 2
+    one_error_line(capsys.readouterr().err, "not a folder")
+    assert (tmp_path / "out").read_text(encoding="utf-8") == "x"

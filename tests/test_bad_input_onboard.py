@@ -229,3 +229,19 @@ def test_recording_sample_rate_clash_names_the_recording_and_key(signals, tmp_pa
     rc, err = _onboard(run, tmp_path / "out", capsys)
     assert rc == 2
     one_error_line(err, str(run), "recording #1", "'sample_rate_hz'", "time channel")
+
+
+def test_modulation_above_the_recordings_nyquist_is_refused(signals, tmp_path, capsys):
+    run = _write(tmp_path / "run", signals.iloc[:2000], frequency_hz=600.0)
+    rc, err = _onboard(run, tmp_path / "out", capsys)
+    assert rc == 2
+    one_error_line(err, str(run), "test.modulation_frequency_hz", "Nyquist")
+
+
+def test_too_few_samples_a_window_names_the_recording(signals, tmp_path, capsys):
+    run = _write(tmp_path / "run", signals.iloc[::100])  # 10 Hz: 2 samples a 4 Hz period
+    run.write_text(run.read_text(encoding="utf-8").replace("[[recording]]", (
+        "[onboard]\nwindow_periods = 1\n[[recording]]")), encoding="utf-8")
+    rc, err = _onboard(run, tmp_path / "out", capsys)
+    assert rc == 2
+    one_error_line(err, "run.csv", "samples at 10 Hz")

@@ -171,3 +171,10 @@ def test_train_into_a_read_only_parent(short_train, tmp_path, capsys, readonly):
     assert main(["simulate", "--train", str(short_train), "--out", str(out), "--quiet"]) == 2
     one_error_line(capsys.readouterr().err, str(out), "Permission denied")
     assert list(parent.iterdir()) == []
+
+
+@pytest.mark.parametrize("train", [[], ["--train"]])
+def test_negative_seed_is_one_line(tmp_path, capsys, train):
+    assert main(["simulate", *train, "--out", str(tmp_path / "out"), "--seed", "-1"]) == 2
+    one_error_line(capsys.readouterr().err, "--seed")
+    no_leftovers(tmp_path)

@@ -145,6 +145,11 @@ def cmd_onboard(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_seed(seed: int) -> None:
+    if seed < 0:
+        raise _UsageError(f"--seed must be 0 or more, got {seed}")
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     from . import simulate
     if args.print_config and args.train:
@@ -156,6 +161,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         return 0
     if args.out is None:
         raise _UsageError("simulate needs --out DIR (or --print-config)")
+    _check_seed(args.seed)
     train = _train_config(args)
     if train is not None:
         return cmd_simulate_train(args, train)
@@ -213,6 +219,7 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
+    _check_seed(args.seed)
     say = _stage_printer(args)
     out = run_demo(Path(args.out), config_path=args.config, seed=args.seed, force=args.force,
                    progress=not args.quiet, quick=args.quick, on_stage=say,

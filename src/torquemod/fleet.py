@@ -553,6 +553,9 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
                          hint="give experiment.toml or run.toml files, folders holding "
                               "them, a glob or a list file")
     out = Path(out_dir).resolve()
+    if out.exists() and not out.is_dir():
+        raise InputError("the fleet output is not a folder", path=out_dir,
+                         hint="give --out a folder (new, or one a fleet wrote)")
     from .fsutil import output_lock, refuse_inputs
     refuse_inputs(out, paths)  # the datasets never go into a folder holding a manifest
     with output_lock(out):  # one fleet at a time writes OUT (a second one fails at once)

@@ -37,6 +37,7 @@ import numpy as np
 from ..errors import InputError
 from ..io.run import Run, RunRecording
 from ..io.runstream import RunStream
+from ..tomlcheck import below_nyquist
 from .estimator import OnboardConfig, OnboardEstimator
 from .window import WindowResult
 
@@ -137,10 +138,18 @@ def axle_stream(run: Run, entry: RunRecording) -> RunStream:
 
 def axle_estimator(run: Run, stream: RunStream, config: OnboardConfig
                    ) -> OnboardEstimator:
-    """A fresh estimator on the stream's sample times."""
-    return OnboardEstimator(run.vehicle, run.modulation_frequency_hz, stream.fs_hz,
-                            config=config, t0_s=stream.t0_s,
-                            amplitude_nm=run.modulation_amplitude_nm)
+    """A fresh estimator on the stream's sample times (a modulation the recording's sample
+    rate cannot carry, or too few samples a window, refused naming the file)."""
+    below_nyquist(run.modulation_frequency_hz, stream.fs_hz, "test.modulation_frequency_hz",
+                  "the recording's sample rate", run.manifest_path)
+    try:
+        return OnboardEstimator(run.vehicle, run.modulation_frequency_hz, stream.fs_hz,
+                                config=config, t0_s=stream.t0_s,
+                                amplitude_nm=run.modulation_amplitude_nm)
+    except InputError as exc:
+        if exc.path is not None:
+            raise
+        raise InputError(str(exc), path=stream.path) from None
 
 
 def _n_windows(est: OnboardEstimator, n_samples: int) -> int:

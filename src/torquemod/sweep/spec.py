@@ -25,6 +25,7 @@ from pathlib import Path
 from ..contact.presets import POLACH_PRESETS, PolachParameters
 from ..errors import InputError
 from ..io.manifest import check_keys
+from ..tomlcheck import between, default_checks, read_table
 
 __all__ = ["CONDITION_KEY", "MAX_POINTS", "RecommendOptions", "SweepPoint", "SweepSpec",
            "conditions", "load_sweep", "parse_sweep", "twin_keys"]
@@ -226,22 +227,18 @@ def _fractions(doc: dict, path) -> tuple[float, ...] | None:
 
 
 def _recommend(doc: dict, path) -> RecommendOptions:
+    """The ``[recommend]`` table (and a top-level ``max_utilisation``), every value checked
+    (:func:`torquemod.tomlcheck.read_table`): shares in (0, 1), the rest positive."""
     table = doc.get("recommend", {})
     if not isinstance(table, dict):
         raise InputError("[recommend] must be a table", path=path)
-    names = tuple(RecommendOptions.__dataclass_fields__)
-    check_keys(table, names, "[recommend]", path, takes="[recommend] takes", error=InputError)
     if "max_utilisation" in doc:
         table = {**table, "max_utilisation": doc["max_utilisation"]}
-    for key, value in table.items():
-        if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
-            raise InputError(f"[recommend] {key} must be a positive number, got {value!r}",
-                             path=path)
-    if table.get("max_utilisation", 0.8) >= 1.0:
-        raise InputError("max_utilisation must be below 1", path=path)
-    if table.get("min_coverage", 0.9) > 1.0:
-        raise InputError("min_coverage is a share: at most 1", path=path)
-    return RecommendOptions(**{k: float(v) for k, v in table.items()})
+    share = between(0.0, 1.0, lo_open=True)
+    return read_table(RecommendOptions, table, section="recommend", path=path,
+                      checks=default_checks(RecommendOptions, {
+                          "max_utilisation": between(0.0, 1.0, lo_open=True, hi_open=True),
+                          "min_coverage": share}))
 
 
 def _processing(doc: dict, path) -> dict:
