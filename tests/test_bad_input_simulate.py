@@ -54,6 +54,7 @@ TRAIN = [
     ("bad_leg_mode", "mode", '"fly"', None, ("controller.leg[1].mode", "'fly'")),
     ("level_above_one", "levels", "[0.2, 1.5]", None, ("controller.leg[1].levels[1]",)),
     ("poisson_above_half", "poisson_ratio", "0.7", "vehicle", ("vehicle.poisson_ratio",)),
+    ("too_many_samples", "length_m", "4.0e9", None, ("samples", "track.length_m")),
     ("typo_section", "kind", '"train"\n[vehicel]\nmass_kg = 1.0', None,
      ("unknown key 'vehicel'", "did you mean 'vehicle'")),
 ]

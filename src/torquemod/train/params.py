@@ -190,6 +190,9 @@ def default_train_config_text() -> str:
 
 
 _POSITIVE_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
+#: the most logger samples a simulated run may hold (track length / initial speed x sample
+#: rate; ~50 million: the twin keeps ~13 float64 columns of them in memory, ~5 GB)
+MAX_SAMPLES = 5e7
 #: the train configuration's top-level tables and keys
 _TOP = ("kind", "run", "vehicle", "test", "track", "controller", "sensors")
 
@@ -320,6 +323,13 @@ def config_from_dict(doc: dict, *, where: str = "<train config>") -> TrainConfig
         raise InputError(f"'sensors.reference_rate_hz' = {sensors.reference_rate_hz:g} Hz is "
                          f"above 'sensors.sample_rate_hz' = {fs:g} Hz", path=where,
                          hint="the logger cannot record the reference faster than it samples")
+    n = track.length_m / run.initial_speed_m_s * fs
+    if n > MAX_SAMPLES:  # memory grows with the samples: refuse what cannot fit
+        raise InputError(f"the run would hold about {n:.3g} samples ({track.length_m:g} m at "
+                         f"{run.initial_speed_m_s:g} m/s, {fs:g} Hz), more than "
+                         f"{MAX_SAMPLES:.0e}", path=where,
+                         hint="shorten track.length_m, lower sensors.sample_rate_hz or raise "
+                              "run.initial_speed_m_s")
     if veh.shear_modulus_pa >= veh.youngs_modulus_pa:  # G = E/(2*(1 + nu)) < E
         raise InputError("'vehicle.shear_modulus_pa' must be below 'vehicle.youngs_modulus_pa'",
                          path=where, hint="steel: E = 210e9 Pa, G = 81e9 Pa")
