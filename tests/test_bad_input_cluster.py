@@ -245,7 +245,8 @@ def test_sweep_ctrl_c_stops_quietly_and_resumes(tmp_path):
     _scratch_free(tmp)
 
 
-def test_fleet_sigterm_exits_143_quietly_and_resumes(tmp_path, experiment):  # noqa: F811
+def test_fleet_sigterm_exits_143_quietly(tmp_path, experiment):  # noqa: F811
+    """(Resuming after an interrupt: test_interrupt_while_writing_then_resume.)"""
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     runs = tmp_path / "runs"
@@ -265,12 +266,6 @@ def test_fleet_sigterm_exits_143_quietly_and_resumes(tmp_path, experiment):  # n
     assert proc.returncode == 143, err
     assert "Traceback" not in err + out
     assert err.strip().splitlines()[-1] == "torquemod: terminated"
-    _scratch_free(tmp)
-    rerun = _start(args, tmp, tmp_path)
-    out, err = rerun.communicate(timeout=400)
-    assert rerun.returncode == 0, err
-    assert "3 runs" in out and " 0 failed" in out and "unchanged (skipped)" in out
-    assert "0 unchanged" not in out
     _scratch_free(tmp)
 
 
