@@ -333,3 +333,14 @@ def test_out_that_is_a_file_is_refused_before_any_cluster(command, inputs, tmp_p
     assert main(_cmd(command, inputs, tmp_path / "out")) == 2
     one_error_line(capsys.readouterr().err, "not a folder")
     assert (tmp_path / "out").read_text(encoding="utf-8") == "x"
+
+
+@pytest.mark.parametrize("args", [["sweep", "s.toml", "--out", "o", "--max-points", "0"],
+                                  ["fleet", "r", "--out", "o", "--connect-timeout", "-1"],
+                                  ["sweep", "s.toml"]])
+def test_a_command_line_that_cannot_be_parsed_is_one_line(args, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(args)
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "--help" in err, err

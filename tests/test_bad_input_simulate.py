@@ -55,6 +55,8 @@ TRAIN = [
     ("level_above_one", "levels", "[0.2, 1.5]", None, ("controller.leg[1].levels[1]",)),
     ("poisson_above_half", "poisson_ratio", "0.7", "vehicle", ("vehicle.poisson_ratio",)),
     ("too_many_samples", "length_m", "4.0e9", None, ("samples", "track.length_m")),
+    ("speed_leg_without_speed", "mode", '"speed"', None, ("controller.leg[1]", "speed_m_s")),
+    ("huge_load_diverges", "normal_load_n", "1e300", None, ("diverged",)),
     ("typo_section", "kind", '"train"\n[vehicel]\nmass_kg = 1.0', None,
      ("unknown key 'vehicel'", "did you mean 'vehicle'")),
 ]

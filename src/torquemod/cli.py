@@ -114,7 +114,12 @@ def cmd_simulate_train(args: argparse.Namespace, config) -> int:
     say = _stage_printer(args)
     if say:
         say("simulating the train run (the first run compiles the twin's numba kernels) ...")
-    summary = run_train_simulation(config, Path(args.out), seed=args.seed, force=args.force)
+    from .errors import InputError, ProcessingError
+    try:
+        summary = run_train_simulation(config, Path(args.out), seed=args.seed,
+                                       force=args.force)
+    except ProcessingError as exc:  # the twin could not run this configuration: name it
+        raise InputError(str(exc), path=args.config or "the default train config") from None
     print(f"train run written to {args.out}/run.toml (MDF4) and run_h5.toml (HDF5), truth in "
           "truth.parquet")
     print(f"  {summary['length_m']:.0f} m in {summary['duration_s']:.1f} s")
@@ -355,8 +360,17 @@ class _UsageError(TorquemodError):
     """A command line that cannot be carried out (exit code 2, like bad input)."""
 
 
+class _Parser(argparse.ArgumentParser):
+    """A command line that cannot be parsed: one line on stderr (what is wrong, where the
+    help is) and exit code 2, like every other bad input."""
+
+    def error(self, message: str):
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {' '.join(message.split())} (see "
+                                  f"'{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="torquemod", description=(
+    p = _Parser(prog="torquemod", description=(
         "Torque-modulation measurement of the wheel-rail coefficient of friction."))
     p.add_argument("--version", action="version", version=f"torquemod {__version__}")
     p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")

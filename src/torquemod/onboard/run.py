@@ -15,7 +15,7 @@ from pathlib import Path
 from .._version import __version__
 from ..blas import single_blas
 from ..errors import InputError
-from ..fsutil import atomic_dir, sha256_file
+from ..fsutil import atomic_dir, check_output_dir, sha256_file
 from ..io.run import Run, RunRecording, read_run
 from ..jsonutil import dump_json
 from ..provenance import software_versions
@@ -248,6 +248,7 @@ def run_onboard(run_path: str | Path, out_dir: str | Path, *, force: bool = Fals
     ``out_dir`` atomically (nothing is left behind on an error)."""
     run = read_run(run_path)
     inputs = [run.manifest_path, *(e.path for e in run.recordings)]
+    check_output_dir(out_dir, force=force, inputs=inputs)  # an occupied --out: before work
     results = [estimate_axle(run, e, config) for e in run.recordings]
     with atomic_dir(Path(out_dir), force=force, inputs=inputs, kind="onboard") as tmp:
         _write(tmp, results, command)

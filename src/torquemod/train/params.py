@@ -304,6 +304,12 @@ def config_from_dict(doc: dict, *, where: str = "<train config>") -> TrainConfig
                              path=where, hint="mode is one of torque, speed, coast, probe")
         legs.append(read_table(Leg, leg, section=f"controller.leg[{i + 1}]", path=where,
                                checks=default_checks(Leg, _LEG)))
+        need = {"speed": "speed_m_s", "probe": "levels"}.get(legs[-1].mode)
+        if need and not getattr(legs[-1], need):
+            raise InputError(f"[controller.leg[{i + 1}]] mode = \"{legs[-1].mode}\" needs "
+                             f"'{need}'", path=where,
+                             hint="the speed to hold [m/s]" if need == "speed_m_s" else
+                                  "the fractions of the available adhesion, e.g. [0.2, 0.4]")
     if not legs:
         raise InputError("the driver needs at least one [[controller.leg]]", path=where)
     controller = read_table(ControllerParams, ctl, section="controller", path=where,
