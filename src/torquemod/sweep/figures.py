@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.ticker import FuncFormatter, NullFormatter
 
 from ..creep import phase_from_constant_deg
 from ..report.figures import _axes
@@ -189,10 +190,14 @@ def creep_curves_figure(curves: dict, table: pd.DataFrame, *, ax=None) -> Figure
                 meas = meas[meas["creepage"] > 0] if "creepage" in meas else meas
                 if "coa" in meas and meas["coa"].notna().any():
                     a.plot(100 * meas["creepage"], meas["coa"], ".",
-                           color=_cmap_colour(j, len(freqs)), ms=5)
+                           color=_cmap_colour(j, len(freqs)), ms=5, zorder=4)
         a.set_title(label or "all points", fontsize=9)
         a.set_xscale("log")
         a.set_xlim(left, 100 * xi[-1])
+        # plain numbers on the major ticks, none on the minor ones (they overlap when the
+        # range is under a decade)
+        a.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        a.xaxis.set_minor_formatter(NullFormatter())
         a.set_xlabel("creepage [%] (log)")
         a.set_ylabel("F_x / N [-]")
         a.set_ylim(bottom=0)

@@ -8,6 +8,7 @@ The page reuses :mod:`torquemod.report.html` (style, escaped tables, inline imag
 from __future__ import annotations
 
 import io
+import os
 from html import escape
 from pathlib import Path
 
@@ -16,14 +17,13 @@ import pandas as pd
 
 from .._version import __version__
 from ..fsutil import write_atomic
-from ..report.figures import save_figure
 from ..report.html import CSS, _img, table
 from . import figures as F
 from .conditions import CONDITION_COLUMN, condition_labels
 from .spec import SweepSpec
 from .summary import BAND, agreement, point_summary, recommend, setting_table
 
-__all__ = ["make_figures", "recommend", "write_report"]
+__all__ = ["make_figures", "reasoning_html", "recommend", "save_png", "write_report"]
 
 #: rows of the per-step table shown in the page (all are in sweep.parquet)
 MAX_TABLE_ROWS = 2000
@@ -39,6 +39,19 @@ def _png(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     return buf.getvalue()
+
+
+def save_png(png: bytes, path: Path) -> Path:
+    """Write the PNG bytes ``png`` to ``path`` (beside it first, then renamed into place):
+    each figure is drawn once, for the page and the file alike."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(png)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
 
 
 def _frequencies(values, at_most: int = 6) -> list:
@@ -150,6 +163,17 @@ def make_figures(tab: pd.DataFrame, spec: SweepSpec, rec: dict) -> list[tuple[st
     return out
 
 
+def reasoning_html(text: str, cls: str = "") -> str:
+    """The recommendation's reasoning as a paragraph, its answer (a first sentence
+    ``Recommended: ...``) in bold."""
+    head, sep, rest = text.partition(". ")
+    if head.startswith("Recommended:") and sep:
+        return f"<p class='{cls}'><b>{escape(head)}.</b> {escape(rest)}</p>"
+    if head.startswith("Recommended:") and text.endswith("."):
+        return f"<p class='{cls}'><b>{escape(text)}</b></p>"
+    return f"<p class='{cls}'>{escape(text)}</p>"
+
+
 def _settings_html(rec: dict) -> str:
     rows = rec.get("settings") or []
     if not rows:
@@ -215,12 +239,7 @@ def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
                                                     grp["noise"].items())) + "</h3>")
         cls = ("warn" if grp.get("within_limits") is False or grp.get("setting") is None
                else "")
-        text = grp.get("reasoning", "")
-        head, sep, rest = text.partition(". ")
-        if head.startswith("Recommended:") and sep:
-            parts.append(f"<p class='{cls}'><b>{escape(head)}.</b> {escape(rest)}</p>")
-        else:
-            parts.append(f"<p class='{cls}'>{escape(text)}</p>")
+        parts.append(reasoning_html(grp.get("reasoning", ""), cls))
         parts.append(_settings_html(grp))
     parts.append("<h2>Figures</h2>")
     for stem, png, caption in figs:
@@ -257,8 +276,9 @@ def write_report(out: str | Path, tab: pd.DataFrame, spec: SweepSpec, rec: dict,
     out = Path(out)
     figs = []
     for stem, fig, caption in make_figures(tab, spec, rec):
-        save_figure(fig, out / "figures" / stem, formats=("png",), dpi=110)
-        figs.append((stem, _png(fig), caption))
+        png = _png(fig)
+        save_png(png, out / "figures" / f"{stem}.png")
+        figs.append((stem, png, caption))
     page = render(tab, spec, rec, figs, status=status, failures=failures, wall_s=wall_s)
     return write_atomic(out / "report.html", lambda fh: fh.write(page))
 
