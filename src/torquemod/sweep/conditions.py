@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 __all__ = ["CONDITION_COLUMN", "SETTING_KEYS", "condition_keys", "condition_labels",
-           "reference_value", "short_name"]
+           "short_name"]
 
 #: the swept keys that make a modulation setting (what the recommendation chooses)
 SETTING_KEYS = ("modulation.frequency_hz", "modulation.amplitude_nm")
@@ -97,9 +97,3 @@ def condition_labels(table: pd.DataFrame, swept) -> pd.Series:
         names[tup] = text if used[text] == 1 else f"{text} #{used[text]}"
     return tuples.map(names).astype(object)
 
-
-def reference_value(values):
-    """The reference value of a swept parameter: its first value in the sweep's order (the
-    example files list the paper's setting first)."""
-    values = list(values)
-    return values[0] if values else None

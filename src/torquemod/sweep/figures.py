@@ -138,7 +138,8 @@ def phase_panels_figure(table: pd.DataFrame, *, panel: str = CONDITION_COLUMN,
     amplitude and seed: the caller's selection) and a ``condition`` column."""
     values = list(dict.fromkeys(table[panel])) if panels is None else list(panels)
     curves = list(dict.fromkeys(table[curve]))
-    fig, axes = _panel_grid(len(values), ax)
+    fig, axes = _panel_grid(len(values), ax, **({"cols_max": 3, "width": 4.4}
+                                                 if len(values) > 4 else {}))
     for a, value in zip(axes, values, strict=False):
         part = table[table[panel] == value]
         for j, cv in enumerate(curves):
