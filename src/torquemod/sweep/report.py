@@ -27,7 +27,8 @@ __all__ = ["make_figures", "reasoning_html", "recommend", "save_png", "write_rep
 
 #: rows of the per-step table shown in the page (all are in sweep.parquet)
 MAX_TABLE_ROWS = 2000
-_STEP_COLUMNS = ("point_index", "seed", "step", "dc_torque_nm", "utilisation", "coa",
+_STEP_COLUMNS = ("point_index", "seed", "step", "dc_torque_nm", "utilisation", "slipped",
+                 "slipped_twin", "coa",
                  "creepage", "phase_deg", "phase_se_deg", "phase_theory_deg",
                  "phase_simulated_deg", "creep_coefficient", "creepage_swing",
                  "torque_ripple_pct", "mu_true", "mu_forces", "mu_phase",
