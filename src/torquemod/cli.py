@@ -171,11 +171,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     train = _train_config(args)
     if train is not None:
         return cmd_simulate_train(args, train)
-    say = _stage_printer(args)
-    if say:  # before the simulator's modules load (numba, scipy: most of a second)
-        say(_COMPILE_NOTE)
     from . import simulate
-    config = simulate.load_config(args.config)
+    config = simulate.load_config(args.config)  # a bad config is one line, before any stage
+    say = _stage_printer(args)
+    if say:
+        say(_COMPILE_NOTE)
     truth = simulate.run_simulation(config, Path(args.out), seed=args.seed, fmt=args.format,
                                     progress=not args.quiet, force=args.force)
     print(f"experiment written to {args.out}/experiment.toml")
