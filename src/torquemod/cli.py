@@ -390,8 +390,9 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("report", parents=[common],
                        help="(re)draw the figures and report.html of a results folder")
     r.add_argument("results", help="results folder written by 'torquemod process'")
-    r.add_argument("--step", type=int, default=None, help="step of Figure 2 (default 3)")
-    r.add_argument("--cycle", type=int, default=None, help="cycle of Figure 2 (default 1)")
+    r.add_argument("--step", type=int, default=None,
+                   help="step shown in Figure 1, the signals (default 3)")
+    r.add_argument("--cycle", type=int, default=None, help="cycle shown in Figure 1 (default 1)")
     r.add_argument("--title", default=None, help="page title (default: experiment name)")
     r.add_argument("--quiet", action="store_true", help="no stage lines")
     r.set_defaults(func=cmd_report)

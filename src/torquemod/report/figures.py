@@ -1,4 +1,5 @@
-"""Figures of the V-Track paper for a processed experiment (Figures 2-5).
+"""Figures of the V-Track paper for a processed experiment (the paper's Figures 2-4 and the
+phase fit; the report numbers them 1-4).
 
 Every function takes the in-memory results (a cycle's traces, an
 :class:`~torquemod.analysisresult.Analysis`), draws on a given ``ax`` or a new
@@ -37,16 +38,20 @@ def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None) -> F
     """Paper Figure 2 of one cycle from its named arrays (``ProcessResult.traces[(step,
     cycle)]``): (a) applied torque [N m], (b) wheel angular velocity [rad/s], raw and after
     the band-pass (the filtered signal drawn about the mean of the resampled one so both share
-    an axis); the phase window is shaded. ``ax``: a pair of Axes, or one Axes (the wheel speed
-    then goes on its twin y axis); a new two-panel Figure when None."""
+    an axis); the phase window is shaded. ``ax``: a pair of Axes (panels (a) and (b)), or one
+    Axes (one panel: the wheel speed on its twin y axis, one title); a new two-panel Figure
+    when None."""
     if "t_raw_s" not in traces:
         raise InputError(f"no traces for step {step} cycle {cycle}")
 
     def get(name):
         return np.asarray(traces[name], dtype=float) if name in traces else None
 
-    if ax is not None and not isinstance(ax, list | tuple | np.ndarray):
+    single = ax is not None and not isinstance(ax, list | tuple | np.ndarray)
+    if single:
         fig, axes = ax.figure, [ax, ax.twinx()]
+        ax.set_title(f"Step {step}, cycle {cycle}: torque (left axis), wheel angular "
+                     "velocity (right axis)", loc="left", fontsize=10)
     else:
         fig, axes = _axes(ax, 2, figsize=(9.5, 6.0))
     rows = (("torque", "nm", "Applied torque [N·m]", "(a)", "C0"),
@@ -68,7 +73,8 @@ def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None) -> F
                 a.axvline(t_peak, color="C0", ls=":", lw=0.9,
                           label="torque peaks" if a is axes[0] and k == 0 else None)
         a.set_ylabel(label)
-        a.set_title(f"{tag} step {step}, cycle {cycle}", loc="left", fontsize=10)
+        if not single:  # one Axes and its twin share a single title, drawn below
+            a.set_title(f"{tag} step {step}, cycle {cycle}", loc="left", fontsize=10)
         a.grid(True, alpha=0.3)
         if ax is None:  # beside the panel, not over the peaks
             a.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
@@ -172,11 +178,21 @@ def phase_figure(ana, *, ax=None) -> Figure:
         if at.size:
             ax.axvline(x[at[0]], color="C1", lw=1.0, ls="-.",
                        label=f"saturation onset (step {ana.onset.step})")
-    ax.set_xlabel("DC torque [% of Ts]" if ts else "DC torque [N·m] (Ts undetermined)")
+    ax.set_xlabel(_ts_axis_label(ana))
     ax.set_ylabel("Phase difference φ [deg]")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left", fontsize=8)
     return fig
+
+
+def _ts_axis_label(ana) -> str:
+    """Figure 4's abscissa: % of the analysis' one Ts (named with its mu), else N·m."""
+    ts = ana.saturation_torque_nm
+    if not ts:
+        return "DC torque [N·m] (Ts unknown: μ not determined)"
+    source = {"forces": "μ from the forces", "phase": "μ from the phase"}.get(
+        getattr(ana, "saturation_torque_source", None), "μ")
+    return f"DC torque [% of Ts = {ts:.1f} N·m, {source}]"
 
 
 def phase_fit_figure(ana, *, ax=None) -> Figure:

@@ -96,10 +96,8 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
     else:
         mu_text = f"not determined by the points (μ ≥ {fmt(fit.get('mu_lower_bound'))})"
     lo, hi = fit.get("mu_from_phase_interval_95") or [None, None]
-    n_r = (fit.get("normal_load_n") or 0) * (fit.get("wheel_radius_m") or 0)
     if fit.get("mu_from_phase_determined"):
-        phase_text = (f"{fmt(fit.get('mu_from_phase'))} (95 % interval {fmt(lo)} – {fmt(hi)}; "
-                      f"Ts = {fmt(fit['mu_from_phase'] * n_r)} N·m)")
+        phase_text = f"{fmt(fit.get('mu_from_phase'))} (95 % interval {fmt(lo)} – {fmt(hi)})"
     elif lo is not None:
         phase_text = f"not determined by the steps (μ ≥ {fmt(lo)})"
     else:
@@ -110,8 +108,7 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
         ("Coefficient of friction μ from the phase (fit of tan φ = C/k(CoA), no forces used)",
          phase_text),
         ("Maximum CoA of the fitted curve", fmt(fit.get("curve_peak_coa"))),
-        ("Saturation torque Ts = μ·N·Rw [N·m] (forces)",
-         _pm(fit.get("saturation_torque_nm"), fit.get("saturation_torque_stderr_nm"))),
+        ("Saturation torque Ts = μ·N·Rw [N·m]", _ts_text(fit)),
         ("Saturation onset", _onset_text(onset)),
         ("Theory check",
          f"{theory.get('mode', '—')} constant C = {fmt(_scalar(theory.get('constant')))}; "
@@ -139,15 +136,14 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
     t2 = _frequency_tables(cycles)
 
     names = list(fit.get("parameters", {}))
-    tp = table(["Parameter", "Value", "Standard error"],
-               [[n, fit["parameters"][n], (fit.get("stderr") or {}).get(n)] for n in names],
+    tp = table(["Parameter", "Value", "Standard error"], _polach_rows(fit, names),
                caption="Polach fit parameters (lumped form; see the identifiability note)",
                left=1)
     corr = fit.get("correlation") or []
     tc = table(["", *names], [[n, *row] for n, row in zip(names, corr, strict=False)],
                caption="Parameter correlation matrix", left=1) if corr else ""
     fit_kv = _kv([("Model", fit.get("model", "—")),
-                  ("μ determined", fmt(fit.get("mu_determined"))),
+                  ("μ determined", _mu_determined_text(fit)),
                   ("χ² / dof / reduced χ²", f"{fmt(fit.get('chi2'))} / {fit.get('dof')} / "
                                              f"{fmt(fit.get('reduced_chi2'))}"),
                   ("Weighted by standard errors", fmt(fit.get("weighted"))),
@@ -228,6 +224,41 @@ def _frequency_tables(cycles) -> str:
                        for _, r in cycles.iterrows()])
     return (t2 + "<details><summary>Modulation frequencies per cycle</summary>" + per_cycle
             + "</details>")
+
+
+def _mu_determined_text(fit: dict) -> str:
+    if fit.get("mu_determined"):
+        return "yes"
+    return (f"no: the points give only μ ≥ {fmt(fit.get('mu_lower_bound'))}; the kA, kS "
+            "values below are those of one curve among many that fit")
+
+
+def _ts_text(fit: dict) -> str:
+    """Ts with the μ it comes from: the one Ts of Table 1's % Ts and Figure 3's axis."""
+    ts = fit.get("saturation_torque_nm")
+    if ts is None:
+        return "not known: neither fit determines μ (Table 1 and Figure 3 use N·m)"
+    source = {"forces": "μ from the forces", "phase": "μ from the phase"}.get(
+        fit.get("saturation_torque_source"), "μ")
+    return (f"{_pm(ts, fit.get('saturation_torque_stderr_nm'))} (from {source}; the 100 % of "
+            "Table 1's % Ts and of Figure 3's axis)")
+
+
+def _polach_rows(fit: dict, names: list[str]) -> list[list]:
+    """Rows of the Polach parameter table. An undetermined μ is never printed as a value
+    with a standard error: its row gives the profile-likelihood range or the lower bound."""
+    rows = []
+    stderr = fit.get("stderr") or {}
+    for n in names:
+        if n == "mu" and not fit.get("mu_determined"):
+            lo, hi = fit.get("mu_interval_95") or [None, None]
+            bound = fmt(fit.get("mu_lower_bound"))
+            text = (f"not determined: 95 % range {fmt(lo)} – {fmt(hi)}, μ ≥ {bound}"
+                    if lo is not None and hi is not None else f"not determined: μ ≥ {bound}")
+            rows.append([n, text, "—"])
+        else:
+            rows.append([n, fit["parameters"][n], stderr.get(n)])
+    return rows
 
 
 def _onset_text(onset: dict) -> str:
