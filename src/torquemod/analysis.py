@@ -32,9 +32,15 @@ import numpy as np
 import pandas as pd
 
 from .analysisresult import Analysis
-from .config import coerce_options
-from .creep import creep_points, saturation_onset, theory_check, theory_constant
-from .errors import InputError, ProcessingError
+from .config import check_option_types, coerce_options
+from .creep import (
+    ONSET_CRITERIA,
+    creep_points,
+    saturation_onset,
+    theory_check,
+    theory_constant,
+)
+from .errors import InputError, OptionError, ProcessingError
 from .fit import fit_polach
 
 if TYPE_CHECKING:
@@ -76,6 +82,25 @@ class FitOptions:
     onset_rel_k_drop: float = 0.5
     onset_tan_ratio: float = 2.0
     onset_baseline_steps: int = 2
+
+    def __post_init__(self) -> None:
+        check_option_types(self, "fit")
+        if self.n_starts < 1:
+            raise OptionError(f"fit option n_starts={self.n_starts}: the Polach fit needs at "
+                              "least one start (default 12)")
+        if self.onset_criterion not in ONSET_CRITERIA:
+            raise OptionError(f"fit option onset_criterion={self.onset_criterion!r}: choose "
+                              f"one of {', '.join(ONSET_CRITERIA)}")
+        if self.onset_baseline_steps < 1:
+            raise OptionError(f"fit option onset_baseline_steps={self.onset_baseline_steps}: "
+                              "needs at least 1")
+        for name in ("sigma_floor", "max_rel_stderr", "creepage_limit", "onset_tan_ratio"):
+            if not getattr(self, name) > 0:
+                raise OptionError(f"fit option {name}={getattr(self, name)!r}: must be > 0")
+        for name in ("stiffness", "inertia_kg_m2", "theory_constant"):
+            value = getattr(self, name)
+            if value is not None and not value > 0:
+                raise OptionError(f"fit option {name}={value!r}: must be > 0 (or None)")
 
     @classmethod
     def coerce(cls, options) -> FitOptions:
@@ -127,6 +152,7 @@ def analyze(result: ProcessResult, options: FitOptions | dict | None = None, **f
     Options are :class:`FitOptions` fields, given as ``options`` (an instance or a mapping)
     and/or as keywords (keywords win), e.g. ``analyze(res, velocity_dependent=True)``.
     """
+    _require_process_result(result)
     base = FitOptions.coerce(options)
     opts = FitOptions.coerce({**base.__dict__, **fit_options}) if fit_options else base
     steps_df = result.steps.reset_index(drop=True)
@@ -230,6 +256,20 @@ def saturation_torque(polach, phase_fit, *, normal_load_n: float, wheel_radius_m
         se = getattr(phase_fit, "mu_stderr", None)
         return phase_fit.mu * n_r, None if se is None else se * n_r, "phase"
     return None, None, None
+
+
+def _require_process_result(result) -> None:
+    """A clear error when :func:`analyze` is given something else than a processed result
+    (an experiment, a manifest path, a results folder)."""
+    from .pipeline import ProcessResult
+    if isinstance(result, ProcessResult):
+        return
+    what = type(result).__name__
+    if what == "Experiment" or isinstance(result, str) or hasattr(result, "__fspath__"):
+        raise OptionError(f"analyze() takes the result of process(), got {what} {result!r:.80}:"
+                          " call res = tm.process(exp) first, then tm.analyze(res) (a saved "
+                          "results folder: res, ana = tm.load(folder))")
+    raise OptionError(f"analyze() takes a ProcessResult (from tm.process), got {what}")
 
 
 def _polach_stage(opts, pts, per, use, stiffness, steps_df):

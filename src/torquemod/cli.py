@@ -513,7 +513,10 @@ def _terminate_as_interrupt():
 
 
 def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split())
+    """The message on one line, in the command line's words: the library's keyword
+    ``force=True`` is the option ``--force`` here."""
+    text = " ".join(str(exc).split())
+    return text.replace("pass force=True", "use --force").replace("force=True", "--force")
 
 
 def _os_error_line(exc: OSError, args: argparse.Namespace) -> str:

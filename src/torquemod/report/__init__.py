@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..config import coerce_options
+from ..config import check_option_types, coerce_options
 from ..fsutil import write_atomic
 from ..provenance import provenance
 from .figures import (
@@ -55,6 +55,9 @@ class ReportOptions:
     formats: tuple[str, ...] = ("png", "svg")
     dpi: int = 150
     title: str | None = None
+
+    def __post_init__(self) -> None:
+        check_option_types(self, "report")
 
     @classmethod
     def coerce(cls, options) -> ReportOptions:
