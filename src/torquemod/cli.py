@@ -1,7 +1,10 @@
+# PYTHON_ARGCOMPLETE_OK
 """The ``torquemod`` command line. The only module that parses arguments or prints.
 
 Every :class:`~torquemod.errors.TorquemodError` ends as one line on stderr and exit code 2;
-anything else is a bug: one line, exit code 3, and ``--debug`` shows the traceback.
+anything else is a bug: one line, exit code 3, and ``--debug`` shows the traceback. Ctrl-C
+ends with 130, SIGTERM with 143. Shell completion comes from argcomplete
+(``eval "$(register-python-argcomplete torquemod)"``), loaded only while completing.
 """
 
 from __future__ import annotations
@@ -9,6 +12,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import os
 import signal
 import sys
 import threading
@@ -19,6 +23,8 @@ from .errors import TorquemodError
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERNAL = 3
+EXIT_SIGINT = 128 + signal.SIGINT  # 130, as a shell reports Ctrl-C
+EXIT_SIGTERM = 128 + signal.SIGTERM  # 143
 
 
 def _fmt(x: object, spec: str) -> str:
@@ -246,8 +252,18 @@ def _print_train_demo(train: dict) -> None:
 
 def _why_they_differ(out: dict, truth: dict) -> str:
     """Why the fitted mu is not the simulator's peak CoA, in the numbers of this run."""
-    mu = out.get("mu") if out.get("mu") is not None else out.get("mu_from_phase")
-    head = f"why mu ({_fmt(mu, '.4f')}) differs from the peak CoA ({truth['peak_coa']:.4f}): "
+    if out.get("mu") is not None:
+        head = f"why mu from the forces ({out['mu']:.4f}) differs"
+    elif out.get("mu_from_phase") is not None:
+        head = f"why mu from the phase ({out['mu_from_phase']:.4f}) differs"
+    else:  # neither fit determines mu: only its lower bound is known
+        bound = out.get("mu_lower_bound")
+        return (f"mu is not determined by these steps (mu >= {_fmt(bound, '.4f')}): they stay "
+                "too far below saturation for the creep curve's shape to fix it. The "
+                f"simulated curve peaks at CoA {truth['peak_coa']:.4f}, below the friction "
+                f"(mu0 = {truth['mu0']:.4f}, {truth['mu_at_top_step']:.4f} at the top step's "
+                "slip velocity).")
+    head += f" from the peak CoA ({truth['peak_coa']:.4f}): "
     return (head + "mu is the friction coefficient of the fitted Polach curve, the level its "
             "CoA would reach only at full sliding; a creep curve with a finite kA/kS peaks "
             "below its mu, and the simulator's friction also falls with the slip velocity "
@@ -341,21 +357,26 @@ def build_parser() -> argparse.ArgumentParser:
                    default=None, help="what to do with NaN/inf samples (default: raise)")
     q.add_argument("--force", action="store_true", help="replace an existing results folder")
     q.add_argument("--no-fit", action="store_true", help="skip the fit and report stages")
-    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.add_argument("--quiet", action="store_true", help="no progress bar or stage lines")
     q.set_defaults(func=cmd_process)
 
     s = sub.add_parser("simulate", parents=[common],
                        help="simulate the V-Track experiment (digital twin)")
     s.add_argument("config", nargs="?", default=None, help="simulation config TOML")
     s.add_argument("--out", default=None, help="experiment folder to create")
-    s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--format", choices=["csv", "hdf5"], default="csv")
+    s.add_argument("--seed", type=int, default=0,
+                   help="seed of the simulated noise and disturbances (default 0); the same "
+                        "seed gives the same files")
+    s.add_argument("--format", choices=["csv", "hdf5"], default="csv",
+                   help="file format of the rig recordings (default csv; hdf5 is smaller and "
+                        "faster to read)")
     s.add_argument("--print-config", action="store_true", help="print the default config")
     s.add_argument("--train", action="store_true",
                    help="simulate a train run (powered wheelset, friction map) instead of "
                         "the rig; also chosen by kind = \"train\" in the config")
-    s.add_argument("--force", action="store_true", help="replace an existing folder")
-    s.add_argument("--quiet", action="store_true")
+    s.add_argument("--force", action="store_true",
+                   help="replace an existing folder (one torquemod wrote)")
+    s.add_argument("--quiet", action="store_true", help="no progress bar or stage lines")
     s.set_defaults(func=cmd_simulate)
 
     o = sub.add_parser("onboard", parents=[common],
@@ -399,14 +420,21 @@ def build_parser() -> argparse.ArgumentParser:
 
     d = sub.add_parser("demo", parents=[common],
                        help="simulate, process, fit and report the V-Track default")
-    d.add_argument("--out", default="demo-output")
-    d.add_argument("--config", default=None, help="simulation config TOML")
-    d.add_argument("--seed", type=int, default=0)
-    d.add_argument("--quick", action="store_true", help="a shortened experiment")
+    d.add_argument("--out", default="demo-output",
+                   help="folder to create with the experiment, results and reports (default "
+                        "demo-output)")
+    d.add_argument("--config", default=None,
+                   help="simulation config TOML (default: the V-Track experiment; see "
+                        "'torquemod simulate --print-config')")
+    d.add_argument("--seed", type=int, default=0,
+                   help="seed of the simulated noise (default 0)")
+    d.add_argument("--quick", action="store_true",
+                   help="a shortened experiment (2 cycles per step): faster, less precise")
     d.add_argument("--no-train", action="store_true",
                    help="only the rig (skip the train run and its on-board estimate)")
-    d.add_argument("--force", action="store_true")
-    d.add_argument("--quiet", action="store_true")
+    d.add_argument("--force", action="store_true",
+                   help="replace an existing --out folder (one torquemod wrote)")
+    d.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
     d.set_defaults(func=cmd_demo)
 
     c = sub.add_parser("convert", parents=[common],
@@ -471,6 +499,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    if "_ARGCOMPLETE" in os.environ:  # the shell asks for completions; exits when done
+        import argcomplete
+        argcomplete.autocomplete(parser)
     args = parser.parse_args(argv)
     try:
         with _terminate_as_interrupt():
@@ -478,9 +509,12 @@ def main(argv: list[str] | None = None) -> int:
     except TorquemodError as exc:
         print(f"torquemod: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except _Terminated:
+        print("torquemod: terminated", file=sys.stderr)
+        return EXIT_SIGTERM
     except KeyboardInterrupt:
         print("torquemod: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_SIGINT
     except Exception as exc:
         from .fsutil import environment_error
         env = environment_error(exc)  # full disk, read-only, no permission, ... (also deep
@@ -494,16 +528,23 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INTERNAL
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where Ctrl-C's KeyboardInterrupt would be, so it unwinds the same
+    way; :func:`main` ends with 128 + 15."""
+
+
 @contextlib.contextmanager
 def _terminate_as_interrupt():
     """SIGTERM (``kill``, a job scheduler's stop) unwinds like Ctrl-C, so temporary outputs
-    are removed and nothing half-written is left (main thread only)."""
+    are removed and nothing half-written is left (main thread only); the exit code is 143
+    (SIGINT's is 130), as a shell reports a process killed by the signal. The one handler
+    of the command line: every subcommand runs inside it."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def stop(_signum, _frame):
-        raise KeyboardInterrupt
+        raise _Terminated
 
     previous = signal.signal(signal.SIGTERM, stop)
     try:
