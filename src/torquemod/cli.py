@@ -76,6 +76,7 @@ def cmd_process(args: argparse.Namespace) -> int:
 
     out = run(args.experiment, args.out, phase_method=args.phase_method,
               nan_policy=args.nan_policy, fit=not args.no_fit, force=args.force,
+              report_options=_pdf_option(args),
               progress=not args.quiet, command=sys.argv, on_stage=_stage_printer(args))
     res, ana = out.result, out.analysis
     _print_warnings(res.warnings + (ana.warnings if ana is not None else []))
@@ -89,6 +90,7 @@ def cmd_process(args: argparse.Namespace) -> int:
     print(f"results: {out.folder}")
     if out.report is not None:
         print(f"report:  {out.report}")
+        _print_pdf(args, out.report)
     return 0
 
 
@@ -141,6 +143,7 @@ def cmd_onboard(args: argparse.Namespace) -> int:
               f"{100 * s['slip_share']:.1f} %; {s['seconds']:.1f} s")
     print(f"track:  {Path(args.out) / 'track.parquet'}")
     print(f"report: {Path(args.out) / 'report.html'}")
+    _write_pdf(args, Path(args.out) / "report.html")
     return 0
 
 
@@ -190,22 +193,55 @@ def _fit_options(args: argparse.Namespace) -> dict:
 def cmd_fit(args: argparse.Namespace) -> int:
     from .api import fit_folder
     _, ana = fit_folder(Path(args.results), _fit_options(args),
-                          on_stage=_stage_printer(args))
+                        report_options=_pdf_option(args), on_stage=_stage_printer(args))
     _print_warnings(ana.warnings)
     _print_steps(ana.steps)
     _print_fit(ana)
-    print(f"updated {args.results}: fit.json, steps.csv, figures and report.html")
+    print(f"updated {args.results}: fit.json, steps.csv, figures and report.html"
+          + (" (and report.pdf)" if args.pdf else ""))
     return 0
 
 
 def cmd_report(args: argparse.Namespace) -> int:
     from .api import report_folder
     opts = {k: v for k, v in (("step", args.step), ("cycle", args.cycle),
-                              ("title", args.title)) if v is not None}
+                              ("title", args.title)) if v is not None} | _pdf_option(args)
     path = report_folder(Path(args.results), report_options=opts,
                          on_stage=_stage_printer(args))
     print(f"report written to {path}")
+    _print_pdf(args, path)
     return 0
+
+
+def _pdf_option(args: argparse.Namespace) -> dict:
+    """--pdf as the report option that writes report.pdf inside the results folder."""
+    return {"pdf": args.pdf_engine} if getattr(args, "pdf", False) else {}
+
+
+def _print_pdf(args: argparse.Namespace, html_path: Path) -> None:
+    if getattr(args, "pdf", False):
+        print(f"pdf:     {Path(html_path).with_suffix('.pdf')}")
+
+
+def _write_pdf(args: argparse.Namespace, html_path: Path) -> None:
+    """With --pdf: the report as report.pdf beside it (A4; see torquemod.report.pdf)."""
+    if not getattr(args, "pdf", False):
+        return
+    from .report.pdf import html_to_pdf
+    say = _stage_printer(args)
+    if say:
+        say(f"writing the PDF ({args.pdf_engine}) ...")
+    print(f"pdf:    {html_to_pdf(html_path, engine=args.pdf_engine)}")
+
+
+def _add_pdf_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--pdf", action="store_true",
+                        help="also write the report as report.pdf (A4) beside report.html")
+    parser.add_argument("--pdf-engine", choices=["matplotlib", "chromium"],
+                        default="matplotlib",
+                        help="how the PDF is made: matplotlib (default, always available: "
+                             "text, tables and figures laid out on A4) or chromium (a "
+                             "headless Chromium on the PATH prints the HTML page)")
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -358,6 +394,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--force", action="store_true", help="replace an existing results folder")
     q.add_argument("--no-fit", action="store_true", help="skip the fit and report stages")
     q.add_argument("--quiet", action="store_true", help="no progress bar or stage lines")
+    _add_pdf_options(q)
     q.set_defaults(func=cmd_process)
 
     s = sub.add_parser("simulate", parents=[common],
@@ -385,6 +422,7 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--out", required=True, help="results folder to create")
     o.add_argument("--force", action="store_true", help="replace an existing results folder")
     o.add_argument("--quiet", action="store_true", help="no stage lines")
+    _add_pdf_options(o)
     o.set_defaults(func=cmd_onboard)
 
     f = sub.add_parser("fit", parents=[common], help=(
@@ -406,6 +444,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="saturation-onset rule (default: tan_ratio)")
     f.add_argument("--seed", type=int, default=None, help="seed of the fit's random starts")
     f.add_argument("--quiet", action="store_true", help="no stage lines")
+    _add_pdf_options(f)
     f.set_defaults(func=cmd_fit)
 
     r = sub.add_parser("report", parents=[common],
@@ -416,6 +455,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--cycle", type=int, default=None, help="cycle shown in Figure 1 (default 1)")
     r.add_argument("--title", default=None, help="page title (default: experiment name)")
     r.add_argument("--quiet", action="store_true", help="no stage lines")
+    _add_pdf_options(r)
     r.set_defaults(func=cmd_report)
 
     d = sub.add_parser("demo", parents=[common],

@@ -8,6 +8,7 @@
     figures/fig3_phase.{png,svg}         the paper's Figure 4 (phase vs DC torque % Ts)
     figures/fig4_mu_from_phase.{png,svg} phase vs utilised adhesion with the fitted C/k(CoA)
     report.html                         summary, figures, Tables 1-2, fit, warnings, provenance
+    report.pdf                          the same on A4 (only with the ``pdf`` option)
 
 Everything is drawn from the objects in memory (:class:`~torquemod.pipeline.ProcessResult`,
 :class:`~torquemod.analysisresult.Analysis`); nothing is read from the folder.
@@ -21,6 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..config import check_option_types, coerce_options
+from ..errors import OptionError
 from ..fsutil import write_atomic
 from ..provenance import provenance
 from .figures import (
@@ -31,6 +33,7 @@ from .figures import (
     signals_figure,
 )
 from .html import render_report
+from .pdf import PDF_ENGINES, html_to_pdf
 
 if TYPE_CHECKING:
     from ..analysisresult import Analysis
@@ -46,7 +49,8 @@ class ReportOptions:
     available cycle is used, with a warning, if absent); ``coa_multiplier`` and
     ``creepage_multiplier`` scale the error bars of Figure 2 (paper: 20 and 5);
     ``formats`` of the saved figures; ``title`` of the page (default: the experiment's
-    name)."""
+    name); ``pdf`` the engine of :func:`torquemod.report.pdf.html_to_pdf` to write
+    ``report.pdf`` too (None: no PDF, and a stale one from an earlier report is removed)."""
 
     step: int = 3
     cycle: int = 1
@@ -55,9 +59,13 @@ class ReportOptions:
     formats: tuple[str, ...] = ("png", "svg")
     dpi: int = 150
     title: str | None = None
+    pdf: str | None = None  # "matplotlib" or "chromium": also report.pdf (report.pdf)
 
     def __post_init__(self) -> None:
         check_option_types(self, "report")
+        if self.pdf is not None and self.pdf not in PDF_ENGINES:
+            raise OptionError(f"report option pdf={self.pdf!r}: choose one of "
+                              f"{', '.join(PDF_ENGINES)} (or None for no PDF)")
 
     @classmethod
     def coerce(cls, options) -> ReportOptions:
@@ -123,7 +131,12 @@ def write_report(folder, result: ProcessResult, analysis: Analysis, *, options=N
     text = render_report(title=title, fit=analysis.to_dict(), steps=analysis.steps,
                          cycles=result.cycles, provenance=prov, figures=figures,
                          warnings=warnings)
-    return write_atomic(folder / "report.html", lambda fh: fh.write(text))
+    path = write_atomic(folder / "report.html", lambda fh: fh.write(text))
+    if opts.pdf:
+        html_to_pdf(path, folder / "report.pdf", engine=opts.pdf)
+    else:  # a PDF of an earlier report would no longer match this one
+        (folder / "report.pdf").unlink(missing_ok=True)
+    return path
 
 
 def _ts_caption(analysis: Analysis) -> str:

@@ -15,17 +15,39 @@ __all__ = ["render_report", "table"]
 
 CSS = """
 body{font-family:system-ui,-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;margin:2em auto;
-max-width:1100px;padding:0 1em;color:#222;line-height:1.45}
+max-width:min(1300px,96vw);padding:0 1em;color:#222;line-height:1.45}
 h1{font-size:1.6em;border-bottom:2px solid #444}h2{font-size:1.25em;margin-top:1.8em;
 border-bottom:1px solid #bbb}table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
 th,td{border:1px solid #bbb;padding:.25em .6em;text-align:right;white-space:nowrap}
+th{white-space:normal;min-width:4em;vertical-align:bottom}
+td.l{white-space:normal;overflow-wrap:anywhere;max-width:40em}
 .scroll{overflow-x:auto;max-width:100%}th{background:#eee}
 td.l,th.l{text-align:left}caption{caption-side:top;text-align:left;font-weight:bold;
 padding:.3em 0}figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}
 figcaption{font-size:.9em;color:#444}.warn{background:#fff4e0;border-left:4px solid #e0a000;
 padding:.4em .8em}.ok{color:#176317}.bad{color:#a00000}pre{background:#f6f6f6;padding:.6em;
-overflow-x:auto;font-size:.8em}dl.kv{display:grid;grid-template-columns:max-content auto;
-gap:.2em 1em}dl.kv dt{font-weight:bold}dl.kv dd{margin:0}
+overflow-x:auto;font-size:.8em}dl.kv{display:grid;grid-template-columns:minmax(12em,max-content)
+minmax(0,1fr);gap:.2em 1em}dl.kv dt{font-weight:bold;max-width:32em}
+dl.kv dd{margin:0;overflow-wrap:anywhere}
+@media print{
+@page{size:A4;margin:14mm 12mm 16mm}
+body{max-width:none;margin:0;padding:0;font-size:9.5pt;line-height:1.3}
+h1{font-size:15pt}h2{font-size:12pt;margin-top:1.2em;break-after:avoid}
+h1,h2,h3,caption{break-after:avoid}
+.scroll{overflow:visible}
+table{width:100%;font-size:6.5pt;margin:.3em 0}thead{display:table-header-group}
+th,td{padding:.15em .25em;min-width:0}th{white-space:normal;overflow-wrap:normal}
+td{white-space:nowrap}td.l{white-space:normal;overflow-wrap:anywhere}
+tr,figure,dl.kv>*{break-inside:avoid}
+figure{margin:.5em 0}figure img{max-width:100%;max-height:118mm;width:auto;height:auto;
+display:block;margin:0 auto}
+figcaption{font-size:8pt}
+dl.kv{grid-template-columns:34% 1fr}
+pre{white-space:pre-wrap;overflow-wrap:anywhere;font-size:6.5pt;overflow:visible}
+details>:not(summary){display:none}details>summary{list-style:none;color:#555;font-size:8pt}
+details>summary::after{content:" (folded in the HTML report; not printed)"}
+.warn{break-inside:avoid}
+}
 """
 
 
