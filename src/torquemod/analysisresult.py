@@ -212,11 +212,14 @@ class Analysis:
         lines = [f"[[Analysis]] {self.name}: {len(self.points)} steps "
                  f"({int(self.used.sum())} in the force fit)"]
         lines += ["  " + line for line in headline_lines(self)]
+        shown = set()  # each warning once: the fits' own reports list theirs
         if self.polach is not None:
             lines.append(self.polach.report())
+            shown.update(self.polach.warnings)
         if self.phase_fit is not None:
             lines.append(self.phase_fit.report())
-        lines += [f"WARNING: {w}" for w in self.warnings]
+            shown.update(f"mu from the phase: {w}" for w in self.phase_fit.warnings)
+        lines += [f"WARNING: {w}" for w in self.warnings if w not in shown]
         return "\n".join(lines)
 
     def __repr__(self) -> str:

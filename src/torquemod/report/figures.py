@@ -50,8 +50,8 @@ def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None) -> F
     single = ax is not None and not isinstance(ax, list | tuple | np.ndarray)
     if single:
         fig, axes = ax.figure, [ax, ax.twinx()]
-        ax.set_title(f"Step {step}, cycle {cycle}: torque (left axis), wheel angular "
-                     "velocity (right axis)", loc="left", fontsize=10)
+        ax.set_title(f"Step {step}, cycle {cycle} (wheel speed: right axis)", loc="left",
+                     fontsize=10)
     else:
         fig, axes = _axes(ax, 2, figsize=(9.5, 6.0))
     rows = (("torque", "nm", "Applied torque [N·m]", "(a)", "C0"),
@@ -81,9 +81,23 @@ def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None) -> F
     if ax is not None:
         handles = [h for a in axes for h in a.get_legend_handles_labels()[0]]
         labels = [lab for a in axes for lab in a.get_legend_handles_labels()[1]]
-        axes[0].legend(handles, labels, loc="upper left", fontsize=7)
+        for a in axes:  # head room: the legend sits above the traces, not on them
+            lo, hi = a.get_ylim()
+            a.set_ylim(lo, hi + (0.55 if single else 0.4) * (hi - lo))
+        # on the twin when there is one: it is drawn last, so nothing covers the legend
+        axes[-1 if single else 0].legend(handles, labels, loc="upper left", fontsize=7,
+                                         ncol=2)
     axes[-1].set_xlabel("Time from cycle start [s]")
     return fig
+
+
+def _value_pm(value: float, err: float | None) -> str:
+    """``value ± err`` with the error to two significant figures and the value to the same
+    decimals (at least three): 0.3001 ± 0.00022, never 0.300 ± 0.000."""
+    if not err or not np.isfinite(err):
+        return f"{value:.3f}"
+    decimals = max(3, 1 - int(np.floor(np.log10(abs(err)))))
+    return f"{value:.{decimals}f} ± {err:.{decimals}f}"
 
 
 def _curve_xi(polach, xi_max, speed):
@@ -123,7 +137,7 @@ def creep_curve_figure(ana, *, ax=None, coa_multiplier: float = 20.0,
     if ana.polach is not None:
         grid, curve = _curve_xi(ana.polach, 1.3 * float(np.nanmax(np.abs(xi))), ana.speed_m_s)
         if ana.mu is not None:
-            label = f"Polach fit, μ = {ana.mu:.3f} ± {ana.mu_stderr or 0:.3f}"
+            label = f"Polach fit, μ = {_value_pm(ana.mu, ana.mu_stderr)}"
         else:
             label = f"Polach fit (μ not determined, μ ≥ {ana.mu_lower_bound or 0:.3f})"
         ax.plot(100 * grid, curve, "k--", lw=1.4, label=label)
