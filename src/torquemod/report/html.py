@@ -17,10 +17,10 @@ CSS = """
 body{font-family:system-ui,-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;margin:2em auto;
 max-width:min(1300px,96vw);padding:0 1em;color:#222;line-height:1.45}
 h1{font-size:1.6em;border-bottom:2px solid #444}h2{font-size:1.25em;margin-top:1.8em;
-border-bottom:1px solid #bbb}table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
-th,td{border:1px solid #bbb;padding:.25em .6em;text-align:right;white-space:nowrap}
-th{white-space:normal;min-width:4em;vertical-align:bottom}
-td.l{white-space:normal;overflow-wrap:anywhere;max-width:40em}
+border-bottom:1px solid #bbb}table{border-collapse:collapse;margin:.6em 0;font-size:.85em}
+th,td{border:1px solid #bbb;padding:.25em .45em;text-align:right;white-space:nowrap}
+th{white-space:normal;vertical-align:bottom}
+td.l{white-space:normal;overflow-wrap:break-word;max-width:40em}
 .scroll{overflow-x:auto;max-width:100%}th{background:#eee}
 td.l,th.l{text-align:left}caption{caption-side:top;text-align:left;font-weight:bold;
 padding:.3em 0}figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}
@@ -37,7 +37,7 @@ h1,h2,h3,caption{break-after:avoid}
 .scroll{overflow:visible}
 table{width:100%;font-size:6.5pt;margin:.3em 0}thead{display:table-header-group}
 th,td{padding:.15em .25em;min-width:0}th{white-space:normal;overflow-wrap:normal}
-td{white-space:nowrap}td.l{white-space:normal;overflow-wrap:anywhere}
+td{white-space:nowrap}td.l{white-space:normal;overflow-wrap:break-word}
 tr,figure,dl.kv>*{break-inside:avoid}
 figure{margin:.5em 0}figure img{max-width:100%;max-height:118mm;width:auto;height:auto;
 display:block;margin:0 auto}
@@ -70,7 +70,7 @@ def table(headers, rows, *, caption: str | None = None, left: int = 0) -> str:
     if caption:
         out.append(f"<caption>{escape(caption)}</caption>")
     cls = [' class="l"' if i < left else "" for i in range(len(headers))]
-    out.append("<thead><tr>" + "".join(f"<th{c}>{escape(str(h))}</th>"
+    out.append("<thead><tr>" + "".join(f"<th{c}>{_breakable(str(h))}</th>"
                                        for c, h in zip(cls, headers, strict=True))
                + "</tr></thead><tbody>")
     for row in rows:
@@ -78,6 +78,12 @@ def table(headers, rows, *, caption: str | None = None, left: int = 0) -> str:
                                     for c, v in zip(cls, row, strict=True)) + "</tr>")
     out.append("</tbody></table></div>")
     return "\n".join(out)
+
+
+def _breakable(text: str) -> str:
+    """Escaped header text that may wrap after a dot or an underscore too (parameter names
+    like ``modulation.frequency_hz`` have no spaces)."""
+    return escape(text).replace(".", ".<wbr>").replace("_", "_<wbr>")
 
 
 def _img(png: bytes, alt: str, caption: str) -> str:
