@@ -28,6 +28,14 @@ def phase_only():
     return res, ana
 
 
+@pytest.fixture(scope="module")
+def written(phase_only, tmp_path_factory):
+    """The report of ``phase_only``, written once: (folder, its HTML)."""
+    folder = tmp_path_factory.mktemp("report")
+    res, ana = phase_only
+    return folder, write_report(folder, res, ana).read_text(encoding="utf-8")
+
+
 def test_saturation_torque_prefers_forces_then_phase():
     forces = SimpleNamespace(mu=0.3, mu_stderr=0.01)
     phase = SimpleNamespace(mu=0.25, mu_stderr=0.002, mu_determined=True)
@@ -41,8 +49,8 @@ def test_saturation_torque_prefers_forces_then_phase():
     assert saturation_torque(None, None, **nr) == (None, None, None)
 
 
-def test_one_ts_everywhere(phase_only, tmp_path):
-    res, ana = phase_only
+def test_one_ts_everywhere(phase_only, written):
+    _, ana = phase_only
     ts = ana.saturation_torque_nm
     assert ana.saturation_torque_source == "phase"
     assert ts == pytest.approx(ana.mu_from_phase * ana.normal_load_n * ana.wheel_radius_m)
@@ -56,7 +64,7 @@ def test_one_ts_everywhere(phase_only, tmp_path):
     label = fig.axes[0].get_xlabel()
     assert "% of Ts" in label and f"{ts:.1f}" in label and "phase" in label
 
-    html = write_report(tmp_path, res, ana).read_text(encoding="utf-8")
+    html = written[1]
     summary = html.split("<h2>Figures</h2>")[0]
     assert f"{ts:.4g}" in summary  # the summary's Ts is the number of the axis
     caption = re.search(r"<figcaption>(Figure 3[^<]*)</figcaption>", html).group(1)
@@ -67,9 +75,9 @@ def test_one_ts_everywhere(phase_only, tmp_path):
     assert pct_cells == [f"{v:.4g}" for v in pct]  # no "—" beside a known Ts
 
 
-def test_undetermined_mu_is_not_printed_as_a_value(phase_only, tmp_path):
-    res, ana = phase_only
-    html = write_report(tmp_path, res, ana).read_text(encoding="utf-8")
+def test_undetermined_mu_is_not_printed_as_a_value(phase_only, written):
+    _, ana = phase_only
+    html = written[1]
     polach = html.split("<h2>Polach fit</h2>")[1].split("<h2>")[0]
     assert "μ determined</dt><dd>no" in polach
     mu_row = re.search(r"<tr><td class=\"l\">mu</td>(.*?)</tr>", polach).group(1)
@@ -80,10 +88,9 @@ def test_undetermined_mu_is_not_printed_as_a_value(phase_only, tmp_path):
     assert mu_lines and all("+/-" not in ln for ln in mu_lines)
 
 
-def test_figures_numbered_from_one(phase_only, tmp_path):
-    res, ana = phase_only
-    html = write_report(tmp_path, res, ana).read_text(encoding="utf-8")
+def test_figures_numbered_from_one(written):
+    folder, html = written
     numbers = [int(n) for n in re.findall(r"<figcaption>Figure (\d+)", html)]
     assert numbers == list(range(1, len(numbers) + 1)) and len(numbers) == 4
-    assert sorted(p.stem for p in (tmp_path / "figures").glob("*.png")) == [
+    assert sorted(p.stem for p in (folder / "figures").glob("*.png")) == [
         "fig1_signals", "fig2_creep_curve", "fig3_phase", "fig4_mu_from_phase"]

@@ -95,9 +95,11 @@ def test_chromium_pdf_of_a_report(report_html, tmp_path):
 
 def test_report_pdf_lives_and_dies_with_its_report(tmp_path, capsys):
     folder = tmp_path / "r"
-    tm.save(synthetic_result(seed=0), None, folder, report=False)
+    res = synthetic_result(seed=0, n_cycles=1)
+    tm.save(res, tm.analyze(res), folder, report=False)
     assert main(["report", str(folder), "--pdf", "--quiet"]) == 0
     assert (folder / "report.pdf").read_bytes().startswith(b"%PDF")
     assert "pdf:" in capsys.readouterr().out
-    assert main(["report", str(folder), "--quiet"]) == 0  # redrawn without --pdf:
-    assert not (folder / "report.pdf").exists()           # no stale PDF beside it
+    # redrawn without --pdf: no stale PDF beside it (the report's own writer, no CLI)
+    write_report(folder, res, tm.analyze(res), options={"formats": ("png",)})
+    assert not (folder / "report.pdf").exists()
