@@ -76,8 +76,8 @@ def test_no_time_left_before_the_first_item():
 
 def test_demo_words_when_mu_is_not_determined():
     truth = {"peak_coa": 0.2451, "mu0": 0.30, "mu_at_top_step": 0.262}
-    text = cli._why_they_differ({"mu": None, "mu_from_phase": None, "mu_lower_bound": 0.231},
-                                truth)
-    assert "(-)" not in text and "0.2310" in text and "not determined" in text
+    text = cli._why_they_differ({"mu": None, "mu_from_phase": None, "mu_lower_bound": 0.231,
+                                 "mu_from_phase_interval_95": [0.2492, None]}, truth)
+    assert "(-)" not in text and "mu >= 0.2492" in text and "not determined" in text
     text = cli._why_they_differ({"mu": None, "mu_from_phase": 0.2505}, truth)
     assert "mu from the phase (0.2505)" in text

@@ -292,13 +292,16 @@ def _why_they_differ(out: dict, truth: dict) -> str:
         head = f"why mu from the forces ({out['mu']:.4f}) differs"
     elif out.get("mu_from_phase") is not None:
         head = f"why mu from the phase ({out['mu_from_phase']:.4f}) differs"
-    else:  # neither fit determines mu: only its lower bound is known
-        bound = out.get("mu_lower_bound")
-        return (f"mu is not determined by these steps (mu >= {_fmt(bound, '.4f')}): they stay "
-                "too far below saturation for the creep curve's shape to fix it. The "
-                f"simulated curve peaks at CoA {truth['peak_coa']:.4f}, below the friction "
-                f"(mu0 = {truth['mu0']:.4f}, {truth['mu_at_top_step']:.4f} at the top step's "
-                "slip velocity).")
+    else:  # neither fit determines mu: only a lower bound is known, the higher of the two
+        bounds = [b for b in (out.get("mu_lower_bound"),
+                              (out.get("mu_from_phase_interval_95") or [None])[0])
+                  if b is not None]
+        bound = max(bounds) if bounds else None
+        return (f"mu is not determined by these steps (mu >= {_fmt(bound, '.4f')}): their "
+                "points do not fix the creep curve's shape near saturation (too few cycles "
+                "per step, or steps too far below saturation). The simulated curve peaks at "
+                f"CoA {truth['peak_coa']:.4f}, below the friction (mu0 = {truth['mu0']:.4f}, "
+                f"{truth['mu_at_top_step']:.4f} at the top step's slip velocity).")
     head += f" from the peak CoA ({truth['peak_coa']:.4f}): "
     return (head + "mu is the friction coefficient of the fitted Polach curve, the level its "
             "CoA would reach only at full sliding; a creep curve with a finite kA/kS peaks "
