@@ -47,6 +47,7 @@ class Block:
     pairs: list = field(default_factory=list)
     header: list = field(default_factory=list)
     rows: list = field(default_factory=list)
+    left: list = field(default_factory=list)  # per column: left-aligned (text), else numbers
     png: bytes | None = None
 
 
@@ -140,6 +141,8 @@ class _ReportParser(HTMLParser):
             return
         elif tag in ("th", "td") and self._row is not None:
             self._row.append(text)
+            if tag == "th" and self._table is not None and not self._table.header:
+                self._table.left.append("l" in self._cls.split())
         elif tag == "caption" and self._table is not None:
             self._table.text = text
         elif tag == "figcaption" and self._figure is not None:
@@ -254,6 +257,16 @@ def _draw_table(pages: _Pages, block: Block):
         words = max([len(w) for w in header[j].split()] or [0])
         # as wide as the cells, the header's longest word, and a header in <= 3 lines
         widths.append(max(3, min(MAX_CELL, max(cells, words, -(-len(header[j]) // 3)))))
+    left = block.left + [True] * (ncol - len(block.left)) if block.left else [True] * ncol
+
+    def _cell(pages, x, y, line, j, bold=False):
+        """One line of a cell: text left-aligned, numbers right-aligned in the column."""
+        if not left[j]:
+            x += widths[j] * TABLE_PT * MONO_EM / 72
+        pages.fig.text(x / PAGE_W, y / PAGE_H, line, fontsize=TABLE_PT, family="monospace",
+                       va="top", ha="left" if left[j] else "right",
+                       weight="bold" if bold else "normal")
+
     groups = _column_groups(widths, avail, keep=1 if ncol > 2 else 0)
     lh = _line_h(TABLE_PT)
     for k, cols in enumerate(groups):
@@ -269,9 +282,7 @@ def _draw_table(pages: _Pages, block: Block):
             top = pages.y
             for j, h in zip(cols, head, strict=True):
                 for n, line in enumerate(h):
-                    pages.fig.text(x / PAGE_W, (top - n * lh) / PAGE_H, line,
-                                   fontsize=TABLE_PT, family="monospace", va="top",
-                                   weight="bold")
+                    _cell(pages, x, top - n * lh, line, j, bold=True)
                 x += (widths[j] + 2) * TABLE_PT * MONO_EM / 72
             pages.y = top - head_h
             _rule(pages, 0.6)
@@ -288,8 +299,7 @@ def _draw_table(pages: _Pages, block: Block):
             x = MARGIN
             for j, c in zip(cols, cells, strict=True):
                 for n, line in enumerate(c):
-                    pages.fig.text(x / PAGE_W, (pages.y - n * lh) / PAGE_H, line,
-                                   fontsize=TABLE_PT, family="monospace", va="top")
+                    _cell(pages, x, pages.y - n * lh, line, j)
                 x += (widths[j] + 2) * TABLE_PT * MONO_EM / 72
             pages.y -= h
             _rule(pages, 0.2)
