@@ -94,3 +94,18 @@ def test_figures_numbered_from_one(written):
     assert numbers == list(range(1, len(numbers) + 1)) and len(numbers) == 4
     assert sorted(p.stem for p in (folder / "figures").glob("*.png")) == [
         "fig1_signals", "fig2_creep_curve", "fig3_phase", "fig4_mu_from_phase"]
+
+
+def test_signals_on_one_axes_draw_one_panel(phase_only):
+    from matplotlib.figure import Figure
+
+    from torquemod.report.figures import signals_figure
+    res, _ = phase_only
+    ax = Figure().subplots()
+    signals_figure(res.traces[(3, 1)], step=3, cycle=1, ax=ax)
+    titles = [t for a in ax.figure.get_axes() for t in
+              (a.get_title("left"), a.get_title(), a.get_title("right")) if t]
+    assert len(titles) == 1 and "(a)" not in titles[0] and "(b)" not in titles[0]
+    pair = Figure().subplots(2, 1)
+    signals_figure(res.traces[(3, 1)], step=3, cycle=1, ax=pair)
+    assert [a.get_title("left")[:3] for a in pair] == ["(a)", "(b)"]
