@@ -24,6 +24,10 @@ class FrequencyParams:
     window: str = "hann"  # ours: Hann sidelobes fall 18 dB/octave, away from large tones
     detrend: str = "linear"
     zero_pad: int = 8
+    #: ours: each peak refined to the least-squares frequency of the speed model
+    #: (torquemod.chain._SlowOrdersRemoval.refine) to ``tolerance_hz`` [Hz]
+    refine: bool = True
+    tolerance_hz: float = 1e-6
 
 
 @dataclass(frozen=True)
@@ -60,6 +64,9 @@ class SlowParams:
     max_hz: float = 1.2
     extra_sequences: int = 2
     polynomial_degree: int = 5
+    #: the modulation's harmonics 2..this fitted beside it and removed with the slow part
+    #: (torquemod.chain.modulation_harmonics); 1 fits none
+    modulation_harmonics: int = 3
 
 
 @dataclass(frozen=True)
@@ -256,7 +263,9 @@ def _range_problems(cfg: ProcessingConfig) -> list[str]:
                 "highpass.order": cfg.highpass.order, "bandpass.width_hz": cfg.bandpass.width_hz,
                 "bandpass.order": cfg.bandpass.order,
                 "align.max_lag_periods": cfg.align.max_lag_periods,
-                "phase.n_periods": cfg.phase.n_periods, "slow.max_hz": cfg.slow.max_hz}
+                "phase.n_periods": cfg.phase.n_periods, "slow.max_hz": cfg.slow.max_hz,
+                "slow.modulation_harmonics": cfg.slow.modulation_harmonics,
+                "frequency.tolerance_hz": cfg.frequency.tolerance_hz}
     out += [f"{k} must be positive, got {v}" for k, v in positive.items()
             if not (isinstance(v, int | float) and v > 0)]
     non_negative = {"phase.edge_trim_periods": cfg.phase.edge_trim_periods,
