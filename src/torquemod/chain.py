@@ -517,6 +517,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
         for i, name in enumerate(("torque_nm", "wheel_speed_rad_s")):
             peaks[name] = cleaner.refine(i, peaks[name], tol_hz=fp.tolerance_hz)
         f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
+    if fp.common == "torque":
+        f_mod = peaks["torque_nm"]
     model = fit_speed_model(sig, fs_r, f_mod, slow, orders, mod_harmonics)
     f_t, f_w = peaks["torque_nm"], peaks["wheel_speed_rad_s"]
     f_wheel = abs(model.mean("wheel_speed_rad_s")) / (2 * np.pi)
