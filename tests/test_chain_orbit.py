@@ -75,7 +75,8 @@ def test_manifest_frequency_scales_the_paper_defaults():
 def test_steady_speed_against_the_periodic_orbit(nominal_hz, tmp_path):
     """Noise-free, steady speed, 80 % of the peak. Before the modulation's harmonics were
     fitted and the frequency refined, 1 Hz was 0.03-0.28 deg off (twin, dry, 30-90 %);
-    measured now <= 0.011 deg (0.5 Hz, 90 %), <= 0.0012 deg at 1-8 Hz. 0.02 deg: the issue's bound."""
+    measured now <= 0.011 deg (0.5 Hz, 90 %), <= 0.0012 deg at 1-8 Hz. 0.02 deg: the
+    issue's bound."""
     _, t_peak = ir.peak(RIG)
     f = nominal_hz * 1.0012  # a controller clock that runs fast
     # at least 7 modulation periods: the paper's window needs 3 plus a period at each end
@@ -109,10 +110,11 @@ def test_moving_operating_point_against_its_definition(tmp_path):
     """A slow wobble at 70 % and 90 % of the peak (noise-free), processed with the
     configuration the definition documents. The phase moves by up to +-8 deg within a
     cycle at 90 %; the record's phase is the defined one over the span the chain analyses.
-    Measured (benchmarks/chain_accuracy.py, 60-90 %, 0.2-0.3 % wobble): sine fit <= 0.015
-    deg, frequency <= 1.3e-4 Hz (the torque's peak; the mean of the wheel's and the
-    torque's was up to 8.6e-4 Hz off); the paper's three middle periods <= 0.19 deg at 70
-    %, up to 1.06 deg at 90 %, where the middle of the cycle is not its mean."""
+    Measured (benchmarks/chain_accuracy.py, 60-90 %, 0.2-0.3 % wobble, 3 seeds): sine fit
+    <= 0.018 deg (0.88 deg with the default band-passed fit), frequency <= 1.3e-4 Hz (the
+    torque's peak; the mean of the wheel's and the torque's was up to 8.6e-4 Hz off); the
+    paper's three middle periods <= 0.16 deg at 70 %, 1.2 deg at 90 %, where the middle of
+    the cycle is not its mean."""
     runs = [_wobble_run(0.7, 4), _wobble_run(0.9, 4)]
     pairs = [(ir.simulate(r), ir.simulate(r, modulation=False)) for r in runs]
     got = _process(tmp_path, [on for on, _ in pairs], runs[0].fs_hz, 2.0, MOVING)
