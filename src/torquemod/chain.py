@@ -361,7 +361,7 @@ class _SlowOrdersRemoval:
         half = 0.25 * self.fs_hz / self.y.shape[0]
         res = minimize_scalar(lambda f: -self.explained(column, f),
                               bounds=(peak_hz - half, peak_hz + half), method="bounded",
-                              options={"xatol": tol_hz * 1e-2})
+                              options={"xatol": tol_hz})
         return float(res.x) if res.success else peak_hz
 
 
