@@ -346,23 +346,36 @@ class _SlowOrdersRemoval:
         return float(b @ np.linalg.solve(r_m.T @ r_m, b))
 
     def refine(self, column: int, peak_hz: float, *, tol_hz: float = 1e-6) -> float:
-        """The frequency [Hz] within a quarter of a frequency resolution of ``peak_hz`` at
-        which the model explains most of record ``column``: the least-squares (for white
-        noise, maximum-likelihood) frequency of the modulation beside the slow part and the
-        orders (variable projection, Golub and Pereyra 1973). A plain spectral peak of the
-        record less a slow part fitted at another frequency is pulled towards that frequency
-        (by up to 0.9 mHz at 1 Hz on a 6.5 s record) and carries the window's own bias from
-        the modulation's negative-frequency image; this maximum has neither: on a
-        noise-free record it is the modulation's frequency. ``peak_hz`` itself when the
-        design is (nearly) rank deficient."""
+        """The frequency [Hz] near ``peak_hz`` at which the model explains most of record
+        ``column``: the least-squares (for white noise, maximum-likelihood) frequency of the
+        modulation beside the slow part and the orders (variable projection, Golub and
+        Pereyra 1973). A plain spectral peak of the record less a slow part fitted at another
+        frequency is pulled towards that frequency (by up to 0.9 mHz at 1 Hz on a 6.5 s
+        record) and carries the window's own bias from the modulation's negative-frequency
+        image; this maximum has neither: on a noise-free record it is the modulation's
+        frequency.
+
+        Parabolic steps through three values of the explained power, 0.05/T, 0.005/T and
+        0.0005/T apart (T the record's duration), each from the previous vertex, until a step
+        is below ``tol_hz``: near its maximum the explained power is a parabola to
+        (pi*h*T)^2/3 relative, so each step leaves ~2 % of the previous offset at the first
+        spacing and 0.03 % at the next. A smooth function of the record (unlike a bracketing
+        search, whose stopping point moves within its tolerance with rounding-level changes
+        of the input). ``peak_hz`` itself when the design is (nearly) rank deficient."""
         if self.fac is None:
             return peak_hz
-        from scipy.optimize import minimize_scalar
-        half = 0.25 * self.fs_hz / self.y.shape[0]
-        res = minimize_scalar(lambda f: -self.explained(column, f),
-                              bounds=(peak_hz - half, peak_hz + half), method="bounded",
-                              options={"xatol": tol_hz})
-        return float(res.x) if res.success else peak_hz
+        duration = self.y.shape[0] / self.fs_hz
+        f = float(peak_hz)
+        for h in (0.05 / duration, 0.005 / duration, 0.0005 / duration):
+            e_lo, e_0, e_hi = (self.explained(column, f + k * h) for k in (-1.0, 0.0, 1.0))
+            curvature = e_lo - 2.0 * e_0 + e_hi
+            if not curvature < 0:  # not near a maximum: keep the spectral peak's value
+                return float(peak_hz)
+            step = float(np.clip(0.5 * h * (e_lo - e_hi) / curvature, -2.0 * h, 2.0 * h))
+            f += step
+            if abs(step) < tol_hz:
+                break
+        return f
 
 
 def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
