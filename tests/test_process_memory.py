@@ -1,6 +1,6 @@
 """`process` in bounded memory: a step that is one recording of many revolutions is aligned
-and measured cycle by cycle while it is read (pipeline._InOrderStep), and figure traces are
-kept for the first pipeline.TRACE_CYCLES cycles of a step only.
+and measured cycle by cycle while it is read (torquemod.stepmeasure.InOrderStep), and
+figure traces are kept for the first pipeline.TRACE_CYCLES cycles of a step only.
 
 Reference: the same recordings with every cycle held until the end and the step aligned at
 once (process_experiment(loaded=...), the fleet's path, which never measures while reading).
@@ -16,6 +16,7 @@ import pandas as pd
 import pytest
 
 import torquemod.pipeline as pl
+from torquemod.errors import InputError, ProcessingError
 from torquemod.io import read_experiment
 from torquemod.testing import write_synthetic_experiment
 
@@ -37,13 +38,13 @@ def test_measured_while_read_equals_the_step_aligned_at_the_end(tmp_path, monkey
     if streamed:
         monkeypatch.setattr(pl, "STREAM_MIN_BYTES", 0)
     seen = []
-    real = pl._InOrderStep.__call__
+    real = pl.InOrderStep.__call__
 
     def spy(self, item):
         seen.append((self.step, item[0]))
         return real(self, item)
 
-    monkeypatch.setattr(pl._InOrderStep, "__call__", spy)
+    monkeypatch.setattr(pl.InOrderStep, "__call__", spy)
     got = pl.process_experiment(manifest, workers=2)
     assert sorted(seen) == [(s, c) for s in (1, 2) for c in (1, 2, 3, 4)]  # the path ran
     n_seen = len(seen)
@@ -69,12 +70,12 @@ def test_phase_error_is_raised_in_step_order(tmp_path, monkeypatch):
                                fmt="hdf5", seed=3)
 
     def fail(*args, **kwargs):
-        raise pl.ProcessingError("no peaks")
+        raise ProcessingError("no peaks")
 
     monkeypatch.setattr(pl.chain, "cycle_phase", fail)
-    with pytest.raises(pl.InputError, match="phase not measurable: no peaks") as a:
+    with pytest.raises(InputError, match="phase not measurable: no peaks") as a:
         pl.process_experiment(tmp_path / "experiment.toml", workers=1)
-    with pytest.raises(pl.InputError, match="phase not measurable: no peaks") as b:
+    with pytest.raises(InputError, match="phase not measurable: no peaks") as b:
         _held_to_the_end(tmp_path / "experiment.toml")
     assert str(a.value) == str(b.value)
 

@@ -26,12 +26,13 @@ from .blas import single_blas
 from .config import ProcessingConfig, SlipParams
 from .cycles import revolution_bounds
 from .data import Experiment, Recording, RecordingEntry
-from .errors import InputError, ProcessingError
+from .errors import InputError
 from .fsutil import sha256_file
 from .io import read_entry, read_experiment
 from .io.stream import hash_file_async, open_stream
 from .io.validate import check_finite, clipping_notes
 from .progress import WarmupBar
+from .stepmeasure import InOrderStep, in_order_steps, phase_parts
 
 __all__ = ["CYCLE_COLUMNS", "STEP_COLUMNS", "TRACE_NAMES", "ProcessResult", "ProcessingConfig",
            "aggregate_steps", "detect_slip", "process_experiment", "resolve_config"]
@@ -343,105 +344,6 @@ load_and_process = _load_and_process
 TRACE_CYCLES = 5
 
 
-def _phase_parts(step: int, cyc: int, sig: chain.CycleSignals, info: dict, lag: int,
-                 n_ref: int, cfg: ProcessingConfig) -> tuple[dict, dict, dict]:
-    """Step 7 of one aligned cycle: its row of the cycle table, its details (``slip`` None
-    until the step's slip check) and its resampled/filtered traces."""
-    try:
-        phase, stderr, window = chain.cycle_phase(sig, cfg, center_index=n_ref / 2 + lag)
-    except ProcessingError as exc:
-        raise InputError(f"phase not measurable: {exc}", path=info["source"],
-                         hint="check the modulation in both channels") from None
-    row = {"step": step, "cycle": cyc, "torque_peak_hz": sig.torque_peak_hz,
-           "wheel_peak_hz": sig.wheel_peak_hz, "modulation_hz": sig.modulation_hz,
-           "phase_deg": phase, "creepage": sig.creepage, "coa": sig.coa,
-           "phase_se_deg": stderr, "creepage_drift": sig.creepage_drift, **sig.extra}
-    detail = {**info, "phase_stderr_deg": stderr, "align_lag_samples": lag,
-              "align_lag_s": lag / sig.fs_hz,
-              "phase_window_s": [sig.t0_s + w for w in window], "resampled_hz": sig.fs_hz,
-              "wheel_rotation_hz": sig.wheel_rotation_hz,
-              "platform_rotation_hz": sig.platform_rotation_hz,
-              "notches_hz": sig.notches_hz, "speed_m_s": sig.extra["speed_m_s"],
-              "creepage_drift": sig.creepage_drift, "slip": None, **sig.means}
-    trace = {"t_s": sig.t0_s + np.arange(sig.torque_filtered.size) / sig.fs_hz,
-             "torque_resampled_nm": sig.torque_resampled,
-             "wheel_speed_resampled_rad_s": sig.wheel_resampled,
-             "torque_filtered_nm": sig.torque_filtered,
-             "wheel_speed_filtered_rad_s": sig.wheel_filtered,
-             "phase_window_s": sig.t0_s + np.asarray(window)}
-    return row, detail, trace
-
-
-_ABSENT = object()
-
-
-@dataclass
-class _Measured:
-    """A cycle measured as soon as it was done (:class:`_InOrderStep`): what the step's slip
-    check needs, its row (the values of :data:`CYCLE_COLUMNS`, :data:`_ABSENT` where the
-    row has none: what ``pd.DataFrame(rows, columns=...)`` keeps) and its details (values,
-    with the step's shared tuple of keys), or the error its phase met (raised in step
-    order). Tuples, not dicts: a recording of thousands of revolutions holds one a cycle."""
-
-    creepage: float
-    coa: float
-    creepage_drift: float
-    row: tuple | None = None
-    detail_keys: tuple | None = None
-    detail_values: tuple | None = None
-    error: InputError | None = None
-
-    def row_dict(self) -> dict:
-        return {k: v for k, v in zip(CYCLE_COLUMNS, self.row, strict=True) if v is not _ABSENT}
-
-    def detail_dict(self) -> dict:
-        return dict(zip(self.detail_keys, self.detail_values, strict=True))
-
-
-class _InOrderStep:
-    """Steps 6 and 7 of a step whose cycles arrive in cycle order (the step is one recording
-    split into revolutions), applied to each cycle as it is done: the first is the alignment
-    reference (:func:`torquemod.chain.align_lags`), only it is held, and a cycle keeps its
-    row, details and, for the first :data:`TRACE_CYCLES`, its traces. The numbers are those
-    of aligning the whole step at the end (tests)."""
-
-    def __init__(self, step: int, cfg: ProcessingConfig):
-        self.step, self.cfg, self.ref, self.count = step, cfg, None, 0
-        self.keys: tuple = ()
-
-    def __call__(self, item: tuple) -> tuple:
-        cyc, sig, info, raw = item
-        if self.ref is None:
-            self.ref, lag = sig, chain.align_lags([sig], self.cfg)[0]
-        else:
-            lag = chain.align_lags([self.ref, sig], self.cfg)[1]
-        out = _Measured(sig.creepage, sig.coa, sig.creepage_drift)
-        trace = None
-        try:
-            row, detail, tr = _phase_parts(self.step, cyc, sig, info, lag,
-                                           self.ref.torque_filtered.size, self.cfg)
-            out.row = tuple(row.get(k, _ABSENT) for k in CYCLE_COLUMNS)
-            keys = tuple(detail)
-            if keys != self.keys:
-                self.keys = keys  # one tuple of keys for the step's cycles
-            out.detail_keys, out.detail_values = self.keys, tuple(detail.values())
-            if self.count < TRACE_CYCLES:
-                trace = {**raw, **tr}
-        except InputError as exc:
-            out.error = exc
-        self.count += 1
-        return cyc, out, None, trace
-
-
-def _in_order_steps(exp: Experiment) -> set[int]:
-    """The steps that are one recording without a manifest cycle: their cycles are that
-    file's revolutions, numbered and done in order."""
-    entries: dict[int, list[RecordingEntry]] = {}
-    for e in exp.recordings:
-        entries.setdefault(e.step, []).append(e)
-    return {s for s, es in entries.items() if len(es) == 1 and es[0].cycle is None}
-
-
 def _prefetched(exp: Experiment, cfg: ProcessingConfig, workers: int, reducers=None):
     """Yield (entry, result of :func:`_load_and_process`) in manifest order, with at most
     ``workers + 1`` recordings in flight so memory stays bounded on long experiments.
@@ -504,8 +406,8 @@ def process_experiment(experiment: Experiment | str | Path, *,
     # a step that is one long recording is aligned and measured cycle by cycle while it is
     # read, so that memory does not grow with its revolutions (only with the fleet's
     # precomputed results, which hold their cycles anyway, is it done at the end)
-    in_order = ({s: _InOrderStep(s, cfg) for s in _in_order_steps(exp)} if loaded is None
-                else {})
+    in_order = ({s: InOrderStep(s, cfg, TRACE_CYCLES, CYCLE_COLUMNS)
+                 for s in in_order_steps(exp)} if loaded is None else {})
     bar = WarmupBar(total=len(exp.recordings), desc="processing", unit="rec",
                     disable=not progress, leave=False)
     try:  # the bar is cleared before any error line is printed
@@ -552,20 +454,20 @@ def process_experiment(experiment: Experiment | str | Path, *,
             if why:
                 notes.append(f"step {step}: slip detected in cycle {cyc} ({why}); the step is "
                              "flagged in steps.csv 'slip' and left out of the creep-curve fit")
-        if step in in_order:  # measured while read (_InOrderStep)
+        if step in in_order:  # measured while read (InOrderStep)
             measured = []
             for (_, m, _), why in zip(items, slip, strict=True):
                 if m.error is not None:
                     raise m.error
                 detail = m.detail_dict()
                 detail["slip"] = why
-                measured.append((m.row_dict(), detail, None))
+                measured.append((m.row_dict(CYCLE_COLUMNS), detail, None))
         else:
             lags = chain.align_lags(sigs, cfg)
             n_ref = sigs[0].torque_filtered.size
             measured = []
             for (cyc, sig, info), lag, why in zip(items, lags, slip, strict=True):
-                row, detail, tr = _phase_parts(step, cyc, sig, info, lag, n_ref, cfg)
+                row, detail, tr = phase_parts(step, cyc, sig, info, lag, n_ref, cfg)
                 detail["slip"] = why
                 measured.append((row, detail, tr))
             for k, (cyc, _, _) in enumerate(items):  # traces of the first cycles only
