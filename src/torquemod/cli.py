@@ -246,7 +246,10 @@ def _print_train_demo(train: dict) -> None:
 
 def _why_they_differ(out: dict, truth: dict) -> str:
     """Why the fitted mu is not the simulator's peak CoA, in the numbers of this run."""
-    mu = out.get("mu") if out.get("mu") is not None else out.get("mu_from_phase")
+    mu = out.get("mu")
+    if mu is None:  # the fit from the phase estimates the peak CoA itself
+        return (f"the available adhesion from the phase ({_fmt(out.get('mu_from_phase'), '.4f')})"
+                f" estimates the creep curve's peak CoA ({truth['peak_coa']:.4f}) itself.")
     head = f"why mu ({_fmt(mu, '.4f')}) differs from the peak CoA ({truth['peak_coa']:.4f}): "
     return (head + "mu is the friction coefficient of the fitted Polach curve, the level its "
             "CoA would reach only at full sliding; a creep curve with a finite kA/kS peaks "

@@ -257,10 +257,11 @@ class MuTracker:
 
     def _fit(self, w: WindowResult) -> _Fit:
         pts = self._points()
+        speed = float(np.median([m.speed_m_s for m in self.mem])) if self.mem else None
         res = None if pts is None else fit_creep_progression(
             *pts.T, coa_now=w.coa, ratio_bounds=self.cfg.ratio_bounds,
             power=bool(self.cfg.power_shapes),
-            max_rel_half_width=self.cfg.max_rel_half_width)
+            max_rel_half_width=self.cfg.max_rel_half_width, speed_m_s=speed)
         self.n_fits += pts is not None
         if res is None:
             return _Fit(w.position_m, None, math.nan, None)

@@ -93,11 +93,11 @@ def point_summary(table: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
         if "mu_forces" in g:
             row.update(mu_forces=float(first["mu_forces"]),
                        mu_forces_determined=bool(first["mu_forces_determined"]))
-        # mu from the phase is judged against the friction at the top used step's slip
-        # velocity (tables of earlier versions: the creep curve's peak)
-        truth = float(first["mu_friction"]) if "mu_friction" in g and np.isfinite(
-            first["mu_friction"]) else row["mu_true"]
-        row["mu_friction"] = truth
+        # the fit from the phase estimates the available adhesion: it is judged against the
+        # creep curve's peak (mu_true); the friction at the top step's slip velocity is
+        # reported beside it
+        truth = row["mu_true"]
+        row["mu_friction"] = float(first["mu_friction"]) if "mu_friction" in g else math.nan
         row["mu_phase_error_pct"] = 100.0 * (row["mu_phase"] / truth - 1.0)
         row["mu_phase_lo_error_pct"] = 100.0 * (row["mu_phase_lo"] / truth - 1.0)
         row["mu_phase_hi_error_pct"] = 100.0 * (row["mu_phase_hi"] / truth - 1.0)
