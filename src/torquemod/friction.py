@@ -76,7 +76,7 @@ MODEL_REL_ERROR = 0.01
 #: little left or right of every member: an error in u, weighted by the slope ds/du, which
 #: grows near the peak where a law's shape is least certain); calibrated with
 #: MODEL_REL_ERROR
-MODEL_REL_COA = 0.0
+MODEL_REL_COA = 0.01
 #: the largest B of Polach's falling friction [s/m] (Polach 2005: 0.2 wet, 0.6 dry; a fit
 #: to the Engel-Beck-Alders locomotive curve: 0.8)
 B_MAX_S_M = 1.0
@@ -86,7 +86,7 @@ PROBE_DEPTHS = (0.7, 0.8, 0.86, 0.9, 0.95)
 K0_GRID = np.geomspace(3.0, 3000.0, 19)
 
 
-def _p_grid(c_max: float, p_span: float, dz: float = 0.012) -> np.ndarray:
+def _p_grid(c_max: float, p_span: float, dz: float = 0.015) -> np.ndarray:
     """Trial P on a grid uniform in ``z = ln(P/c_max - 1)`` from 1e-4 to ``p_span - 1``:
     the relative step ``(1 - c_max/P)*dz`` follows how sharply the points near the peak
     fix P (the slope there changes by ~dz/(1 - u) per step)."""
@@ -395,7 +395,7 @@ def _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_rel, bm
 
 
 def _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_rel,
-                    bmax_v: float = 0.0, every: int = 8, rounds: int = 5):
+                    bmax_v: float = 0.0, every: int = 3, rounds: int = 5):
     """:func:`_chi_all` on every ``every``-th trial P, then on every grid point between two
     evaluated neighbours where the profile crosses the 95 % level, comes near it from
     outside, or that hold its minimum, until no such gap is left (the level follows the lowest
