@@ -88,41 +88,44 @@ def test_shape_function_against_the_library_and_finite_differences():
 @pytest.mark.parametrize("swing", [False, True])
 @pytest.mark.parametrize("known", [True, False])
 def test_noise_free_recovery(shape, swing, known):
-    """Exact phases up to 80 % of saturation: mu within 0.1 % (the search's resolution is
-    ~1e-4 relative), the interval holds the truth, the fitted curve passes through the
-    phases (0.01 deg), C comes back (given: exactly; fitted with the swing: within 2 %,
-    which the swing's effect alone fixes)."""
+    """Exact phases up to 80 % of the available adhesion (Polach's dry and wet sets, which
+    rise to their friction: the peak is mu), stated with 0.1 deg: the adhesion is
+    determined and its interval holds the truth. With C given the estimate is within 0.5 %
+    (measured <= 0.14 %) and k0 comes back within 1.5 % (measured <= 1 %); without C the
+    family's falling-friction members peaking just above the top step fit as well (measured:
+    up to 7.7 % low on the wet set), so only the interval is claimed and k is relative. The
+    fitted curve passes within 0.3 deg of the phases (measured <= 0.2 deg; the model's own
+    1 % error allows that much)."""
     mu, k0 = 0.25, 100.0
     coa, phase, a = truth(mu, shape, k0, 0.8, swing=swing)
     fit = fit_mu_from_phase(coa, phase, np.full(6, 0.1), constant=C if known else None,
-                            creepage_swing=a)
+                            creepage_swing=a, speed_m_s=SPEED)
     assert fit.mu_determined
-    assert fit.mu == pytest.approx(mu, rel=1e-3)
     lo, hi = fit.mu_interval_95
-    assert lo < mu < hi and (hi - lo) / 2 < 0.02 * mu
-    assert fit.ratio_ka_ks == pytest.approx(shape[0] / shape[1], rel=1e-2)
-    np.testing.assert_allclose(fit.utilisation, FRACTIONS * 0.8, rtol=2e-3)
+    assert lo < mu < hi and (hi - lo) / 2 <= 0.10 * fit.mu
     if not swing:
-        np.testing.assert_allclose(fit.phase_curve(coa), phase, atol=0.01)
+        np.testing.assert_allclose(fit.phase_curve(coa), phase, atol=0.3)
     if known:
+        assert fit.mu == pytest.approx(mu, rel=5e-3)
         assert fit.constant == C
-        assert fit.creep_coefficient([0.0])[0] == pytest.approx(k0, rel=1e-2)
-    elif swing:
-        assert fit.constant == pytest.approx(C, rel=0.02)
+        assert fit.creep_coefficient([0.0])[0] == pytest.approx(k0, rel=1.5e-2)
     else:
-        assert fit.k_relative and fit.creep_coefficient([0.0])[0] == 1.0
+        assert fit.k_relative
 
 
-def test_ignoring_the_swing_misleads():
-    """The modulation's swing raises the top phases (describing-function slope below the
-    small-signal slope); fitted without it mu comes out wrong with a misfit, with it right."""
+def test_swing_is_modelled():
+    """The modulation's swing raises the top phase (describing-function slope below the
+    small-signal slope: +0.5 deg at 86 % on the dry set at V-Track's 8 N*m); with the swing
+    modelled the adhesion is within 0.5 % (measured 0.11 %) and its interval holds the
+    truth. (Left out, the estimate moves by 0.1 % here: within the broad family and its
+    model error the swing matters little at 8 N*m; measured, docs/friction.md.)"""
     coa, phase, a = truth(0.25, DRY, 100.0, 0.86, swing=True)
     _, small, _ = truth(0.25, DRY, 100.0, 0.86)
     assert phase[-1] - small[-1] > 0.3  # [deg], three times the phase noise
-    right = fit_mu_from_phase(coa, phase, np.full(6, 0.1), constant=C, creepage_swing=a)
-    wrong = fit_mu_from_phase(coa, phase, np.full(6, 0.1), constant=C)
-    assert right.mu == pytest.approx(0.25, rel=1e-3) and right.chi2 < 0.01
-    assert wrong.chi2 > 4.0 and abs(wrong.mu_estimate / 0.25 - 1) > 10 * abs(right.mu / 0.25 - 1)
+    right = fit_mu_from_phase(coa, phase, np.full(6, 0.1), constant=C, creepage_swing=a,
+                              speed_m_s=SPEED)
+    assert right.mu == pytest.approx(0.25, rel=5e-3)
+    assert right.mu_interval_95[0] <= 0.25 <= right.mu_interval_95[1]
 
 
 def test_low_utilisation_gives_only_a_lower_bound():
@@ -160,7 +163,10 @@ def test_interval_coverage_monte_carlo():
     (determined) or its lower bound does not exceed it (not determined). Threshold 81 of 90
     (90 %): with a true coverage of 95 % fewer happens with probability
     binom.cdf(80, 90, 0.95) = 2.4 %; a 85 % coverage would pass with probability 11 %.
-    Determined intervals are at most +-10 % wide (the rule), so errors stay within 10 %."""
+    Determined intervals are at most +-10 % wide (the rule), so errors stay within 10 %
+    (measured: 90/90 covered, 29/90 determined, errors median 0.45 %, at most 8.9 %: the
+    broad family of creep laws is honest where the Polach-only fit of earlier versions
+    determined 56/90)."""
     assert binom.cdf(80, 90, 0.95) < 0.03
     rng = np.random.default_rng(2024)
     hits, determined = 0, 0
@@ -179,10 +185,11 @@ def test_interval_coverage_monte_carlo():
             determined += 1
             hits += lo <= mu <= hi
             assert (hi - lo) / 2 <= 0.10 * fit.mu and abs(fit.mu / mu - 1) < 0.10
+            assert lo <= fit.mu <= hi
         else:
             hits += lo <= mu
     assert hits >= 81
-    assert determined >= 45  # dry and wet up to 80-86 % are determined (measured 56/90)
+    assert determined >= 20  # measured 29/90
 
 
 def test_bad_input():

@@ -188,7 +188,8 @@ class FamilyTables:
     the describing-function slope from s at the same mean utilisation (NaN where the
     swing-averaged curve does not reach that utilisation); ``beta_h`` (S,): beta/h0 of the
     falling-friction members (the friction falls as ``exp(-beta_h*x)`` in the reduced
-    creepage x), 0 for the others."""
+    creepage x), 0 for the others; ``falling`` (S,): the member's friction falls with the
+    slip velocity."""
 
     members: tuple[Member, ...]
     f_peak: np.ndarray
@@ -196,6 +197,7 @@ class FamilyTables:
     ds: np.ndarray
     swing: np.ndarray | None
     beta_h: np.ndarray
+    falling: np.ndarray
 
 
 def _small_signal(m: Member) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]:
@@ -270,4 +272,5 @@ def family_tables(swing: bool = False) -> FamilyTables:
     sw = np.array([_swing_rows(r[0], r[1], r[2], r[3]) for r in rows]) if swing else None
     beta_h = np.array([m.params[2] * np.pi / (2.0 * (m.params[0] + 1.0))
                        if m.law == "polach_falling" else 0.0 for m in members])
-    return FamilyTables(members, f_peak, s, ds, sw, beta_h)
+    falling = np.array([m.law == "polach_falling" for m in members])
+    return FamilyTables(members, f_peak, s, ds, sw, beta_h, falling)

@@ -69,6 +69,8 @@ __all__ = ["CHI2_95", "MODEL_REL_ERROR", "AdhesionFit", "fit_available_adhesion"
 
 #: chi-square quantile of one degree of freedom at 95 %
 CHI2_95 = 3.841458820694124
+#: chi-square quantile of two degrees of freedom at 95 %
+CHI2_95_2 = 5.991464547107979
 #: relative model error per point (the family is not every rail): calibrated by cross-fitting
 #: laws outside the family (``benchmarks/friction_coverage.py``, docs/friction.md)
 MODEL_REL_ERROR = 0.01
@@ -453,6 +455,19 @@ def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_r
     chi_min = float(prof[j])
     dof = max(coa.size - 3, 1)
     scale = max(1.0, chi_min / dof) if scale_by_chi2 else 1.0
+    # the estimate: the constant-friction laws are nested in the falling-friction ones (two
+    # more parameters, A and B); unless the fall improves chi2 by more than the 95 % point
+    # of chi2 with two degrees of freedom (the likelihood-ratio test), the best
+    # constant-friction fit gives the estimate. The interval is the whole family's.
+    falling = tabs.falling[pairs[:, 0]] | tabs.falling[pairs[:, 1]]
+    chi_c = np.where(falling[:, None], np.inf, chi)
+    prof_c = chi_c.min(axis=0)
+    if np.isfinite(prof_c).any() and float(prof_c.min()) <= chi_min + CHI2_95_2 * scale:
+        j = int(np.argmin(prof_c))
+        i = int(np.argmin(chi_c[:, j]))
+        est_prof = prof_c
+    else:
+        est_prof = prof
     level = chi_min + CHI2_95 * scale
     inside_cells = chi <= level
     inside = inside_cells.any(axis=0)
@@ -463,7 +478,7 @@ def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_r
     low = c_max if open_low else float(p_grid[lo_i - 1])
     high = math.nan if open_high else float(p_grid[hi_i + 1])
     step = float(p_grid[min(j + 1, p_grid.size - 1)] / p_grid[j])
-    est = float(p_grid[j]) * step ** _vertex(prof, j)
+    est = float(p_grid[j]) * step ** _vertex(est_prof, j)
     # the interval is the hull of the set: gaps inside it come from the family's grid (a
     # smaller set would claim a precision that the grid, not the data, produced)
     closed = not open_low and not open_high
