@@ -29,8 +29,9 @@ Members (the ranges and where they come from)
     and wet rail; a falling-friction fit to the Engel-Beck-Alders locomotive curve gives
     0.42); B from 0.1 to 1 s/m (0.2 wet, 0.6 dry in Polach 2005; 0.8 in that fit) over
     speeds of 1-40 m/s and ``mu0/k0`` of 5e-4..0.024 give beta of about 1e-4..5: the grid
-    covers 0.01..4 (below 0.01 the fall over the rising branch is under a per cent: the
-    constant-friction law). r on a coarser grid over the same range as ``polach``.
+    covers 1e-4..4 (even a slight fall makes a curve that would rise for ever peak, far out
+    where it rises slowly: at a rig's few km/h beta is 1e-4..0.3). r on a coarser grid over
+    the same range as ``polach``.
 ``burckhardt``
     Burckhardt's law (Burckhardt 1993; Kiencke and Nielsen 2000):
     ``CoA = c1*(1 - exp(-c2*xi)) - c3*xi``, normalised ``F(x) = (1 + d)*(1 - exp(-x)) - d*x``
@@ -79,7 +80,7 @@ SWING_A = np.array([0.0, 0.05, 0.1, 0.17, 0.25, 0.35, 0.5, 0.7, 0.95, 1.25, 1.6,
 R_GRID = np.geomspace(0.3, 7.0, 33)
 R_GRID_FALLING = np.geomspace(0.3, 7.0, 9)
 A_GRID = (0.3, 0.45, 0.6, 0.8)
-BETA_GRID = np.geomspace(0.01, 4.0, 8)
+BETA_GRID = np.geomspace(1e-4, 4.0, 10)
 D_GRID = (0.003, 0.01, 0.03, 0.1, 0.3)
 P_GRID = np.geomspace(0.7, 4.0, 9)
 Q_GRID = (0.5, 2.0 / 3.0, 0.8, 1.0, 1.25, 1.5)
