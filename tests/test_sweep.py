@@ -167,8 +167,8 @@ def test_mu_from_phase_judged_against_the_available_adhesion(theory_sweep):
     """mu_friction is Polach's Eq. 9 friction at the creepage x speed of the highest step at
     or below the utilisation limit (recomputed here from the table and the condition's
     parameters); on these falling-friction conditions it lies between the creep curve's
-    peak (mu_true) and mu0. The fit from the phase estimates the available adhesion, so the
-    errors in the summary are taken against the peak, mu_true."""
+    peak (mu_true, the available adhesion) and mu0. The errors in the summary are taken
+    against the available adhesion, the one truth the report names."""
     from torquemod.sweep.spec import conditions
     from torquemod.sweep.summary import point_summary
     out, spec, _ = theory_sweep
