@@ -110,13 +110,15 @@ def draw_law(name: str, rng: np.random.Generator, *, speed_m_s: float):
 
 
 def peak(curve) -> tuple[float, float]:
-    """(xi at the first maximum, the maximum P) by a grid search and golden section."""
-    xi = np.geomspace(1e-7, 2.0, 40001)
+    """(xi at the first maximum, the maximum P) by a grid search and golden section; a curve
+    still rising at xi = 1e3 is saturating and P is its value there. (A slight fall of the
+    friction with the slip velocity puts the peak far out, beyond creepages of 1.)"""
+    xi = np.geomspace(1e-7, 1e3, 80001)
     f = curve(xi)
     df = np.diff(f)
     stop = np.flatnonzero(df <= 0)
-    if stop.size == 0:  # still rising at 2: the supremum (a saturating law)
-        return math.inf, float(curve(np.array([1e3]))[0])
+    if stop.size == 0:  # still rising: the supremum (a saturating law)
+        return math.inf, float(f[-1])
     j = int(stop[0])
     a, b = xi[max(j - 1, 0)], xi[min(j + 1, xi.size - 1)]
     g = (math.sqrt(5) - 1) / 2
@@ -161,7 +163,7 @@ def record(name: str, rng: np.random.Generator, depth: float, *, mode: str,
     speed = RIG["speed_m_s"] if mode == "rig" else rng.uniform(5.0, 40.0)
     curve, desc = draw_law(name, rng, speed_m_s=speed)
     xi_pk, p_true = peak(curve)
-    xi_top = xi_pk if math.isfinite(xi_pk) else 5.0
+    xi_top = xi_pk if math.isfinite(xi_pk) else 1e3
     if mode == "train":
         coa = np.repeat(np.linspace(0.2, depth, 4), 3) * p_true
         coa = coa * (1 + 0.002 * rng.standard_normal(coa.size))
