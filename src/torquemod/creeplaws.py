@@ -75,7 +75,8 @@ N_U = 2001
 #: points of the utilisation grid of the swing tables
 N_U_SWING = 401
 #: the swing amplitudes (reduced creepage a*k0/mu0) of the swing tables
-SWING_A = np.array([0.0, 0.05, 0.1, 0.17, 0.25, 0.35, 0.5, 0.7, 0.95, 1.25, 1.6, 2.0, 2.6, 3.3, 4.2])
+SWING_A = np.array([0.0, 0.05, 0.1, 0.17, 0.25, 0.35, 0.5, 0.7, 0.95, 1.25, 1.6, 2.0, 2.6, 3.3,
+                    4.2])
 
 R_GRID = np.geomspace(0.3, 7.0, 33)
 R_GRID_FALLING = np.geomspace(0.3, 7.0, 9)
