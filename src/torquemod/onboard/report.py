@@ -159,7 +159,8 @@ img{{max-width:100%}}</style></head><body>
 {v.wheel_radius_m} m, axle load {v.normal_load_n:.0f} N, inertia {v.inertia_kg_m2} kg m²;
 modulation {result.run.modulation_frequency_hz} Hz, {result.run.modulation_amplitude_nm} N m.
 torquemod {html.escape(meta['torquemod_version'])}.</p>
-<p>{s['windows']} windows over {s['length_m']:.0f} m; mu determined in
+<p>{s['windows']} windows over {s['length_m']:.0f} m, measurable (the torque modulated,
+the train rolling forward) in {100 * s.get('measurable_share', 1.0):.0f} %; mu determined in
 {100 * s['mu_given_share']:.0f} % of them (elsewhere only a lower bound: the data do not fix
 mu when the axle works far from saturation); low adhesion flagged in
 {100 * s['low_adhesion_share']:.1f} %, slip in {100 * s['slip_share']:.1f} %.</p>

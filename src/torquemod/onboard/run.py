@@ -6,6 +6,7 @@ estimator, written as ``track.parquet`` (one row per window, :data:`TRACK_COLUMN
 from __future__ import annotations
 
 import json
+import math
 import time
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -14,7 +15,7 @@ from pathlib import Path
 from .._version import __version__
 from ..blas import single_blas
 from ..errors import InputError
-from ..fsutil import atomic_dir, sha256_file
+from ..fsutil import atomic_dir, check_output_dir, sha256_file
 from ..io.run import Run, RunRecording, read_run
 from ..jsonutil import dump_json
 from ..provenance import software_versions
@@ -30,6 +31,15 @@ from .chunks import (  # noqa: F401  (the fleet's chunk tasks: torquemod.fleetta
     plan_axle_chunks,
 )
 from .estimator import TRACK_COLUMNS, OnboardConfig
+from .quality import (
+    QUALITY_OK,
+    REASONS,
+    modulation_line_hz,
+    quality_warnings,
+    reference_rate_hz,
+    stepping,
+    without_line_nearby,
+)
 
 
 @dataclass
@@ -45,11 +55,16 @@ class OnboardResult:
     seconds: float = 0.0
     n_fits: int = 0
     truth: object | None = None
+    #: what the user must know: stretches of track without the method's premise, a run too
+    #: short for a friction estimate (:func:`premise_warnings`)
+    warnings: list[str] = field(default_factory=list)
 
     def summary(self) -> dict:
         t = self.track
         given = t["mu"].notna()
+        ok = t["quality"] == QUALITY_OK if "quality" in t else given | True
         out = {"axle": self.axle, "windows": len(t), "mu_given_share": float(given.mean()),
+               "measurable_share": float(ok.mean()) if len(t) else 0.0,
                "low_adhesion_share": float(t["low_adhesion"].mean()),
                "slip_share": float(t["slip"].mean()), "mu_fits": self.n_fits,
                "seconds": self.seconds,
@@ -80,8 +95,16 @@ def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = 
         signals = _AxleSignals(run, entry, stream.channels, stream.fs_hz, notes)
         est = axle_estimator(run, stream, config)
         step = max(1, round(chunk_s * stream.fs_hz))
+        first = None  # the first chunk's torque: which line it has, if not the declared
+        coarse = None  # a note when the reference speed updates too rarely
         for a, ch in stream.chunks(step):
-            rows = est.feed(*signals(ch, a, stream.t0_s))
+            sig = signals(ch, a, stream.t0_s)
+            if first is None:
+                first = sig[0]
+                check_modulation_line(run, first, stream.fs_hz, config)
+                coarse = coarse_reference(sig[2], stream.fs_hz, est.n_win / stream.fs_hz,
+                                          entry.axle)
+            rows = est.feed(*sig)
             if rows:
                 frames.append(pd.DataFrame(rows))
     track = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
@@ -89,9 +112,77 @@ def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = 
         raise InputError("the recording is shorter than one estimator window",
                          path=entry.path, hint="record longer or shorten [onboard] "
                          "window_periods")
+    track, warnings = premise_warnings(run, entry, track, config, first, stream.fs_hz)
+    warnings += [coarse] if coarse else []
     return OnboardResult(run, entry.axle, track, config, notes,
                          time.perf_counter() - t_start, est.tracker.n_fits,
-                         truth=load_truth(run))
+                         truth=load_truth(run), warnings=warnings)
+
+
+def coarse_reference(speed_m_s, fs_hz: float, window_s: float, axle: int) -> str | None:
+    """A warning when the reference speed (a stretch of it at ``fs_hz`` [Hz]) changes
+    course less than twice per window of ``window_s`` [s]: the windows' speed and
+    acceleration, hence creepage and the slip flag, are then coarse."""
+    rate = reference_rate_hz(speed_m_s, fs_hz)
+    if 0.0 < rate < 2.0 / window_s:
+        return (f"axle {axle}: the reference speed is updated only about {rate:.2g} times a "
+                f"second, less than twice per {window_s:.3g} s window: creepage, "
+                "acceleration and the slip flag are coarse (record the reference faster)")
+    return None
+
+
+def check_modulation_line(run: Run, torque_nm, fs_hz: float, config: OnboardConfig) -> None:
+    """Refuse a run whose torque (``torque_nm`` at ``fs_hz`` [Hz], e.g. its first 30 s) has
+    its modulation line at another frequency than run.toml declares
+    (:func:`~torquemod.onboard.quality.modulation_line_hz`)."""
+    f = run.modulation_frequency_hz
+    found = modulation_line_hz(torque_nm, fs_hz, f,
+                               config.min_modulation_ratio * run.modulation_amplitude_nm)
+    if found is not None:
+        raise InputError(f"the torque's modulation line is at {found:.3g} Hz, not at the "
+                         f"declared test.modulation_frequency_hz = {f:g} Hz",
+                         path=run.manifest_path, hint="correct [test] modulation_frequency_hz")
+
+
+def premise_warnings(run: Run, entry: RunRecording, track, config: OnboardConfig,
+                     torque_nm=None, fs_hz: float | None = None):
+    """``(track, warnings)``: the axle's track with the torque-stepping windows judged by
+    their neighbours (:func:`~torquemod.onboard.quality.without_line_nearby`), and the
+    warnings about the method's premise (:mod:`torquemod.onboard.quality`): the stretches
+    without it, and a run with fewer measurable windows than the friction fit needs. No
+    measurable window at all raises :class:`InputError` (as ``process`` refuses a recording
+    without a modulation line), naming the line the torque has instead when ``torque_nm``
+    (a stretch of the axle's torque at ``fs_hz`` [Hz]) shows one."""
+    f = run.modulation_frequency_hz
+    q = without_line_nearby(track["quality"].to_numpy(object), ~stepping(
+        track["dc_step_nm"], run.modulation_amplitude_nm, config.max_dc_step_ratio))
+    lost = q != track["quality"].to_numpy(object)
+    if lost.any():
+        track = track.copy()
+        track.loc[lost, ["phase_deg", "phase_se_deg", "creep_coefficient", "mu", "mu_low_95",
+                         "mu_high_95", "utilisation", "creepage",
+                         "creep_coefficient_ref"]] = math.nan
+        track.loc[lost, ["low_adhesion", "slip"]] = False
+        track["quality"] = q
+    n_ok = int((q == QUALITY_OK).sum())
+    if n_ok == 0:
+        flags = {k: int((q == k).sum()) for k in REASONS}
+        worst = max(flags, key=flags.get)
+        what = REASONS[worst].replace("the declared frequency", f"{f:g} Hz")
+        hint = {"no_modulation": "record with the torque modulation on, or check [test] "
+                                 "modulation_frequency_hz and modulation_amplitude_nm",
+                "standstill": "record while the train runs (at least [onboard] "
+                              f"min_speed_m_s = {config.min_speed_m_s:g} m/s)",
+                "reverse": "the method needs forward running; if the run went forward, "
+                           "the speed channels' sign is wrong"}[worst]
+        raise InputError(f"no window of axle {entry.axle} can be measured: {what} "
+                         f"({flags[worst]} of {q.size} windows)", path=entry.path, hint=hint)
+    out = quality_warnings(track["position_m"], q, axle=entry.axle, frequency_hz=f)
+    if n_ok < config.min_windows:
+        out.append(f"axle {entry.axle}: only {n_ok} measurable windows, fewer than the "
+                   f"{config.min_windows} the friction fit needs ([onboard] min_windows): "
+                   "the run is too short for a friction estimate (mu stays empty)")
+    return track, out
 
 
 def load_truth(run: Run):
@@ -112,6 +203,7 @@ def track_table(result: OnboardResult):
     t = result.track[list(TRACK_COLUMNS)].copy()
     t["low_adhesion"] = t["low_adhesion"].astype(bool)
     t["slip"] = t["slip"].astype(bool)
+    t["quality"] = t["quality"].astype(str)
     return t
 
 
@@ -133,7 +225,8 @@ def _write(folder: Path, results: list[OnboardResult], command: list[str] | None
                     "recordings": [{"file": str(e.path), "axle": e.axle,
                                     "sha256": sha256_file(e.path)} for e in run.recordings]},
             "onboard": results[0].config.to_dict(),
-            "axles": [dict(r.summary(), notes=r.notes) for r in results]}
+            "axles": [dict(r.summary(), notes=r.notes, warnings=r.warnings)
+                      for r in results]}
     for r in results:
         name = "track.parquet" if r is results[0] else f"track_axle{r.axle}.parquet"
         table = pa.Table.from_pandas(track_table(r), preserve_index=False)
@@ -155,6 +248,7 @@ def run_onboard(run_path: str | Path, out_dir: str | Path, *, force: bool = Fals
     ``out_dir`` atomically (nothing is left behind on an error)."""
     run = read_run(run_path)
     inputs = [run.manifest_path, *(e.path for e in run.recordings)]
+    check_output_dir(out_dir, force=force, inputs=inputs)  # an occupied --out: before work
     results = [estimate_axle(run, e, config) for e in run.recordings]
     with atomic_dir(Path(out_dir), force=force, inputs=inputs, kind="onboard") as tmp:
         _write(tmp, results, command)
