@@ -80,7 +80,10 @@ class Analysis:
     None with ``phase_fit_skipped``), ``theory`` the rigid-wheel check, ``onset`` the
     saturation onset, ``steps`` the steps table with the analysis columns, ``used`` which of
     ``points`` entered the Polach fit (not slipping), ``options`` the
-    :class:`~torquemod.analysis.FitOptions`. Torques [N*m], loads [N], radii [m].
+    :class:`~torquemod.analysis.FitOptions`. ``saturation_torque_nm`` is ``Ts = mu*N*Rw`` with
+    the mu named by ``saturation_torque_source`` ("forces", "phase"; None when neither fit
+    determines mu); it is the one Ts of every table and figure. Torques [N*m], loads [N],
+    radii [m].
     """
 
     options: object
@@ -105,6 +108,7 @@ class Analysis:
     created_utc: str = ""
     source: dict = field(default_factory=dict)
     name: str = ""
+    saturation_torque_source: str | None = None  # "forces", "phase" or None
 
     # --- headline numbers -------------------------------------------------------------------
     @property
@@ -193,6 +197,7 @@ class Analysis:
             **fit_dict,
             "saturation_torque_nm": self.saturation_torque_nm,
             "saturation_torque_stderr_nm": self.saturation_torque_stderr_nm,
+            "saturation_torque_source": self.saturation_torque_source,
             "normal_load_n": self.normal_load_n, "wheel_radius_m": self.wheel_radius_m,
             "theory": theory, "onset": self.onset.to_dict(), "steps": self.step_records(),
             "warnings": list(self.warnings),
@@ -214,6 +219,7 @@ class Analysis:
             "fit_skipped": self.polach_skipped, **phase_keys(self.phase_fit),
             "saturation_torque_nm": self.saturation_torque_nm,
             "saturation_torque_stderr_nm": self.saturation_torque_stderr_nm,
+            "saturation_torque_source": self.saturation_torque_source,
             "onset_step": self.onset.step, "theory_mode": self.theory.mode,
             "theory_rms_deg": theory["rms_difference_deg"],
             "theory_max_deg": theory["max_abs_difference_deg"], "converged": self.converged,
@@ -226,11 +232,14 @@ class Analysis:
         lines = [f"[[Analysis]] {self.name}: {len(self.points)} steps "
                  f"({int(self.used.sum())} in the force fit)"]
         lines += ["  " + line for line in headline_lines(self)]
+        shown = set()  # each warning once: the fits' own reports list theirs
         if self.polach is not None:
             lines.append(self.polach.report())
+            shown.update(self.polach.warnings)
         if self.phase_fit is not None:
             lines.append(self.phase_fit.report())
-        lines += [f"WARNING: {w}" for w in self.warnings]
+            shown.update(f"mu from the phase: {w}" for w in self.phase_fit.warnings)
+        lines += [f"WARNING: {w}" for w in self.warnings if w not in shown]
         return "\n".join(lines)
 
     def __repr__(self) -> str:
@@ -285,8 +294,10 @@ def headline_lines(ana: Analysis) -> list[str]:
     pf = ana.phase_fit
     if pf is not None and pf.mu_determined:
         lo, hi = pf.mu_interval_95
+        ts = (f"; saturation torque Ts = {ana.saturation_torque_nm:.2f} N*m"
+              if ana.saturation_torque_source == "phase" else "")
         out.append(f"available adhesion from the phase: {pf.mu:.4f} (95 % interval {_f(lo)} "
-                   f".. {_f(hi)})")
+                   f".. {_f(hi)}){ts}")
     elif pf is not None:
         a = pf.adhesion
         rng = f" (95 % range {_f(a.low)} .. {_f(a.high)})" if a.closed else ""
