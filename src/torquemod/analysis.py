@@ -358,8 +358,11 @@ def _phase_fit(steps_df: pd.DataFrame, pts, use: np.ndarray, constant,
         c = measured_constant(steps_df, use, wheel_radius_m=measured_c[0],
                               normal_load_n=measured_c[1])
     try:
+        speed = _step_column(steps_df, "speed_m_s")
         res = fit_mu_from_phase(coa[use], pts.phase_deg[use], se[use], constant=c,
-                                creepage_swing=None if swing is None else swing[use])
+                                creepage_swing=None if swing is None else swing[use],
+                                speed_m_s=None if speed is None
+                                else float(np.nanmedian(np.abs(speed[use]))))
     except (InputError, ProcessingError) as exc:
         return None, str(exc)
     return res, ""

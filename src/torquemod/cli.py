@@ -310,8 +310,9 @@ def _why_they_differ(out: dict, truth: dict) -> str:
     """Why the fitted mu is not the simulator's peak CoA, in the numbers of this run."""
     if out.get("mu") is not None:
         head = f"why mu from the forces ({out['mu']:.4f}) differs"
-    elif out.get("mu_from_phase") is not None:
-        head = f"why mu from the phase ({out['mu_from_phase']:.4f}) differs"
+    elif out.get("mu_from_phase") is not None:  # the fit from the phase estimates the peak
+        return (f"the available adhesion from the phase ({out['mu_from_phase']:.4f}) "
+                f"estimates the creep curve's peak CoA ({truth['peak_coa']:.4f}) itself.")
     else:  # neither fit determines mu: only a lower bound is known, the higher of the two
         bounds = [b for b in (out.get("mu_lower_bound"),
                               (out.get("mu_from_phase_interval_95") or [None])[0])
