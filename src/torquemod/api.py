@@ -1,12 +1,19 @@
 """The library's face and the one orchestrator behind the CLI and the demo.
 
-Stages, joined in memory::
+Stages, joined in memory (the rig)::
 
     exp = read_experiment("experiment.toml")   # Experiment; exp.processing: [processing]
     res = process(exp, phase_method="sinefit") # ProcessResult (tables, details, traces)
     ana = analyze(res)                         # Analysis (Polach fit, mu from the phase, ...)
     save(res, ana, "results/")                 # the results folder, atomically
     res, ana = load("results/")                # ... and back
+
+and the train::
+
+    run = read_run("run.toml")                 # Run: [vehicle], [test], recordings
+    ob = onboard(run)                          # OnboardResult (track, along_track(), ...)
+    ob.save("onboard/")                        # the results folder, atomically
+    ob = load_onboard("onboard/")              # ... and back
 
 :func:`run`, :func:`fit_folder` and :func:`report_folder` are what ``torquemod process``,
 ``fit`` and ``report`` do; they report their stages through an optional ``on_stage(text)``
@@ -29,8 +36,8 @@ from .errors import OutputError
 from .layout import load, save, update
 from .pipeline import ProcessResult, process_experiment, resolve_config
 
-__all__ = ["RunOutcome", "analyze", "fit_folder", "load", "process", "read_experiment",
-           "report_folder", "run", "save"]
+__all__ = ["RunOutcome", "analyze", "fit_folder", "load", "load_onboard", "onboard",
+           "process", "read_experiment", "read_run", "report_folder", "run", "save"]
 
 Stage = Callable[[str], object] | None
 
@@ -58,6 +65,73 @@ def process(experiment, config: ProcessingConfig | None = None, *,
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
     cfg = resolve_config(exp, config, phase_method=phase_method, nan_policy=nan_policy)
     return process_experiment(exp, config=cfg, progress=progress, workers=workers)
+
+
+def read_run(path):
+    """Read a train run manifest (``run.toml`` or its folder): a
+    :class:`~torquemod.io.run.Run`. Its ``[onboard]`` table is checked now."""
+    from .io.run import read_run as _read_run
+    from .onboard.estimator import OnboardConfig
+    run = _read_run(path)
+    OnboardConfig.from_dict(run.extra.get("onboard"), source=str(run.manifest_path))
+    return run
+
+
+def onboard(run, *, axle: int | None = None, config=None, **options):
+    """The friction along a train run: one axle through the on-board estimator.
+
+    Parameters
+    ----------
+    run : Run or path
+        A :class:`~torquemod.io.run.Run` (:func:`read_run`) or its manifest's path.
+    axle : int, optional
+        Which ``[[recording]] axle``; may be left out when the run records one axle.
+    config : OnboardConfig or dict, optional
+        The estimator's settings; default the run's ``[onboard]`` table.
+    **options
+        Single settings over either (the keys of ``[onboard]``, e.g. ``hop_s=0.5``).
+
+    Returns
+    -------
+    OnboardResult
+        The axle's track (``to_frame()``, ``along_track()``), ``report()``, ``plot_*``,
+        ``save(folder)`` (what ``torquemod onboard`` writes).
+    """
+    from .errors import InputError
+    from .io.run import Run
+    from .onboard.estimator import OnboardConfig
+    from .onboard.run import estimate_axle
+    run = run if isinstance(run, Run) else read_run(run)
+    if isinstance(config, dict) or config is None:
+        base = dict(run.extra.get("onboard") or {}) if config is None else dict(config)
+        cfg = OnboardConfig.from_dict({**base, **options}, source=str(run.manifest_path)
+                                      if config is None else "config")
+    elif isinstance(config, OnboardConfig):
+        cfg = OnboardConfig.from_dict({**config.to_dict(), **options}, source="config") \
+            if options else config
+    else:
+        raise InputError(f"config must be an OnboardConfig or a dict, got "
+                         f"{type(config).__name__}")
+    axles = [e.axle for e in run.recordings]
+    if axle is None:
+        if len(axles) > 1:
+            raise InputError(f"{run.manifest_path}: the run records axles {axles}",
+                             hint="choose one with axle=")
+        entry = run.recordings[0]
+    else:
+        entry = next((e for e in run.recordings if e.axle == axle), None)
+        if entry is None:
+            raise InputError(f"{run.manifest_path}: no axle {axle!r}; the run records axles "
+                             f"{axles}")
+    return estimate_axle(run, entry, cfg)
+
+
+def load_onboard(folder, axle: int | None = None):
+    """Read an on-board results folder back (:meth:`OnboardResult.save` or ``torquemod
+    onboard``): the :class:`~torquemod.onboard.OnboardResult` of ``axle`` (the first when
+    None)."""
+    from .onboard.folder import load_onboard as _load
+    return _load(folder, axle)
 
 
 @dataclass

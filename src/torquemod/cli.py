@@ -121,19 +121,26 @@ def cmd_simulate_train(args: argparse.Namespace, config) -> int:
 
 
 def cmd_onboard(args: argparse.Namespace) -> int:
-    from .onboard import run_onboard
+    from . import api
+    from .export import check_formats
+    from .onboard.folder import save_onboard
+    export = check_formats(args.export)  # a bad format is refused before the work
     say = _stage_printer(args)
+    run = api.read_run(args.run)
     if say:
         say("estimating the friction along the run ...")
-    results = run_onboard(args.run, Path(args.out), force=args.force,
-                          command=sys.argv)
+    results = [api.onboard(run, axle=e.axle) for e in run.recordings]
+    save_onboard(results, Path(args.out), force=args.force, command=sys.argv, export=export)
     for r in results:
         s = r.summary()
         print(f"axle {s['axle']}: {s['windows']} windows over {s['length_m']:.0f} m, mu "
               f"determined in {100 * s['mu_given_share']:.0f} % (elsewhere a lower bound), "
               f"low adhesion {100 * s['low_adhesion_share']:.1f} %, slip "
               f"{100 * s['slip_share']:.1f} %; {s['seconds']:.1f} s")
-    print(f"track:  {Path(args.out) / 'track.parquet'}")
+    print(f"track:  {Path(args.out) / 'track.parquet'}"
+          + (f" (also as {', '.join('track.' + f for f in export)})" if export else ""))
+    print(f"along the track: {Path(args.out) / 'along_track.csv'} (per segment), "
+          "along_track_km.csv (per km)")
     print(f"report: {Path(args.out) / 'report.html'}")
     return 0
 
@@ -364,6 +371,9 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--out", required=True, help="results folder to create")
     o.add_argument("--force", action="store_true", help="replace an existing results folder")
     o.add_argument("--quiet", action="store_true", help="no stage lines")
+    o.add_argument("--export", default="", metavar="FORMATS",
+                   help="also write the tracks as csv and/or mat (MATLAB), comma-separated, "
+                        "beside track.parquet")
     o.set_defaults(func=cmd_onboard)
 
     f = sub.add_parser("fit", parents=[common], help=(
