@@ -164,8 +164,11 @@ def _refuse_inputs(out, inputs) -> None:
 def run(experiment, out, *, config: ProcessingConfig | None = None,
         phase_method: str | None = None, nan_policy: str | None = None, fit: bool = True,
         fit_options=None, report_options=None, force: bool = False, progress: bool = False,
-        command: list[str] | None = None, on_stage: Stage = None) -> RunOutcome:
-    """process -> analyze -> save (with the report): ``torquemod process``."""
+        command: list[str] | None = None, on_stage: Stage = None, export=()) -> RunOutcome:
+    """process -> analyze -> save (with the report): ``torquemod process``; ``export``:
+    the cycles and steps tables also as MATLAB ``mat`` and/or ``parquet``."""
+    from .export import check_formats
+    export = check_formats(export)  # a bad format is refused before the work
     say = on_stage or (lambda _text: None)
     t0 = time.perf_counter()
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
@@ -186,7 +189,7 @@ def run(experiment, out, *, config: ProcessingConfig | None = None,
         if fit:
             say("writing the results folder with figures and report.html ...")
         folder = save(res, ana, out, force=force, inputs=_inputs(exp), command=command,
-                      report=fit, report_options=report_options)
+                      report=fit, report_options=report_options, export=export)
     t3 = time.perf_counter()
     return RunOutcome(res, ana, Path(folder), Path(folder) / "report.html" if fit else None,
                       {"process": t1 - t0, "fit": t2 - t1, "write": t3 - t2, "total": t3 - t0})

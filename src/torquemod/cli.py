@@ -70,7 +70,8 @@ def cmd_process(args: argparse.Namespace) -> int:
 
     out = run(args.experiment, args.out, phase_method=args.phase_method,
               nan_policy=args.nan_policy, fit=not args.no_fit, force=args.force,
-              progress=not args.quiet, command=sys.argv, on_stage=_stage_printer(args))
+              progress=not args.quiet, command=sys.argv, on_stage=_stage_printer(args),
+              export=args.export)
     res, ana = out.result, out.analysis
     _print_warnings(res.warnings + (ana.warnings if ana is not None else []))
     _print_steps(ana.steps if ana is not None else res.steps)
@@ -349,6 +350,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--force", action="store_true", help="replace an existing results folder")
     q.add_argument("--no-fit", action="store_true", help="skip the fit and report stages")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.add_argument("--export", default="", metavar="FORMATS",
+                   help="also write cycles and steps as mat (MATLAB) and/or parquet, "
+                        "comma-separated, beside cycles.csv and steps.csv")
     q.set_defaults(func=cmd_process)
 
     s = sub.add_parser("simulate", parents=[common],
@@ -419,8 +423,10 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=cmd_demo)
 
     c = sub.add_parser("convert", parents=[common],
-                       help="write a recording (or experiment) as HDF5", epilog=(
-                           "examples: 'torquemod convert run1.tdms --out run1.h5'; "
+                       help="write a recording as HDF5, Parquet, .mat or CSV (an "
+                            "experiment as HDF5)", epilog=(
+                           "examples: 'torquemod convert run1.tdms --out run1.h5' (or "
+                           "run1.parquet, run1.mat, run1.csv: the suffix chooses); "
                            "'torquemod convert logger.mat --manifest experiment.toml --out "
                            "logger.h5' (read with the manifest's [channels]); 'torquemod "
                            "convert --manifest experiment.toml --out converted/' (every "
@@ -431,7 +437,8 @@ def build_parser() -> argparse.ArgumentParser:
         "group and sample rate); without INPUT, convert the whole experiment into the folder "
         "--out"))
     c.add_argument("--out", required=True,
-                   help="output .h5 file (or folder, for a whole experiment)")
+                   help="output .h5, .parquet, .mat or .csv file (or folder, for a whole "
+                        "experiment)")
     c.add_argument("--force", action="store_true", help=(
         "replace an existing output (a folder only if torquemod wrote it; never an input)"))
     c.set_defaults(func=cmd_convert)

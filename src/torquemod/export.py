@@ -1,6 +1,6 @@
-"""Result tables in further formats beside the ones a results folder always holds: CSV and
-MATLAB ``.mat`` (``--export csv,mat`` on ``torquemod process`` and ``onboard``; ``export=``
-in the API).
+"""Result tables in further formats beside the ones a results folder always holds (the
+rig's CSV, the train's Parquet): CSV, Parquet and MATLAB ``.mat`` (``--export csv,mat`` on
+``torquemod process`` and ``onboard``; ``export=`` in the API).
 
 A ``.mat`` file (MATLAB 5 format, :func:`scipy.io.savemat`) holds one struct named after the
 table whose fields are its columns, each a column vector: ``load track.mat`` gives
@@ -22,7 +22,7 @@ from .errors import InputError
 __all__ = ["EXPORT_FORMATS", "check_formats", "mat_name", "write_table"]
 
 #: the formats :func:`write_table` writes, with their file suffixes
-EXPORT_FORMATS = {"csv": ".csv", "mat": ".mat"}
+EXPORT_FORMATS = {"csv": ".csv", "mat": ".mat", "parquet": ".parquet"}
 
 
 def check_formats(formats) -> tuple[str, ...]:
@@ -40,8 +40,7 @@ def check_formats(formats) -> tuple[str, ...]:
             continue
         if name not in EXPORT_FORMATS:
             raise InputError(f"unknown export format {f!r}",
-                             hint=f"choose from {', '.join(EXPORT_FORMATS)} "
-                             "(Parquet is always written)")
+                             hint=f"choose from {', '.join(EXPORT_FORMATS)}")
         if name not in out:
             out.append(name)
     return tuple(out)
@@ -76,6 +75,8 @@ def write_table(frame, base: Path, fmt: str, *, name: str | None = None) -> Path
     path = Path(str(base) + EXPORT_FORMATS[fmt])
     if fmt == "csv":
         frame.to_csv(path, index=False)
+    elif fmt == "parquet":
+        frame.to_parquet(path, index=False)
     else:
         from scipy.io import savemat
         struct = {}

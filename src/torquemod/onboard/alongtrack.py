@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 
 __all__ = ["CONDITIONS", "DRY_MIN", "STRETCH_COLUMNS", "WET_MIN", "along_track",
-           "guess_condition", "stretch_bounds"]
+           "guess_condition", "run_mu_summary", "stretch_bounds", "summarise"]
 
 #: the class limit between wet and dry rail [-]: midway between the wet range's top (0.22)
 #: and the dry range's bottom (0.30) of the service ranges (module docstring)
@@ -146,3 +146,24 @@ def along_track(track: pd.DataFrame, *, changes_m=(), by: str = "segment",
         rows.append({"stretch": len(rows) + 1, "start_m": a, "end_m": b,
                      **summarise(track[inside])})
     return pd.DataFrame(rows, columns=list(STRETCH_COLUMNS))
+
+
+def run_mu_summary(track: pd.DataFrame) -> tuple[float | None, float | None]:
+    """A train run's ``mu`` and ``mu_lower_bound`` summary fields from its windows.
+
+    ``mu`` is the median of μ over the windows where it is determined (None when nowhere).
+    ``mu_lower_bound`` summarises the same windows where μ is determined: the median of
+    their 95 % intervals' lower ends, so it never exceeds ``mu`` (each window's lower end
+    is at most its μ); where μ is determined nowhere, the lower bound of the whole run, the
+    95th percentile of the windows' bounds (module docstring: the maximum is
+    reached by single windows straddling a friction change). A row mixing
+    friction levels would otherwise set a μ from one stretch beside a bound from another.
+    """
+    if not len(track):
+        return None, None
+    s = summarise(track)
+    if math.isfinite(s["mu"]):
+        low = s["mu_low_95"]
+        return s["mu"], (low if math.isfinite(low) else None)
+    bound = s["mu_lower_bound"]
+    return None, (bound if math.isfinite(bound) else None)

@@ -79,7 +79,8 @@ def write_onboard(folder: Path, results: list[OnboardResult], *,
                                                b"torquemod": stamp})
         pq.write_table(table, folder / f"{name}.parquet")
         for fmt in formats:
-            write_table(frame, folder / name, fmt, name="track")
+            if fmt != "parquet":  # written above, with its metadata
+                write_table(frame, folder / name, fmt, name="track")
         stretch = track_name(results, r, "along_track")
         r.along_track().to_csv(folder / f"{stretch}.csv", index=False)
         r.along_track("km").to_csv(folder / f"{stretch}_km.csv", index=False)

@@ -1,5 +1,6 @@
-"""Figures of a sweep (matplotlib; every function takes ``ax=`` and returns the Figure, as
-:mod:`torquemod.report.figures` does, never ``plt.show``).
+"""Figures of a sweep (matplotlib; every function takes ``ax=`` and returns it, or draws on
+a new Figure (not pyplot) and returns its Axes, as :mod:`torquemod.report.figures` does;
+never ``plt.show``).
 
 * :func:`phase_family_figure` -- phase against utilisation, one curve per value of a swept
   parameter, the other swept parameters at their reference values (the paper's Fig. 4 as a
@@ -91,21 +92,21 @@ def _draw_family(ax, sub: pd.DataFrame, param: str) -> None:
     ax.legend(fontsize=7, loc="upper left")
 
 
-def phase_family_figure(table: pd.DataFrame, param: str, swept, *, ax=None) -> Figure:
+def phase_family_figure(table: pd.DataFrame, param: str, swept, *, ax=None):
     """Phase against utilisation for each value of ``param`` (lines: large-signal theory;
     markers with 95 % bars: the chain, full mode), the other swept parameters at their
     reference values; the band of the sensitivity shaded."""
-    fig, ax = _axes(ax)
+    _fig, ax = _axes(ax)
     sub = reference_slice(table, (param,), swept)
     _draw_family(ax, sub, param)
     fixed = _fixed_text(sub, (param,), swept)
     ax.set_title(f"phase vs utilisation by {_label(param)}" + (f"\n({fixed})" if fixed else ""),
                  fontsize=9)
-    return fig
+    return ax
 
 
 def phase_panels_figure(table: pd.DataFrame, panel: str, curve: str, swept, *,
-                        ax=None) -> Figure:
+                        ax=None):
     """One panel per value of ``panel`` (e.g. the friction condition), in each the phase
     against utilisation for every value of ``curve`` (e.g. the modulation frequency)."""
     values = list(dict.fromkeys(table[panel].astype(str)))
@@ -128,7 +129,7 @@ def phase_panels_figure(table: pd.DataFrame, panel: str, curve: str, swept, *,
     fixed = _fixed_text(reference_slice(table, (panel, curve), swept), (panel, curve), swept)
     if fixed:
         fig.suptitle(f"phase vs utilisation ({fixed})", fontsize=10)
-    return fig
+    return axes if ax is None else ax
 
 
 _MARKERS = "osD^vPXh*p"
@@ -169,10 +170,10 @@ def _x_axis(ax, summary, param):
     return dict(zip(summary.index, x, strict=True))
 
 
-def sensitivity_figure(summary: pd.DataFrame, param: str, swept, *, ax=None) -> Figure:
+def sensitivity_figure(summary: pd.DataFrame, param: str, swept, *, ax=None):
     """The slope dphi/du of the phase over the 50-80 % utilisation band [deg per %] against
     ``param``: large-signal theory (lines) and the chain (markers, full mode)."""
-    fig, ax = _axes(ax)
+    _fig, ax = _axes(ax)
     xs = _x_axis(ax, summary, param)
     series, proxies = _series(summary, param, swept)
     for g, color, k in series:
@@ -187,15 +188,15 @@ def sensitivity_figure(summary: pd.DataFrame, param: str, swept, *, ax=None) -> 
     ax.grid(True, alpha=0.3)
     if proxies:
         ax.legend(handles=proxies, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    return fig
+    return ax
 
 
-def mu_error_figure(summary: pd.DataFrame, param: str, swept, *, ax=None) -> Figure:
+def mu_error_figure(summary: pd.DataFrame, param: str, swept, *, ax=None):
     """mu from the phase (steps below the utilisation limit) relative to the true mu [%]
     against ``param``: filled markers with the 95 % interval where mu is determined, open
     markers at the lower bound where it is not (series side by side)."""
     from matplotlib.lines import Line2D
-    fig, ax = _axes(ax)
+    _fig, ax = _axes(ax)
     xs = _x_axis(ax, summary, param)
     series, proxies = _series(summary, param, swept)
     span = np.ptp(list(xs.values())) if _is_numeric(summary[param]) else len(set(xs.values()))
@@ -221,16 +222,16 @@ def mu_error_figure(summary: pd.DataFrame, param: str, swept, *, ax=None) -> Fig
                           label="lower bound (mu not determined)"))
     # outside the axes: inside, it covered markers of the example sweep (issue 12 audit)
     ax.legend(handles=proxies, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    return fig
+    return ax
 
 
 def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None,
                        ripple_label: str = "torque ripple [% of Ts]",
                        title: str = "disturbance added by the modulation (largest below the "
-                                    "utilisation limit; dashed: limits)") -> Figure:
+                                    "utilisation limit; dashed: limits)"):
     """Per modulation setting the largest creepage swing amplitude and torque ripple [% of
     the saturation torque] below the utilisation limit, with the limits dashed."""
-    fig, axes = _axes(ax, 2, figsize=(7.0, 5.5))
+    _fig, axes = _axes(ax, 2, figsize=(7.0, 5.5))
     label = [f"{f:.3g} Hz\n{a:.3g} N*m" for f, a in zip(
         settings["modulation_frequency_nominal_hz"], settings["modulation_amplitude_nm"],
         strict=True)]
@@ -243,4 +244,4 @@ def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None,
     axes[1].set_ylabel(ripple_label)
     axes[1].set_xticks(x, label, fontsize=7)
     axes[0].set_title(title, fontsize=9)
-    return fig
+    return axes if ax is None else ax

@@ -15,7 +15,7 @@ import pandas as pd
 
 from .._version import __version__
 from ..fsutil import write_atomic
-from ..report.figures import save_figure
+from ..report.figures import figure_of, save_figure
 from ..report.html import CSS, _img, table
 from . import figures as F
 from .spec import CONDITION_KEY, SweepSpec
@@ -35,7 +35,7 @@ _STEP_COLUMNS = ("point_index", "seed", "step", "dc_torque_nm", "utilisation", "
 
 def _png(fig) -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
+    figure_of(fig).savefig(buf, format="png", dpi=110)
     return buf.getvalue()
 
 

@@ -28,7 +28,7 @@ from matplotlib.figure import Figure
 
 from .._version import __version__
 from ..fsutil import write_atomic
-from ..report.figures import save_figure
+from ..report.figures import figure_of, save_figure
 from ..report.html import CSS, _img, table
 from .spec import SweepSpec
 from .trainpoint import BANDS, band_name
@@ -321,7 +321,7 @@ _ROW_COLUMNS = ("point_index", "seed", "segment", "condition", "modulation_frequ
 
 def _png(fig) -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
+    figure_of(fig).savefig(buf, format="png", dpi=110)
     return buf.getvalue()
 
 
