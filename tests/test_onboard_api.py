@@ -241,3 +241,9 @@ def test_convert_to_parquet_mat_csv(tmp_path, suffix):
     assert back.fs_hz == pytest.approx(1000.0, rel=rtol)
     for k, v in rec.channels.items():
         np.testing.assert_allclose(back.channels[k], v, rtol=rtol, atol=rtol * 4000)
+
+
+def test_rig_load_points_an_onboard_folder_to_load_onboard(result, tmp_path):
+    result.save(tmp_path / "ob")
+    with pytest.raises(InputError, match="load_onboard"):
+        tm.load(tmp_path / "ob")

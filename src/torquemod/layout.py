@@ -217,6 +217,9 @@ def _read_state(path: Path) -> dict:
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
+        if (path.parent / "onboard.json").exists():
+            raise InputError("an on-board (train) results folder, not a rig one", path=path,
+                             hint="read it with tm.load_onboard(folder)") from None
         raise InputError("not a torquemod results folder: result.json is missing", path=path,
                          hint="run 'torquemod process EXPERIMENT --out FOLDER' (folders "
                          "written by torquemod before 0.2 need processing again)") from None

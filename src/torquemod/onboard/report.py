@@ -15,12 +15,13 @@ import numpy as np
 
 from ..report.html import CSS, _img, _kv, table
 
-#: legends beside the data, outside the axes
-_LEGEND = {"loc": "upper left", "bbox_to_anchor": (1.01, 1.0), "fontsize": 7,
-           "borderaxespad": 0.0}
+#: legends below the axes, outside the data (the figures' axes then share one width, so
+#: positions line up from figure to figure)
+_LEGEND = {"loc": "upper center", "bbox_to_anchor": (0.5, -0.2), "fontsize": 7, "ncols": 3,
+           "frameon": False}
 
 
-def _axes(ax, figsize=(10.0, 3.4)):
+def _axes(ax, figsize=(10.0, 4.0)):
     if ax is not None:
         return ax
     from matplotlib.figure import Figure
