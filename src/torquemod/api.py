@@ -102,16 +102,18 @@ def onboard(run, *, axle: int | None = None, config=None, **options):
     from .onboard.estimator import OnboardConfig
     from .onboard.run import estimate_axle
     run = run if isinstance(run, Run) else read_run(run)
-    if isinstance(config, dict) or config is None:
-        base = dict(run.extra.get("onboard") or {}) if config is None else dict(config)
-        cfg = OnboardConfig.from_dict({**base, **options}, source=str(run.manifest_path)
-                                      if config is None else "config")
+    if config is None:
+        cfg = OnboardConfig.from_dict(run.extra.get("onboard"), source=str(run.manifest_path))
+    elif isinstance(config, dict):
+        cfg = OnboardConfig.from_dict(config, source="onboard(config=...)")
     elif isinstance(config, OnboardConfig):
-        cfg = OnboardConfig.from_dict({**config.to_dict(), **options}, source="config") \
-            if options else config
+        cfg = config
     else:
         raise InputError(f"config must be an OnboardConfig or a dict, got "
                          f"{type(config).__name__}")
+    if options:  # checked as given here, not blamed on the manifest
+        cfg = OnboardConfig.from_dict({**cfg.to_dict(), **options},
+                                      source="onboard(**options)")
     axles = [e.axle for e in run.recordings]
     if axle is None:
         if len(axles) > 1:
