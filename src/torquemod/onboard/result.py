@@ -4,7 +4,6 @@ saving and loading)."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from html import escape
 
@@ -72,12 +71,13 @@ class OnboardResult:
 
     def summary(self) -> dict:
         """The axle in numbers: windows, length [m], shares of windows with μ, flagged low
-        adhesion and slip, μ (median over the windows where it is determined), the lower
-        bound (95th percentile where it is not; :mod:`torquemod.onboard.alongtrack`), the
-        friction changes, the fits and the wall time [s]."""
-        from .alongtrack import summarise
+        adhesion and slip, ``mu_median`` and ``mu_lower_bound`` (one summary of the same
+        windows, the bound never above μ:
+        :func:`~torquemod.onboard.alongtrack.run_mu_summary`; per stretch:
+        :meth:`along_track`), the friction changes [m], the fits and the wall time [s]."""
+        from .alongtrack import run_mu_summary
         t = self.track
-        s = summarise(t) if len(t) else {}
+        mu, bound = run_mu_summary(t)
         out = {"axle": self.axle, "windows": len(t),
                "mu_given_share": float(t["mu"].notna().mean()) if len(t) else 0.0,
                "low_adhesion_share": float(t["low_adhesion"].mean()) if len(t) else 0.0,
@@ -87,10 +87,10 @@ class OnboardResult:
                if len(t) else 0.0,
                "changes_m": list(self.changes_m),
                "measured_delay_s": self.measured_delay_s}
-        if len(t) and t["mu"].notna().any():
-            out["mu_median"] = s["mu"]
-        if len(t) and math.isfinite(s.get("mu_lower_bound", math.nan)):
-            out["mu_lower_bound"] = s["mu_lower_bound"]
+        if mu is not None:
+            out["mu_median"] = mu
+        if bound is not None:
+            out["mu_lower_bound"] = bound
         return out
 
     def to_frame(self):
@@ -122,9 +122,10 @@ class OnboardResult:
         seg = self.along_track()
         cols = ["start_m", "end_m", "windows", "condition", "mu", "mu_low_95", "mu_high_95",
                 "mu_lower_bound", "low_adhesion_share", "coa_reached", "probe_depth"]
+        seg = seg[cols].assign(start_m=seg["start_m"].round().astype(int),
+                               end_m=seg["end_m"].round().astype(int))
         with _pandas_wide():
-            table = seg[cols].to_string(index=False, float_format=lambda v: f"{v:.3f}",
-                                        na_rep="-")
+            table = seg.to_string(index=False, float_format=lambda v: f"{v:.3f}", na_rep="-")
         return "\n".join([*headline(self), "", "Along the track, per segment between "
                           "detected friction changes:", table])
 
