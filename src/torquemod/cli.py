@@ -138,12 +138,24 @@ def cmd_onboard(args: argparse.Namespace) -> int:
               f"determined in {100 * s['mu_given_share']:.0f} % (elsewhere a lower bound), "
               f"low adhesion {100 * s['low_adhesion_share']:.1f} %, slip "
               f"{100 * s['slip_share']:.1f} %; {s['seconds']:.1f} s")
+        _print_stretches(r.along_track())
     print(f"track:  {Path(args.out) / 'track.parquet'}"
           + (f" (also as {', '.join('track.' + f for f in export)})" if export else ""))
     print(f"along the track: {Path(args.out) / 'along_track.csv'} (per segment), "
           "along_track_km.csv (per km)")
     print(f"report: {Path(args.out) / 'report.html'}")
     return 0
+
+
+def _print_stretches(seg) -> None:
+    """The along-track table per segment, one line each: span, condition, mu or bound."""
+    print(f"  {'span [m]':>13} {'condition (guess)':>20} {'mu':>6} {'95 % interval':>13} "
+          f"{'bound':>6}")
+    for _, s in seg.iterrows():
+        interval = (f"{s.mu_low_95:.3f}-{s.mu_high_95:.3f}" if s.mu_high_95 == s.mu_high_95
+                    else "")
+        print(f"  {s.start_m:6.0f}-{s.end_m:<6.0f} {s.condition:>20} {_fmt(s.mu, '6.3f')} "
+              f"{interval:>13} {_fmt(s.mu_lower_bound, '6.3f')}")
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
