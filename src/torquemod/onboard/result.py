@@ -124,7 +124,8 @@ class OnboardResult:
                 "mu_lower_bound", "low_adhesion_share", "coa_reached", "probe_depth"]
         seg = seg[cols].assign(start_m=seg["start_m"].round().astype(int),
                                end_m=seg["end_m"].round().astype(int))
-        with _pandas_wide():
+        import pandas as pd
+        with pd.option_context("display.width", 250, "display.max_columns", 50):
             table = seg.to_string(index=False, float_format=lambda v: f"{v:.3f}", na_rep="-")
         return "\n".join([*headline(self), "", "Along the track, per segment between "
                           "detected friction changes:", table])
@@ -161,14 +162,3 @@ class OnboardResult:
         from .folder import save_onboard
         return save_onboard([self], folder, force=force, export=export)
 
-
-class _pandas_wide:
-    """Print a table without wrapping its columns."""
-
-    def __enter__(self):
-        import pandas as pd
-        self._ctx = pd.option_context("display.width", 250, "display.max_columns", 50)
-        self._ctx.__enter__()
-
-    def __exit__(self, *exc):
-        self._ctx.__exit__(*exc)
