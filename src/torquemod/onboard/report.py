@@ -45,7 +45,7 @@ def _changes(ax, result):
                    label="detected friction change" if i == 0 else None)
 
 
-def plot_mu(result, ax=None):
+def plot_mu(result, *, ax=None):
     """μ along the track where the estimator determined it (points with their 95 %
     interval), the lower bound of each segment between detected friction changes (step
     line), the utilised adhesion CoA of each window; the simulated truth when the run has
@@ -106,7 +106,7 @@ def clipped_phases(result) -> tuple[int, int]:
     return int(out.sum()), stepped
 
 
-def plot_phase(result, ax=None):
+def plot_phase(result, *, ax=None):
     """The lag of the axle speed behind the torque per window with +-2 standard errors,
     the axis scaled to the body of the data (:func:`phase_limits`); windows beyond it are
     marked at its edge. Returns the Axes."""
@@ -135,7 +135,7 @@ def plot_phase(result, ax=None):
     return ax
 
 
-def plot_utilisation(result, ax=None):
+def plot_utilisation(result, *, ax=None):
     """How much of the adhesion the axle used along the track: CoA/μ where μ is
     determined, else CoA over the lower bound of its segment (an upper limit of the
     utilisation, as the adhesion is at least that bound); the simulated truth, CoA over the
