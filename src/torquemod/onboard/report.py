@@ -351,6 +351,11 @@ def write_report(path: Path, result, meta: dict, figures: list[dict]) -> None:
     imgs = "".join(_img(f["png"], f["alt"], f"Figure {i}: {f['caption']}")
                    for i, f in enumerate(figures, 1))
     head = "".join(f"<p>{escape(line)}</p>" for line in headline(result))
+    others = [a for a in meta.get("axles", []) if a.get("axle") != result.axle]
+    if others:
+        head += ("<p>" + escape(f"This report shows axle {result.axle}; the run's other axles "
+                                "are in " + ", ".join(a.get("track_file", "?") for a in others)
+                                + " and their along_track_axle<N>.csv.") + "</p>")
     seg, km = result.along_track(), result.along_track("km")
     settings = _kv(sorted((k, ", ".join(str(x) for x in v) if isinstance(v, list) else v)
                           for k, v in meta["onboard"].items()))
