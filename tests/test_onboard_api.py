@@ -247,3 +247,29 @@ def test_rig_load_points_an_onboard_folder_to_load_onboard(result, tmp_path):
     result.save(tmp_path / "ob")
     with pytest.raises(InputError, match="load_onboard"):
         tm.load(tmp_path / "ob")
+
+
+def test_two_axles_saved_and_each_read_back(twin, result, tmp_path):
+    """A run of two axles: tm.onboard asks which; the CLI's folder holds both and
+    tm.load_onboard reads either."""
+    import shutil
+
+    from torquemod.cli import main
+    folder = tmp_path / "two"
+    folder.mkdir()
+    shutil.copy(twin / "run.mf4", folder / "run.mf4")
+    shutil.copy(twin / "truth.parquet", folder / "truth.parquet")
+    text = (twin / "run.toml").read_text().replace(
+        '{ file = "run.mf4", axle = 1 },',
+        '{ file = "run.mf4", axle = 1 },\n    { file = "run.mf4", axle = 2 },')
+    (folder / "run.toml").write_text(text)
+    with pytest.raises(InputError, match=r"axles \[1, 2\].*axle="):
+        tm.onboard(folder / "run.toml")
+    assert main(["onboard", str(folder / "run.toml"), "--out", str(tmp_path / "o"),
+                 "--quiet"]) == 0
+    second = tm.load_onboard(tmp_path / "o", axle=2)
+    assert second.axle == 2
+    pd.testing.assert_frame_equal(second.to_frame(), result.to_frame())  # the same file
+    assert (tmp_path / "o" / "along_track_axle2.csv").exists()
+    with pytest.raises(InputError, match="no axle 3"):
+        tm.load_onboard(tmp_path / "o", axle=3)
