@@ -172,7 +172,7 @@ procedure.dc_torques_nm = [20.0, 40.0, 60.0]
     tab = pd.read_parquet(tmp_path / "dc" / "sweep.parquet")
     assert [list(v) for v in tab.groupby("point_index")["procedure.dc_torques_nm"].first()] \
         == [[10.0, 50.0], [20.0, 40.0, 60.0]]
-    assert (tmp_path / "dc" / "figures" / "phase_family_procedure_dc_torques_nm.png").is_file()
+    assert (tmp_path / "dc" / "figures" / "phase_by_condition.png").is_file()
 
 
 def test_dc_torques_together_with_fractions_of_peak_is_refused():

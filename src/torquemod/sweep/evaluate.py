@@ -11,8 +11,9 @@ run_simulation`, HDF5) -> the processing chain (:func:`torquemod.api.process`) -
 
 ``utilisation`` is ``T_dc / T_peak`` = longitudinal CoA / mu_true, with ``mu_true`` the peak of
 the twin's creep curve (``T_peak/(R_w*N)``: the adhesion the wheel can use; truth.json's
-``creep_curve_peak``). mu from the phase is judged against ``mu_friction``, the friction at
-the slip velocity of the highest step it used (its curves have constant friction).
+``creep_curve_peak``). mu from the phase is judged against it; ``mu_friction``, the friction
+at the slip velocity of the highest step it used (what a fit with constant friction
+estimates), is kept beside it.
 """
 
 from __future__ import annotations
@@ -362,8 +363,10 @@ def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.
     point["mu_phase_n_steps"] = int(use.sum())
     mu_friction = _friction_at_top(df, use, rig)
     point["mu_friction"] = mu_friction
-    point["mu_phase_error"] = point["mu_phase"] / mu_friction - 1.0
-    point["mu_phase_lo_error"] = point["mu_phase_lo"] / mu_friction - 1.0
+    # errors against the available adhesion, the truth the report names (mu_friction is
+    # kept for reference)
+    point["mu_phase_error"] = point["mu_phase"] / mu_true - 1.0
+    point["mu_phase_lo_error"] = point["mu_phase_lo"] / mu_true - 1.0
     df["phase_twin_minus_theory_deg"] = df["phase_simulated_deg"] - df["phase_theory_deg"]
     head = {"point_id": task.point_id, "point_index": task.index,
             **{k: v for k, v in task.params.items()}, "seed": task.seed, "kind": "rig",

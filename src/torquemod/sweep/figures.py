@@ -1,227 +1,325 @@
-"""Figures of a sweep (matplotlib; every function takes ``ax=`` and returns it, or draws on
-a new Figure (not pyplot) and returns its Axes, as :mod:`torquemod.report.figures` does;
-never ``plt.show``).
+"""Figures of a rig sweep (matplotlib; every function takes ``ax=`` and returns it, or draws
+on a new Figure (not pyplot) and returns its Axes (several panels: an array of them), as
+:mod:`torquemod.report.figures` does; never ``plt.show``).
 
-* :func:`phase_family_figure` -- phase against utilisation, one curve per value of a swept
-  parameter, the other swept parameters at their reference values (the paper's Fig. 4 as a
-  family),
-* :func:`phase_panels_figure` -- one such family per value of another parameter (Fig. 4 per
-  friction condition),
-* :func:`sensitivity_figure` -- ``dphi/du`` in the 50-80 % band against a parameter,
-* :func:`mu_error_figure` -- the mu-from-phase error against a parameter,
+The sweep is drawn per *condition* (:mod:`torquemod.sweep.conditions`: one distinct
+combination of the swept parameters other than the modulation setting):
+
+* :func:`phase_panels_figure` -- the phase against utilisation, one panel per condition and
+  one curve per modulation frequency (the paper's Fig. 4 per condition), or one panel per
+  frequency and one curve per condition (the conditions compared at each frequency); lines
+  the large-signal theory, dotted the rigid-wheel small-signal model of the paper's Eq. (1),
+  ``tan(phi) = Omega*J*V/(R^2*N*k)``, markers the processing chain, crosses where the wheel
+  slipped,
+* :func:`creep_curves_figure` -- each condition's adhesion-creepage curve at its operating
+  speed with its peak (the available adhesion) and the operating points of the steps,
+* :func:`sensitivity_figure` -- ``dphi/du`` in the 50-80 % band against the frequency, one
+  series per condition,
+* :func:`mu_error_figure` -- the mu-from-phase error per condition, the modulation settings
+  side by side (markers only: the conditions are categories),
 * :func:`disturbance_figure` -- creepage swing and torque ripple of each modulation setting.
-
-The reference value of a swept parameter is its value at the sweep's first point.
 """
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.ticker import FuncFormatter, NullFormatter
 
+from ..creep import phase_from_constant_deg
 from ..report.figures import _axes
-from .summary import BAND
+from .conditions import CONDITION_COLUMN
+from .summary import BAND, slipped_mask
 
-__all__ = ["disturbance_figure", "mu_error_figure", "phase_family_figure",
-           "phase_panels_figure", "reference_slice", "sensitivity_figure"]
+__all__ = ["creep_curves_figure", "disturbance_figure", "mu_error_figure",
+           "phase_panels_figure", "sensitivity_figure", "slipped_mask", "small_signal_deg"]
 
-
-def _is_numeric(values) -> bool:
-    return all(isinstance(v, int | float | np.integer | np.floating)
-               and not isinstance(v, bool) for v in values)
-
-
-def _positions(values) -> tuple[np.ndarray, list | None]:
-    """x positions of ``values``: themselves when numeric, else category indices (and
-    the category labels)."""
-    values = list(values)
-    if _is_numeric(values):
-        return np.asarray(values, float), None
-    cats = list(dict.fromkeys(str(v) for v in values))
-    return np.array([cats.index(str(v)) for v in values], float), cats
-
-
-def _label(key: str) -> str:
-    return key.split(".", 1)[-1]
-
-
-def reference_slice(df: pd.DataFrame, keys, swept, *, seed=None) -> pd.DataFrame:
-    """Rows of ``df`` where every swept parameter not in ``keys`` has its reference value
-    (that of the first row) and the seed is the first seed (or ``seed``)."""
-    if df.empty:
-        return df
-    first = df.iloc[0]
-    mask = pd.Series(True, index=df.index)
-    for k in swept:
-        if k in keys or k not in df:
-            continue
-        mask &= df[k].astype(str) == str(first[k])
-    if "seed" in df:
-        mask &= df["seed"] == (first["seed"] if seed is None else seed)
-    return df[mask]
-
-
-def _fixed_text(df: pd.DataFrame, keys, swept) -> str:
-    first = df.iloc[0] if len(df) else None
-    parts = [f"{_label(k)} = {first[k]}" for k in swept if k not in keys and first is not None
-             and k in df]
-    return ", ".join(parts)
-
-
-def _draw_family(ax, sub: pd.DataFrame, param: str) -> None:
-    for j, (value, g) in enumerate(sub.groupby(param, sort=False)):
-        g = g[~g["slipped"].astype(bool)].sort_values("utilisation")
-        color = f"C{j % 10}"
-        ax.plot(100 * g["utilisation"], g["phase_theory_deg"], "-", color=color,
-                label=f"{_label(param)} = {value}")
-        if g["phase_deg"].notna().any():
-            ax.errorbar(100 * g["utilisation"], g["phase_deg"],
-                        yerr=1.96 * g["phase_se_deg"].fillna(0), fmt="o", ms=4, color=color,
-                        capsize=2)
-    ax.axvspan(100 * BAND[0], 100 * BAND[1], color="0.9", zorder=0,
-               label=f"dphi/du band {100 * BAND[0]:.0f}-{100 * BAND[1]:.0f} %")
-    # what the line and the markers are (colours: the parameter's values above)
-    ax.plot([], [], "-", color="0.3", label="large-signal theory")
-    if sub["phase_deg"].notna().any():
-        ax.errorbar([], [], yerr=[], fmt="o", ms=4, color="0.3", capsize=2,
-                    label="twin + chain (95 %)")
-    ax.set_xlabel("utilisation CoA/mu [%]")
-    ax.set_ylabel("phase lag [deg]")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, loc="upper left")
-
-
-def phase_family_figure(table: pd.DataFrame, param: str, swept, *, ax=None):
-    """Phase against utilisation for each value of ``param`` (lines: large-signal theory;
-    markers with 95 % bars: the chain, full mode), the other swept parameters at their
-    reference values; the band of the sensitivity shaded."""
-    _fig, ax = _axes(ax)
-    sub = reference_slice(table, (param,), swept)
-    _draw_family(ax, sub, param)
-    fixed = _fixed_text(sub, (param,), swept)
-    ax.set_title(f"phase vs utilisation by {_label(param)}" + (f"\n({fixed})" if fixed else ""),
-                 fontsize=9)
-    return ax
-
-
-def phase_panels_figure(table: pd.DataFrame, panel: str, curve: str, swept, *,
-                        ax=None):
-    """One panel per value of ``panel`` (e.g. the friction condition), in each the phase
-    against utilisation for every value of ``curve`` (e.g. the modulation frequency)."""
-    values = list(dict.fromkeys(table[panel].astype(str)))
-    if ax is None:
-        n = len(values)
-        cols = min(n, 2)
-        rows = int(np.ceil(n / cols))
-        fig = Figure(figsize=(5.0 * cols, 3.8 * rows), layout="constrained")
-        axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False).ravel())
-        for extra in axes[n:]:
-            extra.set_visible(False)
-    else:
-        axes = np.atleast_1d(ax)
-        fig = axes[0].figure
-    for a, value in zip(axes, values, strict=False):
-        part = table[table[panel].astype(str) == value]
-        sub = reference_slice(part, (panel, curve), swept)
-        _draw_family(a, sub, curve)
-        a.set_title(f"{_label(panel)} = {value}", fontsize=9)
-    fixed = _fixed_text(reference_slice(table, (panel, curve), swept), (panel, curve), swept)
-    if fixed:
-        fig.suptitle(f"phase vs utilisation ({fixed})", fontsize=10)
-    return axes if ax is None else ax
-
-
+FREQ = "modulation_frequency_nominal_hz"
+AMP = "modulation_amplitude_nm"
 _MARKERS = "osD^vPXh*p"
-_LINES = ("-", "--", ":", "-.")
+_LINES = ("-", "--", "-.", ":")
+#: marker of a step where the wheel slipped
+SLIP_MARKER = "x"
 
 
-def _series(summary: pd.DataFrame, param: str, swept):
-    """The summary split over the other swept parameters: ``[(group, colour, style index)]``
-    (colour by the first other parameter, style by the rest) and the legend proxies."""
-    from matplotlib.lines import Line2D
-    others = [k for k in swept if k != param and k in summary]
-    if not others:
-        return [(summary, "C0", 0)], []
-
-    def rest(values) -> str:
-        return ", ".join(f"{_label(k)}={v}" for k, v in zip(others[1:], values, strict=True))
-
-    firsts = list(dict.fromkeys(str(v) for v in summary[others[0]]))
-    rests = list(dict.fromkeys(rest(r) for r in summary[others[1:]].itertuples(index=False)))
-    out = []
-    for key, g in summary.groupby(others, sort=False):
-        key = key if isinstance(key, tuple) else (key,)
-        out.append((g, f"C{firsts.index(str(key[0])) % 10}", rests.index(rest(key[1:]))))
-    proxies = [Line2D([], [], color=f"C{i % 10}", lw=2, label=f"{_label(others[0])}={v}")
-               for i, v in enumerate(firsts)]
-    if len(rests) > 1:
-        proxies += [Line2D([], [], color="0.35", ls=_LINES[i % len(_LINES)],
-                           marker=_MARKERS[i % len(_MARKERS)], label=r)
-                    for i, r in enumerate(rests)]
-    return out, proxies
+def _cmap_colour(i: int, n: int):
+    if n <= 10:
+        return f"C{i % 10}"
+    from matplotlib import colormaps
+    return colormaps["tab20"](i % 20)
 
 
-def _x_axis(ax, summary, param):
-    x, cats = _positions(summary[param])
-    if cats is not None:
-        ax.set_xticks(range(len(cats)), cats)
-    ax.set_xlabel(_label(param))
-    return dict(zip(summary.index, x, strict=True))
+def small_signal_deg(df: pd.DataFrame) -> np.ndarray:
+    """Phase [deg] of the rigid-wheel small-signal model, the paper's Eq. (1),
+    ``tan(phi) = Omega*J*V/(R^2*N*k)``, at each row's creep coefficient ``k`` (its constant
+    ``Omega*J*V/(R^2*N)`` is the table's ``theory_constant``)."""
+    return phase_from_constant_deg(df["theory_constant"].to_numpy(float),
+                                   df["creep_coefficient"].to_numpy(float))
 
 
-def sensitivity_figure(summary: pd.DataFrame, param: str, swept, *, ax=None):
-    """The slope dphi/du of the phase over the 50-80 % utilisation band [deg per %] against
-    ``param``: large-signal theory (lines) and the chain (markers, full mode)."""
-    _fig, ax = _axes(ax)
-    xs = _x_axis(ax, summary, param)
-    series, proxies = _series(summary, param, swept)
-    for g, color, k in series:
-        g = g.sort_values(param) if _is_numeric(g[param]) else g
-        x = [xs[i] for i in g.index]
-        ax.plot(x, g["dphi_du_theory"], ls=_LINES[k % len(_LINES)], color=color)
-        if g["dphi_du_chain"].notna().any():
-            ax.plot(x, g["dphi_du_chain"], _MARKERS[k % len(_MARKERS)], color=color, ms=4)
-    ax.set_ylabel(f"dphi/du, {BAND[0]:.0%}-{BAND[1]:.0%} [deg per %]")
-    ax.set_title(f"sensitivity of the phase to utilisation vs {_label(param)}\n(lines: "
-                 "theory, markers: chain)", fontsize=9)
+def _label_value(key: str, value) -> str:
+    if key == FREQ:
+        return f"{value:.3g} Hz"
+    if key == AMP:
+        return f"{value:.3g} N*m"
+    return str(value) or "all points"
+
+
+def _panel_grid(n: int, ax, *, width=5.0, height=3.6, cols_max=2):
+    """``(fig, axes)``: ``n`` panels in up to ``cols_max`` columns (unused ones hidden), or
+    the given Axes (one or a sequence)."""
+    if ax is not None:
+        axes = list(np.atleast_1d(ax))
+        return axes[0].figure, axes
+    cols = max(1, min(n, cols_max))
+    rows = int(np.ceil(n / cols))
+    fig = Figure(figsize=(width * cols, height * rows + 0.9), layout="constrained")
+    axes = list(np.atleast_1d(fig.subplots(rows, cols, squeeze=False).ravel()))
+    for extra in axes[n:]:
+        extra.set_visible(False)
+    return fig, axes[:n]
+
+
+def _drawn(axes, ax):
+    """What a figure function returns: the ``ax`` it was given, else the new Figure's Axes
+    (an array when it holds several panels, one Axes otherwise)."""
+    if ax is not None:
+        return ax
+    axes = np.asarray(axes, dtype=object).ravel()
+    return axes[0] if axes.size == 1 else axes
+
+
+def _draw_progression(ax, g: pd.DataFrame, color, slot: int = 0) -> None:
+    """One progression (the steps of one point): large-signal theory (line), Eq. (1)
+    (dotted), the chain (markers, 95 % bars) and crosses at the steps where the wheel
+    slipped: at the chain's phase, else on the theory's curve, else (the theory has no
+    periodic state there either) near the top of the axes, in one of four rows by
+    ``slot`` so that the crosses of several curves at one step stay apart."""
+    g = g.sort_values("utilisation")
+    theory = g[~g["slipped"].eq(True)]
+    u = 100 * theory["utilisation"]
+    ax.plot(u, theory["phase_theory_deg"], "-", color=color, lw=1.4)
+    if {"theory_constant", "creep_coefficient"} <= set(theory):
+        ax.plot(u, small_signal_deg(theory), ":", color=color, lw=1.1)
+    slip = slipped_mask(g)
+    live = g[~slip]
+    if live["phase_deg"].notna().any():
+        ax.errorbar(100 * live["utilisation"], live["phase_deg"],
+                    yerr=1.96 * live["phase_se_deg"].fillna(0), fmt="o", ms=3.5,
+                    color=color, capsize=2, ls="none")
+    gone = g[slip]
+    if len(gone):
+        y = gone["phase_deg"].to_numpy(float)
+        y = np.where(np.isfinite(y), y, gone["phase_theory_deg"].to_numpy(float))
+        on = np.isfinite(y)
+        x = 100 * gone["utilisation"].to_numpy(float)
+        ax.plot(x[on], y[on], SLIP_MARKER, color=color, ms=8, mew=2)
+        if (~on).any():
+            ax.plot(x[~on], np.full(int((~on).sum()), 0.96 - 0.04 * (slot % 4)), SLIP_MARKER,
+                    color=color,
+                    ms=8, mew=2, transform=ax.get_xaxis_transform(), clip_on=False)
+
+
+def _style_handles(table: pd.DataFrame) -> list:
+    """Legend entries for what lines, dotted lines, markers and crosses are."""
+    h = [Line2D([], [], color="0.3", lw=1.4, label="large-signal theory"),
+         Line2D([], [], color="0.3", ls=":", lw=1.1,
+                label="Eq. (1): tan φ = ΩJV/(R²Nk)")]
+    if table["phase_deg"].notna().any():
+        h.append(Line2D([], [], color="0.3", marker="o", ms=3.5, ls="",
+                        label="twin + chain (95 %)"))
+    if slipped_mask(table).any():
+        h.append(Line2D([], [], color="0.3", marker=SLIP_MARKER, ms=8, mew=2, ls="",
+                        label="wheel slipped (on the theory; at the top: no periodic state)"))
+    h.append(Line2D([], [], color="0.85", lw=6,
+                    label=f"dφ/du band {100 * BAND[0]:.0f}-{100 * BAND[1]:.0f} %"))
+    return h
+
+
+def phase_panels_figure(table: pd.DataFrame, *, panel: str = CONDITION_COLUMN,
+                        curve: str = FREQ, panels=None, title: str = "", ax=None):
+    """The phase against utilisation, one panel per value of ``panel`` (default: the
+    condition; ``panels`` selects and orders them) and one colour per value of ``curve``
+    (default: the modulation frequency). ``table`` holds the rows to draw (one modulation
+    amplitude and seed: the caller's selection) and a ``condition`` column."""
+    values = list(dict.fromkeys(table[panel])) if panels is None else list(panels)
+    curves = list(dict.fromkeys(table[curve]))
+    fig, axes = _panel_grid(len(values), ax, **({"cols_max": 3, "width": 4.4}
+                                                 if len(values) > 4 else {}))
+    for a, value in zip(axes, values, strict=False):
+        part = table[table[panel] == value]
+        for j, cv in enumerate(curves):
+            for _, g in part[part[curve] == cv].groupby("point_id", sort=False):
+                _draw_progression(a, g, _cmap_colour(j, len(curves)), slot=j)
+        a.axvspan(100 * BAND[0], 100 * BAND[1], color="0.9", zorder=0)
+        a.set_title(_label_value(panel, value), fontsize=9)
+        a.set_xlabel("utilisation CoA/μ [%]")
+        a.set_ylabel("phase lag [deg]")
+        a.set_xlim(-3, 103)
+        a.grid(True, alpha=0.3)
+    handles = [Line2D([], [], color=_cmap_colour(j, len(curves)), lw=2,
+                      label=_label_value(curve, cv)) for j, cv in enumerate(curves)]
+    handles += _style_handles(table)
+    fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 4),
+               fontsize=7, frameon=False)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return _drawn(axes, ax)
+
+
+def creep_curves_figure(curves: dict, table: pd.DataFrame, *, ax=None):
+    """Per condition (one panel each) the longitudinal adhesion-creepage curve ``F_x/N``
+    at the operating speed (Polach 2005), its peak -- the available adhesion, the true mu
+    of the sweep -- and the steady operating points of the steps (``T_dc/(R*N)``); in full
+    mode also the chain's measured points, coloured by modulation frequency.
+
+    ``curves``: condition label -> ``(creepage [-], F_x/N [-], peak creepage, peak)``."""
+    labels = list(curves)
+    fig, axes = _panel_grid(len(labels), ax, height=3.2, cols_max=3, width=4.2)
+    freqs = list(dict.fromkeys(table[FREQ])) if FREQ in table else []
+    for a, label in zip(axes, labels, strict=False):
+        xi, coa, xi_peak, peak = curves[label]
+        a.plot(100 * xi, coa, "-", color="0.2", lw=1.4)
+        a.plot(100 * xi_peak, peak, "*", color="C3", ms=11)
+        a.annotate(f"μ = {peak:.3f}", (100 * xi_peak, peak), textcoords="offset points",
+                   xytext=(-8, -14), ha="right", fontsize=7, color="C3")
+        part = table[table[CONDITION_COLUMN] == label]
+        left = 1e-3  # [%]
+        if len(part):
+            ref = part[part["point_id"] == part["point_id"].iloc[0]]
+            ok = ref[~slipped_mask(ref) & (ref["creepage_true"] > 0)]
+            if len(ok):
+                left = max(left, 50 * float(ok["creepage_true"].min()))
+            a.plot(100 * ok["creepage_true"], ok["utilisation"] * ok["mu_true"], "o",
+                   mfc="white", mec="0.2", ms=5, zorder=3)
+            for j, f in enumerate(freqs):
+                meas = part[(part[FREQ] == f) & ~slipped_mask(part)]
+                meas = meas[meas["creepage"] > 0] if "creepage" in meas else meas
+                if "coa" in meas and meas["coa"].notna().any():
+                    a.plot(100 * meas["creepage"], meas["coa"], ".",
+                           color=_cmap_colour(j, len(freqs)), ms=5, zorder=4)
+        a.set_title(label or "all points", fontsize=9)
+        a.set_xscale("log")
+        a.set_xlim(left, 100 * xi[-1])
+        # plain numbers on the major ticks, none on the minor ones (they overlap when the
+        # range is under a decade)
+        a.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        a.xaxis.set_minor_formatter(NullFormatter())
+        a.set_xlabel("creepage [%] (log)")
+        a.set_ylabel("F_x / N [-]")
+        a.set_ylim(bottom=0)
+        a.grid(True, alpha=0.3)
+    handles = [Line2D([], [], color="0.2", lw=1.4, label="creep curve at the speed"),
+               Line2D([], [], color="C3", marker="*", ms=11, ls="",
+                      label="peak: available adhesion (true μ)"),
+               Line2D([], [], color="0.2", marker="o", mfc="white", ms=5, ls="",
+                      label="steady operating points of the steps (creepage > 0)")]
+    if "coa" in table and table["coa"].notna().any():
+        handles += [Line2D([], [], color=_cmap_colour(j, len(freqs)), marker=".", ls="",
+                           ms=7, label=f"chain at {f:.3g} Hz") for j, f in enumerate(freqs)]
+    fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 4),
+               fontsize=7, frameon=False)
+    return _drawn(axes, ax)
+
+
+def _wrap(label: str, width: int = 22) -> str:
+    return "\n".join(textwrap.wrap(label, width, break_long_words=False)) or "all points"
+
+
+def sensitivity_figure(summary: pd.DataFrame, *, ax=None):
+    """The slope dphi/du of the phase over the 50-80 % utilisation band [deg per %]:
+    against the modulation frequency, one colour per condition and one line style per
+    amplitude (large-signal theory: lines; chain: markers). With a single frequency the
+    conditions are the x axis (categories: markers only)."""
+    _fig, ax = _axes(ax, figsize=(7.5, 4.6))
+    conds = list(dict.fromkeys(summary[CONDITION_COLUMN]))
+    amps = list(dict.fromkeys(summary[AMP]))
+    chain = summary["dphi_du_chain"].notna().any()
+    handles = []
+    if summary[FREQ].nunique() > 1:
+        for i, c in enumerate(conds):
+            col = _cmap_colour(i, len(conds))
+            for k, a in enumerate(amps):
+                g = summary[(summary[CONDITION_COLUMN] == c) & (summary[AMP] == a)]
+                g = g.groupby(FREQ, sort=True)[["dphi_du_theory", "dphi_du_chain"]].mean()
+                ax.plot(g.index, g["dphi_du_theory"], ls=_LINES[k % 4], color=col, lw=1.3)
+                if chain:
+                    ax.plot(g.index, g["dphi_du_chain"], _MARKERS[k % 10], color=col, ms=5)
+            handles.append(Line2D([], [], color=col, lw=2, label=c or "all points"))
+        ax.set_xlabel("modulation frequency [Hz]")
+    else:
+        x = np.arange(len(conds))
+        for k, a in enumerate(amps):
+            dx = 0.12 * (k - (len(amps) - 1) / 2)
+            g = summary[summary[AMP] == a].groupby(CONDITION_COLUMN, sort=False)[
+                ["dphi_du_theory", "dphi_du_chain"]].mean().reindex(conds)
+            ax.plot(x + dx, g["dphi_du_theory"], "_", color=f"C{k}", ms=14, mew=2)
+            if chain:
+                ax.plot(x + dx, g["dphi_du_chain"], _MARKERS[k % 10], color=f"C{k}", ms=5)
+        ax.set_xticks(x, [_wrap(c) for c in conds], fontsize=7)
+        ax.set_xlabel("condition")
+    if len(amps) > 1 or summary[FREQ].nunique() <= 1:
+        handles += [Line2D([], [], color="0.35" if summary[FREQ].nunique() > 1 else f"C{k}",
+                           ls=_LINES[k % 4], marker=_MARKERS[k % 10],
+                           label=f"amplitude {a:.3g} N*m") for k, a in enumerate(amps)]
+    what = "lines: theory" if summary[FREQ].nunique() > 1 else "bars: theory"
+    ax.set_ylabel(f"dφ/du, {BAND[0]:.0%}-{BAND[1]:.0%} [deg per %]")
+    ax.set_title(f"sensitivity of the phase to the utilisation ({what}"
+                 + (", markers: chain)" if chain else ")"), fontsize=9)
     ax.grid(True, alpha=0.3)
-    if proxies:
-        ax.legend(handles=proxies, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    if handles:
+        ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return ax
 
 
-def mu_error_figure(summary: pd.DataFrame, param: str, swept, *, ax=None):
-    """mu from the phase (steps below the utilisation limit) relative to the true mu [%]
-    against ``param``: filled markers with the 95 % interval where mu is determined, open
-    markers at the lower bound where it is not (series side by side)."""
-    from matplotlib.lines import Line2D
-    _fig, ax = _axes(ax)
-    xs = _x_axis(ax, summary, param)
-    series, proxies = _series(summary, param, swept)
-    span = np.ptp(list(xs.values())) if _is_numeric(summary[param]) else len(set(xs.values()))
-    step = 0.6 * (span or 1.0) / max(len(set(xs.values())), 1) / max(len(series), 1)
-    for j, (g, color, k) in enumerate(series):
-        x = np.array([xs[i] for i in g.index]) + step * (j - (len(series) - 1) / 2)
+def mu_error_figure(summary: pd.DataFrame, *, ax=None):
+    """mu from the phase relative to the true mu (the available adhesion) [%], grouped per
+    condition, the modulation settings side by side (colour: frequency, marker: amplitude):
+    filled with the 95 % interval where mu is determined, open at the lower bound where it
+    is not. Markers only: the conditions are categories."""
+    conds = list(dict.fromkeys(summary[CONDITION_COLUMN]))
+    _fig, ax = _axes(ax, figsize=(max(7.5, 1.3 * len(conds) + 3.0), 4.8))
+    freqs = sorted(dict.fromkeys(summary[FREQ]))
+    amps = list(dict.fromkeys(summary[AMP]))
+    settings = [(f, a) for f in freqs for a in amps
+                if ((summary[FREQ] == f) & (summary[AMP] == a)).any()]
+    width = 0.8 / max(len(settings), 1)
+    x0 = {c: i for i, c in enumerate(conds)}
+    for j, (f, a) in enumerate(settings):
+        g = summary[(summary[FREQ] == f) & (summary[AMP] == a)]
+        x = g[CONDITION_COLUMN].map(x0).to_numpy(float) + width * (j - (len(settings) - 1) / 2)
         det = g["mu_phase_determined"].astype(bool).to_numpy()
         y = g["mu_phase_error_pct"].to_numpy(float)
         lo = g["mu_phase_lo_error_pct"].to_numpy(float)
         hi = g["mu_phase_hi_error_pct"].to_numpy(float)
-        m = _MARKERS[k % len(_MARKERS)]
+        col, m = _cmap_colour(freqs.index(f), len(freqs)), _MARKERS[amps.index(a) % 10]
         if det.any():
             ax.errorbar(x[det], y[det], yerr=[y[det] - lo[det], hi[det] - y[det]], fmt=m,
-                        color=color, capsize=2, ms=4)
+                        color=col, capsize=2, ms=5, ls="none")
         if (~det).any():
-            ax.plot(x[~det], lo[~det], m, mfc="none", color=color, ms=6)
+            ax.plot(x[~det], lo[~det], m, mfc="none", color=col, ms=7, ls="none")
+    for i in range(1, len(conds)):
+        ax.axvline(i - 0.5, color="0.85", lw=0.8)
     ax.axhline(0.0, color="k", lw=0.8)
-    ax.set_ylabel("mu from phase / true mu - 1 [%]")
-    ax.set_title(f"mu-from-phase error vs {_label(param)} \n(filled: determined, 95 %; "
-                 "open: lower bound)", fontsize=9)
-    ax.grid(True, alpha=0.3)
-    proxies.append(Line2D([], [], color="0.35", marker="o", mfc="none", ls="",
-                          label="lower bound (mu not determined)"))
-    # outside the axes: inside, it covered markers of the example sweep (issue 12 audit)
-    ax.legend(handles=proxies, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.set_xticks(range(len(conds)), [_wrap(c) for c in conds], fontsize=7)
+    ax.set_xlim(-0.5, len(conds) - 0.5)
+    ax.set_xlabel("condition")
+    ax.set_ylabel("μ from phase / available adhesion − 1 [%]")
+    ax.set_title("μ-from-phase error per condition (filled: determined, 95 %; open: lower "
+                 "bound)", fontsize=9)
+    ax.grid(True, axis="y", alpha=0.3)
+    handles = [Line2D([], [], color=_cmap_colour(i, len(freqs)), marker="s", ls="",
+                      label=f"{f:.3g} Hz") for i, f in enumerate(freqs)]
+    if len(amps) > 1:
+        handles += [Line2D([], [], color="0.35", marker=_MARKERS[k % 10], ls="",
+                           label=f"{a:.3g} N*m") for k, a in enumerate(amps)]
+    handles.append(Line2D([], [], color="0.35", marker="o", mfc="none", ls="",
+                          label="lower bound (μ not determined)"))
+    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return ax
 
 
@@ -244,4 +342,4 @@ def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None,
     axes[1].set_ylabel(ripple_label)
     axes[1].set_xticks(x, label, fontsize=7)
     axes[0].set_title(title, fontsize=9)
-    return axes if ax is None else ax
+    return _drawn(axes, ax)

@@ -8,27 +8,31 @@ The page reuses :mod:`torquemod.report.html` (style, escaped tables, inline imag
 from __future__ import annotations
 
 import io
+import os
 from html import escape
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from .._version import __version__
 from ..fsutil import write_atomic
-from ..report.figures import figure_of, save_figure
+from ..report.figures import figure_of
 from ..report.html import CSS, _img, table
 from . import figures as F
-from .spec import CONDITION_KEY, SweepSpec
+from .conditions import CONDITION_COLUMN, condition_labels
+from .spec import SweepSpec
 from .summary import BAND, agreement, point_summary, recommend, setting_table
 
-__all__ = ["make_figures", "recommend", "write_report"]
+__all__ = ["make_figures", "reasoning_html", "recommend", "save_png", "write_report"]
 
 #: rows of the per-step table shown in the page (all are in sweep.parquet)
 MAX_TABLE_ROWS = 2000
-_STEP_COLUMNS = ("point_index", "seed", "step", "dc_torque_nm", "utilisation", "coa",
+_STEP_COLUMNS = ("point_index", "seed", "step", "dc_torque_nm", "utilisation", "slipped",
+                 "slipped_twin", "coa",
                  "creepage", "phase_deg", "phase_se_deg", "phase_theory_deg",
                  "phase_simulated_deg", "creep_coefficient", "creepage_swing",
-                 "torque_ripple_pct", "mu_true", "mu_friction", "mu_forces", "mu_phase",
+                 "torque_ripple_pct", "mu_true", "mu_forces", "mu_phase",
                  "mu_phase_lo",
                  "mu_phase_hi")
 
@@ -39,33 +43,118 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
+def save_png(png: bytes, path: Path) -> Path:
+    """Write the PNG bytes ``png`` to ``path`` (beside it first, then renamed into place):
+    each figure is drawn once, for the page and the file alike."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(png)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def _frequencies(values, at_most: int = 6) -> list:
+    """The swept frequencies to compare the conditions at: all of them, or the ``at_most``
+    nearest (in ratio) to the paper's 2 Hz, in ascending order."""
+    values = sorted(dict.fromkeys(float(v) for v in values))
+    if len(values) > at_most:
+        values = sorted(sorted(values, key=lambda f: abs(np.log(f / 2.0)))[:at_most])
+    return values
+
+
+def creep_curves(tab: pd.DataFrame, spec: SweepSpec) -> dict:
+    """Per condition of ``tab`` (its ``condition`` column) the twin's longitudinal
+    adhesion-creepage curve at the operating speed, ``F_x/N`` (Polach 2005, Eqs. 1-9):
+    ``name -> (creepage [-], F_x/N [-], creepage at the peak, peak F_x/N, labels)``.
+    Conditions whose curves are the same (they differ only in noise, say) share one entry,
+    named after the first and listing all their ``labels``."""
+    from ..contact.polach import creep_force
+    from ..theory import creep_curve_peak
+    from .evaluate import point_config
+    from .run import tasks
+    by_id = {t.point_id: t for t in tasks(spec)}
+    groups: dict = {}
+    for label, g in tab.groupby(CONDITION_COLUMN, sort=False):
+        task = by_id.get(g["point_id"].iloc[0])
+        if task is None:
+            continue
+        rig = point_config(task)[0].rig
+        key = (rig.contact, rig.speed_m_s, rig.normal_load_n, rig.wheel_radius_m)
+        entry = groups.setdefault(key, {"rig": rig, "labels": [], "xi_max": 0.0})
+        entry["labels"].append(label)
+        xi = g["creepage_true"].to_numpy(float)
+        if np.isfinite(xi).any():
+            entry["xi_max"] = max(entry["xi_max"], float(np.nanmax(np.abs(xi))))
+    out = {}
+    for entry in groups.values():
+        rig, labels = entry["rig"], entry["labels"]
+        xi_peak, t_peak = creep_curve_peak(rig)
+        xi = np.geomspace(1e-5, max(2.0 * xi_peak, 1.5 * entry["xi_max"]), 400)
+        fx, _ = creep_force(xi, rig.contact.lateral_creepage, normal_load_n=rig.normal_load_n,
+                            speed_m_s=rig.speed_m_s, **rig.contact.polach_kwargs())
+        name = labels[0] if len(labels) == 1 else (
+            f"{labels[0]} (and {len(labels) - 1} more with this curve)")
+        out[name] = (xi, fx / rig.normal_load_n, xi_peak,
+                     t_peak / (rig.wheel_radius_m * rig.normal_load_n), labels)
+    return out
+
+
 def make_figures(tab: pd.DataFrame, spec: SweepSpec, rec: dict) -> list[tuple[str, object, str]]:
     """``(file stem, Figure, caption)`` of every figure of the sweep."""
     summary = point_summary(tab, spec)
-    swept = [k for k in spec.swept if k in tab]
-    out = []
-    if CONDITION_KEY in swept and len(swept) > 1:
-        curve = ("modulation.frequency_hz" if "modulation.frequency_hz" in swept
-                 else next(k for k in swept if k != CONDITION_KEY))
-        out.append(("phase_by_condition", F.phase_panels_figure(tab, CONDITION_KEY, curve,
-                                                               swept),
-                    f"Phase lag against utilisation for each friction condition, one curve "
-                    f"per {curve} (the paper's Fig. 4 per condition): lines large-signal "
-                    "theory, markers the processing chain with 95 % bars."))
-    for key in swept or ["modulation.frequency_hz"]:
-        if key not in tab:
-            continue
-        name = key.replace(".", "_")
-        out.append((f"phase_family_{name}", F.phase_family_figure(tab, key, swept),
-                    f"Phase against utilisation by {key}, the other swept parameters at "
-                    "their first values."))
-        if summary[key].nunique() > 1:
-            out.append((f"sensitivity_{name}", F.sensitivity_figure(summary, key, swept),
-                        f"Sensitivity dphi/du over {BAND[0]:.0%}-{BAND[1]:.0%} utilisation "
-                        f"against {key}."))
-            out.append((f"mu_error_{name}", F.mu_error_figure(summary, key, swept),
-                        f"mu from the phase (steps up to {spec.recommend.max_utilisation:.0%} "
-                        f"utilisation) relative to the true mu, against {key}."))
+    tab = tab.assign(**{CONDITION_COLUMN: condition_labels(tab, spec.swept)})
+    conds = list(dict.fromkeys(tab[CONDITION_COLUMN]))
+    amp, seed = tab[F.AMP].iloc[0], tab["seed"].iloc[0]
+    ref = tab[(tab[F.AMP] == amp) & (tab["seed"] == seed)]
+    at = (f" at the modulation amplitude {amp:.3g} N*m" if tab[F.AMP].nunique() > 1 else "") \
+        + (f", seed {seed}" if tab["seed"].nunique() > 1 else "")
+    lines = ("lines: large-signal theory; dotted: the rigid-wheel small-signal model of the "
+             "paper's Eq. (1), tan φ = ΩJV/(R²Nk), at each step's creep coefficient; "
+             "markers: twin + processing chain with 95 % bars; crosses: steps where the "
+             "wheel slipped (on the theory's curve where the twin slipped, at the top of the "
+             "panel where the theory has no periodic state either).")
+    freqs = sorted(dict.fromkeys(ref[F.FREQ]))
+    out = [("phase_by_condition",
+            F.phase_panels_figure(ref, title="phase vs utilisation per condition" + at),
+            f"Phase lag against utilisation, one panel per condition ({len(conds)}), one "
+            f"colour per modulation frequency ({', '.join(f'{f:.3g}' for f in freqs)} Hz)"
+            f"{at} (the paper's Fig. 4 per condition). {lines}")]
+    if len(conds) > 1:
+        shown = _frequencies(ref[F.FREQ])
+        out.append(("phase_by_frequency",
+                    F.phase_panels_figure(ref[ref[F.FREQ].isin(shown)], panel=F.FREQ,
+                                          curve=CONDITION_COLUMN, panels=shown,
+                                          title="the conditions compared" + at),
+                    "The conditions compared at each modulation frequency "
+                    f"({', '.join(f'{f:.3g}' for f in shown)} Hz){at}: phase lag against "
+                    f"utilisation, one colour per condition. {lines}"))
+    curves = creep_curves(ref, spec)
+    if curves:
+        names = {lab: name for name, c in curves.items() for lab in c[4]}
+        drawn = tab.assign(**{CONDITION_COLUMN: tab[CONDITION_COLUMN].map(names)})
+        out.append(("creep_curves",
+                    F.creep_curves_figure({k: c[:4] for k, c in curves.items()},
+                                          drawn[(drawn[F.AMP] == amp)
+                                                & (drawn["seed"] == seed)]),
+                    "The twin's adhesion-creepage curve of each condition at its operating "
+                    "speed (Polach 2005), its peak -- the available adhesion, the true μ "
+                    "against which μ from the phase is judged -- and the steady operating "
+                    "points of the torque steps" + (", with the chain's measured points "
+                                                    "per modulation frequency"
+                                                    if spec.mode == "full" else "") + "."))
+    if summary[F.FREQ].nunique() > 1 or len(conds) > 1:
+        out.append(("sensitivity", F.sensitivity_figure(summary),
+                    f"Sensitivity dφ/du of the phase to the utilisation over "
+                    f"{BAND[0]:.0%}-{BAND[1]:.0%}, per condition" + (
+                        " against the modulation frequency" if summary[F.FREQ].nunique() > 1
+                        else "") + "."))
+    out.append(("mu_error", F.mu_error_figure(summary),
+                f"μ from the phase (steps up to {spec.recommend.max_utilisation:.0%} "
+                "utilisation) relative to the available adhesion (the creep curve's peak), "
+                "per condition and modulation setting."))
     settings = setting_table(summary, spec)
     if len(settings):
         out.append(("disturbance", F.disturbance_figure(settings, rec.get("limits", {
@@ -73,7 +162,18 @@ def make_figures(tab: pd.DataFrame, spec: SweepSpec, rec: dict) -> list[tuple[st
             "max_torque_ripple_pct": spec.recommend.max_torque_ripple_pct})),
             "Disturbance the modulation adds (largest creepage swing amplitude and torque "
             "ripple below the utilisation limit) per modulation setting."))
-    return out
+    return [(stem, figure_of(drawn), caption) for stem, drawn, caption in out]
+
+
+def reasoning_html(text: str, cls: str = "") -> str:
+    """The recommendation's reasoning as a paragraph, its answer (a first sentence
+    ``Recommended: ...``) in bold."""
+    head, sep, rest = text.partition(". ")
+    if head.startswith("Recommended:") and sep:
+        return f"<p class='{cls}'><b>{escape(head)}.</b> {escape(rest)}</p>"
+    if head.startswith("Recommended:") and text.endswith("."):
+        return f"<p class='{cls}'><b>{escape(text)}</b></p>"
+    return f"<p class='{cls}'>{escape(text)}</p>"
 
 
 def _settings_html(rec: dict) -> str:
@@ -92,24 +192,22 @@ def _settings_html(rec: dict) -> str:
 
 
 def _points_html(summary: pd.DataFrame, spec: SweepSpec) -> str:
-    keys = [k for k in spec.swept if k in summary]
-    head = ["#", *keys, "seed", "peak CoA", "friction", "mu phase", "95 % lo", "95 % hi",
-            "error [%]",
-            "covered", "dphi/du [deg/%]", "swing", "ripple [%]", "twin-theory [deg]",
-            "slip at step"]
-    body = [[int(r["point_index"]), *[str(r[k]) for k in keys], int(r["seed"]), r["mu_true"],
-             r.get("mu_friction", r["mu_true"]), r["mu_phase"], r["mu_phase_lo"],
+    head = ["#", "condition", "f [Hz]", "A [N*m]", "seed", "true μ", "μ phase", "95 % lo",
+            "95 % hi", "error [%]", "covered", "dφ/du [deg/%]", "swing", "ripple [%]",
+            "twin−theory [deg]", "slip at step"]
+    body = [[int(r["point_index"]), r[CONDITION_COLUMN] or "—",
+             r["modulation_frequency_nominal_hz"], r["modulation_amplitude_nm"],
+             int(r["seed"]), r["mu_true"], r["mu_phase"], r["mu_phase_lo"],
              r["mu_phase_hi"], r["effective_error_pct"],
              bool(r["covered"]), r["dphi_du_theory"], r["creepage_swing_max"],
              r["torque_ripple_pct_max"],
              r["twin_minus_theory_max_deg"],
              "—" if r["slipped_at_step"] is None or pd.isna(r["slipped_at_step"])
              else int(r["slipped_at_step"])] for _, r in summary.iterrows()]
-    return table(head, body, caption="One row per point (peak CoA: the twin's available "
-                 "adhesion; friction: its friction coefficient at the slip velocity of the "
-                 "highest step the fit used, Polach Eq. 9, the truth for mu from the phase; "
-                 "error: of mu from the phase, or of its lower bound when not determined)",
-                 left=1 + len(keys))
+    return table(head, body, caption="One row per point (true μ: the available adhesion, "
+                 "the peak of the twin's adhesion-creepage curve at the operating speed; "
+                 "error: of μ from the phase against it, or of its lower bound when μ is "
+                 "not determined)", left=2)
 
 
 def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
@@ -143,7 +241,7 @@ def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
                                                     grp["noise"].items())) + "</h3>")
         cls = ("warn" if grp.get("within_limits") is False or grp.get("setting") is None
                else "")
-        parts.append(f"<p class='{cls}'>{escape(grp.get('reasoning', ''))}</p>")
+        parts.append(reasoning_html(grp.get("reasoning", ""), cls))
         parts.append(_settings_html(grp))
     parts.append("<h2>Figures</h2>")
     for stem, png, caption in figs:
@@ -165,8 +263,10 @@ def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
     parts.append("</details><h2>Provenance</h2>")
     parts.append(f"<p>torquemod {escape(__version__)}; base config: "
                  f"{escape(str(spec.base) if spec.base else 'the V-Track default')}; "
-                 f"utilisation = DC torque / creep-curve peak torque; mu true = peak CoA of "
-                 f"the twin's creep curve.</p><pre>{escape(spec.text)}</pre>")
+                 "utilisation = DC torque / creep-curve peak torque; true μ = the "
+                 "available adhesion, the peak of the twin's adhesion-creepage curve F_x/N "
+                 "at the operating speed (T_peak/(R·N)), against which μ from the phase is "
+                 "judged everywhere in this report.</p><pre>{escape(spec.text)}</pre>")
     parts.append("</body></html>")
     return "\n".join(p for p in parts if p)
 
@@ -178,8 +278,9 @@ def write_report(out: str | Path, tab: pd.DataFrame, spec: SweepSpec, rec: dict,
     out = Path(out)
     figs = []
     for stem, fig, caption in make_figures(tab, spec, rec):
-        save_figure(fig, out / "figures" / stem, formats=("png",), dpi=110)
-        figs.append((stem, _png(fig), caption))
+        png = _png(fig)
+        save_png(png, out / "figures" / f"{stem}.png")
+        figs.append((stem, png, caption))
     page = render(tab, spec, rec, figs, status=status, failures=failures, wall_s=wall_s)
     return write_atomic(out / "report.html", lambda fh: fh.write(page))
 

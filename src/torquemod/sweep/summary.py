@@ -2,9 +2,11 @@
 
 Per point (:func:`point_summary`): the sensitivity ``dphi/du`` (slope of a straight line
 through the phase against the utilisation over the steps in the band 50-80 %), the error of
-mu from the phase, the disturbance the modulation adds below the utilisation limit (largest
-creepage swing amplitude, largest torque ripple in % of the saturation torque) and the
-largest twin-minus-theory phase difference.
+mu from the phase against the available adhesion (the peak of the twin's adhesion-creepage
+curve at the operating speed, ``mu_true``; Polach (2005) Eqs. 1-9), the disturbance the
+modulation adds below the utilisation limit (largest creepage swing amplitude, largest
+torque ripple in % of the saturation torque) and the largest twin-minus-theory phase
+difference.
 
 The recommendation (:func:`recommend`) is computed from those, never stated in advance: among
 the modulation settings (frequency x amplitude) whose disturbance stays within the limits of
@@ -21,9 +23,10 @@ import math
 import numpy as np
 import pandas as pd
 
+from .conditions import CONDITION_COLUMN, condition_labels, short_name
 from .spec import SweepSpec
 
-__all__ = ["BAND", "agreement", "point_summary", "recommend", "setting_table"]
+__all__ = ["BAND", "agreement", "point_summary", "recommend", "setting_table", "slipped_mask"]
 
 #: utilisation band of the sensitivity dphi/du [-]
 BAND = (0.5, 0.8)
@@ -42,7 +45,7 @@ def agreement(table: pd.DataFrame) -> dict:
     """How the twin and the chain agree with the large-signal theory over every step that
     did not slip: the largest and median |twin - theory| phase [deg] (full mode), and the
     chain's |phase - theory| / standard error (median, largest)."""
-    live = table[~table["slipped"].astype(bool)]
+    live = table[~slipped_mask(table)]
     d = live["phase_twin_minus_theory_deg"].abs().dropna()
     z = ((live["phase_deg"] - live["phase_theory_deg"]) / live["phase_se_deg"]).abs().dropna()
     return {"n_steps": len(live),
@@ -50,6 +53,15 @@ def agreement(table: pd.DataFrame) -> dict:
             "twin_minus_theory_median_deg": float(d.median()) if len(d) else None,
             "chain_z_median": float(z.median()) if len(z) else None,
             "chain_z_max": float(z.max()) if len(z) else None}
+
+
+def slipped_mask(g: pd.DataFrame) -> pd.Series:
+    """Steps where the wheel slipped: in the theory (no periodic state under the
+    modulation) or, in full mode, in the twin."""
+    out = g["slipped"].eq(True)
+    if "slipped_twin" in g:
+        out |= g["slipped_twin"].eq(True)
+    return out
 
 
 def effective_error(mu_phase, lo, mu_true, determined) -> float:
@@ -64,20 +76,25 @@ def point_summary(table: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
     """One row per point: its swept parameters, seed, setting, sensitivities, mu errors,
     disturbances and the twin-vs-theory difference."""
     lim = spec.recommend.max_utilisation
+    labels = condition_labels(table, spec.swept)
     rows = []
     for pid, g in table.groupby("point_id", sort=False):
         first = g.iloc[0]
-        live = g[~g["slipped"].astype(bool)]
+        slipped = slipped_mask(g)
+        live = g[~slipped]
+        theory = g[~g["slipped"].eq(True)]  # the theory's steps (the twin may slip earlier)
         below = live[live["utilisation"] <= lim + 1e-9]
         u = live["utilisation"].to_numpy(float)
         row = {"point_id": pid, "point_index": int(first["point_index"]),
+               CONDITION_COLUMN: labels.loc[g.index[0]],
                **{k: first.get(k) for k in spec.swept}, "seed": int(first["seed"]),
                **{k: float(first[k]) for k in SETTING},
                "mu_true": float(first["mu_true"]),
                "mu_phase": float(first["mu_phase"]), "mu_phase_lo": float(first["mu_phase_lo"]),
                "mu_phase_hi": float(first["mu_phase_hi"]),
                "mu_phase_determined": bool(first["mu_phase_determined"]),
-               "dphi_du_theory": _slope(u, live["phase_theory_deg"].to_numpy(float)),
+               "dphi_du_theory": _slope(theory["utilisation"].to_numpy(float),
+                                        theory["phase_theory_deg"].to_numpy(float)),
                "dphi_du_chain": _slope(u, live["phase_deg"].to_numpy(float)),
                "creepage_swing_max": float(below["creepage_swing"].max()),
                "torque_ripple_pct_max": float(below["torque_ripple_pct"].max()),
@@ -88,16 +105,16 @@ def point_summary(table: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
                    live["phase_twin_minus_theory_deg"])))
                if live["phase_twin_minus_theory_deg"].notna().any() else math.nan,
                "n_steps": len(live), "slipped_at_step": (
-                   int(g.loc[g["slipped"].astype(bool), "step"].min())
-                   if g["slipped"].astype(bool).any() else None)}
+                   int(g.loc[slipped, "step"].min()) if slipped.any() else None)}
         if "mu_forces" in g:
             row.update(mu_forces=float(first["mu_forces"]),
                        mu_forces_determined=bool(first["mu_forces_determined"]))
-        # mu from the phase is judged against the friction at the top used step's slip
-        # velocity (tables of earlier versions: the creep curve's peak)
-        truth = float(first["mu_friction"]) if "mu_friction" in g and np.isfinite(
-            first["mu_friction"]) else row["mu_true"]
-        row["mu_friction"] = truth
+        # mu from the phase is judged against the available adhesion, the peak of the
+        # twin's adhesion-creepage curve at the operating speed (mu_true); the friction at
+        # the top step's slip velocity is kept for reference
+        truth = row["mu_true"]
+        if "mu_friction" in g:
+            row["mu_friction"] = float(first["mu_friction"])
         row["mu_phase_error_pct"] = 100.0 * (row["mu_phase"] / truth - 1.0)
         row["mu_phase_lo_error_pct"] = 100.0 * (row["mu_phase_lo"] / truth - 1.0)
         row["mu_phase_hi_error_pct"] = 100.0 * (row["mu_phase_hi"] / truth - 1.0)
@@ -185,9 +202,15 @@ def _recommend(summary: pd.DataFrame, spec: SweepSpec) -> dict:
     others = [k for k in spec.swept if k not in ("modulation.frequency_hz",
                                                  "modulation.amplitude_nm",
                                                  *noise_keys(spec))]
-    varying = others + (["seed"] if len(spec.seeds) > 1 else [])
     per = int(settings["n_points"].max()) if len(settings) else 0
-    over = (f"each over its {per} points (varying {', '.join(varying)})" if varying
+    varying = []
+    if others:
+        n_cond = summary[CONDITION_COLUMN].nunique()
+        varying.append(f"{n_cond} condition{'s' if n_cond != 1 else ''} of "
+                       + ", ".join(short_name(k) or "friction condition" for k in others))
+    if len(spec.seeds) > 1:
+        varying.append(f"{len(spec.seeds)} seeds")
+    over = (f"each over its {per} points ({'; '.join(varying)})" if varying
             else f"each over its {per} point(s)")
     if len(settings) < 2:
         doc["reasoning"] = ("The sweep varies no modulation setting (one frequency and "
@@ -206,7 +229,8 @@ def _recommend(summary: pd.DataFrame, spec: SweepSpec) -> dict:
              f"fitted to the steps at or below {opts.max_utilisation:.0%} utilisation."]
     if len(ok):
         excluded = settings[~settings["within_limits"]]
-        lines.append(f"{len(ok)} of them keep the disturbance small below that utilisation "
+        keep = "keeps" if len(ok) == 1 else "keep"
+        lines.append(f"{len(ok)} of them {keep} the disturbance small below that utilisation "
                      f"(creepage swing amplitude <= {opts.max_creepage_swing:.3g}, torque "
                      f"ripple <= {opts.max_torque_ripple_pct:.3g} % of the saturation "
                      "torque)" + (": excluded " + "; ".join(
@@ -216,12 +240,13 @@ def _recommend(summary: pd.DataFrame, spec: SweepSpec) -> dict:
     else:
         lines.append("No setting keeps the disturbance within the limits (creepage swing "
                      f"<= {opts.max_creepage_swing:.3g}, torque ripple <= "
-                     f"{opts.max_torque_ripple_pct:.3g} %): the choice below is the most "
-                     "accurate one regardless, and its disturbance must be accepted or the "
+                     f"{opts.max_torque_ripple_pct:.3g} %): the recommended one is the most "
+                     "accurate regardless, and its disturbance must be accepted or the "
                      "limits relaxed.")
         doc["within_limits"] = False
+    lines.insert(0, f"Recommended: {_name(best)}.")
     lines.append(
-        f"Recommended: {_name(best)}. Its RMS mu-from-phase error is "
+        f"Why {_name(best)}: its RMS mu-from-phase error is "
         f"{best['rms_error_pct']:.2f} % (largest {best['max_error_pct']:.2f} %), mu determined "
         f"in {int(best['n_determined'])} of {int(best['n_points'])} points (elsewhere the "
         f"error is that of the lower bound), sensitivity dphi/du "
@@ -239,10 +264,11 @@ def _recommend(summary: pd.DataFrame, spec: SweepSpec) -> dict:
     bias = settings["bias_pct"].to_numpy(float)
     if np.isfinite(bias).any():
         lines.append(f"Where mu is determined its mean signed error is {np.nanmin(bias):+.1f} "
-                     f"to {np.nanmax(bias):+.1f} % across the settings (against the twin's "
-                     "friction at the slip velocity of the highest step used, which the fit's "
-                     "constant-friction mu estimates; the creep curve's peak, the available "
-                     "adhesion, lies below it where friction falls with slip).")
+                     f"to {np.nanmax(bias):+.1f} % across the settings, against the available "
+                     "adhesion (the peak of the twin's creep curve at the operating speed). "
+                     "A fit with constant friction estimates the friction at the slip "
+                     "velocity of its highest step, which lies above that peak where friction "
+                     "falls with slip.")
     bad = summary[~summary["covered"]]
     if len(bad):
         lines.append(f"{len(bad)} of {len(summary)} points have the true mu outside the 95 % "

@@ -28,8 +28,9 @@ from matplotlib.figure import Figure
 
 from .._version import __version__
 from ..fsutil import write_atomic
-from ..report.figures import figure_of, save_figure
+from ..report.figures import figure_of
 from ..report.html import CSS, _img, table
+from .report import reasoning_html, save_png
 from .spec import SweepSpec
 from .trainpoint import BANDS, band_name
 
@@ -171,8 +172,10 @@ def _recommend_one(table: pd.DataFrame, spec: SweepSpec) -> dict:
                      "between; sweep test.modulation_frequency_hz and/or "
                      "test.modulation_amplitude_nm.")
     doc["setting"] = {k: float(best[k]) for k in SETTING}
+    lines.insert(0, f"Recommended: {_name(best)}" + (
+        "." if best["qualifies"] else " (none qualifies: the best regardless)."))
     lines.append(
-        f"Recommended: {_name(best)}: mu given in {_pct(best['mu_given_share'])} of "
+        f"{_name(best)}: mu given in {_pct(best['mu_given_share'])} of "
         f"{int(best['n_windows'])} windows, within {opts.max_mu_error:.0%} in "
         f"{_pct(best['good_share'])} (of the mu rows {_pct(best['within_error_share'])}; mean "
         f"of the segments' median errors {_pct(best['mu_error_median_mean'])}), 95 % coverage "
@@ -308,7 +311,7 @@ def make_train_figures(table: pd.DataFrame, spec: SweepSpec, rec: dict):
                     "Disturbance each modulation setting adds on the train: the largest "
                     "creepage swing amplitude and the median torque ripple relative to the DC "
                     "torque over the periods of a constant demand (dashed: limits)."))
-    return out
+    return [(stem, figure_of(drawn), caption) for stem, drawn, caption in out]
 
 
 # ----------------------------------------------------------------------------- report
@@ -359,8 +362,7 @@ def render_train(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, failure
             parts.append("<h3>" + escape(", ".join(f"{k} = {v}" for k, v in
                                                     grp["noise"].items())) + "</h3>")
         cls = "warn" if grp.get("qualifies") is False or grp.get("setting") is None else ""
-        parts += [f"<p class='{cls}'>{escape(grp.get('reasoning', ''))}</p>",
-                  _settings_html(grp)]
+        parts += [reasoning_html(grp.get("reasoning", ""), cls), _settings_html(grp)]
     parts.append("<h2>Figures</h2>")
     parts += [_img(png, stem, caption) for stem, png, caption in figs]
     if failures is not None and len(failures):
@@ -387,7 +389,8 @@ def write_train_report(out: str | Path, tab: pd.DataFrame, spec: SweepSpec, rec:
     out = Path(out)
     figs = []
     for stem, fig, caption in make_train_figures(tab, spec, rec):
-        save_figure(fig, out / "figures" / stem, formats=("png",), dpi=110)
-        figs.append((stem, _png(fig), caption))
+        png = _png(fig)
+        save_png(png, out / "figures" / f"{stem}.png")
+        figs.append((stem, png, caption))
     page = render_train(tab, spec, rec, figs, failures=failures, wall_s=wall_s)
     return write_atomic(out / "report.html", lambda fh: fh.write(page))
