@@ -683,8 +683,8 @@ def test_sigterm_during_the_write_leaves_nothing(experiment, tmp_path):
     proc = subprocess.run([sys.executable, "-c", script, "process", str(experiment),
                            "--out", str(out), "--quiet", "--no-fit"],
                           capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 130, proc.stderr
-    assert proc.stderr.strip() == "torquemod: interrupted"
+    assert proc.returncode == 143, proc.stderr
+    assert proc.stderr.strip() == "torquemod: terminated"
     no_leftovers(tmp_path)
 
 

@@ -9,16 +9,21 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import os
 import signal
 import sys
 import threading
 from pathlib import Path
 
 from ._version import __version__
+from .daskutil import CONNECT_TIMEOUT_S
 from .errors import TorquemodError
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERNAL = 3
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports Ctrl-C
+EXIT_TERMINATED = 143  # 128 + SIGTERM
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, as a shell reports `torquemod ... | head`
 
 
 def _fmt(x: object, spec: str) -> str:
@@ -110,7 +115,12 @@ def cmd_simulate_train(args: argparse.Namespace, config) -> int:
     say = _stage_printer(args)
     if say:
         say("simulating the train run (the first run compiles the twin's numba kernels) ...")
-    summary = run_train_simulation(config, Path(args.out), seed=args.seed, force=args.force)
+    from .errors import InputError, ProcessingError
+    try:
+        summary = run_train_simulation(config, Path(args.out), seed=args.seed,
+                                       force=args.force)
+    except ProcessingError as exc:  # the twin could not run this configuration: name it
+        raise InputError(str(exc), path=args.config or "the default train config") from None
     print(f"train run written to {args.out}/run.toml (MDF4) and run_h5.toml (HDF5), truth in "
           "truth.parquet")
     print(f"  {summary['length_m']:.0f} m in {summary['duration_s']:.1f} s")
@@ -124,18 +134,21 @@ def cmd_simulate_train(args: argparse.Namespace, config) -> int:
 def cmd_onboard(args: argparse.Namespace) -> int:
     from . import api
     from .export import check_formats
-    from .onboard.folder import save_onboard
+    from .onboard.folder import check_onboard_out, save_onboard
     export = check_formats(args.export)  # a bad format is refused before the work
     say = _stage_printer(args)
     run = api.read_run(args.run)
+    check_onboard_out(run, args.out, force=args.force)  # an occupied --out: before the work
     if say:
         say("estimating the friction along the run ...")
     results = [api.onboard(run, axle=e.axle) for e in run.recordings]
     save_onboard(results, Path(args.out), force=args.force, command=sys.argv, export=export)
+    _print_warnings([w for r in results for w in r.warnings])
     for r in results:
         s = r.summary()
         print(f"axle {s['axle']}: {s['windows']} windows over {s['length_m']:.0f} m, mu "
               f"determined in {100 * s['mu_given_share']:.0f} % (elsewhere a lower bound), "
+              f"measurable in {100 * s['measurable_share']:.0f} %, "
               f"low adhesion {100 * s['low_adhesion_share']:.1f} %, slip "
               f"{100 * s['slip_share']:.1f} %; {s['seconds']:.1f} s")
         _print_stretches(r.along_track())
@@ -158,6 +171,11 @@ def _print_stretches(seg) -> None:
               f"{interval:>13} {_fmt(s.mu_lower_bound, '6.3f')}")
 
 
+def _check_seed(seed: int) -> None:
+    if seed < 0:
+        raise _UsageError(f"--seed must be 0 or more, got {seed}")
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     from . import simulate
     if args.print_config and args.train:
@@ -169,6 +187,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         return 0
     if args.out is None:
         raise _UsageError("simulate needs --out DIR (or --print-config)")
+    _check_seed(args.seed)
     train = _train_config(args)
     if train is not None:
         return cmd_simulate_train(args, train)
@@ -186,6 +205,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
               f"phase {_fmt(st.get('phase_theory_deg'), '.2f')} deg{flag}")
     return 0
 
+
+_MAX_POINTS = 2000  # torquemod.sweep.spec.MAX_POINTS (not imported for --help's sake)
 
 _COMPILE_NOTE = ("simulating the experiment (the first run compiles the simulator's numba "
                  "kernels, which can take a minute; later runs reuse the compiled cache) ...")
@@ -224,6 +245,7 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
+    _check_seed(args.seed)
     say = _stage_printer(args)
     out = run_demo(Path(args.out), config_path=args.config, seed=args.seed, force=args.force,
                    progress=not args.quiet, quick=args.quick, on_stage=say,
@@ -302,11 +324,22 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0 < value < 1e6:
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
+
+
 def cmd_fleet(args: argparse.Namespace) -> int:
     from .fleet import run_fleet
     res = run_fleet(args.runs, Path(args.out), scheduler=args.scheduler,
                     n_workers=args.workers, force=args.force, progress=not args.quiet,
                     revolutions_per_task=args.revolutions_per_task,
+                    connect_timeout_s=args.connect_timeout,
                     on_dashboard=lambda link: print(f"dashboard: {link}", file=sys.stderr,
                                                     flush=True))
     print(f"{res.summary.shape[0]} runs: {res.count('processed')} processed, "
@@ -322,9 +355,17 @@ def cmd_fleet(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from .sweep.run import run_sweep
-    res = run_sweep(args.sweep, Path(args.out), scheduler=args.scheduler,
+    from .daskutil import check_cluster
+    from .sweep.run import plan_line, run_sweep
+    from .sweep.spec import MAX_POINTS, load_sweep
+    check_cluster(args.scheduler, args.workers, args.connect_timeout)
+    spec = load_sweep(args.sweep, max_points=None if args.yes else args.max_points or MAX_POINTS)
+    say = _stage_printer(args)
+    res = run_sweep(spec, Path(args.out), scheduler=args.scheduler, on_start=say and (
+                        lambda: say(plan_line(spec, args.out, n_workers=args.workers,
+                                              scheduler=args.scheduler))),
                     n_workers=args.workers, force=args.force, progress=not args.quiet,
+                    connect_timeout_s=args.connect_timeout,
                     on_dashboard=lambda link: print(f"dashboard: {link}", file=sys.stderr,
                                                     flush=True))
     print(f"{res.status.shape[0]} points: {res.count('done')} run, {res.count('skipped')} "
@@ -340,8 +381,17 @@ class _UsageError(TorquemodError):
     """A command line that cannot be carried out (exit code 2, like bad input)."""
 
 
+class _Parser(argparse.ArgumentParser):
+    """A command line that cannot be parsed: one line on stderr (what is wrong, where the
+    help is) and exit code 2, like every other bad input."""
+
+    def error(self, message: str):
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {' '.join(message.split())} (see "
+                                  f"'{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="torquemod", description=(
+    p = _Parser(prog="torquemod", description=(
         "Torque-modulation measurement of the wheel-rail coefficient of friction."))
     p.add_argument("--version", action="version", version=f"torquemod {__version__}")
     p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
@@ -469,8 +519,11 @@ def build_parser() -> argparse.ArgumentParser:
     fl.add_argument("--scheduler", default=None, metavar="ADDRESS",
                     help="address of an existing Dask scheduler (default: a local cluster "
                     "sized to the machine)")
-    fl.add_argument("--workers", type=int, default=None,
+    fl.add_argument("--workers", type=int, default=None, metavar="N",
                     help="worker processes of the local cluster (default: CPU count)")
+    fl.add_argument("--connect-timeout", type=_positive_seconds, default=CONNECT_TIMEOUT_S,
+                    metavar="S", help="seconds to wait for --scheduler to answer (default "
+                    f"{CONNECT_TIMEOUT_S:g})")
     fl.add_argument("--force", action="store_true", help="reprocess unchanged runs too")
     fl.add_argument("--quiet", action="store_true", help="no progress bar")
     fl.add_argument("--revolutions-per-task", type=_positive_int, default=None, metavar="N",
@@ -489,9 +542,17 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--scheduler", default=None, metavar="ADDRESS",
                     help="address of an existing Dask scheduler (default: a local cluster "
                     "sized to the machine)")
-    sw.add_argument("--workers", type=int, default=None,
+    sw.add_argument("--workers", type=int, default=None, metavar="N",
                     help="worker processes of the local cluster (default: CPU count)")
-    sw.add_argument("--force", action="store_true", help="rerun finished points too")
+    sw.add_argument("--connect-timeout", type=_positive_seconds, default=CONNECT_TIMEOUT_S,
+                    metavar="S", help="seconds to wait for --scheduler to answer (default "
+                    f"{CONNECT_TIMEOUT_S:g})")
+    sw.add_argument("--force", action="store_true", help="rerun finished points too; start "
+                    "a new study in an --out that holds another sweep's points")
+    sw.add_argument("--max-points", type=_positive_int, default=None, metavar="N",
+                    help="refuse a sweep of more than N points (default: "
+                    f"{_MAX_POINTS})")
+    sw.add_argument("--yes", action="store_true", help="run a sweep of any size")
     sw.add_argument("--quiet", action="store_true", help="no progress bar")
     sw.set_defaults(func=cmd_sweep)
     return p
@@ -506,9 +567,16 @@ def main(argv: list[str] | None = None) -> int:
     except TorquemodError as exc:
         print(f"torquemod: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
+    except BrokenPipeError:  # the reader of stdout went away (`| head`): nothing to say
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
+    except KeyboardInterrupt as exc:  # Ctrl-C: 128 + SIGINT; kill: 128 + SIGTERM
+        if isinstance(exc, _Terminated) or _TERMINATED.is_set():
+            print("torquemod: terminated", file=sys.stderr)
+            return EXIT_TERMINATED
         print("torquemod: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except Exception as exc:
         from .fsutil import environment_error
         env = environment_error(exc)  # full disk, read-only, no permission, ... (also deep
@@ -522,16 +590,25 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INTERNAL
 
 
+_TERMINATED = threading.Event()
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, unwinding as Ctrl-C does (exit code 143 instead of 130)."""
+
+
 @contextlib.contextmanager
 def _terminate_as_interrupt():
     """SIGTERM (``kill``, a job scheduler's stop) unwinds like Ctrl-C, so temporary outputs
-    are removed and nothing half-written is left (main thread only)."""
+    are removed and nothing half-written is left (main thread only); the exit code is
+    143."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def stop(_signum, _frame):
-        raise KeyboardInterrupt
+        _TERMINATED.set()  # also when a library turns the exception into a new one
+        raise _Terminated
 
     previous = signal.signal(signal.SIGTERM, stop)
     try:

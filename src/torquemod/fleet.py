@@ -22,7 +22,7 @@ datasets::
     OUT/fleet_report.html     the summary, the failures and figures (torquemod.fleetreport)
     OUT/_state/<run>.json     fingerprint of what produced the partitions
 
-The ``track`` files hold exactly the 13 columns of ``torquemod onboard``'s ``track.parquet``;
+The ``track`` files hold exactly the 14 columns of ``torquemod onboard``'s ``track.parquet``;
 the partition keys (hive layout) add ``vehicle``, ``date``, ``run`` (and ``axle``) when pandas,
 Dask or DuckDB read ``OUT/track`` (or ``OUT/cycles``, ``OUT/steps``) as a dataset.
 ``vehicle`` is the free text ``[vehicle] vehicle`` of run.toml or ``[rig] vehicle`` of
@@ -56,6 +56,7 @@ import pandas as pd
 
 from ._version import __version__
 from .blas import single_blas
+from .daskutil import CONNECT_TIMEOUT_S, check_cluster
 from .errors import InputError, TorquemodError
 from .fleettasks import _recording_items, may_split, part_item, run_tasks, scan_item
 
@@ -519,7 +520,8 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
               force: bool = False, progress: bool = False, fit: bool = True,
               report: bool = True, on_dashboard=None,
               revolutions_per_task: int | None = None,
-              axle_chunk_s: float | None = None) -> FleetResult:
+              axle_chunk_s: float | None = None,
+              connect_timeout_s: float = CONNECT_TIMEOUT_S) -> FleetResult:
     """Process many run manifests (rig experiments and train runs) in parallel on Dask and
     write the fleet's datasets, summary, failures and report.
 
@@ -537,8 +539,12 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     MDF4, TDMS) longer than that becomes one task per chunk of that length, measuring its
     windows, and the run's assembly advances the estimator over them
     (:mod:`torquemod.onboard.chunks`; the track is ``onboard``'s); None: about
-    :data:`torquemod.fleettasks.AXLE_TASK_S` (10 min).
+    :data:`torquemod.fleettasks.AXLE_TASK_S` (10 min). A malformed ``scheduler`` address
+    or ``n_workers`` < 1 is refused before anything is read, a scheduler that does not
+    answer within ``connect_timeout_s`` [s] before anything is written
+    (:func:`torquemod.daskutil.dask_client`).
     """
+    scheduler = check_cluster(scheduler, n_workers, connect_timeout_s)
     manifests = _as_list(manifests)  # read twice below (a generator would be used up)
     spelled = _spellings(manifests)
     paths = sorted(spelled)
@@ -548,6 +554,9 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
                          hint="give experiment.toml or run.toml files, folders holding "
                               "them, a glob or a list file")
     out = Path(out_dir).resolve()
+    if out.exists() and not out.is_dir():
+        raise InputError("the fleet output is not a folder", path=out_dir,
+                         hint="give --out a folder (new, or one a fleet wrote)")
     from .fsutil import output_lock, refuse_inputs
     refuse_inputs(out, paths)  # the datasets never go into a folder holding a manifest
     with output_lock(out):  # one fleet at a time writes OUT (a second one fails at once)
@@ -555,15 +564,15 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
                            force=force, progress=progress, fit=fit, report=report,
                            on_dashboard=on_dashboard,
                            revolutions_per_task=revolutions_per_task,
-                           axle_chunk_s=axle_chunk_s)
+                           axle_chunk_s=axle_chunk_s, connect_timeout_s=connect_timeout_s)
 
 
 def _run_locked(paths: list[Path], spelled: dict, out: Path, *, scheduler, n_workers, force,
                 progress, fit, report, on_dashboard, revolutions_per_task,
-                axle_chunk_s) -> FleetResult:
+                axle_chunk_s, connect_timeout_s) -> FleetResult:
     from .daskutil import dask_client
+    from .fsutil import removed_if_left_empty
 
-    out.mkdir(parents=True, exist_ok=True)
     names = run_names(paths)
     t0 = time.perf_counter()
     links: list[str] = []
@@ -573,7 +582,9 @@ def _run_locked(paths: list[Path], spelled: dict, out: Path, *, scheduler, n_wor
         if on_dashboard is not None:
             on_dashboard(link)
 
-    with dask_client(scheduler, n_workers, dashboard) as client:
+    with removed_if_left_empty(out), dask_client(
+            scheduler, n_workers, dashboard, connect_timeout_s=connect_timeout_s) as client:
+        out.mkdir(parents=True, exist_ok=True)  # once the cluster answers
         rows = run_tasks(client, paths, names, str(out), force, fit, progress,
                          revolutions_per_task, axle_chunk_s)
     prune_empty(out)

@@ -548,3 +548,22 @@ def sha256_file(path: str | Path, *, chunk: int = 1 << 20) -> str:
         while block := fh.read(chunk):
             h.update(block)
     return h.hexdigest()
+
+
+@contextlib.contextmanager
+def removed_if_left_empty(folder: str | Path) -> Iterator[Path]:
+    """A folder the block may create (a resumable output such as the fleet's or the
+    sweep's): when the block fails and the folder did not exist before, it is removed again
+    with any empty folders inside it, so a run that stopped before writing a result (an
+    unreachable cluster, an interrupt at the start) leaves nothing; anything written stays
+    (a rerun resumes from it)."""
+    folder = Path(folder)
+    existed = os.path.lexists(folder)
+    try:
+        yield folder
+    except BaseException:
+        if not existed and folder.is_dir():
+            for sub, _dirs, _files in os.walk(folder, topdown=False):
+                with contextlib.suppress(OSError):
+                    os.rmdir(sub)
+        raise

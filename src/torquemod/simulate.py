@@ -90,6 +90,7 @@ from .rig.truth import (  # noqa: F401 - sine_fit_phase_deg, wobble_free_phase_d
     wobble_free_phase_deg,
 )
 from .theory import creep_curve_peak
+from .tomlcheck import below_nyquist, between, checked_value, unknown_keys
 
 _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
@@ -115,17 +116,13 @@ def _parse(text: str, where: str) -> dict:
 
 def _check_and_merge(default: dict, user: dict, where: str) -> dict:
     merged = copy.deepcopy(default)
+    unknown_keys(user, default, "the configuration", where, takes="known sections:")
     for section, table in user.items():
-        if section not in default:
-            raise InputError(f"unknown section [{section}]", path=where,
-                             hint=f"known sections: {', '.join(default)}")
         if not isinstance(table, dict):
             raise InputError(f"'{section}' must be a table", path=where)
+        unknown_keys(table, default[section], "", where, prefix=f"{section}.",
+                     takes=f"[{section}] takes")
         for key, value in table.items():
-            if key not in default[section]:
-                raise InputError(f"unknown key '{section}.{key}'", path=where,
-                                 hint=f"known keys in [{section}]: "
-                                      f"{', '.join(default[section])}")
             ref = default[section][key]
             ok = (isinstance(value, bool) if isinstance(ref, bool)
                   else isinstance(value, str) if isinstance(ref, str)
@@ -136,6 +133,10 @@ def _check_and_merge(default: dict, user: dict, where: str) -> dict:
             if not ok:
                 raise InputError(f"'{section}.{key}' has the wrong type ({value!r}); the "
                                  f"default is {ref!r}", path=where)
+            if any(isinstance(v, float) and not math.isfinite(v)
+                   for v in (value if isinstance(value, list) else [value])):
+                raise InputError(f"'{section}.{key}' must be finite, got {value!r}",
+                                 path=where, hint=f"the default is {ref!r}")
             merged[section][key] = value
     # a preset chosen by the user fills the Polach values it does not give itself
     if "preset" in user.get("contact", {}):
@@ -153,7 +154,8 @@ def _positive(doc: dict, section: str, key: str, where: str, *, allow_zero=False
 def _contact(doc: dict, rig: dict, where: str) -> ContactParams:
     c = doc["contact"]
     e_mod = _positive(doc, "contact", "youngs_modulus_pa", where)
-    nu = float(c["poisson_ratio"])
+    nu = checked_value(c["poisson_ratio"], float, "contact.poisson_ratio", where,
+                       between(0.0, 0.5, lo_open=True, hi_open=True))
     a, b = float(c["semi_axis_a_m"]), float(c["semi_axis_b_m"])
     if a > 0 and b > 0:
         pass
@@ -200,10 +202,13 @@ def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
         rolling_resistance_nm=float(r["rolling_resistance_nm"]),
         contact=_contact(doc, r, where))
     m = doc["modulation"]
-    modulation = ModulationParams(amplitude_nm=float(m["amplitude_nm"]),
-                                  frequency_hz=_positive(doc, "modulation", "frequency_hz", where),
-                                  frequency_offset=float(m["frequency_offset"]),
-                                  random_phase=bool(m["random_phase"]))
+    modulation = ModulationParams(
+        amplitude_nm=_positive(doc, "modulation", "amplitude_nm", where, allow_zero=True),
+        frequency_hz=_positive(doc, "modulation", "frequency_hz", where),
+        frequency_offset=checked_value(m["frequency_offset"], float,
+                                       "modulation.frequency_offset", where,
+                                       between(-0.5, 0.5, lo_open=True, hi_open=True)),
+        random_phase=bool(m["random_phase"]))
     d = dict(doc["disturbances"])
     dist = DisturbanceParams(**{k: (v if isinstance(v, bool | int) else
                                     tuple(float(x) for x in v) if isinstance(v, list)
@@ -219,6 +224,8 @@ def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
     for key in doc["sensors"]:
         _positive(doc, "sensors", key, where, allow_zero=(key != "sample_rate_hz"))
     sensors = SensorParams(**{k: float(v) for k, v in doc["sensors"].items()})
+    below_nyquist(modulation.actual_frequency_hz, sensors.sample_rate_hz,
+                  "modulation.frequency_hz", "sensors.sample_rate_hz", where)
     p = doc["procedure"]
     torques = p["dc_torques_nm"]
     if not torques or not all(isinstance(x, int | float) and not isinstance(x, bool)

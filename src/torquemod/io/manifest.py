@@ -6,7 +6,6 @@ file, the key and what to do.
 
 from __future__ import annotations
 
-import difflib
 import math
 import tomllib
 from pathlib import Path
@@ -16,6 +15,7 @@ import tomli_w
 from ..checks import positive_number
 from ..data import Experiment, RecordingEntry, Rig, TestSetup
 from ..errors import InputError, ManifestError
+from ..tomlcheck import unknown_keys
 from .channels import resolve_channel_map
 
 _RIG_KEYS = ("wheel_radius_m", "platform_radius_m")
@@ -76,14 +76,9 @@ def _load_toml(path: Path, name: str = "experiment.toml") -> dict:
 def check_keys(table: dict, allowed, where: str, path: object, *,
                takes: str = "known keys:", error: type[InputError] = ManifestError) -> None:
     """Raise ``error`` naming the first key of ``table`` not in ``allowed`` (a typo such as
-    'dc_torque' or 'stpe' must not pass unnoticed), with the nearest allowed key."""
-    allowed = tuple(allowed)
-    for key in table:
-        if key not in allowed:
-            near = difflib.get_close_matches(str(key), allowed, n=1)
-            raise error(f"{where}: unknown key '{key}'", path=path, hint=(
-                f"did you mean '{near[0]}'? " if near else "") + f"{takes} "
-                + ", ".join(allowed))
+    'dc_torque' or 'stpe' must not pass unnoticed), with the nearest allowed key
+    (:func:`torquemod.tomlcheck.unknown_keys`; a manifest error by default)."""
+    unknown_keys(table, allowed, where, path, takes=takes, error=error)
 
 
 def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEntry:
@@ -140,12 +135,18 @@ def checked_channel_map(channel_map: object, path: Path, rates=()) -> dict:
         raise ManifestError("[channels] must be a table", path=path)
     try:  # checked here so a mistake in [channels] shows before any recording is read
         cmap = resolve_channel_map(channel_map, path)
-        for fs in rates:
-            cmap.with_sample_rate(fs, path=path)
     except InputError as exc:  # same text, raised as a manifest error
         err = ManifestError(str(exc))
         err.path, err.channel, err.hint = exc.path, exc.channel, exc.hint
         raise err from None
+    for i, fs in enumerate(rates):
+        try:
+            cmap.with_sample_rate(fs)
+        except InputError as exc:  # named by the recording and its key
+            raise ManifestError(f"recording #{i + 1}: 'sample_rate_hz' = {fs!r} cannot be "
+                                f"used: {exc}", path=path, hint="give the sample rate either "
+                                "in the [[recording]] or as the recording's time channel in "
+                                "[channels], not both") from None
     return channel_map
 
 

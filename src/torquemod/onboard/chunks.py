@@ -37,6 +37,7 @@ import numpy as np
 from ..errors import InputError
 from ..io.run import Run, RunRecording
 from ..io.runstream import RunStream
+from ..tomlcheck import below_nyquist
 from .estimator import OnboardConfig, OnboardEstimator
 from .window import WindowResult
 
@@ -137,9 +138,18 @@ def axle_stream(run: Run, entry: RunRecording) -> RunStream:
 
 def axle_estimator(run: Run, stream: RunStream, config: OnboardConfig
                    ) -> OnboardEstimator:
-    """A fresh estimator on the stream's sample times."""
-    return OnboardEstimator(run.vehicle, run.modulation_frequency_hz, stream.fs_hz,
-                            config=config, t0_s=stream.t0_s)
+    """A fresh estimator on the stream's sample times (a modulation the recording's sample
+    rate cannot carry, or too few samples a window, refused naming the file)."""
+    below_nyquist(run.modulation_frequency_hz, stream.fs_hz, "test.modulation_frequency_hz",
+                  "the recording's sample rate", run.manifest_path)
+    try:
+        return OnboardEstimator(run.vehicle, run.modulation_frequency_hz, stream.fs_hz,
+                                config=config, t0_s=stream.t0_s,
+                                amplitude_nm=run.modulation_amplitude_nm)
+    except InputError as exc:
+        if exc.path is not None:
+            raise
+        raise InputError(str(exc), path=stream.path) from None
 
 
 def _n_windows(est: OnboardEstimator, n_samples: int) -> int:
@@ -221,7 +231,7 @@ def assemble_axle(run: Run, entry: RunRecording, config: OnboardConfig | None,
     order): positions, then the estimator's state over every window."""
     import pandas as pd
 
-    from .run import OnboardResult, _AxleSignals, load_truth
+    from .run import OnboardResult, _AxleSignals, load_truth, premise_warnings
     config = axle_config(run, config)
     t_start = time.perf_counter()
     starts = [s for p in parts for s in p.starts]
@@ -234,7 +244,9 @@ def assemble_axle(run: Run, entry: RunRecording, config: OnboardConfig | None,
     rows = [est.update(dataclasses.replace(w, position_m=float(x)))
             for w, x in zip(windows, positions, strict=True)]
     track = pd.DataFrame(rows)
+    track, warnings = premise_warnings(run, entry, track, config) if len(track) else (track,
+                                                                                      [])
     return OnboardResult(run, entry.axle, track, config, notes,
                          time.perf_counter() - t_start, est.tracker.n_fits,
                          truth=load_truth(run), changes_m=tuple(est.tracker.changes),
-                         delay_s=est.delay_s)
+                         delay_s=est.delay_s, warnings=warnings)

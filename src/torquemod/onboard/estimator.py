@@ -40,6 +40,12 @@ robust to the heavy-tailed k of single windows; a 90th percentile was inflated 4
 in a steady window (a DC torque step inside a window corrupts its k: measured, all false
 flags on dry rail came from such windows), or the axle slips.
 
+The premise of a window
+-----------------------
+A window whose torque has no modulation line at the declared frequency, whose train stands
+or runs backwards gives no numbers: its row keeps time, position and speed, ``quality`` says
+why (:mod:`torquemod.onboard.quality`), and it leaves the state alone.
+
 Delay between torque and speed
 ------------------------------
 A net delay of the torque signal behind the speed's that run.toml does not declare biases k
@@ -58,22 +64,23 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from ..errors import InputError, ProcessingError
-from ..io.manifest import check_keys
 from ..io.run import Vehicle
 from ..phasefit import R_BOUNDS
+from ..tomlcheck import NON_NEGATIVE, between, default_checks, one_of, read_table
 from .delay import DelayCalibrator, delay_grid
 from .mufit import CreepFit, fit_creep_progression
+from .quality import QUALITY_OK, window_quality
 from .window import WindowResult, measure_window, with_delay
 
 #: The columns of track.parquet, in order (issue 10).
 TRACK_COLUMNS = ("time_s", "position_m", "speed_m_s", "coa", "phase_deg", "phase_se_deg",
                  "creep_coefficient", "mu", "mu_low_95", "mu_high_95", "utilisation",
-                 "low_adhesion", "slip")
+                 "low_adhesion", "slip", "quality")
 
 
 @dataclass(frozen=True)
@@ -105,23 +112,24 @@ class OnboardConfig:
     delay_max_s: float = 0.02
     delay_max_se_s: float = 5e-4
     delay_min_windows: int = 40
+    #: the premise of a window (:mod:`torquemod.onboard.quality`): the reference speed
+    #: [m/s] below which the train counts as standing (twice the 0.5 m/s floor of the
+    #: creepage's reference speed; ours) and the share of the declared modulation amplitude
+    #: the torque's line must reach (ours: windows of the twin's and the independent runs
+    #: reach > 0.3 even across a DC step)
+    min_speed_m_s: float = 1.0
+    min_modulation_ratio: float = 0.25
 
     @classmethod
     def from_dict(cls, table: dict | None, *, source: str = "[onboard]") -> OnboardConfig:
-        table = dict(table or {})
-        check_keys(table, [f.name for f in fields(cls)], "[onboard]", source, error=InputError)
-        if "ratio_bounds" in table:
-            table["ratio_bounds"] = tuple(float(v) for v in table["ratio_bounds"])
-        cfg = cls(**table)
-        for f in fields(cls):
-            v = getattr(cfg, f.name)
-            if f.name in ("power_shapes", "calibrate_delay"):
-                if v not in (0, 1):
-                    raise InputError(f"[onboard] {f.name} must be 0 or 1, got {v!r}",
-                                     path=source)
-            elif f.name != "ratio_bounds" and not (isinstance(v, int | float) and v > 0):
-                raise InputError(f"[onboard] {f.name} must be a positive number, got {v!r}",
-                                 path=source)
+        """The settings from run.toml's ``[onboard]`` table (None: the defaults); every key
+        and value checked (:func:`torquemod.tomlcheck.read_table`), an :class:`InputError`
+        naming ``source`` and the key otherwise."""
+        cfg = read_table(cls, table, section="onboard", path=source, checks=_CHECKS)
+        lo, hi = cfg.ratio_bounds
+        if not lo < hi:
+            raise InputError(f"'onboard.ratio_bounds' must be [low, high] with low < high, got "
+                             f"{list(cfg.ratio_bounds)}", path=source)
         return cfg
 
     def to_dict(self) -> dict:
@@ -137,6 +145,17 @@ class _Fit:
     low: float
     high: float | None
     model: CreepFit | None = None
+
+
+#: ranges of the [onboard] settings (besides their types): positive unless listed here
+_CHECKS = default_checks(OnboardConfig, {
+    "power_shapes": one_of(0, 1), "calibrate_delay": one_of(0, 1),
+    "window_periods": between(1, None), "n_bins": between(1, None),
+    "min_windows": between(1, None), "delay_min_windows": between(1, None),
+    "info_utilisation": between(0.0, 1.0, lo_open=True),
+    "min_modulation_ratio": between(0.0, 1.0),
+    "low_adhesion_ratio": between(0.0, 1.0, lo_open=True),
+    "change_drift": NON_NEGATIVE, "delay_max_s": NON_NEGATIVE})
 
 
 class ChangeDetector:
@@ -304,8 +323,10 @@ class OnboardEstimator:
     """
 
     def __init__(self, vehicle: Vehicle, frequency_hz: float, fs_hz: float, *,
-                 config: OnboardConfig | None = None, t0_s: float = 0.0):
+                 config: OnboardConfig | None = None, t0_s: float = 0.0,
+                 amplitude_nm: float | None = None):
         self.v, self.f, self.fs, self.t0 = vehicle, float(frequency_hz), float(fs_hz), t0_s
+        self.amplitude_nm = amplitude_nm  # declared [N*m]: a window's line is checked
         self.cfg = config or OnboardConfig()
         n_win = self.cfg.window_periods * self.fs / self.f
         self.n_win = round(n_win)
@@ -383,7 +404,26 @@ class OnboardEstimator:
 
     def update(self, w: WindowResult) -> dict:
         """The row of a measured window, advancing the state (slip, reference creep
-        coefficient, mu tracker); windows must come in order."""
+        coefficient, mu tracker); windows must come in order. A window without the
+        method's premise (:func:`~torquemod.onboard.quality.window_quality`) keeps its time,
+        position and speed, the rest empty, and leaves the state alone."""
+        step_nm = w.dc_step_ratio * max(w.torque_amplitude_nm, 1e-12)
+        quality = window_quality(w.speed_m_s, w.wheel_speed_rad_s, w.torque_amplitude_nm,
+                                 amplitude_nm=self.amplitude_nm,
+                                 min_speed_m_s=self.cfg.min_speed_m_s,
+                                 min_modulation_ratio=self.cfg.min_modulation_ratio,
+                                 dc_step_nm=step_nm, max_step_ratio=self.cfg.max_dc_step_ratio)
+        if quality != QUALITY_OK:
+            nan = math.nan
+            return {"time_s": w.time_s, "position_m": w.position_m, "speed_m_s": w.speed_m_s,
+                    "coa": w.coa if quality == "no_modulation" else nan, "phase_deg": nan,
+                    "phase_se_deg": nan, "creep_coefficient": nan, "mu": nan,
+                    "mu_low_95": nan, "mu_high_95": nan, "utilisation": nan,
+                    "low_adhesion": False, "slip": False, "quality": quality,
+                    "creepage": nan, "dc_torque_nm": w.dc_torque_nm,
+                    "accel_m_s2": w.accel_m_s2, "creep_coefficient_ref": nan,
+                    "dc_step_ratio": w.dc_step_ratio, "dc_step_nm": step_nm,
+                    "delay_s": self.delay_s}
         slip = (w.creepage > self.cfg.slip_creepage
                 or w.wheel_excess_accel_m_s2 > self.cfg.slip_accel_m_s2)
         steady = w.dc_step_ratio <= self.cfg.max_dc_step_ratio  # a step corrupts k
@@ -413,7 +453,8 @@ class OnboardEstimator:
                 "creep_coefficient": k, "mu": math.nan if mu is None else mu,
                 "mu_low_95": lo, "mu_high_95": math.nan if hi is None else hi,
                 "utilisation": math.nan if mu is None else w.coa / mu,
-                "low_adhesion": low, "slip": bool(slip),
+                "low_adhesion": low, "slip": bool(slip), "quality": QUALITY_OK,
                 "creepage": w.creepage, "dc_torque_nm": w.dc_torque_nm,
                 "accel_m_s2": w.accel_m_s2, "creep_coefficient_ref": ref,
-                "dc_step_ratio": w.dc_step_ratio, "delay_s": self.delay_s}
+                "dc_step_ratio": w.dc_step_ratio, "dc_step_nm": step_nm,
+                "delay_s": self.delay_s}

@@ -19,14 +19,14 @@ from pathlib import Path
 from .._version import __version__
 from ..errors import InputError
 from ..export import check_formats, write_table
-from ..fsutil import atomic_dir, sha256_file
+from ..fsutil import atomic_dir, check_output_dir, sha256_file
 from ..io.run import Run, RunRecording, Vehicle
 from ..jsonutil import dump_json
 from ..provenance import software_versions
 from .estimator import OnboardConfig
 from .result import OnboardResult
 
-__all__ = ["load_onboard", "save_onboard", "track_name"]
+__all__ = ["check_onboard_out", "load_onboard", "save_onboard", "track_name"]
 
 META = "onboard.json"
 
@@ -54,7 +54,7 @@ def _meta(results: list[OnboardResult], command: list[str] | None) -> dict:
                                     "sample_rate_hz": e.sample_rate_hz,
                                     "sha256": sha256_file(e.path)} for e in run.recordings]},
             "onboard": results[0].config.to_dict(),
-            "axles": [dict(r.summary(), notes=list(r.notes),
+            "axles": [dict(r.summary(), notes=list(r.notes), warnings=list(r.warnings),
                            track_file=track_name(results, r) + ".parquet")
                       for r in results]}
 
@@ -87,6 +87,13 @@ def write_onboard(folder: Path, results: list[OnboardResult], *,
     (folder / META).write_text(dump_json(meta))
     figs = write_figures(folder, results[0])
     write_report(folder / "report.html", results[0], meta, figs)
+
+
+def check_onboard_out(run: Run, out_dir, *, force: bool = False) -> None:
+    """Refuse, before any work, an ``out_dir`` that is occupied (without ``force``) or is
+    or holds one of the run's inputs (:func:`torquemod.fsutil.check_output_dir`)."""
+    inputs = [run.manifest_path, *(e.path for e in run.recordings)]
+    check_output_dir(out_dir, force=force, inputs=inputs)
 
 
 def save_onboard(results: list[OnboardResult], out_dir, *, force: bool = False,
@@ -160,4 +167,5 @@ def load_onboard(folder, axle: int | None = None) -> OnboardResult:
     return OnboardResult(run, int(entry["axle"]), track, config, entry.get("notes", ()),
                          float(entry.get("seconds", 0.0)), int(entry.get("mu_fits", 0)),
                          truth=load_truth(run), changes_m=entry.get("changes_m", ()),
-                         delay_s=entry.get("measured_delay_s"))
+                         delay_s=entry.get("measured_delay_s"),
+                         warnings=entry.get("warnings", ()))

@@ -249,7 +249,9 @@ def headline(result) -> list[str]:
              f"{v.wheel_radius_m} m, axle load {v.normal_load_n:.0f} N, inertia "
              f"{v.inertia_kg_m2} kg m²; modulation {result.run.modulation_frequency_hz} Hz, "
              f"{result.run.modulation_amplitude_nm} N m.",
-             f"{s['windows']} windows over {s['length_m']:.0f} m; μ determined in "
+             f"{s['windows']} windows over {s['length_m']:.0f} m, measurable (the torque "
+             "modulated, the train rolling forward) in "
+             f"{100 * s.get('measurable_share', 1.0):.0f} %; μ determined in "
              f"{100 * s['mu_given_share']:.0f} % of them (elsewhere a lower bound: the data "
              "fix μ only where the axle works near saturation); "
              f"{len(result.changes_m)} friction changes detected; low adhesion flagged in "
@@ -348,6 +350,7 @@ def write_report(path: Path, result, meta: dict, figures: list[dict]) -> None:
     per kilometre, the figures, the notes and the settings."""
     s = result.summary()
     notes = "".join(f"<li>{escape(n)}</li>" for n in result.notes) or "<li>none</li>"
+    warns = "".join(f'<p class="warn">{escape(w)}</p>' for w in result.warnings)
     imgs = "".join(_img(f["png"], f["alt"], f"Figure {i}: {f['caption']}")
                    for i, f in enumerate(figures, 1))
     head = "".join(f"<p>{escape(line)}</p>" for line in headline(result))
@@ -364,6 +367,7 @@ def write_report(path: Path, result, meta: dict, figures: list[dict]) -> None:
 <style>{CSS}{_CSS}</style></head><body>
 <h1>Friction along the run</h1>
 {head}
+{warns}
 <p>{escape(_delay_sentence(result, s))}</p>
 <h2>Along the track</h2>
 {along_track_html(seg, "Per segment between detected friction changes (along_track.csv)")}

@@ -9,6 +9,7 @@ from html import escape
 
 from ..io.run import Run
 from .estimator import TRACK_COLUMNS, OnboardConfig
+from .quality import QUALITY_OK
 
 __all__ = ["OnboardResult"]
 
@@ -42,6 +43,9 @@ class OnboardResult:
     delay_s : float or None
         The further net delay of the torque behind the speed measured from the run and
         taken out [s] (None: read from the track's ``delay_s`` column).
+    warnings : tuple of str
+        What the user must know: stretches of track without the method's premise (no
+        modulation, standstill, reverse running), a run too short for a friction estimate.
     """
 
     run: Run
@@ -54,9 +58,11 @@ class OnboardResult:
     truth: object | None = None
     changes_m: tuple[float, ...] = field(default=())
     delay_s: float | None = None
+    warnings: tuple[str, ...] = ()
 
     def __post_init__(self):
         object.__setattr__(self, "notes", tuple(self.notes))
+        object.__setattr__(self, "warnings", tuple(self.warnings))
         object.__setattr__(self, "changes_m", tuple(float(c) for c in self.changes_m))
 
     # --- numbers ----------------------------------------------------------------------------
@@ -78,8 +84,10 @@ class OnboardResult:
         from .alongtrack import run_mu_summary
         t = self.track
         mu, bound = run_mu_summary(t)
+        ok = (t["quality"] == QUALITY_OK) if "quality" in t else t["mu"].notna() | True
         out = {"axle": self.axle, "windows": len(t),
                "mu_given_share": float(t["mu"].notna().mean()) if len(t) else 0.0,
+               "measurable_share": float(ok.mean()) if len(t) else 0.0,
                "low_adhesion_share": float(t["low_adhesion"].mean()) if len(t) else 0.0,
                "slip_share": float(t["slip"].mean()) if len(t) else 0.0,
                "mu_fits": self.n_fits, "seconds": self.seconds,
@@ -95,10 +103,12 @@ class OnboardResult:
 
     def to_frame(self):
         """The ``track.parquet`` table (a copy): exactly
-        :data:`~torquemod.onboard.TRACK_COLUMNS`, flags as bool."""
+        :data:`~torquemod.onboard.TRACK_COLUMNS`, flags as bool, ``quality`` as text."""
         t = self.track[list(TRACK_COLUMNS)].copy()
         t["low_adhesion"] = t["low_adhesion"].astype(bool)
         t["slip"] = t["slip"].astype(bool)
+        if "quality" in t:
+            t["quality"] = t["quality"].astype(str)
         return t
 
     def along_track(self, by: str = "segment", *, length_m: float = 1000.0):

@@ -28,7 +28,9 @@ class WindowResult:
     the mean torque from the first to the last modulation period over the modulation's
     amplitude (a DC step inside the window leaks into the sine fit); ``torque_speed_ratio``
     [N*m*s/rad] the complex ratio T/w at the modulation frequency (declared sensor dynamics
-    divided out) that phase and k come from (:func:`with_delay`)."""
+    divided out) that phase and k come from (:func:`with_delay`); ``torque_amplitude_nm``
+    [N*m] the torque's amplitude at the modulation frequency (the premise of the method:
+    :func:`torquemod.onboard.quality.window_quality`)."""
 
     time_s: float
     position_m: float
@@ -47,6 +49,7 @@ class WindowResult:
     wheel_excess_accel_m_s2: float
     dc_step_ratio: float = 0.0
     torque_speed_ratio: complex = complex("nan")
+    torque_amplitude_nm: float = math.nan
 
 
 def load_impedance(ratio: complex, vehicle: Vehicle, frequency_hz: float) -> complex:
@@ -178,7 +181,8 @@ def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
         phase_se_deg=fit.phase_stderr_deg, creep_coefficient=k, creep_coefficient_se=k_se,
         creepage_swing=r * fit.wheel_amplitude / v_ref,
         wheel_excess_accel_m_s2=r * dw_dt - dv_dt,
-        dc_step_ratio=step / max(fit.torque_amplitude, 1e-12), torque_speed_ratio=ratio)
+        dc_step_ratio=step / max(fit.torque_amplitude, 1e-12), torque_speed_ratio=ratio,
+        torque_amplitude_nm=float(fit.torque_amplitude))
 
 
 def _reference_speed(speed_m_s: float) -> float:

@@ -17,11 +17,11 @@ first step, ...) becomes a row of failures.csv and the sweep goes on.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import hashlib
 import json
 import os
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,13 +29,14 @@ from pathlib import Path
 import pandas as pd
 
 from .._version import __version__
-from ..errors import InputError, TorquemodError
-from ..fsutil import output_lock, write_atomic
+from ..daskutil import CONNECT_TIMEOUT_S, check_cluster
+from ..errors import InputError, OutputError, TorquemodError
+from ..fsutil import environment_error, output_lock, removed_if_left_empty, write_atomic
 from ..jsonutil import dump_json
 from .evaluate import PointTask, evaluate_point
 from .spec import SweepSpec, load_sweep
 
-__all__ = ["SweepResult", "fingerprint", "run_point", "run_sweep", "tasks"]
+__all__ = ["SweepResult", "fingerprint", "plan_line", "run_point", "run_sweep", "tasks"]
 
 FAILURE_COLUMNS = ["point_id", "point_index", "seed", "params", "message"]
 
@@ -116,6 +117,10 @@ def _one_line(exc: BaseException) -> str:
     text = " ".join(str(exc).split())
     if isinstance(exc, TorquemodError):
         return text
+    env = environment_error(exc)  # a full disk, a read-only folder: the system's
+    if env is not None:
+        reason = env.strerror or " ".join(str(env).split())
+        return f"{env.filename}: {reason}" if env.filename else reason
     return f"internal error: {type(exc).__name__}: {text}"
 
 
@@ -149,6 +154,8 @@ def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
         row.update(status="done", n_rows=len(df))
     except Exception as exc:  # a bad point never stops the sweep: it becomes a failure row
         row["message"] = _one_line(exc)
+        if not isinstance(exc, TorquemodError) and environment_error(exc) is not None:
+            row["system"] = True  # the sweep stops (the next points would fail alike)
         part.unlink(missing_ok=True)  # no stale rows of an earlier good run
         state.unlink(missing_ok=True)
     row["seconds"] = time.perf_counter() - t0
@@ -176,11 +183,14 @@ class SweepResult:
 
 
 def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, scheduler,
-                  n_workers, force: bool, progress: bool, on_dashboard) -> tuple[list, str]:
+                  n_workers, force: bool, progress: bool, on_dashboard, begin,
+                  connect_timeout_s: float = CONNECT_TIMEOUT_S) -> tuple[list, str]:
+    """Every point's status row (``begin()`` creates the output when the work can start)."""
     from tqdm import tqdm
-    bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
     rows, links = [], []
     if in_process:
+        begin()
+        bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
         for task in todo:
             rows.append(run_point(task, str(out), force))
             bar.update()
@@ -195,7 +205,10 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
         if on_dashboard is not None:
             on_dashboard(link)
 
-    with dask_client(scheduler, n_workers, dashboard) as client:
+    with dask_client(scheduler, n_workers, dashboard,
+                     connect_timeout_s=connect_timeout_s) as client:
+        begin()  # once the cluster answers
+        bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
         futures = {client.submit(run_point, t, str(out), force, pure=False,
                                  key=f"torquemod-sweep-{t.point_id}-{time.time_ns()}"): t
                    for t in todo}
@@ -210,6 +223,106 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
             bar.update()
     bar.close()
     return rows, (links[0] if links else None)
+
+
+#: rough seconds a point takes on one worker of a 2-core machine under load (theory: docs;
+#: a full rig point of the default procedure and a train point of the default 4 km run are
+#: larger, measured once with ``torquemod sweep``); a resumed sweep uses its own points' times
+POINT_SECONDS = {("rig", "theory"): 0.5, ("rig", "full"): 60.0, ("train", "full"): 120.0}
+
+
+def plan_line(spec: SweepSpec, out: str | Path, *, n_workers: int | None = None,
+              scheduler: str | None = None) -> str:
+    """What the sweep is about to do, said before it starts: the points (and how many are
+    done already in ``out``) and a rough time on the workers."""
+    out = Path(out)
+    done, seconds = 0, []
+    for p in spec.points:
+        try:
+            st = json.loads((out / "_state" / f"{p.point_id}.json").read_text("utf-8"))
+        except (OSError, ValueError):
+            continue
+        done += _part(out, p.point_id).is_file()
+        if isinstance(st.get("seconds"), int | float):
+            seconds.append(float(st["seconds"]))
+    per = (sorted(seconds)[len(seconds) // 2] if seconds
+           else POINT_SECONDS.get((spec.kind, spec.mode), 60.0))
+    workers = n_workers or (None if scheduler else os.cpu_count() or 1)
+    todo = len(spec.points) - done
+    total = todo * per / (workers or 1)
+    where = f"{workers} worker{'s' if workers != 1 else ''}" if workers else "the cluster"
+    when = (f"about {_duration(total)} on {where}" if workers
+            else f"about {_duration(todo * per)} of worker time")
+    return (f"sweep: {len(spec.points)} points ({todo} to run, {done} finished); {when} "
+            f"(~{per:.3g} s a point{'' if seconds else ', a rough guess'})")
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+#: the file in ``_state`` that names the study whose points the folder holds
+STUDY_FILE = "study.json"
+
+
+def study_key(spec: SweepSpec) -> str:
+    """SHA-256 of what makes every point's rows comparable: mode, kind, the base config's
+    text, the torque fractions and the ``[processing]`` table (the points themselves are
+    compared by their ids)."""
+    base = Path(spec.base).read_text(encoding="utf-8") if spec.base else spec.kind
+    blob = json.dumps({"mode": spec.mode, "kind": spec.kind,
+                       "base": hashlib.sha256(base.encode()).hexdigest(),
+                       "fractions": spec.fractions_of_peak, "processing": spec.processing},
+                      sort_keys=True, default=str)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def _held_points(out: Path) -> set[str]:
+    """Ids of the points whose partition or state the folder holds."""
+    ids = {p.name.split("=", 1)[1] for p in (out / "points").glob("point=*")}
+    ids |= {p.stem for p in (out / "_state").glob("*.json") if p.name != STUDY_FILE}
+    return ids
+
+
+def _one_study(out: Path, spec: SweepSpec, todo: list[PointTask], force: bool):
+    """Make sure ``out`` holds one study: points of a sweep file whose grid, ``[fixed]``
+    values, mode, base, torque fractions or ``[processing]`` differ from ``spec``'s are
+    never left beside its points. A folder holding such points is refused at once, or with
+    ``force`` they are removed (a new study) by the function returned, which creates ``out``
+    and records the study (called once the cluster answers); a grown grid (every held point
+    still in the sweep) resumes."""
+    key = study_key(spec)
+    state = out / "_state" / STUDY_FILE
+    try:
+        old_key = json.loads(state.read_text(encoding="utf-8")).get("key")
+    except (OSError, ValueError, AttributeError):
+        old_key = None
+    ids = {t.point_id for t in todo}
+    stale = sorted(_held_points(out) - ids) if out.is_dir() else []
+    changed = old_key is not None and old_key != key
+    if stale or changed:
+        why = (f"{len(stale)} of its points are not in this sweep (grid or [fixed] changed)"
+               if stale else "mode, base, [steps] or [processing] changed")
+        if not force:
+            raise InputError(f"the folder holds the results of another study ({why})",
+                             path=out, hint="choose another --out, or pass --force to start "
+                                            "a new study there (the old points are removed)")
+
+    def begin() -> None:
+        if stale or changed:
+            for pid in stale if not changed else sorted(_held_points(out)):
+                shutil.rmtree(out / "points" / f"point={pid}", ignore_errors=True)
+                (out / "_state" / f"{pid}.json").unlink(missing_ok=True)
+            for name in ("sweep.parquet", "sweep.json", "failures.csv"):
+                (out / name).unlink(missing_ok=True)
+        state.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(state, lambda fh: fh.write(json.dumps(
+            {"key": key, "sweep": str(spec.path), "n_points": len(ids)})))
+    return begin
 
 
 def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
@@ -229,7 +342,8 @@ def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
 def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
               in_process: bool = False, scheduler: str | None = None,
               n_workers: int | None = None, force: bool = False, progress: bool = False,
-              report: bool = True, on_dashboard=None) -> SweepResult:
+              report: bool = True, on_dashboard=None,
+              connect_timeout_s: float = CONNECT_TIMEOUT_S, on_start=None) -> SweepResult:
     """Run a sweep (a :class:`SweepSpec` or the path of ``SWEEP.toml``) into ``out_dir``.
 
     Points run as Dask tasks: on the scheduler at ``scheduler`` (``tcp://host:8786``), else on
@@ -237,9 +351,18 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
     count); ``in_process`` runs them one after another here instead (tests, small sweeps).
     Finished points with an unchanged fingerprint are skipped unless ``force``. ``report``
     writes the figures and report.html. ``on_dashboard(link)`` receives the dashboard
-    address; ``progress`` shows a bar on stderr.
+    address; ``progress`` shows a bar on stderr; ``on_start()`` is called once the inputs
+    and the output folder are checked, before the cluster starts (:func:`plan_line` says
+    what is about to run).
+
+    Refused before any work (:class:`InputError`): an ``out_dir`` that holds the sweep file
+    or its base; an ``out_dir`` that holds the points of another study (a changed grid,
+    ``[fixed]`` value, mode, base, ``[steps]`` or ``[processing]``) unless ``force``, which
+    removes them; a malformed scheduler address, ``n_workers`` < 1; a scheduler that does
+    not answer within ``connect_timeout_s`` [s].
     """
     t0 = time.perf_counter()
+    scheduler = None if in_process else check_cluster(scheduler, n_workers, connect_timeout_s)
     spec = sweep if isinstance(sweep, SweepSpec) else load_sweep(sweep)
     if not spec.points:
         raise InputError("the sweep has no points", path=spec.path,
@@ -247,21 +370,39 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
     out = Path(out_dir).absolute()
     if out.exists() and not out.is_dir():
         raise InputError("the sweep output is not a folder", path=out)
+    for given in (spec.path, spec.base):  # the outputs never go beside the inputs
+        if given is not None and (out == Path(given).resolve().parent
+                                  or out in Path(given).resolve().parents
+                                  or out.resolve() in Path(given).resolve().parents):
+            raise InputError(f"the output folder holds the sweep's input {given}", path=out,
+                             hint="choose an --out outside the folder of the sweep file and "
+                                  "its base")
     with output_lock(out):  # one sweep at a time writes OUT (a second one fails at once)
         return _run_locked(spec, out, t0, in_process=in_process, scheduler=scheduler,
                            n_workers=n_workers, force=force, progress=progress,
-                           report=report, on_dashboard=on_dashboard)
+                           report=report, on_dashboard=on_dashboard,
+                           connect_timeout_s=connect_timeout_s, on_start=on_start)
 
 
 def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler, n_workers,
-                force, progress, report, on_dashboard) -> SweepResult:
-    out.mkdir(parents=True, exist_ok=True)
+                force, progress, report, on_dashboard, connect_timeout_s,
+                on_start) -> SweepResult:
     todo = tasks(spec)
-    rows, link = _evaluate_all(todo, out, in_process=in_process, scheduler=scheduler,
-                               n_workers=n_workers, force=force, progress=progress,
-                               on_dashboard=on_dashboard)
-    with contextlib.suppress(OSError):  # the twin's experiments are gone: drop the folder
-        (out / "_work").rmdir()
+    begin = _one_study(out, spec, todo, force)
+    if on_start is not None:
+        on_start()
+    with removed_if_left_empty(out):
+        try:
+            rows, link = _evaluate_all(todo, out, in_process=in_process, scheduler=scheduler,
+                                       n_workers=n_workers, force=force, progress=progress,
+                                       on_dashboard=on_dashboard, begin=begin,
+                                       connect_timeout_s=connect_timeout_s)
+        finally:  # the twin's experiments, also of points cut short by an interrupt
+            shutil.rmtree(out / "_work", ignore_errors=True)
+    system = [r["message"] for r in rows if r.pop("system", False)]
+    if system:  # the finished points stay: a rerun resumes once there is room
+        raise OutputError(system[0] if system[0].startswith(str(out)) else
+                          f"{out}: {system[0]}")
     status = pd.DataFrame(rows).sort_values("point_index", ignore_index=True)
     table = assemble(out, spec, status)
     params = {p.point_id: json.dumps(p.params, sort_keys=True, default=str)

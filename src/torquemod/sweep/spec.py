@@ -25,9 +25,10 @@ from pathlib import Path
 from ..contact.presets import POLACH_PRESETS, PolachParameters
 from ..errors import InputError
 from ..io.manifest import check_keys
+from ..tomlcheck import between, default_checks, read_table
 
-__all__ = ["CONDITION_KEY", "RecommendOptions", "SweepPoint", "SweepSpec", "conditions",
-           "load_sweep", "parse_sweep", "twin_keys"]
+__all__ = ["CONDITION_KEY", "MAX_POINTS", "RecommendOptions", "SweepPoint", "SweepSpec",
+           "conditions", "load_sweep", "parse_sweep", "twin_keys"]
 
 #: A sweep-only key: a named friction condition filling the five Polach parameters
 CONDITION_KEY = "contact.condition"
@@ -226,22 +227,18 @@ def _fractions(doc: dict, path) -> tuple[float, ...] | None:
 
 
 def _recommend(doc: dict, path) -> RecommendOptions:
+    """The ``[recommend]`` table (and a top-level ``max_utilisation``), every value checked
+    (:func:`torquemod.tomlcheck.read_table`): shares in (0, 1), the rest positive."""
     table = doc.get("recommend", {})
     if not isinstance(table, dict):
         raise InputError("[recommend] must be a table", path=path)
-    names = tuple(RecommendOptions.__dataclass_fields__)
-    check_keys(table, names, "[recommend]", path, takes="[recommend] takes", error=InputError)
     if "max_utilisation" in doc:
         table = {**table, "max_utilisation": doc["max_utilisation"]}
-    for key, value in table.items():
-        if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
-            raise InputError(f"[recommend] {key} must be a positive number, got {value!r}",
-                             path=path)
-    if table.get("max_utilisation", 0.8) >= 1.0:
-        raise InputError("max_utilisation must be below 1", path=path)
-    if table.get("min_coverage", 0.9) > 1.0:
-        raise InputError("min_coverage is a share: at most 1", path=path)
-    return RecommendOptions(**{k: float(v) for k, v in table.items()})
+    share = between(0.0, 1.0, lo_open=True)
+    return read_table(RecommendOptions, table, section="recommend", path=path,
+                      checks=default_checks(RecommendOptions, {
+                          "max_utilisation": between(0.0, 1.0, lo_open=True, hi_open=True),
+                          "min_coverage": share}))
 
 
 def _processing(doc: dict, path) -> dict:
@@ -274,7 +271,16 @@ def _base(doc: dict, path, where) -> tuple[Path | None, str]:
         kind = tomllib.loads(base_path.read_text(encoding="utf-8")).get("kind", "rig")
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise InputError(f"cannot read the base config ({exc})", path=base_path) from None
-    return base_path, "train" if kind == "train" else "rig"
+    kind = "train" if kind == "train" else "rig"
+    # every value of the base checked now (the error names the base file and the key), not
+    # by each point's worker
+    if kind == "train":
+        from ..train.params import load_train_config
+        load_train_config(base_path)
+    else:
+        from ..simulate import load_config
+        load_config(base_path)
+    return base_path, kind
 
 
 def _train_only(doc: dict, mode: str, where) -> None:
@@ -292,9 +298,21 @@ def _train_only(doc: dict, mode: str, where) -> None:
 _DC_KEY = "procedure.dc_torques_nm"
 
 
-def parse_sweep(text: str, *, path: str | Path | None = None) -> SweepSpec:
+#: the most points a sweep runs without being told (``max_points``; --max-points, --yes)
+MAX_POINTS = 2000
+
+
+def _count(grid: dict, rows: list, seeds: tuple) -> int:
+    """Points of the grid over the listed points and seeds, before duplicates are merged
+    (an upper bound, known without building them)."""
+    return math.prod(len(v) for v in grid.values()) * max(1, len(rows)) * len(seeds)
+
+
+def parse_sweep(text: str, *, path: str | Path | None = None,
+                max_points: int | None = None) -> SweepSpec:
     """Parse and check the sweep file's ``text`` (``path`` names it in errors and anchors a
-    relative ``base``)."""
+    relative ``base``). A sweep of more than ``max_points`` points (None: no limit) is
+    refused before its points are built."""
     where = path if path is not None else "<sweep>"
     try:
         doc = tomllib.loads(text)
@@ -332,9 +350,18 @@ def parse_sweep(text: str, *, path: str | Path | None = None) -> SweepSpec:
         for key, value in row.items():
             _check_value(key, value, f"[[point]] #{i + 1}", where, kind)
     # the grid runs over each listed point (or over the base alone when none is listed)
+    seeds = _seeds(doc, where)
+    n = _count(grid, rows, seeds)
+    if max_points is not None and n > max_points:
+        shape = " x ".join([*(str(len(v)) for v in grid.values()),
+                            *([f"{len(rows)} [[point]]"] if rows else []),
+                            f"{len(seeds)} seed{'s' if len(seeds) > 1 else ''}"])
+        raise InputError(f"the sweep has {n} points ({shape}), more than the limit of "
+                         f"{max_points}", path=where,
+                         hint=f"make the grid smaller, or run it on purpose with "
+                              f"--max-points {n} (or --yes)")
     combos = [dict(zip(grid, vals, strict=True)) for vals in itertools.product(*grid.values())]
     bases = rows or [{}]
-    seeds = _seeds(doc, where)
     points, seen = [], set()
     for row in bases:
         for combo in combos:
@@ -360,11 +387,11 @@ def parse_sweep(text: str, *, path: str | Path | None = None) -> SweepSpec:
                      processing=_processing(doc, where), kind=kind)
 
 
-def load_sweep(path: str | Path) -> SweepSpec:
-    """Read and check ``SWEEP.toml``."""
+def load_sweep(path: str | Path, *, max_points: int | None = None) -> SweepSpec:
+    """Read and check ``SWEEP.toml`` (``max_points``: see :func:`parse_sweep`)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read the sweep file ({exc})", path=path) from None
-    return parse_sweep(text, path=path)
+    return parse_sweep(text, path=path, max_points=max_points)

@@ -14,12 +14,20 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from ..checks import positive_number
 from ..contact.hertz import hertz_ellipse
 from ..contact.kalker import kalker_coefficients
 from ..contact.presets import POLACH_PRESETS, PolachParameters
 from ..errors import InputError
-from ..io.manifest import check_keys
+from ..tomlcheck import (
+    NON_NEGATIVE,
+    POSITIVE,
+    below_nyquist,
+    between,
+    default_checks,
+    one_of,
+    read_table,
+    unknown_keys,
+)
 
 #: Friction conditions of the track map. ``dry`` and ``wet`` are Polach's published sets
 #: (contact.presets); the others are assumed, with the reason in ``source``.
@@ -181,69 +189,159 @@ def default_train_config_text() -> str:
     return (resources.files("torquemod") / "data" / "train_default.toml").read_text("utf-8")
 
 
-def _polach(entry: dict, where: str) -> tuple[str, PolachParameters]:
-    name = entry.get("condition")
-    if name is not None:
-        if name not in CONDITIONS:
-            raise InputError(f"unknown friction condition '{name}'", path=where,
-                             hint=f"use one of {', '.join(CONDITIONS)} or give mu0, a_ratio, "
-                                  "b_s_m, k_a, k_s")
-        return name, CONDITIONS[name]
-    keys = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
-    missing = [k for k in keys if k not in entry]
+_POSITIVE_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
+#: the most logger samples a simulated run may hold (track length / initial speed x sample
+#: rate; ~50 million: the twin keeps ~13 float64 columns of them in memory, ~5 GB)
+MAX_SAMPLES = 5e7
+#: the train configuration's top-level tables and keys
+_TOP = ("kind", "run", "vehicle", "test", "track", "controller", "sensors")
+
+#: Ranges of the values (besides their types): positive unless listed otherwise.
+_VEHICLE = {"coupling_damping_nm_s_rad": NON_NEGATIVE, "davis_a_n": NON_NEGATIVE,
+            "davis_b_n_s_m": NON_NEGATIVE, "davis_c_n_s2_m2": NON_NEGATIVE,
+            "poisson_ratio": between(0.0, 0.5, lo_open=True, hi_open=True)}
+_TRACK = {"transition_m": NON_NEGATIVE, "load_variation_rms": between(0.0, 0.5, hi_open=True)}
+_LEG = {"mode": one_of("torque", "speed", "coast", "probe"), "torque_nm": None,
+        "speed_m_s": NON_NEGATIVE, "levels": between(0.0, 1.0, lo_open=True, hi_open=True),
+        "others_force_n": None}
+_CONTROLLER = {"speed_gain_n_s_m": NON_NEGATIVE, "antislip_cut_per_s": NON_NEGATIVE,
+               "antislip_floor": between(0.0, 1.0), "antislip_restore_per_s": NON_NEGATIVE}
+_SENSORS = {"torque_gain_error": between(-1.0, 1.0, lo_open=True, hi_open=True),
+            "torque_bias_nm": None, "torque_noise_nm": NON_NEGATIVE,
+            "torque_lag_s": NON_NEGATIVE, "tooth_error_rms": between(0.0, 1.0, hi_open=True),
+            "eccentricity": between(0.0, 1.0, hi_open=True),
+            "speed_noise_rad_s": NON_NEGATIVE, "speed_quantum_rad_s": NON_NEGATIVE,
+            "reference_noise_m_s": NON_NEGATIVE,
+            "reference_scale_error": between(-1.0, 1.0, lo_open=True, hi_open=True)}
+
+
+@dataclass(frozen=True)
+class _Test:
+    """``[test]``: the modulation [Hz], [N*m] (0: none)."""
+
+    modulation_frequency_hz: float = 5.0
+    modulation_amplitude_nm: float = 2000.0
+
+
+@dataclass(frozen=True)
+class _Run:
+    """``[run]``: the starting speed [m/s] and RK4 steps per logger sample."""
+
+    initial_speed_m_s: float = 20.0
+    substeps: int = 8
+
+
+@dataclass(frozen=True)
+class _Segment:
+    start_m: float = 0.0
+    condition: str = ""
+    mu0: float = 0.0
+    a_ratio: float = 0.0
+    b_s_m: float = 0.0
+    k_a: float = 0.0
+    k_s: float = 0.0
+
+
+def _segment(i: int, entry: object, where: str) -> Segment:
+    section = f"track.segment[{i + 1}]"
+    seg = read_table(_Segment, entry, section=section, path=where,
+                     checks={"start_m": NON_NEGATIVE, "condition": one_of(*CONDITIONS),
+                             **dict.fromkeys(_POSITIVE_KEYS, POSITIVE), "b_s_m": NON_NEGATIVE})
+    if seg.condition:
+        return Segment(seg.start_m, seg.condition, CONDITIONS[seg.condition])
+    missing = [k for k in _POSITIVE_KEYS if k not in entry]
     if missing:
-        raise InputError(f"a [[track.segment]] needs 'condition' or all of {', '.join(keys)}"
-                         f" (missing {', '.join(missing)})", path=where)
-    vals = {k: positive_number(entry[k], k, path=where) for k in keys}
-    return "custom", PolachParameters(**vals, source="given in the configuration")
+        raise InputError(f"[{section}] needs 'condition' or all of "
+                         f"{', '.join(_POSITIVE_KEYS)} (missing {', '.join(missing)})",
+                         path=where, hint=f"named conditions: {', '.join(CONDITIONS)}")
+    pol = PolachParameters(**{k: getattr(seg, k) for k in _POSITIVE_KEYS},
+                           source="given in the configuration")
+    return Segment(seg.start_m, "custom", pol)
 
 
-def _known(table: dict, cls, section: str, where: str) -> dict:
-    check_keys(table, sorted(cls.__dataclass_fields__), f"[{section}]", where,
-               error=InputError)
+def _table(doc: dict, name: str, where: str) -> dict:
+    table = doc.get(name, {})
+    if not isinstance(table, dict):
+        raise InputError(f"[{name}] must be a table, got {table!r}", path=where)
     return table
 
 
+def _list(table: dict, key: str, section: str, where: str) -> list:
+    items = table.get(key, [])
+    if not isinstance(items, list) or not all(isinstance(x, dict) for x in items):
+        raise InputError(f"'{section}.{key}' must be tables [[{section}.{key}]]", path=where)
+    return items
+
+
 def config_from_dict(doc: dict, *, where: str = "<train config>") -> TrainConfig:
-    """A :class:`TrainConfig` from a parsed TOML document (``kind = "train"``)."""
-    veh = VehicleParams(**_known(doc.get("vehicle", {}), VehicleParams, "vehicle", where))
-    tr = dict(doc.get("track", {}))
-    seg_list = tr.pop("segment", [])
-    if not seg_list:
+    """A :class:`TrainConfig` from a parsed TOML document (``kind = "train"``). Every key and
+    value is checked (:func:`torquemod.tomlcheck.read_table`): unknown keys (with the nearest
+    known one), types, finiteness, signs and ranges, the modulation and the reference rate
+    below the sample rate's Nyquist frequency; an :class:`InputError` names ``where`` and the
+    key."""
+    unknown_keys(doc, _TOP, "train configuration", where)
+    veh = read_table(VehicleParams, _table(doc, "vehicle", where), section="vehicle",
+                     path=where, checks=default_checks(VehicleParams, _VEHICLE))
+    tr = _table(doc, "track", where)
+    segs = sorted((_segment(i, s, where) for i, s in
+                   enumerate(_list(tr, "segment", "track", where))), key=lambda s: s.start_m)
+    if not segs:
         raise InputError("the track needs at least one [[track.segment]]", path=where)
-    segs = []
-    for s in seg_list:
-        name, pol = _polach(s, where)
-        segs.append(Segment(float(s.get("start_m", 0.0)), name, pol))
-    segs.sort(key=lambda s: s.start_m)
-    if "irregularity_wavelengths_m" in tr:
-        tr["irregularity_wavelengths_m"] = tuple(tr["irregularity_wavelengths_m"])
-    track = TrackParams(tuple(segs), **_known(tr, TrackParams, "track", where))
-    ctl = dict(doc.get("controller", {}))
+    if "length_m" not in tr:
+        raise InputError("missing key 'track.length_m'", path=where,
+                         hint="add 'length_m = <metres>' under [track]")
+    track = read_table(TrackParams, tr, section="track", path=where,
+                       checks=default_checks(TrackParams, _TRACK), skip=("segment",),
+                       given={"segments": tuple(segs)})
+    if segs[0].start_m >= track.length_m:
+        raise InputError(f"the first [[track.segment]] starts at {segs[0].start_m:g} m, at or "
+                         f"beyond track.length_m = {track.length_m:g} m", path=where)
+    ctl = _table(doc, "controller", where)
     legs = []
-    for leg in ctl.pop("leg", []):
-        leg = dict(_known(leg, Leg, "controller.leg", where))
-        if leg.get("mode") not in ("torque", "speed", "coast", "probe"):
-            raise InputError(f"leg mode {leg.get('mode')!r} is not one of torque, speed, "
-                             "coast, probe", path=where)
-        leg["levels"] = tuple(leg.get("levels", ()))
-        legs.append(Leg(**leg))
+    for i, leg in enumerate(_list(ctl, "leg", "controller", where)):
+        if "mode" not in leg or "until_m" not in leg:
+            raise InputError(f"[controller.leg[{i + 1}]] needs 'until_m' and 'mode'",
+                             path=where, hint="mode is one of torque, speed, coast, probe")
+        legs.append(read_table(Leg, leg, section=f"controller.leg[{i + 1}]", path=where,
+                               checks=default_checks(Leg, _LEG)))
+        need = {"speed": "speed_m_s", "probe": "levels"}.get(legs[-1].mode)
+        if need and not getattr(legs[-1], need):
+            raise InputError(f"[controller.leg[{i + 1}]] mode = \"{legs[-1].mode}\" needs "
+                             f"'{need}'", path=where,
+                             hint="the speed to hold [m/s]" if need == "speed_m_s" else
+                                  "the fractions of the available adhesion, e.g. [0.2, 0.4]")
     if not legs:
         raise InputError("the driver needs at least one [[controller.leg]]", path=where)
-    controller = ControllerParams(tuple(legs), **_known(ctl, ControllerParams, "controller",
-                                                        where))
-    sensors = TrainSensorParams(**_known(doc.get("sensors", {}), TrainSensorParams,
-                                         "sensors", where))
-    test = doc.get("test", {})
-    run = doc.get("run", {})
-    cfg = TrainConfig(veh, track, controller, sensors,
-                      float(test.get("modulation_frequency_hz", 5.0)),
-                      float(test.get("modulation_amplitude_nm", 2000.0)),
-                      float(run.get("initial_speed_m_s", 20.0)),
-                      int(run.get("substeps", 8)), raw=doc)
-    for name in ("modulation_frequency_hz", "initial_speed_m_s"):
-        positive_number(getattr(cfg, name), name, path=where)
-    return cfg
+    controller = read_table(ControllerParams, ctl, section="controller", path=where,
+                            checks=default_checks(ControllerParams, _CONTROLLER),
+                            skip=("leg",), given={"legs": tuple(legs)})
+    sensors = read_table(TrainSensorParams, _table(doc, "sensors", where), section="sensors",
+                         path=where, checks=default_checks(TrainSensorParams, _SENSORS))
+    test = read_table(_Test, _table(doc, "test", where), section="test", path=where,
+                      checks={"modulation_frequency_hz": POSITIVE,
+                              "modulation_amplitude_nm": NON_NEGATIVE})
+    run = read_table(_Run, _table(doc, "run", where), section="run", path=where,
+                     checks={"initial_speed_m_s": POSITIVE, "substeps": between(1, None)})
+    fs = sensors.sample_rate_hz
+    below_nyquist(test.modulation_frequency_hz, fs, "test.modulation_frequency_hz",
+                  "sensors.sample_rate_hz", where)
+    if sensors.reference_rate_hz > fs:
+        raise InputError(f"'sensors.reference_rate_hz' = {sensors.reference_rate_hz:g} Hz is "
+                         f"above 'sensors.sample_rate_hz' = {fs:g} Hz", path=where,
+                         hint="the logger cannot record the reference faster than it samples")
+    n = track.length_m / run.initial_speed_m_s * fs
+    if n > MAX_SAMPLES:  # memory grows with the samples: refuse what cannot fit
+        raise InputError(f"the run would hold about {n:.3g} samples ({track.length_m:g} m at "
+                         f"{run.initial_speed_m_s:g} m/s, {fs:g} Hz), more than "
+                         f"{MAX_SAMPLES:.0e}", path=where,
+                         hint="shorten track.length_m, lower sensors.sample_rate_hz or raise "
+                              "run.initial_speed_m_s")
+    if veh.shear_modulus_pa >= veh.youngs_modulus_pa:  # G = E/(2*(1 + nu)) < E
+        raise InputError("'vehicle.shear_modulus_pa' must be below 'vehicle.youngs_modulus_pa'",
+                         path=where, hint="steel: E = 210e9 Pa, G = 81e9 Pa")
+    return TrainConfig(veh, track, controller, sensors, test.modulation_frequency_hz,
+                       test.modulation_amplitude_nm, run.initial_speed_m_s, run.substeps,
+                       raw=doc)
 
 
 def is_train_config(doc: dict) -> bool:
@@ -258,7 +356,7 @@ def load_train_config(path: str | Path | None = None) -> TrainConfig:
                                 where="train_default.toml")
     p = Path(path)
     try:
-        doc = tomllib.loads(p.read_text())
-    except (OSError, tomllib.TOMLDecodeError) as exc:
+        doc = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise InputError(f"cannot read the train configuration ({exc})", path=p) from None
     return config_from_dict(doc, where=str(p))

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..fsutil import atomic_dir
+from ..errors import ProcessingError
+from ..fsutil import atomic_dir, check_output_dir
 from ..jsonutil import dump_json
 from . import dynamics as dyn
 from .params import TrainConfig
@@ -95,10 +96,10 @@ def integrate_run(cfg: TrainConfig, *, seed: int = 0, block_s: float = 20.0) -> 
                           a["leg_others"], a["leg_step"], a["levels"], a["n_levels"],
                           a["seg_peak"], out, t0)
         if n < n_block or not np.isfinite(y).all():
-            raise RuntimeError(f"the train twin diverged at t = {t0 + n * dt:.3f} s; lower "
+            raise ProcessingError(f"the train twin diverged at t = {t0 + n * dt:.3f} s; lower "
                                "the step (run.substeps) or check the configuration")
         if y[3] < 0.5:
-            raise RuntimeError(f"the train stopped at {y[4]:.0f} m (speed {y[3]:.2f} m/s); "
+            raise ProcessingError(f"the train stopped at {y[4]:.0f} m (speed {y[3]:.2f} m/s); "
                                "give the driver more traction")
         blocks.append(out)
         t0 += n_block * dt
@@ -258,6 +259,7 @@ def run_train_simulation(cfg: TrainConfig, out_dir: str | Path, *, seed: int = 0
     ``run.mf4``, ``run_h5.toml`` with ``run.h5``, ``truth.parquet`` and ``simulation.json``.
     Returns a summary dict (per-segment truth)."""
     import tomli_w
+    check_output_dir(out_dir, force=force)  # an occupied --out: before the simulation
     raw = integrate_run(cfg, seed=seed)
     ch = measure(raw, cfg, seed=seed)
     truth = truth_table(raw, cfg)
