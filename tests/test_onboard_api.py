@@ -49,6 +49,8 @@ def test_cli_is_the_api_and_the_folder_reads_back(twin, result, tmp_path):
     pd.testing.assert_frame_equal(back.to_frame(), written)
     assert back.changes_m == result.changes_m and back.config == result.config
     assert back.notes == result.notes and back.axle == result.axle
+    assert back.warnings == result.warnings
+    assert back.summary()["measurable_share"] == result.summary()["measurable_share"]
     assert back.run.vehicle == result.run.vehicle
     assert back.truth is not None  # the run's [truth] file is still there
     pd.testing.assert_frame_equal(back.along_track(), result.along_track())
