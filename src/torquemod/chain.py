@@ -132,30 +132,36 @@ _RESAMPLED = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", 
 @dataclass(frozen=True)
 class SpeedModel:
     """The joint least-squares model of one cycle (ours, issue 8): for every channel
-    ``x = modulation + slow + orders + residual`` with the modulation ``c*cos + s*sin`` at
-    ``modulation_hz``, the slow part in :func:`~torquemod.dsp.filters.slow_basis` and the
-    rotation orders in :func:`~torquemod.dsp.filters.order_design`. One design serves every
-    channel, so any linear functional of it (the step-8 mean) treats a speed variation that
-    wheel and platform share alike, and it cancels in the creepage of Eq. (3)."""
+    ``x = modulation + slow + orders + harmonics + residual`` with the modulation
+    ``c*cos + s*sin`` at ``modulation_hz``, the slow part in
+    :func:`~torquemod.dsp.filters.slow_basis`, the rotation orders in
+    :func:`~torquemod.dsp.filters.order_design` and the modulation's own harmonics (the
+    creep curve's bend distorts the wheel's answer; :func:`modulation_harmonics`). One
+    design serves every channel, so any linear functional of it (the step-8 mean) treats a
+    speed variation that wheel and platform share alike, and it cancels in the creepage of
+    Eq. (3)."""
 
     modulation_hz: float
     fs_hz: float
-    design: np.ndarray  # (n, 2 + n_slow + n_orders)
+    design: np.ndarray  # (n, 2 + n_slow + n_orders + n_harmonics)
     n_slow: int
     coef: np.ndarray  # (columns, channels)
     names: tuple[str, ...]
     #: the design's least-squares factor (None when lstsq fell back to the SVD)
     factor: filters.LstsqFactor | None = field(default=None, repr=False, compare=False)
+    #: columns of the modulation's harmonics, the design's last ones
+    n_harmonic_columns: int = 0
     _parts: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def part(self, name: str, which: str) -> np.ndarray:
-        """``"modulation"``, ``"slow"`` or ``"orders"`` part of channel ``name`` (computed once,
-        read-only)."""
+        """``"modulation"``, ``"slow"``, ``"orders"`` or ``"harmonics"`` part of channel
+        ``name`` (computed once, read-only)."""
         key = (name, which)
         if key not in self._parts:
             j = self.names.index(name)
+            end = self.design.shape[1] - self.n_harmonic_columns
             sl = {"modulation": slice(0, 2), "slow": slice(2, 2 + self.n_slow),
-                  "orders": slice(2 + self.n_slow, None)}[which]
+                  "orders": slice(2 + self.n_slow, end), "harmonics": slice(end, None)}[which]
             y = self.design[:, sl] @ self.coef[sl, j]
             y.setflags(write=False)
             self._parts[key] = y
@@ -239,39 +245,78 @@ def _trace_of_inverse_2x2(a: np.ndarray) -> float:
     return (a00 + a11) / (a00 * a11 - a01 * a10)
 
 
-def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz: float,
-                    slow: np.ndarray, orders: np.ndarray) -> SpeedModel:
-    """Least-squares fit of :class:`SpeedModel` to every channel at once (time referenced to
-    the record's middle so the modulation's phase is decoupled from its frequency)."""
-    names = tuple(channels)
-    n = slow.shape[0]
+def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
+                       harmonics: tuple[int, ...] = ()) -> np.ndarray:
+    """``cos`` and ``sin`` of ``2*pi*k*f*t`` for k = 1 and each of ``harmonics`` (in that
+    order), over ``n`` samples at ``fs_hz`` [Hz] with t [s] from the record's middle (so a
+    fitted phase is decoupled from a small error of the frequency)."""
     t = (np.arange(n) - (n - 1) / 2) / fs_hz
     w = 2 * np.pi * modulation_hz
-    n_s = slow.shape[1]
-    design = np.empty((n, 2 + n_s + orders.shape[1]))  # [cos, sin, slow, orders]
-    design[:, 0] = np.cos(w * t)
-    design[:, 1] = np.sin(w * t)
+    out = np.empty((n, 2 + 2 * len(harmonics)))
+    for i, k in enumerate((1, *harmonics)):
+        out[:, 2 * i] = np.cos(k * w * t)
+        out[:, 2 * i + 1] = np.sin(k * w * t)
+    return out
+
+
+def modulation_harmonics(modulation_hz: float, fs_hz: float, n_samples: int,
+                         highest: int, *, above_hz: float, avoid_hz=()) -> tuple[int, ...]:
+    """Harmonics k = 2..``highest`` of the modulation fitted beside it (ours): those below
+    0.45 x the sample rate, above the slow band (``above_hz``) and more than two frequency
+    resolutions away from every frequency in ``avoid_hz`` [Hz] (the fitted rotation orders,
+    which would alias them).
+
+    The wheel's answer to the modulation is not a pure sinusoid: where the creep curve
+    bends, the creepage swing meets a changing slope and the wheel speed and the shaft torque
+    carry 2nd and 3rd harmonics (1-3 % of the fundamental at 1 Hz on the V-Track twin at 60-90
+    % utilisation). Over a record holding a fractional number of periods they are not
+    orthogonal to the slow basis, and, left out of the edge padding, they step at the
+    record's ends, where the narrow band-pass rings: together up to 0.3 deg at 1 Hz.
+    """
+    resolution = fs_hz / n_samples
+    return tuple(k for k in range(2, int(highest) + 1)
+                 if above_hz < k * modulation_hz < 0.45 * fs_hz
+                 and all(abs(k * modulation_hz - g) > 2 * resolution for g in avoid_hz))
+
+
+def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz: float,
+                    slow: np.ndarray, orders: np.ndarray, harmonics: tuple[int, ...] = ()
+                    ) -> SpeedModel:
+    """Least-squares fit of :class:`SpeedModel` to every channel at once (time referenced to
+    the record's middle so the modulation's phase is decoupled from its frequency), with
+    the modulation's ``harmonics`` (:func:`modulation_harmonics`) as its last columns."""
+    names = tuple(channels)
+    n = slow.shape[0]
+    mod = modulation_columns(n, fs_hz, modulation_hz, harmonics)
+    n_s, n_o = slow.shape[1], orders.shape[1]
+    # [cos, sin, slow, orders, harmonics]
+    design = np.empty((n, 2 + n_s + n_o + 2 * len(harmonics)))
+    design[:, :2] = mod[:, :2]
     design[:, 2:2 + n_s] = slow
-    design[:, 2 + n_s:] = orders
+    design[:, 2 + n_s:2 + n_s + n_o] = orders
+    design[:, 2 + n_s + n_o:] = mod[:, 2:]
     y = np.column_stack([channels[k] for k in names])
     fac = filters.LstsqFactor.of(design, keep_gram=True)  # the model's statistics reuse it
     coef = fac.solve(y) if fac is not None else filters.lstsq(design, y)[0]
-    return SpeedModel(modulation_hz, fs_hz, design, slow.shape[1], coef, names, fac)
+    return SpeedModel(modulation_hz, fs_hz, design, slow.shape[1], coef, names, fac,
+                      2 * len(harmonics))
 
 
 class _SlowOrdersRemoval:
     """Records ``y`` (columns) less the slow part and the rotation orders of the
     :class:`SpeedModel` fitted with the modulation at a frequency f: ``y - B c_B`` of the
     least-squares fit ``y ~ M c_M + B c_B`` with ``B = [slow, orders]`` and M the cos and sin
-    at f (time from the record's middle). By Frisch-Waugh-Lovell, with ``r(z)`` the
+    at f and at its ``harmonics`` (time from the record's middle; the harmonics stay in the
+    result). By Frisch-Waugh-Lovell, with ``r(z)`` the
     residual of z fitted on B alone, ``c_M = (r(M)'r(M))^-1 r(M)'r(y)`` and
     ``y - B c_B = r(y) + (M - r(M)) c_M``: B is factored and ``r(y)`` computed once for every
     f, and each f costs the fit of M's two columns on B (instead of a new factorisation of
     the whole design). The same numbers as :func:`fit_speed_model`'s parts to rounding
     (tests/test_chain_kernels.py)."""
 
-    def __init__(self, y: np.ndarray, slow: np.ndarray, orders: np.ndarray, fs_hz: float):
-        self.y, self.fs_hz = y, fs_hz
+    def __init__(self, y: np.ndarray, slow: np.ndarray, orders: np.ndarray, fs_hz: float,
+                 harmonics: tuple[int, ...] = ()):
+        self.y, self.fs_hz, self.harmonics = y, fs_hz, tuple(harmonics)
         self.slow, self.orders = slow, orders
         self.b = np.hstack([slow, orders])
         self.fac = filters.LstsqFactor.of(self.b)
@@ -282,16 +327,55 @@ class _SlowOrdersRemoval:
         """``y`` less its slow part and orders with the modulation at ``modulation_hz``."""
         if self.fac is None:  # (nearly) rank-deficient: the whole model, fitted by the SVD
             model = fit_speed_model({str(i): c for i, c in enumerate(self.y.T)}, self.fs_hz,
-                                    modulation_hz, self.slow, self.orders)
-            fit = model.design[:, 2:] @ model.coef[2:]
+                                    modulation_hz, self.slow, self.orders, self.harmonics)
+            end = model.design.shape[1] - model.n_harmonic_columns
+            fit = model.design[:, 2:end] @ model.coef[2:end]
             return self.y - fit
-        n = self.y.shape[0]
-        t = (np.arange(n) - (n - 1) / 2) / self.fs_hz
-        w = 2 * np.pi * modulation_hz
-        m = np.column_stack([np.cos(w * t), np.sin(w * t)])
+        m = modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
         r_m = m - self.b @ self.fac.solve(m)
         c_m = np.linalg.solve(r_m.T @ r_m, r_m.T @ self.r_y)
         return self.r_y + (m - r_m) @ c_m
+
+    def explained(self, column: int, modulation_hz: float) -> float:
+        """Power of record ``column`` that the modulation (and its harmonics) at
+        ``modulation_hz`` [Hz] explains beyond the slow part and the orders:
+        ``r_y' r_M (r_M' r_M)^-1 r_M' r_y`` (Frisch-Waugh-Lovell, as :meth:`at`)."""
+        m = modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
+        r_m = m - self.b @ self.fac.solve(m)
+        b = r_m.T @ self.r_y[:, column]
+        return float(b @ np.linalg.solve(r_m.T @ r_m, b))
+
+    def refine(self, column: int, peak_hz: float, *, tol_hz: float = 1e-6) -> float:
+        """The frequency [Hz] near ``peak_hz`` at which the model explains most of record
+        ``column``: the least-squares (for white noise, maximum-likelihood) frequency of the
+        modulation beside the slow part and the orders (variable projection, Golub and
+        Pereyra 1973). A plain spectral peak of the record less a slow part fitted at another
+        frequency is pulled towards that frequency (by up to 0.9 mHz at 1 Hz on a 6.5 s
+        record) and carries the window's own bias from the modulation's negative-frequency
+        image; this maximum has neither: on a noise-free record it is the modulation's
+        frequency.
+
+        Parabolic steps through three values of the explained power, 0.05/T, 0.005/T and
+        0.0005/T apart (T the record's duration), each from the previous vertex, until a step
+        is below ``tol_hz``: near its maximum the explained power is a parabola to
+        (pi*h*T)^2/3 relative, so each step leaves ~2 % of the previous offset at the first
+        spacing and 0.03 % at the next. A smooth function of the record (unlike a bracketing
+        search, whose stopping point moves within its tolerance with rounding-level changes
+        of the input). ``peak_hz`` itself when the design is (nearly) rank deficient."""
+        if self.fac is None:
+            return peak_hz
+        duration = self.y.shape[0] / self.fs_hz
+        f = float(peak_hz)
+        for h in (0.05 / duration, 0.005 / duration, 0.0005 / duration):
+            e_lo, e_0, e_hi = (self.explained(column, f + k * h) for k in (-1.0, 0.0, 1.0))
+            curvature = e_lo - 2.0 * e_0 + e_hi
+            if not curvature < 0:  # not near a maximum: keep the spectral peak's value
+                return float(peak_hz)
+            step = float(np.clip(0.5 * h * (e_lo - e_hi) / curvature, -2.0 * h, 2.0 * h))
+            f += step
+            if abs(step) < tol_hz:
+                break
+        return f
 
 
 def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
@@ -366,6 +450,16 @@ def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
     return float(torque / (normal_load_n * wheel_radius_m))
 
 
+#: The slow band's top stays at least this many frequency resolutions (1/T, T the cycle's
+#: duration) below the nominal modulation frequency. Its extra Slepian sequences reach
+#: beyond it, and a slow basis that overlaps the modulation's main lobe makes the joint fit
+#: nearly collinear: at 0.5 Hz on a 14 s record the scaled 0.3 Hz band (2.8 resolutions
+#: away) left 0.05 deg on noise-free records at 90 % of the peak, 0.2 Hz 0.007 deg
+#: (tests/test_chain_orbit.py). At 2 Hz on a V-Track cycle the limit (1.34 Hz) lies above
+#: the default 1.2 Hz and changes nothing.
+SLOW_GAP_RESOLUTIONS = 4.0
+
+
 def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str,
                   nominal_hz: float | None = None, normal_load_n: float | None = None
                   ) -> CycleSignals:
@@ -405,24 +499,33 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     nq, fp = cfg.notch, cfg.frequency
     # The speed model (ours): slow variation, rotation orders that follow the integrated
     # angles, and the modulation, fitted jointly (SpeedModel).
-    max_hz = cfg.slow.max_hz if cfg.slow.enabled else 0.0
-    slow = filters.slow_basis(n, fs_r, max_hz, extra=cfg.slow.extra_sequences,
-                              degree=cfg.slow.polynomial_degree)
     f_start = nominal_hz if nominal_hz is not None else 0.5 * sum(fp.band_hz)
-    cols = []
+    # the slow band stops SLOW_GAP_RESOLUTIONS frequency resolutions below the modulation
+    max_hz = min(cfg.slow.max_hz, f_start - SLOW_GAP_RESOLUTIONS * fs_r / n) \
+        if cfg.slow.enabled else 0.0
+    slow = filters.slow_basis(n, fs_r, max(max_hz, 0.0), extra=cfg.slow.extra_sequences,
+                              degree=cfg.slow.polynomial_degree)
+    cols, rotation_hz = [], []
     base = _order_base(n, fs_r, slow, f_start)  # the same first design for both speeds
     base_factor = filters.LstsqFactor.of(base)
     for speed, harmonics in ((wh, nq.wheel_harmonics), (pl, nq.platform_harmonics)):
         if speed is not None:
-            cols.append(_tracked_orders(speed, fs_r, slow, harmonics, base, base_factor,
-                                        above_hz=max_hz, avoid_hz=f_start)[0])
+            c, f_rot = _tracked_orders(speed, fs_r, slow, harmonics, base, base_factor,
+                                       above_hz=max_hz, avoid_hz=f_start)
+            cols.append(c)
+            rotation_hz += [h * f_rot for h in harmonics]
     orders = np.column_stack(cols)
+    mod_harmonics = modulation_harmonics(f_start, fs_r, n, cfg.slow.modulation_harmonics,
+                                         above_hz=max_hz, avoid_hz=rotation_hz)
     # Step 1: modulation frequency = mean of the torque's and wheel speed's peaks, taken on
     # the records less their slow part and rotation orders (their leakage would pull the
     # peak); twice, since the model's modulation term starts from the nominal frequency.
+    # Each peak is then refined to the frequency at which the speed model explains most of
+    # the channel (_SlowOrdersRemoval.refine): the slow basis absorbs part of a mismatched
+    # modulation and pulls the plain peak towards the frequency assumed.
     f_mod = f_start
     peaks: dict[str, float] = {}
-    cleaner = _SlowOrdersRemoval(np.column_stack([tq, wh]), slow, orders, fs_r)
+    cleaner = _SlowOrdersRemoval(np.column_stack([tq, wh]), slow, orders, fs_r, mod_harmonics)
     for _ in range(2):
         cleaned = cleaner.at(f_mod)
         for i, name in enumerate(("torque_nm", "wheel_speed_rad_s")):
@@ -435,7 +538,13 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                                  hint="check the modulation was on and [processing] "
                                  "frequency.band_hz") from None
         f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
-    model = fit_speed_model(sig, fs_r, f_mod, slow, orders)
+    if fp.refine:
+        for i, name in enumerate(("torque_nm", "wheel_speed_rad_s")):
+            peaks[name] = cleaner.refine(i, peaks[name], tol_hz=fp.tolerance_hz)
+        f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
+    if fp.common == "torque":
+        f_mod = peaks["torque_nm"]
+    model = fit_speed_model(sig, fs_r, f_mod, slow, orders, mod_harmonics)
     f_t, f_w = peaks["torque_nm"], peaks["wheel_speed_rad_s"]
     f_wheel = abs(model.mean("wheel_speed_rad_s")) / (2 * np.pi)
     f_plat = abs(model.mean("platform_speed_rad_s")) / (2 * np.pi) if pl is not None \
@@ -455,7 +564,7 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     tones = [f_mod, *wheel_notches]
 
     (wh_p, wh_level, _), (tq_p, tq_level, _) = filters.model_padded_rows(
-        [sig[k] - model.part(k, "slow") - model.part(k, "orders")
+        [sig[k] - model.part(k, "slow") - model.part(k, "orders") - model.part(k, "harmonics")
          for k in ("wheel_speed_rad_s", "torque_nm")], fs_r, tones, pad)
     # the wheel speed through its notches, then both records through the high-pass and the
     # band-pass together (one lfilter call per filter and direction for both rows)

@@ -15,6 +15,10 @@ from dataclasses import dataclass, field
 
 from .errors import InputError
 
+#: How :meth:`ProcessingConfig.for_modulation` scales the defaults with the modulation frequency f.
+FREQUENCY_RULE = ("band, band-pass width, high-pass cut-off, slow model's top x f/2; "
+                  "resampling rate x max(f/2, 1)")
+
 
 @dataclass(frozen=True)
 class FrequencyParams:
@@ -24,6 +28,21 @@ class FrequencyParams:
     window: str = "hann"  # ours: Hann sidelobes fall 18 dB/octave, away from large tones
     detrend: str = "linear"
     zero_pad: int = 8
+    #: ours: each peak refined to the least-squares frequency of the speed model
+    #: (torquemod.chain._SlowOrdersRemoval.refine) to ``tolerance_hz`` [Hz]
+    refine: bool = True
+    tolerance_hz: float = 1e-6
+    #: the common modulation frequency: the "torque"'s peak (ours, the excitation's), or
+    #: the "mean" of the torque's and the wheel speed's peaks (the paper's Table 2, taken
+    #: at a steady speed). Where the operating point moves, the wheel's answer drifts in
+    #: phase and its peak moves with it: the mean was up to 8.6e-4 Hz off under a 0.3 %
+    #: wobble at 60-90 % utilisation, the torque's 9e-5 Hz (docs/processing.md)
+    common: str = "torque"
+
+    def __post_init__(self) -> None:
+        if self.common not in ("mean", "torque"):
+            raise InputError(f"unknown frequency.common '{self.common}'",
+                             hint="use 'mean' (the paper's) or 'torque'")
 
 
 @dataclass(frozen=True)
@@ -57,9 +76,16 @@ class SlowParams:
     gives the previous chain (a line and fixed-frequency tones)."""
 
     enabled: bool = True
+    #: ours: a wobble up to 1.2 Hz is removed. Under a wobble at 0.2-0.6 Hz near saturation
+    #: the wheel's answer carries sidebands at f - 2 x 0.6 Hz that this band reaches; 0.4 x
+    #: f (0.8 Hz) with ``phase.sinefit_input = "model"`` gives the phase of a moving
+    #: operating point to 0.015 deg (docs/processing.md), but lets a wobble at 0.8-1.2 Hz in
     max_hz: float = 1.2
     extra_sequences: int = 2
     polynomial_degree: int = 5
+    #: the modulation's harmonics 2..this fitted beside it and removed with the slow part
+    #: (torquemod.chain.modulation_harmonics); 1 fits none
+    modulation_harmonics: int = 3
 
 
 @dataclass(frozen=True)
@@ -99,13 +125,17 @@ class AlignParams:
 @dataclass(frozen=True)
 class PhaseParams:
     """Step 7: phase estimator. ``method`` "paper" (peaks/valleys over ``n_periods`` middle
-    periods) or "sinefit" (least squares over all whole periods). ``edge_trim_periods``
+    periods) or "sinefit" (least squares over the cycle). ``edge_trim_periods``
     modulation periods at each end of a cycle are not used by "paper" (filter transients)."""
 
     method: str = "paper"
     n_periods: int = 3
     edge_trim_periods: float = 1.0
-    sinefit_input: str = "bandpassed"  # or "notched"; band-passed is robust to vibration
+    #: "bandpassed" (the band-passed signals over whole periods; robust to vibration lines
+    #: and noise away from the modulation), "notched", or "model" (the speed model's own
+    #: least-squares modulation over the cycle, docs/processing.md "The phase of a moving
+    #: operating point"; 3-4 x the scatter of "bandpassed" on records with vibration lines)
+    sinefit_input: str = "bandpassed"
     sinefit_trend: bool = True
 
 
@@ -173,14 +203,43 @@ class ProcessingConfig:
         return dataclasses.asdict(self)
 
     @classmethod
-    def from_dict(cls, doc: dict, *, source: str = "[processing]") -> ProcessingConfig:
-        """Build from nested dicts, e.g. a manifest's ``[processing]`` table; unknown keys
-        raise :class:`InputError` naming them."""
+    def for_modulation(cls, frequency_hz: float, doc: dict | None = None, *,
+                       source: str = "[processing]") -> ProcessingConfig:
+        """The defaults for a modulation at ``frequency_hz`` [Hz], then the keys of ``doc``
+        (a manifest's ``[processing]`` table, as :meth:`from_dict`) over them.
+
+        The paper's values are tied to its 2 Hz modulation; at another frequency every
+        frequency-bound default is scaled by ``frequency_hz/2``: the search band (1.5-2.5
+        Hz), the band-pass width (0.36 Hz), the high-pass cut-off (0.5 Hz) and the slow
+        model's top (1.2 Hz); above 2 Hz also the resampling rate (53.344 Hz), so that a
+        period keeps its 26.7 samples (the paper's peak interpolation is biased at fewer).
+        At 2 Hz these are the defaults themselves (:data:`FREQUENCY_RULE`)."""
+        d = cls()
+        f = float(frequency_hz)
+        if not (math.isfinite(f) and f > 0):
+            raise InputError(f"modulation frequency must be positive, got {frequency_hz!r}",
+                             path=source)
+        s = f / 2.0
+        base = d if s == 1.0 else dataclasses.replace(
+            d, frequency=dataclasses.replace(d.frequency, band_hz=(d.frequency.band_hz[0] * s,
+                                                                   d.frequency.band_hz[1] * s)),
+            resample=dataclasses.replace(d.resample,
+                                         target_hz=d.resample.target_hz * max(s, 1.0)),
+            bandpass=dataclasses.replace(d.bandpass, width_hz=d.bandpass.width_hz * s),
+            highpass=dataclasses.replace(d.highpass, cutoff_hz=d.highpass.cutoff_hz * s),
+            slow=dataclasses.replace(d.slow, max_hz=d.slow.max_hz * s))
+        return cls.from_dict(doc or {}, source=source, base=base)
+
+    @classmethod
+    def from_dict(cls, doc: dict, *, source: str = "[processing]",
+                  base: ProcessingConfig | None = None) -> ProcessingConfig:
+        """Build from nested dicts, e.g. a manifest's ``[processing]`` table, over ``base``
+        (default: the defaults); unknown keys raise :class:`InputError` naming them."""
         if not isinstance(doc, dict):
             raise InputError("[processing] must be a table", path=source)
         kwargs = {}
         fields = {f.name: f for f in dataclasses.fields(cls)}
-        defaults = cls()
+        defaults = cls() if base is None else base
         for key, value in doc.items():
             if key not in fields:
                 raise InputError(f"unknown processing key '{key}'", path=source,
@@ -202,7 +261,7 @@ class ProcessingConfig:
                     for k, v in value.items()}
             kwargs[key] = dataclasses.replace(sub, **conv)
         try:
-            return cls(**kwargs)
+            return dataclasses.replace(defaults, **kwargs)
         except InputError as exc:
             raise InputError(str(exc), path=source) from None
 
@@ -256,7 +315,9 @@ def _range_problems(cfg: ProcessingConfig) -> list[str]:
                 "highpass.order": cfg.highpass.order, "bandpass.width_hz": cfg.bandpass.width_hz,
                 "bandpass.order": cfg.bandpass.order,
                 "align.max_lag_periods": cfg.align.max_lag_periods,
-                "phase.n_periods": cfg.phase.n_periods, "slow.max_hz": cfg.slow.max_hz}
+                "phase.n_periods": cfg.phase.n_periods, "slow.max_hz": cfg.slow.max_hz,
+                "slow.modulation_harmonics": cfg.slow.modulation_harmonics,
+                "frequency.tolerance_hz": cfg.frequency.tolerance_hz}
     out += [f"{k} must be positive, got {v}" for k, v in positive.items()
             if not (isinstance(v, int | float) and v > 0)]
     non_negative = {"phase.edge_trim_periods": cfg.phase.edge_trim_periods,

@@ -101,11 +101,12 @@ class Experiment:
     @property
     def processing(self) -> ProcessingConfig:
         """The manifest's ``[processing]`` table as a
-        :class:`~torquemod.config.ProcessingConfig` (the defaults when absent)."""
+        :class:`~torquemod.config.ProcessingConfig` over the defaults for the test's
+        nominal modulation frequency (:meth:`~torquemod.config.ProcessingConfig.
+        for_modulation`: the paper's 2 Hz values, scaled at another frequency)."""
         table = self.extra.get("processing")
-        if not table:
-            return ProcessingConfig()
-        return ProcessingConfig.from_dict(table, source=str(self.manifest_path))
+        return ProcessingConfig.for_modulation(self.test.modulation_frequency_hz, table or {},
+                                               source=str(self.manifest_path))
 
 
 @dataclass

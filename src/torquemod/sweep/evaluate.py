@@ -44,6 +44,7 @@ SETTLE_TIME_CONSTANTS = 8.0
 SETTLE_RULE = "8 creep-mode time constants of the slowest recorded step (< slip_creepage)"
 #: how :func:`chain_config` scales the chain with the frequency (in the fingerprint too)
 CHAIN_RULE = "band, band-pass, high-pass, slow model x f/2; resampling rate x max(f/2, 1)"
+#: (the same rule as torquemod.config.FREQUENCY_RULE; kept as the fingerprint's text)
 
 
 @dataclass(frozen=True)
@@ -213,36 +214,18 @@ def _f(x) -> float:
 
 
 def chain_config(frequency_hz: float, processing: dict | None = None):
-    """The processing chain's parameters for a modulation at ``frequency_hz`` [Hz]: the
-    defaults (tuned for the paper's 2 Hz) with every frequency-bound setting scaled by
-    ``frequency_hz/2``: the search band (1.5-2.5 Hz), the band-pass width (0.36 Hz), the
-    high-pass cut-off (0.5 Hz) and the slow-variation model's top (1.2 Hz); above 2 Hz also
-    the resampling rate (53.344 Hz), so that a period keeps its 26.7 samples: the paper's
+    """The processing chain's parameters for a modulation at ``frequency_hz`` [Hz]
+    (:meth:`torquemod.config.ProcessingConfig.for_modulation`: the defaults, tuned for the
+    paper's 2 Hz, with every frequency-bound setting scaled by ``frequency_hz/2``; above
+    2 Hz also the resampling rate, so that a period keeps its 26.7 samples: the paper's
     peak/valley phase interpolates each peak by a parabola, whose bias grows as the samples
     per period fall (audit, issue 12: noise-free twin at 8 Hz, 6.7 samples a period, the
     chain's phase 0.025 deg (median) to 0.074 deg off the theory with a standard error of
     1e-4 deg; with the rate scaled, 0.0012 deg). Then the keys the sweep's ``processing``
     table gives (nested as a manifest's ``[processing]``)."""
     from ..config import ProcessingConfig
-    d = ProcessingConfig()
-    s = float(frequency_hz) / 2.0
-    cfg = dataclasses.replace(
-        d, frequency=dataclasses.replace(d.frequency, band_hz=(d.frequency.band_hz[0] * s,
-                                                               d.frequency.band_hz[1] * s)),
-        resample=dataclasses.replace(d.resample, target_hz=d.resample.target_hz * max(s, 1.0)),
-        bandpass=dataclasses.replace(d.bandpass, width_hz=d.bandpass.width_hz * s),
-        highpass=dataclasses.replace(d.highpass, cutoff_hz=d.highpass.cutoff_hz * s),
-        slow=dataclasses.replace(d.slow, max_hz=d.slow.max_hz * s))
-    if not processing:
-        return cfg
-    given = ProcessingConfig.from_dict(processing, source="sweep [processing]")
-    changes = {}
-    for key, value in processing.items():
-        sub = getattr(given, key)
-        changes[key] = (dataclasses.replace(getattr(cfg, key),
-                                            **{k: getattr(sub, k) for k in value})
-                        if isinstance(value, dict) else sub)
-    return dataclasses.replace(cfg, **changes)
+    return ProcessingConfig.for_modulation(frequency_hz, processing or {},
+                                           source="sweep [processing]")
 
 
 def _full_steps(config, t_peak: float, seed: int, workdir: Path,
