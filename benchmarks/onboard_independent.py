@@ -190,8 +190,13 @@ def main() -> None:
                     help="the logger's sample rate [Hz] (default: the generator's 2000 Hz)")
     ap.add_argument("--no-calibrate", action="store_true",
                     help="[onboard] calibrate_delay = 0 (no delay measured from the run)")
+    ap.add_argument("--onboard", nargs="+", default=[], metavar="KEY=VALUE",
+                    help="further [onboard] settings written into run.toml (numbers)")
     args = ap.parse_args()
     onboard = {} if args.ratio_bounds is None else {"ratio_bounds": list(args.ratio_bounds)}
+    for item in args.onboard:
+        key, value = item.split("=", 1)
+        onboard[key] = float(value)
     if args.no_calibrate:
         onboard["calibrate_delay"] = 0
     extra = {"onboard": onboard} if onboard else {}

@@ -377,13 +377,42 @@ def test_trace_key_strings_live_only_in_the_layout_module():
     assert users == ["layout.py"]
 
 
-def test_readme_python_api_example_runs(tmp_path, monkeypatch):
+def _readme_block(heading: str) -> str:
     text = (ROOT / "README.md").read_text(encoding="utf-8")
-    block = re.search(r"## Python API.*?```python\n(.*?)```", text, re.S)
-    assert block, "README has a Python API example"
+    block = re.search(rf"## {heading}.*?```python\n(.*?)```", text, re.S)
+    assert block, f"README has a Python example under '{heading}'"
+    return block[1]
+
+
+def test_readme_python_api_example_runs(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
-    exec(compile(block[1], "README.md", "exec"), {"__name__": "readme"})
+    namespace = {"__name__": "readme"}
+    exec(compile(_readme_block("The rig in Python"), "README.md", "exec"), namespace)
     assert (tmp_path / "my-results" / "report.html").is_file()
+    ana, truth = namespace["ana"], namespace["truth"]
+    # believable: both estimates of mu hold the truth the recordings were made with
+    assert abs(ana.mu - truth["mu"]) < 3 * ana.mu_stderr + 1e-3
+    lo, hi = ana.phase_fit.mu_interval_95
+    assert lo - 1e-3 <= truth["mu"] <= hi + 1e-3
+    assert "WARNING" not in capsys.readouterr().out  # nothing to warn about
+    # the README's text quotes this run's numbers as they are
+    steps = ana.steps
+    quoted = [f"{steps['phase_deg'].iloc[0]:.1f}° to {steps['phase_deg'].iloc[-1]:.1f}°",
+              f"μ = {ana.mu:.4f} ± {ana.mu_stderr:.4f}", f"{ana.mu_from_phase:.4f} (95 %",
+              f"interval {lo:.4f}–{hi:.4f}", f"χ²/dof is {ana.polach.reduced_chi2:.2f}",
+              f"Ts = μ·N·Rw = {ana.saturation_torque_nm:.2f} N·m",
+              f"onset is step {ana.onset.step}", f"RMS of {ana.theory_difference[0]:.2f}°"]
+    text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    assert [q for q in quoted if q not in text] == []
+
+
+@pytest.mark.skipif(not hasattr(tm, "read_run"), reason="tm.read_run and tm.onboard come "
+                    "with the in-memory train API (a branch of its own)")
+def test_readme_train_example_runs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    exec(compile(_readme_block("The train in Python"), "README.md", "exec"),
+         {"__name__": "readme"})
+    assert (tmp_path / "my-onboard").is_dir()
 
 
 def test_measurement_path_does_not_import_the_twin():

@@ -283,7 +283,12 @@ def test_fit_results_folder_undetermined(tmp_path):
     d = write_synthetic_results(tmp_path / "r", saturation_fractions=(0.01, 0.05, 0.1, 0.15,
                                                                        0.2, 0.25))
     summary = fit_results_folder(d)
-    assert summary["mu"] is None and summary["saturation_torque_nm"] is None
+    assert summary["mu"] is None
+    # one Ts: from mu from the phase when that is determined, else none
+    if summary["mu_from_phase_determined"]:
+        assert summary["saturation_torque_source"] == "phase"
+    else:
+        assert summary["saturation_torque_nm"] is None
     assert any("do not determine" in w for w in summary["warnings"])
     doc = json.loads((d / "fit.json").read_text())
     assert doc["mu"] is None and doc["mu_determined"] is False

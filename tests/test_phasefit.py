@@ -22,7 +22,7 @@ from scipy.stats import binom
 
 from torquemod.contact.polach import adhesion_curve, adhesion_slope, swing_average, swing_slope
 from torquemod.errors import InputError
-from torquemod.phasefit import _Data, _Engine, fit_mu_from_phase
+from torquemod.phasefit import fit_mu_from_phase
 from torquemod.polachshape import (
     inverse_polach_h,
     invert_polach_h,
@@ -84,60 +84,56 @@ def test_shape_function_against_the_library_and_finite_differences():
     assert polach_h_slope(0.0, 2.5) == pytest.approx(2 / np.pi * 3.5)
 
 
-def test_swing_model_matches_a_brute_force_reference():
-    """The fit's model of a step with the creepage swing (mean point by Newton, 16-node
-    average) against brentq on the library's 32-node swing_average and swing_slope: the
-    predicted phases agree to 1e-6 deg (both converge to ~1e-12 in the slope)."""
-    mu, k0 = 0.3, 110.0
-    for shape in (DRY, WET, EVEN):
-        coa, phase, a = truth(mu, shape, k0, 0.86, swing=True)
-        r = shape[0] / shape[1]
-        d = _Data(coa, np.radians(phase), np.full(6, 1e-3), np.zeros(6), a, C)
-        eng = _Engine(d, n_nodes=16)
-        p = np.array([[np.log(r), np.log(C / k0)]])
-        res, _ = eng.residuals(np.array([[mu]]), p, inverse_polach_h(coa / mu, r)[None, :])
-        np.testing.assert_allclose(np.degrees(res[0] * 1e-3), 0.0, atol=1e-6)
-
-
 @pytest.mark.parametrize("shape", [DRY, WET])
 @pytest.mark.parametrize("swing", [False, True])
 @pytest.mark.parametrize("known", [True, False])
 def test_noise_free_recovery(shape, swing, known):
-    """Exact phases up to 80 % of saturation: mu within 0.1 % (the search's resolution is
-    ~1e-4 relative), the interval holds the truth, the fitted curve passes through the
-    phases (0.01 deg), C comes back (given: exactly; fitted with the swing: within 2 %,
-    which the swing's effect alone fixes)."""
+    """Exact phases up to 80 % of the available adhesion (Polach's dry and wet sets, which
+    rise to their friction: the peak is mu), stated with 0.1 deg. With C given: determined,
+    the interval holds the truth, the estimate within 0.5 % (measured <= 0.14 %), k0 within
+    1.5 % (measured <= 1 %). Without C the falling-friction bound cannot apply and members
+    peaking just above the top step fit as well: only the honest range is claimed (measured:
+    not determined on the dry set without the swing and the wet set with it) and k is
+    relative. The fitted curve passes within 0.5 deg of the phases (measured <= 0.31 deg;
+    the model's own 1 % error in k is 0.24 deg at 28 deg)."""
     mu, k0 = 0.25, 100.0
     coa, phase, a = truth(mu, shape, k0, 0.8, swing=swing)
     fit = fit_mu_from_phase(coa, phase, np.full(6, 0.1), constant=C if known else None,
-                            creepage_swing=a)
+                            creepage_swing=a, speed_m_s=SPEED)
+    a = fit.adhesion
+    assert a.lower_bound < mu and (not a.closed or mu < a.high)
+    if not known and not fit.mu_determined:
+        # without C the falling-friction bound cannot apply (k0 unknown): measured on the
+        # dry set without the swing and the wet set with it, a member peaking just above
+        # the top step fits too; the range stays honest (asserted above)
+        assert fit.k_relative
+        return
     assert fit.mu_determined
-    assert fit.mu == pytest.approx(mu, rel=1e-3)
     lo, hi = fit.mu_interval_95
-    assert lo < mu < hi and (hi - lo) / 2 < 0.02 * mu
-    assert fit.ratio_ka_ks == pytest.approx(shape[0] / shape[1], rel=1e-2)
-    np.testing.assert_allclose(fit.utilisation, FRACTIONS * 0.8, rtol=2e-3)
-    if not swing:
-        np.testing.assert_allclose(fit.phase_curve(coa), phase, atol=0.01)
+    assert lo < mu < hi and (hi - lo) / 2 <= 0.10 * fit.mu
+    if not swing:  # 1 % in k is 0.24 deg at 28 deg (dphi = sin(phi)cos(phi) dk/k)
+        np.testing.assert_allclose(fit.phase_curve(coa), phase, atol=0.5)
     if known:
+        assert fit.mu == pytest.approx(mu, rel=5e-3)
         assert fit.constant == C
-        assert fit.creep_coefficient([0.0])[0] == pytest.approx(k0, rel=1e-2)
-    elif swing:
-        assert fit.constant == pytest.approx(C, rel=0.02)
+        assert fit.creep_coefficient([0.0])[0] == pytest.approx(k0, rel=1.5e-2)
     else:
-        assert fit.k_relative and fit.creep_coefficient([0.0])[0] == 1.0
+        assert fit.k_relative
 
 
-def test_ignoring_the_swing_misleads():
-    """The modulation's swing raises the top phases (describing-function slope below the
-    small-signal slope); fitted without it mu comes out wrong with a misfit, with it right."""
+def test_swing_is_modelled():
+    """The modulation's swing raises the top phase (describing-function slope below the
+    small-signal slope: +0.5 deg at 86 % on the dry set at V-Track's 8 N*m); with the swing
+    modelled the adhesion is within 0.5 % (measured 0.11 %) and its interval holds the
+    truth. (Left out, the estimate moves by 0.1 % here: within the broad family and its
+    model error the swing matters little at 8 N*m; measured, docs/friction.md.)"""
     coa, phase, a = truth(0.25, DRY, 100.0, 0.86, swing=True)
     _, small, _ = truth(0.25, DRY, 100.0, 0.86)
     assert phase[-1] - small[-1] > 0.3  # [deg], three times the phase noise
-    right = fit_mu_from_phase(coa, phase, np.full(6, 0.1), constant=C, creepage_swing=a)
-    wrong = fit_mu_from_phase(coa, phase, np.full(6, 0.1), constant=C)
-    assert right.mu == pytest.approx(0.25, rel=1e-3) and right.chi2 < 0.01
-    assert wrong.chi2 > 4.0 and abs(wrong.mu_estimate / 0.25 - 1) > 10 * abs(right.mu / 0.25 - 1)
+    right = fit_mu_from_phase(coa, phase, np.full(6, 0.1), constant=C, creepage_swing=a,
+                              speed_m_s=SPEED)
+    assert right.mu == pytest.approx(0.25, rel=5e-3)
+    assert right.mu_interval_95[0] <= 0.25 <= right.mu_interval_95[1]
 
 
 def test_low_utilisation_gives_only_a_lower_bound():
@@ -156,16 +152,21 @@ def test_low_utilisation_gives_only_a_lower_bound():
 
 
 def test_understated_errors_widen_the_interval():
-    """Phase noise three times the stated standard error: chi2/dof ~ 9, the interval is
-    scaled by it (warning) and is wider than with the stated errors taken at face value."""
+    """Twelve steps (each of the six twice) with phase noise ten times the stated 0.1 deg:
+    chi2/dof exceeds 1 (measured 2.07; smaller scatter is absorbed by the model's own 1 %
+    error in k and in the utilisation, which at these phases is worth 0.1-0.5 deg), the
+    level is scaled by it (warning) and the interval is at least as wide as with the
+    stated errors taken at face value."""
     coa, phase, _ = truth(0.3, WET, 90.0, 0.86)
-    noisy = phase + 0.3 * np.random.default_rng(5).standard_normal(6)
-    scaled = fit_mu_from_phase(coa, noisy, np.full(6, 0.1))
-    raw = fit_mu_from_phase(coa, noisy, np.full(6, 0.1), scale_by_chi2=False)
-    assert scaled.chi2_scale > 1 and any("scatter" in w for w in scaled.warnings)
-    w_scaled = scaled.mu_interval_95[1] - scaled.mu_interval_95[0]
-    w_raw = raw.mu_interval_95[1] - raw.mu_interval_95[0]
-    assert w_scaled > 1.2 * w_raw
+    coa2, phase2 = np.r_[coa, coa], np.r_[phase, phase]
+    noisy = phase2 + 1.0 * np.random.default_rng(5).standard_normal(12)
+    scaled = fit_mu_from_phase(coa2, noisy, np.full(12, 0.1))
+    raw = fit_mu_from_phase(coa2, noisy, np.full(12, 0.1), scale_by_chi2=False)
+    assert scaled.chi2_scale > 1.5 and any("scatter" in w for w in scaled.warnings)
+    assert raw.chi2_scale == 1.0
+    assert scaled.adhesion.level > raw.adhesion.level
+    assert scaled.adhesion.high >= raw.adhesion.high
+    assert scaled.adhesion.low <= raw.adhesion.low
 
 
 def test_interval_coverage_monte_carlo():
@@ -175,7 +176,10 @@ def test_interval_coverage_monte_carlo():
     (determined) or its lower bound does not exceed it (not determined). Threshold 81 of 90
     (90 %): with a true coverage of 95 % fewer happens with probability
     binom.cdf(80, 90, 0.95) = 2.4 %; a 85 % coverage would pass with probability 11 %.
-    Determined intervals are at most +-10 % wide (the rule), so errors stay within 10 %."""
+    Determined intervals are at most +-10 % wide (the rule), so errors stay within 10 %
+    (measured: 90/90 covered, 29/90 determined, errors median 0.45 %, at most 8.9 %: the
+    broad family of creep laws is honest where the Polach-only fit of earlier versions
+    determined 56/90)."""
     assert binom.cdf(80, 90, 0.95) < 0.03
     rng = np.random.default_rng(2024)
     hits, determined = 0, 0
@@ -194,10 +198,11 @@ def test_interval_coverage_monte_carlo():
             determined += 1
             hits += lo <= mu <= hi
             assert (hi - lo) / 2 <= 0.10 * fit.mu and abs(fit.mu / mu - 1) < 0.10
+            assert lo <= fit.mu <= hi
         else:
             hits += lo <= mu
     assert hits >= 81
-    assert determined >= 45  # dry and wet up to 80-86 % are determined (measured 56/90)
+    assert determined >= 20  # measured 29/90
 
 
 def test_bad_input():

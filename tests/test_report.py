@@ -25,7 +25,7 @@ from torquemod.report.figures import (
     signals_figure,
 )
 
-FIGURES = ("fig2_signals", "fig3_creep_curve", "fig4_phase")
+FIGURES = ("fig1_signals", "fig2_creep_curve", "fig3_phase")
 TABLE1_HEADERS = ("Step", "DC applied torque [N·m]", "DC torque [% Ts]", "Phase φ [deg]",
                   "Theory φ [deg]")
 TABLE2_HEADERS = ("Cycle", "Peak frequency torque [Hz]",
@@ -91,7 +91,7 @@ def test_figures_are_headless_figures(synthetic, tmp_path):
     legend = [t.get_text() for t in figs["b"].axes[0].get_legend().get_texts()]
     assert any("10× std CoA" in t and "2× std creepage" in t for t in legend)
     assert any("μ = 0.2" in t for t in legend)
-    # Figure 4 marks the onset step (step 3 of the synthetic data)
+    # Figure 3 marks the onset step (step 3 of the synthetic data)
     legend4 = [t.get_text() for t in figs["c"].axes[0].get_legend().get_texts()]
     assert "saturation onset (step 3)" in legend4
     with pytest.raises(InputError):
@@ -155,13 +155,13 @@ def test_report_contains_every_figure_and_table(synthetic, tmp_path):
     # Table 2 per step (6 rows, not 18 of nearly the same number), per cycle folded away
     assert "Table 2: modulation frequencies from the FFT, mean over each step" in text
     assert "<summary>Modulation frequencies per cycle</summary>" in text
-    # creepage in % in Table 1, as in Figure 3: step 6's 100*xi appears
+    # creepage in % in Table 1, as in Figure 2: step 6's 100*xi appears
     xi6 = 100 * float(res.steps.loc[res.steps.step == 6, "creepage"].iloc[0])
     assert f"<td>{xi6:.4g}</td>" in text
     # tables scroll instead of overflowing; numbers do not wrap
     assert '<div class="scroll"><table>' in text and "white-space:nowrap" in text
     # SVG text is text, not outlines
-    svg = (tmp_path / "figures" / "fig3_creep_curve.svg").read_text(encoding="utf-8")
+    svg = (tmp_path / "figures" / "fig2_creep_curve.svg").read_text(encoding="utf-8")
     assert "<text" in svg and "Longitudinal creepage" in svg
 
 

@@ -213,7 +213,10 @@ def test_tiny_train_sweep_table(tiny):
     # every window of the run is in one segment
     for _, g in t.groupby("point_id"):
         assert g["n_windows"].sum() == g["n_windows_run"].iloc[0]
-    assert (t["mu_true_median"][t["condition"] == "dry"] > 0.5).all()
+    # the truth is the available adhesion (the creep curve's peak at the train's speed),
+    # below the dry set's mu0 = 0.55 where its friction falls with the slip velocity
+    dry = t["mu_true_median"][t["condition"] == "dry"]
+    assert ((dry > 0.3) & (dry < 0.55)).all()
     # issue 10: the lower bound above the truth in at most 3 % of rows
     assert (t["lower_bound_above_truth_share"] <= 0.03).all()
     # the measured creep coefficient within 15 % of the twin's in the lowest band (README:

@@ -7,7 +7,8 @@ experiment: the per-step tables, the per-cycle means (normal load, lateral force
 measured modulation frequencies and the rig (radius, inertia, contact stiffness). Nothing is
 read from files. The extended steps table gains the columns :data:`ADDED_STEP_COLUMNS`:
 
-* ``torque_pct_saturation`` DC torque as % of ``Ts = mu*N*Rw`` (NaN if mu is undetermined),
+* ``torque_pct_saturation`` DC torque as % of ``Ts = mu*N*Rw`` (mu from the forces, else
+  from the phase: :func:`saturation_torque`; NaN when neither determines mu),
 * ``creep_coefficient`` dCoA/dxi of the fitted curve at the step's creepage [-],
 * ``phase_theory_deg`` the rigid-wheel phase ``atan(C/k)`` [deg] (see :mod:`torquemod.creep`),
 * ``phase_fit_deg`` the phase of the fit that gives mu from the phase [deg],
@@ -31,15 +32,22 @@ import numpy as np
 import pandas as pd
 
 from .analysisresult import Analysis
-from .config import coerce_options
-from .creep import creep_points, saturation_onset, theory_check, theory_constant
-from .errors import InputError, ProcessingError
+from .config import check_option_types, coerce_options
+from .creep import (
+    ONSET_CRITERIA,
+    creep_points,
+    saturation_onset,
+    theory_check,
+    theory_constant,
+)
+from .errors import InputError, OptionError, ProcessingError
 from .fit import fit_polach
 
 if TYPE_CHECKING:
     from .pipeline import ProcessResult
 
-__all__ = ["ADDED_STEP_COLUMNS", "Analysis", "FitOptions", "analyze", "fit_results_folder"]
+__all__ = ["ADDED_STEP_COLUMNS", "Analysis", "FitOptions", "analyze", "fit_results_folder",
+           "saturation_torque"]
 
 ADDED_STEP_COLUMNS = ("torque_pct_saturation", "creep_coefficient", "phase_theory_deg",
                       "phase_fit_deg", "utilisation_phase")
@@ -74,6 +82,25 @@ class FitOptions:
     onset_rel_k_drop: float = 0.5
     onset_tan_ratio: float = 2.0
     onset_baseline_steps: int = 2
+
+    def __post_init__(self) -> None:
+        check_option_types(self, "fit")
+        if self.n_starts < 1:
+            raise OptionError(f"fit option n_starts={self.n_starts}: the Polach fit needs at "
+                              "least one start (default 12)")
+        if self.onset_criterion not in ONSET_CRITERIA:
+            raise OptionError(f"fit option onset_criterion={self.onset_criterion!r}: choose "
+                              f"one of {', '.join(ONSET_CRITERIA)}")
+        if self.onset_baseline_steps < 1:
+            raise OptionError(f"fit option onset_baseline_steps={self.onset_baseline_steps}: "
+                              "needs at least 1")
+        for name in ("sigma_floor", "max_rel_stderr", "creepage_limit", "onset_tan_ratio"):
+            if not getattr(self, name) > 0:
+                raise OptionError(f"fit option {name}={getattr(self, name)!r}: must be > 0")
+        for name in ("stiffness", "inertia_kg_m2", "theory_constant"):
+            value = getattr(self, name)
+            if value is not None and not value > 0:
+                raise OptionError(f"fit option {name}={value!r}: must be > 0 (or None)")
 
     @classmethod
     def coerce(cls, options) -> FitOptions:
@@ -125,6 +152,7 @@ def analyze(result: ProcessResult, options: FitOptions | dict | None = None, **f
     Options are :class:`FitOptions` fields, given as ``options`` (an instance or a mapping)
     and/or as keywords (keywords win), e.g. ``analyze(res, velocity_dependent=True)``.
     """
+    _require_process_result(result)
     base = FitOptions.coerce(options)
     opts = FitOptions.coerce({**base.__dict__, **fit_options}) if fit_options else base
     steps_df = result.steps.reset_index(drop=True)
@@ -146,10 +174,6 @@ def analyze(result: ProcessResult, options: FitOptions | dict | None = None, **f
 
     radius = result.experiment.rig.wheel_radius_m
     n_nom = result.experiment.test.normal_load_n
-    ts = ts_se = None
-    if fit is not None and fit.mu is not None:
-        ts, ts_se = fit.mu * n_nom * radius, fit.mu_stderr * n_nom * radius
-    pct = 100.0 * pts.dc_torque_nm / ts if ts else np.full(len(pts), np.nan)
 
     inertia = _rig_value(result, "wheel_inertia_kg_m2", opts.inertia_kg_m2)
     constant, rig_args = opts.theory_constant, None
@@ -170,6 +194,9 @@ def analyze(result: ProcessResult, options: FitOptions | dict | None = None, **f
         if constant is None and pfit.constant_given:
             warnings.append(f"mu from the phase: C = {pfit.constant:.4g} measured from the "
                             "torque/wheel-speed amplitude ratio (no rig inertia given)")
+    ts, ts_se, ts_source = saturation_torque(fit, pfit, normal_load_n=n_nom,
+                                             wheel_radius_m=radius)
+    pct = 100.0 * pts.dc_torque_nm / ts if ts else np.full(len(pts), np.nan)
     coa_phase = _step_column(steps_df, "coa_torque")
     if coa_phase is None or not np.all(np.isfinite(coa_phase[use])):
         coa_phase = pts.coa
@@ -205,6 +232,7 @@ def analyze(result: ProcessResult, options: FitOptions | dict | None = None, **f
         theory_rig=None if rig_args is None else {"wheel_inertia_kg_m2": inertia,
                                                   "wheel_radius_m": radius},
         onset=onset, saturation_torque_nm=ts, saturation_torque_stderr_nm=ts_se,
+        saturation_torque_source=ts_source,
         normal_load_n=n_nom, wheel_radius_m=radius, stiffness=stiffness,
         speed_m_s=float(np.mean(speeds)) if speeds.size else None, warnings=warnings,
         created_utc=datetime.now(UTC).isoformat(timespec="seconds"),
@@ -212,6 +240,36 @@ def analyze(result: ProcessResult, options: FitOptions | dict | None = None, **f
                 "processed_utc": result.created_utc,
                 "manifest": str(result.experiment.manifest_path)},
         name=result.name)
+
+
+def saturation_torque(polach, phase_fit, *, normal_load_n: float, wheel_radius_m: float
+                      ) -> tuple[float | None, float | None, str | None]:
+    """The saturation torque ``Ts = mu*N*Rw`` [N*m] (V-Track paper, Fig. 4's abscissa), its
+    standard error [N*m] and which mu gave it: the force fit's mu when it is determined
+    ("forces"), else mu from the phase when that is determined ("phase"), else
+    ``(None, None, None)``. Every place that shows Ts or % of Ts takes it from here."""
+    n_r = float(normal_load_n) * float(wheel_radius_m)
+    if polach is not None and polach.mu is not None:
+        se = polach.mu_stderr
+        return polach.mu * n_r, None if se is None else se * n_r, "forces"
+    if phase_fit is not None and phase_fit.mu_determined and phase_fit.mu:
+        se = getattr(phase_fit, "mu_stderr", None)
+        return phase_fit.mu * n_r, None if se is None else se * n_r, "phase"
+    return None, None, None
+
+
+def _require_process_result(result) -> None:
+    """A clear error when :func:`analyze` is given something else than a processed result
+    (an experiment, a manifest path, a results folder)."""
+    from .pipeline import ProcessResult
+    if isinstance(result, ProcessResult):
+        return
+    what = type(result).__name__
+    if what == "Experiment" or isinstance(result, str) or hasattr(result, "__fspath__"):
+        raise OptionError(f"analyze() takes the result of process(), got {what} {result!r:.80}:"
+                          " call res = tm.process(exp) first, then tm.analyze(res) (a saved "
+                          "results folder: res, ana = tm.load(folder))")
+    raise OptionError(f"analyze() takes a ProcessResult (from tm.process), got {what}")
 
 
 def _polach_stage(opts, pts, per, use, stiffness, steps_df):
@@ -300,8 +358,11 @@ def _phase_fit(steps_df: pd.DataFrame, pts, use: np.ndarray, constant,
         c = measured_constant(steps_df, use, wheel_radius_m=measured_c[0],
                               normal_load_n=measured_c[1])
     try:
+        speed = _step_column(steps_df, "speed_m_s")
         res = fit_mu_from_phase(coa[use], pts.phase_deg[use], se[use], constant=c,
-                                creepage_swing=None if swing is None else swing[use])
+                                creepage_swing=None if swing is None else swing[use],
+                                speed_m_s=None if speed is None
+                                else float(np.nanmedian(np.abs(speed[use]))))
     except (InputError, ProcessingError) as exc:
         return None, str(exc)
     return res, ""

@@ -20,16 +20,36 @@ __all__ = ["Analysis", "curve_check", "phase_keys"]
 
 
 def phase_keys(pfit) -> dict:
-    """The four fit.json keys of mu from the phase (issue 8); a lower bound as the interval's
-    low end when mu is not determined."""
+    """The fit.json keys of the fit from the phase. ``mu_from_phase*`` (kept from earlier
+    versions): the available adhesion (the maximum of the adhesion-creepage curve), a lower
+    bound as the interval's low end when it is not determined. ``adhesion_available_from_
+    phase*`` name the same quantity explicitly, with the interval when it is closed, the
+    lower bound, the probe depth (utilisation) that would determine it, and ``mu0_from_phase``,
+    the law's friction coefficient, where the data identify it."""
+    keys = ("adhesion_available_from_phase", "adhesion_available_from_phase_low",
+            "adhesion_available_from_phase_high", "adhesion_available_from_phase_lower_bound",
+            "mu0_from_phase", "mu0_from_phase_low", "mu0_from_phase_high",
+            "probe_depth_needed_from_phase", "phase_fit_best_law")
     if pfit is None:
         return {"mu_from_phase": None, "mu_from_phase_stderr": None,
-                "mu_from_phase_interval_95": [None, None], "mu_from_phase_determined": False}
+                "mu_from_phase_interval_95": [None, None], "mu_from_phase_determined": False,
+                **dict.fromkeys(keys), "adhesion_available_from_phase_determined": False}
     lo, hi = pfit.mu_interval_95
+    a = pfit.adhesion.to_dict()
     return {"mu_from_phase": pfit.mu if pfit.mu_determined else None,
             "mu_from_phase_stderr": pfit.mu_stderr if pfit.mu_determined else None,
             "mu_from_phase_interval_95": [lo, hi if pfit.mu_determined else None],
-            "mu_from_phase_determined": bool(pfit.mu_determined)}
+            "mu_from_phase_determined": bool(pfit.mu_determined),
+            "mu_from_phase_estimand": a["estimand"],
+            "adhesion_available_from_phase": a["adhesion_available"],
+            "adhesion_available_from_phase_low": a["adhesion_available_low"],
+            "adhesion_available_from_phase_high": a["adhesion_available_high"],
+            "adhesion_available_from_phase_lower_bound": a["adhesion_available_lower_bound"],
+            "adhesion_available_from_phase_determined": a["adhesion_available_determined"],
+            "mu0_from_phase": a["mu0"], "mu0_from_phase_low": a["mu0_low"],
+            "mu0_from_phase_high": a["mu0_high"],
+            "probe_depth_needed_from_phase": a["probe_depth_needed"],
+            "phase_fit_best_law": a["best_law"]}
 
 
 def curve_check(polach, creepage_limit: float, *, n: int = 2000) -> tuple[bool, str | None]:
@@ -60,7 +80,10 @@ class Analysis:
     None with ``phase_fit_skipped``), ``theory`` the rigid-wheel check, ``onset`` the
     saturation onset, ``steps`` the steps table with the analysis columns, ``used`` which of
     ``points`` entered the Polach fit (not slipping), ``options`` the
-    :class:`~torquemod.analysis.FitOptions`. Torques [N*m], loads [N], radii [m].
+    :class:`~torquemod.analysis.FitOptions`. ``saturation_torque_nm`` is ``Ts = mu*N*Rw`` with
+    the mu named by ``saturation_torque_source`` ("forces", "phase"; None when neither fit
+    determines mu); it is the one Ts of every table and figure. Torques [N*m], loads [N],
+    radii [m].
     """
 
     options: object
@@ -85,6 +108,7 @@ class Analysis:
     created_utc: str = ""
     source: dict = field(default_factory=dict)
     name: str = ""
+    saturation_torque_source: str | None = None  # "forces", "phase" or None
 
     # --- headline numbers -------------------------------------------------------------------
     @property
@@ -173,6 +197,7 @@ class Analysis:
             **fit_dict,
             "saturation_torque_nm": self.saturation_torque_nm,
             "saturation_torque_stderr_nm": self.saturation_torque_stderr_nm,
+            "saturation_torque_source": self.saturation_torque_source,
             "normal_load_n": self.normal_load_n, "wheel_radius_m": self.wheel_radius_m,
             "theory": theory, "onset": self.onset.to_dict(), "steps": self.step_records(),
             "warnings": list(self.warnings),
@@ -194,6 +219,7 @@ class Analysis:
             "fit_skipped": self.polach_skipped, **phase_keys(self.phase_fit),
             "saturation_torque_nm": self.saturation_torque_nm,
             "saturation_torque_stderr_nm": self.saturation_torque_stderr_nm,
+            "saturation_torque_source": self.saturation_torque_source,
             "onset_step": self.onset.step, "theory_mode": self.theory.mode,
             "theory_rms_deg": theory["rms_difference_deg"],
             "theory_max_deg": theory["max_abs_difference_deg"], "converged": self.converged,
@@ -206,11 +232,14 @@ class Analysis:
         lines = [f"[[Analysis]] {self.name}: {len(self.points)} steps "
                  f"({int(self.used.sum())} in the force fit)"]
         lines += ["  " + line for line in headline_lines(self)]
+        shown = set()  # each warning once: the fits' own reports list theirs
         if self.polach is not None:
             lines.append(self.polach.report())
+            shown.update(self.polach.warnings)
         if self.phase_fit is not None:
             lines.append(self.phase_fit.report())
-        lines += [f"WARNING: {w}" for w in self.warnings]
+            shown.update(f"mu from the phase: {w}" for w in self.phase_fit.warnings)
+        lines += [f"WARNING: {w}" for w in self.warnings if w not in shown]
         return "\n".join(lines)
 
     def __repr__(self) -> str:
@@ -268,10 +297,17 @@ def headline_lines(ana: Analysis) -> list[str]:
     pf = ana.phase_fit
     if pf is not None and pf.mu_determined:
         lo, hi = pf.mu_interval_95
-        out.append(f"mu from the phase: {pf.mu:.4f} (95 % interval {_f(lo)} .. {_f(hi)})")
+        ts = (f"; saturation torque Ts = {ana.saturation_torque_nm:.2f} N*m"
+              if ana.saturation_torque_source == "phase" else "")
+        out.append(f"available adhesion from the phase: {pf.mu:.4f} (95 % interval {_f(lo)} "
+                   f".. {_f(hi)}){ts}")
     elif pf is not None:
-        out.append(f"mu from the phase: not determined by these steps; mu >= "
-                   f"{_f(pf.mu_interval_95[0])}")
+        a = pf.adhesion
+        rng = f" (95 % range {_f(a.low)} .. {_f(a.high)})" if a.closed else ""
+        depth = (f"; a step at {100 * a.probe_depth:.0f} % of it would determine it"
+                 if np.isfinite(a.probe_depth) else "")
+        out.append(f"available adhesion from the phase: not determined by these steps; >= "
+                   f"{_f(pf.mu_interval_95[0])}{rng}{depth}")
     onset = f"step {ana.onset.step}" if ana.onset.step is not None else "not reached"
     rms = ana.theory_difference[0]
     out.append(f"saturation onset: {onset}; theory vs measured phase: RMS {_f(rms, '.2f')} deg")

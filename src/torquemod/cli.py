@@ -1,7 +1,10 @@
+# PYTHON_ARGCOMPLETE_OK
 """The ``torquemod`` command line. The only module that parses arguments or prints.
 
 Every :class:`~torquemod.errors.TorquemodError` ends as one line on stderr and exit code 2;
-anything else is a bug: one line, exit code 3, and ``--debug`` shows the traceback.
+anything else is a bug: one line, exit code 3, and ``--debug`` shows the traceback. Ctrl-C
+ends with 130, SIGTERM with 143. Shell completion comes from argcomplete
+(``eval "$(register-python-argcomplete torquemod)"``), loaded only while completing.
 """
 
 from __future__ import annotations
@@ -75,6 +78,7 @@ def cmd_process(args: argparse.Namespace) -> int:
 
     out = run(args.experiment, args.out, phase_method=args.phase_method,
               nan_policy=args.nan_policy, fit=not args.no_fit, force=args.force,
+              report_options=_pdf_option(args),
               progress=not args.quiet, command=sys.argv, on_stage=_stage_printer(args),
               export=args.export)
     res, ana = out.result, out.analysis
@@ -89,6 +93,7 @@ def cmd_process(args: argparse.Namespace) -> int:
     print(f"results: {out.folder}")
     if out.report is not None:
         print(f"report:  {out.report}")
+        _print_pdf(args, out.report)
     return 0
 
 
@@ -157,6 +162,7 @@ def cmd_onboard(args: argparse.Namespace) -> int:
     print(f"along the track: {Path(args.out) / 'along_track.csv'} (per segment), "
           "along_track_km.csv (per km)")
     print(f"report: {Path(args.out) / 'report.html'}")
+    _write_pdf(args, Path(args.out) / "report.html")
     return 0
 
 
@@ -225,22 +231,55 @@ def _fit_options(args: argparse.Namespace) -> dict:
 def cmd_fit(args: argparse.Namespace) -> int:
     from .api import fit_folder
     _, ana = fit_folder(Path(args.results), _fit_options(args),
-                          on_stage=_stage_printer(args))
+                        report_options=_pdf_option(args), on_stage=_stage_printer(args))
     _print_warnings(ana.warnings)
     _print_steps(ana.steps)
     _print_fit(ana)
-    print(f"updated {args.results}: fit.json, steps.csv, figures and report.html")
+    print(f"updated {args.results}: fit.json, steps.csv, figures and report.html"
+          + (" (and report.pdf)" if args.pdf else ""))
     return 0
 
 
 def cmd_report(args: argparse.Namespace) -> int:
     from .api import report_folder
     opts = {k: v for k, v in (("step", args.step), ("cycle", args.cycle),
-                              ("title", args.title)) if v is not None}
+                              ("title", args.title)) if v is not None} | _pdf_option(args)
     path = report_folder(Path(args.results), report_options=opts,
                          on_stage=_stage_printer(args))
     print(f"report written to {path}")
+    _print_pdf(args, path)
     return 0
+
+
+def _pdf_option(args: argparse.Namespace) -> dict:
+    """--pdf as the report option that writes report.pdf inside the results folder."""
+    return {"pdf": args.pdf_engine} if getattr(args, "pdf", False) else {}
+
+
+def _print_pdf(args: argparse.Namespace, html_path: Path) -> None:
+    if getattr(args, "pdf", False):
+        print(f"pdf:     {Path(html_path).with_suffix('.pdf')}")
+
+
+def _write_pdf(args: argparse.Namespace, html_path: Path) -> None:
+    """With --pdf: the report as report.pdf beside it (A4; see torquemod.report.pdf)."""
+    if not getattr(args, "pdf", False):
+        return
+    from .report.pdf import html_to_pdf
+    say = _stage_printer(args)
+    if say:
+        say(f"writing the PDF ({args.pdf_engine}) ...")
+    print(f"pdf:    {html_to_pdf(html_path, engine=args.pdf_engine)}")
+
+
+def _add_pdf_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--pdf", action="store_true",
+                        help="also write the report as report.pdf (A4) beside report.html")
+    parser.add_argument("--pdf-engine", choices=["matplotlib", "chromium"],
+                        default="matplotlib",
+                        help="how the PDF is made: matplotlib (default, always available: "
+                             "text, tables and figures laid out on A4) or chromium (a "
+                             "headless Chromium on the PATH prints the HTML page)")
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -288,8 +327,22 @@ def _print_train_demo(train: dict) -> None:
 
 def _why_they_differ(out: dict, truth: dict) -> str:
     """Why the fitted mu is not the simulator's peak CoA, in the numbers of this run."""
-    mu = out.get("mu") if out.get("mu") is not None else out.get("mu_from_phase")
-    head = f"why mu ({_fmt(mu, '.4f')}) differs from the peak CoA ({truth['peak_coa']:.4f}): "
+    if out.get("mu") is not None:
+        head = f"why mu from the forces ({out['mu']:.4f}) differs"
+    elif out.get("mu_from_phase") is not None:  # the fit from the phase estimates the peak
+        return (f"the available adhesion from the phase ({out['mu_from_phase']:.4f}) "
+                f"estimates the creep curve's peak CoA ({truth['peak_coa']:.4f}) itself.")
+    else:  # neither fit determines mu: only a lower bound is known, the higher of the two
+        bounds = [b for b in (out.get("mu_lower_bound"),
+                              (out.get("mu_from_phase_interval_95") or [None])[0])
+                  if b is not None]
+        bound = max(bounds) if bounds else None
+        return (f"mu is not determined by these steps (mu >= {_fmt(bound, '.4f')}): their "
+                "points do not fix the creep curve's shape near saturation (too few cycles "
+                "per step, or steps too far below saturation). The simulated curve peaks at "
+                f"CoA {truth['peak_coa']:.4f}, below the friction (mu0 = {truth['mu0']:.4f}, "
+                f"{truth['mu_at_top_step']:.4f} at the top step's slip velocity).")
+    head += f" from the peak CoA ({truth['peak_coa']:.4f}): "
     return (head + "mu is the friction coefficient of the fitted Polach curve, the level its "
             "CoA would reach only at full sliding; a creep curve with a finite kA/kS peaks "
             "below its mu, and the simulator's friction also falls with the slip velocity "
@@ -411,7 +464,8 @@ def build_parser() -> argparse.ArgumentParser:
                    default=None, help="what to do with NaN/inf samples (default: raise)")
     q.add_argument("--force", action="store_true", help="replace an existing results folder")
     q.add_argument("--no-fit", action="store_true", help="skip the fit and report stages")
-    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.add_argument("--quiet", action="store_true", help="no progress bar or stage lines")
+    _add_pdf_options(q)
     q.add_argument("--export", default="", metavar="FORMATS",
                    help="also write cycles and steps as mat (MATLAB) and/or parquet, "
                         "comma-separated, beside cycles.csv and steps.csv")
@@ -421,14 +475,19 @@ def build_parser() -> argparse.ArgumentParser:
                        help="simulate the V-Track experiment (digital twin)")
     s.add_argument("config", nargs="?", default=None, help="simulation config TOML")
     s.add_argument("--out", default=None, help="experiment folder to create")
-    s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--format", choices=["csv", "hdf5"], default="csv")
+    s.add_argument("--seed", type=int, default=0,
+                   help="seed of the simulated noise and disturbances (default 0); the same "
+                        "seed gives the same files")
+    s.add_argument("--format", choices=["csv", "hdf5"], default="csv",
+                   help="file format of the rig recordings (default csv; hdf5 is smaller and "
+                        "faster to read)")
     s.add_argument("--print-config", action="store_true", help="print the default config")
     s.add_argument("--train", action="store_true",
                    help="simulate a train run (powered wheelset, friction map) instead of "
                         "the rig; also chosen by kind = \"train\" in the config")
-    s.add_argument("--force", action="store_true", help="replace an existing folder")
-    s.add_argument("--quiet", action="store_true")
+    s.add_argument("--force", action="store_true",
+                   help="replace an existing folder (one torquemod wrote)")
+    s.add_argument("--quiet", action="store_true", help="no progress bar or stage lines")
     s.set_defaults(func=cmd_simulate)
 
     o = sub.add_parser("onboard", parents=[common],
@@ -440,6 +499,7 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--export", default="", metavar="FORMATS",
                    help="also write the tracks as csv and/or mat (MATLAB), comma-separated, "
                         "beside track.parquet")
+    _add_pdf_options(o)
     o.set_defaults(func=cmd_onboard)
 
     f = sub.add_parser("fit", parents=[common], help=(
@@ -461,27 +521,37 @@ def build_parser() -> argparse.ArgumentParser:
                    help="saturation-onset rule (default: tan_ratio)")
     f.add_argument("--seed", type=int, default=None, help="seed of the fit's random starts")
     f.add_argument("--quiet", action="store_true", help="no stage lines")
+    _add_pdf_options(f)
     f.set_defaults(func=cmd_fit)
 
     r = sub.add_parser("report", parents=[common],
                        help="(re)draw the figures and report.html of a results folder")
     r.add_argument("results", help="results folder written by 'torquemod process'")
-    r.add_argument("--step", type=int, default=None, help="step of Figure 2 (default 3)")
-    r.add_argument("--cycle", type=int, default=None, help="cycle of Figure 2 (default 1)")
+    r.add_argument("--step", type=int, default=None,
+                   help="step shown in Figure 1, the signals (default 3)")
+    r.add_argument("--cycle", type=int, default=None, help="cycle shown in Figure 1 (default 1)")
     r.add_argument("--title", default=None, help="page title (default: experiment name)")
     r.add_argument("--quiet", action="store_true", help="no stage lines")
+    _add_pdf_options(r)
     r.set_defaults(func=cmd_report)
 
     d = sub.add_parser("demo", parents=[common],
                        help="simulate, process, fit and report the V-Track default")
-    d.add_argument("--out", default="demo-output")
-    d.add_argument("--config", default=None, help="simulation config TOML")
-    d.add_argument("--seed", type=int, default=0)
-    d.add_argument("--quick", action="store_true", help="a shortened experiment")
+    d.add_argument("--out", default="demo-output",
+                   help="folder to create with the experiment, results and reports (default "
+                        "demo-output)")
+    d.add_argument("--config", default=None,
+                   help="simulation config TOML (default: the V-Track experiment; see "
+                        "'torquemod simulate --print-config')")
+    d.add_argument("--seed", type=int, default=0,
+                   help="seed of the simulated noise (default 0)")
+    d.add_argument("--quick", action="store_true",
+                   help="a shortened experiment (2 cycles per step): faster, less precise")
     d.add_argument("--no-train", action="store_true",
                    help="only the rig (skip the train run and its on-board estimate)")
-    d.add_argument("--force", action="store_true")
-    d.add_argument("--quiet", action="store_true")
+    d.add_argument("--force", action="store_true",
+                   help="replace an existing --out folder (one torquemod wrote)")
+    d.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
     d.set_defaults(func=cmd_demo)
 
     c = sub.add_parser("convert", parents=[common],
@@ -560,6 +630,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    if "_ARGCOMPLETE" in os.environ:  # the shell asks for completions; exits when done
+        import argcomplete
+        argcomplete.autocomplete(parser)
     args = parser.parse_args(argv)
     try:
         with _terminate_as_interrupt():
@@ -610,6 +683,7 @@ def _terminate_as_interrupt():
         _TERMINATED.set()  # also when a library turns the exception into a new one
         raise _Terminated
 
+    _TERMINATED.clear()  # a SIGTERM of an earlier main() in this process is not this one's
     previous = signal.signal(signal.SIGTERM, stop)
     try:
         yield
@@ -618,7 +692,10 @@ def _terminate_as_interrupt():
 
 
 def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split())
+    """The message on one line, in the command line's words: the library's keyword
+    ``force=True`` is the option ``--force`` here."""
+    text = " ".join(str(exc).split())
+    return text.replace("pass force=True", "use --force").replace("force=True", "--force")
 
 
 def _os_error_line(exc: OSError, args: argparse.Namespace) -> str:

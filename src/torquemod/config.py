@@ -13,7 +13,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from .errors import InputError
+from .errors import InputError, OptionError
 
 #: How :meth:`ProcessingConfig.for_modulation` scales the defaults with the modulation frequency f.
 FREQUENCY_RULE = ("band, band-pass width, high-pass cut-off, slow model's top x f/2; "
@@ -358,3 +358,46 @@ def coerce_options(cls, options, what: str):
                              f"known: {sorted(names)}")
         return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in options.items()})
     raise InputError(f"{what} options must be {cls.__name__} or a mapping, got {type(options)}")
+
+
+def check_option_types(instance, what: str) -> None:
+    """Raise :class:`~torquemod.errors.OptionError` naming the first field of the dataclass
+    ``instance`` whose value is not of its annotated type: ``bool`` takes only True/False
+    (not "no", not 0), ``int`` whole numbers (not bool), ``float`` real numbers, ``str``
+    text; ``X | None`` also None; tuples are checked as tuples (lists pass)."""
+    import numbers
+    import types
+    import typing
+
+    hints = typing.get_type_hints(type(instance))
+    for f in dataclasses.fields(instance):
+        value = getattr(instance, f.name)
+        hint = hints.get(f.name)
+        union = typing.get_origin(hint) in (typing.Union, types.UnionType)
+        args = typing.get_args(hint) if union else ()
+        optional = type(None) in args
+        base = next((a for a in args if a is not type(None)), hint) if args else hint
+        if value is None and optional:
+            continue
+        origin = typing.get_origin(base) or base
+        ok = True
+        if origin is bool:
+            ok = isinstance(value, bool | _np_bool())
+        elif origin is int:
+            ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
+        elif origin is float:
+            ok = isinstance(value, numbers.Real) and not isinstance(value, bool)
+        elif origin is str:
+            ok = isinstance(value, str)
+        elif origin is tuple:
+            ok = isinstance(value, tuple | list)
+        if not ok:
+            expected = {bool: "True or False", int: "a whole number", float: "a number",
+                        str: "a string", tuple: "a sequence"}.get(origin, str(base))
+            raise OptionError(f"{what} option {f.name}={value!r}: expected {expected}"
+                              + (" or None" if optional else ""))
+
+
+def _np_bool():
+    import numpy as np
+    return np.bool_

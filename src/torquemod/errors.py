@@ -32,6 +32,11 @@ class InputError(TorquemodError, ValueError):
         self.hint = hint
 
 
+class OptionError(InputError, TypeError):
+    """A keyword option of a library call (or a field of an options object) has the wrong
+    type or value; both ``except TypeError`` and ``except ValueError`` catch it."""
+
+
 class ManifestError(InputError):
     """The experiment manifest (TOML) is missing, malformed or inconsistent."""
 

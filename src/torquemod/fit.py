@@ -266,6 +266,12 @@ class PolachFit:
                      f"{self.options.get('creepage_limit')}): CoA = {self.curve_peak_coa:.4f}")
         lines.append("[[Parameters]]")
         for name in self.param_names:
+            if name == "mu" and not self.mu_determined:  # never a value +/- error here
+                lo, hi = self.mu_interval_95
+                lines.append(f"  {name:16s}   not determined (95 % range {lo:.4g} .. {hi:.4g})"
+                             if lo is not None and hi is not None else
+                             f"  {name:16s}   not determined")
+                continue
             lines.append(f"  {name:16s} = {self.params[name]:12.6g} +/- {self.stderr[name]:.3g}")
         lines.append(f"  initial slope 2(kA+kS)s/pi = {self.initial_slope:.6g}")
         for w in self.warnings:

@@ -175,10 +175,10 @@ def check_output_dir(out_dir: str | Path, *, force: bool, inputs: Iterable = ())
     except OSError as exc:
         raise output_error(exc, out, doing="cannot read the output folder") from None
     if names and not force:
-        raise OutputError(f"{out}: folder already exists and is not empty; use --force to "
+        raise OutputError(f"{out}: folder already exists and is not empty; pass force=True to "
                           "replace it whole (torquemod results only) or choose another --out")
     if names and not is_torquemod_dir(out):
-        raise OutputError(f"{out}: --force replaces only a folder of torquemod results, and "
+        raise OutputError(f"{out}: force=True replaces only a folder of torquemod results, and "
                           f"this one holds other files (e.g. '{_foreign(names)}') and no "
                           f"{MARKER}; "
                           "move them away or choose another --out")
@@ -319,7 +319,7 @@ def publish(tmp: str | Path, target: str | Path, *, force: bool = False,
                                   "working; it was left as it is, and the results were not "
                                   "written; rerun with another --out")
             if not is_torquemod_dir(target, legacy_steps_only=update):
-                raise OutputError(f"{target}: --force replaces only a folder of torquemod "
+                raise OutputError(f"{target}: force=True replaces only a folder of torquemod "
                                   f"results, and this one holds other files and no {MARKER}; "
                                   "the results were not written; choose another --out")
         _exchange(tmp, target)
@@ -498,7 +498,7 @@ def atomic_file(out_path: str | Path, *, force: bool = False, inputs: Iterable =
                     _rename_noreplace(tmp, out)
             except FileExistsError:
                 raise OutputError(f"{out}: a file appeared there while this run was "
-                                  "working; it was left as it is; use --force to replace it "
+                                  "working; it was left as it is; pass force=True to replace it "
                                   "or choose another --out") from None
             except OSError as exc:
                 raise output_error(exc, out, doing="cannot publish the output") from None
@@ -514,11 +514,11 @@ def _check_output_file(out: Path, *, force: bool, inputs: list) -> None:
             same = same or os.path.samefile(p, out)
         if same:
             raise OutputError(f"{out}: the output is the input {item}; choose another --out "
-                              "(--force never overwrites an input)")
+                              "(force=True never overwrites an input)")
     if out.is_dir():
         raise OutputError(f"{out}: is a folder; give the output file's name")
     if os.path.lexists(out) and not force:
-        raise OutputError(f"{out}: file already exists; use --force to replace it or choose "
+        raise OutputError(f"{out}: file already exists; pass force=True to replace it or choose "
                           "another --out")
 
 

@@ -36,7 +36,7 @@ from . import fsutil
 from .analysis import ADDED_STEP_COLUMNS, FitOptions, analyze
 from .config import ProcessingConfig
 from .data import Experiment, RecordingEntry, Rig, TestSetup
-from .errors import InputError, OutputError, TorquemodError
+from .errors import InputError, OptionError, OutputError, TorquemodError
 from .jsonutil import dump_json
 from .pipeline import CYCLE_COLUMNS, STEP_COLUMNS, ProcessResult
 from .provenance import provenance
@@ -221,8 +221,8 @@ def _read_state(path: Path) -> dict:
             raise InputError("an on-board (train) results folder, not a rig one", path=path,
                              hint="read it with tm.load_onboard(folder)") from None
         raise InputError("not a torquemod results folder: result.json is missing", path=path,
-                         hint="run 'torquemod process EXPERIMENT --out FOLDER' (folders "
-                         "written by torquemod before 0.2 need processing again)") from None
+                         hint="give a folder written by tm.save or 'torquemod process' "
+                         "(process the experiment again to make one)") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read ({getattr(exc, 'strerror', None) or exc})",
                          path=path) from None
@@ -268,8 +268,12 @@ def _experiment(doc: dict) -> Experiment:
 
 
 def _fit_options(doc) -> FitOptions:
-    """The stored fit options, each of its default's type."""
-    opts = FitOptions.coerce(doc)
+    """The stored fit options, each of its default's type (a bad one is reported with the
+    file's name by the caller)."""
+    try:
+        opts = FitOptions.coerce(doc)
+    except OptionError as exc:
+        raise ValueError(str(exc)) from None
     for f in dataclasses.fields(FitOptions):
         value, default = getattr(opts, f.name), f.default
         if isinstance(default, bool):

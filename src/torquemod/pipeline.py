@@ -19,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from . import chain
 from ._version import __version__
@@ -32,6 +31,7 @@ from .fsutil import sha256_file
 from .io import read_entry, read_experiment
 from .io.stream import hash_file_async, open_stream
 from .io.validate import check_finite, clipping_notes
+from .progress import WarmupBar
 
 __all__ = ["CYCLE_COLUMNS", "STEP_COLUMNS", "TRACE_NAMES", "ProcessResult", "ProcessingConfig",
            "aggregate_steps", "detect_slip", "process_experiment", "resolve_config"]
@@ -353,8 +353,8 @@ def process_experiment(experiment: Experiment | str | Path, *,
         hashes[str(exp.manifest_path)] = sha256_file(exp.manifest_path)
     t_read = t_compute = 0.0
     t_start = time.perf_counter()
-    bar = tqdm(total=len(exp.recordings), desc="processing", unit="rec", disable=not progress,
-               leave=False)
+    bar = WarmupBar(total=len(exp.recordings), desc="processing", unit="rec",
+                    disable=not progress, leave=False)
     try:  # the bar is cleared before any error line is printed
         for entry, done in (_prefetched(exp, cfg, workers) if loaded is None else loaded):
             read_s, compute_s, digest, actions, rec_notes, cycles_out = done

@@ -1,8 +1,9 @@
 """The normalised Polach creep-force shape and its inverse (Polach 2005 Eq. 8 with
 ``x = kS*eps`` and ``r = kA/kS``): ``h(x; r) = (2/pi)*(r*x/(1+(r*x)^2) + arctan(x))``, odd in
-x, rising from 0 with slope ``2*(r+1)/pi`` to its first maximum. Used by the fits of mu from
-the phase (:mod:`torquemod.phasefit`) and from the on-board creep-coefficient progression
-(:mod:`torquemod.onboard.mufit`); the force itself is :mod:`torquemod.contact.polach`'s.
+x, rising from 0 with slope ``2*(r+1)/pi`` to its first maximum. Used by the family of creep
+laws of the friction estimator (:mod:`torquemod.creeplaws`) and by the synthetic phase
+progressions of :mod:`torquemod.testing`; the force itself is
+:mod:`torquemod.contact.polach`'s.
 """
 
 from __future__ import annotations
@@ -58,8 +59,8 @@ def invert_polach_h(u, r: float) -> np.ndarray:
 
 
 def inverse_polach_h(u, r) -> np.ndarray:
-    """x >= 0 with h(x; r) = |u| for r in :data:`torquemod.phasefit.R_BOUNDS` (h monotone
-    there), broadcasting u and r: bisection in s = x/(1 + x), then Newton. NaN where
+    """x >= 0 with h(x; r) = |u| for r in 1..7.5 (h monotone there), broadcasting u and r:
+    bisection in s = x/(1 + x), then Newton. NaN where
     |u| >= 1."""
     u, r = np.broadcast_arrays(np.abs(np.asarray(u, dtype=float)), np.asarray(r, float))
     lo = np.zeros(u.shape)

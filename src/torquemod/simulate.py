@@ -362,9 +362,9 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     # the steady state of the torque before (rig/steps.py), so that they run side by side:
     # each worker integrates a step and finishes it (truth, noise, files)
     if progress:  # tqdm imported only when shown (~7 ms of a quiet process's start)
-        from tqdm import tqdm
+        from .progress import WarmupBar
 
-        bar = tqdm(total=len(torques), desc="simulate", unit="step", file=sys.stderr)
+        bar = WarmupBar(total=len(torques), desc="simulate", unit="step", file=sys.stderr)
     else:
         bar = _NoProgress()
 

@@ -222,6 +222,86 @@ def write_synthetic_experiment(folder, *, n_steps: int = 6, n_cycles: int = 3,
     return truth
 
 
+def write_creep_experiment(folder, *, mu: float = 0.3, k_a: float = 1.0, k_s: float = 0.4,
+                           stiffness: float = 250.0,
+                           saturation_fractions=(0.003, 0.3, 0.55, 0.7, 0.8, 0.9),
+                           n_cycles: int = 2, seed: int = 0, fmt: str = "csv") -> dict:
+    """An experiment folder whose steps lie on one Polach creep curve (O. Polach, Wear 258
+    (2005), Eqs. 3 and 8, with ``mu``, ``k_a``, ``k_s`` and the contact stiffness ``stiffness``
+    [-]): step i runs at a mean ``CoA = saturation_fractions[i]*mu`` with the DC torque
+    ``CoA*N*R`` and the wheel-speed answer of the rigid wheel to the 8 N*m modulation,
+    ``dw = T/(j*Omega*J + R^2*N*k/V)`` (lag ``atan(C/k)``); k is the curve's
+    describing-function slope over the creepage swing ``|dw|*R/V`` and the mean creepage is
+    the one whose swing-averaged CoA is the step's (found together, self-consistently).
+    The manifest gives the wheel-side inertia, so the theory constant comes from the rig.
+    Returns the truth: ``mu``, per step ``creepage``, ``coa``, ``phase_deg``,
+    ``dc_torque_nm``.
+
+    This is the README's example: a fit a reader can believe (both estimates of mu
+    determined when the steps reach ~90 % of saturation)."""
+    from .contact.polach import swing_average, swing_slope
+    from .creep import phase_from_constant_deg, theory_constant
+    from .fit import polach_coa, polach_slope
+    from .io import write_manifest, write_recording
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    base = SyntheticSpec(lateral_force_n=0.0)
+    rng = np.random.default_rng(seed)
+    theta = np.array([mu, k_a * stiffness, k_s * stiffness])
+    omega = 2 * np.pi * base.modulation_hz
+    c = theory_constant(inertia_kg_m2=base.inertia_kg_m2, speed_m_s=base.speed_m_s,
+                        wheel_radius_m=base.wheel_radius_m, normal_load_n=base.normal_load_n,
+                        frequency_hz=base.modulation_hz)
+    entries, steps = [], []
+    def curve(x):
+        return np.sign(x) * polach_coa(np.abs(x), theta)
+
+    def slope(x):
+        return polach_slope(np.abs(x), theta)
+
+    for i, frac in enumerate(saturation_fractions, start=1):
+        coa = float(frac) * mu
+        swing, imp = 0.0, None
+        for _ in range(8):  # the swing, the mean creepage and the slope agree
+            lo, hi = 0.0, 1.0
+            for _ in range(100):  # the creepage whose swing-averaged CoA is this CoA
+                mid = 0.5 * (lo + hi)
+                low = float(swing_average(curve, mid, swing)) < coa
+                lo, hi = (mid, hi) if low else (lo, mid)
+            xi = 0.5 * (lo + hi)
+            k = float(swing_slope(curve, xi, swing, slope=slope))
+            imp = 1j * omega * base.inertia_kg_m2 + (
+                base.wheel_radius_m**2 * base.normal_load_n * k / base.speed_m_s)
+            swing = base.modulation_amplitude_nm / abs(imp) * base.wheel_radius_m \
+                / base.speed_m_s
+        phase = float(phase_from_constant_deg(c, k))
+        dc = coa * base.normal_load_n * base.wheel_radius_m
+        steps.append({"step": i, "creepage": xi, "coa": coa, "phase_deg": phase,
+                      "dc_torque_nm": dc})
+        for cyc in range(1, n_cycles + 1):
+            spec = SyntheticSpec(**{**base.__dict__, "creepage": xi, "dc_torque_nm": dc,
+                                    "phase_lag_deg": phase,
+                                    "wheel_mod_amplitude_rad_s":
+                                        base.modulation_amplitude_nm / abs(imp),
+                                    "modulation_hz": base.modulation_hz
+                                    + float(rng.uniform(-4e-3, 4e-3)),
+                                    "modulation_phase_rad": float(rng.uniform(0, 2 * np.pi)),
+                                    "seed": int(rng.integers(2**31))})
+            name = f"step{i}_cycle{cyc}.{ {'csv': 'csv', 'hdf5': 'h5'}[fmt]}"
+            write_recording(folder / name, synthetic_recording(spec), fmt=fmt)
+            entries.append({"step": i, "cycle": cyc, "dc_torque_nm": dc, "file": name})
+    write_manifest(folder / "experiment.toml",
+                   rig={"wheel_radius_m": base.wheel_radius_m,
+                        "platform_radius_m": base.platform_radius_m,
+                        "wheel_inertia_kg_m2": base.inertia_kg_m2},
+                   test={"normal_load_n": base.normal_load_n,
+                         "modulation_frequency_hz": base.modulation_hz,
+                         "modulation_amplitude_nm": base.modulation_amplitude_nm},
+                   recordings=entries)
+    return {"mu": mu, "theory_constant": c, "steps": steps}
+
+
 #: V-Track's torque steps (Table 1 of the paper) as fractions of the highest
 VTRACK_STEP_FRACTIONS = (0.0035, 0.35, 0.68, 0.84, 0.92, 1.0)
 

@@ -13,8 +13,10 @@ windows with a DC torque step inside left out) are sorted by CoA and grouped (up
 ``n_bins`` groups); each group gives one point (inverse-variance mean of k; its standard error
 the larger of the windows' own, widened by their overlap, and the group's scatter, plus a
 relative model error ``model_rel_error``). :func:`torquemod.onboard.mufit.fit_creep_progression`
-fits the Polach family with constant *and* falling friction (Polach 2005 Eqs. 8-9) and gives
-the friction at the current operating point with its 95 % profile interval. mu is reported
+(the one estimator of :mod:`torquemod.friction`) fits a broad family of creep laws (Polach
+with constant and falling friction, Burckhardt, saturating laws) and gives the **available
+adhesion** (the maximum of the adhesion-creepage curve; track.parquet's ``mu``) with its 95 %
+profile interval over the whole family. mu is reported
 only when that interval is closed and within ``max_rel_half_width``, no change is suspected,
 the current window is steady, its CoA is not above the fit, and a window worked at
 ``info_utilisation`` of mu or more within the last ``info_m`` metres (at low utilisation the
@@ -276,10 +278,11 @@ class MuTracker:
 
     def _fit(self, w: WindowResult) -> _Fit:
         pts = self._points()
+        speed = float(np.median([m.speed_m_s for m in self.mem])) if self.mem else None
         res = None if pts is None else fit_creep_progression(
             *pts.T, coa_now=w.coa, ratio_bounds=self.cfg.ratio_bounds,
             power=bool(self.cfg.power_shapes),
-            max_rel_half_width=self.cfg.max_rel_half_width)
+            max_rel_half_width=self.cfg.max_rel_half_width, speed_m_s=speed)
         self.n_fits += pts is not None
         if res is None:
             return _Fit(w.position_m, None, math.nan, None)

@@ -3,11 +3,12 @@
 :func:`write_report` writes, into a folder (the results folder being assembled by
 :mod:`torquemod.layout`)::
 
-    figures/fig2_signals.{png,svg}      paper Figure 2 (one step and cycle, raw and filtered)
-    figures/fig3_creep_curve.{png,svg}  paper Figure 3 (creep curve, error bars, Polach fit)
-    figures/fig4_phase.{png,svg}        paper Figure 4 (phase vs DC torque % Ts, theory)
-    figures/fig5_mu_from_phase.{png,svg} phase vs utilised adhesion with the fitted C/k(CoA)
+    figures/fig1_signals.{png,svg}       the paper's Figure 2 (one cycle, raw and filtered)
+    figures/fig2_creep_curve.{png,svg}   the paper's Figure 3 (creep curve, Polach fit)
+    figures/fig3_phase.{png,svg}         the paper's Figure 4 (phase vs DC torque % Ts)
+    figures/fig4_mu_from_phase.{png,svg} phase vs utilised adhesion with the fitted C/k(CoA)
     report.html                         summary, figures, Tables 1-2, fit, warnings, provenance
+    report.pdf                          the same on A4 (only with the ``pdf`` option)
 
 Everything is drawn from the objects in memory (:class:`~torquemod.pipeline.ProcessResult`,
 :class:`~torquemod.analysisresult.Analysis`); nothing is read from the folder.
@@ -20,7 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..config import coerce_options
+from ..config import check_option_types, coerce_options
+from ..errors import OptionError
 from ..fsutil import write_atomic
 from ..provenance import provenance
 from .figures import (
@@ -32,6 +34,7 @@ from .figures import (
     signals_figure,
 )
 from .html import render_report
+from .pdf import PDF_ENGINES, html_to_pdf
 
 if TYPE_CHECKING:
     from ..analysisresult import Analysis
@@ -43,11 +46,12 @@ __all__ = ["ReportOptions", "creep_curve_figure", "phase_figure", "phase_fit_fig
 
 @dataclass(frozen=True)
 class ReportOptions:
-    """Report options. ``step``/``cycle`` choose Figure 2 (paper: step 3, cycle 1; the first
+    """Report options. ``step``/``cycle`` choose Figure 1 (paper: step 3, cycle 1; the first
     available cycle is used, with a warning, if absent); ``coa_multiplier`` and
-    ``creepage_multiplier`` scale the error bars of Figure 3 (paper: 20 and 5);
+    ``creepage_multiplier`` scale the error bars of Figure 2 (paper: 20 and 5);
     ``formats`` of the saved figures; ``title`` of the page (default: the experiment's
-    name)."""
+    name); ``pdf`` the engine of :func:`torquemod.report.pdf.html_to_pdf` to write
+    ``report.pdf`` too (None: no PDF, and a stale one from an earlier report is removed)."""
 
     step: int = 3
     cycle: int = 1
@@ -56,6 +60,13 @@ class ReportOptions:
     formats: tuple[str, ...] = ("png", "svg")
     dpi: int = 150
     title: str | None = None
+    pdf: str | None = None  # "matplotlib" or "chromium": also report.pdf (report.pdf)
+
+    def __post_init__(self) -> None:
+        check_option_types(self, "report")
+        if self.pdf is not None and self.pdf not in PDF_ENGINES:
+            raise OptionError(f"report option pdf={self.pdf!r}: choose one of "
+                              f"{', '.join(PDF_ENGINES)} (or None for no PDF)")
 
     @classmethod
     def coerce(cls, options) -> ReportOptions:
@@ -87,34 +98,55 @@ def write_report(folder, result: ProcessResult, analysis: Analysis, *, options=N
     pairs = sorted(result.traces)
     step, cycle = opts.step, opts.cycle
     if pairs and (step, cycle) not in result.traces:
-        warnings.append(f"Figure 2: step {step} cycle {cycle} has no traces; "
+        warnings.append(f"Figure 1: step {step} cycle {cycle} has no traces; "
                         f"showing step {pairs[0][0]} cycle {pairs[0][1]} instead")
         step, cycle = pairs[0]
     if pairs:
         add(signals_figure(result.traces[(step, cycle)], step=step, cycle=cycle),
-            "fig2_signals", "Torque and wheel angular velocity signals",
-            f"Figure 2: (a) applied torque and (b) wheel angular velocity, step {step}, "
+            "fig1_signals", "Torque and wheel angular velocity signals",
+            f"Figure 1 (the paper's Figure 2): (a) applied torque and (b) wheel angular "
+            f"velocity, step {step}, "
             f"cycle {cycle}: raw (grey) and after the band-pass filter (colour, drawn about "
             "the mean); shaded: the window used for the phase.")
     else:
-        warnings.append("Figure 2: no cycle traces; no signal figure")
+        warnings.append("Figure 1: no cycle traces; no signal figure")
     add(creep_curve_figure(analysis, coa_multiplier=opts.coa_multiplier,
                            creepage_multiplier=opts.creepage_multiplier),
-        "fig3_creep_curve", "Creep curve with the fitted Polach model",
-        f"Figure 3: measured creep curve (error bars {opts.coa_multiplier:g}× the standard "
+        "fig2_creep_curve", "Creep curve with the fitted Polach model",
+        f"Figure {len(figures) + 1} (the paper's Figure 3): measured creep curve (error "
+        f"bars {opts.coa_multiplier:g}× the standard "
         f"deviation of CoA and {opts.creepage_multiplier:g}× that of the creepage over cycles) "
         "with the fitted Polach model (dashed).")
-    add(phase_figure(analysis), "fig4_phase", "Phase difference against DC torque",
-        "Figure 4: phase difference between torque and wheel angular velocity against the DC "
-        "torque as a percentage of the saturation torque (error bars: standard deviation over "
-        "cycles), with the rigid-wheel theory tan φ = C/k from the fitted curve's slope.")
-    add(phase_fit_figure(analysis), "fig5_mu_from_phase",
+    add(phase_figure(analysis), "fig3_phase", "Phase difference against DC torque",
+        f"Figure {len(figures) + 1} (the paper's Figure 4): phase difference between torque "
+        f"and wheel angular velocity against {_ts_caption(analysis)} (error bars: standard "
+        "deviation over cycles), with the rigid-wheel theory tan φ = C/k from the fitted "
+        "curve's slope.")
+    add(phase_fit_figure(analysis), "fig4_mu_from_phase",
         "Phase progression with the fit that gives mu",
-        "Figure 5: phase difference against the utilised adhesion (the drive's, from the "
+        f"Figure {len(figures) + 1}: phase difference against the utilised adhesion (the "
+        "drive's, from the "
         "torque), with the fit tan φ = C/k(CoA) over the Polach family that gives μ from "
         "the phase alone; labels: step (utilisation CoA/μ).")
     title = opts.title or f"torquemod report: {result.name}"
     text = render_report(title=title, fit=analysis.to_dict(), steps=analysis.steps,
                          cycles=result.cycles, provenance=prov, figures=figures,
                          warnings=warnings)
-    return write_atomic(folder / "report.html", lambda fh: fh.write(text))
+    path = write_atomic(folder / "report.html", lambda fh: fh.write(text))
+    if opts.pdf:
+        html_to_pdf(path, folder / "report.pdf", engine=opts.pdf)
+    else:  # a PDF of an earlier report would no longer match this one
+        (folder / "report.pdf").unlink(missing_ok=True)
+    return path
+
+
+def _ts_caption(analysis: Analysis) -> str:
+    """What Figure 3's abscissa is, in the words of its caption (the axis says the same)."""
+    ts = analysis.saturation_torque_nm
+    if not ts:
+        return ("the DC torque in N·m (the saturation torque is not known: neither fit "
+                "determines μ)")
+    source = {"forces": "μ from the forces", "phase": "μ from the phase"}.get(
+        analysis.saturation_torque_source, "μ")
+    return (f"the DC torque as a percentage of the saturation torque Ts = μ·N·Rw = {ts:.1f} "
+            f"N·m ({source})")

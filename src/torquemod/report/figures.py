@@ -1,4 +1,5 @@
-"""Figures of the V-Track paper for a processed experiment (Figures 2-5).
+"""Figures of the V-Track paper for a processed experiment (the paper's Figures 2-4 and the
+phase fit; the report numbers them 1-4).
 
 Every function takes the in-memory results (a cycle's traces, an
 :class:`~torquemod.analysisresult.Analysis`), draws on a given ``ax`` and returns it
@@ -47,17 +48,20 @@ def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None):
     """Paper Figure 2 of one cycle from its named arrays (``ProcessResult.traces[(step,
     cycle)]``): (a) applied torque [N m], (b) wheel angular velocity [rad/s], raw and after
     the band-pass (the filtered signal drawn about the mean of the resampled one so both share
-    an axis); the phase window is shaded. ``ax``: a pair of Axes, or one Axes (the wheel speed
-    then goes on its twin y axis); a new two-panel Figure when None. Returns ``ax`` as
-    given, or the new Figure's two Axes (an array)."""
+    an axis); the phase window is shaded. ``ax``: a pair of Axes (panels (a) and (b)), or one
+    Axes (one panel: the wheel speed on its twin y axis, one title); a new two-panel Figure
+    when None. Returns ``ax`` as given, or the new Figure's two Axes (an array)."""
     if "t_raw_s" not in traces:
         raise InputError(f"no traces for step {step} cycle {cycle}")
 
     def get(name):
         return np.asarray(traces[name], dtype=float) if name in traces else None
 
-    if ax is not None and not isinstance(ax, list | tuple | np.ndarray):
-        _fig, axes = ax.figure, [ax, ax.twinx()]
+    single = ax is not None and not isinstance(ax, list | tuple | np.ndarray)
+    if single:
+        axes = [ax, ax.twinx()]
+        ax.set_title(f"Step {step}, cycle {cycle} (wheel speed: right axis)", loc="left",
+                     fontsize=10)
     else:
         _fig, axes = _axes(ax, 2, figsize=(9.5, 6.0))
     rows = (("torque", "nm", "Applied torque [N·m]", "(a)", "C0"),
@@ -79,16 +83,31 @@ def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None):
                 a.axvline(t_peak, color="C0", ls=":", lw=0.9,
                           label="torque peaks" if a is axes[0] and k == 0 else None)
         a.set_ylabel(label)
-        a.set_title(f"{tag} step {step}, cycle {cycle}", loc="left", fontsize=10)
+        if not single:  # one Axes and its twin share a single title, drawn below
+            a.set_title(f"{tag} step {step}, cycle {cycle}", loc="left", fontsize=10)
         a.grid(True, alpha=0.3)
         if ax is None:  # beside the panel, not over the peaks
             a.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     if ax is not None:
         handles = [h for a in axes for h in a.get_legend_handles_labels()[0]]
         labels = [lab for a in axes for lab in a.get_legend_handles_labels()[1]]
-        axes[0].legend(handles, labels, loc="upper left", fontsize=7)
+        for a in axes:  # head room: the legend sits above the traces, not on them
+            lo, hi = a.get_ylim()
+            a.set_ylim(lo, hi + (0.55 if single else 0.4) * (hi - lo))
+        # on the twin when there is one: it is drawn last, so nothing covers the legend
+        axes[-1 if single else 0].legend(handles, labels, loc="upper left", fontsize=7,
+                                         ncol=2)
     axes[-1].set_xlabel("Time from cycle start [s]")
     return axes if ax is None else ax
+
+
+def _value_pm(value: float, err: float | None) -> str:
+    """``value ± err`` with the error to two significant figures and the value to the same
+    decimals (at least three): 0.3001 ± 0.00022, never 0.300 ± 0.000."""
+    if not err or not np.isfinite(err):
+        return f"{value:.3f}"
+    decimals = max(3, 1 - int(np.floor(np.log10(abs(err)))))
+    return f"{value:.{decimals}f} ± {err:.{decimals}f}"
 
 
 def _curve_xi(polach, xi_max, speed):
@@ -128,7 +147,7 @@ def creep_curve_figure(ana, *, ax=None, coa_multiplier: float = 20.0,
     if ana.polach is not None:
         grid, curve = _curve_xi(ana.polach, 1.3 * float(np.nanmax(np.abs(xi))), ana.speed_m_s)
         if ana.mu is not None:
-            label = f"Polach fit, μ = {ana.mu:.3f} ± {ana.mu_stderr or 0:.3f}"
+            label = f"Polach fit, μ = {_value_pm(ana.mu, ana.mu_stderr)}"
         else:
             label = f"Polach fit (μ not determined, μ ≥ {ana.mu_lower_bound or 0:.3f})"
         ax.plot(100 * grid, curve, "k--", lw=1.4, label=label)
@@ -183,11 +202,21 @@ def phase_figure(ana, *, ax=None):
         if at.size:
             ax.axvline(x[at[0]], color="C1", lw=1.0, ls="-.",
                        label=f"saturation onset (step {ana.onset.step})")
-    ax.set_xlabel("DC torque [% of Ts]" if ts else "DC torque [N·m] (Ts undetermined)")
+    ax.set_xlabel(_ts_axis_label(ana))
     ax.set_ylabel("Phase difference φ [deg]")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left", fontsize=8)
     return ax
+
+
+def _ts_axis_label(ana) -> str:
+    """Figure 4's abscissa: % of the analysis' one Ts (named with its mu), else N·m."""
+    ts = ana.saturation_torque_nm
+    if not ts:
+        return "DC torque [N·m] (Ts unknown: μ not determined)"
+    source = {"forces": "μ from the forces", "phase": "μ from the phase"}.get(
+        getattr(ana, "saturation_torque_source", None), "μ")
+    return f"DC torque [% of Ts = {ts:.1f} N·m, {source}]"
 
 
 def phase_fit_figure(ana, *, ax=None):

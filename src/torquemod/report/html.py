@@ -15,17 +15,39 @@ __all__ = ["render_report", "table"]
 
 CSS = """
 body{font-family:system-ui,-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;margin:2em auto;
-max-width:1100px;padding:0 1em;color:#222;line-height:1.45}
+max-width:min(1300px,96vw);padding:0 1em;color:#222;line-height:1.45}
 h1{font-size:1.6em;border-bottom:2px solid #444}h2{font-size:1.25em;margin-top:1.8em;
-border-bottom:1px solid #bbb}table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
-th,td{border:1px solid #bbb;padding:.25em .6em;text-align:right;white-space:nowrap}
+border-bottom:1px solid #bbb}table{border-collapse:collapse;margin:.6em 0;font-size:.85em}
+th,td{border:1px solid #bbb;padding:.25em .45em;text-align:right;white-space:nowrap}
+th{white-space:normal;vertical-align:bottom}
+td.l{white-space:normal;overflow-wrap:break-word;max-width:40em}
 .scroll{overflow-x:auto;max-width:100%}th{background:#eee}
 td.l,th.l{text-align:left}caption{caption-side:top;text-align:left;font-weight:bold;
 padding:.3em 0}figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}
 figcaption{font-size:.9em;color:#444}.warn{background:#fff4e0;border-left:4px solid #e0a000;
 padding:.4em .8em}.ok{color:#176317}.bad{color:#a00000}pre{background:#f6f6f6;padding:.6em;
-overflow-x:auto;font-size:.8em}dl.kv{display:grid;grid-template-columns:max-content auto;
-gap:.2em 1em}dl.kv dt{font-weight:bold}dl.kv dd{margin:0}
+overflow-x:auto;font-size:.8em}dl.kv{display:grid;grid-template-columns:minmax(12em,max-content)
+minmax(0,1fr);gap:.2em 1em}dl.kv dt{font-weight:bold;max-width:32em}
+dl.kv dd{margin:0;overflow-wrap:anywhere}
+@media print{
+@page{size:A4;margin:14mm 12mm 16mm}
+body{max-width:none;margin:0;padding:0;font-size:9.5pt;line-height:1.3}
+h1{font-size:15pt}h2{font-size:12pt;margin-top:1.2em;break-after:avoid}
+h1,h2,h3,caption{break-after:avoid}
+.scroll{overflow:visible}
+table{width:100%;font-size:6.5pt;margin:.3em 0}thead{display:table-header-group}
+th,td{padding:.15em .25em;min-width:0}th{white-space:normal;overflow-wrap:normal}
+td{white-space:nowrap}td.l{white-space:normal;overflow-wrap:break-word}
+tr,figure,dl.kv>*{break-inside:avoid}
+figure{margin:.5em 0}figure img{max-width:100%;max-height:118mm;width:auto;height:auto;
+display:block;margin:0 auto}
+figcaption{font-size:8pt}
+dl.kv{grid-template-columns:34% 1fr}
+pre{white-space:pre-wrap;overflow-wrap:anywhere;font-size:6.5pt;overflow:visible}
+details>:not(summary){display:none}details>summary{list-style:none;color:#555;font-size:8pt}
+details>summary::after{content:" (folded in the HTML report; not printed)"}
+.warn{break-inside:avoid}
+}
 """
 
 
@@ -48,7 +70,7 @@ def table(headers, rows, *, caption: str | None = None, left: int = 0) -> str:
     if caption:
         out.append(f"<caption>{escape(caption)}</caption>")
     cls = [' class="l"' if i < left else "" for i in range(len(headers))]
-    out.append("<thead><tr>" + "".join(f"<th{c}>{escape(str(h))}</th>"
+    out.append("<thead><tr>" + "".join(f"<th{c}>{_breakable(str(h))}</th>"
                                        for c, h in zip(cls, headers, strict=True))
                + "</tr></thead><tbody>")
     for row in rows:
@@ -56,6 +78,12 @@ def table(headers, rows, *, caption: str | None = None, left: int = 0) -> str:
                                     for c, v in zip(cls, row, strict=True)) + "</tr>")
     out.append("</tbody></table></div>")
     return "\n".join(out)
+
+
+def _breakable(text: str) -> str:
+    """Escaped header text that may wrap after a dot or an underscore too (parameter names
+    like ``modulation.frequency_hz`` have no spaces)."""
+    return escape(text).replace(".", ".<wbr>").replace("_", "_<wbr>")
 
 
 def _img(png: bytes, alt: str, caption: str) -> str:
@@ -96,10 +124,8 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
     else:
         mu_text = f"not determined by the points (μ ≥ {fmt(fit.get('mu_lower_bound'))})"
     lo, hi = fit.get("mu_from_phase_interval_95") or [None, None]
-    n_r = (fit.get("normal_load_n") or 0) * (fit.get("wheel_radius_m") or 0)
     if fit.get("mu_from_phase_determined"):
-        phase_text = (f"{fmt(fit.get('mu_from_phase'))} (95 % interval {fmt(lo)} – {fmt(hi)}; "
-                      f"Ts = {fmt(fit['mu_from_phase'] * n_r)} N·m)")
+        phase_text = f"{fmt(fit.get('mu_from_phase'))} (95 % interval {fmt(lo)} – {fmt(hi)})"
     elif lo is not None:
         phase_text = f"not determined by the steps (μ ≥ {fmt(lo)})"
     else:
@@ -110,8 +136,7 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
         ("Coefficient of friction μ from the phase (fit of tan φ = C/k(CoA), no forces used)",
          phase_text),
         ("Maximum CoA of the fitted curve", fmt(fit.get("curve_peak_coa"))),
-        ("Saturation torque Ts = μ·N·Rw [N·m] (forces)",
-         _pm(fit.get("saturation_torque_nm"), fit.get("saturation_torque_stderr_nm"))),
+        ("Saturation torque Ts = μ·N·Rw [N·m]", _ts_text(fit)),
         ("Saturation onset", _onset_text(onset)),
         ("Theory check",
          f"{theory.get('mode', '—')} constant C = {fmt(_scalar(theory.get('constant')))}; "
@@ -139,15 +164,14 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
     t2 = _frequency_tables(cycles)
 
     names = list(fit.get("parameters", {}))
-    tp = table(["Parameter", "Value", "Standard error"],
-               [[n, fit["parameters"][n], (fit.get("stderr") or {}).get(n)] for n in names],
+    tp = table(["Parameter", "Value", "Standard error"], _polach_rows(fit, names),
                caption="Polach fit parameters (lumped form; see the identifiability note)",
                left=1)
     corr = fit.get("correlation") or []
     tc = table(["", *names], [[n, *row] for n, row in zip(names, corr, strict=False)],
                caption="Parameter correlation matrix", left=1) if corr else ""
     fit_kv = _kv([("Model", fit.get("model", "—")),
-                  ("μ determined", fmt(fit.get("mu_determined"))),
+                  ("μ determined", _mu_determined_text(fit)),
                   ("χ² / dof / reduced χ²", f"{fmt(fit.get('chi2'))} / {fit.get('dof')} / "
                                              f"{fmt(fit.get('reduced_chi2'))}"),
                   ("Weighted by standard errors", fmt(fit.get("weighted"))),
@@ -228,6 +252,41 @@ def _frequency_tables(cycles) -> str:
                        for _, r in cycles.iterrows()])
     return (t2 + "<details><summary>Modulation frequencies per cycle</summary>" + per_cycle
             + "</details>")
+
+
+def _mu_determined_text(fit: dict) -> str:
+    if fit.get("mu_determined"):
+        return "yes"
+    return (f"no: the points give only μ ≥ {fmt(fit.get('mu_lower_bound'))}; the kA, kS "
+            "values below are those of one curve among many that fit")
+
+
+def _ts_text(fit: dict) -> str:
+    """Ts with the μ it comes from: the one Ts of Table 1's % Ts and Figure 3's axis."""
+    ts = fit.get("saturation_torque_nm")
+    if ts is None:
+        return "not known: neither fit determines μ (Table 1 and Figure 3 use N·m)"
+    source = {"forces": "μ from the forces", "phase": "μ from the phase"}.get(
+        fit.get("saturation_torque_source"), "μ")
+    return (f"{_pm(ts, fit.get('saturation_torque_stderr_nm'))} (from {source}; the 100 % of "
+            "Table 1's % Ts and of Figure 3's axis)")
+
+
+def _polach_rows(fit: dict, names: list[str]) -> list[list]:
+    """Rows of the Polach parameter table. An undetermined μ is never printed as a value
+    with a standard error: its row gives the profile-likelihood range or the lower bound."""
+    rows = []
+    stderr = fit.get("stderr") or {}
+    for n in names:
+        if n == "mu" and not fit.get("mu_determined"):
+            lo, hi = fit.get("mu_interval_95") or [None, None]
+            bound = fmt(fit.get("mu_lower_bound"))
+            text = (f"not determined: 95 % range {fmt(lo)} – {fmt(hi)}, μ ≥ {bound}"
+                    if lo is not None and hi is not None else f"not determined: μ ≥ {bound}")
+            rows.append([n, text, "—"])
+        else:
+            rows.append([n, fit["parameters"][n], stderr.get(n)])
+    return rows
 
 
 def _onset_text(onset: dict) -> str:

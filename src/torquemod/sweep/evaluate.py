@@ -11,9 +11,9 @@ run_simulation`, HDF5) -> the processing chain (:func:`torquemod.api.process`) -
 
 ``utilisation`` is ``T_dc / T_peak`` = longitudinal CoA / mu_true, with ``mu_true`` the peak of
 the twin's creep curve (``T_peak/(R_w*N)``: the adhesion the wheel can use; truth.json's
-``creep_curve_peak``). mu from the phase is judged against it; ``mu_friction``, the friction
-at the slip velocity of the highest step it used (what a fit with constant friction
-estimates), is kept beside it.
+``creep_curve_peak``). The fit from the phase estimates that available adhesion and is
+judged against it; ``mu_friction``, the friction at the slip velocity of the highest step it
+used, is reported beside it.
 """
 
 from __future__ import annotations
@@ -166,24 +166,41 @@ def _theory_steps(config, t_peak: float) -> list[dict]:
     return rows
 
 
-def _phase_mu(coa, phase_deg, se_deg, constant, swing) -> dict:
-    """mu from the phase (:func:`torquemod.phasefit.fit_mu_from_phase`) over the given
-    steps: value (NaN when not determined), 95 % interval (low end = lower bound when not
-    determined), determined flag, and why it was not fitted."""
+def _phase_mu(coa, phase_deg, se_deg, constant, swing, speed_m_s=None) -> dict:
+    """The available adhesion from the phase (:func:`torquemod.phasefit.fit_mu_from_phase`)
+    over the given steps. ``mu_phase*`` (the names of earlier versions): value (NaN when not
+    determined), 95 % interval (low end = lower bound when not determined), determined
+    flag, and why it was not fitted; ``adhesion_available_phase*`` the same quantity named:
+    the estimate, the interval whenever it is closed, the lower bound, the probe depth that
+    would determine it; ``mu0_phase`` the law's friction coefficient where identified."""
     from ..phasefit import fit_mu_from_phase
     out = {"mu_phase": math.nan, "mu_phase_lo": math.nan, "mu_phase_hi": math.nan,
-           "mu_phase_determined": False, "mu_phase_note": ""}
+           "mu_phase_determined": False, "mu_phase_note": "",
+           "adhesion_available_phase": math.nan, "adhesion_available_phase_low": math.nan,
+           "adhesion_available_phase_high": math.nan,
+           "adhesion_available_phase_lower_bound": math.nan,
+           "adhesion_available_phase_determined": False, "probe_depth_needed_phase": math.nan,
+           "mu0_phase": math.nan, "phase_fit_law": ""}
     try:
         fit = fit_mu_from_phase(coa, phase_deg, se_deg, constant=constant,
-                                creepage_swing=swing)
+                                creepage_swing=swing, speed_m_s=speed_m_s)
     except (InputError, ProcessingError) as exc:
         out["mu_phase_note"] = str(exc).splitlines()[0]
         return out
     lo, hi = fit.mu_interval_95
+    a = fit.adhesion
     out.update(mu_phase=fit.mu if fit.mu_determined else math.nan,
                mu_phase_lo=math.nan if lo is None else float(lo),
                mu_phase_hi=math.nan if hi is None else float(hi),
-               mu_phase_determined=bool(fit.mu_determined))
+               mu_phase_determined=bool(fit.mu_determined),
+               adhesion_available_phase=float(a.estimate),
+               adhesion_available_phase_low=float(a.low) if a.closed else math.nan,
+               adhesion_available_phase_high=float(a.high) if a.closed else math.nan,
+               adhesion_available_phase_lower_bound=float(a.lower_bound),
+               adhesion_available_phase_determined=bool(a.determined),
+               probe_depth_needed_phase=float(a.probe_depth),
+               mu0_phase=float(a.mu0) if a.mu0_identified else math.nan,
+               phase_fit_law=a.law)
     return out
 
 
@@ -276,10 +293,10 @@ def _full_steps(config, t_peak: float, seed: int, workdir: Path,
 
 def _friction_at_top(df: pd.DataFrame, use: pd.Series, rig) -> float:
     """The twin's friction coefficient (Polach 2005 Eq. 9) at the slip velocity of the
-    highest step the mu-from-phase fit used (creepage x speed at its operating point): the
-    quantity that fit estimates, since its curves have constant friction. ``mu_true`` (the
-    creep curve's peak, the available adhesion) lies below it where friction falls with
-    slip. NaN when no step was used."""
+    highest step the fit from the phase used (creepage x speed at its operating point),
+    reported beside ``mu_true`` (the creep curve's peak, the available adhesion, which that
+    fit estimates and which lies below it where friction falls with slip). NaN when no step
+    was used."""
     from ..contact.polach import friction_coefficient
     used = df[use]
     if not len(used) or not np.isfinite(used["creepage_true"].iloc[-1]):
@@ -342,12 +359,10 @@ def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.
     point.update(_phase_mu(coa[use].to_numpy(float), phase[use].to_numpy(float),
                            se[use].to_numpy(float), constant,
                            swing[use].to_numpy(float) if np.isfinite(swing[use]).all()
-                           else None))
+                           else None, rig.speed_m_s))
     point["mu_phase_n_steps"] = int(use.sum())
-    mu_friction = _friction_at_top(df, use, rig)
-    point["mu_friction"] = mu_friction
-    # errors against the available adhesion, the truth the report names (mu_friction is
-    # kept for reference)
+    # the fit from the phase estimates the available adhesion: the creep curve's peak
+    point["mu_friction"] = _friction_at_top(df, use, rig)
     point["mu_phase_error"] = point["mu_phase"] / mu_true - 1.0
     point["mu_phase_lo_error"] = point["mu_phase_lo"] / mu_true - 1.0
     df["phase_twin_minus_theory_deg"] = df["phase_simulated_deg"] - df["phase_theory_deg"]

@@ -219,12 +219,16 @@ class TrackStats:
 
 
 def truth_at_windows(track: pd.DataFrame, truth: pd.DataFrame, starts) -> TrackStats:
-    """The truth interpolated to each window's position (the window's centre)."""
+    """The truth interpolated to each window's position (the window's centre); ``mu_true``
+    is the available adhesion (the creep curve's peak, ``adhesion_peak``), which the
+    estimator's ``mu`` estimates (the friction at the slip velocity, ``mu``, for truth
+    tables without it)."""
     x = track["position_m"].to_numpy(float)
     tx = truth["position_m"].to_numpy(float)
     seg = np.clip(np.searchsorted(np.asarray(starts, float), x, side="right") - 1, 0,
                   len(starts) - 1)
-    return TrackStats(seg, np.interp(x, tx, truth["mu"].to_numpy(float)),
+    col = "adhesion_peak" if "adhesion_peak" in truth else "mu"
+    return TrackStats(seg, np.interp(x, tx, truth[col].to_numpy(float)),
                       np.interp(x, tx, truth["utilisation"].to_numpy(float)))
 
 
