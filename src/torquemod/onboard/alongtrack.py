@@ -22,8 +22,9 @@ Summary rules (one definition wherever a stretch, a run or a fleet row is summar
 Condition guess
 ---------------
 The available adhesion (the maximum of the adhesion-creepage curve) lies between the lower
-bound (CoA cannot exceed it) and μ's upper interval end (friction is at least the adhesion it
-allows); it is unbounded above where μ is not determined. A stretch whose lower bound lies
+bound (CoA cannot exceed it) and the upper end of μ's 95 % interval (the estimator's μ is the
+available adhesion, and friction, were it that, is never below it); it is unbounded above
+where μ is not determined. A stretch whose lower bound lies
 above μ's interval spans different rails (a kilometre holding a friction change) and is
 ``mixed``. The guess names the service
 classes that range overlaps, with class limits taken between the published service ranges of
