@@ -428,3 +428,29 @@ def test_measurement_path_does_not_import_the_twin():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.strip()
     assert out == "[]"
+
+
+def test_rig_tables_exported_as_mat_and_parquet_and_kept_current(tmp_path):
+    """save(export=...) writes cycles/steps as .mat and .parquet beside the CSV; an update
+    (torquemod fit) rewrites them with the new steps table."""
+    from scipy.io import loadmat
+
+    from torquemod.layout import update
+    res = synthetic_result(seed=0)
+    d = tmp_path / "r"
+    tm.save(res, None, d, report=False, export="mat,parquet")
+    steps_csv = pd.read_csv(d / "steps.csv")
+    mat = loadmat(d / "steps.mat", simplify_cells=True)["steps"]
+    np.testing.assert_array_equal(mat["phase_deg"], steps_csv["phase_deg"])
+    pd.testing.assert_frame_equal(pd.read_parquet(d / "cycles.parquet"),
+                                  pd.read_csv(d / "cycles.csv"), check_dtype=False)
+    ana = tm.analyze(res)
+    update(d, res, ana, report=False)
+    from torquemod.export import mat_name
+    mat = loadmat(d / "steps.mat", simplify_cells=True)["steps"]
+    assert len(ana.steps.columns) > len(res.steps.columns)  # the analysis added columns
+    assert set(mat) == {mat_name(c) for c in ana.steps.columns}
+    assert list(pd.read_parquet(d / "steps.parquet").columns) == list(ana.steps.columns)
+    with pytest.raises(InputError, match="unknown export format"):
+        tm.save(res, None, tmp_path / "bad", export="xlsx")
+    assert not (tmp_path / "bad").exists()

@@ -80,4 +80,5 @@ def test_demo_words_when_mu_is_not_determined():
                                  "mu_from_phase_interval_95": [0.2492, None]}, truth)
     assert "(-)" not in text and "mu >= 0.2492" in text and "not determined" in text
     text = cli._why_they_differ({"mu": None, "mu_from_phase": 0.2505}, truth)
-    assert "mu from the phase (0.2505)" in text
+    # it names the value it explains (the phase's estimate is the available adhesion)
+    assert "from the phase (0.2505)" in text and "(-)" not in text

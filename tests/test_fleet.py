@@ -92,6 +92,12 @@ def test_fleet_on_two_worker_processes(fleet, cluster, tmp_path):
                       "train1": "processed", "train_bad": "failed"}
     kinds = dict(zip(res.summary["run"], res.summary["kind"], strict=True))
     assert kinds["train1"] == kinds["train_bad"] == "train" and kinds["axle1"] == "rig"
+    # a mu comes with its standard error; a train row's bound is never above its mu
+    summ = res.summary.set_index("run")
+    rig = summ.loc[["axle1", "axle2"]]
+    assert (rig["mu"].notna() == rig["mu_stderr"].notna()).all()
+    train = summ.loc["train1"]
+    assert pd.isna(train["mu"]) or train["mu_lower_bound"] <= train["mu"]
     # the damaged runs: one row each, the same one-line message the commands give
     with pytest.raises(TorquemodError) as exc:
         process_experiment(fleet / "damaged" / "experiment.toml", workers=1)

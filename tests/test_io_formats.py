@@ -413,11 +413,13 @@ def test_convert_file_to_hdf5(fmt, reference, tmp_path, write_columns):
     _assert_same(read_recording(out), reference)
 
 
-def test_convert_file_rejects_non_hdf5_output(reference, tmp_path, write_columns):
+def test_convert_file_rejects_an_output_format_it_cannot_write(reference, tmp_path,
+                                                               write_columns):
     src = _write(write_columns, tmp_path, "csv", {"time_s": _time(reference),
                                                   **reference.channels})
-    with pytest.raises(InputError, match="output must be an HDF5 file"):
-        convert_file(src, tmp_path / "out.csv")
+    with pytest.raises(InputError, match=r"output must be \.h5, .*\.parquet, \.mat, \.csv"):
+        convert_file(src, tmp_path / "out.tdms")
+    assert not (tmp_path / "out.tdms").exists()
 
 
 def test_convert_experiment(reference, tmp_path, write_columns):

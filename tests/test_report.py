@@ -9,6 +9,7 @@ import sys
 from html.parser import HTMLParser
 
 import pytest
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 import torquemod as tm
@@ -17,6 +18,7 @@ from torquemod.errors import InputError
 from torquemod.report import ReportOptions, write_report
 from torquemod.report.figures import (
     creep_curve_figure,
+    figure_of,
     phase_figure,
     phase_fit_figure,
     save_figure,
@@ -79,11 +81,13 @@ def test_figures_are_headless_figures(synthetic, tmp_path):
     figs = {"a": signals_figure(res.traces[(3, 1)], step=3, cycle=1),
             "b": creep_curve_figure(ana, coa_multiplier=10, creepage_multiplier=2),
             "c": phase_figure(ana), "d": phase_fit_figure(ana)}
-    for name, fig in figs.items():
-        assert isinstance(fig, Figure)
-        paths = save_figure(fig, tmp_path / "out" / name)
+    assert len(figs["a"]) == 2 and isinstance(figs["a"][0].figure, Figure)
+    for name, drawn in figs.items():
+        paths = save_figure(drawn, tmp_path / "out" / name)
         assert [p.suffix for p in paths] == [".png", ".svg"]
         assert all(p.stat().st_size > 1000 for p in paths)
+    figs = {k: figure_of(v) for k, v in figs.items()}
+    assert all(isinstance(f, Figure) for f in figs.values())
     legend = [t.get_text() for t in figs["b"].axes[0].get_legend().get_texts()]
     assert any("10× std CoA" in t and "2× std creepage" in t for t in legend)
     assert any("μ = 0.2" in t for t in legend)
@@ -95,15 +99,26 @@ def test_figures_are_headless_figures(synthetic, tmp_path):
 
 
 def test_plots_draw_on_a_given_ax(synthetic):
+    """A plot method given an ax returns that Axes (a notebook cell then shows the figure
+    once); without one it returns the Axes of a new Figure that pyplot does not hold."""
+    import matplotlib.pyplot as plt
     res, ana = synthetic
+    plt.close("all")
     fig = Figure()
     axes = fig.subplots(1, 4)
-    assert ana.plot_creep_curve(ax=axes[0]) is fig
-    assert ana.plot_phase(ax=axes[1]) is fig
-    assert ana.plot_phase_fit(ax=axes[2]) is fig
-    assert res.plot_signals(3, 1, ax=axes[3]) is fig
+    assert ana.plot_creep_curve(ax=axes[0]) is axes[0]
+    assert ana.plot_phase(ax=axes[1]) is axes[1]
+    assert ana.plot_phase_fit(ax=axes[2]) is axes[2]
+    assert res.plot_signals(3, 1, ax=axes[3]) is axes[3]
     assert len(fig.axes) == 5  # the wheel speed on a twin axis of the fourth
     assert all(len(a.lines) > 0 for a in fig.axes)
+    pair = Figure().subplots(2, 1)
+    assert res.plot_signals(3, 1, ax=pair) is pair
+    for made in (ana.plot_creep_curve(), ana.plot_phase(), ana.plot_phase_fit()):
+        assert isinstance(made, Axes) and isinstance(made.figure, Figure)
+    two = res.plot_signals(3, 1)
+    assert len(two) == 2 and two[0].figure is two[1].figure
+    assert plt.get_fignums() == []  # nothing went through pyplot
 
 
 def test_report_modules_do_not_need_pyplot():

@@ -118,3 +118,28 @@ def test_no_blank_figure_and_conditions_not_joined(curves):
             assert ln.get_linestyle() in ("None", "none", ""), ln
     page = render(tab, spec, recommend(tab, spec), [])
     assert "available adhesion" in page and "<b>Recommended:" in page
+
+
+def test_figure_functions_return_the_axes_they_drew_on(curves):
+    """The notebook convention of every plot function: given ``ax`` it is returned; without
+    one the new Figure's Axes (an array for several panels), never through pyplot."""
+    import matplotlib.pyplot as plt
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from torquemod.sweep import figures as F
+    from torquemod.sweep.conditions import CONDITION_COLUMN
+    from torquemod.sweep.summary import point_summary
+    spec, tab, _ = curves
+    plt.close("all")
+    summary = point_summary(tab, spec)
+    labelled = tab.assign(**{CONDITION_COLUMN: condition_labels(tab, spec.swept)})
+    ax = Figure().subplots()
+    assert F.sensitivity_figure(summary, ax=ax) is ax
+    assert isinstance(F.mu_error_figure(summary), Axes)
+    pair = Figure().subplots(1, 2)
+    assert F.phase_panels_figure(labelled, ax=pair) is pair
+    made = F.phase_panels_figure(labelled)
+    assert len(made) == labelled[CONDITION_COLUMN].nunique() == 2
+    assert made[0].figure is made[1].figure
+    assert plt.get_fignums() == []

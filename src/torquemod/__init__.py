@@ -8,6 +8,12 @@ The library in five calls (see the README's "Python API")::
     ana = tm.analyze(res)
     tm.save(res, ana, "results/"); res, ana = tm.load("results/")
 
+and the same for a train run::
+
+    run = tm.read_run("run.toml")
+    ob = tm.onboard(run)                  # OnboardResult: report(), plot_*(), to_frame()
+    ob.save("onboard/"); ob = tm.load_onboard("onboard/")
+
 The digital twin lives under ``tm.twin`` (imported on first use).
 """
 
@@ -19,13 +25,14 @@ from .errors import InputError, OutputError, ProcessingError, TorquemodError
 # pandas and matplotlib before it needs them
 _LAZY = {"FitOptions": "analysis", "Analysis": "analysisresult", "analyze": "api",
          "load": "api", "process": "api", "read_experiment": "api", "run": "api",
-         "save": "api", "ProcessingConfig": "config", "Experiment": "data",
-         "Recording": "data", "ProcessResult": "pipeline"}
+         "save": "api", "read_run": "api", "onboard": "api", "load_onboard": "api",
+         "OnboardResult": "onboard.result", "Run": "io.run", "ProcessingConfig": "config",
+         "Experiment": "data", "Recording": "data", "ProcessResult": "pipeline"}
 
-__all__ = ["Analysis", "Experiment", "FitOptions", "InputError", "OutputError",
-           "ProcessResult", "ProcessingConfig", "ProcessingError", "Recording",
-           "TorquemodError", "__version__", "analyze", "load", "process", "read_experiment",
-           "run", "save", "twin"]
+__all__ = ["Analysis", "Experiment", "FitOptions", "InputError", "OnboardResult",
+           "OutputError", "ProcessResult", "ProcessingConfig", "ProcessingError", "Recording",
+           "Run", "TorquemodError", "__version__", "analyze", "load", "load_onboard",
+           "onboard", "process", "read_experiment", "read_run", "run", "save", "twin"]
 
 
 def __getattr__(name: str):

@@ -257,18 +257,21 @@ class Analysis:
     # --- figures ----------------------------------------------------------------------------
     def plot_creep_curve(self, *, ax=None, coa_multiplier: float = 20.0,
                          creepage_multiplier: float = 5.0):
-        """Paper Figure 3 on ``ax`` (a new Figure when None); returns the Figure."""
+        """Paper Figure 3 on ``ax``, returned; without one on a new Figure (not pyplot),
+        whose Axes is returned."""
         from .report.figures import creep_curve_figure
         return creep_curve_figure(self, ax=ax, coa_multiplier=coa_multiplier,
                                   creepage_multiplier=creepage_multiplier)
 
     def plot_phase(self, *, ax=None):
-        """Paper Figure 4 (phase against DC torque, % of Ts, with the theory) on ``ax``."""
+        """Paper Figure 4 (phase against DC torque, % of Ts, with the theory) on ``ax``;
+        returns the Axes (a new Figure's when None)."""
         from .report.figures import phase_figure
         return phase_figure(self, ax=ax)
 
     def plot_phase_fit(self, *, ax=None):
-        """The phase against the utilised adhesion with the fit giving mu from the phase."""
+        """The phase against the utilised adhesion with the fit giving mu from the phase;
+        returns the Axes (a new Figure's when None)."""
         from .report.figures import phase_fit_figure
         return phase_fit_figure(self, ax=ax)
 

@@ -1,12 +1,19 @@
 """The library's face and the one orchestrator behind the CLI and the demo.
 
-Stages, joined in memory::
+Stages, joined in memory (the rig)::
 
     exp = read_experiment("experiment.toml")   # Experiment; exp.processing: [processing]
     res = process(exp, phase_method="sinefit") # ProcessResult (tables, details, traces)
     ana = analyze(res)                         # Analysis (Polach fit, mu from the phase, ...)
     save(res, ana, "results/")                 # the results folder, atomically
     res, ana = load("results/")                # ... and back
+
+and the train::
+
+    run = read_run("run.toml")                 # Run: [vehicle], [test], recordings
+    ob = onboard(run)                          # OnboardResult (track, along_track(), ...)
+    ob.save("onboard/")                        # the results folder, atomically
+    ob = load_onboard("onboard/")              # ... and back
 
 :func:`run`, :func:`fit_folder` and :func:`report_folder` are what ``torquemod process``,
 ``fit`` and ``report`` do; they report their stages through an optional ``on_stage(text)``
@@ -33,8 +40,8 @@ if TYPE_CHECKING:  # imported when first used (_LAZY)
     from .layout import load, save, update
     from .pipeline import ProcessResult, process_experiment, resolve_config
 
-__all__ = ["RunOutcome", "analyze", "fit_folder", "load", "process", "read_experiment",
-           "report_folder", "run", "save"]
+__all__ = ["RunOutcome", "analyze", "fit_folder", "load", "load_onboard", "onboard",
+           "process", "read_experiment", "read_run", "report_folder", "run", "save"]
 
 Stage = Callable[[str], object] | None
 
@@ -89,6 +96,75 @@ def process(experiment, config: ProcessingConfig | None = None, *,
     return process_experiment(exp, config=cfg, progress=progress, workers=workers)
 
 
+def read_run(path):
+    """Read a train run manifest (``run.toml`` or its folder): a
+    :class:`~torquemod.io.run.Run`. Its ``[onboard]`` table is checked now."""
+    from .io.run import read_run as _read_run
+    from .onboard.estimator import OnboardConfig
+    run = _read_run(path)
+    OnboardConfig.from_dict(run.extra.get("onboard"), source=str(run.manifest_path))
+    return run
+
+
+def onboard(run, *, axle: int | None = None, config=None, **options):
+    """The friction along a train run: one axle through the on-board estimator.
+
+    Parameters
+    ----------
+    run : Run or path
+        A :class:`~torquemod.io.run.Run` (:func:`read_run`) or its manifest's path.
+    axle : int, optional
+        Which ``[[recording]] axle``; may be left out when the run records one axle.
+    config : OnboardConfig or dict, optional
+        The estimator's settings; default the run's ``[onboard]`` table.
+    **options
+        Single settings over either (the keys of ``[onboard]``, e.g. ``hop_s=0.5``).
+
+    Returns
+    -------
+    OnboardResult
+        The axle's track (``to_frame()``, ``along_track()``), ``report()``, ``plot_*``,
+        ``save(folder)`` (what ``torquemod onboard`` writes).
+    """
+    from .errors import InputError
+    from .io.run import Run
+    from .onboard.estimator import OnboardConfig
+    from .onboard.run import estimate_axle
+    run = run if isinstance(run, Run) else read_run(run)
+    if config is None:
+        cfg = OnboardConfig.from_dict(run.extra.get("onboard"), source=str(run.manifest_path))
+    elif isinstance(config, dict):
+        cfg = OnboardConfig.from_dict(config, source="onboard(config=...)")
+    elif isinstance(config, OnboardConfig):
+        cfg = config
+    else:
+        raise InputError(f"config must be an OnboardConfig or a dict, got "
+                         f"{type(config).__name__}")
+    if options:  # checked as given here, not blamed on the manifest
+        cfg = OnboardConfig.from_dict({**cfg.to_dict(), **options},
+                                      source="onboard(**options)")
+    axles = [e.axle for e in run.recordings]
+    if axle is None:
+        if len(axles) > 1:
+            raise InputError(f"{run.manifest_path}: the run records axles {axles}",
+                             hint="choose one with axle=")
+        entry = run.recordings[0]
+    else:
+        entry = next((e for e in run.recordings if e.axle == axle), None)
+        if entry is None:
+            raise InputError(f"{run.manifest_path}: no axle {axle!r}; the run records axles "
+                             f"{axles}")
+    return estimate_axle(run, entry, cfg)
+
+
+def load_onboard(folder, axle: int | None = None):
+    """Read an on-board results folder back (:meth:`OnboardResult.save` or ``torquemod
+    onboard``): the :class:`~torquemod.onboard.OnboardResult` of ``axle`` (the first when
+    None)."""
+    from .onboard.folder import load_onboard as _load
+    return _load(folder, axle)
+
+
 @dataclass
 class RunOutcome:
     """What :func:`run` did: the result, its analysis (None with ``fit=False``), the results
@@ -119,8 +195,11 @@ def _refuse_inputs(out, inputs) -> None:
 def run(experiment, out, *, config: ProcessingConfig | None = None,
         phase_method: str | None = None, nan_policy: str | None = None, fit: bool = True,
         fit_options=None, report_options=None, force: bool = False, progress: bool = False,
-        command: list[str] | None = None, on_stage: Stage = None) -> RunOutcome:
-    """process -> analyze -> save (with the report): ``torquemod process``."""
+        command: list[str] | None = None, on_stage: Stage = None, export=()) -> RunOutcome:
+    """process -> analyze -> save (with the report): ``torquemod process``; ``export``:
+    the cycles and steps tables also as MATLAB ``mat`` and/or ``parquet``."""
+    from .export import check_formats
+    export = check_formats(export)  # a bad format is refused before the work
     say = on_stage or (lambda _text: None)
     t0 = time.perf_counter()
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
@@ -142,7 +221,7 @@ def run(experiment, out, *, config: ProcessingConfig | None = None,
         if fit:
             say("writing the results folder with figures and report.html ...")
         folder = save(res, ana, out, force=force, inputs=_inputs(exp), command=command,
-                      report=fit, report_options=report_options)
+                      report=fit, report_options=report_options, export=export)
     t3 = time.perf_counter()
     return RunOutcome(res, ana, Path(folder), Path(folder) / "report.html" if fit else None,
                       {"process": t1 - t0, "fit": t2 - t1, "write": t3 - t2, "total": t3 - t0})

@@ -79,7 +79,8 @@ def cmd_process(args: argparse.Namespace) -> int:
     out = run(args.experiment, args.out, phase_method=args.phase_method,
               nan_policy=args.nan_policy, fit=not args.no_fit, force=args.force,
               report_options=_pdf_option(args),
-              progress=not args.quiet, command=sys.argv, on_stage=_stage_printer(args))
+              progress=not args.quiet, command=sys.argv, on_stage=_stage_printer(args),
+              export=args.export)
     res, ana = out.result, out.analysis
     _print_warnings(res.warnings + (ana.warnings if ana is not None else []))
     _print_steps(ana.steps if ana is not None else res.steps)
@@ -137,12 +138,17 @@ def cmd_simulate_train(args: argparse.Namespace, config) -> int:
 
 
 def cmd_onboard(args: argparse.Namespace) -> int:
-    from .onboard import run_onboard
+    from . import api
+    from .export import check_formats
+    from .onboard.folder import check_onboard_out, save_onboard
+    export = check_formats(args.export)  # a bad format is refused before the work
     say = _stage_printer(args)
+    run = api.read_run(args.run)
+    check_onboard_out(run, args.out, force=args.force)  # an occupied --out: before the work
     if say:
         say("estimating the friction along the run ...")
-    results = run_onboard(args.run, Path(args.out), force=args.force,
-                          command=sys.argv)
+    results = [api.onboard(run, axle=e.axle) for e in run.recordings]
+    save_onboard(results, Path(args.out), force=args.force, command=sys.argv, export=export)
     _print_warnings([w for r in results for w in r.warnings])
     for r in results:
         s = r.summary()
@@ -151,10 +157,25 @@ def cmd_onboard(args: argparse.Namespace) -> int:
               f"measurable in {100 * s['measurable_share']:.0f} %, "
               f"low adhesion {100 * s['low_adhesion_share']:.1f} %, slip "
               f"{100 * s['slip_share']:.1f} %; {s['seconds']:.1f} s")
-    print(f"track:  {Path(args.out) / 'track.parquet'}")
+        _print_stretches(r.along_track())
+    print(f"track:  {Path(args.out) / 'track.parquet'}"
+          + (f" (also as {', '.join('track.' + f for f in export)})" if export else ""))
+    print(f"along the track: {Path(args.out) / 'along_track.csv'} (per segment), "
+          "along_track_km.csv (per km)")
     print(f"report: {Path(args.out) / 'report.html'}")
     _write_pdf(args, Path(args.out) / "report.html")
     return 0
+
+
+def _print_stretches(seg) -> None:
+    """The along-track table per segment, one line each: span, condition, mu or bound."""
+    print(f"  {'span [m]':>13} {'condition (guess)':>20} {'mu':>6} {'95 % interval':>13} "
+          f"{'bound':>6}")
+    for _, s in seg.iterrows():
+        interval = (f"{s.mu_low_95:.3f}-{s.mu_high_95:.3f}" if s.mu_high_95 == s.mu_high_95
+                    else "")
+        print(f"  {s.start_m:6.0f}-{s.end_m:<6.0f} {s.condition:>20} {_fmt(s.mu, '6.3f')} "
+              f"{interval:>13} {_fmt(s.mu_lower_bound, '6.3f')}")
 
 
 def _check_seed(seed: int) -> None:
@@ -447,6 +468,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--no-fit", action="store_true", help="skip the fit and report stages")
     q.add_argument("--quiet", action="store_true", help="no progress bar or stage lines")
     _add_pdf_options(q)
+    q.add_argument("--export", default="", metavar="FORMATS",
+                   help="also write cycles and steps as mat (MATLAB) and/or parquet, "
+                        "comma-separated, beside cycles.csv and steps.csv")
     q.set_defaults(func=cmd_process)
 
     s = sub.add_parser("simulate", parents=[common],
@@ -474,6 +498,9 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--out", required=True, help="results folder to create")
     o.add_argument("--force", action="store_true", help="replace an existing results folder")
     o.add_argument("--quiet", action="store_true", help="no stage lines")
+    o.add_argument("--export", default="", metavar="FORMATS",
+                   help="also write the tracks as csv and/or mat (MATLAB), comma-separated, "
+                        "beside track.parquet")
     _add_pdf_options(o)
     o.set_defaults(func=cmd_onboard)
 
@@ -530,8 +557,10 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=cmd_demo)
 
     c = sub.add_parser("convert", parents=[common],
-                       help="write a recording (or experiment) as HDF5", epilog=(
-                           "examples: 'torquemod convert run1.tdms --out run1.h5'; "
+                       help="write a recording as HDF5, Parquet, .mat or CSV (an "
+                            "experiment as HDF5)", epilog=(
+                           "examples: 'torquemod convert run1.tdms --out run1.h5' (or "
+                           "run1.parquet, run1.mat, run1.csv: the suffix chooses); "
                            "'torquemod convert logger.mat --manifest experiment.toml --out "
                            "logger.h5' (read with the manifest's [channels]); 'torquemod "
                            "convert --manifest experiment.toml --out converted/' (every "
@@ -542,7 +571,8 @@ def build_parser() -> argparse.ArgumentParser:
         "group and sample rate); without INPUT, convert the whole experiment into the folder "
         "--out"))
     c.add_argument("--out", required=True,
-                   help="output .h5 file (or folder, for a whole experiment)")
+                   help="output .h5, .parquet, .mat or .csv file (or folder, for a whole "
+                        "experiment)")
     c.add_argument("--force", action="store_true", help=(
         "replace an existing output (a folder only if torquemod wrote it; never an input)"))
     c.set_defaults(func=cmd_convert)

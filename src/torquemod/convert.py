@@ -1,8 +1,10 @@
-"""Convert recordings in any supported format into the project's HDF5 layout.
+"""Convert recordings in any supported format into the project's HDF5 layout, or, for one
+file, into Parquet, MATLAB ``.mat`` or CSV (chosen by the output's suffix).
 
-``torquemod convert`` calls these; the HDF5 files they write hold the channels the input has
-(absent optional channels stay absent) in SI units with their sample rate and the reader's
-notes (``torquemod_notes``), so they read back without any ``[channels]`` table.
+``torquemod convert`` calls these; the files they write hold the channels the input has
+(absent optional channels stay absent) in SI units with their sample rate (the HDF5 files
+also the reader's notes, ``torquemod_notes``), so they read back without any ``[channels]``
+table. Parquet and ``.mat`` keep every float64 bit; CSV writes 9 significant digits.
 """
 
 from __future__ import annotations
@@ -18,9 +20,12 @@ from .fsutil import atomic_dir, atomic_file
 from .io.channels import ChannelMap
 from .io.hdf5 import write_hdf5
 from .io.manifest import read_experiment, write_manifest
-from .io.recording import read_entry, read_recording
+from .io.recording import read_entry, read_recording, write_recording
 
 _H5_SUFFIXES = (".h5", ".hdf5")
+#: output suffix -> writer format of :func:`torquemod.io.recording.write_recording`
+_OUTPUT_FORMATS = {".h5": "hdf5", ".hdf5": "hdf5", ".parquet": "parquet", ".mat": "mat",
+                   ".csv": "csv"}
 #: Per-recording manifest keys that describe the source file and are dropped on conversion.
 _SOURCE_KEYS = ("file", "group", "sample_rate_hz")
 
@@ -35,25 +40,31 @@ def _attrs(source: Path, group: str | None) -> dict:
 def convert_file(input_path: str | Path, output_path: str | Path, *,
                  channel_map: ChannelMap | dict | None = None, group: str | None = None,
                  sample_rate_hz: float | None = None, force: bool = False) -> Path:
-    """Read one recording (any supported format) and write it as the project's HDF5 layout.
+    """Read one recording (any supported format) and write it in the project's HDF5 layout,
+    or as Parquet, ``.mat`` or CSV when the output is named so.
 
     ``channel_map`` is a manifest ``[channels]`` table (raw or resolved), ``group`` the group
     inside the input, ``sample_rate_hz`` [Hz] overrides the input's time base (see
-    :func:`torquemod.io.recording.read_recording`). The output (``.h5``/``.hdf5``) is written
+    :func:`torquemod.io.recording.read_recording`). The output (``.h5``/``.hdf5``,
+    ``.parquet``, ``.mat``, ``.csv``) is written
     whole or not at all (:func:`~torquemod.fsutil.atomic_file`); an existing output is
     replaced only with ``force``, and never when it is the input. Returns the output path.
     """
     src, out = Path(input_path), Path(output_path)
-    if out.suffix.lower() not in _H5_SUFFIXES:
-        raise InputError(f"output must be an HDF5 file ({', '.join(_H5_SUFFIXES)})", path=out,
-                         hint="name the output like recording.h5")
+    fmt = _OUTPUT_FORMATS.get(out.suffix.lower())
+    if fmt is None:
+        raise InputError(f"output must be {', '.join(_OUTPUT_FORMATS)}", path=out,
+                         hint="name the output like recording.h5 (or .parquet, .mat, .csv)")
     if not src.is_file():
         raise InputError("no such recording file" if not src.exists() else
                          "is not a recording file", path=src, hint="check the INPUT path")
     with atomic_file(out, force=force, inputs=[src]) as tmp:
         rec = read_recording(src, group=group, channel_map=channel_map,
                              sample_rate_hz=sample_rate_hz)
-        write_hdf5(tmp, rec, attrs=_attrs(src, group))
+        if fmt == "hdf5":
+            write_hdf5(tmp, rec, attrs=_attrs(src, group))
+        else:
+            write_recording(tmp, rec, fmt=fmt)
     return out
 
 

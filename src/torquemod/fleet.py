@@ -341,10 +341,11 @@ def _rig_tables(prep: Prepared, loaded: list, fit: bool) -> tuple[dict, dict]:
         from .analysis import analyze
         ana = analyze(res)
         pf = ana.phase_fit
-        mu = ana.mu if ana.mu is not None else (
-            pf.mu if pf is not None and pf.mu_determined else None)
-        info.update(mu=mu, mu_stderr=ana.mu_stderr if ana.mu is not None else None,
-                    mu_lower_bound=ana.mu_lower_bound)
+        from_phase = ana.mu is None and pf is not None and pf.mu_determined
+        mu = ana.mu if ana.mu is not None else (pf.mu if from_phase else None)
+        stderr = ana.mu_stderr if ana.mu is not None else (
+            getattr(pf, "mu_stderr", None) if from_phase else None)
+        info.update(mu=mu, mu_stderr=stderr, mu_lower_bound=ana.mu_lower_bound)
     return {"cycles": {"part-0.parquet": res.cycles},
             "steps": {"part-0.parquet": res.steps}}, info
 
@@ -357,12 +358,12 @@ def _train_tables(prep: Prepared, tracks: list) -> tuple[dict, dict]:
     allrows = pd.concat(tracks, ignore_index=True)
     window_s = config.window_periods / run.modulation_frequency_hz
     given = allrows["mu"].notna()
+    from .onboard.alongtrack import run_mu_summary
+    mu, bound = run_mu_summary(allrows)
     info = {"n_rows": len(allrows),
             "duration_s": max(float(t["time_s"].iloc[-1] - t["time_s"].iloc[0]) + window_s
                               for t in tracks),
-            "mu": float(allrows.loc[given, "mu"].median()) if given.any() else None,
-            "mu_lower_bound": float(allrows["mu_low_95"].median())
-            if allrows["mu_low_95"].notna().any() else None,
+            "mu": mu, "mu_lower_bound": bound,
             "mu_given_share": float(given.mean()),
             "low_adhesion_windows": int(allrows["low_adhesion"].sum()),
             "slip_windows": int(allrows["slip"].sum())}

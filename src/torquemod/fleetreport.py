@@ -17,6 +17,7 @@ import os
 from html import escape
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from ._version import __version__
@@ -79,19 +80,32 @@ def phase_coa_figure(steps: pd.DataFrame) -> bytes:
     return _png(fig)
 
 
+#: the stretch [m] of the fleet figure's lower-bound steps
+_STRETCH_M = 250.0
+
+
 def mu_track_figure(tracks: pd.DataFrame) -> bytes:
-    """mu lower bound (lines) and mu where determined (dots) against position [m], per run
-    and axle."""
+    """The lower bound of mu per :data:`_STRETCH_M` of track (steps; left out where the
+    stretch holds different rails: :func:`torquemod.onboard.alongtrack.along_track`) and mu
+    where determined (dots) against position [m], per run and axle."""
     from matplotlib.figure import Figure
+
+    from .onboard.alongtrack import along_track
     fig = Figure(figsize=(7, 4.2), layout="constrained")
     ax = fig.add_subplot()
-    for (run, axle), g in tracks.groupby(["run", "axle"], sort=True):
+    for (run, axle), g in tracks.groupby(["run", "axle"], sort=True, observed=True):
         label = f"{run} axle {axle}"
-        (line,) = ax.plot(g["position_m"], g["mu_low_95"], lw=1.0, label=f"{label}: lower bound")
+        part = along_track(g, by="km", length_m=_STRETCH_M)
+        bound = part["mu_lower_bound"].where(part["condition"] != "mixed").to_numpy(float)
+        xs = np.column_stack([part["start_m"], part["end_m"],
+                              np.full(len(part), np.nan)]).ravel()
+        (line,) = ax.plot(xs, np.repeat(bound, 3), lw=1.6,
+                          label=f"{label}: lower bound per {_STRETCH_M:.0f} m")
         given = g["mu"].notna()
         if given.any():
             ax.plot(g.loc[given, "position_m"], g.loc[given, "mu"], ".", ms=3,
                     color=line.get_color(), label=f"{label}: mu")
+    ax.set_ylim(bottom=0)
     ax.set_xlabel("position [m]")
     ax.set_ylabel("mu [-]")
     ax.grid(alpha=0.3)
@@ -147,8 +161,9 @@ def render_fleet_report(summary: pd.DataFrame, failures: pd.DataFrame,
                                                       "every rig experiment"))
     if not tracks.empty:
         parts.append("<h2>Train runs: mu along the track</h2>")
-        parts.append(_figure(mu_track_figure(tracks), "Lower bound of mu (lines) and mu "
-                                                      "where the data determine it (dots)"))
+        parts.append(_figure(mu_track_figure(tracks), f"Lower bound of mu per {_STRETCH_M:.0f} m "
+                             "(steps; none where a stretch holds different rails) and mu where "
+                             "the data determine it (dots)"))
     return ("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>torquemod fleet</title><style>{CSS}</style></head><body>"
             + "\n".join(parts) + "</body></html>")

@@ -58,17 +58,21 @@ _BOOL = {"True": True, "False": False, "true": True, "false": False, "1": True, 
 
 def save(result: ProcessResult, analysis: Analysis | None, folder, *, force: bool = False,
          inputs=(), command: list[str] | None = None, report: bool = True,
-         report_options=None) -> Path:
+         report_options=None, export=()) -> Path:
     """Write a new results folder (see the module docstring) in one atomic step.
 
     An existing non-empty ``folder`` is refused unless ``force``; ``inputs`` (the manifest and
     the recordings) are files the folder must never replace or contain. ``report=False``
-    skips the figures and report.html."""
+    skips the figures and report.html. ``export``: the cycles and steps tables also as
+    ``mat`` (MATLAB) and/or ``parquet`` (:mod:`torquemod.export`; CSV is always written);
+    :func:`update` keeps them current."""
+    from .export import check_formats
+    export = check_formats(export)
     if command is not None:
         result = dataclasses.replace(result, command=list(command))
     with _new_dir(folder, force=force, inputs=inputs) as tmp:
         _write_all(tmp, Path(folder), result, analysis, command=None, report=report,
-                   report_options=report_options)
+                   report_options=report_options, export=export)
     return Path(folder)
 
 
@@ -78,10 +82,14 @@ def update(folder, result: ProcessResult, analysis: Analysis | None, *,
     """Rewrite an existing results folder with a new analysis or report, atomically: readers
     see the old folder or the new one, never a mix. provenance.json keeps the processing
     command (``result.command``) unless ``command`` is given."""
+    from .export import EXPORT_FORMATS
     folder = Path(folder)
+    # the exported copies of the tables the folder holds are rewritten with them
+    export = [f for f, suffix in EXPORT_FORMATS.items()
+              if f != "csv" and (folder / f"steps{suffix}").exists()]
     with _update_dir(folder) as tmp:
         _write_all(tmp, folder, result, analysis, command=command, report=report,
-                   report_options=report_options)
+                   report_options=report_options, export=export)
     return folder
 
 
@@ -100,7 +108,7 @@ def _update_dir(folder: Path) -> Iterator[Path]:
 
 
 def _write_all(tmp: Path, final: Path, result: ProcessResult, analysis: Analysis | None, *,
-               command, report: bool, report_options) -> None:
+               command, report: bool, report_options, export=()) -> None:
     """Every file of the layout into the folder being assembled; a full disk or an
     unwritable target ends as one OutputError naming the folder."""
     try:
@@ -108,6 +116,12 @@ def _write_all(tmp: Path, final: Path, result: ProcessResult, analysis: Analysis
         steps = analysis.steps if analysis is not None else result.steps
         result.cycles.to_csv(tmp / "cycles.csv", index=False, lineterminator="\n")
         steps.to_csv(tmp / "steps.csv", index=False, lineterminator="\n")
+        if export:
+            from .export import write_table
+            for fmt in export:
+                if fmt != "csv":  # written above
+                    write_table(result.cycles, tmp / "cycles", fmt)
+                    write_table(steps, tmp / "steps", fmt)
         write_json(tmp / "provenance.json", prov)
         write_json(tmp / STATE_FILE, _state(result, analysis))
         np.savez(tmp / "traces.npz", **{f"s{s}c{c}__{name}": x
@@ -202,6 +216,9 @@ def _read_state(path: Path) -> dict:
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
+        if (path.parent / "onboard.json").exists():
+            raise InputError("an on-board (train) results folder, not a rig one", path=path,
+                             hint="read it with tm.load_onboard(folder)") from None
         raise InputError("not a torquemod results folder: result.json is missing", path=path,
                          hint="give a folder written by tm.save or 'torquemod process' "
                          "(process the experiment again to make one)") from None

@@ -104,8 +104,9 @@ class ProcessResult:
 
     def plot_signals(self, step: int, cycle: int, *, ax=None):
         """Paper Figure 2 for one cycle: torque and wheel speed, raw and band-pass filtered.
-        ``ax`` one Axes (the wheel speed goes on a twin axis) or a pair of Axes; a new
-        Figure when None. Returns the Figure."""
+        ``ax`` one Axes (the wheel speed goes on a twin axis) or a pair of Axes, returned as
+        given; without one a new two-panel Figure (not pyplot), whose two Axes are
+        returned."""
         from .report.figures import signals_figure
         if (step, cycle) not in self.traces:
             raise InputError(f"no traces for step {step} cycle {cycle}; available: "

@@ -327,3 +327,19 @@ def read_mat(path: Path, *, group: str | None = None,
     if is_mat73(path):
         return _read_v73(path, group, cmap)
     return _read_v5(path, group, cmap)
+
+
+def write_mat(path: Path, rec: Recording) -> Path:
+    """Write ``rec`` as a MATLAB (v5) recording: one column vector per channel it has,
+    named as in the CSV format (SI units), and the scalars ``sample_rate_hz`` [Hz] and
+    ``t0_s`` [s], so it reads back exactly without a ``[channels]`` table."""
+    from ..data import CHANNELS
+    doc = {name: np.asarray(rec.channels[name], dtype=np.float64).reshape(-1, 1)
+           for name in CHANNELS if name in rec.channels}
+    doc["sample_rate_hz"] = float(rec.fs_hz)
+    doc["t0_s"] = float(rec.t0_s)
+    try:
+        scipy.io.savemat(path, doc, do_compression=True)
+    except OSError as exc:
+        raise InputError(f"cannot write ({exc})", path=path) from None
+    return path

@@ -99,3 +99,25 @@ def read_parquet(path: Path, *, group: str | None = None,
     return assemble_recording(cmap, lookup, path=path, source=str(path),
                               native_rate=_native_rate(schema.metadata, path),
                               available=lambda: names)
+
+
+def write_parquet(path: Path, rec: Recording) -> Path:
+    """Write ``rec`` as a Parquet recording: one float64 column per channel it has (SI
+    units, each column's ``unit`` in its field metadata) and the sample rate ``sample_rate_hz``
+    [Hz] and ``t0_s`` [s] in the file's metadata, so it reads back exactly without a
+    ``[channels]`` table."""
+    from ..data import CHANNEL_UNITS, CHANNELS
+    fields, arrays = [], []
+    for name in CHANNELS:
+        if name in rec.channels:
+            fields.append(pa.field(name, pa.float64(),
+                                   metadata={b"unit": CHANNEL_UNITS[name].encode()}))
+            arrays.append(pa.array(np.asarray(rec.channels[name], dtype=np.float64)))
+    meta = {b"sample_rate_hz": repr(float(rec.fs_hz)).encode(),
+            b"t0_s": repr(float(rec.t0_s)).encode()}
+    table = pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=meta))
+    try:
+        pq.write_table(table, path)
+    except OSError as exc:
+        raise InputError(f"cannot write ({exc})", path=path) from None
+    return path

@@ -27,6 +27,8 @@ _READERS = {
 _WRITERS = {
     "csv": ("csv", "write_csv"),
     "hdf5": ("hdf5", "write_hdf5"),
+    "parquet": ("parquet", "write_parquet"),
+    "mat": ("matlab", "write_mat"),
 }
 
 
@@ -84,9 +86,11 @@ def read_entry(experiment: Experiment, entry: RecordingEntry) -> Recording:
 
 
 def write_recording(path: str | Path, rec: Recording, *, fmt: str = "csv", **kwargs) -> Path:
-    """Write ``rec`` in the project's ``csv`` or ``hdf5`` layout (docs/format.md)."""
+    """Write ``rec`` in the project's ``csv``, ``hdf5``, ``parquet`` or ``mat`` layout
+    (docs/format.md)."""
     try:
         writer = _function(*_WRITERS[fmt])
     except KeyError:
-        raise InputError(f"unknown output format '{fmt}'", hint="use csv or hdf5") from None
+        raise InputError(f"unknown output format '{fmt}'",
+                         hint=f"use one of {', '.join(_WRITERS)}") from None
     return writer(Path(path), rec, **kwargs)

@@ -248,4 +248,5 @@ def assemble_axle(run: Run, entry: RunRecording, config: OnboardConfig | None,
                                                                                       [])
     return OnboardResult(run, entry.axle, track, config, notes,
                          time.perf_counter() - t_start, est.tracker.n_fits,
-                         truth=load_truth(run), warnings=warnings)
+                         truth=load_truth(run), changes_m=tuple(est.tracker.changes),
+                         delay_s=est.delay_s, warnings=warnings)

@@ -5,20 +5,13 @@ estimator, written as ``track.parquet`` (one row per window, :data:`TRACK_COLUMN
 
 from __future__ import annotations
 
-import json
 import math
 import time
-from dataclasses import dataclass, field
-from datetime import UTC, datetime
 from pathlib import Path
 
-from .._version import __version__
 from ..blas import single_blas
 from ..errors import InputError
-from ..fsutil import atomic_dir, check_output_dir, sha256_file
 from ..io.run import Run, RunRecording, read_run
-from ..jsonutil import dump_json
-from ..provenance import software_versions
 from .chunks import (  # noqa: F401  (the fleet's chunk tasks: torquemod.fleettasks)
     CHUNK_S,
     AxlePart,
@@ -40,43 +33,10 @@ from .quality import (
     stepping,
     without_line_nearby,
 )
+from .result import OnboardResult
 
-
-@dataclass
-class OnboardResult:
-    """The track of one axle (``track``: a DataFrame with :data:`TRACK_COLUMNS` and
-    diagnostics), the run, the settings and what the reader noted."""
-
-    run: Run
-    axle: int
-    track: object
-    config: OnboardConfig
-    notes: list[str] = field(default_factory=list)
-    seconds: float = 0.0
-    n_fits: int = 0
-    truth: object | None = None
-    #: what the user must know: stretches of track without the method's premise, a run too
-    #: short for a friction estimate (:func:`premise_warnings`)
-    warnings: list[str] = field(default_factory=list)
-
-    def summary(self) -> dict:
-        t = self.track
-        given = t["mu"].notna()
-        ok = t["quality"] == QUALITY_OK if "quality" in t else given | True
-        out = {"axle": self.axle, "windows": len(t), "mu_given_share": float(given.mean()),
-               "measurable_share": float(ok.mean()) if len(t) else 0.0,
-               "low_adhesion_share": float(t["low_adhesion"].mean()),
-               "slip_share": float(t["slip"].mean()), "mu_fits": self.n_fits,
-               "seconds": self.seconds,
-               "length_m": float(t["position_m"].iloc[-1] - t["position_m"].iloc[0])
-               if len(t) else 0.0}
-        if given.any():
-            out["mu_median"] = float(t.loc[given, "mu"].median())
-        if "delay_s" in t and len(t):
-            # the net torque-behind-speed delay measured from the run and taken out
-            # (beyond the declared one; 0 while the windows did not determine it)
-            out["measured_delay_s"] = float(t["delay_s"].iloc[-1])
-        return out
+__all__ = ["TRACK_COLUMNS", "OnboardResult", "estimate_axle", "estimate_run", "load_truth",
+           "run_onboard", "track_table"]
 
 
 @single_blas
@@ -116,7 +76,8 @@ def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = 
     warnings += [coarse] if coarse else []
     return OnboardResult(run, entry.axle, track, config, notes,
                          time.perf_counter() - t_start, est.tracker.n_fits,
-                         truth=load_truth(run), warnings=warnings)
+                         truth=load_truth(run), changes_m=tuple(est.tracker.changes),
+                         delay_s=est.delay_s, warnings=warnings)
 
 
 def coarse_reference(speed_m_s, fs_hz: float, window_s: float, axle: int) -> str | None:
@@ -200,56 +161,24 @@ def load_truth(run: Run):
 
 def track_table(result: OnboardResult):
     """The ``track.parquet`` table: exactly :data:`TRACK_COLUMNS`."""
-    t = result.track[list(TRACK_COLUMNS)].copy()
-    t["low_adhesion"] = t["low_adhesion"].astype(bool)
-    t["slip"] = t["slip"].astype(bool)
-    t["quality"] = t["quality"].astype(str)
-    return t
+    return result.to_frame()
 
 
-def _write(folder: Path, results: list[OnboardResult], command: list[str] | None) -> None:
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    from .report import write_figures, write_report
-    run = results[0].run
-    meta = {"torquemod_version": __version__,
-            "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
-            "command": command, "software": software_versions(),
-            "run": {"manifest": str(run.manifest_path),
-                    "manifest_sha256": sha256_file(run.manifest_path),
-                    "vehicle": {k: getattr(run.vehicle, k) for k in
-                                run.vehicle.__dataclass_fields__},
-                    "modulation_frequency_hz": run.modulation_frequency_hz,
-                    "modulation_amplitude_nm": run.modulation_amplitude_nm,
-                    "recordings": [{"file": str(e.path), "axle": e.axle,
-                                    "sha256": sha256_file(e.path)} for e in run.recordings]},
-            "onboard": results[0].config.to_dict(),
-            "axles": [dict(r.summary(), notes=r.notes, warnings=r.warnings)
-                      for r in results]}
-    for r in results:
-        name = "track.parquet" if r is results[0] else f"track_axle{r.axle}.parquet"
-        table = pa.Table.from_pandas(track_table(r), preserve_index=False)
-        table = table.replace_schema_metadata({**(table.schema.metadata or {}),
-                                               b"torquemod": json.dumps(
-                                                   {k: meta[k] for k in
-                                                    ("torquemod_version", "created_utc",
-                                                     "onboard")}).encode()})
-        pq.write_table(table, folder / name)
-    (folder / "onboard.json").write_text(dump_json(meta))
-    figs = write_figures(folder, results[0])
-    write_report(folder / "report.html", results[0], meta, figs)
+def estimate_run(run: Run, config: OnboardConfig | None = None) -> list[OnboardResult]:
+    """Every axle of the run through the estimator, in the manifest's order."""
+    return [estimate_axle(run, e, config) for e in run.recordings]
 
 
-def run_onboard(run_path: str | Path, out_dir: str | Path, *, force: bool = False,
-                config: OnboardConfig | None = None, command: list[str] | None = None
-                ) -> list[OnboardResult]:
+def run_onboard(run_path: str | Path | Run, out_dir: str | Path, *, force: bool = False,
+                config: OnboardConfig | None = None, command: list[str] | None = None,
+                export=()) -> list[OnboardResult]:
     """Estimate every axle of the run ``run_path`` and write the results folder
-    ``out_dir`` atomically (nothing is left behind on an error)."""
-    run = read_run(run_path)
-    inputs = [run.manifest_path, *(e.path for e in run.recordings)]
-    check_output_dir(out_dir, force=force, inputs=inputs)  # an occupied --out: before work
-    results = [estimate_axle(run, e, config) for e in run.recordings]
-    with atomic_dir(Path(out_dir), force=force, inputs=inputs, kind="onboard") as tmp:
-        _write(tmp, results, command)
+    ``out_dir`` atomically (nothing is left behind on an error): ``torquemod onboard``."""
+    from ..export import check_formats
+    from .folder import check_onboard_out, save_onboard
+    check_formats(export)  # a bad format is refused before the work
+    run = run_path if isinstance(run_path, Run) else read_run(run_path)
+    check_onboard_out(run, out_dir, force=force)  # an occupied --out: before the work
+    results = estimate_run(run, config)
+    save_onboard(results, out_dir, force=force, command=command, export=export)
     return results

@@ -27,6 +27,7 @@ from ..fsutil import write_atomic
 from ..provenance import provenance
 from .figures import (
     creep_curve_figure,
+    figure_of,
     phase_figure,
     phase_fit_figure,
     save_figure,
@@ -74,7 +75,7 @@ class ReportOptions:
 
 def _png_bytes(fig, dpi: int) -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
+    figure_of(fig).savefig(buf, format="png", dpi=dpi)
     return buf.getvalue()
 
 

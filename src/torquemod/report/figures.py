@@ -2,10 +2,12 @@
 phase fit; the report numbers them 1-4).
 
 Every function takes the in-memory results (a cycle's traces, an
-:class:`~torquemod.analysisresult.Analysis`), draws on a given ``ax`` or a new
-:class:`matplotlib.figure.Figure` built with the object-oriented API (no pyplot, no display,
-no global state) and returns the Figure; :func:`save_figure` writes it as PNG and SVG with the
-Agg/SVG canvases, so this works headless.
+:class:`~torquemod.analysisresult.Analysis`), draws on a given ``ax`` and returns it
+(matplotlib's and pandas' convention: a notebook cell shows the figure once), or without one
+on a new :class:`matplotlib.figure.Figure` built with the object-oriented API (no pyplot, no
+display, no global state) and returns its Axes (``ax.figure`` is the Figure);
+:func:`save_figure` writes it as PNG and SVG with the Agg/SVG canvases, so this works
+headless.
 """
 
 from __future__ import annotations
@@ -19,8 +21,16 @@ from matplotlib.figure import Figure
 from ..creep import phase_from_constant_deg
 from ..errors import InputError
 
-__all__ = ["creep_curve_figure", "phase_figure", "phase_fit_figure", "save_figure",
-           "signals_figure"]
+__all__ = ["creep_curve_figure", "figure_of", "phase_figure", "phase_fit_figure",
+           "save_figure", "signals_figure"]
+
+
+def figure_of(drawn) -> Figure:
+    """The Figure of what a plot function returned: an Axes, a sequence or array of Axes,
+    or a Figure itself."""
+    if isinstance(drawn, list | tuple | np.ndarray):
+        drawn = np.asarray(drawn, dtype=object).ravel()[0]
+    return drawn.figure
 
 
 def _axes(ax, n: int = 1, *, figsize=(7.0, 5.0)):
@@ -34,13 +44,13 @@ def _axes(ax, n: int = 1, *, figsize=(7.0, 5.0)):
     return first.figure, ax
 
 
-def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None) -> Figure:
+def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None):
     """Paper Figure 2 of one cycle from its named arrays (``ProcessResult.traces[(step,
     cycle)]``): (a) applied torque [N m], (b) wheel angular velocity [rad/s], raw and after
     the band-pass (the filtered signal drawn about the mean of the resampled one so both share
     an axis); the phase window is shaded. ``ax``: a pair of Axes (panels (a) and (b)), or one
     Axes (one panel: the wheel speed on its twin y axis, one title); a new two-panel Figure
-    when None."""
+    when None. Returns ``ax`` as given, or the new Figure's two Axes (an array)."""
     if "t_raw_s" not in traces:
         raise InputError(f"no traces for step {step} cycle {cycle}")
 
@@ -49,11 +59,11 @@ def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None) -> F
 
     single = ax is not None and not isinstance(ax, list | tuple | np.ndarray)
     if single:
-        fig, axes = ax.figure, [ax, ax.twinx()]
+        axes = [ax, ax.twinx()]
         ax.set_title(f"Step {step}, cycle {cycle} (wheel speed: right axis)", loc="left",
                      fontsize=10)
     else:
-        fig, axes = _axes(ax, 2, figsize=(9.5, 6.0))
+        _fig, axes = _axes(ax, 2, figsize=(9.5, 6.0))
     rows = (("torque", "nm", "Applied torque [N·m]", "(a)", "C0"),
             ("wheel_speed", "rad_s", "Wheel angular velocity [rad/s]", "(b)", "C2"))
     t_raw, t_s, win = get("t_raw_s"), get("t_s"), get("phase_window_s")
@@ -88,7 +98,7 @@ def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None) -> F
         axes[-1 if single else 0].legend(handles, labels, loc="upper left", fontsize=7,
                                          ncol=2)
     axes[-1].set_xlabel("Time from cycle start [s]")
-    return fig
+    return axes if ax is None else ax
 
 
 def _value_pm(value: float, err: float | None) -> str:
@@ -116,12 +126,12 @@ def _peaks_in(t, x, window) -> np.ndarray:
 
 
 def creep_curve_figure(ana, *, ax=None, coa_multiplier: float = 20.0,
-                       creepage_multiplier: float = 5.0) -> Figure:
+                       creepage_multiplier: float = 5.0):
     """Paper Figure 3 of an :class:`~torquemod.analysisresult.Analysis`: CoA against
     longitudinal creepage [%] with error bars of ``coa_multiplier`` x std(CoA) and
     ``creepage_multiplier`` x std(creepage) over cycles (stated in the legend), and the
     fitted Polach curve (dashed)."""
-    fig, ax = _axes(ax)
+    _fig, ax = _axes(ax)
     steps = ana.steps
     xi = np.asarray(steps["creepage"], dtype=float)
     coa = np.asarray(steps["coa"], dtype=float)
@@ -149,15 +159,15 @@ def creep_curve_figure(ana, *, ax=None, coa_multiplier: float = 20.0,
     ax.set_ylim(bottom=0)
     ax.grid(True, alpha=0.3)
     ax.legend(loc="lower right", fontsize=8)
-    return fig
+    return ax
 
 
-def phase_figure(ana, *, ax=None) -> Figure:
+def phase_figure(ana, *, ax=None):
     """Paper Figure 4 of an :class:`~torquemod.analysisresult.Analysis`: measured phase
     difference [deg] (bars: std over cycles) against the DC torque as % of the saturation
     torque ``Ts = mu*N*Rw`` (N·m when mu is undetermined), with the rigid-wheel theory
     ``atan(C/k)`` along the fitted curve and at each step; the onset step is marked."""
-    fig, ax = _axes(ax)
+    _fig, ax = _axes(ax)
     steps = ana.steps
     ts = ana.saturation_torque_nm
     dc = np.asarray(steps["dc_torque_nm"], dtype=float)
@@ -196,7 +206,7 @@ def phase_figure(ana, *, ax=None) -> Figure:
     ax.set_ylabel("Phase difference φ [deg]")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left", fontsize=8)
-    return fig
+    return ax
 
 
 def _ts_axis_label(ana) -> str:
@@ -209,13 +219,13 @@ def _ts_axis_label(ana) -> str:
     return f"DC torque [% of Ts = {ts:.1f} N·m, {source}]"
 
 
-def phase_fit_figure(ana, *, ax=None) -> Figure:
+def phase_fit_figure(ana, *, ax=None):
     """The phase progression against the utilised adhesion CoA [-] (mu from the phase, issue
     8) of an :class:`~torquemod.analysisresult.Analysis`: measured phase per fitted step
     (bars: 2 standard errors), the fitted ``tan phi = C/k(CoA)`` curve
     (:func:`torquemod.phasefit.fit_mu_from_phase`), its mu with the 95 % interval (or lower
     bound) and the force fit's mu; each step is labelled with its utilisation CoA/mu."""
-    fig, ax = _axes(ax)
+    _fig, ax = _axes(ax)
     pts, use = ana.points, ana.used
     table = ana.steps.set_index("step").reindex(pts.step)
     coa = np.asarray(table["coa_torque"], float) if "coa_torque" in table else pts.coa
@@ -255,12 +265,14 @@ def phase_fit_figure(ana, *, ax=None) -> Figure:
     ax.set_xlim(left=0)
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left", fontsize=8)
-    return fig
+    return ax
 
 
-def save_figure(fig: Figure, base: Path, *, formats=("png", "svg"), dpi: int = 150
+def save_figure(fig, base: Path, *, formats=("png", "svg"), dpi: int = 150
                 ) -> list[Path]:
-    """Save ``fig`` as ``base.<fmt>`` for each format; returns the paths."""
+    """Save ``fig`` (a Figure, or the Axes a plot function returned) as ``base.<fmt>`` for
+    each format; returns the paths."""
+    fig = figure_of(fig)
     base = Path(base)
     base.parent.mkdir(parents=True, exist_ok=True)
     paths = []

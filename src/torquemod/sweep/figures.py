@@ -1,5 +1,6 @@
-"""Figures of a rig sweep (matplotlib; every function takes ``ax=`` and returns the Figure,
-as :mod:`torquemod.report.figures` does, never ``plt.show``).
+"""Figures of a rig sweep (matplotlib; every function takes ``ax=`` and returns it, or draws
+on a new Figure (not pyplot) and returns its Axes (several panels: an array of them), as
+:mod:`torquemod.report.figures` does; never ``plt.show``).
 
 The sweep is drawn per *condition* (:mod:`torquemod.sweep.conditions`: one distinct
 combination of the swept parameters other than the modulation setting):
@@ -83,6 +84,15 @@ def _panel_grid(n: int, ax, *, width=5.0, height=3.6, cols_max=2):
     return fig, axes[:n]
 
 
+def _drawn(axes, ax):
+    """What a figure function returns: the ``ax`` it was given, else the new Figure's Axes
+    (an array when it holds several panels, one Axes otherwise)."""
+    if ax is not None:
+        return ax
+    axes = np.asarray(axes, dtype=object).ravel()
+    return axes[0] if axes.size == 1 else axes
+
+
 def _draw_progression(ax, g: pd.DataFrame, color, slot: int = 0) -> None:
     """One progression (the steps of one point): large-signal theory (line), Eq. (1)
     (dotted), the chain (markers, 95 % bars) and crosses at the steps where the wheel
@@ -131,7 +141,7 @@ def _style_handles(table: pd.DataFrame) -> list:
 
 
 def phase_panels_figure(table: pd.DataFrame, *, panel: str = CONDITION_COLUMN,
-                        curve: str = FREQ, panels=None, title: str = "", ax=None) -> Figure:
+                        curve: str = FREQ, panels=None, title: str = "", ax=None):
     """The phase against utilisation, one panel per value of ``panel`` (default: the
     condition; ``panels`` selects and orders them) and one colour per value of ``curve``
     (default: the modulation frequency). ``table`` holds the rows to draw (one modulation
@@ -158,10 +168,10 @@ def phase_panels_figure(table: pd.DataFrame, *, panel: str = CONDITION_COLUMN,
                fontsize=7, frameon=False)
     if title:
         fig.suptitle(title, fontsize=10)
-    return fig
+    return _drawn(axes, ax)
 
 
-def creep_curves_figure(curves: dict, table: pd.DataFrame, *, ax=None) -> Figure:
+def creep_curves_figure(curves: dict, table: pd.DataFrame, *, ax=None):
     """Per condition (one panel each) the longitudinal adhesion-creepage curve ``F_x/N``
     at the operating speed (Polach 2005), its peak -- the available adhesion, the true mu
     of the sweep -- and the steady operating points of the steps (``T_dc/(R*N)``); in full
@@ -213,19 +223,19 @@ def creep_curves_figure(curves: dict, table: pd.DataFrame, *, ax=None) -> Figure
                            ms=7, label=f"chain at {f:.3g} Hz") for j, f in enumerate(freqs)]
     fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 4),
                fontsize=7, frameon=False)
-    return fig
+    return _drawn(axes, ax)
 
 
 def _wrap(label: str, width: int = 22) -> str:
     return "\n".join(textwrap.wrap(label, width, break_long_words=False)) or "all points"
 
 
-def sensitivity_figure(summary: pd.DataFrame, *, ax=None) -> Figure:
+def sensitivity_figure(summary: pd.DataFrame, *, ax=None):
     """The slope dphi/du of the phase over the 50-80 % utilisation band [deg per %]:
     against the modulation frequency, one colour per condition and one line style per
     amplitude (large-signal theory: lines; chain: markers). With a single frequency the
     conditions are the x axis (categories: markers only)."""
-    fig, ax = _axes(ax, figsize=(7.5, 4.6))
+    _fig, ax = _axes(ax, figsize=(7.5, 4.6))
     conds = list(dict.fromkeys(summary[CONDITION_COLUMN]))
     amps = list(dict.fromkeys(summary[AMP]))
     chain = summary["dphi_du_chain"].notna().any()
@@ -263,16 +273,16 @@ def sensitivity_figure(summary: pd.DataFrame, *, ax=None) -> Figure:
     ax.grid(True, alpha=0.3)
     if handles:
         ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    return fig
+    return ax
 
 
-def mu_error_figure(summary: pd.DataFrame, *, ax=None) -> Figure:
+def mu_error_figure(summary: pd.DataFrame, *, ax=None):
     """mu from the phase relative to the true mu (the available adhesion) [%], grouped per
     condition, the modulation settings side by side (colour: frequency, marker: amplitude):
     filled with the 95 % interval where mu is determined, open at the lower bound where it
     is not. Markers only: the conditions are categories."""
     conds = list(dict.fromkeys(summary[CONDITION_COLUMN]))
-    fig, ax = _axes(ax, figsize=(max(7.5, 1.3 * len(conds) + 3.0), 4.8))
+    _fig, ax = _axes(ax, figsize=(max(7.5, 1.3 * len(conds) + 3.0), 4.8))
     freqs = sorted(dict.fromkeys(summary[FREQ]))
     amps = list(dict.fromkeys(summary[AMP]))
     settings = [(f, a) for f in freqs for a in amps
@@ -310,16 +320,16 @@ def mu_error_figure(summary: pd.DataFrame, *, ax=None) -> Figure:
     handles.append(Line2D([], [], color="0.35", marker="o", mfc="none", ls="",
                           label="lower bound (μ not determined)"))
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    return fig
+    return ax
 
 
 def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None,
                        ripple_label: str = "torque ripple [% of Ts]",
                        title: str = "disturbance added by the modulation (largest below the "
-                                    "utilisation limit; dashed: limits)") -> Figure:
+                                    "utilisation limit; dashed: limits)"):
     """Per modulation setting the largest creepage swing amplitude and torque ripple [% of
     the saturation torque] below the utilisation limit, with the limits dashed."""
-    fig, axes = _axes(ax, 2, figsize=(7.0, 5.5))
+    _fig, axes = _axes(ax, 2, figsize=(7.0, 5.5))
     label = [f"{f:.3g} Hz\n{a:.3g} N*m" for f, a in zip(
         settings["modulation_frequency_nominal_hz"], settings["modulation_amplitude_nm"],
         strict=True)]
@@ -332,4 +342,4 @@ def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None,
     axes[1].set_ylabel(ripple_label)
     axes[1].set_xticks(x, label, fontsize=7)
     axes[0].set_title(title, fontsize=9)
-    return fig
+    return _drawn(axes, ax)

@@ -17,6 +17,7 @@ import pandas as pd
 
 from .._version import __version__
 from ..fsutil import write_atomic
+from ..report.figures import figure_of
 from ..report.html import CSS, _img, table
 from . import figures as F
 from .conditions import CONDITION_COLUMN, condition_labels
@@ -38,7 +39,7 @@ _STEP_COLUMNS = ("point_index", "seed", "step", "dc_torque_nm", "utilisation", "
 
 def _png(fig) -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
+    figure_of(fig).savefig(buf, format="png", dpi=110)
     return buf.getvalue()
 
 
@@ -161,7 +162,7 @@ def make_figures(tab: pd.DataFrame, spec: SweepSpec, rec: dict) -> list[tuple[st
             "max_torque_ripple_pct": spec.recommend.max_torque_ripple_pct})),
             "Disturbance the modulation adds (largest creepage swing amplitude and torque "
             "ripple below the utilisation limit) per modulation setting."))
-    return out
+    return [(stem, figure_of(drawn), caption) for stem, drawn, caption in out]
 
 
 def reasoning_html(text: str, cls: str = "") -> str:

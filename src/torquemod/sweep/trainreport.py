@@ -28,6 +28,7 @@ from matplotlib.figure import Figure
 
 from .._version import __version__
 from ..fsutil import write_atomic
+from ..report.figures import figure_of
 from ..report.html import CSS, _img, table
 from .report import reasoning_html, save_png
 from .spec import SweepSpec
@@ -310,7 +311,7 @@ def make_train_figures(table: pd.DataFrame, spec: SweepSpec, rec: dict):
                     "Disturbance each modulation setting adds on the train: the largest "
                     "creepage swing amplitude and the median torque ripple relative to the DC "
                     "torque over the periods of a constant demand (dashed: limits)."))
-    return out
+    return [(stem, figure_of(drawn), caption) for stem, drawn, caption in out]
 
 
 # ----------------------------------------------------------------------------- report
@@ -323,7 +324,7 @@ _ROW_COLUMNS = ("point_index", "seed", "segment", "condition", "modulation_frequ
 
 def _png(fig) -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
+    figure_of(fig).savefig(buf, format="png", dpi=110)
     return buf.getvalue()
 
 

@@ -141,6 +141,15 @@ def measure(raw: np.ndarray, cfg: TrainConfig, *, seed: int = 0) -> dict:
             "reference_time_s": t_ref, "vehicle_speed_m_s": v_ref, "position_m": pos}
 
 
+def adhesion_utilisation(coa, available_adhesion):
+    """The utilisation of the adhesion: the utilised adhesion CoA [-] over the available
+    adhesion [-] (the maximum of the adhesion-creepage curve at the operating point), 1 at
+    saturation. The one definition of the truth's utilisation: the truth table's
+    ``utilisation`` column, ``simulate --train``'s "max utilisation" and the on-board
+    report's truth line."""
+    return np.asarray(coa, dtype=float) / np.asarray(available_adhesion, dtype=float)
+
+
 def truth_table(raw: np.ndarray, cfg: TrainConfig):
     """The truth along the run, one row per modulation period (means of the true signals
     over it, so the modulation averages out), a pandas DataFrame (docs/format.md)."""
@@ -165,7 +174,7 @@ def truth_table(raw: np.ndarray, cfg: TrainConfig):
     return pd.DataFrame({
         "time_s": mean[:, 0], "position_m": mean[:, 5], "speed_m_s": v,
         "condition": names, "mu": mean[:, 9], "mu0": pars[:, 0], "adhesion_peak": peak,
-        "creepage_at_peak": xi_peak, "coa": coa, "utilisation": coa / peak,
+        "creepage_at_peak": xi_peak, "coa": coa, "utilisation": adhesion_utilisation(coa, peak),
         "creepage": xi, "creep_coefficient": k, "normal_load_n": n,
         "dc_torque_nm": mean[:, 11], "antislip": blk[:, :, 10].min(axis=1) < 1.0})
 
@@ -279,6 +288,7 @@ def segment_summary(truth) -> list[dict]:
         out.append({"condition": str(cond[lo]), "start_m": float(part.position_m.iloc[0]),
                     "end_m": float(part.position_m.iloc[-1]), "mu": float(part.mu.mean()),
                     "adhesion_peak": float(part.adhesion_peak.mean()),
-                    "max_utilisation": float(part.utilisation.max())})
+                    "max_utilisation": float(np.max(adhesion_utilisation(
+                        part.coa, part.adhesion_peak)))})
     return out
 
