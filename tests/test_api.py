@@ -406,8 +406,6 @@ def test_readme_python_api_example_runs(tmp_path, monkeypatch, capsys):
     assert [q for q in quoted if q not in text] == []
 
 
-@pytest.mark.skipif(not hasattr(tm, "read_run"), reason="tm.read_run and tm.onboard come "
-                    "with the in-memory train API (a branch of its own)")
 def test_readme_train_example_runs(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     exec(compile(_readme_block("The train in Python"), "README.md", "exec"),
