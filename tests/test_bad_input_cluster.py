@@ -215,6 +215,18 @@ def _wait_for(pred, timeout: float) -> None:
             raise AssertionError("timed out")
         time.sleep(0.2)
 
+def _stop_when(proc, ready, stop) -> tuple[str, str]:
+    """Wait until ``ready()`` (at most 240 s), call ``stop()`` and collect the process's
+    output; the process group is killed whatever happens."""
+    try:
+        _wait_for(ready, 240)
+        stop()
+        return proc.communicate(timeout=120)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+
+
 
 def test_sweep_ctrl_c_stops_quietly_and_resumes(tmp_path):
     tmp = tmp_path / "tmp"
@@ -224,13 +236,9 @@ def test_sweep_ctrl_c_stops_quietly_and_resumes(tmp_path):
                                      f"[{values}]\n", encoding="utf-8")
     args = ["sweep", "s.toml", "--out", "out", "--workers", "1"]
     proc = _start([*args, "--quiet"], tmp, tmp_path)
-    try:  # interrupted once some points are done
-        _wait_for(lambda: len(list((tmp_path / "out" / "points").glob("point=*"))) >= 2, 240)
-        os.killpg(proc.pid, signal.SIGINT)  # as the terminal: the workers get it too
-        out, err = proc.communicate(timeout=120)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
+    out, err = _stop_when(  # interrupted once some points are done
+        proc, lambda: len(list((tmp_path / "out" / "points").glob("point=*"))) >= 2,
+        lambda: os.killpg(proc.pid, signal.SIGINT))  # as the terminal: the workers get it too
     assert proc.returncode == 130, err
     assert "Traceback" not in err + out
     assert err.strip().splitlines()[-1] == "torquemod: interrupted"
@@ -256,13 +264,9 @@ def test_fleet_sigterm_exits_143_quietly(tmp_path, experiment):  # noqa: F811
             (runs / f"r{i}" / p.name).write_bytes(p.read_bytes())
     args = ["fleet", "runs", "--out", "out", "--workers", "1", "--quiet"]
     proc = _start(args, tmp, tmp_path)
-    try:
-        _wait_for(lambda: len(list((tmp_path / "out" / "_state").glob("*.json"))) >= 1, 240)
-        proc.send_signal(signal.SIGTERM)  # a job scheduler's stop: this process only
-        out, err = proc.communicate(timeout=120)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
+    out, err = _stop_when(
+        proc, lambda: len(list((tmp_path / "out" / "_state").glob("*.json"))) >= 1,
+        lambda: proc.send_signal(signal.SIGTERM))  # a job scheduler's stop: this process only
     assert proc.returncode == 143, err
     assert "Traceback" not in err + out
     assert err.strip().splitlines()[-1] == "torquemod: terminated"
