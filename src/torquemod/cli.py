@@ -319,12 +319,16 @@ def _print_train_demo(train: dict) -> None:
     print()
     print(f"train run:     {train['run']}")
     print(f"train report:  {train['report']}")
-    print(f"{'segment':>18} {'span [m]':>12} {'friction':>9} {'mu est.':>9} {'lower bd':>9}")
+    print(f"{'segment':>18} {'span [m]':>12} {'friction':>9} {'available':>9} {'mu est.':>9} "
+          f"{'lower bd':>9}")
     for s in train["segments"]:
         print(f"{s['condition']:>18} {s['start_m']:5.0f}-{s['end_m']:<6.0f} {s['mu']:9.3f} "
-              f"{_fmt(s['mu_estimate'], '9.3f')} {_fmt(s['mu_lower_bound'], '9.3f')}")
-    print("where mu is not determined (the axle stayed far from saturation for the curve's "
-          "shape to fix mu), the lower bound is what the data show.")
+              f"{s['adhesion_peak']:9.3f} {_fmt(s['mu_estimate'], '9.3f')} "
+              f"{_fmt(s['mu_lower_bound'], '9.3f')}")
+    print("friction: the twin's mean friction; available: its available adhesion (the creep "
+          "curve's peak), what 'mu est.' and 'lower bd' estimate. Where mu is not determined "
+          "(the axle stayed far from saturation for the curve's shape to fix it), the lower "
+          "bound is what the data show.")
 
 
 def _why_they_differ(out: dict, truth: dict) -> str:
