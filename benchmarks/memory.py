@@ -62,13 +62,26 @@ RIG_CHANNELS = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n"
                 "fz_n")
 
 
+def _write_long_manifest(folder: Path, spec) -> None:
+    """The manifest of one step recorded as ``long.h5`` at 2 Hz, with the rig of ``spec``
+    (a :class:`torquemod.testing.SyntheticSpec`)."""
+    from torquemod.io import write_manifest
+
+    write_manifest(folder / "experiment.toml",
+                   rig={"wheel_radius_m": spec.wheel_radius_m,
+                        "platform_radius_m": spec.platform_radius_m},
+                   test={"normal_load_n": spec.normal_load_n, "modulation_frequency_hz": 2.0,
+                         "modulation_amplitude_nm": spec.modulation_amplitude_nm},
+                   recordings=[{"step": 1, "dc_torque_nm": spec.dc_torque_nm,
+                                "file": "long.h5"}])
+
+
 def generate(folder: Path, minutes: float) -> dict:
     """One HDF5 file of ``minutes`` of synthetic data, written revolution by revolution."""
     import h5py
     import numpy as np
 
     from torquemod.data import CHANNEL_UNITS
-    from torquemod.io import write_manifest
     from torquemod.testing import SyntheticSpec, synthetic_recording
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -93,13 +106,7 @@ def generate(folder: Path, minutes: float) -> dict:
                 ds[c].resize((n + m,))
                 ds[c][n:n + m] = rec.channels[c]
             n += m
-    write_manifest(folder / "experiment.toml",
-                   rig={"wheel_radius_m": base.wheel_radius_m,
-                        "platform_radius_m": base.platform_radius_m},
-                   test={"normal_load_n": base.normal_load_n, "modulation_frequency_hz": 2.0,
-                         "modulation_amplitude_nm": base.modulation_amplitude_nm},
-                   recordings=[{"step": 1, "dc_torque_nm": base.dc_torque_nm,
-                                "file": "long.h5"}])
+    _write_long_manifest(folder, base)
     return {"n_samples": n, "revolutions": n_rev, "duration_s": n / FS_HZ}
 
 
@@ -150,7 +157,6 @@ def generate_long(folder: Path, minutes: float, dtype: str = "f8",
     import numpy as np
 
     from torquemod.data import CHANNEL_UNITS
-    from torquemod.io import write_manifest
     from torquemod.testing import SyntheticSpec
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -189,13 +195,7 @@ def generate_long(folder: Path, minutes: float, dtype: str = "f8",
                  "fz_n": sp.normal_load_n + sp.force_noise_n * rng.standard_normal(m)}
             for c in RIG_CHANNELS:
                 ds[c][a:b] = x[c]
-    write_manifest(folder / "experiment.toml",
-                   rig={"wheel_radius_m": sp.wheel_radius_m,
-                        "platform_radius_m": sp.platform_radius_m},
-                   test={"normal_load_n": sp.normal_load_n, "modulation_frequency_hz": 2.0,
-                         "modulation_amplitude_nm": sp.modulation_amplitude_nm},
-                   recordings=[{"step": 1, "dc_torque_nm": sp.dc_torque_nm,
-                                "file": "long.h5"}])
+    _write_long_manifest(folder, sp)
     return {"n_samples": n_total, "revolutions": int(n_total / FS_HZ * wp / (2 * np.pi)),
             "duration_s": n_total / FS_HZ}
 
