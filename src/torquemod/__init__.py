@@ -23,11 +23,14 @@ from .errors import InputError, OutputError, ProcessingError, TorquemodError
 # the public names and the modules they live in: imported on first use (PEP 562), so that
 # `import torquemod` -- and every command, the twin's included -- does not pay for scipy,
 # pandas and matplotlib before it needs them
-_LAZY = {"FitOptions": "analysis", "Analysis": "analysisresult", "analyze": "api",
-         "load": "api", "process": "api", "read_experiment": "api", "run": "api",
-         "save": "api", "read_run": "api", "onboard": "api", "load_onboard": "api",
-         "OnboardResult": "onboard.result", "Run": "io.run", "ProcessingConfig": "config",
-         "Experiment": "data", "Recording": "data", "ProcessResult": "pipeline"}
+_LAZY = {"FitOptions": "torquemod.analysis", "Analysis": "torquemod.analysisresult",
+         "analyze": "torquemod.api", "load": "torquemod.api", "process": "torquemod.api",
+         "read_experiment": "torquemod.api", "run": "torquemod.api", "save": "torquemod.api",
+         "read_run": "torquemod.api", "onboard": "torquemod.api",
+         "load_onboard": "torquemod.api", "OnboardResult": "torquemod.onboard.result",
+         "Run": "torquemod.io.run", "ProcessingConfig": "torquemod.config",
+         "Experiment": "torquemod.data", "Recording": "torquemod.data",
+         "ProcessResult": "torquemod.pipeline"}
 
 __all__ = ["Analysis", "Experiment", "FitOptions", "InputError", "OnboardResult",
            "OutputError", "ProcessResult", "ProcessingConfig", "ProcessingError", "Recording",
@@ -40,9 +43,9 @@ def __getattr__(name: str):
     when first asked for."""
     import importlib
     if name == "twin":
-        return importlib.import_module(".twin", __name__)
+        return importlib.import_module("torquemod.twin")
     if name in _LAZY:
-        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        value = getattr(importlib.import_module(_LAZY[name]), name)
         globals()[name] = value
         return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -48,16 +48,17 @@ Stage = Callable[[str], object] | None
 #: Names this module offers from the heavier ones (scipy, matplotlib, pandas behind them),
 #: imported when first used, so that a command prints its first stage line before it
 #: waits for them.
-_LAZY = {"analyze": ".analysis", "FitOptions": ".analysis", "Analysis": ".analysisresult",
-         "load": ".layout", "save": ".layout", "update": ".layout",
-         "ProcessResult": ".pipeline", "process_experiment": ".pipeline",
-         "resolve_config": ".pipeline"}
+_LAZY = {"analyze": "torquemod.analysis", "FitOptions": "torquemod.analysis",
+         "Analysis": "torquemod.analysisresult", "load": "torquemod.layout",
+         "save": "torquemod.layout", "update": "torquemod.layout",
+         "ProcessResult": "torquemod.pipeline", "process_experiment": "torquemod.pipeline",
+         "resolve_config": "torquemod.pipeline"}
 
 
 def __getattr__(name: str):
     if name not in _LAZY:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(_LAZY[name], __package__), name)
+    value = getattr(importlib.import_module(_LAZY[name]), name)
     globals()[name] = value
     return value
 

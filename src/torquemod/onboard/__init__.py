@@ -1,13 +1,10 @@
-"""The on-board estimator (issue 10): the friction along a train run from torque and axle
-speed, with honest uncertainty.
+"""The on-board (on-train) measurement: the friction along a train run from an axle's torque
+and speed, with its uncertainty.
 
-The package is also the API call ``tm.onboard(run, **options)``: importing a subpackage
-makes it the parent's attribute of that name, so ``torquemod.onboard`` is this package once
-anything imported it; calling it runs :func:`torquemod.api.onboard`.
+Users call :func:`torquemod.onboard` (the function, :func:`torquemod.api.onboard`); this
+package holds its stages: windows (:mod:`.window`), the estimator (:mod:`.estimator`), the
+run over chunks of a recording (:mod:`.run`, :mod:`.chunks`), the result and its folder.
 """
-
-import sys
-import types
 
 from .estimator import TRACK_COLUMNS, MuTracker, OnboardConfig, OnboardEstimator
 from .result import OnboardResult
@@ -18,14 +15,3 @@ __all__ = ["TRACK_COLUMNS", "MuTracker", "OnboardConfig", "OnboardEstimator", "O
            "WindowResult", "damping_from_ratio", "estimate_axle", "load_impedance",
            "measure_window",
            "run_onboard"]
-
-
-class _CallablePackage(types.ModuleType):
-    """This package, callable as :func:`torquemod.api.onboard`."""
-
-    def __call__(self, run, *, axle=None, config=None, **options):
-        from ..api import onboard
-        return onboard(run, axle=axle, config=config, **options)
-
-
-sys.modules[__name__].__class__ = _CallablePackage
