@@ -3,7 +3,7 @@
 Writes a synthetic fleet (``--runs`` experiments of 6 steps x ``--cycles`` one-revolution
 HDF5 recordings at 16 670 Hz, and ``--train-runs`` train runs of the twin, ``--train-length-m``
 each, MDF4), then for each worker count processes the whole fleet with
-:func:`torquemod.fleet.run_fleet` on a ``LocalCluster`` of that many single-threaded worker
+:func:`torquemod.fleet.run.run_fleet` on a ``LocalCluster`` of that many single-threaded worker
 processes (``force``: nothing skipped) and prints
 
 * the wall time of ``run_fleet`` and, of it, the seconds spent writing ``fleet_report.html``
@@ -47,8 +47,8 @@ def _warm_up() -> None:
     """Imports and the numba kernels' cache, once per worker, outside the timing."""
     import numpy as np
 
-    import torquemod.onboard.run
-    import torquemod.pipeline  # noqa: F401
+    import torquemod.ontrain.run
+    import torquemod.process.pipeline  # noqa: F401
     from torquemod.dsp import filters
 
     filters.resample(np.zeros((2, 5000)), 2, 625, method="two_stage", padtype="constant")
@@ -63,7 +63,7 @@ def write_fleet(root: Path, runs: int, cycles: int, train_runs: int = 0,
     import h5py
 
     from torquemod.testing import write_synthetic_experiment
-    from torquemod.train import load_train_config, run_train_simulation
+    from torquemod.twins.train import load_train_config, run_train_simulation
 
     for k in range(runs):
         folder = root / f"run{k:03d}"
@@ -101,7 +101,7 @@ def main() -> None:
 
     from dask.distributed import Client, LocalCluster, get_task_stream
 
-    from torquemod.fleet import run_fleet
+    from torquemod.fleet.run import run_fleet
 
     with tempfile.TemporaryDirectory(dir=args.workdir) as tmp:
         root = Path(args.workdir or tmp) / "fleet"

@@ -27,7 +27,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(__file__))
 import _independent_laws as laws
 
-from torquemod.friction import (
+from torquemod.analysis.friction import (
     MODEL_REL_COA,
     MODEL_REL_ERROR,
     fit_available_adhesion,

@@ -35,7 +35,7 @@ that does not fit is skipped with a line saying so.
                                 [--src OTHER_CHECKOUT/src]
 
 ``--train HOURS...`` (issues 10 and 11) measures a train run through the on-board estimator
-(``torquemod.onboard.run.estimate_axle``, which reads through ``RunStream`` 30 s at a time):
+(``torquemod.ontrain.run.estimate_axle``, which reads through ``RunStream`` 30 s at a time):
 an HDF5 run of the twin's layout (torque and wheel speed at 1 kHz, the reference speed and
 position at 20 Hz on their own time vector) written in blocks, processed in a fresh process
 streamed, and, for comparison, read whole first (the batch path before streaming).
@@ -57,7 +57,7 @@ from pathlib import Path
 
 FS_HZ = 16_670.0
 N_CHANNELS = 7  # time + the 6 method channels
-#: the rig's six channels (torquemod.data.CHANNELS also lists the train run's two)
+#: the rig's six channels (torquemod.io.experiment.CHANNELS also lists the train run's two)
 RIG_CHANNELS = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", "fy_n",
                 "fz_n")
 
@@ -81,7 +81,7 @@ def generate(folder: Path, minutes: float) -> dict:
     import h5py
     import numpy as np
 
-    from torquemod.data import CHANNEL_UNITS
+    from torquemod.io.experiment import CHANNEL_UNITS
     from torquemod.testing import SyntheticSpec, synthetic_recording
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -130,8 +130,8 @@ def measure(folder: Path, workers: int, trace: bool, out_dir: Path) -> dict:
     import scipy.signal  # noqa: F401
 
     from torquemod.api import run  # noqa: F401
-    from torquemod.layout import save
-    from torquemod.pipeline import process_experiment
+    from torquemod.process.pipeline import process_experiment
+    from torquemod.results.folder import save
 
     base_now = _rss_now_bytes()
     base_peak = _rss_peak_bytes()
@@ -156,7 +156,7 @@ def generate_long(folder: Path, minutes: float, dtype: str = "f8",
     import h5py
     import numpy as np
 
-    from torquemod.data import CHANNEL_UNITS
+    from torquemod.io.experiment import CHANNEL_UNITS
     from torquemod.testing import SyntheticSpec
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -268,7 +268,7 @@ def generate_plain(path: Path, hours: float, block: int = 1 << 20) -> int:
     import h5py
     import numpy as np
 
-    from torquemod.data import CHANNEL_UNITS
+    from torquemod.io.experiment import CHANNEL_UNITS
 
     n = round(hours * 3600 * FS_HZ)
     rng = np.random.default_rng(1)
@@ -309,10 +309,10 @@ def measure_read(path: Path, mode: str) -> dict:
         n = rec.n_samples
         total = sum(float(x.sum()) for x in rec.channels.values())
     elif mode == "revolutions":  # streamed, and the per-cycle chain on every revolution
-        from torquemod import chain
-        from torquemod.config import ProcessingConfig
-        from torquemod.data import Rig
+        from torquemod.io.experiment import Rig
+        from torquemod.io.processing import ProcessingConfig
         from torquemod.io.stream import open_stream
+        from torquemod.process import chain
 
         cfg, rig, n = ProcessingConfig(), Rig(0.0675, 2.0), 0
         with open_stream(path) as stream:
@@ -441,8 +441,8 @@ def measure_train(folder: Path, mode: str) -> dict:
 
     from torquemod.io.recording import read_recording
     from torquemod.io.run import read_run
-    from torquemod.onboard.estimator import OnboardConfig, OnboardEstimator
-    from torquemod.onboard.run import estimate_axle
+    from torquemod.ontrain.estimator import OnboardConfig, OnboardEstimator
+    from torquemod.ontrain.run import estimate_axle
 
     run = read_run(folder / "run.toml")
     e = run.recordings[0]

@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from torquemod.phasefit import fit_mu_from_phase
+from torquemod.analysis.phasefit import fit_mu_from_phase
 from torquemod.testing import synthetic_phase_progression
 
 C = 10.2

@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from torquemod.onboard.run import run_onboard
-from torquemod.train import load_train_config, run_train_simulation
-from torquemod.train.params import CONDITIONS, Leg, Segment
+from torquemod.ontrain.run import run_onboard
+from torquemod.twins.train import load_train_config, run_train_simulation
+from torquemod.twins.train.params import CONDITIONS, Leg, Segment
 
 
 def _truth_at(track, truth, col):
@@ -106,7 +106,7 @@ def _segment_stats(cfg, seeds: int, out: Path, title: str, tag: str) -> None:
 def low_adhesion(seeds: int, out: Path) -> None:
     base = load_train_config()
     v = base.vehicle
-    from torquemod.train.dynamics import adhesion_peak
+    from torquemod.twins.train.dynamics import adhesion_peak
     sx = v.stiffness_x_n()
     lv = CONDITIONS["leaves"]
     peak = float(adhesion_peak(20.0, v.normal_load_n, sx, lv.mu0, lv.a_ratio, lv.b_s_m,
@@ -155,8 +155,8 @@ def estimator_cpu_s(run_toml: Path, repeat: int = 3) -> tuple[float, float, floa
     CPU s, mu fits)."""
     from torquemod.io import read_recording
     from torquemod.io.run import read_run
-    from torquemod.onboard.estimator import OnboardEstimator
-    from torquemod.onboard.run import _AxleSignals
+    from torquemod.ontrain.estimator import OnboardEstimator
+    from torquemod.ontrain.run import _AxleSignals
     run = read_run(run_toml)
     e = run.recordings[0]
     rec = read_recording(e.path, group=e.group, channel_map=run.channel_map,

@@ -1,11 +1,11 @@
 """The on-board estimator on runs NOT made by torquemod's twin (issue 10's hidden check):
 prints figures, asserts nothing.
 
-Runs come from :mod:`torquemod.testing_train` (its own vehicle, a tanh or Burckhardt creep
+Runs come from :mod:`torquemod.twins.independent.train` (its own vehicle, a tanh or Burckhardt creep
 law instead of Polach, a friction map dry 0.35 / wet 0.20 / leaves 0.10 / dry 0.35, a 4-Hz
 modulation, torque and speed at the motor behind a gear ratio, a 10-Hz radar in its own MDF4
 channel group, no position channel, logger names mapped in ``[channels]``). Each is written
-to MDF4 + run.toml and read back by ``torquemod.onboard.run.run_onboard`` with the default
+to MDF4 + run.toml and read back by ``torquemod.ontrain.run.run_onboard`` with the default
 settings (what a hidden run.toml without ``[onboard]`` gets). Against the generator's truth,
 per friction segment: rows, the share with mu, the median |mu error|/mu where given, the
 coverage of the 95 % interval where given, how often the lower bound (``mu_low_95`` on rows
@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from torquemod.onboard.run import run_onboard
-from torquemod.testing_train import (
+from torquemod.ontrain.run import run_onboard
+from torquemod.twins.independent.train import (
     FrictionSegment,
     IndependentRunSpec,
     segment_names,

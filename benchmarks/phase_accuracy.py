@@ -17,11 +17,11 @@ import time
 
 import numpy as np
 
-from torquemod import chain
-from torquemod.config import ProcessingConfig
-from torquemod.data import Recording, Rig
 from torquemod.dsp.phase import phase_crb_deg
 from torquemod.errors import InputError
+from torquemod.io.experiment import Recording, Rig
+from torquemod.io.processing import ProcessingConfig
+from torquemod.process import chain
 
 FS = 16_670.0
 RIG = Rig(0.0675, 2.0)

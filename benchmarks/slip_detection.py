@@ -19,10 +19,10 @@ import time
 
 import numpy as np
 
-from torquemod import chain
-from torquemod.config import ProcessingConfig
-from torquemod.data import Rig
-from torquemod.pipeline import detect_slip
+from torquemod.io.experiment import Rig
+from torquemod.io.processing import ProcessingConfig
+from torquemod.process import chain
+from torquemod.process.pipeline import detect_slip
 from torquemod.testing import SyntheticSpec, synthetic_recording
 
 #: creepage runaways over one cycle [-]

@@ -4,7 +4,8 @@ Evaluates the first ``--points`` points of a sweep (default: the example V-Track
 ``mode = "full"``) one after the other in this process, after one warm-up point, and charges
 each point's CPU time to its stages (the innermost stage wins):
 
-* ``twin``: ``torquemod.simulate.run_simulation`` (integration, sensors, truth, HDF5 files);
+* ``twin``: ``torquemod.twins.vtrack.simulate.run_simulation`` (integration, sensors, truth, HDF5
+files);
 * ``chain``: ``torquemod.api.process`` (reading the files, the processing chain);
 * ``fits``: ``torquemod.api.analyze`` (Polach fit with its profile interval, mu from the
   phase, the theory constant) and the sweep's own mu-from-phase fit (``_phase_mu``);
@@ -35,7 +36,7 @@ def main() -> None:
     args = ap.parse_args()
 
     import torquemod.api as api
-    import torquemod.simulate as sim
+    import torquemod.twins.vtrack.simulate as sim
     from torquemod.sweep import evaluate as ev
     from torquemod.sweep.run import tasks
     from torquemod.sweep.spec import load_sweep

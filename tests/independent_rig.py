@@ -1,6 +1,7 @@
 """An independent rig for checking the processing chain's phase (imports nothing of torquemod).
 
-The rig's equations are written out here, apart from the twin (:mod:`torquemod.rig`): a motor
+The rig's equations are written out here, apart from the twin (:mod:`torquemod.twins.vtrack.rig`): a
+motor
 drives the wheel through an elastic shaft; the wheel rolls on a platform whose speed is
 prescribed (an ideal speed loop) and may wobble; the creep force follows Polach's law with
 constant friction (Polach, Wear 258 (2005) 992-1000, Eq. 7 with the reduction factors kA, kS):

@@ -300,8 +300,8 @@ def test_process_refuses_an_out_holding_its_inputs(experiment, tmp_path, capsys,
 
 
 def test_interrupted_demo_leaves_nothing_behind(tmp_path, monkeypatch):
-    from torquemod import simulate
     from torquemod.demo import run_demo
+    from torquemod.twins.vtrack import simulate
 
     def interrupted(config, out_dir, **kwargs):
         Path(out_dir).mkdir(parents=True)
@@ -363,12 +363,13 @@ def test_import_graph_of_the_stages_has_no_cycles():
             if n != "torquemod":  # the package itself re-exports only
                 visit(n, [*stack, m])
 
-    for m in ("torquemod.pipeline", "torquemod.analysis", "torquemod.layout",
+    for m in ("torquemod.process.pipeline", "torquemod.analysis.analyzer",
+              "torquemod.results.folder",
               "torquemod.api", "torquemod.report", "torquemod.cli", "torquemod.demo"):
         visit(m, [])
     assert not cycles, cycles
-    assert "torquemod.layout" not in graph["torquemod.pipeline"]
-    assert not {"torquemod.layout", "torquemod.api"} & graph["torquemod.analysis"]
+    assert "torquemod.results.folder" not in graph["torquemod.process.pipeline"]
+    assert not {"torquemod.results.folder", "torquemod.api"} & graph["torquemod.analysis.analyzer"]
 
 
 def test_trace_key_strings_live_only_in_the_layout_module():
@@ -415,14 +416,16 @@ def test_readme_train_example_runs(tmp_path, monkeypatch):
 
 def test_measurement_path_does_not_import_the_twin():
     """The measurement (read, process, analyze, save, report) never loads the twin's modules:
-    torquemod.rig, torquemod.simulate and the rig-based torquemod.theory."""
+    torquemod.twins.vtrack.rig, torquemod.twins.vtrack.simulate and the rig-based
+    torquemod.twins.vtrack.theory."""
     import subprocess
     import sys
 
-    code = ("import sys, torquemod, torquemod.api, torquemod.analysis, torquemod.pipeline, "
-            "torquemod.layout, torquemod.report, torquemod.phasefit, torquemod.fit\n"
-            "print(sorted(m for m in sys.modules if m.startswith('torquemod.rig') or m in "
-            "('torquemod.simulate', 'torquemod.theory')))")
+    code = ("import sys, torquemod, torquemod.api, torquemod.analysis.analyzer, "
+            "torquemod.process.pipeline, torquemod.results.folder, torquemod.report, "
+            "torquemod.analysis.phasefit, torquemod.analysis.fit\n"
+            "print(sorted(m for m in sys.modules if m.startswith('torquemod.twins') or m in "
+            "('torquemod.twins.vtrack.simulate', 'torquemod.twins.vtrack.theory')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.strip()
     assert out == "[]"
@@ -433,7 +436,7 @@ def test_rig_tables_exported_as_mat_and_parquet_and_kept_current(tmp_path):
     (torquemod fit) rewrites them with the new steps table."""
     from scipy.io import loadmat
 
-    from torquemod.layout import update
+    from torquemod.results.folder import update
     res = synthetic_result(seed=0)
     d = tmp_path / "r"
     tm.save(res, None, d, report=False, export="mat,parquet")
@@ -444,7 +447,7 @@ def test_rig_tables_exported_as_mat_and_parquet_and_kept_current(tmp_path):
                                   pd.read_csv(d / "cycles.csv"), check_dtype=False)
     ana = tm.analyze(res)
     update(d, res, ana, report=False)
-    from torquemod.export import mat_name
+    from torquemod.results.export import mat_name
     mat = loadmat(d / "steps.mat", simplify_cells=True)["steps"]
     assert len(ana.steps.columns) > len(res.steps.columns)  # the analysis added columns
     assert set(mat) == {mat_name(c) for c in ana.steps.columns}

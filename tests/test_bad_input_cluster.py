@@ -21,7 +21,6 @@ import time
 from pathlib import Path
 
 import pytest
-
 from test_outputs_safety import (  # noqa: F401
     experiment,
     no_leftovers,
@@ -30,7 +29,8 @@ from test_outputs_safety import (  # noqa: F401
     readonly,
     snapshot,
 )
-from torquemod import daskutil
+
+from torquemod._util import daskutil
 from torquemod.cli import main
 from torquemod.errors import InputError
 from torquemod.sweep.run import run_sweep
@@ -130,8 +130,8 @@ def test_sweep_out_may_not_hold_the_sweep_file_or_its_base(tmp_path, capsys):
     ("rig", "amplitude_nm = nan", ("modulation.amplitude_nm",)),
 ])
 def test_a_bad_base_is_refused_when_the_sweep_is_read(tmp_path, capsys, base, line, words):
-    from torquemod.simulate import default_config_text
-    from torquemod.train import default_train_config_text
+    from torquemod.twins.train import default_train_config_text
+    from torquemod.twins.vtrack.simulate import default_config_text
     text = default_train_config_text() if base == "train" else default_config_text()
     key = line.split(" = ")[0]
     lines = [line if ln.split(" = ")[0].strip() == key else ln for ln in text.splitlines()]
@@ -291,7 +291,7 @@ def threaded_cluster(monkeypatch):
 @pytest.mark.parametrize("command", ["fleet", "sweep"])
 def test_disk_full_is_one_line(command, inputs, tmp_path, capsys, monkeypatch,
                                threaded_cluster):
-    import torquemod.fleet as fleet
+    import torquemod.fleet.run as fleet
     import torquemod.sweep.run as sweep_run
     if command == "fleet":
         raise_in(monkeypatch, fleet, "_write_csv", errno.ENOSPC)
@@ -305,7 +305,7 @@ def test_disk_full_is_one_line(command, inputs, tmp_path, capsys, monkeypatch,
 @pytest.mark.parametrize("command", ["fleet", "sweep"])
 def test_interrupt_while_writing_then_resume(command, inputs, tmp_path, capsys, monkeypatch,
                                              threaded_cluster):
-    import torquemod.fleet as fleet
+    import torquemod.fleet.run as fleet
     import torquemod.sweep.run as sweep_run
 
     def interrupted(*_a, **_k):

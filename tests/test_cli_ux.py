@@ -15,7 +15,7 @@ import time
 import pytest
 
 from torquemod import cli
-from torquemod.progress import WarmupBar
+from torquemod._util.progress import WarmupBar
 
 
 def _actions(parser, name="torquemod"):

@@ -17,20 +17,20 @@ and the same for a train run::
 The digital twin lives under ``tm.twin`` (imported on first use).
 """
 
-from ._version import __version__
-from .errors import InputError, OutputError, ProcessingError, TorquemodError
+from torquemod._version import __version__
+from torquemod.errors import InputError, OutputError, ProcessingError, TorquemodError
 
 # the public names and the modules they live in: imported on first use (PEP 562), so that
 # `import torquemod` -- and every command, the twin's included -- does not pay for scipy,
 # pandas and matplotlib before it needs them
-_LAZY = {"FitOptions": "torquemod.analysis", "Analysis": "torquemod.analysisresult",
+_LAZY = {"FitOptions": "torquemod.analysis.analyzer", "Analysis": "torquemod.analysis.result",
          "analyze": "torquemod.api", "load": "torquemod.api", "process": "torquemod.api",
          "read_experiment": "torquemod.api", "run": "torquemod.api", "save": "torquemod.api",
          "read_run": "torquemod.api", "onboard": "torquemod.api",
-         "load_onboard": "torquemod.api", "OnboardResult": "torquemod.onboard.result",
-         "Run": "torquemod.io.run", "ProcessingConfig": "torquemod.config",
-         "Experiment": "torquemod.data", "Recording": "torquemod.data",
-         "ProcessResult": "torquemod.pipeline"}
+         "load_onboard": "torquemod.api", "OnboardResult": "torquemod.ontrain.result",
+         "Run": "torquemod.io.run", "ProcessingConfig": "torquemod.io.processing",
+         "Experiment": "torquemod.io.experiment", "Recording": "torquemod.io.experiment",
+         "ProcessResult": "torquemod.process.pipeline"}
 
 __all__ = ["Analysis", "Experiment", "FitOptions", "InputError", "OnboardResult",
            "OutputError", "ProcessResult", "ProcessingConfig", "ProcessingError", "Recording",

@@ -29,16 +29,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from . import io as _io
-from .config import ProcessingConfig
-from .data import Experiment
-from .errors import OutputError
+from torquemod import io as _io
+from torquemod.errors import OutputError
+from torquemod.io.experiment import Experiment
+from torquemod.io.processing import ProcessingConfig
 
 if TYPE_CHECKING:  # imported when first used (_LAZY)
-    from .analysis import FitOptions, analyze
-    from .analysisresult import Analysis
-    from .layout import load, save, update
-    from .pipeline import ProcessResult, process_experiment, resolve_config
+    from torquemod.analysis.analyzer import FitOptions, analyze
+    from torquemod.analysis.result import Analysis
+    from torquemod.process.pipeline import ProcessResult, process_experiment, resolve_config
+    from torquemod.results.folder import load, save, update
 
 __all__ = ["RunOutcome", "analyze", "fit_folder", "load", "load_onboard", "onboard",
            "process", "read_experiment", "read_run", "report_folder", "run", "save"]
@@ -48,11 +48,12 @@ Stage = Callable[[str], object] | None
 #: Names this module offers from the heavier ones (scipy, matplotlib, pandas behind them),
 #: imported when first used, so that a command prints its first stage line before it
 #: waits for them.
-_LAZY = {"analyze": "torquemod.analysis", "FitOptions": "torquemod.analysis",
-         "Analysis": "torquemod.analysisresult", "load": "torquemod.layout",
-         "save": "torquemod.layout", "update": "torquemod.layout",
-         "ProcessResult": "torquemod.pipeline", "process_experiment": "torquemod.pipeline",
-         "resolve_config": "torquemod.pipeline"}
+_LAZY = {"analyze": "torquemod.analysis.analyzer", "FitOptions": "torquemod.analysis.analyzer",
+         "Analysis": "torquemod.analysis.result", "load": "torquemod.results.folder",
+         "save": "torquemod.results.folder", "update": "torquemod.results.folder",
+         "ProcessResult": "torquemod.process.pipeline",
+         "process_experiment": "torquemod.process.pipeline",
+         "resolve_config": "torquemod.process.pipeline"}
 
 
 def __getattr__(name: str):
@@ -74,7 +75,7 @@ def _bind(*names: str) -> None:
 def read_experiment(path) -> Experiment:
     """Read an experiment manifest (``experiment.toml`` or its folder). Its ``[processing]``
     table is checked now and available as ``exp.processing`` (a
-    :class:`~torquemod.config.ProcessingConfig`)."""
+    :class:`~torquemod.io.processing.ProcessingConfig`)."""
     exp = _io.read_experiment(path)
     _ = exp.processing  # a bad [processing] table is reported here, naming the manifest
     return exp
@@ -100,8 +101,8 @@ def process(experiment, config: ProcessingConfig | None = None, *,
 def read_run(path):
     """Read a train run manifest (``run.toml`` or its folder): a
     :class:`~torquemod.io.run.Run`. Its ``[onboard]`` table is checked now."""
-    from .io.run import read_run as _read_run
-    from .onboard.estimator import OnboardConfig
+    from torquemod.io.run import read_run as _read_run
+    from torquemod.ontrain.estimator import OnboardConfig
     run = _read_run(path)
     OnboardConfig.from_dict(run.extra.get("onboard"), source=str(run.manifest_path))
     return run
@@ -127,10 +128,10 @@ def onboard(run, *, axle: int | None = None, config=None, **options):
         The axle's track (``to_frame()``, ``along_track()``), ``report()``, ``plot_*``,
         ``save(folder)`` (what ``torquemod onboard`` writes).
     """
-    from .errors import InputError
-    from .io.run import Run
-    from .onboard.estimator import OnboardConfig
-    from .onboard.run import estimate_axle
+    from torquemod.errors import InputError
+    from torquemod.io.run import Run
+    from torquemod.ontrain.estimator import OnboardConfig
+    from torquemod.ontrain.run import estimate_axle
     run = run if isinstance(run, Run) else read_run(run)
     if config is None:
         cfg = OnboardConfig.from_dict(run.extra.get("onboard"), source=str(run.manifest_path))
@@ -160,9 +161,9 @@ def onboard(run, *, axle: int | None = None, config=None, **options):
 
 def load_onboard(folder, axle: int | None = None):
     """Read an on-board results folder back (:meth:`OnboardResult.save` or ``torquemod
-    onboard``): the :class:`~torquemod.onboard.OnboardResult` of ``axle`` (the first when
+    onboard``): the :class:`~torquemod.ontrain.OnboardResult` of ``axle`` (the first when
     None)."""
-    from .onboard.folder import load_onboard as _load
+    from torquemod.ontrain.folder import load_onboard as _load
     return _load(folder, axle)
 
 
@@ -199,12 +200,12 @@ def run(experiment, out, *, config: ProcessingConfig | None = None,
         command: list[str] | None = None, on_stage: Stage = None, export=()) -> RunOutcome:
     """process -> analyze -> save (with the report): ``torquemod process``; ``export``:
     the cycles and steps tables also as MATLAB ``mat`` and/or ``parquet``."""
-    from .export import check_formats
+    from torquemod.results.export import check_formats
     export = check_formats(export)  # a bad format is refused before the work
     say = on_stage or (lambda _text: None)
     t0 = time.perf_counter()
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
-    from .fsutil import check_output_dir, output_lock
+    from torquemod._util.fsutil import check_output_dir, output_lock
     _refuse_inputs(out, _inputs(exp))
     with output_lock(out):  # one run at a time writes --out (save re-enters this lock)
         check_output_dir(out, force=force)  # refuse an occupied --out before any work
@@ -233,7 +234,7 @@ def fit_folder(folder, options: FitOptions | dict | None = None, *, report_optio
                ) -> tuple[ProcessResult, Analysis]:
     """load -> analyze(options) -> update the folder atomically, report included:
     ``torquemod fit``."""
-    from .fsutil import output_lock
+    from torquemod._util.fsutil import output_lock
     say = on_stage or (lambda _text: None)
     _bind("load", "analyze", "update")
     with output_lock(folder):  # one run at a time updates the folder (update re-enters)
@@ -249,7 +250,7 @@ def report_folder(folder, *, report_options=None, on_stage: Stage = None) -> Pat
     """load -> render the figures and report.html -> update the folder atomically:
     ``torquemod report`` (a folder saved without an analysis is analysed with the default
     options first)."""
-    from .fsutil import output_lock
+    from torquemod._util.fsutil import output_lock
     say = on_stage or (lambda _text: None)
     _bind("load", "analyze", "update")
     with output_lock(folder):  # one run at a time updates the folder (update re-enters)

@@ -18,9 +18,9 @@ import sys
 import threading
 from pathlib import Path
 
-from ._version import __version__
-from .daskutil import CONNECT_TIMEOUT_S
-from .errors import TorquemodError
+from torquemod._util.daskutil import CONNECT_TIMEOUT_S
+from torquemod._version import __version__
+from torquemod.errors import TorquemodError
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERNAL = 3
@@ -65,7 +65,7 @@ def _print_warnings(warnings) -> None:
 
 def _print_fit(ana) -> None:
     """The analysis' headline lines, formatted (a skipped fit goes to stderr)."""
-    from .analysisresult import headline_lines
+    from torquemod.analysis.result import headline_lines
     for line in headline_lines(ana):
         if line.startswith(("Polach fit skipped", "Polach fit not usable")):
             print(f"warning: {line}", file=sys.stderr)
@@ -74,7 +74,7 @@ def _print_fit(ana) -> None:
 
 
 def cmd_process(args: argparse.Namespace) -> int:
-    from .api import run
+    from torquemod.api import run
 
     out = run(args.experiment, args.out, phase_method=args.phase_method,
               nan_policy=args.nan_policy, fit=not args.no_fit, force=args.force,
@@ -102,26 +102,26 @@ def _train_config(args: argparse.Namespace):
     import tomllib
 
     if args.train:
-        from .train import load_train_config
+        from torquemod.twins.train import load_train_config
         return load_train_config(args.config)
     if args.config:
         try:
             doc = tomllib.loads(Path(args.config).read_text(encoding="utf-8"))
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
             return None  # the rig's loader names the problem
-        # torquemod.train.is_train_config, without importing the train twin for a rig config
+        # torquemod.twins.train.is_train_config, without importing the train twin for a rig config
         if doc.get("kind") == "train":
-            from .train import config_from_dict
+            from torquemod.twins.train import config_from_dict
             return config_from_dict(doc, where=str(args.config))
     return None
 
 
 def cmd_simulate_train(args: argparse.Namespace, config) -> int:
-    from .train import run_train_simulation
+    from torquemod.twins.train import run_train_simulation
     say = _stage_printer(args)
     if say:
         say("simulating the train run (the first run compiles the twin's numba kernels) ...")
-    from .errors import InputError, ProcessingError
+    from torquemod.errors import InputError, ProcessingError
     try:
         summary = run_train_simulation(config, Path(args.out), seed=args.seed,
                                        force=args.force)
@@ -138,9 +138,9 @@ def cmd_simulate_train(args: argparse.Namespace, config) -> int:
 
 
 def cmd_onboard(args: argparse.Namespace) -> int:
-    from . import api
-    from .export import check_formats
-    from .onboard.folder import check_onboard_out, save_onboard
+    from torquemod import api
+    from torquemod.ontrain.folder import check_onboard_out, save_onboard
+    from torquemod.results.export import check_formats
     export = check_formats(args.export)  # a bad format is refused before the work
     say = _stage_printer(args)
     run = api.read_run(args.run)
@@ -185,11 +185,11 @@ def _check_seed(seed: int) -> None:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     if args.print_config and args.train:
-        from .train import default_train_config_text
+        from torquemod.twins.train import default_train_config_text
         sys.stdout.write(default_train_config_text())
         return 0
     if args.print_config:
-        from . import simulate
+        from torquemod.twins.vtrack import simulate
         sys.stdout.write(simulate.default_config_text())
         return 0
     if args.out is None:
@@ -198,7 +198,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     train = _train_config(args)
     if train is not None:
         return cmd_simulate_train(args, train)
-    from . import simulate
+    from torquemod.twins.vtrack import simulate
     config = simulate.load_config(args.config)  # a bad config is one line, before any stage
     say = _stage_printer(args)
     if say:
@@ -231,7 +231,7 @@ def _fit_options(args: argparse.Namespace) -> dict:
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
-    from .api import fit_folder
+    from torquemod.api import fit_folder
     _, ana = fit_folder(Path(args.results), _fit_options(args),
                         report_options=_pdf_option(args), on_stage=_stage_printer(args))
     _print_warnings(ana.warnings)
@@ -243,7 +243,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from .api import report_folder
+    from torquemod.api import report_folder
     opts = {k: v for k, v in (("step", args.step), ("cycle", args.cycle),
                               ("title", args.title)) if v is not None} | _pdf_option(args)
     path = report_folder(Path(args.results), report_options=opts,
@@ -267,7 +267,7 @@ def _write_pdf(args: argparse.Namespace, html_path: Path) -> None:
     """With --pdf: the report as report.pdf beside it (A4; see torquemod.report.pdf)."""
     if not getattr(args, "pdf", False):
         return
-    from .report.pdf import html_to_pdf
+    from torquemod.report.pdf import html_to_pdf
     say = _stage_printer(args)
     if say:
         say(f"writing the PDF ({args.pdf_engine}) ...")
@@ -285,7 +285,7 @@ def _add_pdf_options(parser: argparse.ArgumentParser) -> None:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from .demo import run_demo
+    from torquemod.demo import run_demo
     _check_seed(args.seed)
     say = _stage_printer(args)
     out = run_demo(Path(args.out), config_path=args.config, seed=args.seed, force=args.force,
@@ -358,7 +358,7 @@ def _why_they_differ(out: dict, truth: dict) -> str:
 
 
 def cmd_convert(args: argparse.Namespace) -> int:
-    from . import convert
+    from torquemod.io import convert
     if args.input is None and not args.manifest:
         raise _UsageError("convert needs an INPUT recording or --manifest EXPERIMENT.toml")
     if args.input is None:  # the whole experiment into a folder
@@ -394,7 +394,7 @@ def _positive_seconds(text: str) -> float:
 
 
 def cmd_fleet(args: argparse.Namespace) -> int:
-    from .fleet import run_fleet
+    from torquemod.fleet.run import run_fleet
     res = run_fleet(args.runs, Path(args.out), scheduler=args.scheduler,
                     n_workers=args.workers, force=args.force, progress=not args.quiet,
                     revolutions_per_task=args.revolutions_per_task,
@@ -414,9 +414,9 @@ def cmd_fleet(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from .daskutil import check_cluster
-    from .sweep.run import plan_line, run_sweep
-    from .sweep.spec import MAX_POINTS, load_sweep
+    from torquemod._util.daskutil import check_cluster
+    from torquemod.sweep.run import plan_line, run_sweep
+    from torquemod.sweep.spec import MAX_POINTS, load_sweep
     check_cluster(args.scheduler, args.workers, args.connect_timeout)
     spec = load_sweep(args.sweep, max_points=None if args.yes else args.max_points or MAX_POINTS)
     say = _stage_printer(args)
@@ -657,7 +657,7 @@ def main(argv: list[str] | None = None) -> int:
         print("torquemod: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except Exception as exc:
-        from .fsutil import environment_error
+        from torquemod._util.fsutil import environment_error
         env = environment_error(exc)  # full disk, read-only, no permission, ... (also deep
         if env is not None:           # inside numpy/pandas/h5py writes): the system's fault
             print(f"torquemod: error: {_os_error_line(env, args)}", file=sys.stderr)

@@ -4,7 +4,8 @@ for tests and documentation.
 :func:`run_demo` drives the digital twin (:mod:`torquemod.twin`) and the orchestrator
 (:func:`torquemod.api.run`), writing the whole demo folder atomically.
 
-:func:`synthetic_result` fabricates a :class:`~torquemod.pipeline.ProcessResult` from a known
+:func:`synthetic_result` fabricates a :class:`~torquemod.process.pipeline.ProcessResult` from a
+known
 Polach curve and the rigid-wheel phase law, with noise; :func:`write_synthetic_results` saves
 it as a results folder. It is independent of the simulator and the processing chain.
 """
@@ -19,10 +20,10 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import brentq
 
-from .creep import phase_from_constant_deg, theory_constant
-from .data import Experiment, RecordingEntry, Rig, TestSetup
-from .fit import polach_coa, polach_slope
-from .pipeline import CYCLE_COLUMNS, ProcessResult, aggregate_steps, resolve_config
+from torquemod.analysis.creep import phase_from_constant_deg, theory_constant
+from torquemod.analysis.fit import polach_coa, polach_slope
+from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
+from torquemod.process.pipeline import CYCLE_COLUMNS, ProcessResult, aggregate_steps, resolve_config
 
 __all__ = ["SYNTHETIC_TRUTH", "run_demo", "synthetic_result", "write_synthetic_results"]
 
@@ -130,7 +131,7 @@ def synthetic_result(*, seed: int = 0,
 def write_synthetic_results(out_dir, **kwargs) -> Path:
     """Save :func:`synthetic_result` ``(**kwargs)`` as a results folder without an analysis
     (as ``torquemod process --no-fit`` leaves it) and return its path."""
-    from .layout import save
+    from torquemod.results.folder import save
     return save(synthetic_result(**kwargs), None, out_dir, report=False)
 
 
@@ -153,9 +154,9 @@ def run_demo(out_dir, *, config_path=None, seed: int = 0, force: bool = False,
     creep-curve peak, slip step and theory phases). ``with_train`` adds the train part
     (:func:`_train_demo`: ``out_dir/train-run``, ``out_dir/train-results``) as ``train``.
     """
-    from . import simulate
-    from .api import analyze, process, save
-    from .fsutil import atomic_dir
+    from torquemod._util.fsutil import atomic_dir
+    from torquemod.api import analyze, process, save
+    from torquemod.twins.vtrack import simulate
 
     say = on_stage or (lambda _text: None)
     out = Path(out_dir).absolute()
@@ -190,9 +191,9 @@ def run_demo(out_dir, *, config_path=None, seed: int = 0, force: bool = False,
 def _train_demo(out: Path, *, seed: int, say) -> dict:
     """The train part of the demo: simulate the default run, estimate the friction along
     it, write ``out/train-run`` and ``out/train-results`` (each folder atomically)."""
-    from .onboard import run_onboard
-    from .onboard.report import segment_estimates
-    from .train import load_train_config, run_train_simulation
+    from torquemod.ontrain import run_onboard
+    from torquemod.ontrain.report import segment_estimates
+    from torquemod.twins.train import load_train_config, run_train_simulation
     say("simulating the default train run (powered axle, dry/wet/leaves/friction modifier) "
         "...")
     sim = run_train_simulation(load_train_config(), out / "train-run", seed=seed)

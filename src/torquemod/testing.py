@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .data import Recording
+from torquemod.io.experiment import Recording
 
 
 @dataclass(frozen=True)
@@ -177,7 +177,7 @@ def write_synthetic_experiment(folder, *, n_steps: int = 6, n_cycles: int = 3,
     """
     from pathlib import Path
 
-    from .io import write_manifest, write_recording
+    from torquemod.io import write_manifest, write_recording
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -239,10 +239,10 @@ def write_creep_experiment(folder, *, mu: float = 0.3, k_a: float = 1.0, k_s: fl
 
     This is the README's example: a fit a reader can believe (both estimates of mu
     determined when the steps reach ~90 % of saturation)."""
-    from .contact.polach import swing_average, swing_slope
-    from .creep import phase_from_constant_deg, theory_constant
-    from .fit import polach_coa, polach_slope
-    from .io import write_manifest, write_recording
+    from torquemod.analysis.contact.polach import swing_average, swing_slope
+    from torquemod.analysis.creep import phase_from_constant_deg, theory_constant
+    from torquemod.analysis.fit import polach_coa, polach_slope
+    from torquemod.io import write_manifest, write_recording
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -311,12 +311,12 @@ def synthetic_phase_progression(mu: float, ratio_ka_ks: float, k_scale: float, u
                                 fractions=VTRACK_STEP_FRACTIONS):
     """CoA [-], phase [deg] and creepage swing [-] (or None) of torque steps up to the
     utilisation ``u_max`` on a Polach curve ``CoA = mu*h(k_scale*xi/mu; kA/kS)``
-    (:mod:`torquemod.phasefit`), by the rigid-wheel law ``tan(phi) = C/k``. With ``swing``
+    (:mod:`torquemod.analysis.phasefit`), by the rigid-wheel law ``tan(phi) = C/k``. With ``swing``
     the creepage swing of V-Track's 8 N*m, 2 Hz modulation (J = 4 kg m^2, R = 0.0675 m,
     N = 4200 N, V = 1.944 m/s: |dw| = T/|j*Omega*J + R^2*N*k/V|, swing = |dw|*R/V) is
     found self-consistently and k is the describing-function slope over it."""
-    from .contact.polach import swing_average, swing_slope
-    from .polachshape import invert_polach_h, polach_h, polach_h_slope
+    from torquemod.analysis.contact.polach import swing_average, swing_slope
+    from torquemod.analysis.polachshape import invert_polach_h, polach_h, polach_h_slope
 
     r = ratio_ka_ks
     u = np.asarray(fractions, dtype=float) * u_max
@@ -344,7 +344,7 @@ def write_short_train_run(folder, *, length_m: float, seed: int) -> Path:
     returns ``folder``."""
     from dataclasses import replace
 
-    from .train import load_train_config, run_train_simulation
+    from torquemod.twins.train import load_train_config, run_train_simulation
     cfg = load_train_config()
     cfg = replace(cfg, track=replace(cfg.track, length_m=length_m))
     run_train_simulation(cfg, folder, seed=seed)

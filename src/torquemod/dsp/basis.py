@@ -71,7 +71,8 @@ def slow_basis(n_samples: int, fs_hz: float, max_hz: float, *, extra: int = 2,
     polynomials give the basis its freedom. Measured over a 6.05 s record at 53.3 Hz with
     ``max_hz = 1.2``, ``extra = 2``, ``degree = 5``: a unit sinusoid anywhere in 0.2-1.0 Hz
     leaks < 1e-5 into a jointly fitted 2 Hz modulation (2e-4 at 1.2 Hz), and the joint fit
-    costs the modulation 23 % of variance (:meth:`torquemod.chain.SpeedModel.variance_factor`).
+    costs the modulation 23 % of variance
+    (:meth:`torquemod.process.chain.SpeedModel.variance_factor`).
     ``max_hz = 0`` gives the polynomials alone.
     """
     duration = n_samples / fs_hz
@@ -108,7 +109,7 @@ def _order_columns(theta: np.ndarray, orders: np.ndarray) -> np.ndarray:
     """``cos(k*theta)``, ``sin(k*theta)`` for each k of ``orders`` (positive integers): one
     ``cos`` and ``sin`` of theta per sample, then ``exp(1j*k*theta)`` by repeated complex
     multiplication (k - 1 products, ~k units in the last place from the direct evaluation;
-    tests/test_chain_kernels.py); a non-positive order is evaluated directly."""
+    tests/process/test_chain_kernels.py); a non-positive order is evaluated directly."""
     n = theta.size
     out = np.empty((n, 2 * orders.size))
     k_max = 0

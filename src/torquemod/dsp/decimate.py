@@ -171,7 +171,7 @@ def decimate_two_stage(x: np.ndarray, up: int, down: int, *, kaiser_beta: float 
     the integer ``q1`` of :func:`two_stage_plan`, then ``resample_poly(up, down2)``'s
     arithmetic with its own Kaiser design, both with zero padding and both in numba, row by
     row (:func:`_two_stage_row`; the sums are those of ``resample_poly``'s ``upfirdn``, in
-    another order: rounding only, tests/test_decimate.py). Output ``m`` sits
+    another order: rounding only, tests/dsp/test_decimate.py). Output ``m`` sits
     at input sample ``m*down/up`` as with one-stage ``resample_poly``, and there are as many
     (``ceil(n*up/down)``). ``line`` removes the line through the end samples before and
     restores it at the output times after (a symmetric FIR of unit DC gain passes a line

@@ -18,7 +18,7 @@ import numba
 import numpy as np
 from scipy import signal
 
-from .basis import (  # noqa: F401  (re-exported: filters is the module callers use)
+from torquemod.dsp.basis import (  # noqa: F401  (re-exported: filters is the module callers use)
     _dpss,
     _order_columns,
     _slow_basis_cached,
@@ -26,7 +26,7 @@ from .basis import (  # noqa: F401  (re-exported: filters is the module callers 
     slow_basis,
     unwrapped_angle,
 )
-from .decimate import (  # noqa: F401  (re-exported: filters is the module callers use)
+from torquemod.dsp.decimate import (  # noqa: F401  (re-exported: filters is the module callers use)
     _fir_decimate,
     _fir_decimate_row,
     _resampling_fir,
@@ -37,7 +37,7 @@ from .decimate import (  # noqa: F401  (re-exported: filters is the module calle
     stage1_fir,
     two_stage_plan,
 )
-from .lstsq import LstsqFactor, _cho_solve, lstsq  # noqa: F401  (re-exported)
+from torquemod.dsp.lstsq import LstsqFactor, _cho_solve, lstsq  # noqa: F401  (re-exported)
 
 
 def resample_ratio(fs_in_hz: float, fs_target_hz: float, *, max_denominator: int = 1000
@@ -69,7 +69,7 @@ def resample(x: np.ndarray, up: int, down: int, *, kaiser_beta: float = 5.0,
     are padded along a line, so a DC offset or slow trend does not ring at the edges
     (FACTS.md §4). ``padtype="constant"`` pads with zeros (after the mean removal): it changes
     only the :func:`resampler_edge_samples` outputs at each end, which the chain cuts off, and
-    saves the padding's cost (tests/test_decimate.py verifies both claims).
+    saves the padding's cost (tests/dsp/test_decimate.py verifies both claims).
 
     ``method="two_stage"`` gives the same output samples at the same times through a cheaper
     route (:func:`decimate_two_stage`): an integer decimation by a long Kaiser FIR first,
@@ -135,7 +135,7 @@ def design_notch(f0_hz: float, q: float, fs_hz: float) -> tuple[np.ndarray, np.n
     """Second-order IIR notch at ``f0_hz`` with quality factor ``q`` (bandwidth f0/q):
     ``scipy.signal.iirnotch(f0_hz, q, fs=fs_hz)`` by its own arithmetic on Python floats
     (Orfanidis, Introduction to Signal Processing, eqs. 11.3.4-11.3.7: ``beta = tan(bw/2)``,
-    ``gain = 1/(1 + beta)``), the same bits (tests/test_chain_kernels.py) without its
+    ``gain = 1/(1 + beta)``), the same bits (tests/process/test_chain_kernels.py) without its
     per-call array handling."""
     fs = float(fs_hz)
     w0 = 2 * float(f0_hz) / fs
@@ -175,7 +175,7 @@ def _butter_bandpass(order: int, lo: float, hi: float) -> tuple[np.ndarray, np.n
     sample) by the same route (Butterworth prototype poles, low-pass to band-pass, bilinear
     transform with pre-warped edges, polynomial expansion) in plain complex arithmetic,
     without scipy's per-call array handling, which cost 10x the arithmetic here (the chain
-    designs one per cycle). Agrees with scipy to rounding (tests/test_decimate_kernels.py)."""
+    designs one per cycle). Agrees with scipy to rounding (tests/dsp/test_decimate_kernels.py)."""
     w1, w2 = 4.0 * math.tan(math.pi * lo), 4.0 * math.tan(math.pi * hi)  # pre-warped, fs=2
     bw, wo2 = w2 - w1, w1 * w2
     poles = []
@@ -248,8 +248,8 @@ def _filtfilt_rows(b: np.ndarray, a: np.ndarray, zi: np.ndarray, x: np.ndarray) 
     steady state ``zi`` times the first sample it meets: ``filtfilt(b, a, row, padlen=0)``.
     The direct form II transposed with scipy's order of operations (``y = z0 + b0*x``,
     ``z_i = z_(i+1) + x*b_(i+1) - y*a_(i+1)``; ``a[0] = 1``, ``b`` and ``a`` of one length)
-    and no fast-math, so the same bits as ``lfilter`` (tests/test_chain_speed_equivalence.py
-    and tests/test_decimate_kernels.py). The rows advance together: their recursions are
+    and no fast-math, so the same bits as ``lfilter`` (tests/process/test_chain_speed_equivalence.py
+    and tests/dsp/test_decimate_kernels.py). The rows advance together: their recursions are
     independent, so the processor overlaps them."""
     n_rows, n = x.shape
     m = b.size - 1
@@ -293,7 +293,7 @@ def _steady_state_solve(b: np.ndarray, a: np.ndarray) -> np.ndarray:
     """``lfilter_zi``'s system ``(I - C^T) zi = b[1:] - a[1:]*b[0]`` (C the companion matrix
     of ``a``: first row ``-a[1:]/a[0]``, ones below the diagonal) built entry by entry with
     the same arithmetic and solved by LAPACK ``gesv`` as ``numpy.linalg.solve`` does: the
-    same bits (tests/test_decimate_kernels.py and tests/test_chain_kernels.py)."""
+    same bits (tests/dsp/test_decimate_kernels.py and tests/process/test_chain_kernels.py)."""
     n = a.size
     m = np.zeros((n - 1, n - 1))
     for i in range(n - 1):
@@ -470,7 +470,7 @@ def _fill_cos_sin(out: np.ndarray, col0: int, omegas: np.ndarray, start: int) ->
     ``out[i, col0 + 2m + 1]`` for every row i: the exact values every 64 samples and a
     rotation by one sample between (``cos(a + w) = cos a cos w - sin a sin w``, and the
     sine's): two evaluations per 64 samples instead of 128. The rotation adds ~1e-16 of
-    the amplitude per step (< 1e-14 here; tests/test_decimate_kernels.py compares with the
+    the amplitude per step (< 1e-14 here; tests/dsp/test_decimate_kernels.py compares with the
     direct evaluation, whose own argument is rounded to that order)."""
     n = out.shape[0]
     for m in range(omegas.size):

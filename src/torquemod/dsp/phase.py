@@ -23,9 +23,9 @@ import numpy as np
 from numba import njit
 from scipy import signal
 
-from ..errors import ProcessingError
-from .filters import tone_design
-from .lstsq import LstsqFactor, lstsq
+from torquemod.dsp.filters import tone_design
+from torquemod.dsp.lstsq import LstsqFactor, lstsq
+from torquemod.errors import ProcessingError
 
 
 def parabolic_vertex(y_m1: np.ndarray, y_0: np.ndarray, y_p1: np.ndarray) -> np.ndarray:
@@ -66,7 +66,7 @@ def _strict_extrema_times(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.n
     """:func:`extrema_times` of a record without plateaus in one pass: the samples above
     (below) both neighbours, each moved to the vertex of the parabola through it and its
     neighbours with :func:`parabolic_vertex`'s arithmetic (so the same bits,
-    tests/test_chain_kernels.py). The third value is True, and the times empty, when two
+    tests/process/test_chain_kernels.py). The third value is True, and the times empty, when two
     neighbouring samples are equal (a plateau: left to ``find_peaks``)."""
     n = x.size
     for i in range(n - 1):

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from .channels import library_error
+from torquemod.errors import InputError
+from torquemod.io.channels import library_error
 
 DEFAULT_CHUNK_ROWS = 1 << 18  # 262 144 rows: 15.7 s at 16.67 kHz, 2 MiB per channel
 CSV_BLOCK_BYTES = 1 << 22  # text parsed per step by pyarrow's streaming CSV reader
@@ -65,8 +65,8 @@ class _H5Table(_Table):
     def __init__(self, path: Path, group: str | None, *, mat: bool) -> None:
         import h5py
 
-        from . import hdf5 as hdf5_io
-        from . import matlab as matlab_io
+        from torquemod.io import hdf5 as hdf5_io
+        from torquemod.io import matlab as matlab_io
         self.path, self.mat = path, mat
         try:
             self.fh = h5py.File(path, "r")
@@ -101,7 +101,7 @@ class _H5Table(_Table):
         return self._dataset(name) is not None
 
     def unit(self, name: str) -> str | None:
-        from . import hdf5 as hdf5_io
+        from torquemod.io import hdf5 as hdf5_io
         ds = self._dataset(name)
         return None if self.mat or "unit" not in ds.attrs else hdf5_io._attr_text(
             ds.attrs["unit"])
@@ -114,7 +114,7 @@ class _H5Table(_Table):
                          channel=name, hint="map a vector (one value per sample)")
 
     def read(self, names: list[str], a: int, b: int) -> dict[str, np.ndarray]:
-        from . import hdf5 as hdf5_io
+        from torquemod.io import hdf5 as hdf5_io
         out = {}
         for name in names:
             ds = self._dataset(name)
@@ -153,7 +153,7 @@ class _ParquetTable(_Table):
     def __init__(self, path: Path, group: str | None) -> None:
         import pyarrow.parquet as pq
 
-        from . import parquet as parquet_io
+        from torquemod.io import parquet as parquet_io
         if group is not None:
             raise InputError(f"'group' ({group!r}) has no meaning for a Parquet file",
                              path=path, hint="remove 'group' from the recording's entry")
@@ -174,13 +174,13 @@ class _ParquetTable(_Table):
         return self.n_rows
 
     def unit(self, name: str) -> str | None:
-        from . import parquet as parquet_io
+        from torquemod.io import parquet as parquet_io
         return parquet_io._meta_text(self.schema.field(name).metadata, "unit")
 
     def blocks(self, names: list[str], chunk_rows: int) -> Iterator[dict[str, np.ndarray]]:
         import pyarrow as pa
 
-        from . import parquet as parquet_io
+        from torquemod.io import parquet as parquet_io
         try:
             for batch in self.pf.iter_batches(batch_size=chunk_rows, columns=names):
                 yield {n: parquet_io._column_values(pa.chunked_array([batch.column(n)]),
@@ -198,7 +198,7 @@ class _CsvTable(_Table):
     sequential = True
 
     def __init__(self, path: Path, group: str | None) -> None:
-        from . import csv as csv_io
+        from torquemod.io import csv as csv_io
         self.path = path
         self.header = csv_io._header(path)
         self.first_name = self.header[0]
@@ -228,7 +228,7 @@ class _TdmsTable(_Table):
     """TDMS: channel slices of a file opened for streaming (nptdms ``TdmsFile.open``)."""
 
     def __init__(self, path: Path, group: str | None) -> None:
-        from . import tdms as tdms_io
+        from torquemod.io import tdms as tdms_io
         nptdms = tdms_io._import_nptdms(path)
         self.path = path
         try:
@@ -254,7 +254,7 @@ class _TdmsTable(_Table):
         return unit if isinstance(unit, str) else None
 
     def own_base(self, name: str) -> tuple | None:
-        from . import tdms as tdms_io
+        from torquemod.io import tdms as tdms_io
         fs, t0 = tdms_io._wf_rate(dict(self.index.find(name).properties), self.path, name)
         return None if fs is None else ("rate", fs, t0)
 
@@ -277,7 +277,7 @@ class _MdfTable(_Table):
     record_count=)``); the group's master channel is the time base."""
 
     def __init__(self, path: Path, group: str | None) -> None:
-        from . import mdf as mdf_io
+        from torquemod.io import mdf as mdf_io
         asammdf = mdf_io._import_asammdf(path)
         self.path = path
         self.mdf, error = mdf_io._open(asammdf, path)
@@ -343,7 +343,7 @@ def _open_table(path: Path, group: str | None) -> _Table:
     if suffix in (".h5", ".hdf5"):
         return _H5Table(path, group, mat=False)
     if suffix == ".mat":
-        from . import matlab as matlab_io
+        from torquemod.io import matlab as matlab_io
         if not matlab_io.is_mat73(path):
             raise InputError("a MATLAB v4-v7 file cannot be streamed (its variables are "
                              "compressed whole)", path=path,

@@ -12,7 +12,7 @@ method, in which unit, and where the time base comes from (docs/format.md)::
 Everything here is a pure function of its arguments: :func:`resolve_channel_map` checks the raw
 table once and returns a frozen :class:`ChannelMap`; :func:`convert_units` turns values in a
 named unit into the method's SI unit; :func:`torquemod.io.timebase.assemble_recording` builds
-a :class:`~torquemod.data.Recording` from whatever a format reader found in its file.
+a :class:`~torquemod.io.experiment.Recording` from whatever a format reader found in its file.
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import positive_number
-from ..data import CHANNEL_UNITS, CHANNELS
-from ..errors import InputError
+from torquemod.errors import InputError
+from torquemod.io.checks import positive_number
+from torquemod.io.experiment import CHANNEL_UNITS, CHANNELS
 
 TIME = "time_s"
 TORQUE = CHANNELS[0]  # the channel whose sample times are the recording's

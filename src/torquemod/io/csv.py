@@ -13,16 +13,16 @@ import numpy as np
 import pyarrow as pa
 from pyarrow import csv as pa_csv
 
-from ..data import CHANNELS, OPTIONAL_CHANNELS, Recording
-from ..errors import InputError
-from .channels import (
+from torquemod.errors import InputError
+from torquemod.io.channels import (
     TIME,
     ChannelMap,
     RawChannel,
     library_error,
     resolve_channel_map,
 )
-from .timebase import assemble_recording
+from torquemod.io.experiment import CHANNELS, OPTIONAL_CHANNELS, Recording
+from torquemod.io.timebase import assemble_recording
 
 TIME_COLUMN = TIME
 

@@ -22,16 +22,16 @@ import h5py
 import numpy as np
 from h5py import h5a, h5d, h5f, h5g, h5p, h5s, h5t
 
-from ..data import CHANNEL_UNITS, CHANNELS, Recording
-from ..errors import InputError
-from .channels import (
+from torquemod.errors import InputError
+from torquemod.io.channels import (
     ChannelMap,
     RawChannel,
     library_error,
     resolve_channel_map,
     source_name,
 )
-from .timebase import assemble_recording
+from torquemod.io.experiment import CHANNEL_UNITS, CHANNELS, Recording
+from torquemod.io.timebase import assemble_recording
 
 LAYOUT_VERSION = 1
 #: Group attribute holding the notes of the recording the file was written from.

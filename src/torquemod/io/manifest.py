@@ -12,11 +12,11 @@ from pathlib import Path
 
 import tomli_w
 
-from ..checks import positive_number
-from ..data import Experiment, RecordingEntry, Rig, TestSetup
-from ..errors import InputError, ManifestError
-from ..tomlcheck import unknown_keys
-from .channels import resolve_channel_map
+from torquemod._util.tomlcheck import unknown_keys
+from torquemod.errors import InputError, ManifestError
+from torquemod.io.channels import resolve_channel_map
+from torquemod.io.checks import positive_number
+from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
 
 _RIG_KEYS = ("wheel_radius_m", "platform_radius_m")
 _TEST_KEYS = ("normal_load_n", "modulation_frequency_hz", "modulation_amplitude_nm")
@@ -77,7 +77,7 @@ def check_keys(table: dict, allowed, where: str, path: object, *,
                takes: str = "known keys:", error: type[InputError] = ManifestError) -> None:
     """Raise ``error`` naming the first key of ``table`` not in ``allowed`` (a typo such as
     'dc_torque' or 'stpe' must not pass unnoticed), with the nearest allowed key
-    (:func:`torquemod.tomlcheck.unknown_keys`; a manifest error by default)."""
+    (:func:`torquemod._util.tomlcheck.unknown_keys`; a manifest error by default)."""
     unknown_keys(table, allowed, where, path, takes=takes, error=error)
 
 

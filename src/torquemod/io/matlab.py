@@ -21,16 +21,16 @@ import h5py
 import numpy as np
 import scipy.io
 
-from ..data import Recording
-from ..errors import InputError
-from .channels import (
+from torquemod.errors import InputError
+from torquemod.io.channels import (
     ChannelMap,
     RawChannel,
     library_error,
     resolve_channel_map,
     source_name,
 )
-from .timebase import assemble_recording
+from torquemod.io.experiment import Recording
+from torquemod.io.timebase import assemble_recording
 
 #: Scalar variables giving the sample rate [Hz] when there is no time vector.
 RATE_NAMES = ("sample_rate_hz", "fs")
@@ -333,7 +333,7 @@ def write_mat(path: Path, rec: Recording) -> Path:
     """Write ``rec`` as a MATLAB (v5) recording: one column vector per channel it has,
     named as in the CSV format (SI units), and the scalars ``sample_rate_hz`` [Hz] and
     ``t0_s`` [s], so it reads back exactly without a ``[channels]`` table."""
-    from ..data import CHANNELS
+    from torquemod.io.experiment import CHANNELS
     doc = {name: np.asarray(rec.channels[name], dtype=np.float64).reshape(-1, 1)
            for name in CHANNELS if name in rec.channels}
     doc["sample_rate_hz"] = float(rec.fs_hz)

@@ -16,9 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data import Recording
-from ..errors import InputError
-from .channels import (
+from torquemod.errors import InputError
+from torquemod.io.channels import (
     ChannelMap,
     RawChannel,
     import_optional,
@@ -26,7 +25,8 @@ from .channels import (
     resolve_channel_map,
     source_name,
 )
-from .timebase import assemble_recording
+from torquemod.io.experiment import Recording
+from torquemod.io.timebase import assemble_recording
 
 _HINT = "is the file complete and really MDF?"
 #: Largest ratio of a group's data to the file size: deflate, MDF4's usual compression,

@@ -15,15 +15,15 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..data import Recording
-from ..errors import InputError
-from .channels import (
+from torquemod.errors import InputError
+from torquemod.io.channels import (
     ChannelMap,
     RawChannel,
     library_error,
     resolve_channel_map,
 )
-from .timebase import assemble_recording
+from torquemod.io.experiment import Recording
+from torquemod.io.timebase import assemble_recording
 
 _HINT = "is the file complete and really Parquet?"
 
@@ -106,7 +106,7 @@ def write_parquet(path: Path, rec: Recording) -> Path:
     units, each column's ``unit`` in its field metadata) and the sample rate ``sample_rate_hz``
     [Hz] and ``t0_s`` [s] in the file's metadata, so it reads back exactly without a
     ``[channels]`` table."""
-    from ..data import CHANNEL_UNITS, CHANNELS
+    from torquemod.io.experiment import CHANNEL_UNITS, CHANNELS
     fields, arrays = [], []
     for name in CHANNELS:
         if name in rec.channels:

@@ -1,14 +1,15 @@
-"""Format dispatch: read any supported recording into a :class:`~torquemod.data.Recording`."""
+"""Format dispatch: read any supported recording into a
+:class:`~torquemod.io.experiment.Recording`."""
 
 from __future__ import annotations
 
 import importlib
 from pathlib import Path
 
-from ..data import Experiment, Recording, RecordingEntry
-from ..errors import InputError
-from .channels import ChannelMap, resolve_channel_map
-from .validate import check_channels
+from torquemod.errors import InputError
+from torquemod.io.channels import ChannelMap, resolve_channel_map
+from torquemod.io.experiment import Experiment, Recording, RecordingEntry
+from torquemod.io.validate import check_channels
 
 #: suffix -> (module of this package, its reader); a format's module (h5py, scipy.io,
 #: pyarrow behind them) is imported when a file of that format is first read

@@ -29,9 +29,9 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..checks import positive_number
-from ..errors import ManifestError
-from .manifest import _load_toml, check_keys, checked_channel_map, recording_file
+from torquemod.errors import ManifestError
+from torquemod.io.checks import positive_number
+from torquemod.io.manifest import _load_toml, check_keys, checked_channel_map, recording_file
 
 _VEHICLE_REQUIRED = ("wheel_radius_m", "normal_load_n", "inertia_kg_m2")
 _VEHICLE_OPTIONAL = ("gear_ratio", "motor_inertia_kg_m2", "coupling_stiffness_nm_rad",
@@ -66,7 +66,7 @@ class Vehicle:
     ``vehicle_damping_n_s_m`` [N*s/m]: the force with which the vehicle resists a change of
     its speed at the modulation frequency beyond its inertia (other axles holding the speed,
     the running resistance's slope); 0 takes the vehicle as an inertia
-    (:func:`torquemod.onboard.window.damping_from_ratio`)."""
+    (:func:`torquemod.ontrain.window.damping_from_ratio`)."""
 
     wheel_radius_m: float
     normal_load_n: float

@@ -11,7 +11,7 @@ base, then brought onto the rows asked for with the whole-file reader's own func
 torque's sample times, or a whole-sample shift). Those act element by element, so every
 row holds bit for bit the value :func:`torquemod.io.read_recording` gives for it; the time
 base, the cut to the span all channels share and the notes are found the way
-:func:`torquemod.io.timebase.assemble_recording` finds them (tests/test_onboard_stream.py
+:func:`torquemod.io.timebase.assemble_recording` finds them (tests/io/test_onboard_stream.py
 compares all of it with the whole-file reader on MDF4 and HDF5 twin runs).
 
 Anything this module does not handle (a channel of the rig besides the run's, a sample rate
@@ -29,10 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data import CHANNELS, OPTIONAL_CHANNELS, Recording
-from ..errors import InputError
-from ._stream_tables import DEFAULT_CHUNK_ROWS, _open_table, _Table
-from .channels import (
+from torquemod.errors import InputError
+from torquemod.io._stream_tables import DEFAULT_CHUNK_ROWS, _open_table, _Table
+from torquemod.io.channels import (
     TIME,
     TORQUE,
     ChannelMap,
@@ -40,8 +39,9 @@ from .channels import (
     _converted,
     resolve_channel_map,
 )
-from .recording import read_recording
-from .timebase import (
+from torquemod.io.experiment import CHANNELS, OPTIONAL_CHANNELS, Recording
+from torquemod.io.recording import read_recording
+from torquemod.io.timebase import (
     _Grid,
     _interpolated,
     _own_grid,
@@ -52,9 +52,9 @@ from .timebase import (
     prepared,
     shared_span,
 )
-from .validate import TIME_FIT_BLOCK, fit_time_grid_blocks
+from torquemod.io.validate import TIME_FIT_BLOCK, fit_time_grid_blocks
 
-#: The channels of a train run (docs/format.md), in :data:`~torquemod.data.CHANNELS` order.
+#: The channels of a train run (docs/format.md), in :data:`~torquemod.io.experiment.CHANNELS` order.
 RUN_CHANNELS = ("torque_nm", "wheel_speed_rad_s", "vehicle_speed_m_s", "position_m")
 FAST_CHANNELS = RUN_CHANNELS[:2]
 
@@ -355,26 +355,26 @@ _SUFFIXES = (".h5", ".hdf5", ".mat", ".parquet", ".pq", ".csv", ".txt", ".tdms",
 
 def _whole_lookup(table: _Table, path: Path) -> Callable[[str], RawChannel | None] | None:
     """The whole-file reader's ``lookup`` over the open table (None: not offered)."""
-    from ._stream_tables import _H5Table, _MdfTable, _TdmsTable
+    from torquemod.io._stream_tables import _H5Table, _MdfTable, _TdmsTable
     if isinstance(table, _MdfTable | _TdmsTable):
         return table.index.lookup
     if isinstance(table, _H5Table):
         if table.mat:
-            from . import matlab as matlab_io
+            from torquemod.io import matlab as matlab_io
 
             def lookup(name: str) -> RawChannel | None:
                 v = matlab_io._read_dataset(table.g, name, path)
                 return None if v is None else RawChannel(v)
             return lookup
-        from . import hdf5 as hdf5_io
+        from torquemod.io import hdf5 as hdf5_io
         return lambda name: hdf5_io._dataset(table.g, name, path)
     return None
 
 
 def _reader_notes(table: _Table) -> list[str]:
-    from ._stream_tables import _H5Table
+    from torquemod.io._stream_tables import _H5Table
     if isinstance(table, _H5Table) and not table.mat:
-        from . import hdf5 as hdf5_io
+        from torquemod.io import hdf5 as hdf5_io
         return hdf5_io._notes(table.g)
     return []
 

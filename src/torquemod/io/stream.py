@@ -36,10 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data import CHANNELS, OPTIONAL_CHANNELS, Recording, RecordingEntry
-from ..errors import InputError
-from ._stream_tables import DEFAULT_CHUNK_ROWS, _open_table, _Table
-from .channels import (
+from torquemod.errors import InputError
+from torquemod.io._stream_tables import DEFAULT_CHUNK_ROWS, _open_table, _Table
+from torquemod.io.channels import (
     TIME,
     ChannelMap,
     RawChannel,
@@ -47,7 +46,8 @@ from .channels import (
     resolve_channel_map,
     source_name,
 )
-from .validate import fit_time_grid_blocks
+from torquemod.io.experiment import CHANNELS, OPTIONAL_CHANNELS, Recording, RecordingEntry
+from torquemod.io.validate import fit_time_grid_blocks
 
 _REFUSE_HINT = ("read the file whole (torquemod.io.read_recording) or convert it to one "
                 "time base first (torquemod convert)")
@@ -207,7 +207,7 @@ class RecordingStream:
                     ) -> Iterator[tuple[int, Recording, tuple[int, int]]]:
         """``(k, recording of revolution k, (start, stop))`` for every whole platform
         revolution, k = 1, 2, ..., read in one pass holding at most a revolution and a
-        chunk: the same index ranges as :func:`torquemod.cycles.revolution_bounds` on the
+        chunk: the same index ranges as :func:`torquemod.process.cycles.revolution_bounds` on the
         whole platform speed (the angle is the same trapezoidal sum, accumulated in the same
         order, so bit for bit the same) and the same samples as ``Recording.slice``. After
         the last one, ``self.tail_samples`` holds the samples of the partial revolution

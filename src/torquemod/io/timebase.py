@@ -1,5 +1,5 @@
 """Channels on their own time bases put on the torque channel's sample times (issue 8:
-logger realities), and the :class:`~torquemod.data.Recording` a reader's channels make.
+logger realities), and the :class:`~torquemod.io.experiment.Recording` a reader's channels make.
 
 A reader finds raw channels in its file (:class:`~torquemod.io.channels.RawChannel`: values,
 unit, perhaps their own time stamps or rate); :func:`assemble_recording` converts units
@@ -18,9 +18,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..data import CHANNELS, OPTIONAL_CHANNELS, Recording
-from ..errors import InputError
-from .channels import (
+from torquemod.errors import InputError
+from torquemod.io.channels import (
     TIME,
     TORQUE,
     ChannelMap,
@@ -32,14 +31,15 @@ from .channels import (
     as_vector,
     convert_units,
 )
-from .validate import fit_time_grid
+from torquemod.io.experiment import CHANNELS, OPTIONAL_CHANNELS, Recording
+from torquemod.io.validate import fit_time_grid
 
 #: A channel on its own time base must cover at least this share of the torque channel's
 #: time span (all channels are cut to the span they share); otherwise it is refused.
 MIN_COVERAGE = 0.9
 #: Start offsets within this many sample periods of a whole number of samples, and rates so
 #: close that they drift apart by less than this over the record, are taken as exact (the
-#: fitted grids of jittered stamps differ by less, see tests/test_logger_timebase.py).
+#: fitted grids of jittered stamps differ by less, see tests/io/test_logger_timebase.py).
 SAME_INSTANT_SAMPLES = 0.01
 #: Highest frequency [Hz] of the method's signals, for the interpolation error stated in the
 #: notes: linear interpolation of a sine of frequency f between samples dt apart errs by at
@@ -362,7 +362,8 @@ def assemble_recording(cmap: ChannelMap, lookup: Callable[[str], RawChannel | No
     """Build a :class:`Recording` from a reader's ``lookup(name) -> RawChannel | None``.
 
     Every method channel is looked up by its mapped name and converted to SI; the optional
-    ones (:data:`~torquemod.data.OPTIONAL_CHANNELS`) may be absent unless the map names them
+    ones (:data:`~torquemod.io.experiment.OPTIONAL_CHANNELS`) may be absent unless the map names
+    them
     explicitly; forces come as Fx with Fz (Fy optional). The time base comes from (in order)
     the map's ``sample_rate_hz``, the time channel (``time_s`` unless mapped), the torque's
     own time base (``RawChannel.time_s``/``fs_hz``), then ``native_rate = (fs_hz, t0_s)`` of

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from ..data import CHANNELS, REQUIRED_CHANNELS, Recording
-from ..errors import InputError
+from torquemod.errors import InputError
+from torquemod.io.experiment import CHANNELS, REQUIRED_CHANNELS, Recording
 
 #: Largest deviation of a time stamp from the fitted uniform grid, in sample periods, that is
 #: still taken as rounding or clock jitter rather than a gap or a jump.

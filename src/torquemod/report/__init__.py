@@ -1,7 +1,7 @@
 """Figures and the self-contained HTML report of a processed and analysed experiment.
 
 :func:`write_report` writes, into a folder (the results folder being assembled by
-:mod:`torquemod.layout`)::
+:mod:`torquemod.results.folder`)::
 
     figures/fig1_signals.{png,svg}       the paper's Figure 2 (one cycle, raw and filtered)
     figures/fig2_creep_curve.{png,svg}   the paper's Figure 3 (creep curve, Polach fit)
@@ -10,8 +10,8 @@
     report.html                         summary, figures, Tables 1-2, fit, warnings, provenance
     report.pdf                          the same on A4 (only with the ``pdf`` option)
 
-Everything is drawn from the objects in memory (:class:`~torquemod.pipeline.ProcessResult`,
-:class:`~torquemod.analysisresult.Analysis`); nothing is read from the folder.
+Everything is drawn from the objects in memory (:class:`~torquemod.process.pipeline.ProcessResult`,
+:class:`~torquemod.analysis.result.Analysis`); nothing is read from the folder.
 """
 
 from __future__ import annotations
@@ -21,11 +21,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..config import check_option_types, coerce_options
-from ..errors import OptionError
-from ..fsutil import write_atomic
-from ..provenance import provenance
-from .figures import (
+from torquemod._util.fsutil import write_atomic
+from torquemod.errors import OptionError
+from torquemod.io.processing import check_option_types, coerce_options
+from torquemod.process.provenance import provenance
+from torquemod.report.figures import (
     creep_curve_figure,
     figure_of,
     phase_figure,
@@ -33,12 +33,12 @@ from .figures import (
     save_figure,
     signals_figure,
 )
-from .html import render_report
-from .pdf import PDF_ENGINES, html_to_pdf
+from torquemod.report.html import render_report
+from torquemod.report.pdf import PDF_ENGINES, html_to_pdf
 
 if TYPE_CHECKING:
-    from ..analysisresult import Analysis
-    from ..pipeline import ProcessResult
+    from torquemod.analysis.result import Analysis
+    from torquemod.process.pipeline import ProcessResult
 
 __all__ = ["ReportOptions", "creep_curve_figure", "phase_figure", "phase_fit_figure",
            "signals_figure", "write_report"]
@@ -82,7 +82,7 @@ def _png_bytes(fig, dpi: int) -> bytes:
 def write_report(folder, result: ProcessResult, analysis: Analysis, *, options=None,
                  provenance_doc: dict | None = None) -> Path:
     """Write the figures and ``report.html`` of ``result`` and ``analysis`` into ``folder``
-    (non-atomically: :mod:`torquemod.layout` passes the folder it is assembling); returns
+    (non-atomically: :mod:`torquemod.results.folder` passes the folder it is assembling); returns
     the report's path."""
     opts = ReportOptions.coerce(options)
     folder = Path(folder)

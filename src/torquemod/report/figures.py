@@ -2,7 +2,7 @@
 phase fit; the report numbers them 1-4).
 
 Every function takes the in-memory results (a cycle's traces, an
-:class:`~torquemod.analysisresult.Analysis`), draws on a given ``ax`` and returns it
+:class:`~torquemod.analysis.result.Analysis`), draws on a given ``ax`` and returns it
 (matplotlib's and pandas' convention: a notebook cell shows the figure once), or without one
 on a new :class:`matplotlib.figure.Figure` built with the object-oriented API (no pyplot, no
 display, no global state) and returns its Axes (``ax.figure`` is the Figure);
@@ -18,8 +18,8 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..creep import phase_from_constant_deg
-from ..errors import InputError
+from torquemod.analysis.creep import phase_from_constant_deg
+from torquemod.errors import InputError
 
 __all__ = ["creep_curve_figure", "figure_of", "phase_figure", "phase_fit_figure",
            "save_figure", "signals_figure"]
@@ -127,7 +127,7 @@ def _peaks_in(t, x, window) -> np.ndarray:
 
 def creep_curve_figure(ana, *, ax=None, coa_multiplier: float = 20.0,
                        creepage_multiplier: float = 5.0):
-    """Paper Figure 3 of an :class:`~torquemod.analysisresult.Analysis`: CoA against
+    """Paper Figure 3 of an :class:`~torquemod.analysis.result.Analysis`: CoA against
     longitudinal creepage [%] with error bars of ``coa_multiplier`` x std(CoA) and
     ``creepage_multiplier`` x std(creepage) over cycles (stated in the legend), and the
     fitted Polach curve (dashed)."""
@@ -163,7 +163,7 @@ def creep_curve_figure(ana, *, ax=None, coa_multiplier: float = 20.0,
 
 
 def phase_figure(ana, *, ax=None):
-    """Paper Figure 4 of an :class:`~torquemod.analysisresult.Analysis`: measured phase
+    """Paper Figure 4 of an :class:`~torquemod.analysis.result.Analysis`: measured phase
     difference [deg] (bars: std over cycles) against the DC torque as % of the saturation
     torque ``Ts = mu*N*Rw`` (N·m when mu is undetermined), with the rigid-wheel theory
     ``atan(C/k)`` along the fitted curve and at each step; the onset step is marked."""
@@ -221,9 +221,9 @@ def _ts_axis_label(ana) -> str:
 
 def phase_fit_figure(ana, *, ax=None):
     """The phase progression against the utilised adhesion CoA [-] (mu from the phase, issue
-    8) of an :class:`~torquemod.analysisresult.Analysis`: measured phase per fitted step
+    8) of an :class:`~torquemod.analysis.result.Analysis`: measured phase per fitted step
     (bars: 2 standard errors), the fitted ``tan phi = C/k(CoA)`` curve
-    (:func:`torquemod.phasefit.fit_mu_from_phase`), its mu with the 95 % interval (or lower
+    (:func:`torquemod.analysis.phasefit.fit_mu_from_phase`), its mu with the 95 % interval (or lower
     bound) and the force fit's mu; each step is labelled with its utilisation CoA/mu."""
     _fig, ax = _axes(ax)
     pts, use = ana.points, ana.used

@@ -22,7 +22,7 @@ from html.parser import HTMLParser
 from pathlib import Path
 from typing import ClassVar
 
-from ..errors import InputError, OutputError
+from torquemod.errors import InputError, OutputError
 
 __all__ = ["PDF_ENGINES", "find_chromium", "html_to_pdf", "parse_report"]
 

@@ -6,7 +6,7 @@ resumably, and writes the table ``sweep.parquet``, ``failures.csv``, ``sweep.jso
 figures and ``report.html``.
 """
 
-from .run import SweepResult, run_sweep
-from .spec import SweepPoint, SweepSpec, load_sweep, parse_sweep
+from torquemod.sweep.run import SweepResult, run_sweep
+from torquemod.sweep.spec import SweepPoint, SweepSpec, load_sweep, parse_sweep
 
 __all__ = ["SweepPoint", "SweepResult", "SweepSpec", "load_sweep", "parse_sweep", "run_sweep"]

@@ -1,11 +1,13 @@
 """One sweep point: its twin configuration, its torque progression and its rows of the sweep
 table (one per torque step).
 
-``mode = "theory"``: per step the steady operating point (:func:`torquemod.theory.
+``mode = "theory"``: per step the steady operating point (:func:`torquemod.twins.vtrack.theory.
 operating_point`) and the periodic steady state under the full modulation
-(:func:`torquemod.theory.large_signal_phase_deg`, driven by the motor as in the twin); the
+(:func:`torquemod.twins.vtrack.theory.large_signal_phase_deg`, driven by the motor as in the twin);
+the
 phase's standard error is the Cramér-Rao bound of the step's record (FACTS.md §5) and mu from
-the phase is fitted to those phases. ``mode = "full"``: the twin (:func:`torquemod.simulate.
+the phase is fitted to those phases. ``mode = "full"``: the twin
+(:func:`torquemod.twins.vtrack.simulate.
 run_simulation`, HDF5) -> the processing chain (:func:`torquemod.api.process`) -> the fits
 (:func:`torquemod.api.analyze`), with the theory columns beside the chain's.
 
@@ -29,8 +31,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..creep import theory_constant, time_constant_s
-from ..errors import InputError, ProcessingError
+from torquemod.analysis.creep import theory_constant, time_constant_s
+from torquemod.errors import InputError, ProcessingError
 
 __all__ = ["CHAIN_RULE", "SETTLE_RULE", "SETTLE_TIME_CONSTANTS", "PointTask", "chain_config",
            "evaluate_point", "phase_crlb_deg", "point_config", "settle_time_s"]
@@ -44,7 +46,7 @@ SETTLE_TIME_CONSTANTS = 8.0
 SETTLE_RULE = "8 creep-mode time constants of the slowest recorded step (< slip_creepage)"
 #: how :func:`chain_config` scales the chain with the frequency (in the fingerprint too)
 CHAIN_RULE = "band, band-pass, high-pass, slow model x f/2; resampling rate x max(f/2, 1)"
-#: (the same rule as torquemod.config.FREQUENCY_RULE; kept as the fingerprint's text)
+#: (the same rule as torquemod.io.processing.FREQUENCY_RULE; kept as the fingerprint's text)
 
 
 @dataclass(frozen=True)
@@ -68,8 +70,8 @@ class PointTask:
 def point_config(task: PointTask):
     """``(SimConfig, T_peak [N*m])``: the base config with the point's overrides, its DC
     torques set to ``fractions_of_peak`` of the creep-curve peak torque when given."""
-    from ..simulate import load_config
-    from ..theory import creep_curve_peak
+    from torquemod.twins.vtrack.simulate import load_config
+    from torquemod.twins.vtrack.theory import creep_curve_peak
     config = load_config(task.base, overrides=task.overrides)
     _, t_peak = creep_curve_peak(config.rig)
     if task.fractions_of_peak is not None:
@@ -93,7 +95,7 @@ def phase_crlb_deg(torque_amplitude_nm, speed_amplitude_rad_s, *, torque_noise_n
 
 def creep_time_constant_s(config, creep_coefficient) -> np.ndarray:
     """Time constant [s] of the wheel's speed relative to the platform at an operating point
-    of creep coefficient k = dCoA/dxi [-] (:func:`torquemod.creep.time_constant_s`): the
+    of creep coefficient k = dCoA/dxi [-] (:func:`torquemod.analysis.creep.time_constant_s`): the
     drive line turns as one body below its torsional mode, so its inertia is the wheel's
     and the motor side's, ``J_w + J_m``."""
     rig = config.rig
@@ -127,7 +129,7 @@ def settle_time_s(config, rows: list[dict]) -> float:
 def _theory_steps(config, t_peak: float) -> list[dict]:
     """Operating point and large-signal periodic state of each step until the first that
     slips (included, flagged)."""
-    from ..theory import large_signal_phase_deg, operating_point
+    from torquemod.twins.vtrack.theory import large_signal_phase_deg, operating_point
     rig, mod = config.rig, config.modulation
     f = mod.actual_frequency_hz
     sens, dist = config.sensors, config.disturbances
@@ -167,13 +169,13 @@ def _theory_steps(config, t_peak: float) -> list[dict]:
 
 
 def _phase_mu(coa, phase_deg, se_deg, constant, swing, speed_m_s=None) -> dict:
-    """The available adhesion from the phase (:func:`torquemod.phasefit.fit_mu_from_phase`)
+    """The available adhesion from the phase (:func:`torquemod.analysis.phasefit.fit_mu_from_phase`)
     over the given steps. ``mu_phase*`` (the names of earlier versions): value (NaN when not
     determined), 95 % interval (low end = lower bound when not determined), determined
     flag, and why it was not fitted; ``adhesion_available_phase*`` the same quantity named:
     the estimate, the interval whenever it is closed, the lower bound, the probe depth that
     would determine it; ``mu0_phase`` the law's friction coefficient where identified."""
-    from ..phasefit import fit_mu_from_phase
+    from torquemod.analysis.phasefit import fit_mu_from_phase
     out = {"mu_phase": math.nan, "mu_phase_lo": math.nan, "mu_phase_hi": math.nan,
            "mu_phase_determined": False, "mu_phase_note": "",
            "adhesion_available_phase": math.nan, "adhesion_available_phase_low": math.nan,
@@ -205,10 +207,10 @@ def _phase_mu(coa, phase_deg, se_deg, constant, swing, speed_m_s=None) -> dict:
 
 
 def _forces_mu_theory(df: pd.DataFrame) -> dict:
-    """The Polach force fit (:func:`torquemod.fit.fit_polach`, as the chain's analysis
+    """The Polach force fit (:func:`torquemod.analysis.fit.fit_polach`, as the chain's analysis
     calls it, unweighted) on the exact steady-state creep points of the steps that do not
     slip: what the force method gives with perfect measurements."""
-    from ..fit import fit_polach
+    from torquemod.analysis.fit import fit_polach
     live = df[~df["slipped"].astype(bool)]
     out = {"mu_forces": math.nan, "mu_forces_lo": math.nan, "mu_forces_hi": math.nan,
            "mu_forces_determined": False,
@@ -232,7 +234,7 @@ def _f(x) -> float:
 
 def chain_config(frequency_hz: float, processing: dict | None = None):
     """The processing chain's parameters for a modulation at ``frequency_hz`` [Hz]
-    (:meth:`torquemod.config.ProcessingConfig.for_modulation`: the defaults, tuned for the
+    (:meth:`torquemod.io.processing.ProcessingConfig.for_modulation`: the defaults, tuned for the
     paper's 2 Hz, with every frequency-bound setting scaled by ``frequency_hz/2``; above
     2 Hz also the resampling rate, so that a period keeps its 26.7 samples: the paper's
     peak/valley phase interpolates each peak by a parabola, whose bias grows as the samples
@@ -240,7 +242,7 @@ def chain_config(frequency_hz: float, processing: dict | None = None):
     chain's phase 0.025 deg (median) to 0.074 deg off the theory with a standard error of
     1e-4 deg; with the rate scaled, 0.0012 deg). Then the keys the sweep's ``processing``
     table gives (nested as a manifest's ``[processing]``)."""
-    from ..config import ProcessingConfig
+    from torquemod.io.processing import ProcessingConfig
     return ProcessingConfig.for_modulation(frequency_hz, processing or {},
                                            source="sweep [processing]")
 
@@ -249,8 +251,8 @@ def _full_steps(config, t_peak: float, seed: int, workdir: Path,
                 processing: dict | None = None) -> tuple[list[dict], dict]:
     """Twin -> chain -> fits: the chain's and the twin's columns per step, and the point's
     force fit and mu from the phase over all steps (the analysis of ``torquemod fit``)."""
-    from ..api import analyze, process
-    from ..simulate import run_simulation
+    from torquemod.api import analyze, process
+    from torquemod.twins.vtrack.simulate import run_simulation
     # workers=1: the sweep's parallel units are Dask worker processes, one per core
     truth = run_simulation(config, workdir / "experiment", seed=seed, fmt="hdf5",
                            progress=False, workers=1)
@@ -297,7 +299,7 @@ def _friction_at_top(df: pd.DataFrame, use: pd.Series, rig) -> float:
     reported beside ``mu_true`` (the creep curve's peak, the available adhesion, which that
     fit estimates and which lies below it where friction falls with slip). NaN when no step
     was used."""
-    from ..contact.polach import friction_coefficient
+    from torquemod.analysis.contact.polach import friction_coefficient
     used = df[use]
     if not len(used) or not np.isfinite(used["creepage_true"].iloc[-1]):
         return math.nan
@@ -311,7 +313,7 @@ def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.
     point cannot be evaluated: a bad parameter, a wheel that slips at the first step).
     ``workdir`` holds the twin's experiment while the full chain runs (removed after)."""
     if task.kind == "train":
-        from .trainpoint import evaluate_train_point
+        from torquemod.sweep.trainpoint import evaluate_train_point
         return evaluate_train_point(task, workdir=workdir)
     t0 = time.perf_counter()
     config, t_peak = point_config(task)

@@ -30,10 +30,10 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
-from ..creep import phase_from_constant_deg
-from ..report.figures import _axes
-from .conditions import CONDITION_COLUMN
-from .summary import BAND, slipped_mask
+from torquemod.analysis.creep import phase_from_constant_deg
+from torquemod.report.figures import _axes
+from torquemod.sweep.conditions import CONDITION_COLUMN
+from torquemod.sweep.summary import BAND, slipped_mask
 
 __all__ = ["creep_curves_figure", "disturbance_figure", "mu_error_figure",
            "phase_panels_figure", "sensitivity_figure", "slipped_mask", "small_signal_deg"]

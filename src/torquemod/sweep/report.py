@@ -15,14 +15,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .._version import __version__
-from ..fsutil import write_atomic
-from ..report.figures import figure_of
-from ..report.html import CSS, _img, table
-from . import figures as F
-from .conditions import CONDITION_COLUMN, condition_labels
-from .spec import SweepSpec
-from .summary import BAND, agreement, point_summary, recommend, setting_table
+from torquemod._util.fsutil import write_atomic
+from torquemod._version import __version__
+from torquemod.report.figures import figure_of
+from torquemod.report.html import CSS, _img, table
+from torquemod.sweep import figures as F
+from torquemod.sweep.conditions import CONDITION_COLUMN, condition_labels
+from torquemod.sweep.spec import SweepSpec
+from torquemod.sweep.summary import BAND, agreement, point_summary, recommend, setting_table
 
 __all__ = ["make_figures", "reasoning_html", "recommend", "save_png", "write_report"]
 
@@ -71,10 +71,10 @@ def creep_curves(tab: pd.DataFrame, spec: SweepSpec) -> dict:
     ``name -> (creepage [-], F_x/N [-], creepage at the peak, peak F_x/N, labels)``.
     Conditions whose curves are the same (they differ only in noise, say) share one entry,
     named after the first and listing all their ``labels``."""
-    from ..contact.polach import creep_force
-    from ..theory import creep_curve_peak
-    from .evaluate import point_config
-    from .run import tasks
+    from torquemod.analysis.contact.polach import creep_force
+    from torquemod.sweep.evaluate import point_config
+    from torquemod.sweep.run import tasks
+    from torquemod.twins.vtrack.theory import creep_curve_peak
     by_id = {t.point_id: t for t in tasks(spec)}
     groups: dict = {}
     for label, g in tab.groupby(CONDITION_COLUMN, sort=False):

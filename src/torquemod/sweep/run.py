@@ -28,13 +28,18 @@ from pathlib import Path
 
 import pandas as pd
 
-from .._version import __version__
-from ..daskutil import CONNECT_TIMEOUT_S, check_cluster
-from ..errors import InputError, OutputError, TorquemodError
-from ..fsutil import environment_error, output_lock, removed_if_left_empty, write_atomic
-from ..jsonutil import dump_json
-from .evaluate import PointTask, evaluate_point
-from .spec import SweepSpec, load_sweep
+from torquemod._util.daskutil import CONNECT_TIMEOUT_S, check_cluster
+from torquemod._util.fsutil import (
+    environment_error,
+    output_lock,
+    removed_if_left_empty,
+    write_atomic,
+)
+from torquemod._util.jsonutil import dump_json
+from torquemod._version import __version__
+from torquemod.errors import InputError, OutputError, TorquemodError
+from torquemod.sweep.evaluate import PointTask, evaluate_point
+from torquemod.sweep.spec import SweepSpec, load_sweep
 
 __all__ = ["SweepResult", "fingerprint", "plan_line", "run_point", "run_sweep", "tasks"]
 
@@ -58,13 +63,13 @@ def fingerprint(task: PointTask) -> str:
     torque fractions, the utilisation limit of the phase fit, the base config's text (the
     default config's when none), the torquemod version and, in full mode, the run-in rule
     and the chain's frequency scaling (a changed rule reruns the points)."""
-    from ..simulate import default_config_text
-    from ..train.params import default_train_config_text
+    from torquemod.twins.train.params import default_train_config_text
+    from torquemod.twins.vtrack.simulate import default_config_text
     default = default_train_config_text if task.kind == "train" else default_config_text
     base_text = (Path(task.base).read_text(encoding="utf-8") if task.base else default())
     extra = {"kind": task.kind, "max_mu_error": task.max_mu_error} if task.kind != "rig" else {}
     if task.kind == "rig" and task.mode == "full":  # the run-in rule (evaluate.settle_time_s)
-        from .evaluate import CHAIN_RULE, SETTLE_RULE, SETTLE_TIME_CONSTANTS
+        from torquemod.sweep.evaluate import CHAIN_RULE, SETTLE_RULE, SETTLE_TIME_CONSTANTS
         extra["rules"] = [SETTLE_RULE, SETTLE_TIME_CONSTANTS, CHAIN_RULE]
     blob = json.dumps({**extra, "params": task.params, "seed": task.seed, "mode": task.mode,
                        "fractions": task.fractions_of_peak,
@@ -198,7 +203,7 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
         return rows, None
     from dask.distributed import as_completed
 
-    from ..daskutil import dask_client
+    from torquemod._util.daskutil import dask_client
 
     def dashboard(link: str) -> None:
         links.append(link)
@@ -420,14 +425,14 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
         _write_parquet(table, out / "sweep.parquet", metadata=meta)
     else:
         (out / "sweep.parquet").unlink(missing_ok=True)
-    from .report import recommend, write_report
-    from .summary import agreement
+    from torquemod.sweep.report import recommend, write_report
+    from torquemod.sweep.summary import agreement
     # the summaries group by the swept values: a list-valued one (procedure.dc_torques_nm)
     # comes back from Parquet as an array, which cannot be grouped; they see it as text
     table_view = _hashable_params(table, spec.swept)
     if spec.kind == "train":
-        from .trainreport import recommend_train as recommend
-        from .trainreport import write_train_report as write_report
+        from torquemod.sweep.trainreport import recommend_train as recommend
+        from torquemod.sweep.trainreport import write_train_report as write_report
 
         def agreement(_table):  # the large-signal theory is the rig's
             return None

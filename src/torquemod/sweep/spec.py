@@ -22,10 +22,10 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..contact.presets import POLACH_PRESETS, PolachParameters
-from ..errors import InputError
-from ..io.manifest import check_keys
-from ..tomlcheck import between, default_checks, read_table
+from torquemod._util.tomlcheck import between, default_checks, read_table
+from torquemod.analysis.contact.presets import POLACH_PRESETS, PolachParameters
+from torquemod.errors import InputError
+from torquemod.io.manifest import check_keys
 
 __all__ = ["CONDITION_KEY", "MAX_POINTS", "RecommendOptions", "SweepPoint", "SweepSpec",
            "conditions", "load_sweep", "parse_sweep", "twin_keys"]
@@ -41,12 +41,12 @@ _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 
 def conditions() -> dict[str, PolachParameters]:
     """Named friction conditions a sweep can set with ``contact.condition``: the rig's
-    presets (:data:`~torquemod.contact.presets.POLACH_PRESETS`: vtrack, dry, wet) and the
-    train twin's track conditions (``torquemod.train.params.CONDITIONS``: leaves,
+    presets (:data:`~torquemod.analysis.contact.presets.POLACH_PRESETS`: vtrack, dry, wet) and the
+    train twin's track conditions (``torquemod.twins.train.params.CONDITIONS``: leaves,
     friction_modifier), each with its source."""
     out = dict(POLACH_PRESETS)
     try:
-        from ..train.params import CONDITIONS
+        from torquemod.twins.train.params import CONDITIONS
         out.update({k: v for k, v in CONDITIONS.items() if k not in out})
     except ImportError:  # pragma: no cover - the train twin ships with the package
         pass
@@ -55,7 +55,7 @@ def conditions() -> dict[str, PolachParameters]:
 
 def twin_keys() -> dict[str, object]:
     """Every dotted key of the rig twin's configuration with its default value."""
-    from ..simulate import default_config_text
+    from torquemod.twins.vtrack.simulate import default_config_text
     doc = tomllib.loads(default_config_text())
     return {f"{s}.{k}": v for s, table in doc.items() for k, v in table.items()}
 
@@ -169,7 +169,7 @@ def _check_value(key: str, value, where: str, path, kind: str = "rig") -> None:
         raise InputError(f"{where}: '{key}' has an unusable value {value!r}", path=path,
                          hint="give a number, a string, true/false or a list of numbers")
     if kind == "train":
-        from .trainpoint import check_train_value
+        from torquemod.sweep.trainpoint import check_train_value
         check_train_value(key, value, where, path)
         return
     if key == CONDITION_KEY:
@@ -228,7 +228,7 @@ def _fractions(doc: dict, path) -> tuple[float, ...] | None:
 
 def _recommend(doc: dict, path) -> RecommendOptions:
     """The ``[recommend]`` table (and a top-level ``max_utilisation``), every value checked
-    (:func:`torquemod.tomlcheck.read_table`): shares in (0, 1), the rest positive."""
+    (:func:`torquemod._util.tomlcheck.read_table`): shares in (0, 1), the rest positive."""
     table = doc.get("recommend", {})
     if not isinstance(table, dict):
         raise InputError("[recommend] must be a table", path=path)
@@ -245,7 +245,7 @@ def _processing(doc: dict, path) -> dict:
     """The ``[processing]`` table (the chain's parameters as an experiment manifest takes
     them, docs/processing.md), checked now so that a typo names the sweep file."""
     table = doc.get("processing", {})
-    from ..config import ProcessingConfig
+    from torquemod.io.processing import ProcessingConfig
     ProcessingConfig.from_dict(table, source=f"{path} [processing]")
     return table
 
@@ -275,10 +275,10 @@ def _base(doc: dict, path, where) -> tuple[Path | None, str]:
     # every value of the base checked now (the error names the base file and the key), not
     # by each point's worker
     if kind == "train":
-        from ..train.params import load_train_config
+        from torquemod.twins.train.params import load_train_config
         load_train_config(base_path)
     else:
-        from ..simulate import load_config
+        from torquemod.twins.vtrack.simulate import load_config
         load_config(base_path)
     return base_path, kind
 
@@ -327,7 +327,7 @@ def parse_sweep(text: str, *, path: str | Path | None = None,
                               "(large-signal theory only)")
     base_path, kind = _base(doc, path, where)
     if kind == "train":
-        from .trainpoint import train_keys
+        from torquemod.sweep.trainpoint import train_keys
         _train_only(doc, mode, where)
         allowed = train_keys(base_path)
     else:

@@ -23,8 +23,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from .conditions import CONDITION_COLUMN, condition_labels, short_name
-from .spec import SweepSpec
+from torquemod.sweep.conditions import CONDITION_COLUMN, condition_labels, short_name
+from torquemod.sweep.spec import SweepSpec
 
 __all__ = ["BAND", "agreement", "point_summary", "recommend", "setting_table", "slipped_mask"]
 

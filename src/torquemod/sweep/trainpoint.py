@@ -4,7 +4,7 @@ segment).
 
 Keys (docs/sweep.md): the train configuration's own, by section (``test.*``, ``run.*``,
 ``vehicle.*``, ``sensors.*``, ``track.*``, ``controller.*``), the on-board estimator's
-settings (``onboard.*``, :class:`~torquemod.onboard.estimator.OnboardConfig`) and sweep-only
+settings (``onboard.*``, :class:`~torquemod.ontrain.estimator.OnboardConfig`) and sweep-only
 keys that reach into the track's segments and the probe legs:
 
 * ``track.condition`` -- a named condition for every segment; ``track.mu0`` (``a_ratio``,
@@ -16,8 +16,8 @@ keys that reach into the track's segments and the probe legs:
   leg's first level to it (the same count); ``controller.probe_step_m`` -- their length.
 
 One point: the twin writes the run into a temporary folder
-(:func:`torquemod.train.run_train_simulation`), the on-board estimator reads it back
-(:func:`torquemod.onboard.run.estimate_axle`, no figures), and each window is compared with
+(:func:`torquemod.twins.train.run_train_simulation`), the on-board estimator reads it back
+(:func:`torquemod.ontrain.run.estimate_axle`, no figures), and each window is compared with
 the twin's truth at its position (as ``benchmarks/onboard.py`` does). The disturbance the
 modulation adds is taken from the twin's true signals: the run integrated once more with the
 same seed (identical) and once without the modulation, their difference per modulation
@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
+from torquemod.errors import InputError
 
 __all__ = ["BANDS", "PROBE_KEYS", "TrackStats", "band_name", "disturbance", "evaluate_train_point",
            "segment_rows", "train_config", "train_keys"]
@@ -62,7 +62,7 @@ def band_name(band: tuple[float, float]) -> str:
 
 def base_doc(base: str | Path | None) -> dict:
     """The base train configuration as a TOML document (None: the packaged default)."""
-    from ..train.params import default_train_config_text
+    from torquemod.twins.train.params import default_train_config_text
     if base is None:
         return tomllib.loads(default_train_config_text())
     try:
@@ -73,8 +73,8 @@ def base_doc(base: str | Path | None) -> dict:
 
 def train_keys(base: str | Path | None = None) -> tuple[str, ...]:
     """Every dotted key a train sweep takes over the base config ``base``."""
-    from ..onboard.estimator import OnboardConfig
-    from ..train.params import (
+    from torquemod.ontrain.estimator import OnboardConfig
+    from torquemod.twins.train.params import (
         ControllerParams,
         TrackParams,
         TrainSensorParams,
@@ -97,7 +97,7 @@ def train_keys(base: str | Path | None = None) -> tuple[str, ...]:
 def check_train_value(key: str, value, where: str, path) -> None:
     """Values the config reader would not see until a worker runs the point: a condition
     must be known, probe levels a list of fractions in (0, 1)."""
-    from .spec import conditions
+    from torquemod.sweep.spec import conditions
     if key.endswith(".condition"):
         if value not in conditions():
             raise InputError(f"{where}: unknown friction condition {value!r}", path=path,
@@ -121,9 +121,9 @@ def _polach_with(pol, values: dict):
 def train_config(base: str | Path | None, params: dict):
     """``(TrainConfig, OnboardConfig)`` of a point: the base document with the plain keys
     set (so the train reader checks them), then the sweep-only segment and probe keys."""
-    from ..onboard.estimator import OnboardConfig
-    from ..train.params import config_from_dict
-    from .spec import conditions
+    from torquemod.ontrain.estimator import OnboardConfig
+    from torquemod.sweep.spec import conditions
+    from torquemod.twins.train.params import config_from_dict
     doc = base_doc(base)
     doc.pop("onboard", None)
     onboard, special = {}, {}
@@ -178,7 +178,7 @@ def _median(x) -> float:
 
 def disturbance(raw: np.ndarray, raw0: np.ndarray, cfg) -> pd.DataFrame:
     """What the modulation adds, per modulation period of the twin's true signals
-    (:data:`torquemod.train.dynamics.OUT`): ``raw`` the run, ``raw0`` the same run (seed,
+    (:data:`torquemod.twins.train.dynamics.OUT`): ``raw`` the run, ``raw0`` the same run (seed,
     irregularity) without the modulation, so that the track irregularity's own creepage
     variation cancels. Periods where the driver's demand changed or the anti-slip control
     acted in either run, and the first :data:`STARTUP_S`, are left out. Columns: position
@@ -315,9 +315,9 @@ def point_info(cfg) -> dict:
 def evaluate_train_point(task, *, workdir: str | Path | None = None) -> pd.DataFrame:
     """The rows of one train point (:class:`~torquemod.sweep.evaluate.PointTask` with
     ``kind = "train"``): twin -> run folder -> on-board estimator -> per-segment rows."""
-    from ..io.run import read_run
-    from ..onboard.run import estimate_axle
-    from ..train import integrate_run, run_train_simulation
+    from torquemod.io.run import read_run
+    from torquemod.ontrain.run import estimate_axle
+    from torquemod.twins.train import integrate_run, run_train_simulation
     t0 = time.perf_counter()
     cfg, onboard_cfg = train_config(task.base, task.params)
     tmp = Path(tempfile.mkdtemp(prefix=f"sweep-{task.point_id}-", dir=workdir))

@@ -26,13 +26,13 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from .._version import __version__
-from ..fsutil import write_atomic
-from ..report.figures import figure_of
-from ..report.html import CSS, _img, table
-from .report import reasoning_html, save_png
-from .spec import SweepSpec
-from .trainpoint import BANDS, band_name
+from torquemod._util.fsutil import write_atomic
+from torquemod._version import __version__
+from torquemod.report.figures import figure_of
+from torquemod.report.html import CSS, _img, table
+from torquemod.sweep.report import reasoning_html, save_png
+from torquemod.sweep.spec import SweepSpec
+from torquemod.sweep.trainpoint import BANDS, band_name
 
 __all__ = ["condition_table", "make_train_figures", "noise_keys", "recommend_train",
            "setting_summary", "write_train_report"]
@@ -277,7 +277,7 @@ def band_figure(table: pd.DataFrame, curve: str | None) -> Figure:
 
 def make_train_figures(table: pd.DataFrame, spec: SweepSpec, rec: dict):
     """``(file stem, Figure, caption)`` of every figure of a train sweep."""
-    from .figures import disturbance_figure
+    from torquemod.sweep.figures import disturbance_figure
     tab = _hashable(table)
     out = []
     xs = []

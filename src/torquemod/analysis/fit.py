@@ -1,0 +1,625 @@
+"""Least-squares fit of Polach's creep-force model to measured creep-curve points.
+
+The model is the lumped form of :func:`torquemod.analysis.contact.polach.adhesion_curve`
+(Polach 2005, Eqs. 3 and 8, "P05" below)::
+
+    CoA(xi) = mu * (2/pi) * [kA*eps/(1 + (kA*eps)^2) + arctan(kS*eps)],   eps = s*|xi|/mu
+
+with ``s = pi*G*a*b*c11/(4*Q)`` [-] lumping the contact geometry. CoA is a magnitude (Eq. 4 of
+the V-Track paper), so the model uses ``|xi|``.
+
+Identifiability
+---------------
+``kA`` and ``kS`` enter only as the products ``kA*s`` and ``kS*s``; with ``s`` unknown only
+``mu``, ``kA*s`` and ``kS*s`` are identifiable. :func:`fit_polach` therefore always fits
+``(mu, kA*s, kS*s)``. When the caller knows ``s`` (``stiffness=``, e.g. from a Hertz/Kalker
+calculation of the rig) the reported parameters are ``mu, k_a, k_s`` (products divided by
+``s``, standard errors likewise); otherwise they are reported as ``k_a_stiffness`` and
+``k_s_stiffness``. The initial slope ``2*(kA*s + kS*s)/pi`` is always identifiable.
+
+When is mu determined?
+----------------------
+If the points lie on the near-linear part of the curve, the data fix the initial slope but not
+the friction level: the optimiser drifts to the upper bound of ``mu`` or returns a value with a
+huge standard error. ``mu_determined`` is True only when all of these hold (thresholds are
+keyword options of :func:`fit_polach`):
+
+* the optimiser converged and the covariance has full rank,
+* ``mu`` is not at (within 1 % of) its upper bound,
+* ``mu_stderr / mu <= max_rel_stderr`` (default 0.10),
+* the largest measured CoA reaches ``min_saturation_fraction * mu`` (default 0.5),
+* the fitted curve itself reaches ``min_peak_fraction * mu`` (default 0.9) for creepages up to
+  ``creepage_limit`` (default 0.1). With ``kS << kA`` Polach's curve has a hump whose maximum
+  lies well below ``mu``, or it creeps up to ``mu`` only at creepages no wheel reaches; ``mu``
+  is then a shape parameter, not the saturation level the method needs (``Ts = mu*N*Rw``).
+  This happens when the points bend more sharply than the constant-friction model can (e.g.
+  friction falling with slip velocity). The curve's maximum over that range is always reported
+  as ``curve_peak_coa``.
+
+Otherwise ``mu`` is None, ``mu_lower_bound`` is the largest measured CoA (adhesion cannot
+exceed friction) and a warning says so.
+
+Modulation swing (issue 8)
+--------------------------
+The torque modulation swings each step's creepage sinusoidally, ``xi(t) = xi_m + a*cos(Omega*t)``
+with amplitude ``a`` [-] (``steps.csv`` ``creepage_swing``, ``a = delta_omega*R/V``). Where the
+curve bends, the step's mean CoA is the period average, not the static value::
+
+    CoA_mean(xi_m, a) = (1/2pi) * integral_0^2pi f(xi_m + a*cos(theta)) dtheta
+                      ~ f(xi_m) + (a^2/4)*f''(xi_m)                       (f'' < 0: below)
+
+with ``f(x) = sign(x)*CoA(|x|)`` the signed static curve (a swing past zero creepage pulls
+the mean towards zero). Assumptions: the creepage swings sinusoidally and the curve is
+quasi-static (the contact follows the 2 Hz swing without memory). The static curve fitted to
+these means misplaces mu by a few per cent (noise-free V-Track-like points, swings 3e-4 at
+low torque to 5e-3 near saturation, tests/analysis/test_fit_swing.py: +2.6 % wet, +5.4 % dry).
+With ``creepage_swing=`` :func:`fit_polach` fits ``CoA_mean``
+(:func:`torquemod.analysis.contact.polach.swing_average`, 32-node trapezoidal rule) in every stage:
+the starting points' costs, the effective-variance slope (``d CoA_mean/d xi_m``), the
+profile likelihood of mu, the residuals, and the velocity-dependent model (slip velocity
+``|xi_m + a*cos|*V``). Parameters, ``PolachFit.curve``/``slope`` and the saturation checks
+(``curve_peak_coa``) stay those of the static curve, which is what mu describes;
+``PolachFit.mean_curve(xi, swing)`` is the fitted model. With lateral CoA only the
+longitudinal part is averaged: ``sqrt(CoA_mean^2 + lateral^2)``. NaN swing counts as 0; an
+all-zero swing is exactly the plain fit. The swing used is in ``options`` and ``to_dict()``.
+
+Weights
+-------
+Residuals are divided by the standard error of each point, ``sigma_i``. With creepage errors
+the effective-variance method is used: ``sigma_i^2 = se_CoA^2 + (k_i*se_xi)^2`` with ``k_i``
+the slope of a first unweighted-in-xi pass. Every sigma is floored at
+``max(sigma_floor, 0.1*median(sigma))`` so that one lucky point with a tiny spread cannot
+dominate. The covariance is ``(J^T J)^-1 * max(1, chi2_red)`` (conservative: scaled up when the
+scatter exceeds the stated errors, never scaled down).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from torquemod._util.jsonutil import to_jsonable
+from torquemod.analysis.contact.polach import (
+    force_function,
+    force_function_slope,
+    friction_coefficient,
+    swing_average,
+)
+from torquemod.errors import InputError, ProcessingError
+
+__all__ = ["MU_BOUNDS", "PolachFit", "fit_polach", "polach_coa", "polach_slope"]
+
+#: Bounds of the friction coefficient in the fit [-].
+MU_BOUNDS: tuple[float, float] = (1e-3, 2.0)
+#: Upper bound of B [s/m] in the velocity-dependent fit.
+B_MAX_S_M = 50.0
+
+
+def polach_coa(xi, theta, *, speed_m_s=None):
+    """CoA of the lumped Polach model for the internal parameter vector ``theta``.
+
+    ``theta = (mu, kA*s, kS*s)`` (constant friction) or ``(mu0, kA*s, kS*s, A, B[s/m])``
+    (P05 Eq. 9, slip velocity ``w = |xi|*V`` with ``speed_m_s`` V [m/s]).
+    """
+    xi = np.abs(np.asarray(xi, dtype=float))
+    mu = theta[0]
+    if len(theta) == 5:
+        if speed_m_s is None:
+            raise InputError("the velocity-dependent model needs speed_m_s")
+        mu = friction_coefficient(xi * np.asarray(speed_m_s, dtype=float), mu0=theta[0],
+                                  a_ratio=theta[3], b_s_m=theta[4])
+    mu = np.maximum(mu, 1e-12)
+    return mu * force_function(xi / mu, k_a=theta[1], k_s=theta[2])
+
+
+def polach_slope(xi, theta, *, speed_m_s=None):
+    """Creep coefficient dCoA/dxi [-] of :func:`polach_coa` at ``|xi|``.
+
+    Analytic for constant friction; central difference for the velocity-dependent model.
+    """
+    xi = np.abs(np.asarray(xi, dtype=float))
+    if len(theta) == 3:
+        mu, a, s = (float(v) for v in theta)
+        return force_function_slope(xi / mu, k_a=a, k_s=s)
+    h = np.maximum(1e-7, 1e-4 * xi)
+    lo = np.maximum(xi - h, 0.0)
+    hi = xi + h
+    f_hi = polach_coa(hi, theta, speed_m_s=speed_m_s)
+    f_lo = polach_coa(lo, theta, speed_m_s=speed_m_s)
+    return (f_hi - f_lo) / (hi - lo)
+
+
+def longitudinal_mean(xi, theta, swing=None, speed_m_s=None):
+    """Mean longitudinal CoA [-] at creepage ``xi`` [-]: the static curve, or, with a
+    creepage swing [-], its period average over the swing (the mean of a modulated step,
+    ``CoA_mean`` of the module docstring, via
+    :func:`torquemod.analysis.contact.polach.swing_average` of the signed curve).
+
+    ``theta`` as in :func:`polach_coa`; ``speed_m_s`` [m/s] per point for the
+    velocity-dependent model (slip velocity ``|xi + a*cos(theta)|*V``, P05 Eq. 9)."""
+    if swing is None:
+        return polach_coa(xi, theta, speed_m_s=speed_m_s)
+    spd = None if speed_m_s is None else np.asarray(speed_m_s, dtype=float)[..., None]
+
+    def signed(x):
+        return np.sign(x) * polach_coa(np.abs(x), theta, speed_m_s=spd)
+    return np.abs(swing_average(signed, xi, swing))
+
+
+def _mean_slope(xi, theta, swing=None, speed_m_s=None):
+    """d CoA_mean/d xi [-] of :func:`longitudinal_mean` at ``xi`` [-]: the static slope
+    without swing, else a central difference of the period average (module docstring)."""
+    if swing is None:
+        return polach_slope(xi, theta, speed_m_s=speed_m_s)
+    xi = np.abs(np.asarray(xi, dtype=float))
+    h = np.maximum(1e-7, 1e-4 * xi)
+    x_lo, x_hi = np.maximum(xi - h, 0.0), xi + h
+    return ((longitudinal_mean(x_hi, theta, swing, speed_m_s)
+             - longitudinal_mean(x_lo, theta, swing, speed_m_s)) / (x_hi - x_lo))
+
+
+def _clean(name, x, n=None):
+    if x is None:
+        return None
+    arr = np.asarray(x, dtype=float).ravel()
+    if n is not None and arr.size != n:
+        raise InputError(f"{name} has {arr.size} values, expected {n}")
+    return arr
+
+
+@dataclass
+class PolachFit:
+    """Result of :func:`fit_polach` (lmfit-like). Units: CoA and creepage dimensionless,
+    ``b_s_m`` in s/m, speeds in m/s."""
+
+    model: str
+    param_names: tuple[str, ...]
+    params: dict[str, float]
+    stderr: dict[str, float]
+    covariance: np.ndarray
+    correlation: np.ndarray
+    theta: np.ndarray  # internal vector (mu, kA*s, kS*s[, A, B])
+    residuals: np.ndarray  # model - data, CoA units
+    weighted_residuals: np.ndarray
+    sigma: np.ndarray  # standard error used per point (CoA units)
+    xi: np.ndarray
+    coa: np.ndarray
+    speeds_m_s: np.ndarray | None
+    converged: bool
+    status: int
+    message: str
+    nfev: int
+    chi2: float
+    reduced_chi2: float
+    dof: int
+    mu_estimate: float
+    mu_stderr_estimate: float
+    mu_determined: bool
+    mu_lower_bound: float
+    curve_peak_coa: float
+    stiffness: float | None
+    weighted: bool
+    mu_interval_68: tuple[float | None, float | None] = (None, None)
+    mu_interval_95: tuple[float | None, float | None] = (None, None)
+    mu_profile: dict = field(default_factory=dict)
+    starts: list[dict] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    options: dict = field(default_factory=dict)
+    swing: np.ndarray | None = None  # creepage swing per point [-] when modelled
+
+    @property
+    def mu(self) -> float | None:
+        """Fitted friction coefficient [-] (mu0 when velocity-dependent); None when the points
+        do not determine it (see the module docstring)."""
+        return self.mu_estimate if self.mu_determined else None
+
+    @property
+    def mu_stderr(self) -> float | None:
+        return self.mu_stderr_estimate if self.mu_determined else None
+
+    @property
+    def velocity_dependent(self) -> bool:
+        return len(self.theta) == 5
+
+    @property
+    def initial_slope(self) -> float:
+        """dCoA/dxi at xi = 0, ``2*(kA + kS)*s/pi`` [-]."""
+        return float(2.0 * (self.theta[1] + self.theta[2]) / np.pi)
+
+    def _speed(self, xi, speed_m_s):
+        if not self.velocity_dependent:
+            return None
+        if speed_m_s is None:
+            speed_m_s = float(np.mean(self.speeds_m_s))
+        return np.broadcast_to(np.asarray(speed_m_s, dtype=float), np.shape(xi))
+
+    def curve(self, xi, speed_m_s=None):
+        """Fitted CoA at creepage ``xi`` [-] (speed defaults to the mean of the data)."""
+        return polach_coa(xi, self.theta, speed_m_s=self._speed(xi, speed_m_s))
+
+    def mean_curve(self, xi, swing, speed_m_s=None):
+        """Mean CoA [-] of a step at mean creepage ``xi`` [-] whose creepage swings
+        sinusoidally by amplitude ``swing`` [-]: the period average of the static curve
+        (``CoA_mean`` of the module docstring), the model fitted with ``creepage_swing=``.
+        ``swing = 0`` gives :meth:`curve`, the static curve. Speed as in :meth:`curve`."""
+        return longitudinal_mean(xi, self.theta, np.asarray(swing, dtype=float),
+                                 self._speed(xi, speed_m_s))
+
+    def slope(self, xi, speed_m_s=None):
+        """Creep coefficient dCoA/dxi of the fitted curve at ``xi`` [-]."""
+        return polach_slope(xi, self.theta, speed_m_s=self._speed(xi, speed_m_s))
+
+    def report(self) -> str:
+        """Plain-text summary of the fit."""
+        lines = [f"[[Polach fit]] model={self.model}  points={self.xi.size}  dof={self.dof}",
+                 f"  converged={self.converged}  status={self.status}  nfev={self.nfev}",
+                 f"  message: {self.message}",
+                 f"  chi2={self.chi2:.4g}  reduced chi2={self.reduced_chi2:.4g}  "
+                 f"weighted={self.weighted}"]
+        if self.mu_determined:
+            lines.append(f"  mu = {self.mu_estimate:.4f} +/- {self.mu_stderr_estimate:.4f}")
+        else:
+            lines.append(f"  mu NOT determined by these points; mu >= {self.mu_lower_bound:.4f}")
+        lines.append(f"  maximum of the fitted curve (creepage <= "
+                     f"{self.options.get('creepage_limit')}): CoA = {self.curve_peak_coa:.4f}")
+        lines.append("[[Parameters]]")
+        for name in self.param_names:
+            if name == "mu" and not self.mu_determined:  # never a value +/- error here
+                lo, hi = self.mu_interval_95
+                lines.append(f"  {name:16s}   not determined (95 % range {lo:.4g} .. {hi:.4g})"
+                             if lo is not None and hi is not None else
+                             f"  {name:16s}   not determined")
+                continue
+            lines.append(f"  {name:16s} = {self.params[name]:12.6g} +/- {self.stderr[name]:.3g}")
+        lines.append(f"  initial slope 2(kA+kS)s/pi = {self.initial_slope:.6g}")
+        for w in self.warnings:
+            lines.append(f"  WARNING: {w}")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """JSON-ready dictionary (non-finite numbers become None)."""
+        return to_jsonable({
+            "model": self.model,
+            "mu": self.mu,
+            "mu_stderr": self.mu_stderr,
+            "mu_determined": self.mu_determined,
+            "mu_lower_bound": self.mu_lower_bound,
+            "mu_interval_68": list(self.mu_interval_68),
+            "mu_interval_95": list(self.mu_interval_95),
+            "mu_profile": self.mu_profile,
+            "curve_peak_coa": self.curve_peak_coa,
+            "mu_estimate_unreliable": None if self.mu_determined else self.mu_estimate,
+            "parameters": dict(self.params),
+            "stderr": dict(self.stderr),
+            "initial_slope": self.initial_slope,
+            "theta_internal": {"names": ["mu", "k_a*stiffness", "k_s*stiffness"]
+                               + (["a_ratio", "b_s_m"] if self.velocity_dependent else []),
+                               "values": self.theta.tolist()},
+            "stiffness": self.stiffness,
+            "covariance": {"names": list(self.param_names),
+                           "matrix": self.covariance.tolist()},
+            "correlation": self.correlation.tolist(),
+            "data": {"creepage": self.xi.tolist(), "coa": self.coa.tolist(),
+                     "sigma_coa": self.sigma.tolist(),
+                     "creepage_swing": None if self.swing is None else self.swing.tolist(),
+                     "speed_m_s": None if self.speeds_m_s is None
+                     else self.speeds_m_s.tolist()},
+            "residuals": self.residuals.tolist(),
+            "weighted_residuals": self.weighted_residuals.tolist(),
+            "chi2": self.chi2, "reduced_chi2": self.reduced_chi2, "dof": self.dof,
+            "converged": self.converged, "status": self.status, "message": self.message,
+            "nfev": self.nfev, "weighted": self.weighted,
+            "starts": self.starts, "warnings": list(self.warnings), "options": self.options,
+        })
+
+
+def _fmt_interval(interval) -> str:
+    lo, hi = interval
+    return f"{'open' if lo is None else f'{lo:.4g}'} .. {'open' if hi is None else f'{hi:.4g}'}"
+
+
+def _profile_interval(resid_at, theta, lo, hi, *, chi2_min: float, threshold: float,
+                      mu_bounds: tuple[float, float], max_nfev: int, step: float = 0.03,
+                      span: float = 0.92) -> dict:
+    """Profile likelihood of mu on a grid from exp(-span) to exp(span) times the optimum
+    (0.4x to 2.5x), minimising chi2 over the other parameters at each grid value by
+    continuation outwards from the optimum. Returns the hulls of the sets where
+    ``chi2 - chi2_min <= threshold * q`` for q = 1 (68 %) and q = 3.84 (95 %), each end None
+    when the set reaches the scanned range or the bound (open), and the profile itself.
+    The chi2 valley of the Polach fit is curved and can hold separate basins (mu trading
+    against kS*s), which a Jacobian standard error or a walk to the first crossing misses."""
+    mu_hat, rest0 = float(theta[0]), np.asarray(theta[1:], dtype=float)
+    n = round(span / step)
+    grid, delta = [mu_hat], [0.0]
+    for direction in (-1.0, 1.0):
+        rest = rest0.copy()
+        for k in range(1, n + 1):
+            mu_k = mu_hat * np.exp(direction * step * k)
+            if not mu_bounds[0] < mu_k < mu_bounds[1]:
+                break
+            x0 = np.clip(rest, lo, np.where(np.isfinite(hi), hi, rest))
+            r = least_squares(resid_at, x0, args=(mu_k,), bounds=(lo, hi), x_scale="jac",
+                              method="trf", max_nfev=max_nfev)
+            rest = r.x
+            grid.append(mu_k)
+            delta.append(max(2.0 * float(r.cost) - chi2_min, 0.0))
+    order = np.argsort(grid)
+    g, d = np.asarray(grid)[order], np.asarray(delta)[order]
+
+    def crossing(i_in: int, i_out: int, level: float) -> float:
+        """mu where the profile crosses ``level`` between grid points (linear)."""
+        f = (level - d[i_in]) / max(d[i_out] - d[i_in], 1e-300)
+        return float(g[i_in] + f * (g[i_out] - g[i_in]))
+
+    def hull(q: float) -> list[float | None]:
+        level = q * threshold
+        inside = np.flatnonzero(d <= level)
+        a, b = int(inside[0]), int(inside[-1])
+        return [None if a == 0 else crossing(a, a - 1, level),
+                None if b == g.size - 1 else crossing(b, b + 1, level)]
+
+    return {"68": hull(1.0), "95": hull(3.84), "mu": g.tolist(), "delta_chi2": d.tolist()}
+
+
+def _covariance(jac, scale):
+    """``(J^T J)^-1 * scale`` via SVD; NaN-filled and ``full_rank=False`` if rank deficient."""
+    _, s, vt = np.linalg.svd(jac, full_matrices=False)
+    tol = np.finfo(float).eps * max(jac.shape) * (s[0] if s.size else 0.0)
+    p = jac.shape[1]
+    if s.size < p or np.any(s <= tol):
+        return np.full((p, p), np.nan), False
+    cov = (vt.T / s**2) @ vt * scale
+    return cov, True
+
+
+def _starts(xi, coa, n_starts, rng, velocity):
+    """Deterministic grid of starting points plus random ones, internal parameters."""
+    order = np.argsort(np.abs(xi))
+    low = order[: max(1, len(order) // 2)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.abs(coa[low]) / np.abs(xi[low])
+    ratio = ratio[np.isfinite(ratio) & (ratio > 0)]
+    k0 = float(np.median(ratio)) if ratio.size else 100.0
+    sum_ks = np.pi * k0 / 2.0  # initial slope = 2*(a + s)/pi
+    cmax = float(np.max(np.abs(coa)))
+    grid = []
+    for mf in (1.05, 1.25, 1.6, 2.5):
+        for frac in (0.7, 0.4, 0.9):
+            grid.append([min(mf * cmax, 0.9 * MU_BOUNDS[1]), frac * sum_ks,
+                         (1 - frac) * sum_ks])
+    while len(grid) < n_starts:
+        frac = rng.uniform(0.05, 0.95)
+        grid.append([min(cmax * rng.uniform(1.01, 3.0), 0.9 * MU_BOUNDS[1]),
+                     frac * sum_ks * rng.uniform(0.5, 2.0),
+                     (1 - frac) * sum_ks * rng.uniform(0.5, 2.0)])
+    grid = np.array(grid[:n_starts], dtype=float)
+    if velocity:
+        grid = np.column_stack([grid, np.full(len(grid), 0.5), np.full(len(grid), 0.5)])
+    return grid
+
+
+def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool = False,
+               speeds_m_s=None, stiffness: float | None = None, n_starts: int = 12,
+               seed: int = 0, sigma_floor: float = 1e-4, max_rel_stderr: float = 0.10,
+               min_saturation_fraction: float = 0.5, min_peak_fraction: float = 0.9,
+               creepage_limit: float = 0.1, max_nfev: int = 2000,
+               lateral_coa=None, creepage_swing=None) -> PolachFit:
+    """Fit Polach's model (P05 Eqs. 3, 8; Eq. 9 when velocity-dependent) to creep points.
+
+    Parameters
+    ----------
+    xi, coa : array_like
+        Creepage [-] and coefficient of adhesion [-] per point (e.g. per torque step).
+    xi_std, coa_std : array_like, optional
+        Standard errors of each point (e.g. cycle standard deviation / sqrt(n_cycles)).
+        Without both, the fit is unweighted (sigma = 1).
+    velocity_dependent : bool
+        Off by default, as in the V-Track paper (low speed, low creepage). When on, fits
+        ``mu0, A, B`` of P05 Eq. (9) too and needs ``speeds_m_s`` [m/s] per point.
+    stiffness : float, optional
+        Lumped contact stiffness ``s = pi*G*a*b*c11/(4*Q)`` [-]; when given, ``k_a`` and
+        ``k_s`` are reported instead of the identifiable products.
+    n_starts, seed : int
+        Number of starting points (a fixed grid, then random ones from ``seed``).
+    lateral_coa : array_like, optional
+        Measured ``|Fy|/Fz`` [-] per point. ``coa`` is then taken as Eq. (4) of the V-Track
+        paper, ``sqrt(Fx^2 + Fy^2)/Fz``, and modelled as ``sqrt(f(xi)^2 + lateral^2)`` with f
+        the longitudinal Polach curve: at low torque the lateral force dominates the CoA and
+        would otherwise be read as a steep creep curve.
+    creepage_swing : array_like, optional
+        Amplitude [-] of the sinusoidal creepage swing the torque modulation causes at each
+        point (``steps.csv`` ``creepage_swing``). The model is then the static curve averaged
+        over the swing (:func:`torquemod.analysis.contact.polach.swing_average`), which is what the
+        mean (creepage, CoA) of a modulated step measures; NaN counts as no swing.
+    sigma_floor, max_rel_stderr, min_saturation_fraction, min_peak_fraction, creepage_limit
+        See the module docstring.
+
+    Returns
+    -------
+    PolachFit
+
+    Raises
+    ------
+    InputError
+        Too few points, non-finite values, or missing speeds.
+    ProcessingError
+        No start converged.
+    """
+    xi = _clean("xi", xi)
+    coa = _clean("coa", coa, xi.size)
+    xi_std = _clean("xi_std", xi_std, xi.size)
+    coa_std = _clean("coa_std", coa_std, xi.size)
+    speeds = _clean("speeds_m_s", speeds_m_s, xi.size)
+    lateral = _clean("lateral_coa", lateral_coa, xi.size)
+    lateral = np.zeros(xi.size) if lateral is None else np.abs(np.nan_to_num(lateral))
+    swing = _clean("creepage_swing", creepage_swing, xi.size)
+    swing = None if swing is None or not np.any(np.nan_to_num(swing) > 0) \
+        else np.abs(np.nan_to_num(swing))
+    n_par = 5 if velocity_dependent else 3
+    if xi.size < n_par + 1:
+        raise InputError(f"the Polach fit needs at least {n_par + 1} points, got {xi.size}",
+                         hint="measure more torque steps or fix parameters")
+    if not (np.all(np.isfinite(xi)) and np.all(np.isfinite(coa))):
+        raise InputError("creepage and CoA must be finite", hint="drop the failed steps first")
+    if velocity_dependent and (speeds is None or not np.all(np.isfinite(speeds))):
+        raise InputError("velocity_dependent=True needs finite speeds_m_s for every point")
+    if stiffness is not None and not (stiffness > 0):
+        raise InputError(f"stiffness must be positive, got {stiffness}")
+    if np.max(np.abs(coa)) <= 0:
+        raise InputError("all CoA values are zero; nothing to fit")
+
+    weighted = coa_std is not None
+    if weighted:
+        sig_coa = np.where(np.isfinite(coa_std), np.abs(coa_std), np.nan)
+        if np.all(np.isnan(sig_coa)):
+            weighted = False
+    sig_xi = None if xi_std is None else np.where(np.isfinite(xi_std), np.abs(xi_std), 0.0)
+    spd = speeds if velocity_dependent else None
+
+    def floor(sig):
+        sig = np.where(np.isfinite(sig), sig, np.nanmedian(sig))
+        return np.maximum(sig, max(sigma_floor, 0.1 * float(np.median(sig))))
+
+    sigma = floor(np.where(np.isnan(sig_coa), np.nanmedian(sig_coa), sig_coa)) if weighted \
+        else np.ones_like(coa)
+
+    lo = [MU_BOUNDS[0], 0.0, 0.0] + ([0.0, 0.0] if velocity_dependent else [])
+    hi = [MU_BOUNDS[1], np.inf, np.inf] + ([1.0, B_MAX_S_M] if velocity_dependent else [])
+
+    def model(th):
+        return np.hypot(longitudinal_mean(xi, th, swing, spd), lateral)
+
+    def run(sig, starts):
+        def resid(th):
+            return (model(th) - coa) / sig
+        results = []
+        for x0 in starts:
+            x0 = np.clip(x0, lo, np.where(np.isfinite(hi), hi, x0))
+            try:
+                r = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", method="trf",
+                                  max_nfev=max_nfev, xtol=1e-12, ftol=1e-12, gtol=1e-12)
+            except (ValueError, FloatingPointError) as exc:  # pragma: no cover - defensive
+                results.append((np.inf, None, str(exc), x0))
+                continue
+            results.append((float(r.cost) if r.status > 0 else np.inf, r, r.message, x0))
+        return results
+
+    rng = np.random.default_rng(seed)
+    starts = _starts(xi, coa, n_starts, rng, velocity_dependent)
+    results = run(sigma, starts)
+    best = min(results, key=lambda t: t[0])
+    if best[1] is None or not np.isfinite(best[0]):
+        raise ProcessingError(f"the Polach fit did not converge from any of {len(starts)} "
+                              f"starting points (last message: {results[-1][2]})")
+    if weighted and sig_xi is not None and np.any(sig_xi > 0):
+        # effective variance with the slope of the first pass, then refit from its solution
+        f = longitudinal_mean(xi, best[1].x, swing, spd)
+        k = _mean_slope(xi, best[1].x, swing, spd) * np.abs(f) / np.maximum(
+            np.hypot(f, lateral), 1e-300)
+        sigma = floor(np.sqrt(sigma**2 + (k * sig_xi) ** 2))
+        results2 = run(sigma, [best[1].x, *starts[:3]])
+        best = min(results2, key=lambda t: t[0])
+        results = results2 + results
+
+    res = best[1]
+    theta = res.x.copy()
+    wres = res.fun
+    n = xi.size
+    dof = n - n_par
+    chi2 = float(np.sum(wres**2))
+    red = chi2 / dof if dof > 0 else np.nan
+    scale = max(1.0, red) if weighted else (red if np.isfinite(red) else np.nan)
+    cov_int, full_rank = _covariance(res.jac, scale)
+
+    # reported parameters: products, or kA, kS when the stiffness is given
+    names = ["mu", "k_a_stiffness", "k_s_stiffness"]
+    conv = np.ones(n_par)
+    if stiffness is not None:
+        names = ["mu", "k_a", "k_s"]
+        conv[1:3] = 1.0 / stiffness
+    if velocity_dependent:
+        names += ["a_ratio", "b_s_m"]
+    values = theta * conv
+    cov = cov_int * np.outer(conv, conv)
+    se = np.sqrt(np.abs(np.diag(cov)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(se, se)
+
+    mu_est, mu_se = float(theta[0]), float(se[0])
+    # profile likelihood of mu: the valley of chi2 is curved (mu trades against kS*s), so the
+    # Jacobian's local standard error can be far too small; the interval where
+    # chi2_profile - chi2_min <= scale is the honest 68 % interval (Wilks)
+    def resid_at(rest, mu_fixed):
+        return (model(np.r_[mu_fixed, rest]) - coa) / sigma
+    profile = _profile_interval(resid_at, theta, lo[1:], hi[1:], chi2_min=chi2,
+                                threshold=scale if np.isfinite(scale) else 1.0,
+                                mu_bounds=MU_BOUNDS, max_nfev=max_nfev)
+    interval, interval95 = tuple(profile["68"]), tuple(profile["95"])
+    if None not in interval:
+        mu_se = max(mu_se, 0.5 * (interval[1] - interval[0]))
+    else:
+        mu_se = float("inf")
+    cmax = float(np.max(np.abs(coa)))
+    warn = []
+    reasons = []
+    if not full_rank:
+        reasons.append("the Jacobian is rank deficient")
+    if mu_est >= 0.99 * MU_BOUNDS[1]:
+        reasons.append(f"mu ran to its upper bound {MU_BOUNDS[1]}")
+    # determined: values more than max_rel_stderr away are excluded at 95 % (the profile
+    # can hold separate basins within a few units of chi2; a 68 % rule or the Jacobian let
+    # fits 20-70 % off pass as determined in Monte Carlo with kA = kS curves to 86 %)
+    half95 = (0.5 * (interval95[1] - interval95[0]) if None not in interval95
+              else float("inf"))
+    if not np.isfinite(mu_se) or not half95 <= max_rel_stderr * mu_est:
+        reasons.append(f"its 95 % profile-likelihood range ({_fmt_interval(interval95)}) is "
+                       f"open or wider than +-{max_rel_stderr:.0%}")
+    if cmax < min_saturation_fraction * mu_est:
+        reasons.append(f"the highest CoA is below {min_saturation_fraction:.0%} of the "
+                       "fitted mu (points on the near-linear part of the curve)")
+    grid = np.concatenate([[0.0], np.geomspace(1e-7, creepage_limit, 4000)])
+    spd_grid = None if not velocity_dependent else np.full(grid.size, float(np.mean(speeds)))
+    peak = float(np.max(polach_coa(grid, theta, speed_m_s=spd_grid)))
+    if peak < min_peak_fraction * mu_est:
+        reasons.append(f"the fitted curve reaches only CoA = {peak:.3g} for creepages up to "
+                       f"{creepage_limit:g}, below {min_peak_fraction:.0%} of its mu = "
+                       f"{mu_est:.3g}: mu is a shape parameter far beyond the points, not the "
+                       "saturation level (the points bend more sharply than the "
+                       "constant-friction model allows)")
+    determined = bool(res.status > 0 and not reasons)
+    if not determined:
+        warn.append("the creep points do not determine the friction coefficient ("
+                    + "; ".join(reasons) + f"); only a lower bound mu >= {cmax:.4g} is "
+                    "reported. Measure closer to saturation.")
+    if determined and np.isfinite(red) and weighted and red > 10:
+        warn.append(f"reduced chi2 = {red:.3g}: the scatter exceeds the stated errors; "
+                    "standard errors were scaled up accordingly")
+
+    return PolachFit(
+        model="polach_velocity" if velocity_dependent else "polach",
+        param_names=tuple(names),
+        params={k: float(v) for k, v in zip(names, values, strict=True)},
+        stderr={k: float(v) for k, v in zip(names, se, strict=True)},
+        covariance=cov, correlation=corr, theta=theta,
+        residuals=model(theta) - coa, weighted_residuals=wres,
+        sigma=sigma, xi=xi, coa=coa, speeds_m_s=speeds,
+        converged=bool(res.status > 0), status=int(res.status), message=str(res.message),
+        nfev=int(res.nfev), chi2=chi2, reduced_chi2=float(red), dof=int(dof),
+        mu_estimate=mu_est, mu_stderr_estimate=mu_se, mu_determined=determined,
+        mu_lower_bound=cmax, curve_peak_coa=peak, mu_interval_68=interval,
+        mu_interval_95=interval95, mu_profile=profile,
+        stiffness=stiffness, weighted=weighted,
+        starts=[{"x0": [float(v) for v in t[3]], "cost": t[0] if np.isfinite(t[0]) else None}
+                for t in results],
+        warnings=warn, swing=swing,
+        options={"velocity_dependent": velocity_dependent, "n_starts": n_starts, "seed": seed,
+                 "sigma_floor": sigma_floor, "max_rel_stderr": max_rel_stderr,
+                 "min_saturation_fraction": min_saturation_fraction,
+                 "min_peak_fraction": min_peak_fraction, "creepage_limit": creepage_limit,
+                 "max_nfev": max_nfev, "lateral_coa": bool(np.any(lateral > 0)),
+                 "creepage_swing": None if swing is None else swing.tolist(),
+                 "stiffness": stiffness, "mu_bounds": list(MU_BOUNDS),
+                 "covariance_scale": "max(1, reduced chi2)" if weighted else "reduced chi2"},
+    )

@@ -1,0 +1,567 @@
+"""The available adhesion from a progression of creep coefficients: one estimator for the rig
+(phases), the train (creep coefficients) and the sweep.
+
+Estimand
+--------
+The **available adhesion** ``P``: the maximum of the adhesion-creepage curve at the operating
+speed, what limits traction and braking, defined for every creep law. Written in its
+utilisation ``u = CoA/P`` every law of :mod:`torquemod.analysis.creeplaws` gives the creep
+coefficient
+on its rising branch as ``k(CoA) = k0*s(CoA/P; theta)`` with ``s(0) = 1``, ``s(1) = 0``. The
+law's own friction coefficient ``mu0`` (``P/F_pk``) is secondary: reported only where the
+fits that the data allow agree on it.
+
+Observations
+------------
+* train: ``k_i`` with standard errors, directly (:func:`fit_available_adhesion`);
+* rig: the phase of the wheel speed behind the torque, ``tan(phi_i) = C/k_i`` (rigid wheel,
+  V-Track paper Eq. 1 with ``C = Omega*J*V/(R^2*N)``), so ``y_i = cot(phi_i) = k_i/C`` with
+  standard error ``se_phi/sin^2(phi)``; C need not be known, ``k0/C`` is fitted
+  (:func:`fit_available_adhesion_from_phase`).
+
+Large modulations swing the creepage by ``a_i``; the wheel then sees the describing-function
+slope about the mean point (tables in :mod:`torquemod.analysis.creeplaws`), whose size in reduced
+units
+``a_i*k0/mu0`` needs k0: from ``C`` times the fitted ``k0/C`` when C is given, else profiled
+over a grid of k0.
+
+Fit and interval
+----------------
+For every member ``theta`` and every trial ``P`` on a grid of ``log(P/max CoA)`` (steps of
+0.3 % up to twice the largest CoA, 2 % beyond, up to ``p_span`` times it), k0 is solved in
+closed form (weighted least squares) and ``chi2(P, theta) = sum((y_i - k0*s_i)^2/v_i)`` with
+
+    v_i = se_i^2 + (model_rel*y_i)^2 + (k0*s'(u_i)/P*se_CoA_i)^2,
+
+the middle term the model's own uncertainty: a relative floor on every point, calibrated so
+that noise-free records of laws outside the family do not give narrow intervals that miss
+(``benchmarks/friction_coverage.py``; the value is :data:`MODEL_REL_ERROR`). The 95 % interval
+of P is the union over the whole family of the profile-likelihood range,
+``{P : min_theta chi2(P, theta) <= chi2_min + 3.84*max(1, chi2_min/dof)}`` (Wilks 1938;
+widened when the points scatter more than their errors, never narrowed), each end one grid
+step outward, its hull taken as the interval. P is *determined* when that hull is closed
+inside the grid and its half width ``(high - low)/2`` is at most ``max_rel_half_width`` of
+the estimate; otherwise the lower bound (the set's lowest point, never below the largest
+CoA: adhesion cannot exceed what is available) is what is known, with the interval when it
+is closed, and the probe depth (the deepest utilisation of a further point on the
+best-fitting curve) that would determine it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from torquemod.analysis.creeplaws import (
+    N_U,
+    N_U_SWING,
+    R_GRID,
+    R_GRID_FALLING,
+    SWING_A,
+    family_tables,
+    neighbour_pairs,
+)
+from torquemod.errors import InputError
+
+__all__ = ["CHI2_95", "MODEL_REL_ERROR", "AdhesionFit", "fit_available_adhesion",
+           "fit_available_adhesion_from_phase"]
+
+#: chi-square quantile of one degree of freedom at 95 %
+CHI2_95 = 3.841458820694124
+#: chi-square quantile of two degrees of freedom at 95 %
+CHI2_95_2 = 5.991464547107979
+#: relative model error per point (the family is not every rail): calibrated by cross-fitting
+#: laws outside the family (``benchmarks/friction_coverage.py``, docs/friction.md)
+MODEL_REL_ERROR = 0.01
+#: relative model error of each point's utilisation (the curves of real rails may sit a
+#: little left or right of every member: an error in u, weighted by the slope ds/du, which
+#: grows near the peak where a law's shape is least certain); calibrated with
+#: MODEL_REL_ERROR
+MODEL_REL_COA = 0.01
+#: the largest B of Polach's falling friction [s/m] (Polach 2005: 0.2 wet, 0.6 dry; a fit
+#: to the Engel-Beck-Alders locomotive curve: 0.8)
+B_MAX_S_M = 1.0
+#: the probe depths (utilisation of the deepest point) tried when P is not determined
+PROBE_DEPTHS = (0.7, 0.8, 0.86, 0.9, 0.95)
+#: k0 values [-] profiled when the swing is given without C
+K0_GRID = np.geomspace(3.0, 3000.0, 19)
+
+
+def _p_grid(c_max: float, p_span: float, dz: float = 0.015) -> np.ndarray:
+    """Trial P on a grid uniform in ``z = ln(P/c_max - 1)`` from 1e-4 to ``p_span - 1``:
+    the relative step ``(1 - c_max/P)*dz`` follows how sharply the points near the peak
+    fix P (the slope there changes by ~dz/(1 - u) per step)."""
+    z = np.arange(np.log(1e-4), np.log(max(p_span, 1.5) - 1.0) + dz, dz)
+    return c_max * (1.0 + np.exp(z))
+
+
+@njit(cache=True, nogil=True)
+def _swing_delta(sw_tab, swing_a, s, u, red):
+    """Bilinear lookup of the swing table of member s at utilisation u, reduced swing red."""
+    n_a = swing_a.size
+    n_us = sw_tab.shape[1]
+    red = min(red, swing_a[n_a - 1])
+    j = 0
+    while j < n_a - 2 and swing_a[j + 1] < red:
+        j += 1
+    fa = (red - swing_a[j]) / (swing_a[j + 1] - swing_a[j])
+    pos = u * (n_us - 1)
+    k = min(int(pos), n_us - 2)
+    f = pos - k
+    return ((sw_tab[s, k, j] * (1 - f) + sw_tab[s, k + 1, j] * f) * (1 - fa)
+            + (sw_tab[s, k, j + 1] * (1 - f) + sw_tab[s, k + 1, j + 1] * f) * fa)
+
+
+@njit(cache=True, nogil=True)
+def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_rel, coa_se,
+                amp, p_grid, k_scale, k0_fixed, n_iter, beta_h, bmax_v):
+    """For every pair (a, b) of neighbouring members and trial P: the weighted least squares
+    ``y ~ alpha*s_a + beta*s_b`` with alpha, beta >= 0 (a mixture of the pair; a single
+    member when one is 0). Returns chi2, ``alpha + beta`` (the amplitude: k0 in the units
+    of y) and ``beta/(alpha + beta)``, each (K, M). ``amp``: the creepage swing per point
+    (zeros: none); k0 = ``k_scale*(alpha + beta)`` when k_scale > 0, else ``k0_fixed``.
+    With ``bmax_v`` > 0 (B_max*V [-]) a pair whose falling-friction member needs
+    ``B = beta_h*k0/(mu0*V)`` above B_max (``beta_h`` = beta/h0 per member) is left out."""
+    n_s, n_u = s_tab.shape
+    n_q = pairs.shape[0]
+    n_m = p_grid.size
+    n = coa.size
+    chi = np.full((n_q, n_m), np.inf)
+    amps = np.full((n_q, n_m), np.nan)
+    fracs = np.full((n_q, n_m), np.nan)
+    G = np.empty((n_s, n))
+    DG = np.empty((n_s, n))
+    valid = np.empty(n_s, np.bool_)
+    ga = np.empty(n)
+    gb = np.empty(n)
+    w = np.empty(n)
+    has_swing = sw_tab.shape[0] > 0
+    c_max = coa.max()
+    for m in range(n_m):
+        p = p_grid[m]
+        if c_max >= p:
+            continue
+        for s in range(n_s):
+            valid[s] = True
+            for i in range(n):
+                pos = coa[i] / p * (n_u - 1)
+                k = min(int(pos), n_u - 2)
+                f = pos - k
+                G[s, i] = s_tab[s, k] * (1.0 - f) + s_tab[s, k + 1] * f
+                DG[s, i] = ds_tab[s, k] * (1.0 - f) + ds_tab[s, k + 1] * f
+                if not (G[s, i] > 0.0):
+                    valid[s] = False
+                    break
+        for q in range(n_q):
+            a = pairs[q, 0]
+            b = pairs[q, 1]
+            if not (valid[a] and valid[b]):
+                continue
+            al = 0.0
+            be = 0.0
+            for it in range(n_iter):
+                k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
+                for i in range(n):
+                    ga[i] = G[a, i]
+                    gb[i] = G[b, i]
+                    if has_swing and it > 0 and amp[i] > 0.0:
+                        u = coa[i] / p
+                        ga[i] += _swing_delta(sw_tab, swing_a, a, u, amp[i] * k0 * f_peak[a] / p)
+                        gb[i] += _swing_delta(sw_tab, swing_a, b, u, amp[i] * k0 * f_peak[b] / p)
+                saa = 0.0
+                sab = 0.0
+                sbb = 0.0
+                say = 0.0
+                sby = 0.0
+                for i in range(n):
+                    v = var0[i] + (y_rel * y[i]) ** 2
+                    if it > 0:
+                        v += ((al * DG[a, i] + be * DG[b, i]) / p * coa_se[i]) ** 2
+                    w[i] = 1.0 / v
+                    saa += w[i] * ga[i] * ga[i]
+                    sab += w[i] * ga[i] * gb[i]
+                    sbb += w[i] * gb[i] * gb[i]
+                    say += w[i] * ga[i] * y[i]
+                    sby += w[i] * gb[i] * y[i]
+                det = saa * sbb - sab * sab
+                al = -1.0
+                be = -1.0
+                if a != b and det > 1e-12 * saa * sbb:
+                    al = (sbb * say - sab * sby) / det
+                    be = (saa * sby - sab * say) / det
+                if not (al >= 0.0 and be >= 0.0):
+                    # the best single member: chi2 = syy - say^2/saa (syy common)
+                    if say * say / saa >= sby * sby / sbb:
+                        al = say / saa
+                        be = 0.0
+                    else:
+                        al = 0.0
+                        be = sby / sbb
+                if not (al + be > 0.0):
+                    break
+                if it == n_iter - 1:
+                    if bmax_v > 0.0:
+                        k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
+                        if (beta_h[a] * k0 * f_peak[a] > bmax_v * p
+                                or beta_h[b] * k0 * f_peak[b] > bmax_v * p):
+                            break
+                    c = 0.0
+                    for i in range(n):
+                        r = y[i] - al * ga[i] - be * gb[i]
+                        c += w[i] * r * r
+                    if math.isfinite(c):
+                        chi[q, m] = c
+                        amps[q, m] = al + be
+                        fracs[q, m] = be / (al + be)
+    return chi, amps, fracs
+
+
+@dataclass(frozen=True)
+class AdhesionFit:
+    """The available adhesion from one progression (module docstring). All CoA-like values
+    [-]. ``estimate``: the best-fitting P (reported as the value only when ``determined``);
+    ``low``/``high``: its 95 % interval (``high`` NaN when open above; ``low`` then the lower
+    bound); ``lower_bound``: never below the largest CoA; ``closed``: one closed interval;
+    ``mu0``/``mu0_low``/``mu0_high``: the law's friction coefficient and its range over the
+    fits within the level (``mu0_identified`` when closed and as narrow as P's rule asks);
+    ``probe_depth``: the utilisation a further point must reach to determine P (NaN when
+    determined or when even 95 % would not); ``law``/``params``: the best member; ``k0``
+    the fitted initial creep coefficient in the units of the observations (``k0/C`` from
+    phases without C); ``chi2``, ``dof``, ``chi2_scale``; ``p_grid``/``profile``: the
+    profile ``min_theta chi2`` on the P grid and ``level`` its 95 % threshold."""
+
+    estimate: float
+    low: float
+    high: float
+    lower_bound: float
+    determined: bool
+    closed: bool
+    mu0: float
+    mu0_low: float
+    mu0_high: float
+    mu0_identified: bool
+    probe_depth: float
+    law: str
+    params: tuple
+    k0: float
+    chi2: float
+    dof: int
+    chi2_scale: float
+    max_rel_half_width: float
+    model_rel_error: float
+    c_max: float
+    p_grid: np.ndarray = field(repr=False)
+    profile: np.ndarray = field(repr=False)
+    level: float = math.nan
+    best_s: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+
+    @property
+    def value(self) -> float | None:
+        """The available adhesion when determined, else None."""
+        return self.estimate if self.determined else None
+
+    def creep_ratio(self, coa) -> np.ndarray:
+        """``k/k0`` of the best fit at the CoA values (small-signal; NaN at or beyond P)."""
+        u = np.abs(np.asarray(coa, dtype=float)) / self.estimate
+        ug = np.linspace(0.0, 1.0, N_U)
+        return np.where(u < 1.0, np.interp(u, ug, self.best_s), np.nan)
+
+    def to_dict(self) -> dict:
+        """The named quantities (JSON-ready, NaN as None)."""
+        def f(x):
+            return None if x is None or not math.isfinite(x) else float(x)
+        return {
+            "estimand": "available adhesion: maximum of the adhesion-creepage curve",
+            "adhesion_available": f(self.value),
+            "adhesion_available_estimate": f(self.estimate),
+            "adhesion_available_low": f(self.low), "adhesion_available_high": f(self.high),
+            "adhesion_available_lower_bound": f(self.lower_bound),
+            "adhesion_available_determined": bool(self.determined),
+            "adhesion_available_closed": bool(self.closed),
+            "mu0": f(self.mu0) if self.mu0_identified else None,
+            "mu0_low": f(self.mu0_low), "mu0_high": f(self.mu0_high),
+            "mu0_identified": bool(self.mu0_identified),
+            "probe_depth_needed": f(self.probe_depth),
+            "best_law": self.law, "best_law_params": [float(v) for v in self.params],
+            "model_rel_error": self.model_rel_error,
+            "max_rel_half_width": self.max_rel_half_width,
+        }
+
+
+def _pairs(ratio_bounds, other_laws: bool) -> np.ndarray:
+    """The neighbour pairs (:func:`torquemod.analysis.creeplaws.neighbour_pairs`) whose Polach
+    members
+    have kA/kS within ``ratio_bounds`` (widened to the grid values that bracket it, so that
+    the pairs' mixtures cover it), and, without ``other_laws``, Polach members only."""
+    pairs = neighbour_pairs()
+    members = family_tables().members
+    lo, hi = (float(b) for b in ratio_bounds)
+    if lo <= R_GRID[0] and hi >= R_GRID[-1] and other_laws:
+        return pairs
+    lo_g = R_GRID[max(np.searchsorted(R_GRID, lo * (1 + 1e-9), side="right") - 1, 0)]
+    hi_g = R_GRID[min(np.searchsorted(R_GRID, hi * (1 - 1e-9)), R_GRID.size - 1)]
+
+    def keep(m):
+        if m.law in ("polach", "polach_falling"):
+            r = m.params[0]
+            lo_m = lo_g if m.law == "polach" else R_GRID_FALLING[max(np.searchsorted(
+                R_GRID_FALLING, lo * (1 + 1e-9), side="right") - 1, 0)]
+            hi_m = hi_g if m.law == "polach" else R_GRID_FALLING[min(np.searchsorted(
+                R_GRID_FALLING, hi * (1 - 1e-9)), R_GRID_FALLING.size - 1)]
+            return lo_m * (1 - 1e-9) <= r <= hi_m * (1 + 1e-9)
+        return other_laws
+
+    ok = np.array([keep(m) for m in members])
+    return pairs[ok[pairs[:, 0]] & ok[pairs[:, 1]]]
+
+
+def _as_points(name: str, x, n: int | None) -> np.ndarray:
+    arr = np.asarray(x, dtype=float).ravel()
+    if n is not None and arr.size != n:
+        raise InputError(f"{name} has {arr.size} values, expected {n} (one per point)",
+                         hint="give one value per torque step")
+    return arr
+
+
+def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.0,
+                           model_rel_error: float = MODEL_REL_ERROR,
+                           model_rel_coa: float = MODEL_REL_COA,
+                           max_rel_half_width: float = 0.10, p_span: float = 20.0,
+                           scale_by_chi2: bool = True, probe: bool = True,
+                           min_points: int = 4, ratio_bounds: tuple = (0.3, 7.0),
+                           other_laws: bool = True, speed_m_s: float | None = None
+                           ) -> AdhesionFit | None:
+    """The available adhesion P from creep coefficients ``k`` [-] (or any fixed multiple of
+    them: the phase fit passes ``cot(phi) = k/C``) with standard errors ``k_se`` at utilised
+    adhesions ``coa`` [-] (module docstring). ``coa_se`` [-]: the CoA's standard errors;
+    ``swing`` [-]: the creepage swing amplitude per point; ``constant``: the factor C with
+    ``k = C*(observation)`` (1 for creep coefficients; None when unknown: k0 is then
+    profiled, used only to size a swing). ``max_rel_half_width``: the
+    widest half interval, relative to P, that counts as determined. ``probe``: also find the
+    probe depth that would determine P when it is not. ``ratio_bounds``: the range of
+    kA/kS of the Polach members; ``other_laws``: also the non-Polach members.
+    ``speed_m_s``: the rolling speed V [m/s]; with it (and k0 in absolute units: creep
+    coefficients, or phases with C given) a falling-friction member counts only where its
+    fall ``exp(-B*xi*V)`` needs B <= :data:`B_MAX_S_M` (at a rig's few km/h the slip
+    velocity stays far too small for friction to fall much). None when fewer than
+    ``min_points`` usable points remain."""
+    coa = np.abs(_as_points("coa", coa, None))
+    n = coa.size
+    y = _as_points("k", k, n)
+    se = np.abs(_as_points("k_se", k_se, n))
+    c_se = np.zeros(n) if coa_se is None else np.abs(_as_points("coa_se", coa_se, n))
+    amp = np.zeros(n) if swing is None else np.abs(_as_points("swing", swing, n))
+    c_se = np.where(np.isfinite(c_se), c_se, 0.0)
+    amp = np.where(np.isfinite(amp), amp, 0.0)
+    ok = np.isfinite(coa) & (coa > 0) & np.isfinite(y) & (y > 0) & np.isfinite(se) & (se > 0)
+    if ok.sum() < min_points:
+        return None
+    coa, y, se, c_se, amp = coa[ok], y[ok], se[ok], c_se[ok], amp[ok]
+    c_se = np.hypot(c_se, model_rel_coa * coa)
+    c_max = float(coa.max())
+    tabs = family_tables(bool(np.any(amp > 0)))
+    pairs = _pairs(ratio_bounds, other_laws)
+    p_grid = _p_grid(c_max, p_span)
+    with np.errstate(over="ignore", invalid="ignore"):
+        bmax_v = B_MAX_S_M * float(speed_m_s) if speed_m_s else 0.0
+        cols, (chi, amps, fracs) = _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp,
+                                                   p_grid, constant, model_rel_error, bmax_v)
+    p_grid = p_grid[cols]
+    return _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max,
+                      model_rel_error, max_rel_half_width, scale_by_chi2, probe, c_se, amp,
+                      constant, p_span, ratio_bounds, other_laws, speed_m_s)
+
+
+def _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_rel, bmax_v=0.0):
+    """chi2, amplitudes and mixing fractions (K, M) (:func:`_chi_kernel`), profiling k0 over
+    :data:`K0_GRID` when a swing is given without C."""
+    sw = tabs.swing if tabs.swing is not None else np.zeros((0, N_U_SWING, SWING_A.size))
+    var0 = se * se
+    n_iter = 3 if sw.shape[0] else (2 if np.any(c_se > 0) else 1)
+    if sw.shape[0] == 0 or (constant is not None and constant > 0):
+        k_scale = float(constant) if constant is not None and constant > 0 else 1.0
+        return _chi_kernel(tabs.s, tabs.ds, sw, SWING_A, tabs.f_peak, pairs, coa, y, var0,
+                           model_rel, c_se, amp, p_grid, k_scale, 0.0, n_iter, tabs.beta_h,
+                           bmax_v if constant is not None and constant > 0 else 0.0)
+    best = None
+    for k0 in K0_GRID:
+        out = _chi_kernel(tabs.s, tabs.ds, sw, SWING_A, tabs.f_peak, pairs, coa, y, var0,
+                          model_rel, c_se, amp, p_grid, -1.0, float(k0), n_iter, tabs.beta_h,
+                          bmax_v)
+        if best is None:
+            best = out
+        else:
+            better = out[0] < best[0]
+            best = tuple(np.where(better, o, b) for o, b in zip(out, best, strict=True))
+    return best
+
+
+def _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_rel,
+                    bmax_v: float = 0.0, every: int = 3, rounds: int = 5):
+    """:func:`_chi_all` on every ``every``-th trial P, then on every grid point between two
+    evaluated neighbours where the profile crosses the 95 % level, comes near it from
+    outside, or that hold its minimum, until no such gap is left (the level follows the lowest
+    chi2 found). Returns the
+    evaluated grid indices (sorted) and chi2, amplitude, mixing fraction there (K, m)."""
+    m = p_grid.size
+    done = np.unique(np.r_[np.arange(0, m, every), m - 1])
+    outs = list(_chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[done], constant,
+                         model_rel, bmax_v))
+    dof = max(coa.size - 3, 1)
+    for _ in range(rounds):
+        prof = outs[0].min(axis=0)
+        if not np.isfinite(prof).any():
+            break
+        c_min = float(np.min(prof))
+        level = c_min + CHI2_95 * max(1.0, c_min / dof)
+        j = int(np.argmin(prof))
+        ins = prof <= level
+        near = prof <= level + 2.0 * CHI2_95 * max(1.0, c_min / dof)
+        gaps = np.flatnonzero(np.diff(done) > 1)
+        need = [g for g in gaps if (ins[g] != ins[g + 1]) or (near[g] and not ins[g])
+                or (near[g + 1] and not ins[g + 1]) or g in (j - 1, j)]
+        if not need:
+            break
+        new = np.concatenate([np.arange(done[g] + 1, done[g + 1]) for g in need])
+        more = _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[new], constant, model_rel,
+                        bmax_v)
+        cols = np.r_[done, new]
+        order = np.argsort(cols)
+        done = cols[order]
+        outs = [np.concatenate([o, n_], axis=1)[:, order] for o, n_ in zip(outs, more,
+                                                                             strict=True)]
+    return done, outs
+
+
+def _vertex(profile: np.ndarray, j: int) -> float:
+    """Offset [grid steps, within +-0.5] of the parabola's vertex through profile[j-1:j+2]."""
+    if not 0 < j < profile.size - 1:
+        return 0.0
+    a, b, c = (float(v) for v in profile[j - 1:j + 2])
+    curv = a - 2.0 * b + c
+    if not (math.isfinite(curv) and curv > 0.0):
+        return 0.0
+    return min(0.5, max(-0.5, 0.5 * (a - c) / curv))
+
+
+def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_rel, max_rel,
+               scale_by_chi2, probe, c_se, amp, constant, p_span, ratio_bounds,
+               other_laws, speed_m_s) -> AdhesionFit | None:
+    prof = chi.min(axis=0)
+    if not np.isfinite(prof).any():
+        return None
+    j = int(np.nanargmin(prof))
+    i = int(np.argmin(chi[:, j]))
+    chi_min = float(prof[j])
+    dof = max(coa.size - 3, 1)
+    scale = max(1.0, chi_min / dof) if scale_by_chi2 else 1.0
+    # the estimate: the constant-friction laws are nested in the falling-friction ones (two
+    # more parameters, A and B); unless the fall improves chi2 by more than the 95 % point
+    # of chi2 with two degrees of freedom (the likelihood-ratio test), the best
+    # constant-friction fit gives the estimate. The interval is the whole family's.
+    falling = tabs.falling[pairs[:, 0]] | tabs.falling[pairs[:, 1]]
+    chi_c = np.where(falling[:, None], np.inf, chi)
+    prof_c = chi_c.min(axis=0)
+    if np.isfinite(prof_c).any() and float(prof_c.min()) <= chi_min + CHI2_95_2 * scale:
+        j = int(np.argmin(prof_c))
+        i = int(np.argmin(chi_c[:, j]))
+        est_prof = prof_c
+    else:
+        est_prof = prof
+    level = chi_min + CHI2_95 * scale
+    inside_cells = chi <= level
+    inside = inside_cells.any(axis=0)
+    idx = np.flatnonzero(inside)
+    lo_i, hi_i = int(idx[0]), int(idx[-1])
+    open_low = lo_i == 0
+    open_high = hi_i == p_grid.size - 1
+    low = c_max if open_low else float(p_grid[lo_i - 1])
+    high = math.nan if open_high else float(p_grid[hi_i + 1])
+    step = float(p_grid[min(j + 1, p_grid.size - 1)] / p_grid[j])
+    est = float(p_grid[j]) * step ** _vertex(est_prof, j)
+    # the interval is the hull of the set: gaps inside it come from the family's grid (a
+    # smaller set would claim a precision that the grid, not the data, produced)
+    closed = not open_low and not open_high
+    determined = bool(closed and 0.5 * (high - low) <= max_rel * est)
+    lower = max(c_max, low)
+    # mu0 over the cells within the level: P/F_pk of each (mixed) member
+    inv_pk = 1.0 / tabs.f_peak
+    ia, ib = pairs[:, 0], pairs[:, 1]
+    mix = np.nan_to_num(fracs)
+    m0 = p_grid[None, :] * ((1.0 - mix) * inv_pk[ia][:, None] + mix * inv_pk[ib][:, None])
+    m0_in = m0[inside_cells]
+    mu0_low, mu0_high = float(m0_in.min()), float(m0_in.max())
+    f_ij = float(mix[i, j])
+    mu0 = est * ((1.0 - f_ij) * inv_pk[ia[i]] + f_ij * inv_pk[ib[i]])
+    mu0_ok = bool(closed and 0.5 * (mu0_high - mu0_low) <= max_rel * mu0)
+    ma, mb = tabs.members[ia[i]], tabs.members[ib[i]]
+    params = tuple((1.0 - f_ij) * va + f_ij * vb for va, vb in zip(ma.params, mb.params,
+                                                                    strict=True))
+    best_s = (1.0 - f_ij) * tabs.s[ia[i]] + f_ij * tabs.s[ib[i]]
+    k0 = float(amps[i, j])
+    depth = math.nan
+    if probe and not determined:
+        depth = _probe_depth(best_s, est, k0, coa, y, se, c_se, amp, constant, model_rel,
+                             max_rel, p_span, ratio_bounds, other_laws, speed_m_s)
+    return AdhesionFit(
+        estimate=est, low=low, high=high, lower_bound=lower, determined=determined,
+        closed=closed, mu0=mu0, mu0_low=mu0_low, mu0_high=mu0_high, mu0_identified=mu0_ok,
+        probe_depth=depth, law=ma.law, params=params, k0=k0, chi2=chi_min,
+        dof=dof, chi2_scale=scale, max_rel_half_width=max_rel, model_rel_error=model_rel,
+        c_max=c_max, p_grid=p_grid, profile=prof, level=level, best_s=best_s)
+
+
+def _probe_depth(best_s, est, k0, coa, y, se, c_se, amp, constant, model_rel, max_rel,
+                 p_span, ratio_bounds, other_laws, speed_m_s) -> float:
+    """The smallest of :data:`PROBE_DEPTHS` beyond the present one at which one more point on
+    the best-fitting curve (its relative error the median of the present points') makes P
+    determined; NaN when none does."""
+    ug = np.linspace(0.0, 1.0, N_U)
+    rel = float(np.median(se / y))
+    for d in PROBE_DEPTHS:
+        if d * est <= coa.max() * 1.001:
+            continue
+        yd = k0 * float(np.interp(d, ug, best_s))
+        if not yd > 0:
+            continue
+        c2 = np.append(coa, d * est)
+        fit = fit_available_adhesion(
+            c2, np.append(y, yd), np.append(se, rel * yd), coa_se=np.append(c_se, 0.0),
+            swing=np.append(amp, 0.0) if np.any(amp > 0) else None, constant=constant,
+            model_rel_error=model_rel, model_rel_coa=0.0,
+            max_rel_half_width=max_rel, p_span=p_span, probe=False,
+            ratio_bounds=ratio_bounds, other_laws=other_laws, speed_m_s=speed_m_s)
+        if fit is not None and fit.determined:
+            return float(d)
+    return math.nan
+
+
+def fit_available_adhesion_from_phase(coa, phase_deg, phase_se_deg, *, constant=None,
+                                      creepage_swing=None, coa_se=None,
+                                      model_rel_error: float = MODEL_REL_ERROR,
+                                      model_rel_coa: float = MODEL_REL_COA,
+                                      max_rel_half_width: float = 0.10,
+                                      scale_by_chi2: bool = True, probe: bool = True,
+                                      ratio_bounds: tuple = (0.3, 7.0),
+                                      speed_m_s: float | None = None
+                                      ) -> AdhesionFit | None:
+    """P from the phases of the wheel speed behind the torque, ``tan(phi) = C/k`` (V-Track
+    paper Eq. 1): :func:`fit_available_adhesion` on ``y = cot(phi) = k/C`` with standard
+    error ``se_phi/sin^2(phi)``. ``constant`` C [-] when known (needed only to size the
+    creepage swing and to bound falling friction; without it k0 is profiled);
+    ``creepage_swing`` [-] per step; ``speed_m_s`` the rolling speed [m/s]. Steps with a
+    phase outside (0, 90) deg are left out."""
+    ph = np.radians(np.asarray(phase_deg, dtype=float).ravel())
+    se = np.radians(np.abs(np.asarray(phase_se_deg, dtype=float).ravel()))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        y = np.where((ph > 0) & (ph < 0.5 * np.pi), 1.0 / np.tan(ph), np.nan)
+        y_se = se / np.sin(ph) ** 2
+    return fit_available_adhesion(coa, y, y_se, coa_se=coa_se, swing=creepage_swing,
+                                  constant=constant, model_rel_error=model_rel_error,
+                                  model_rel_coa=model_rel_coa,
+                                  max_rel_half_width=max_rel_half_width,
+                                  scale_by_chi2=scale_by_chi2, probe=probe,
+                                  ratio_bounds=ratio_bounds, speed_m_s=speed_m_s)

@@ -1,0 +1,92 @@
+"""The available adhesion from the phase alone: what a rig without a force dynamometer, or a
+train, can measure. A thin layer over :func:`torquemod.analysis.friction.
+fit_available_adhesion_from_phase` (the one estimator for the rig, the train and the sweep)
+that keeps this module's historical names and result type.
+
+The rigid-wheel relation (V-Track paper Eq. 1 with its constant) ``tan(phi_i) = C/k_i``,
+``C = Omega*J*V/(R^2*N)``, gives the creep coefficient k up to the scale C at every step; the
+fall of k with the utilised adhesion fixes the **available adhesion** (the maximum of the
+adhesion-creepage curve) over a broad family of creep laws (:mod:`torquemod.analysis.creeplaws`).
+``mu`` in this module's results *is* that available adhesion (for a constant-friction law
+whose curve rises to its friction, the friction coefficient itself); the law's own friction
+coefficient is ``mu0`` where the data identify it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from torquemod.analysis.friction import CHI2_95, MODEL_REL_ERROR, fit_available_adhesion_from_phase
+from torquemod.analysis.phasefitresult import PhaseMuFit
+from torquemod.analysis.polachshape import polach_h, polach_h_curvature, polach_h_slope
+from torquemod.errors import InputError
+
+__all__ = ["CHI2_95", "R_BOUNDS", "PhaseMuFit", "fit_mu_from_phase", "polach_h",
+           "polach_h_curvature", "polach_h_slope"]
+
+#: bounds of r = kA/kS in the family's Polach members (:mod:`torquemod.analysis.creeplaws`)
+R_BOUNDS = (0.3, 7.0)
+
+
+def _clean(name: str, x, n: int | None = None) -> np.ndarray:
+    arr = np.asarray(x, dtype=float).ravel()
+    if n is not None and arr.size != n:
+        raise InputError(f"{name} has {arr.size} values, expected {n} (one per step)",
+                         hint="give one value per torque step")
+    return arr
+
+
+def fit_mu_from_phase(coa, phase_deg, phase_se_deg, *, constant=None, creepage_swing=None,
+                      coa_se=None, max_rel_half_width: float = 0.10, scale_by_chi2: bool = True,
+                      ratio_bounds: tuple[float, float] = R_BOUNDS,
+                      model_rel_error: float = MODEL_REL_ERROR,
+                      speed_m_s: float | None = None) -> PhaseMuFit:
+    """The available adhesion from the phase progression (module docstring).
+
+    ``coa`` [-] utilised adhesion per step, ``phase_deg`` [deg] the lag of the wheel speed
+    behind the torque per step, ``phase_se_deg`` [deg] its standard error, ``constant`` C [-]
+    (``Omega*J*V/(R^2*N)``) when known, ``creepage_swing`` [-] the creepage swing amplitude
+    per step, ``coa_se`` [-] the CoA's standard error per step. ``max_rel_half_width``: the
+    adhesion counts as determined when its 95 % interval is closed and at most this fraction
+    of the estimate wide on either side; ``scale_by_chi2`` widens the interval by the
+    reduced chi2 when it exceeds 1. ``ratio_bounds``: the range of r = kA/kS of the family's
+    Polach members (a narrower range is a prior on the curve's shape). ``model_rel_error``:
+    the relative model error per step. ``speed_m_s`` [m/s]: the rolling speed, which with C
+    bounds how far the friction can fall with the slip velocity. Steps with a non-finite
+    value, a phase outside
+    (0, 90) deg or a non-positive standard error are left out; at least four must remain.
+    """
+    coa = np.abs(_clean("coa", coa))
+    n = coa.size
+    phase = _clean("phase_deg", phase_deg, n)
+    se = _clean("phase_se_deg", phase_se_deg, n)
+    swing = None if creepage_swing is None else np.abs(_clean("creepage_swing",
+                                                             creepage_swing, n))
+    c_se = None if coa_se is None else _clean("coa_se", coa_se, n)
+    if constant is not None and not (np.isfinite(constant) and constant > 0):
+        raise InputError(f"the constant C = {constant} must be a positive number",
+                         hint="C = Omega*J*V/(R^2*N); pass None to fit it")
+    lo, hi = (float(b) for b in ratio_bounds)
+    if not (R_BOUNDS[0] <= lo <= hi <= R_BOUNDS[1]):
+        raise InputError(f"ratio_bounds {ratio_bounds} must lie within {R_BOUNDS}",
+                         hint="r = kA/kS: 0.3 <= low <= high <= 7")
+    ok = (np.isfinite(coa) & (coa > 0) & np.isfinite(phase) & np.isfinite(se) & (se > 0)
+          & (phase > 0) & (phase < 90))
+    if ok.sum() < 4:
+        raise InputError("the available adhesion from the phase needs at least 4 steps with "
+                         f"a finite CoA > 0 and a phase between 0 and 90 deg, got "
+                         f"{int(ok.sum())}", hint="measure more torque steps")
+    if swing is not None and not np.any(swing[ok] > 0):
+        swing = None
+    fit = fit_available_adhesion_from_phase(
+        coa[ok], phase[ok], se[ok], constant=constant,
+        creepage_swing=None if swing is None else swing[ok],
+        coa_se=None if c_se is None else c_se[ok], model_rel_error=model_rel_error,
+        max_rel_half_width=max_rel_half_width, scale_by_chi2=scale_by_chi2,
+        ratio_bounds=(lo, hi),
+        speed_m_s=speed_m_s if speed_m_s is not None and np.isfinite(speed_m_s) else None)
+    if fit is None:
+        raise InputError("the phase progression fits no creep law of the family (every "
+                         "step lies beyond the curves' peaks)",
+                         hint="check the steps' CoA and phases")
+    return PhaseMuFit.from_adhesion(fit, coa[ok], phase[ok], se[ok], constant)

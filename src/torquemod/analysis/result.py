@@ -1,0 +1,316 @@
+"""The typed result of the fit stage (:func:`torquemod.analyze`), lmfit-style: the fits, the
+theory check, the onset, the extended steps table, a text ``report()``, plots that take an
+``ax`` and ``to_dict()`` giving the ``fit.json`` document.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from html import escape
+
+import numpy as np
+import pandas as pd
+
+from torquemod._util.jsonutil import to_jsonable
+from torquemod._version import __version__
+from torquemod.analysis.creep import CreepPoints, OnsetResult, TheoryCheck
+
+__all__ = ["Analysis", "curve_check", "phase_keys"]
+
+
+def phase_keys(pfit) -> dict:
+    """The fit.json keys of the fit from the phase. ``mu_from_phase*`` (kept from earlier
+    versions): the available adhesion (the maximum of the adhesion-creepage curve), a lower
+    bound as the interval's low end when it is not determined. ``adhesion_available_from_
+    phase*`` name the same quantity explicitly, with the interval when it is closed, the
+    lower bound, the probe depth (utilisation) that would determine it, and ``mu0_from_phase``,
+    the law's friction coefficient, where the data identify it."""
+    keys = ("adhesion_available_from_phase", "adhesion_available_from_phase_low",
+            "adhesion_available_from_phase_high", "adhesion_available_from_phase_lower_bound",
+            "mu0_from_phase", "mu0_from_phase_low", "mu0_from_phase_high",
+            "probe_depth_needed_from_phase", "phase_fit_best_law")
+    if pfit is None:
+        return {"mu_from_phase": None, "mu_from_phase_stderr": None,
+                "mu_from_phase_interval_95": [None, None], "mu_from_phase_determined": False,
+                **dict.fromkeys(keys), "adhesion_available_from_phase_determined": False}
+    lo, hi = pfit.mu_interval_95
+    a = pfit.adhesion.to_dict()
+    return {"mu_from_phase": pfit.mu if pfit.mu_determined else None,
+            "mu_from_phase_stderr": pfit.mu_stderr if pfit.mu_determined else None,
+            "mu_from_phase_interval_95": [lo, hi if pfit.mu_determined else None],
+            "mu_from_phase_determined": bool(pfit.mu_determined),
+            "mu_from_phase_estimand": a["estimand"],
+            "adhesion_available_from_phase": a["adhesion_available"],
+            "adhesion_available_from_phase_low": a["adhesion_available_low"],
+            "adhesion_available_from_phase_high": a["adhesion_available_high"],
+            "adhesion_available_from_phase_lower_bound": a["adhesion_available_lower_bound"],
+            "adhesion_available_from_phase_determined": a["adhesion_available_determined"],
+            "mu0_from_phase": a["mu0"], "mu0_from_phase_low": a["mu0_low"],
+            "mu0_from_phase_high": a["mu0_high"],
+            "probe_depth_needed_from_phase": a["probe_depth_needed"],
+            "phase_fit_best_law": a["best_law"]}
+
+
+def curve_check(polach, creepage_limit: float, *, n: int = 2000) -> tuple[bool, str | None]:
+    """Whether the fitted creep curve rises monotonically from zero creepage up to its
+    maximum on ``[0, creepage_limit]`` (a physical creep curve does; a dip before the peak
+    means the optimiser's answer is not a usable curve): (ok, what is wrong or None)."""
+    grid = np.linspace(0.0, float(creepage_limit), n)
+    coa = np.asarray(polach.curve(grid), dtype=float)
+    if not np.all(np.isfinite(coa)):
+        return False, "the fitted curve is not finite on the creepage range"
+    top = int(np.argmax(coa))
+    if top == 0:
+        return False, "the fitted curve does not rise from zero creepage"
+    tol = 1e-9 * max(float(coa[top]), 1e-12)
+    falls = np.flatnonzero(np.diff(coa[: top + 1]) < -tol)
+    if falls.size:
+        return False, (f"the fitted curve falls at creepage {grid[falls[0]]:.3g} before its "
+                       f"maximum CoA {coa[top]:.4f} at creepage {grid[top]:.3g}")
+    return True, None
+
+
+@dataclass
+class Analysis:
+    """The fit stage's result (:func:`torquemod.analyze`).
+
+    ``polach`` the force fit (:class:`torquemod.analysis.fit.PolachFit`, None with the reason in
+    ``polach_skipped``), ``phase_fit`` mu from the phase
+    (:class:`torquemod.analysis.phasefit.PhaseMuFit`,
+    None with ``phase_fit_skipped``), ``theory`` the rigid-wheel check, ``onset`` the
+    saturation onset, ``steps`` the steps table with the analysis columns, ``used`` which of
+    ``points`` entered the Polach fit (not slipping), ``options`` the
+    :class:`~torquemod.analysis.analyzer.FitOptions`. ``saturation_torque_nm`` is ``Ts = mu*N*Rw``
+    with
+    the mu named by ``saturation_torque_source`` ("forces", "phase"; None when neither fit
+    determines mu); it is the one Ts of every table and figure. Torques [N*m], loads [N],
+    radii [m].
+    """
+
+    options: object
+    steps: pd.DataFrame
+    points: CreepPoints
+    used: np.ndarray
+    polach: object
+    polach_skipped: str | None
+    phase_fit: object
+    phase_fit_skipped: str | None
+    theory: TheoryCheck
+    phase_theory_deg: np.ndarray
+    theory_rig: dict | None
+    onset: OnsetResult
+    saturation_torque_nm: float | None
+    saturation_torque_stderr_nm: float | None
+    normal_load_n: float
+    wheel_radius_m: float
+    stiffness: float | None
+    speed_m_s: float | None
+    warnings: list[str] = field(default_factory=list)
+    created_utc: str = ""
+    source: dict = field(default_factory=dict)
+    name: str = ""
+    saturation_torque_source: str | None = None  # "forces", "phase" or None
+
+    # --- headline numbers -------------------------------------------------------------------
+    @property
+    def mu(self) -> float | None:
+        """mu from the force fit [-]; None when not determined or skipped."""
+        return None if self.polach is None else self.polach.mu
+
+    @property
+    def mu_stderr(self) -> float | None:
+        return None if self.polach is None else self.polach.mu_stderr
+
+    @property
+    def mu_determined(self) -> bool:
+        return self.mu is not None
+
+    @property
+    def mu_lower_bound(self) -> float | None:
+        """What the points show at least: the fit's bound, or the highest fitted CoA."""
+        if self.polach is not None:
+            return float(self.polach.mu_lower_bound)
+        coa = self.points.coa[self.used]
+        coa = coa[np.isfinite(coa)]
+        return float(coa.max()) if coa.size else None
+
+    @property
+    def mu_from_phase(self) -> float | None:
+        return None if self.phase_fit is None else self.phase_fit.mu
+
+    @property
+    def curve_ok(self) -> tuple[bool | None, str | None]:
+        """(fitted curve rises monotonically to its peak, what is wrong); (None, None)
+        without a Polach fit."""
+        if self.polach is None:
+            return None, None
+        return curve_check(self.polach, self.options.creepage_limit)
+
+    @property
+    def converged(self) -> bool | None:
+        """The optimiser converged and the fitted curve is a usable creep curve."""
+        if self.polach is None:
+            return None
+        return bool(self.polach.converged) and bool(self.curve_ok[0])
+
+    @property
+    def theory_difference(self) -> tuple[float | None, float | None]:
+        """RMS and maximum |measured - theory| phase [deg] over the steps."""
+        diff = self.points.phase_deg - self.phase_theory_deg
+        ok = np.isfinite(diff)
+        if not ok.any():
+            return None, None
+        return float(np.sqrt(np.mean(diff[ok] ** 2))), float(np.max(np.abs(diff[ok])))
+
+    # --- documents --------------------------------------------------------------------------
+    def step_records(self) -> list[dict]:
+        """One dict per step (the ``steps`` list of fit.json)."""
+        pts, s = self.points, self.steps.set_index("step").reindex(self.points.step)
+        return [{"step": int(st), "dc_torque_nm": float(t), "creepage": float(x),
+                 "coa": float(c), "phase_deg": float(p), "phase_std_deg": float(ps),
+                 "phase_theory_deg": float(pt), "creep_coefficient": float(kk),
+                 "torque_pct_saturation": float(q), "slip": not bool(u),
+                 "phase_fit_deg": float(pf), "utilisation_phase": float(up)}
+                for st, t, x, c, p, ps, pt, kk, q, u, pf, up in zip(
+                    pts.step, pts.dc_torque_nm, pts.creepage, pts.coa, pts.phase_deg,
+                    pts.phase_std_deg, self.phase_theory_deg, s["creep_coefficient"],
+                    s["torque_pct_saturation"], self.used, s["phase_fit_deg"],
+                    s["utilisation_phase"], strict=True)]
+
+    def to_dict(self, *, results_dir: str | None = None) -> dict:
+        """The ``fit.json`` document (strict-JSON ready)."""
+        if self.polach is not None:
+            fit_dict = self.polach.to_dict()
+        else:
+            fit_dict = {"mu": None, "mu_stderr": None, "mu_determined": False,
+                        "mu_lower_bound": self.mu_lower_bound, "converged": None}
+        fit_dict["fit_skipped"] = self.polach_skipped
+        fit_dict["converged"] = self.converged
+        ok, problem = self.curve_ok
+        fit_dict["curve_monotone"], fit_dict["curve_problem"] = ok, problem
+        fit_dict.update(phase_keys(self.phase_fit))
+        theory = self.theory.to_dict()
+        if self.theory_rig is not None:
+            theory["rig"] = dict(self.theory_rig)
+        theory["rms_difference_deg"], theory["max_abs_difference_deg"] = self.theory_difference
+        given = self.stiffness is not None
+        return to_jsonable({
+            **fit_dict,
+            "saturation_torque_nm": self.saturation_torque_nm,
+            "saturation_torque_stderr_nm": self.saturation_torque_stderr_nm,
+            "saturation_torque_source": self.saturation_torque_source,
+            "normal_load_n": self.normal_load_n, "wheel_radius_m": self.wheel_radius_m,
+            "theory": theory, "onset": self.onset.to_dict(), "steps": self.step_records(),
+            "warnings": list(self.warnings),
+            "fit_options": dataclasses.asdict(self.options),
+            "torquemod_version": __version__, "created_utc": self.created_utc,
+            "source": {"results_dir": results_dir, **self.source},
+            "identifiability": "only mu, kA*s and kS*s are identifiable (s = pi*G*a*b*c11/"
+                               "(4*Q)); " + ("kA, kS reported with the given s" if given
+                                             else "the products are reported"),
+        })
+
+    def summary(self) -> dict:
+        """The headline numbers as a JSON-ready dict (what the CLI prints)."""
+        doc = self.to_dict()
+        theory = doc["theory"]
+        return to_jsonable({
+            "mu": self.mu, "mu_stderr": self.mu_stderr, "mu_determined": self.mu_determined,
+            "mu_lower_bound": self.mu_lower_bound, "curve_peak_coa": doc.get("curve_peak_coa"),
+            "fit_skipped": self.polach_skipped, **phase_keys(self.phase_fit),
+            "saturation_torque_nm": self.saturation_torque_nm,
+            "saturation_torque_stderr_nm": self.saturation_torque_stderr_nm,
+            "saturation_torque_source": self.saturation_torque_source,
+            "onset_step": self.onset.step, "theory_mode": self.theory.mode,
+            "theory_rms_deg": theory["rms_difference_deg"],
+            "theory_max_deg": theory["max_abs_difference_deg"], "converged": self.converged,
+            "steps": doc["steps"], "warnings": list(self.warnings)})
+
+    # --- text -------------------------------------------------------------------------------
+    def report(self) -> str:
+        """A plain-text report: mu from both estimates, Ts, the onset, the theory check,
+        the fit details and the warnings."""
+        lines = [f"[[Analysis]] {self.name}: {len(self.points)} steps "
+                 f"({int(self.used.sum())} in the force fit)"]
+        lines += ["  " + line for line in headline_lines(self)]
+        shown = set()  # each warning once: the fits' own reports list theirs
+        if self.polach is not None:
+            lines.append(self.polach.report())
+            shown.update(self.polach.warnings)
+        if self.phase_fit is not None:
+            lines.append(self.phase_fit.report())
+            shown.update(f"mu from the phase: {w}" for w in self.phase_fit.warnings)
+        lines += [f"WARNING: {w}" for w in self.warnings if w not in shown]
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        mu = f"mu={self.mu:.4f}+-{self.mu_stderr:.4f}" if self.mu is not None else \
+            f"mu>={_f(self.mu_lower_bound)} (not determined)"
+        mp = self.mu_from_phase
+        return (f"<Analysis {self.name!r}: {mu}, mu from phase="
+                f"{'-' if mp is None else f'{mp:.4f}'}, onset step {self.onset.step}, "
+                f"{len(self.warnings)} warnings>")
+
+    def _repr_html_(self) -> str:
+        items = "".join(f"<li>{escape(line)}</li>" for line in headline_lines(self))
+        return f"<p>{escape(repr(self))}</p><ul>{items}</ul>"
+
+    # --- figures ----------------------------------------------------------------------------
+    def plot_creep_curve(self, *, ax=None, coa_multiplier: float = 20.0,
+                         creepage_multiplier: float = 5.0):
+        """Paper Figure 3 on ``ax``, returned; without one on a new Figure (not pyplot),
+        whose Axes is returned."""
+        from torquemod.report.figures import creep_curve_figure
+        return creep_curve_figure(self, ax=ax, coa_multiplier=coa_multiplier,
+                                  creepage_multiplier=creepage_multiplier)
+
+    def plot_phase(self, *, ax=None):
+        """Paper Figure 4 (phase against DC torque, % of Ts, with the theory) on ``ax``;
+        returns the Axes (a new Figure's when None)."""
+        from torquemod.report.figures import phase_figure
+        return phase_figure(self, ax=ax)
+
+    def plot_phase_fit(self, *, ax=None):
+        """The phase against the utilised adhesion with the fit giving mu from the phase;
+        returns the Axes (a new Figure's when None)."""
+        from torquemod.report.figures import phase_fit_figure
+        return phase_fit_figure(self, ax=ax)
+
+
+def _f(x, spec: str = ".4f") -> str:
+    return "-" if x is None or not np.isfinite(x) else format(x, spec)
+
+
+def headline_lines(ana: Analysis) -> list[str]:
+    """The few lines every summary shows (CLI, report(), notebooks)."""
+    out = []
+    if ana.polach_skipped:
+        out.append(f"Polach fit skipped: {ana.polach_skipped}")
+    elif ana.mu is not None:
+        out.append(f"Polach fit: mu = {ana.mu:.4f} +- {ana.mu_stderr:.4f}, saturation torque "
+                   f"Ts = {ana.saturation_torque_nm:.2f} N*m")
+    else:
+        out.append(f"Polach fit: mu not determined by these points; mu >= "
+                   f"{_f(ana.mu_lower_bound)}")
+    ok, problem = ana.curve_ok
+    if ok is False:
+        out.append(f"Polach fit not usable: {problem}")
+    pf = ana.phase_fit
+    if pf is not None and pf.mu_determined:
+        lo, hi = pf.mu_interval_95
+        ts = (f"; saturation torque Ts = {ana.saturation_torque_nm:.2f} N*m"
+              if ana.saturation_torque_source == "phase" else "")
+        out.append(f"available adhesion from the phase: {pf.mu:.4f} (95 % interval {_f(lo)} "
+                   f".. {_f(hi)}){ts}")
+    elif pf is not None:
+        a = pf.adhesion
+        rng = f" (95 % range {_f(a.low)} .. {_f(a.high)})" if a.closed else ""
+        depth = (f"; a step at {100 * a.probe_depth:.0f} % of it would determine it"
+                 if np.isfinite(a.probe_depth) else "")
+        out.append(f"available adhesion from the phase: not determined by these steps; >= "
+                   f"{_f(pf.mu_interval_95[0])}{rng}{depth}")
+    onset = f"step {ana.onset.step}" if ana.onset.step is not None else "not reached"
+    rms = ana.theory_difference[0]
+    out.append(f"saturation onset: {onset}; theory vs measured phase: RMS {_f(rms, '.2f')} deg")
+    return out

@@ -1,0 +1,1 @@
+"""Many runs in parallel on Dask: partitioned datasets, summary, report."""

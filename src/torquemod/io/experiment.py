@@ -1,0 +1,143 @@
+"""Thin containers for experiments and recordings. No algorithms live here."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from torquemod.io.processing import ProcessingConfig
+
+#: The method's channels, SI units, in the order the CSV format lists them.
+CHANNELS: tuple[str, ...] = (
+    "torque_nm",
+    "wheel_speed_rad_s",
+    "platform_speed_rad_s",
+    "fx_n",
+    "fy_n",
+    "fz_n",
+    "vehicle_speed_m_s",
+    "position_m",
+)
+#: Channels every recording needs (the phase needs nothing else).
+REQUIRED_CHANNELS: tuple[str, ...] = ("torque_nm", "wheel_speed_rad_s")
+#: Channels that may be absent: without the platform speed no creepage is measured; without
+#: forces the CoA is the drive's adhesion from the torque. Forces come as fx, fz (+ fy).
+#: A train run adds the reference speed of the vehicle (radar, GNSS or an unpowered axle) and
+#: the position along the track (docs/format.md, run.toml).
+OPTIONAL_CHANNELS: tuple[str, ...] = ("platform_speed_rad_s", "fx_n", "fy_n", "fz_n",
+                                      "vehicle_speed_m_s", "position_m")
+#: Units of :data:`CHANNELS` (and of the time column) as written in files and docs.
+CHANNEL_UNITS: dict[str, str] = {
+    "time_s": "s",
+    "torque_nm": "N*m",
+    "wheel_speed_rad_s": "rad/s",
+    "platform_speed_rad_s": "rad/s",
+    "fx_n": "N",
+    "fy_n": "N",
+    "fz_n": "N",
+    "vehicle_speed_m_s": "m/s",
+    "position_m": "m",
+}
+
+
+@dataclass(frozen=True)
+class Rig:
+    """Rig geometry. ``wheel_radius_m`` [m] rolling radius; ``platform_radius_m`` [m] radius of
+    the wheel path on the ring, the R_p of Eq. (3) of the V-Track paper."""
+
+    wheel_radius_m: float
+    platform_radius_m: float
+    extra: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class TestSetup:
+    """Nominal test settings: ``normal_load_n`` [N], ``modulation_frequency_hz`` [Hz] (nominal;
+    the actual frequency is measured), ``modulation_amplitude_nm`` [N*m]."""
+
+    normal_load_n: float
+    modulation_frequency_hz: float
+    modulation_amplitude_nm: float
+    extra: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class RecordingEntry:
+    """One ``[[recording]]`` of the manifest. ``cycle`` is None when the file may span several
+    platform revolutions; ``group`` selects a group inside an HDF5 file (a TDMS group, a .mat
+    struct); ``sample_rate_hz`` [Hz], when given, is the recording's sample rate and replaces
+    the file's time base."""
+
+    step: int
+    dc_torque_nm: float
+    path: Path
+    cycle: int | None = None
+    group: str | None = None
+    index: int = 0  # position in the manifest, for messages
+    sample_rate_hz: float | None = None
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A parsed ``experiment.toml``: where it is, the rig, the test and its recordings."""
+
+    manifest_path: Path
+    rig: Rig
+    test: TestSetup
+    recordings: tuple[RecordingEntry, ...]
+    channel_map: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)  # other top-level tables, e.g. [processing]
+
+    @property
+    def folder(self) -> Path:
+        return self.manifest_path.parent
+
+    @property
+    def steps(self) -> list[int]:
+        return sorted({r.step for r in self.recordings})
+
+    @property
+    def processing(self) -> ProcessingConfig:
+        """The manifest's ``[processing]`` table as a
+        :class:`~torquemod.io.processing.ProcessingConfig` over the defaults for the test's
+        nominal modulation frequency (:meth:`~torquemod.io.processing.ProcessingConfig.
+        for_modulation`: the paper's 2 Hz values, scaled at another frequency)."""
+        table = self.extra.get("processing")
+        return ProcessingConfig.for_modulation(self.test.modulation_frequency_hz, table or {},
+                                               source=str(self.manifest_path))
+
+
+@dataclass
+class Recording:
+    """Sampled channels of one recording, SI units, uniformly sampled at ``fs_hz`` [Hz].
+
+    ``channels`` maps the names of :data:`CHANNELS` (at least :data:`REQUIRED_CHANNELS`) to
+    1-D float64 arrays of equal length;
+    ``t0_s`` [s] is the time of the first sample.
+    """
+
+    channels: dict[str, np.ndarray]
+    fs_hz: float
+    t0_s: float = 0.0
+    source: str = ""
+    notes: list[str] = field(default_factory=list)  # what the reader did (time bases), for
+    # provenance
+
+    @property
+    def n_samples(self) -> int:
+        return len(next(iter(self.channels.values())))
+
+    @property
+    def duration_s(self) -> float:
+        return self.n_samples / self.fs_hz
+
+    def time_s(self) -> np.ndarray:
+        """Sample times [s]."""
+        return self.t0_s + np.arange(self.n_samples) / self.fs_hz
+
+    def slice(self, start: int, stop: int) -> Recording:
+        """Samples ``start:stop`` as a new recording (views, no copies)."""
+        return Recording({k: v[start:stop] for k, v in self.channels.items()}, self.fs_hz,
+                         self.t0_s + start / self.fs_hz, self.source, list(self.notes))

@@ -1,0 +1,404 @@
+"""Parameters of the processing chain, one frozen dataclass per step, defaults from the paper.
+
+Where the V-Track paper gives a value it is used (search band 1.5-2.5 Hz, resampling to
+53.344 Hz, notches at the rotation frequency and its 2nd harmonic, 0.36 Hz band-pass, maximum
+alignment lag of one modulation period, the middle three modulation periods). Where it gives
+none (filter orders, notch Q, high-pass cut-off) the choice is ours and says so.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from torquemod.errors import InputError, OptionError
+
+#: How :meth:`ProcessingConfig.for_modulation` scales the defaults with the modulation frequency f.
+FREQUENCY_RULE = ("band, band-pass width, high-pass cut-off, slow model's top x f/2; "
+                  "resampling rate x max(f/2, 1)")
+
+
+@dataclass(frozen=True)
+class FrequencyParams:
+    """Step 1: spectral peak of torque and wheel speed in ``band_hz`` [Hz] (paper)."""
+
+    band_hz: tuple[float, float] = (1.5, 2.5)
+    window: str = "hann"  # ours: Hann sidelobes fall 18 dB/octave, away from large tones
+    detrend: str = "linear"
+    zero_pad: int = 8
+    #: ours: each peak refined to the least-squares frequency of the speed model
+    #: (torquemod.process.chain._SlowOrdersRemoval.refine) to ``tolerance_hz`` [Hz]
+    refine: bool = True
+    tolerance_hz: float = 1e-6
+    #: the common modulation frequency: the "torque"'s peak (ours, the excitation's), or
+    #: the "mean" of the torque's and the wheel speed's peaks (the paper's Table 2, taken
+    #: at a steady speed). Where the operating point moves, the wheel's answer drifts in
+    #: phase and its peak moves with it: the mean was up to 8.6e-4 Hz off under a 0.3 %
+    #: wobble at 60-90 % utilisation, the torque's 9e-5 Hz (docs/processing.md)
+    common: str = "torque"
+
+    def __post_init__(self) -> None:
+        if self.common not in ("mean", "torque"):
+            raise InputError(f"unknown frequency.common '{self.common}'",
+                             hint="use 'mean' (the paper's) or 'torque'")
+
+
+@dataclass(frozen=True)
+class ResampleParams:
+    """Step 2: polyphase resampling to ``target_hz`` [Hz] (paper: 53.344 Hz = 16 670*2/625)."""
+
+    target_hz: float = 53.344
+    kaiser_beta: float = 5.0  # MATLAB resample's default
+    max_denominator: int = 1000
+    #: "two_stage" (ours, issue 11): an integer Kaiser-FIR decimation first (numba), then
+    #: resample_poly for the rest; the same samples to 1e-7 deg of phase at 2 Hz, 4x cheaper.
+    #: "polyphase": one resample_poly pass, as the paper's MATLAB resample.
+    method: str = "two_stage"
+
+    def __post_init__(self) -> None:
+        if self.method not in ("two_stage", "polyphase"):
+            raise InputError(f"unknown resample.method '{self.method}'",
+                             hint="use 'two_stage' or 'polyphase'")
+
+
+@dataclass(frozen=True)
+class SlowParams:
+    """Ours (issue 8): the rolling speed of every rig and train moves. Speed variation below
+    ``max_hz`` [Hz] (a speed loop's wobble, the platform's revolution harmonics, a ramp) is
+    modelled by Legendre polynomials up to ``polynomial_degree`` and Slepian sequences
+    (:func:`torquemod.dsp.filters.slow_basis`, ``extra_sequences`` beyond twice the
+    time-bandwidth product) and the encoders' eccentricity by rotation orders that
+    follow the integrated angle; both are fitted jointly with the modulation and removed
+    before steps 1 and 3-5, and step 8 takes every channel's mean through the same model, so a
+    speed variation that wheel and platform share cancels in the creepage. ``enabled = false``
+    gives the previous chain (a line and fixed-frequency tones)."""
+
+    enabled: bool = True
+    #: ours: a wobble up to 1.2 Hz is removed. Under a wobble at 0.2-0.6 Hz near saturation
+    #: the wheel's answer carries sidebands at f - 2 x 0.6 Hz that this band reaches; 0.4 x
+    #: f (0.8 Hz) with ``phase.sinefit_input = "model"`` gives the phase of a moving
+    #: operating point to 0.015 deg (docs/processing.md), but lets a wobble at 0.8-1.2 Hz in
+    max_hz: float = 1.2
+    extra_sequences: int = 2
+    polynomial_degree: int = 5
+    #: the modulation's harmonics 2..this fitted beside it and removed with the slow part
+    #: (torquemod.process.chain.modulation_harmonics); 1 fits none
+    modulation_harmonics: int = 3
+
+
+@dataclass(frozen=True)
+class NotchParams:
+    """Step 3: zero-phase notches at rotation harmonics (paper: 1st and 2nd)."""
+
+    q: float = 3.0  # ours: bandwidth f0/3, settles in ~q/(pi*f0) = 0.2 s at 4.6 Hz
+    wheel_harmonics: tuple[int, ...] = (1, 2)
+    platform_harmonics: tuple[int, ...] = (1, 2)
+    warn_within_hz: float = 0.3
+
+
+@dataclass(frozen=True)
+class HighpassParams:
+    """Step 4: zero-phase Butterworth high-pass removing DC (values ours)."""
+
+    cutoff_hz: float = 0.5
+    order: int = 2
+
+
+@dataclass(frozen=True)
+class BandpassParams:
+    """Step 5: zero-phase Butterworth band-pass ``width_hz`` wide at f_mod (paper: 0.36 Hz)."""
+
+    width_hz: float = 0.36
+    order: int = 2  # ours: prototype order 2, a 4th-order band-pass, applied twice
+
+
+@dataclass(frozen=True)
+class AlignParams:
+    """Step 6: cycles 2..n aligned to cycle 1 by unbiased xcorr of the torque (paper)."""
+
+    enabled: bool = True
+    max_lag_periods: float = 1.0
+
+
+@dataclass(frozen=True)
+class PhaseParams:
+    """Step 7: phase estimator. ``method`` "paper" (peaks/valleys over ``n_periods`` middle
+    periods) or "sinefit" (least squares over the cycle). ``edge_trim_periods``
+    modulation periods at each end of a cycle are not used by "paper" (filter transients)."""
+
+    method: str = "paper"
+    n_periods: int = 3
+    edge_trim_periods: float = 1.0
+    #: "bandpassed" (the band-passed signals over whole periods; robust to vibration lines
+    #: and noise away from the modulation), "notched", or "model" (the speed model's own
+    #: least-squares modulation over the cycle, docs/processing.md "The phase of a moving
+    #: operating point"; 3-4 x the scatter of "bandpassed" on records with vibration lines)
+    sinefit_input: str = "bandpassed"
+    sinefit_trend: bool = True
+
+
+@dataclass(frozen=True)
+class SlipParams:
+    """Slip detection per step (values ours; see :func:`torquemod.process.pipeline.detect_slip`).
+
+    A step is flagged as slipping when one of its cycles shows
+
+    * a creepage jump: its creepage exceeds the median of the step's other cycles by more than
+      ``creepage_jump_abs`` [-] and by more than ``creepage_jump_k`` robust standard
+      deviations (1.4826 MAD) of those others;
+    * a falling CoA: from the previous cycle the CoA falls by more than ``coa_drop_abs`` [-]
+      while the creepage rises by more than ``creepage_rise_abs`` [-] (the falling branch of
+      the creep curve);
+    * a creepage drift within the cycle: the creepage's trend over the cycle rises by more
+      than ``within_cycle_abs`` [-] and by more than ``within_cycle_rel`` times the cycle's
+      creepage (near saturation a wheel's creepage follows the speed loop's wobble by tens of
+      per cent up and down, measured on the twin; a runaway grows it far more).
+
+    Flagged steps stay in ``steps.csv`` (column ``slip``) and are left out of the Polach fit.
+    """
+
+    enabled: bool = True
+    creepage_jump_abs: float = 2e-3
+    creepage_jump_k: float = 5.0
+    coa_drop_abs: float = 5e-3
+    creepage_rise_abs: float = 5e-4
+    within_cycle_abs: float = 2e-3
+    within_cycle_rel: float = 0.5
+
+
+@dataclass(frozen=True)
+class ProcessingConfig:
+    """All parameters of the chain; ``nan_policy`` is "raise", "interpolate" or "drop-cycle"."""
+
+    frequency: FrequencyParams = field(default_factory=FrequencyParams)
+    resample: ResampleParams = field(default_factory=ResampleParams)
+    notch: NotchParams = field(default_factory=NotchParams)
+    highpass: HighpassParams = field(default_factory=HighpassParams)
+    bandpass: BandpassParams = field(default_factory=BandpassParams)
+    align: AlignParams = field(default_factory=AlignParams)
+    phase: PhaseParams = field(default_factory=PhaseParams)
+    nan_policy: str = "raise"
+    slip: SlipParams = field(default_factory=SlipParams)
+    slow: SlowParams = field(default_factory=SlowParams)
+
+    def __post_init__(self) -> None:
+        problems = _range_problems(self)
+        if problems:
+            raise InputError(f"[processing] {problems[0]}", hint="see torquemod.io.processing for "
+                             "the meaning and the default of each parameter")
+        if self.phase.method not in ("paper", "sinefit"):
+            raise InputError(f"unknown phase method '{self.phase.method}'",
+                             hint="use 'paper' or 'sinefit'")
+        if self.phase.sinefit_input not in ("bandpassed", "notched", "model"):
+            raise InputError(f"unknown sinefit_input '{self.phase.sinefit_input}'",
+                             hint="use 'bandpassed', 'notched' or 'model'")
+        if self.nan_policy not in ("raise", "interpolate", "drop-cycle"):
+            raise InputError(f"unknown NaN policy '{self.nan_policy}'",
+                             hint="use raise, interpolate or drop-cycle")
+
+    def to_dict(self) -> dict:
+        """Every parameter of every step, for provenance.json."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def for_modulation(cls, frequency_hz: float, doc: dict | None = None, *,
+                       source: str = "[processing]") -> ProcessingConfig:
+        """The defaults for a modulation at ``frequency_hz`` [Hz], then the keys of ``doc``
+        (a manifest's ``[processing]`` table, as :meth:`from_dict`) over them.
+
+        The paper's values are tied to its 2 Hz modulation; at another frequency every
+        frequency-bound default is scaled by ``frequency_hz/2``: the search band (1.5-2.5
+        Hz), the band-pass width (0.36 Hz), the high-pass cut-off (0.5 Hz) and the slow
+        model's top (1.2 Hz); above 2 Hz also the resampling rate (53.344 Hz), so that a
+        period keeps its 26.7 samples (the paper's peak interpolation is biased at fewer).
+        At 2 Hz these are the defaults themselves (:data:`FREQUENCY_RULE`)."""
+        d = cls()
+        f = float(frequency_hz)
+        if not (math.isfinite(f) and f > 0):
+            raise InputError(f"modulation frequency must be positive, got {frequency_hz!r}",
+                             path=source)
+        s = f / 2.0
+        base = d if s == 1.0 else dataclasses.replace(
+            d, frequency=dataclasses.replace(d.frequency, band_hz=(d.frequency.band_hz[0] * s,
+                                                                   d.frequency.band_hz[1] * s)),
+            resample=dataclasses.replace(d.resample,
+                                         target_hz=d.resample.target_hz * max(s, 1.0)),
+            bandpass=dataclasses.replace(d.bandpass, width_hz=d.bandpass.width_hz * s),
+            highpass=dataclasses.replace(d.highpass, cutoff_hz=d.highpass.cutoff_hz * s),
+            slow=dataclasses.replace(d.slow, max_hz=d.slow.max_hz * s))
+        return cls.from_dict(doc or {}, source=source, base=base)
+
+    @classmethod
+    def from_dict(cls, doc: dict, *, source: str = "[processing]",
+                  base: ProcessingConfig | None = None) -> ProcessingConfig:
+        """Build from nested dicts, e.g. a manifest's ``[processing]`` table, over ``base``
+        (default: the defaults); unknown keys raise :class:`InputError` naming them."""
+        if not isinstance(doc, dict):
+            raise InputError("[processing] must be a table", path=source)
+        kwargs = {}
+        fields = {f.name: f for f in dataclasses.fields(cls)}
+        defaults = cls() if base is None else base
+        for key, value in doc.items():
+            if key not in fields:
+                raise InputError(f"unknown processing key '{key}'", path=source,
+                                 hint=f"known keys: {', '.join(fields)}")
+            sub = getattr(defaults, key)
+            if not dataclasses.is_dataclass(sub):
+                kwargs[key] = _typed(value, sub, key, source)
+                continue
+            if not isinstance(value, dict):
+                raise InputError(f"'processing.{key}' must be a table, got {value!r}",
+                                 path=source, hint=f"write [processing.{key}] with its keys")
+            sub_fields = {f.name for f in dataclasses.fields(sub)}
+            unknown = set(value) - sub_fields
+            if unknown:
+                raise InputError(f"unknown key(s) {', '.join(sorted(unknown))} in "
+                                 f"'{key}'", path=source,
+                                 hint=f"known keys: {', '.join(sorted(sub_fields))}")
+            conv = {k: _typed(v, getattr(sub, k), f"{key}.{k}", source)
+                    for k, v in value.items()}
+            kwargs[key] = dataclasses.replace(sub, **conv)
+        try:
+            return dataclasses.replace(defaults, **kwargs)
+        except InputError as exc:
+            raise InputError(str(exc), path=source) from None
+
+    def with_phase_method(self, method: str | None) -> ProcessingConfig:
+        """A copy with another phase method (None keeps this one)."""
+        if method is None:
+            return self
+        return dataclasses.replace(self, phase=dataclasses.replace(self.phase, method=method))
+
+
+def _typed(value: object, default: object, key: str, source: str) -> object:
+    """``value`` as the type of ``default`` (int -> float, list -> tuple), or an
+    :class:`InputError` naming the key."""
+    def bad(kind: str) -> InputError:
+        return InputError(f"'processing.{key}' must be {kind}, got {value!r}", path=source)
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise bad("true or false")
+        return value
+    if isinstance(default, int):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise bad("an integer")
+        return value
+    if isinstance(default, float):
+        if isinstance(value, bool) or not isinstance(value, int | float) \
+                or not math.isfinite(value):
+            raise bad("a finite number")
+        return float(value)
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise bad("a string")
+        return value
+    if isinstance(default, tuple):
+        if not isinstance(value, list | tuple):
+            raise bad("a list")
+        item = default[0] if default else 0.0
+        return tuple(_typed(v, item, key, source) for v in value)
+    return value
+
+
+def _range_problems(cfg: ProcessingConfig) -> list[str]:
+    """Values outside their meaningful range, as messages (empty when all is well)."""
+    out = []
+    band = cfg.frequency.band_hz
+    if len(band) != 2 or not 0 < band[0] < band[1]:
+        out.append(f"frequency.band_hz must be [low, high] with 0 < low < high, got {band}")
+    positive = {"frequency.zero_pad": cfg.frequency.zero_pad,
+                "resample.target_hz": cfg.resample.target_hz,
+                "resample.max_denominator": cfg.resample.max_denominator,
+                "notch.q": cfg.notch.q, "highpass.cutoff_hz": cfg.highpass.cutoff_hz,
+                "highpass.order": cfg.highpass.order, "bandpass.width_hz": cfg.bandpass.width_hz,
+                "bandpass.order": cfg.bandpass.order,
+                "align.max_lag_periods": cfg.align.max_lag_periods,
+                "phase.n_periods": cfg.phase.n_periods, "slow.max_hz": cfg.slow.max_hz,
+                "slow.modulation_harmonics": cfg.slow.modulation_harmonics,
+                "frequency.tolerance_hz": cfg.frequency.tolerance_hz}
+    out += [f"{k} must be positive, got {v}" for k, v in positive.items()
+            if not (isinstance(v, int | float) and v > 0)]
+    non_negative = {"phase.edge_trim_periods": cfg.phase.edge_trim_periods,
+                    "notch.warn_within_hz": cfg.notch.warn_within_hz,
+                    "slow.extra_sequences": cfg.slow.extra_sequences,
+                    "slow.polynomial_degree": cfg.slow.polynomial_degree,
+                    **{f"slip.{f.name}": getattr(cfg.slip, f.name)
+                       for f in dataclasses.fields(cfg.slip) if f.name != "enabled"}}
+    out += [f"{k} must be zero or positive, got {v}" for k, v in non_negative.items()
+            if not (isinstance(v, int | float) and v >= 0)]
+    for key, harmonics in (("notch.wheel_harmonics", cfg.notch.wheel_harmonics),
+                           ("notch.platform_harmonics", cfg.notch.platform_harmonics)):
+        if any(isinstance(h, bool) or not isinstance(h, int) or h < 1 for h in harmonics):
+            out.append(f"{key} must be positive integers, got {harmonics}")
+    try:  # the default needs no check (and no scipy.signal import at start-up)
+        if cfg.frequency.window != FrequencyParams.window:
+            from scipy.signal import get_window
+            get_window(cfg.frequency.window, 8)
+    except (ValueError, TypeError):
+        out.append(f"frequency.window '{cfg.frequency.window}' is not a scipy window name")
+    if cfg.frequency.detrend not in ("linear", "constant"):
+        out.append(f"frequency.detrend must be 'linear' or 'constant', got "
+                   f"{cfg.frequency.detrend!r}")
+    return out
+
+
+def coerce_options(cls, options, what: str):
+    """``options`` as an instance of the dataclass ``cls``: None gives the defaults, an
+    instance passes through, a mapping is checked for unknown keys (lists become tuples)."""
+    if options is None:
+        return cls()
+    if isinstance(options, cls):
+        return options
+    if isinstance(options, Mapping):
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = set(options) - names
+        if unknown:
+            raise InputError(f"unknown {what} option(s) {sorted(unknown)}; "
+                             f"known: {sorted(names)}")
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in options.items()})
+    raise InputError(f"{what} options must be {cls.__name__} or a mapping, got {type(options)}")
+
+
+def check_option_types(instance, what: str) -> None:
+    """Raise :class:`~torquemod.errors.OptionError` naming the first field of the dataclass
+    ``instance`` whose value is not of its annotated type: ``bool`` takes only True/False
+    (not "no", not 0), ``int`` whole numbers (not bool), ``float`` real numbers, ``str``
+    text; ``X | None`` also None; tuples are checked as tuples (lists pass)."""
+    import numbers
+    import types
+    import typing
+
+    hints = typing.get_type_hints(type(instance))
+    for f in dataclasses.fields(instance):
+        value = getattr(instance, f.name)
+        hint = hints.get(f.name)
+        union = typing.get_origin(hint) in (typing.Union, types.UnionType)
+        args = typing.get_args(hint) if union else ()
+        optional = type(None) in args
+        base = next((a for a in args if a is not type(None)), hint) if args else hint
+        if value is None and optional:
+            continue
+        origin = typing.get_origin(base) or base
+        ok = True
+        if origin is bool:
+            ok = isinstance(value, bool | _np_bool())
+        elif origin is int:
+            ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
+        elif origin is float:
+            ok = isinstance(value, numbers.Real) and not isinstance(value, bool)
+        elif origin is str:
+            ok = isinstance(value, str)
+        elif origin is tuple:
+            ok = isinstance(value, tuple | list)
+        if not ok:
+            expected = {bool: "True or False", int: "a whole number", float: "a number",
+                        str: "a string", tuple: "a sequence"}.get(origin, str(base))
+            raise OptionError(f"{what} option {f.name}={value!r}: expected {expected}"
+                              + (" or None" if optional else ""))
+
+
+def _np_bool():
+    import numpy as np
+    return np.bool_

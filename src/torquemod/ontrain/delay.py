@@ -1,0 +1,119 @@
+"""The net delay between a run's torque and speed signals, measured from the run itself.
+
+A drive's torque estimated from motor current is filtered, a speed from counting encoder
+pulses is half a gate late, loggers put channels on different messages. A net delay tau of
+the torque behind the speed rotates the measured torque-to-speed ratio by ``exp(-j*Omega*tau)``
+and biases the creep coefficient (on a 4 Hz modulation by ~4 % per ms); the manifest can
+declare it (:meth:`torquemod.io.run.Vehicle.sensor_response`), but a hidden run may not.
+
+What fixes it (derived for this model): the impedance G the wheelset meets beyond its own
+inertia (:func:`~torquemod.ontrain.window.load_impedance`) is the contact damping D in series
+with the vehicle, ``1/G = 1/D + 1/Z_v``. D is real and changes with every operating point
+(it is what the method measures); the vehicle's impedance Z_v (its mass, the running
+resistance's slope) does not. So over windows at different D::
+
+    Im(1/G_i) = Im(1/Z_v)          the same for every window, at the right delay,
+
+while a wrong delay ``dtau`` rotates 1/G_i by ``Omega*dtau`` and adds ``Omega*dtau*Re(1/G_i)``
+to it: a line in ``Re(1/G_i)`` whose slope is the delay error. :class:`DelayCalibrator` keeps,
+for every delay of a grid, the weighted least-squares sums of ``Im(1/G)`` on ``Re(1/G)``
+(constant memory; windows in order, so a live system and the batch agree) and reports the
+delay where the slope crosses zero, with its standard error from the slope's. It is trusted
+only when the windows spread D enough (the standard error below ``max_se_s``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from torquemod.io.run import Vehicle
+from torquemod.ontrain.window import load_impedance
+
+
+@dataclass(frozen=True)
+class DelayEstimate:
+    """``delay_s`` [s] the net delay of the torque behind the speed beyond what the manifest
+    declares (0 while not ``trusted``), ``se_s`` [s] its standard error (NaN when no
+    crossing), ``windows`` used, ``trusted``."""
+
+    delay_s: float
+    se_s: float
+    windows: int
+    trusted: bool
+
+
+class DelayCalibrator:
+    """Running estimate of the net torque-speed delay (module docstring). ``grid_s``: the
+    candidate delays [s] (ascending); ``min_windows`` before an estimate; ``max_se_s`` [s]:
+    trusted below this standard error."""
+
+    def __init__(self, vehicle: Vehicle, frequency_hz: float, grid_s: np.ndarray, *,
+                 min_windows: int = 40, max_se_s: float = 5e-4):
+        self.v, self.f = vehicle, float(frequency_hz)
+        self.grid = np.asarray(grid_s, dtype=float)
+        self.rot = np.exp(2j * math.pi * self.f * self.grid)  # undoes a delay of grid_s
+        self.min_windows, self.max_se_s = int(min_windows), float(max_se_s)
+        # per candidate: sum w, w*x, w*y, w*x^2, w*x*y, w*y^2
+        self.sums = np.zeros((6, self.grid.size))
+        self.n = 0
+
+    def add(self, ratio: complex, phase_se_rad: float) -> None:
+        """A steady window's measured ratio T/w (declared dynamics already divided out) and
+        its phase standard error [rad] (also the relative error of |T/w|)."""
+        if not (math.isfinite(phase_se_rad) and phase_se_rad > 0 and np.isfinite(ratio)):
+            return
+        r = ratio * self.rot
+        g = load_impedance(r, self.v, self.f)  # works on arrays too
+        if not np.all(np.isfinite(g)) or np.any(g == 0):
+            return
+        inv = 1.0 / g
+        # the error of 1/G from the ratio's: |r| * se / |G|^2 (first order)
+        sd = np.abs(r) * phase_se_rad / np.abs(g) ** 2
+        w = 1.0 / sd ** 2
+        x, y = inv.real, inv.imag
+        self.sums += np.array([w, w * x, w * y, w * x * x, w * x * y, w * y * y])
+        self.n += 1
+
+    def slopes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted least-squares slope of Im(1/G) on Re(1/G) at every candidate delay and
+        its standard error (scaled by the residual's chi^2 per degree of freedom)."""
+        s, sx, sy, sxx, sxy, syy = self.sums
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sxx_c = sxx - sx * sx / s
+            b = (sxy - sx * sy / s) / sxx_c
+            rss = np.maximum(syy - sy * sy / s - b * (sxy - sx * sy / s), 0.0)
+            chi = rss / max(self.n - 2, 1)
+            se = np.sqrt(np.maximum(chi, 1.0) / sxx_c)
+        return b, se
+
+    def estimate(self) -> DelayEstimate:
+        """The delay where the slope crosses zero (falling; linear between grid points)."""
+        if self.n < self.min_windows:
+            return DelayEstimate(0.0, math.nan, self.n, False)
+        b, se = self.slopes()
+        ok = np.isfinite(b)
+        cross = np.flatnonzero(ok[:-1] & ok[1:] & (b[:-1] > 0) & (b[1:] <= 0))
+        if cross.size != 1:
+            return DelayEstimate(0.0, math.nan, self.n, False)
+        i = int(cross[0])
+        frac = b[i] / (b[i] - b[i + 1])
+        tau = float(self.grid[i] + frac * (self.grid[i + 1] - self.grid[i]))
+        dbdtau = float((b[i + 1] - b[i]) / (self.grid[i + 1] - self.grid[i]))
+        tau_se = float((1 - frac) * se[i] + frac * se[i + 1]) / abs(dbdtau)
+        trusted = tau_se <= self.max_se_s
+        return DelayEstimate(tau if trusted else 0.0, tau_se, self.n, trusted)
+
+
+def delay_grid(delay_max_s: float, frequency_hz: float, step_s: float = 2.5e-4) -> np.ndarray:
+    """The candidate delays [s] of :class:`DelayCalibrator`: ``-tau_max .. tau_max`` in steps
+    of ``step_s``, with ``tau_max = min(delay_max_s, 1/(6*f))``. Both signs: a filtered torque
+    lags the speed, a speed counted over a gate lags the torque. At most a sixth of the
+    period (60 degrees of rotation at the modulation frequency ``f`` [Hz]), so that the
+    slope of Im(1/G) on Re(1/G) crosses zero once on the grid."""
+    tau = min(float(delay_max_s), 1.0 / (6.0 * float(frequency_hz)))
+    n = max(1, math.floor(tau / step_s + 1e-9))
+    return step_s * np.arange(-n, n + 1, dtype=float)
+

@@ -1,0 +1,463 @@
+"""The on-board estimator (issue 10): sliding windows over a run's torque and axle speed,
+and the friction along the track from the creep-coefficient progression.
+
+:class:`OnboardEstimator` takes chunks as they arrive (``feed``) and returns the rows of the
+windows that completed; the batch command feeds a recording through the same class, so both
+give identical rows. Memory is bounded: one window of samples and the windows of the last
+``memory_m`` metres.
+
+mu along the track
+------------------
+The steady windows since the last friction change (at most ``memory_m`` metres; slips and
+windows with a DC torque step inside left out) are sorted by CoA and grouped (up to
+``n_bins`` groups); each group gives one point (inverse-variance mean of k; its standard error
+the larger of the windows' own, widened by their overlap, and the group's scatter, plus a
+relative model error ``model_rel_error``). :func:`torquemod.ontrain.mufit.fit_creep_progression`
+(the one estimator of :mod:`torquemod.analysis.friction`) fits a broad family of creep laws (Polach
+with constant and falling friction, Burckhardt, saturating laws) and gives the **available
+adhesion** (the maximum of the adhesion-creepage curve; track.parquet's ``mu``) with its 95 %
+profile interval over the whole family. mu is reported
+only when that interval is closed and within ``max_rel_half_width``, no change is suspected,
+the current window is steady, its CoA is not above the fit, and a window worked at
+``info_utilisation`` of mu or more within the last ``info_m`` metres (at low utilisation the
+creep coefficient hardly depends on mu, so a fit is not carried far past its evidence).
+Otherwise mu is empty and ``mu_low_95`` is the lower bound: the CoA less two standard errors
+of the windows of the last ``bound_m`` metres (by default the current window alone), because
+adhesion cannot exceed the friction where it was measured. The fit is redone every
+``refit_m`` metres.
+
+Friction changes
+----------------
+:class:`ChangeDetector`: a two-sided CUSUM of each steady window's log creep coefficient
+against the current fitted curve; at an alarm the memory is cut at the change's start. A
+window whose CoA lies beyond the fitted curve counts as strong evidence even when stepping.
+
+Flags
+-----
+``slip``: the creepage exceeds ``slip_creepage`` or the axle accelerates faster than the
+vehicle by ``slip_accel_m_s2``. ``low_adhesion``: the creep coefficient has fallen below
+``low_adhesion_ratio`` of the reference (the median creep coefficient of the windows of the
+last ``baseline_m`` metres whose CoA is in the lowest 40 %: its value at low utilisation,
+robust to the heavy-tailed k of single windows; a 90th percentile was inflated 4x at 8 Hz)
+in a steady window (a DC torque step inside a window corrupts its k: measured, all false
+flags on dry rail came from such windows), or the axle slips.
+
+The premise of a window
+-----------------------
+A window whose torque has no modulation line at the declared frequency, whose train stands
+or runs backwards gives no numbers: its row keeps time, position and speed, ``quality`` says
+why (:mod:`torquemod.ontrain.quality`), and it leaves the state alone.
+
+Delay between torque and speed
+------------------------------
+A net delay of the torque signal behind the speed's that run.toml does not declare biases k
+(~4 % per ms at 4 Hz). With ``calibrate_delay`` (default) :class:`~torquemod.ontrain.delay.
+DelayCalibrator` measures it from the steady windows seen so far (the vehicle's impedance
+does not change with the operating point); once its standard error is below
+``delay_max_se_s`` every window's phase and k are taken with it, and the windows the mu fit
+holds are corrected too (when the estimate moves by more than a quarter of that). An
+estimate that is not trusted (too few operating points yet, or the crossing lost) leaves the
+last trusted one in place. Delays are searched in both directions (a speed counted over a
+gate is half a gate late: 5 ms at 200 Hz with a two-sample gate), within ``delay_max_s``
+and a sixth of the modulation period (:func:`~torquemod.ontrain.delay.delay_grid`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from torquemod._util.tomlcheck import NON_NEGATIVE, between, default_checks, one_of, read_table
+from torquemod.analysis.phasefit import R_BOUNDS
+from torquemod.errors import InputError, ProcessingError
+from torquemod.io.run import Vehicle
+from torquemod.ontrain.delay import DelayCalibrator, delay_grid
+from torquemod.ontrain.mufit import CreepFit, fit_creep_progression
+from torquemod.ontrain.quality import QUALITY_OK, window_quality
+from torquemod.ontrain.window import WindowResult, measure_window, with_delay
+
+#: The columns of track.parquet, in order (issue 10).
+TRACK_COLUMNS = ("time_s", "position_m", "speed_m_s", "coa", "phase_deg", "phase_se_deg",
+                 "creep_coefficient", "mu", "mu_low_95", "mu_high_95", "utilisation",
+                 "low_adhesion", "slip", "quality")
+
+
+@dataclass(frozen=True)
+class OnboardConfig:
+    """Settings of the estimator (``[onboard]`` in run.toml; defaults here)."""
+
+    window_periods: int = 5
+    hop_s: float = 0.25
+    memory_m: float = 1500.0
+    bound_m: float = 1.0
+    refit_m: float = 100.0
+    change_drift: float = 1.0
+    change_threshold: float = 10.0
+    max_rel_half_width: float = 0.25
+    model_rel_error: float = 0.05
+    max_dc_step_ratio: float = 0.25
+    info_utilisation: float = 0.5
+    info_m: float = 30.0
+    n_bins: int = 12
+    min_windows: int = 12
+    min_coa_ratio: float = 2.0
+    ratio_bounds: tuple[float, float] = R_BOUNDS
+    power_shapes: int = 1
+    baseline_m: float = 600.0
+    low_adhesion_ratio: float = 0.25
+    slip_creepage: float = 0.03
+    slip_accel_m_s2: float = 0.8
+    calibrate_delay: int = 1
+    delay_max_s: float = 0.02
+    delay_max_se_s: float = 5e-4
+    delay_min_windows: int = 40
+    #: the premise of a window (:mod:`torquemod.ontrain.quality`): the reference speed
+    #: [m/s] below which the train counts as standing (twice the 0.5 m/s floor of the
+    #: creepage's reference speed; ours) and the share of the declared modulation amplitude
+    #: the torque's line must reach (ours: windows of the twin's and the independent runs
+    #: reach > 0.3 even across a DC step)
+    min_speed_m_s: float = 1.0
+    min_modulation_ratio: float = 0.25
+
+    @classmethod
+    def from_dict(cls, table: dict | None, *, source: str = "[onboard]") -> OnboardConfig:
+        """The settings from run.toml's ``[onboard]`` table (None: the defaults); every key
+        and value checked (:func:`torquemod._util.tomlcheck.read_table`), an :class:`InputError`
+        naming ``source`` and the key otherwise."""
+        cfg = read_table(cls, table, section="onboard", path=source, checks=_CHECKS)
+        lo, hi = cfg.ratio_bounds
+        if not lo < hi:
+            raise InputError(f"'onboard.ratio_bounds' must be [low, high] with low < high, got "
+                             f"{list(cfg.ratio_bounds)}", path=source)
+        return cfg
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["ratio_bounds"] = list(self.ratio_bounds)
+        return d
+
+
+@dataclass
+class _Fit:
+    position_m: float
+    mu: float | None
+    low: float
+    high: float | None
+    model: CreepFit | None = None
+
+
+#: ranges of the [onboard] settings (besides their types): positive unless listed here
+_CHECKS = default_checks(OnboardConfig, {
+    "power_shapes": one_of(0, 1), "calibrate_delay": one_of(0, 1),
+    "window_periods": between(1, None), "n_bins": between(1, None),
+    "min_windows": between(1, None), "delay_min_windows": between(1, None),
+    "info_utilisation": between(0.0, 1.0, lo_open=True),
+    "min_modulation_ratio": between(0.0, 1.0),
+    "low_adhesion_ratio": between(0.0, 1.0, lo_open=True),
+    "change_drift": NON_NEGATIVE, "delay_max_s": NON_NEGATIVE})
+
+
+class ChangeDetector:
+    """Two-sided CUSUM (Page 1954) on the log residual of each window's creep coefficient
+    against the current fitted curve, ``z = ln(k/k_fit(CoA))/s`` with
+    ``s^2 = (k_se/k)^2 + model_rel^2``; a window above the fitted mu counts as ``+z_cap``.
+    An alarm when either sum exceeds ``threshold`` returns the position where that sum last
+    left zero: where the friction changed."""
+
+    def __init__(self, drift: float, threshold: float, model_rel: float = 0.25,
+                 z_cap: float = 6.0):
+        self.drift, self.threshold, self.model_rel, self.z_cap = drift, threshold, model_rel, z_cap
+        self.reset()
+
+    def reset(self) -> None:
+        self.up = self.down = 0.0
+        self.last_z = 0.0
+        self.up_start = self.down_start = math.nan
+
+    def update(self, w: WindowResult, model: CreepFit | None, steady: bool = True
+               ) -> float | None:
+        """Add a window; the change position when the CUSUM alarms, else None. An unsteady
+        window (a DC step inside it) counts only when its CoA lies beyond the curve."""
+        k = w.creep_coefficient
+        if model is None:
+            return None
+        pred = float(model.creep_coefficient(w.coa))
+        beyond = not (math.isfinite(pred) and pred > 0)
+        if not beyond and not (steady and math.isfinite(k) and k > 0):
+            return None
+        if beyond:
+            z = self.z_cap
+        else:
+            rel = w.creep_coefficient_se / k if math.isfinite(w.creep_coefficient_se) else 1.0
+            z = math.log(k / pred) / math.hypot(rel, self.model_rel)
+            z = max(-self.z_cap, min(self.z_cap, z))
+        if self.up == 0.0:
+            self.up_start = w.position_m
+        if self.down == 0.0:
+            self.down_start = w.position_m
+        self.up = max(0.0, self.up + z - self.drift)
+        self.down = max(0.0, self.down - z - self.drift)
+        self.last_z = z
+        if self.up > self.threshold or self.down > self.threshold:
+            start = self.up_start if self.up > self.threshold else self.down_start
+            self.reset()
+            return start
+        return None
+
+    @property
+    def suspicious(self) -> bool:
+        """A change may be under way: a sum above a third of the threshold, or the last
+        window far off the curve (then the fitted mu is withheld, not reported)."""
+        return (max(self.up, self.down) > self.threshold / 3
+                or abs(self.last_z) >= self.z_cap / 2)
+
+
+class MuTracker:
+    """mu from the windows since the last friction change (at most ``memory_m`` metres;
+    module docstring)."""
+
+    def __init__(self, vehicle: Vehicle, frequency_hz: float, config: OnboardConfig,
+                 overlap: float):
+        self.v, self.f, self.cfg = vehicle, frequency_hz, config
+        self.overlap = max(1.0, overlap)
+        self.mem: deque[WindowResult] = deque()
+        self.recent: deque[WindowResult] = deque()
+        self.fit: _Fit | None = None
+        self.n_fits = 0
+        self.detector = ChangeDetector(config.change_drift, config.change_threshold)
+        self.changes: list[float] = []
+
+    def add(self, w: WindowResult, slip: bool) -> None:
+        model = self.fit.model if self.fit is not None else None
+        steady = w.dc_step_ratio <= self.cfg.max_dc_step_ratio
+        change = None if slip else self.detector.update(w, model, steady)
+        if change is not None:
+            self.changes.append(change)
+            for q in (self.mem, self.recent):
+                while q and q[0].position_m < change:
+                    q.popleft()
+            self.fit = None
+        if not slip:
+            self.recent.append(w)
+        while self.recent and self.recent[0].position_m < w.position_m - self.cfg.bound_m:
+            self.recent.popleft()
+        steady = w.dc_step_ratio <= self.cfg.max_dc_step_ratio
+        if (not slip and steady and math.isfinite(w.creep_coefficient)
+                and w.creep_coefficient > 0):
+            self.mem.append(w)
+        while self.mem and self.mem[0].position_m < w.position_m - self.cfg.memory_m:
+            self.mem.popleft()
+        due = self.fit is None or w.position_m - self.fit.position_m >= self.cfg.refit_m
+        if due and len(self.mem) >= self.cfg.min_windows:
+            self.fit = self._fit(w)
+        elif self.fit is not None and w.position_m - self.fit.position_m > self.cfg.memory_m:
+            self.fit = None
+
+    def _points(self):
+        coa = np.array([m.coa for m in self.mem])
+        k = np.array([m.creep_coefficient for m in self.mem])
+        k_se = np.array([m.creep_coefficient_se for m in self.mem])
+        ok = (coa > 0) & np.isfinite(k_se) & (k_se > 0)
+        coa, k, k_se = coa[ok], k[ok], k_se[ok]
+        if coa.size < self.cfg.min_windows or coa.max() < self.cfg.min_coa_ratio * coa.min():
+            return None
+        order = np.argsort(coa, kind="stable")
+        size = max(4, -(-coa.size // self.cfg.n_bins))  # ceil: at most n_bins groups
+        pts = []
+        for grp in np.array_split(order, max(1, coa.size // size)):
+            wgt = 1.0 / k_se[grp] ** 2
+            k_b = float(np.sum(wgt * k[grp]) / wgt.sum())
+            se_b = math.sqrt(self.overlap / wgt.sum())
+            scatter = float(np.std(k[grp], ddof=1)) / math.sqrt(grp.size / self.overlap)
+            se = math.hypot(max(se_b, scatter), self.cfg.model_rel_error * k_b)
+            pts.append((float(coa[grp].mean()), k_b, se))
+        return np.array(pts) if len(pts) >= 4 else None
+
+    def _fit(self, w: WindowResult) -> _Fit:
+        pts = self._points()
+        speed = float(np.median([m.speed_m_s for m in self.mem])) if self.mem else None
+        res = None if pts is None else fit_creep_progression(
+            *pts.T, coa_now=w.coa, ratio_bounds=self.cfg.ratio_bounds,
+            power=bool(self.cfg.power_shapes),
+            max_rel_half_width=self.cfg.max_rel_half_width, speed_m_s=speed)
+        self.n_fits += pts is not None
+        if res is None:
+            return _Fit(w.position_m, None, math.nan, None)
+        if res.determined:
+            return _Fit(w.position_m, res.mu, res.mu_low, res.mu_high, res)
+        return _Fit(w.position_m, None, math.nan, None, res)
+
+    def shift_delay(self, delay_s: float) -> None:
+        """Take a further net delay ``delay_s`` [s] out of the windows held (the delay
+        estimate moved); the next regular refit uses them."""
+        for q in (self.mem, self.recent):
+            kept = [with_delay(m, self.v, self.f, delay_s) for m in q]
+            q.clear()
+            q.extend(kept)
+
+    def informed(self, position_m: float, mu: float) -> bool:
+        """A steady window worked at ``info_utilisation`` of mu or more within the last
+        ``info_m`` metres: at low utilisation the creep coefficient hardly depends on mu
+        (wet and leaf-covered rail look alike there), so a fit is only carried that far."""
+        level = self.cfg.info_utilisation * mu
+        for m in reversed(self.mem):
+            if m.position_m < position_m - self.cfg.info_m:
+                return False
+            if m.coa >= level:
+                return True
+        return False
+
+    def lower_bound(self) -> float:
+        """Largest CoA less two standard errors over the last ``bound_m`` metres [-]."""
+        return max((max(m.coa - 2 * m.coa_se, 0.0) for m in self.recent), default=math.nan)
+
+
+class OnboardEstimator:
+    """Sliding-window estimator over one axle; feed chunks of samples as they arrive.
+
+    ``feed(torque_nm, wheel_speed_rad_s, vehicle_speed_m_s, position_m)`` (equal-length
+    arrays at ``fs_hz``, the run's sample times from ``t0_s``) returns the rows of the
+    windows completed by that chunk, as dicts with :data:`TRACK_COLUMNS` (and a few more).
+    Windows start every ``hop`` samples from the first sample, so how the run is cut into
+    chunks does not change any row.
+    """
+
+    def __init__(self, vehicle: Vehicle, frequency_hz: float, fs_hz: float, *,
+                 config: OnboardConfig | None = None, t0_s: float = 0.0,
+                 amplitude_nm: float | None = None):
+        self.v, self.f, self.fs, self.t0 = vehicle, float(frequency_hz), float(fs_hz), t0_s
+        self.amplitude_nm = amplitude_nm  # declared [N*m]: a window's line is checked
+        self.cfg = config or OnboardConfig()
+        n_win = self.cfg.window_periods * self.fs / self.f
+        self.n_win = round(n_win)
+        self.hop = max(1, round(self.cfg.hop_s * self.fs))
+        if self.n_win < 8:
+            raise InputError(f"a window of {self.cfg.window_periods} periods holds only "
+                             f"{self.n_win} samples at {self.fs:g} Hz",
+                             hint="record faster or use more periods per window")
+        self.buf = np.empty((4, 0))
+        self.buf_start = 0  # global index of buf[:, 0]
+        self.next_start = 0  # global index of the next window's first sample
+        self.tracker = MuTracker(vehicle, self.f, self.cfg, self.n_win / self.hop)
+        self.k_hist: deque[tuple[float, float, float]] = deque()  # (position, CoA, k)
+        c = self.cfg
+        self.delay = DelayCalibrator(vehicle, self.f, delay_grid(c.delay_max_s, self.f),
+                                     min_windows=c.delay_min_windows,
+                                     max_se_s=c.delay_max_se_s)
+        self.delay_s = 0.0  # the net delay taken out of every window now [s]
+
+    def feed(self, torque_nm, wheel_speed_rad_s, vehicle_speed_m_s, position_m) -> list[dict]:
+        chunk = np.vstack([np.asarray(a, dtype=np.float64) for a in
+                           (torque_nm, wheel_speed_rad_s, vehicle_speed_m_s, position_m)])
+        self.buf = np.concatenate([self.buf, chunk], axis=1)
+        rows = []
+        end = self.buf_start + self.buf.shape[1]
+        while self.next_start + self.n_win <= end:
+            a = self.next_start - self.buf_start
+            seg = self.buf[:, a:a + self.n_win]
+            t_end = self.t0 + (self.next_start + self.n_win - 1) / self.fs
+            row = self._window(seg, t_end)
+            if row is not None:
+                rows.append(row)
+            self.next_start += self.hop
+        drop = self.next_start - self.buf_start
+        if drop > 0:
+            self.buf = self.buf[:, drop:].copy()
+            self.buf_start = self.next_start
+        return rows
+
+    def _baseline(self, w: WindowResult) -> float:
+        while self.k_hist and self.k_hist[0][0] < w.position_m - self.cfg.baseline_m:
+            self.k_hist.popleft()
+        if len(self.k_hist) < 8:
+            return math.nan
+        coa = np.array([c for _, c, _ in self.k_hist])
+        k = np.array([kk for _, _, kk in self.k_hist])
+        low = k[coa <= np.percentile(coa, 40)]  # the low-utilisation windows: k near k0
+        return float(np.median(low))
+
+    def _window(self, seg: np.ndarray, t_end: float) -> dict | None:
+        w = self.measure(seg, t_end)
+        return None if w is None else self.update(w)
+
+    def measure(self, seg: np.ndarray, t_end: float) -> WindowResult | None:
+        """The window ``seg`` (4 x ``n_win``: torque, wheel speed, reference speed,
+        position) ending at ``t_end`` [s] measured on its own (no state; None when it
+        cannot be measured): the part of the work that chunks of a run can do apart."""
+        try:
+            return measure_window(seg[0], seg[1], seg[2], seg[3], self.fs, t_end, self.v,
+                                  self.f)
+        except ProcessingError:
+            return None
+
+    def _calibrated(self, w: WindowResult, steady: bool) -> WindowResult:
+        """``w`` with the net delay measured so far taken out (module docstring)."""
+        if steady and math.isfinite(w.creep_coefficient):
+            self.delay.add(w.torque_speed_ratio, math.radians(w.phase_se_deg))
+            est = self.delay.estimate() if self.delay.n % 4 == 0 else None  # every 4th
+            # an estimate that is not (or no longer) trusted leaves the last trusted one
+            if est is not None and est.trusted and abs(est.delay_s - self.delay_s) > \
+                    0.25 * self.cfg.delay_max_se_s:
+                self.tracker.shift_delay(est.delay_s - self.delay_s)
+                self.delay_s = est.delay_s
+        return with_delay(w, self.v, self.f, self.delay_s)
+
+    def update(self, w: WindowResult) -> dict:
+        """The row of a measured window, advancing the state (slip, reference creep
+        coefficient, mu tracker); windows must come in order. A window without the
+        method's premise (:func:`~torquemod.ontrain.quality.window_quality`) keeps its time,
+        position and speed, the rest empty, and leaves the state alone."""
+        step_nm = w.dc_step_ratio * max(w.torque_amplitude_nm, 1e-12)
+        quality = window_quality(w.speed_m_s, w.wheel_speed_rad_s, w.torque_amplitude_nm,
+                                 amplitude_nm=self.amplitude_nm,
+                                 min_speed_m_s=self.cfg.min_speed_m_s,
+                                 min_modulation_ratio=self.cfg.min_modulation_ratio,
+                                 dc_step_nm=step_nm, max_step_ratio=self.cfg.max_dc_step_ratio)
+        if quality != QUALITY_OK:
+            nan = math.nan
+            return {"time_s": w.time_s, "position_m": w.position_m, "speed_m_s": w.speed_m_s,
+                    "coa": w.coa if quality == "no_modulation" else nan, "phase_deg": nan,
+                    "phase_se_deg": nan, "creep_coefficient": nan, "mu": nan,
+                    "mu_low_95": nan, "mu_high_95": nan, "utilisation": nan,
+                    "low_adhesion": False, "slip": False, "quality": quality,
+                    "creepage": nan, "dc_torque_nm": w.dc_torque_nm,
+                    "accel_m_s2": w.accel_m_s2, "creep_coefficient_ref": nan,
+                    "dc_step_ratio": w.dc_step_ratio, "dc_step_nm": step_nm,
+                    "delay_s": self.delay_s}
+        slip = (w.creepage > self.cfg.slip_creepage
+                or w.wheel_excess_accel_m_s2 > self.cfg.slip_accel_m_s2)
+        steady = w.dc_step_ratio <= self.cfg.max_dc_step_ratio  # a step corrupts k
+        if self.cfg.calibrate_delay:
+            w = self._calibrated(w, steady and not slip)
+        k = w.creep_coefficient
+        ref = self._baseline(w)
+        low = bool(slip or (steady and math.isfinite(k) and math.isfinite(ref)
+                            and k < self.cfg.low_adhesion_ratio * ref))
+        if math.isfinite(k) and not slip and steady:
+            self.k_hist.append((w.position_m, w.coa, k))
+        self.tracker.add(w, slip)
+        fit = self.tracker.fit
+        mu = fit.mu if fit is not None and not self.tracker.detector.suspicious else None
+        if w.dc_step_ratio > self.cfg.max_dc_step_ratio:
+            mu = None  # the torque is stepping: the window cannot confirm the curve
+        if mu is not None and w.coa - 2 * w.coa_se > mu:
+            mu = None  # the window's adhesion is above the fitted friction: the fit is stale
+        if mu is not None and not self.tracker.informed(w.position_m, mu):
+            mu = None  # no window near saturation lately: a change would go unseen
+        if mu is not None and fit is not None:
+            lo, hi = fit.low, fit.high
+        else:
+            lo, hi = self.tracker.lower_bound(), None
+        return {"time_s": w.time_s, "position_m": w.position_m, "speed_m_s": w.speed_m_s,
+                "coa": w.coa, "phase_deg": w.phase_deg, "phase_se_deg": w.phase_se_deg,
+                "creep_coefficient": k, "mu": math.nan if mu is None else mu,
+                "mu_low_95": lo, "mu_high_95": math.nan if hi is None else hi,
+                "utilisation": math.nan if mu is None else w.coa / mu,
+                "low_adhesion": low, "slip": bool(slip), "quality": QUALITY_OK,
+                "creepage": w.creepage, "dc_torque_nm": w.dc_torque_nm,
+                "accel_m_s2": w.accel_m_s2, "creep_coefficient_ref": ref,
+                "dc_step_ratio": w.dc_step_ratio, "dc_step_nm": step_nm,
+                "delay_s": self.delay_s}

@@ -1,0 +1,221 @@
+"""One window of a train run: phase, DC torque, speeds, acceleration, CoA and the creep
+coefficient from the phase (issue 10). Pure functions; the same DSP core as the rig chain
+(:func:`torquemod.dsp.phase.sinefit_phase`).
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from torquemod.dsp.phase import sinefit_phase
+from torquemod.io.run import Vehicle
+
+
+@dataclass(frozen=True)
+class WindowResult:
+    """Measurements of one window. ``time_s`` [s] and ``position_m`` [m] at its centre
+    (the row describes the stretch the window covers; a live system has it half a window
+    later, at the window's end), means of ``speed_m_s`` (reference) [m/s],
+    ``wheel_speed_rad_s``, ``dc_torque_nm`` [N*m] at the axle; ``accel_m_s2`` [m/s^2] of
+    the reference; ``coa`` [-] (with ``coa_se``), ``creepage`` [-], the lag ``phase_deg``
+    [deg] with ``phase_se_deg``, ``creep_coefficient`` [-] dCoA/dxi from the phase (with
+    ``creep_coefficient_se``), ``creepage_swing`` [-] the modulation's creepage amplitude,
+    ``wheel_excess_accel_m_s2`` [m/s^2] (R*dw/dt - dV/dt); ``dc_step_ratio`` [-] the change of
+    the mean torque from the first to the last modulation period over the modulation's
+    amplitude (a DC step inside the window leaks into the sine fit); ``torque_speed_ratio``
+    [N*m*s/rad] the complex ratio T/w at the modulation frequency (declared sensor dynamics
+    divided out) that phase and k come from (:func:`with_delay`); ``torque_amplitude_nm``
+    [N*m] the torque's amplitude at the modulation frequency (the premise of the method:
+    :func:`torquemod.ontrain.quality.window_quality`)."""
+
+    time_s: float
+    position_m: float
+    speed_m_s: float
+    wheel_speed_rad_s: float
+    dc_torque_nm: float
+    accel_m_s2: float
+    coa: float
+    coa_se: float
+    creepage: float
+    phase_deg: float
+    phase_se_deg: float
+    creep_coefficient: float
+    creep_coefficient_se: float
+    creepage_swing: float
+    wheel_excess_accel_m_s2: float
+    dc_step_ratio: float = 0.0
+    torque_speed_ratio: complex = complex("nan")
+    torque_amplitude_nm: float = math.nan
+
+
+def load_impedance(ratio: complex, vehicle: Vehicle, frequency_hz: float) -> complex:
+    """The impedance G [N*m*s/rad] the wheelset's speed meets beyond its own inertia (the
+    contact and, behind it, the vehicle), from the measured complex ratio ``T/w`` of the
+    torque to the axle speed at the modulation frequency.
+
+    Rigid drive line: ``T = (j*Omega*J + G)*w``. With the drive line of ``vehicle`` (motor
+    inertia J_m, coupling Z = k_c/(j*Omega) + c_c, both referred to the axle; the torque acts
+    on the motor; derived for this model from ``T = j*Omega*J_m*w_m + Z*(w_m - w)`` and
+    ``Z*(w_m - w) = (j*Omega*J_w + G)*w``). The speed is the axle's ``w``::
+
+        G = Z/(j*Omega*J_m + Z) * T/w - j*Omega*J_w - Z*j*Omega*J_m/(j*Omega*J_m + Z)
+
+    or, when ``vehicle.gear_ratio`` says torque and speed were recorded at the motor, the
+    motor's ``w_m`` (referred to the axle: the coupling and the wheelset in series)::
+
+        1/(T/w_m - j*Omega*J_m) = 1/Z + 1/(j*Omega*J_w + G)
+    """
+    jw_om = 2j * math.pi * frequency_hz
+    if not vehicle.has_drive_line:
+        return ratio - jw_om * vehicle.inertia_kg_m2
+    jm = vehicle.motor_inertia_kg_m2
+    jw = vehicle.inertia_kg_m2 - jm
+    z = vehicle.coupling_stiffness_nm_rad / jw_om + vehicle.coupling_damping_nm_s_rad
+    if vehicle.gear_ratio:  # the speed is the motor's (referred to the axle): see above
+        return 1.0 / (1.0 / (ratio - jw_om * jm) - 1.0 / z) - jw_om * jw
+    return z / (jw_om * jm + z) * ratio - jw_om * jw - z * jw_om * jm / (jw_om * jm + z)
+
+
+def damping_from_ratio(ratio: complex, vehicle: Vehicle, frequency_hz: float
+                       ) -> tuple[float, float]:
+    """Contact damping D = R^2*N*k/V [N*m*s/rad] and the vehicle inertia seen at the wheel
+    M' = M*R^2 [kg*m^2] from the torque-to-speed ratio (:func:`load_impedance`).
+
+    The contact (D) and the vehicle (Z_v = c' + j*Omega*M') act in series between wheel and
+    track, ``1/G = 1/D + 1/Z_v``. A train moves with the modulating force (the rig's
+    platform hardly does): the rigid-wheel relation ``tan(phi) = Omega*J/D`` (V-Track paper
+    Eq. 1) is the limit M' -> infinity. D is real, so ``Im(1/G) = Im(1/Z_v) = y``; with the
+    vehicle's declared damping ``c' = vehicle_damping_n_s_m*R^2`` (0: an inertia)
+    ``Re(1/Z_v) = x`` solves ``c'*(x^2 + y^2) = x`` (the root with Omega*M' > c')::
+
+        x = 2*c'*y^2 / (1 + sqrt(1 - 4*c'^2*y^2)),   D = 1/(Re(1/G) - x),
+        M' = -y/((x^2 + y^2)*Omega)
+
+    Needs the torque's calibration (amplitude); D NaN when ``Re(1/G) <= x`` or the declared
+    damping exceeds what the measured inertia allows (``2*c'*|y| > 1``).
+    """
+    g = load_impedance(ratio, vehicle, frequency_hz)
+    if g == 0:
+        return math.nan, math.nan
+    inv = 1.0 / g
+    y = inv.imag
+    c = vehicle.vehicle_damping_n_s_m * vehicle.wheel_radius_m ** 2
+    disc = 1.0 - 4.0 * c * c * y * y
+    if disc < 0.0:
+        return math.nan, math.nan
+    x = 2.0 * c * y * y / (1.0 + math.sqrt(disc))
+    d = 1.0 / (inv.real - x) if inv.real > x else math.nan
+    om = 2 * math.pi * frequency_hz
+    m = -y / ((x * x + y * y) * om) if y < 0 else math.inf
+    return d, m
+
+
+def rotation_orders_hz(f_rot_hz: float, gear_ratio: float | None, fs_hz: float,
+                       duration_s: float) -> tuple[float, ...]:
+    """The encoder's once- and twice-per-revolution lines (eccentricity, tooth errors) fitted
+    out of a window [Hz]: of the axle at ``f_rot_hz`` and, when the speed was recorded at
+    the motor (``gear_ratio``), of the motor at ``gear_ratio`` times that. Lines below
+    0.2 Hz or above 0.45*fs are left out, and a line within one resolution step
+    (1/``duration_s``) of one already kept (the fit would be rank deficient)."""
+    lines = [f_rot_hz, 2 * f_rot_hz]
+    if gear_ratio:
+        lines += [gear_ratio * f_rot_hz, 2 * gear_ratio * f_rot_hz]
+    kept: list[float] = []
+    for f in lines:
+        if 0.2 < f < 0.45 * fs_hz and all(abs(f - k) > 1.0 / duration_s for k in kept):
+            kept.append(f)
+    return tuple(kept)
+
+
+def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
+                   speed_m_s: np.ndarray, position_m: np.ndarray, fs_hz: float,
+                   t_end_s: float, vehicle: Vehicle, frequency_hz: float) -> WindowResult:
+    """Measure one window of whole modulation periods (the arrays are the window).
+
+    Phase: the sine fit at the modulation frequency with a line and the first two orders of
+    the axle's (and the motor's, :func:`rotation_orders_hz`) revolution (eccentricity, tooth
+    errors) as nuisance terms, standard error at
+    the Cramer-Rao bound (FACTS §5); the declared sensor dynamics
+    (:meth:`~torquemod.io.run.Vehicle.sensor_response`) are divided out of the
+    torque-to-speed ratio, so ``phase_deg`` is the lag behind the true torque.
+    CoA = (T - J*dw/dt)/(N*R) with dw/dt the slope of the
+    axle speed. Creep coefficient k = D*V/(R^2*N) with D from the phase and amplitude ratio
+    (:func:`damping_from_ratio`); its standard error from k's change over one standard
+    error of the phase and of the (log) amplitude ratio.
+    """
+    r, n_load, j = vehicle.wheel_radius_m, vehicle.normal_load_n, vehicle.inertia_kg_m2
+    n = torque_nm.size
+    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    w_mean = float(wheel_speed_rad_s.mean())
+    f_rot = abs(w_mean) / (2 * math.pi)
+    nuisance = rotation_orders_hz(f_rot, vehicle.gear_ratio, fs_hz, n / fs_hz)
+    fit = sinefit_phase(torque_nm, wheel_speed_rad_s, fs_hz, frequency_hz,
+                        nuisance_hz=nuisance, trend=True)
+    tt = t - t.mean()
+    den = float(tt @ tt)
+    dw_dt = float(tt @ (wheel_speed_rad_s - w_mean)) / den
+    v_mean = float(speed_m_s.mean())
+    dv_dt = float(tt @ (speed_m_s - v_mean)) / den
+    t_dc = float(torque_nm.mean())
+    coa = (t_dc - j * dw_dt) / (n_load * r)
+    coa_se = float(np.std(torque_nm)) / math.sqrt(n) / (n_load * r)
+    v_ref = _reference_speed(v_mean)
+    creepage = (w_mean * r - v_mean) / v_ref
+    # the ratio of the true signals: the declared sensor dynamics divided out
+    ratio = fit.torque_amplitude / fit.wheel_amplitude * cmath.exp(
+        1j * math.radians(fit.phase_deg)) / vehicle.sensor_response(frequency_hz)
+    phase = math.degrees(cmath.phase(ratio))
+    k, k_se = _creep_coefficient(ratio, math.radians(fit.phase_stderr_deg), v_ref, vehicle,
+                                 frequency_hz)
+    per = max(1, round(fs_hz / frequency_hz))
+    step = abs(float(torque_nm[-per:].mean() - torque_nm[:per].mean()))
+    return WindowResult(
+        time_s=float(t_end_s) - (n - 1) / (2 * fs_hz), position_m=float(position_m.mean()),
+        speed_m_s=v_mean, wheel_speed_rad_s=w_mean, dc_torque_nm=t_dc, accel_m_s2=dv_dt,
+        coa=coa,
+        coa_se=coa_se, creepage=creepage, phase_deg=phase,
+        phase_se_deg=fit.phase_stderr_deg, creep_coefficient=k, creep_coefficient_se=k_se,
+        creepage_swing=r * fit.wheel_amplitude / v_ref,
+        wheel_excess_accel_m_s2=r * dw_dt - dv_dt,
+        dc_step_ratio=step / max(fit.torque_amplitude, 1e-12), torque_speed_ratio=ratio,
+        torque_amplitude_nm=float(fit.torque_amplitude))
+
+
+def _reference_speed(speed_m_s: float) -> float:
+    """The speed [m/s] creepage and k are referred to: |V|, at least 0.5 m/s (standstill)."""
+    return max(abs(speed_m_s), 0.5)
+
+
+def _creep_coefficient(ratio: complex, e: float, v_ref: float, vehicle: Vehicle,
+                       frequency_hz: float) -> tuple[float, float]:
+    """k = D*V/(R^2*N) from the ratio T/w (:func:`damping_from_ratio`) and its standard
+    error from k's change over one standard error ``e`` [rad] of the phase and of the (log)
+    amplitude ratio."""
+    scale = v_ref / (vehicle.wheel_radius_m ** 2 * vehicle.normal_load_n)
+
+    def k_of(x: complex) -> float:
+        return damping_from_ratio(x, vehicle, frequency_hz)[0] * scale
+
+    k = k_of(ratio)
+    k_se = math.hypot(k_of(ratio * complex(math.cos(e), math.sin(e))) - k,
+                      k_of(ratio * (1 + e)) - k)
+    return k, k_se
+
+
+def with_delay(w: WindowResult, vehicle: Vehicle, frequency_hz: float,
+               delay_s: float) -> WindowResult:
+    """``w`` with a further net delay ``delay_s`` [s] of the torque behind the speed divided
+    out of its ratio (:mod:`torquemod.ontrain.delay`): phase, k and its standard error
+    recomputed; ``w`` itself when ``delay_s`` is 0."""
+    if delay_s == 0.0:
+        return w
+    ratio = w.torque_speed_ratio * cmath.exp(2j * math.pi * frequency_hz * delay_s)
+    k, k_se = _creep_coefficient(ratio, math.radians(w.phase_se_deg),
+                                 _reference_speed(w.speed_m_s), vehicle,
+                                 frequency_hz)
+    return replace(w, phase_deg=math.degrees(cmath.phase(ratio)), creep_coefficient=k,
+                   creep_coefficient_se=k_se, torque_speed_ratio=ratio)

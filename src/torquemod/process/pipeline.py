@@ -1,0 +1,557 @@
+"""The processing orchestrator: experiment in, per-cycle and per-step results out.
+
+:func:`process_experiment` reads every recording, splits files that span several platform
+revolutions into cycles, runs the chain of :mod:`torquemod.process.chain` on each cycle, aligns the
+cycles of a step and measures their phase, then aggregates per step. It returns a
+:class:`ProcessResult` held in memory; :mod:`torquemod.results.folder` writes and reads it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import os
+import time
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from torquemod._util.blas import single_blas
+from torquemod._util.fsutil import sha256_file
+from torquemod._util.progress import WarmupBar
+from torquemod._version import __version__
+from torquemod.errors import InputError
+from torquemod.io import read_entry, read_experiment
+from torquemod.io.experiment import Experiment, Recording, RecordingEntry
+from torquemod.io.processing import ProcessingConfig, SlipParams
+from torquemod.io.stream import hash_file_async, open_stream
+from torquemod.io.validate import check_finite, clipping_notes
+from torquemod.process import chain
+from torquemod.process.cycles import revolution_bounds
+from torquemod.process.stepmeasure import InOrderStep, in_order_steps, phase_parts
+
+__all__ = ["CYCLE_COLUMNS", "STEP_COLUMNS", "TRACE_NAMES", "ProcessResult", "ProcessingConfig",
+           "aggregate_steps", "detect_slip", "process_experiment", "resolve_config"]
+
+CYCLE_COLUMNS = ["step", "cycle", "torque_peak_hz", "wheel_peak_hz", "modulation_hz",
+                 "phase_deg", "creepage", "coa", "phase_se_deg", "coa_torque", "coa_source",
+                 "speed_m_s", "torque_amplitude_nm", "wheel_amplitude_rad_s", "creepage_swing",
+                 "creepage_drift"]
+STEP_COLUMNS = ["step", "dc_torque_nm", "phase_deg", "phase_std_deg", "creepage",
+                "creepage_std", "coa", "coa_std", "n_cycles", "slip", "phase_se_deg",
+                "coa_torque", "coa_source", "speed_m_s", "torque_amplitude_nm",
+                "wheel_amplitude_rad_s", "creepage_swing"]
+#: Per-cycle quantities averaged per step (mean over the step's cycles).
+_STEP_MEANS = ("coa_torque", "speed_m_s", "torque_amplitude_nm", "wheel_amplitude_rad_s",
+               "creepage_swing")
+#: Raw signals are subsampled to at most this many points for the figures' traces.
+TRACE_POINTS = 20_000
+#: The named arrays of one cycle in :attr:`ProcessResult.traces` (times [s] from the start of
+#: the recording; raw signals subsampled, resampled/filtered ones at the chain's rate).
+TRACE_NAMES = ("t_raw_s", "torque_raw_nm", "wheel_speed_raw_rad_s", "t_s",
+               "torque_resampled_nm", "wheel_speed_resampled_rad_s", "torque_filtered_nm",
+               "wheel_speed_filtered_rad_s", "phase_window_s")
+
+
+@dataclass
+class ProcessResult:
+    """Everything the processing produced, in memory.
+
+    ``cycles``/``steps`` are the per-cycle and per-step tables (columns
+    :data:`CYCLE_COLUMNS`, :data:`STEP_COLUMNS`), ``cycle_details`` one dict per cycle
+    (means of every channel, filters, windows, slip reason), ``traces[(step, cycle)]`` a dict
+    of the named arrays :data:`TRACE_NAMES` for the figures, ``warnings`` what the user should
+    know, ``input_sha256`` the digest of each recording file.
+    """
+
+    experiment: Experiment
+    config: ProcessingConfig
+    cycles: pd.DataFrame
+    steps: pd.DataFrame
+    cycle_details: list[dict]
+    traces: dict[tuple[int, int], dict[str, np.ndarray]]
+    warnings: list[str]
+    timing_s: dict = field(default_factory=dict)
+    nan_actions: list[str] = field(default_factory=list)
+    input_sha256: dict[str, str] = field(default_factory=dict)  # file path -> digest
+    created_utc: str = ""
+    torquemod_version: str = __version__
+    command: list[str] | None = None  # the command line that processed it, for provenance
+
+    @property
+    def name(self) -> str:
+        """The experiment's name: its manifest's folder name (or the manifest's stem)."""
+        path = Path(self.experiment.manifest_path)
+        return path.parent.name or path.stem
+
+    def __repr__(self) -> str:
+        slip = [int(s) for s, f in zip(self.steps["step"], self.steps["slip"], strict=True)
+                if f]
+        return (f"<ProcessResult {self.name!r}: {len(self.steps)} steps, {len(self.cycles)} "
+                f"cycles, phase method {self.config.phase.method!r}, "
+                f"{len(self.warnings)} warnings" + (f", slip at steps {slip}" if slip else "")
+                + ">")
+
+    def _repr_html_(self) -> str:
+        from html import escape
+        cols = ["step", "dc_torque_nm", "phase_deg", "creepage", "coa", "n_cycles", "slip"]
+        return (f"<p>{escape(repr(self))}</p>"
+                + self.steps[cols].to_html(index=False, float_format=lambda v: f"{v:.5g}"))
+
+    def plot_signals(self, step: int, cycle: int, *, ax=None):
+        """Paper Figure 2 for one cycle: torque and wheel speed, raw and band-pass filtered.
+        ``ax`` one Axes (the wheel speed goes on a twin axis) or a pair of Axes, returned as
+        given; without one a new two-panel Figure (not pyplot), whose two Axes are
+        returned."""
+        from torquemod.report.figures import signals_figure
+        if (step, cycle) not in self.traces:
+            raise InputError(f"no traces for step {step} cycle {cycle}; available: "
+                             f"{sorted(self.traces)}")
+        return signals_figure(self.traces[(step, cycle)], step=step, cycle=cycle, ax=ax)
+
+
+def resolve_config(experiment: Experiment, config: ProcessingConfig | None = None, *,
+                   phase_method: str | None = None, nan_policy: str | None = None
+                   ) -> ProcessingConfig:
+    """The processing parameters of a run: ``config`` when given, else the manifest's
+    ``[processing]`` table (:attr:`Experiment.processing`), with the flat overrides
+    ``phase_method`` ("paper", "sinefit") and ``nan_policy`` ("raise", "interpolate",
+    "drop-cycle") applied on top when not None."""
+    cfg = config if config is not None else experiment.processing
+    cfg = cfg.with_phase_method(phase_method)
+    if nan_policy is not None:
+        cfg = dataclasses.replace(cfg, nan_policy=nan_policy)
+    return cfg
+
+
+def _fill_nan(rec: Recording, where: str) -> list[str]:
+    """Linear interpolation over NaN/inf samples, channel by channel (in place on copies)."""
+    notes = []
+    for name, x in rec.channels.items():
+        bad = ~np.isfinite(x)
+        if bad.any():
+            if bad.all():
+                raise InputError("channel holds no finite value", path=where, channel=name,
+                                 hint="nothing to interpolate from; repair or remove the file")
+            good = np.flatnonzero(~bad)
+            y = x.copy()
+            y[bad] = np.interp(np.flatnonzero(bad), good, x[good])
+            rec.channels[name] = y
+            notes.append(f"{where}: channel '{name}': interpolated {int(bad.sum())} NaN/inf "
+                         "samples")
+    return notes
+
+
+def _cycles_of(entry: RecordingEntry, rec: Recording, where: str, notes: list[str]
+               ) -> list[tuple[int, Recording, tuple[int, int]]]:
+    """(cycle number, samples, index range) of a recording: the whole file when the manifest
+    names its cycle, else one per whole platform revolution."""
+    if entry.cycle is not None:
+        return [(entry.cycle, rec, (0, rec.n_samples))]
+    if "platform_speed_rad_s" not in rec.channels:
+        notes.append(f"{where}: no platform speed to split the file by revolutions; the whole "
+                     "file is cycle 1")
+        return [(1, rec, (0, rec.n_samples))]
+    bounds = revolution_bounds(rec.channels["platform_speed_rad_s"], rec.fs_hz)
+    if not bounds:
+        raise InputError("recording spans less than one platform revolution", path=where,
+                         channel="platform_speed_rad_s",
+                         hint="give its 'cycle' in the manifest or record a whole revolution")
+    tail = rec.n_samples - bounds[-1][1]
+    rev = float(np.mean([b - a for a, b in bounds]))
+    if tail > 0.01 * rev:  # a sample or two past the last revolution's end is not news
+        notes.append(f"{where}: dropped a trailing part of {tail / rec.fs_hz:.3g} s "
+                     f"({100 * tail / rev:.0f} % of a platform revolution)")
+    return [(k + 1, rec.slice(a, b), (a, b)) for k, (a, b) in enumerate(bounds)]
+
+
+def _subsample(x: np.ndarray) -> np.ndarray:
+    """Every k-th sample, at most TRACE_POINTS of them, as float32 (for plotting only)."""
+    stride = max(1, int(np.ceil(x.size / TRACE_POINTS)))
+    return x[::stride].astype(np.float32)
+
+
+#: Files that span several revolutions and are at least this size [bytes] are split while
+#: they are read (:meth:`torquemod.io.stream.RecordingStream.revolutions`): memory holds one
+#: revolution and one chunk instead of the whole file; the cycles are identical (tests).
+STREAM_MIN_BYTES = 256 * 2**20
+#: Binary files (:data:`_DECODED_SIZE_SUFFIXES`) are streamed from this many bytes of samples
+#: as float64 (time base included), whatever their size on disk: read whole, a file costs
+#: about 2.3 times that at the peak (measured: 648 MiB for 4 min of the rig's 6 channels),
+#: streamed a constant ~490 MiB with the fit and the report. Their streamed cycles are the
+#: whole-file ones bit for bit (tests).
+STREAM_MIN_DECODED_BYTES = 64 * 2**20
+#: Rows read at a time from a streamed file (1 << 16: 3.9 s at 16.67 kHz, 0.5 MiB per
+#: channel): the revolutions cut are the same for any chunk size (tests), a smaller one
+#: holds less beside the revolution being cut.
+STREAM_CHUNK_ROWS = 1 << 16
+#: Binary formats whose decoded size is known from the file's description alone.
+_DECODED_SIZE_SUFFIXES = (".h5", ".hdf5", ".mat", ".parquet", ".pq")
+
+
+def _open_stream(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig):
+    """A stream of a long multi-revolution file, or None for the whole-file path (short
+    files, a manifest cycle, a NaN policy other than 'raise', or a file streaming cannot
+    align: channels on their own time bases, .mat v5)."""
+    if entry.cycle is not None or cfg.nan_policy != "raise":
+        return None
+    try:
+        size = entry.path.stat().st_size
+        binary = entry.path.suffix.lower() in _DECODED_SIZE_SUFFIXES
+        if size < STREAM_MIN_BYTES and not (binary and size >= STREAM_MIN_DECODED_BYTES // 8):
+            return None
+        stream = open_stream(entry, experiment=exp)
+    except (InputError, OSError):
+        return None  # the whole-file reader aligns it, or names what is wrong
+    decoded = 8 * stream.info.n_samples * (len(stream.info.channels) + 1)  # with the time
+    if "platform_speed_rad_s" not in stream.info.file_names or (
+            size < STREAM_MIN_BYTES and decoded < STREAM_MIN_DECODED_BYTES):
+        stream.close()
+        return None
+    return stream
+
+
+_TRIM = []
+
+
+def release_freed_memory() -> None:
+    """Hand the heap pages freed so far back to the system (glibc's ``malloc_trim``; a no-op
+    elsewhere). The chain frees its per-cycle arrays at once, but the allocator keeps the
+    pages, and a long run's resident size would creep up with the fragments."""
+    if not _TRIM:
+        try:
+            import ctypes
+            _TRIM.append(ctypes.CDLL("libc.so.6").malloc_trim)
+        except (OSError, AttributeError):
+            _TRIM.append(None)
+    if _TRIM[0] is not None:
+        _TRIM[0](0)
+
+
+#: A streamed file's freed memory is handed back every this-many revolutions.
+TRIM_EVERY = 32
+
+
+def _streamed_cycles(stream, where: str, notes: list[str]):
+    """(cycle, segment, (start, stop)) of every whole revolution of a stream, each checked
+    for NaN/inf and clipping as it comes; the stream is closed at the end."""
+    seen: set[str] = set()
+    with stream:
+        revs = []
+        for k, seg, ab in stream.revolutions(chunk_rows=STREAM_CHUNK_ROWS):
+            check_finite(seg, path=where)
+            for note in clipping_notes(seg, path=where):
+                key = note.split(" sits at ")[0]
+                if key not in seen:  # once per channel, not per revolution
+                    seen.add(key)
+                    notes.append(note)
+            revs.append(ab[1] - ab[0])
+            yield k, seg, ab
+            if k % TRIM_EVERY == 0:
+                release_freed_memory()
+        if not revs:
+            raise InputError("recording spans less than one platform revolution", path=where,
+                             channel="platform_speed_rad_s",
+                             hint="give its 'cycle' in the manifest or record a whole "
+                             "revolution")
+        tail, rev = stream.tail_samples, float(np.mean(revs))
+        if tail > 0.01 * rev:
+            notes.append(f"{where}: dropped a trailing part of {tail / stream.info.fs_hz:.3g} s "
+                         f"({100 * tail / rev:.0f} % of a platform revolution)")
+
+
+def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig,
+                      reduce=None) -> tuple[float, float, str, list[str], list[str], list]:
+    """Read one recording, apply the NaN policy, split it into cycles and run steps 1-5 and 8
+    on each. Runs in a worker thread, so it reports by return value, not by warnings:
+    (read s, compute s, sha256, NaN actions, notes, cycles). ``reduce`` (optional) maps each
+    cycle's item to what is kept of it, as soon as the cycle is done, so that a long file's
+    cycles are not all held at once."""
+    where = str(entry.path) + (f":{entry.group}" if entry.group else "")
+    t0 = time.perf_counter()
+    # the input's SHA-256 (provenance) in a background thread while the file is read and
+    # processed: hashlib releases the GIL, so on a free core it costs no wall time
+    digest_future = hash_file_async(entry.path)
+    stream = _open_stream(entry, exp, cfg)
+    actions: list[str] = []
+    notes: list[str] = []
+    bad = None
+    if stream is not None:  # a long file: revolution by revolution while it is read
+        t1 = time.perf_counter()
+        segments = _streamed_cycles(stream, where, notes)
+    else:
+        rec = read_entry(exp, entry)
+        t1 = time.perf_counter()
+        # what the reader did to the time bases (offsets, other rates), for provenance
+        notes += [f"{where}: {n}" for n in getattr(rec, "notes", [])]
+        notes += clipping_notes(rec, path=where)
+        if cfg.nan_policy == "raise":
+            check_finite(rec, path=where)
+        else:
+            bad = np.zeros(rec.n_samples, dtype=bool)
+            for x in rec.channels.values():
+                bad |= ~np.isfinite(x)
+            if not bad.any():
+                bad = None
+            elif cfg.nan_policy == "drop-cycle" and entry.cycle is not None:
+                actions.append(f"{where}: dropped step {entry.step} cycle {entry.cycle} "
+                               "(NaN/inf samples)")
+                return (t1 - t0, time.perf_counter() - t1, digest_future.result(), actions,
+                        notes, [])
+            else:  # interpolate; drop-cycle also fills so that the file can be split
+                actions += _fill_nan(rec, where)
+        segments = _cycles_of(entry, rec, where, notes)
+    out = []
+    for cyc, seg, (a, b) in segments:
+        cwhere = f"{where} (step {entry.step} cycle {cyc})"
+        if cfg.nan_policy == "drop-cycle" and bad is not None and bad[a:b].any():
+            actions.append(f"{cwhere}: dropped (NaN/inf samples)")
+            continue
+        item = _cycle_item(entry, exp, cfg, where, cyc, seg)
+        notes += item[1].notes
+        out.append(item if reduce is None else reduce(item))
+    return t1 - t0, time.perf_counter() - t1, digest_future.result(), actions, notes, out
+
+
+def _cycle_item(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig, where: str,
+                cyc: int, seg: Recording) -> tuple:
+    """Steps 1-5 and 8 of the chain on one cycle's samples: ``(cycle, CycleSignals, info,
+    raw traces)`` as :func:`_load_and_process` lists them."""
+    cwhere = f"{where} (step {entry.step} cycle {cyc})"
+    chain.check_cycle_length(seg.n_samples, seg.fs_hz, exp.test.modulation_frequency_hz,
+                             cfg, where=cwhere)
+    sig = chain.process_cycle(seg, exp.rig, cfg, where=cwhere,
+                              nominal_hz=exp.test.modulation_frequency_hz,
+                              normal_load_n=exp.test.normal_load_n)
+    info = {"step": entry.step, "cycle": cyc, "dc_torque_nm": entry.dc_torque_nm,
+            "source": where, "n_samples": seg.n_samples, "fs_hz": seg.fs_hz,
+            "t0_s": seg.t0_s}
+    raw = {"t_raw_s": _subsample(seg.time_s() - seg.t0_s),
+           "torque_raw_nm": _subsample(seg.channels["torque_nm"]),
+           "wheel_speed_raw_rad_s": _subsample(seg.channels["wheel_speed_rad_s"])}
+    return cyc, sig, info, raw
+
+
+#: steps 1-5 and 8 of one recording, for callers that distribute them (torquemod.fleet.run)
+load_and_process = _load_and_process
+
+#: Figure traces (:data:`TRACE_NAMES`) are kept for the first this-many cycles of each step,
+#: by cycle number: the paper records three cycles a step, so an ordinary experiment keeps
+#: them all, while a recording of thousands of revolutions keeps a bounded amount.
+TRACE_CYCLES = 5
+
+
+def _prefetched(exp: Experiment, cfg: ProcessingConfig, workers: int, reducers=None):
+    """Yield (entry, result of :func:`_load_and_process`) in manifest order, with at most
+    ``workers + 1`` recordings in flight so memory stays bounded on long experiments.
+    ``reducers`` (step -> the ``reduce`` of :func:`_load_and_process`) applies to the
+    recordings of those steps."""
+    entries = list(exp.recordings)
+    red = reducers or {}
+    if workers <= 1:
+        for e in entries:
+            yield e, _load_and_process(e, exp, cfg, red.get(e.step))
+        return
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        pending: deque = deque()
+        it = iter(entries)
+        for e in it:
+            pending.append((e, pool.submit(_load_and_process, e, exp, cfg, red.get(e.step))))
+            if len(pending) > workers:
+                break
+        while pending:
+            e, fut = pending.popleft()
+            nxt = next(it, None)
+            if nxt is not None:
+                pending.append((nxt, pool.submit(_load_and_process, nxt, exp, cfg,
+                                                 red.get(nxt.step))))
+            try:
+                yield e, fut.result()
+            except BaseException:
+                for _, f in pending:
+                    f.cancel()
+                raise
+
+
+@single_blas
+def process_experiment(experiment: Experiment | str | Path, *,
+                       config: ProcessingConfig | None = None, progress: bool = False,
+                       workers: int | None = None, loaded=None) -> ProcessResult:
+    """Run the whole chain on an experiment (a parsed manifest or its path).
+
+    ``config`` None uses the manifest's ``[processing]`` table (see :func:`resolve_config`).
+
+    Recordings are read and put through steps 1-5 and 8 by ``workers`` threads (default:
+    the number of CPUs, at most 4; numpy, scipy and pyarrow release the GIL), then each
+    step's cycles are aligned and their phases measured in order. ``loaded``: pairs (entry,
+    result of :func:`load_and_process`) in manifest order, computed elsewhere (the fleet's
+    one task per recording); None reads the recordings here.
+    """
+    workers = workers if workers is not None else min(4, os.cpu_count() or 1)
+    exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
+    cfg = resolve_config(exp, config)
+    created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+    notes: list[str] = []
+    nan_actions: list[str] = []
+    per_step: dict[int, list[tuple[int, chain.CycleSignals, dict]]] = {}
+    traces: dict[tuple[int, int], dict[str, np.ndarray]] = {}
+    hashes: dict[str, str] = {}
+    if Path(exp.manifest_path).is_file():
+        hashes[str(exp.manifest_path)] = sha256_file(exp.manifest_path)
+    t_read = t_compute = 0.0
+    t_start = time.perf_counter()
+    # a step that is one long recording is aligned and measured cycle by cycle while it is
+    # read, so that memory does not grow with its revolutions (only with the fleet's
+    # precomputed results, which hold their cycles anyway, is it done at the end)
+    in_order = ({s: InOrderStep(s, cfg, TRACE_CYCLES, CYCLE_COLUMNS)
+                 for s in in_order_steps(exp)} if loaded is None else {})
+    bar = WarmupBar(total=len(exp.recordings), desc="processing", unit="rec",
+                    disable=not progress, leave=False)
+    try:  # the bar is cleared before any error line is printed
+        for entry, done in (_prefetched(exp, cfg, workers, in_order) if loaded is None
+                            else loaded):
+            read_s, compute_s, digest, actions, rec_notes, cycles_out = done
+            hashes[str(entry.path)] = digest
+            t_read += read_s
+            t_compute += compute_s
+            nan_actions += actions
+            notes += rec_notes
+            for cyc, sig, info, raw in cycles_out:
+                per_step.setdefault(entry.step, []).append((cyc, sig, info))
+                if raw is not None:
+                    traces[(entry.step, cyc)] = dict(raw)
+            bar.update()
+    finally:
+        bar.close()
+    if not per_step:
+        raise InputError("no cycle could be processed", path=exp.manifest_path,
+                         hint="every cycle was dropped; see --nan-policy")
+    emptied = [s for s in exp.steps if s not in per_step]
+    if emptied:
+        raise InputError(f"step {emptied[0]} has no cycle left after --nan-policy drop-cycle "
+                         f"(every cycle held NaN/inf samples; steps without cycles: "
+                         f"{emptied})", path=exp.manifest_path,
+                         hint="repair the files, use --nan-policy interpolate, or remove the "
+                         "step from the manifest")
+    t1 = time.perf_counter()
+    rows, details = [], []
+    slipped: dict[int, bool] = {}
+    for step in sorted(per_step):
+        items = sorted(per_step[step], key=lambda it: it[0])
+        cycles_seen = [c for c, _, _ in items]
+        if len(set(cycles_seen)) != len(cycles_seen):
+            raise InputError(f"step {step} has cycle numbers {cycles_seen} more than once "
+                             "(a file spanning cycles and single-cycle files overlap)",
+                             path=exp.manifest_path, hint="give each cycle once")
+        sigs = [s for _, s, _ in items]
+        slip = detect_slip([s.creepage for s in sigs], [s.coa for s in sigs],
+                           [s.creepage_drift for s in sigs], cfg.slip)
+        slipped[step] = any(slip)
+        for (cyc, _, _), why in zip(items, slip, strict=True):
+            if why:
+                notes.append(f"step {step}: slip detected in cycle {cyc} ({why}); the step is "
+                             "flagged in steps.csv 'slip' and left out of the creep-curve fit")
+        if step in in_order:  # measured while read (InOrderStep)
+            measured = []
+            for (_, m, _), why in zip(items, slip, strict=True):
+                if m.error is not None:
+                    raise m.error
+                detail = m.detail_dict()
+                detail["slip"] = why
+                measured.append((m.row_dict(CYCLE_COLUMNS), detail, None))
+        else:
+            lags = chain.align_lags(sigs, cfg)
+            n_ref = sigs[0].torque_filtered.size
+            measured = []
+            for (cyc, sig, info), lag, why in zip(items, lags, slip, strict=True):
+                row, detail, tr = phase_parts(step, cyc, sig, info, lag, n_ref, cfg)
+                detail["slip"] = why
+                measured.append((row, detail, tr))
+            for k, (cyc, _, _) in enumerate(items):  # traces of the first cycles only
+                if k >= TRACE_CYCLES:
+                    traces.pop((step, cyc), None)
+        for (cyc, _, _), (row, detail, tr) in zip(items, measured, strict=True):
+            rows.append(row)
+            details.append(detail)
+            if tr is not None and (step, cyc) in traces:
+                traces[(step, cyc)].update(tr)
+    t_compute += time.perf_counter() - t1
+    if not rows:
+        raise InputError("no cycle could be processed", path=exp.manifest_path,
+                         hint="every cycle was dropped; see --nan-policy")
+    cycles = pd.DataFrame(rows, columns=CYCLE_COLUMNS)
+    dc = {e.step: e.dc_torque_nm for e in exp.recordings}
+    steps = aggregate_steps(cycles, dc, slipped)
+    timing = {"wall_s": time.perf_counter() - t_start, "read_thread_s": t_read,
+              "compute_thread_s": t_compute, "workers": workers}
+    release_freed_memory()  # what the cycles used, before the fit and the report
+    return ProcessResult(exp, cfg, cycles, steps, details, traces, notes + nan_actions,
+                         timing, nan_actions, hashes, created)
+
+
+def detect_slip(creepage, coa, drift, params: SlipParams) -> list[str | None]:
+    """Slip check of one step's cycles (in time order): for each cycle the reason it looks
+    like wheel slip, or None. The rules and thresholds are those of
+    :class:`~torquemod.io.processing.SlipParams`: a creepage jump above the step's other cycles
+    (beyond an absolute threshold and k robust standard deviations of the others), a CoA
+    falling from the previous cycle while the creepage rises, a creepage rising within the
+    cycle."""
+    xi = np.asarray(creepage, dtype=float)
+    c = np.asarray(coa, dtype=float)
+    d = np.asarray(drift, dtype=float)
+    out: list[str | None] = [None] * xi.size
+    if not params.enabled:
+        return out
+    for i in range(xi.size):
+        why = []
+        others = np.delete(xi, i)
+        if others.size:
+            med = float(np.median(others))
+            scatter = 1.4826 * float(np.median(np.abs(others - med))) if others.size > 1 else 0.0
+            jump = xi[i] - med
+            if jump > max(params.creepage_jump_abs, params.creepage_jump_k * scatter):
+                why.append(f"creepage {xi[i]:.4g} is {jump:.3g} above the median {med:.4g} of "
+                           "the step's other cycles")
+        if i > 0:
+            rise, drop = xi[i] - xi[i - 1], c[i - 1] - c[i]
+            if rise > params.creepage_rise_abs and drop > params.coa_drop_abs:
+                why.append(f"CoA fell by {drop:.3g} from the previous cycle while the creepage "
+                           f"rose by {rise:.3g}")
+        if d[i] > max(params.within_cycle_abs, params.within_cycle_rel * abs(xi[i])):
+            why.append(f"creepage rose by {d[i]:.3g} within the cycle")
+        out[i] = "; ".join(why) or None
+    return out
+
+
+def aggregate_steps(cycles: pd.DataFrame, dc_torque_nm: dict[int, float],
+                    slip: dict[int, bool] | None = None) -> pd.DataFrame:
+    """Mean and sample standard deviation (ddof = 1, NaN for a single cycle) per step;
+    ``slip`` (step -> flagged) fills the ``slip`` column (False when not given)."""
+    g = cycles.groupby("step", sort=True)
+    n = g.size().to_numpy()
+    # standard error of the step's mean phase: from the cycles' own standard errors when the
+    # estimator gives them (sine fit), else from the cycles' scatter (NaN for one cycle)
+    se_model = np.sqrt(g["phase_se_deg"].apply(
+        lambda s: float(np.sum(s.to_numpy(float) ** 2))).to_numpy()) / n
+    se_scatter = g["phase_deg"].std(ddof=1).to_numpy() / np.sqrt(n)
+    out = pd.DataFrame({
+        "step": list(g.groups),
+        "phase_deg": g["phase_deg"].mean().to_numpy(),
+        "phase_std_deg": g["phase_deg"].std(ddof=1).to_numpy(),
+        "creepage": g["creepage"].mean().to_numpy(),
+        "creepage_std": g["creepage"].std(ddof=1).to_numpy(),
+        "coa": g["coa"].mean().to_numpy(),
+        "coa_std": g["coa"].std(ddof=1).to_numpy(),
+        "n_cycles": n,
+    })
+    out.insert(1, "dc_torque_nm", [dc_torque_nm[s] for s in out["step"]])
+    out["slip"] = [bool((slip or {}).get(s, False)) for s in out["step"]]
+    out["phase_se_deg"] = np.where(np.isfinite(se_model), se_model, se_scatter)
+    for col in _STEP_MEANS:
+        out[col] = g[col].mean().to_numpy()
+    out["coa_source"] = g["coa_source"].first().to_numpy()
+    return out[STEP_COLUMNS]

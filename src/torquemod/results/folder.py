@@ -1,0 +1,373 @@
+"""The results folder: the one module that knows its layout (docs/format.md, "Results").
+
+:func:`save` writes, once and atomically (the folder appears whole or not at all)::
+
+    result.json       machine-readable state: experiment, parameters, per-cycle details,
+                      warnings, the fit options (what :func:`load` rebuilds from)
+    cycles.csv        per-cycle table (exact floats)
+    steps.csv         per-step table, with the analysis columns when analysed
+    traces.npz        signals for the figures, keys ``s{step}c{cycle}__{name}``
+    provenance.json   for people: software, parameters, inputs with SHA-256, warnings
+    fit.json          the analysis document (:meth:`Analysis.to_dict`), when analysed
+    figures/, report.html   the report (:mod:`torquemod.report`), when analysed
+
+:func:`load` is the only reader. It reads ``result.json``, the two tables and the traces,
+checks them, and rebuilds the :class:`~torquemod.process.pipeline.ProcessResult`; the
+:class:`~torquemod.analysis.result.Analysis` is recomputed in memory with the stored fit
+options (deterministic, so it equals the saved one). ``provenance.json``, ``fit.json`` and the
+report are outputs only. A missing or damaged file raises :class:`InputError` naming it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import re
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from torquemod._util import fsutil
+from torquemod._util.jsonutil import dump_json, write_json
+from torquemod.analysis.analyzer import ADDED_STEP_COLUMNS, FitOptions, analyze
+from torquemod.errors import InputError, OptionError, OutputError, TorquemodError
+from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
+from torquemod.io.processing import ProcessingConfig
+from torquemod.process.pipeline import CYCLE_COLUMNS, STEP_COLUMNS, ProcessResult
+from torquemod.process.provenance import provenance
+from torquemod.report import write_report
+
+if TYPE_CHECKING:
+    from torquemod.analysis.result import Analysis
+
+__all__ = ["STATE_FILE", "load", "save", "update"]
+
+STATE_FILE = "result.json"
+FORMAT = "torquemod-results"
+FORMAT_VERSION = 1
+_TRACE_KEY = re.compile(r"^s(\d+)c(\d+)__(\w+)$")
+_BOOL = {"True": True, "False": False, "true": True, "false": False, "1": True, "0": False}
+
+
+# --------------------------------------------------------------------------- writing
+
+def save(result: ProcessResult, analysis: Analysis | None, folder, *, force: bool = False,
+         inputs=(), command: list[str] | None = None, report: bool = True,
+         report_options=None, export=()) -> Path:
+    """Write a new results folder (see the module docstring) in one atomic step.
+
+    An existing non-empty ``folder`` is refused unless ``force``; ``inputs`` (the manifest and
+    the recordings) are files the folder must never replace or contain. ``report=False``
+    skips the figures and report.html. ``export``: the cycles and steps tables also as
+    ``mat`` (MATLAB) and/or ``parquet`` (:mod:`torquemod.results.export`; CSV is always written);
+    :func:`update` keeps them current."""
+    from torquemod.results.export import check_formats
+    export = check_formats(export)
+    if command is not None:
+        result = dataclasses.replace(result, command=list(command))
+    with _new_dir(folder, force=force, inputs=inputs) as tmp:
+        _write_all(tmp, Path(folder), result, analysis, command=None, report=report,
+                   report_options=report_options, export=export)
+    return Path(folder)
+
+
+def update(folder, result: ProcessResult, analysis: Analysis | None, *,
+           command: list[str] | None = None, report: bool = True, report_options=None
+           ) -> Path:
+    """Rewrite an existing results folder with a new analysis or report, atomically: readers
+    see the old folder or the new one, never a mix. provenance.json keeps the processing
+    command (``result.command``) unless ``command`` is given."""
+    from torquemod.results.export import EXPORT_FORMATS
+    folder = Path(folder)
+    # the exported copies of the tables the folder holds are rewritten with them
+    export = [f for f, suffix in EXPORT_FORMATS.items()
+              if f != "csv" and (folder / f"steps{suffix}").exists()]
+    with _update_dir(folder) as tmp:
+        _write_all(tmp, folder, result, analysis, command=command, report=report,
+                   report_options=report_options, export=export)
+    return folder
+
+
+@contextlib.contextmanager
+def _new_dir(folder, *, force: bool, inputs) -> Iterator[Path]:
+    """fsutil's atomic folder, refusing an ``--out`` that is or holds an input."""
+    with fsutil.atomic_dir(folder, force=force, inputs=list(inputs or ())) as tmp:
+        yield tmp
+
+
+@contextlib.contextmanager
+def _update_dir(folder: Path) -> Iterator[Path]:
+    """An atomic in-place update of a results folder (:func:`torquemod._util.fsutil.update_dir`)."""
+    with fsutil.update_dir(folder) as tmp:
+        yield tmp
+
+
+def _write_all(tmp: Path, final: Path, result: ProcessResult, analysis: Analysis | None, *,
+               command, report: bool, report_options, export=()) -> None:
+    """Every file of the layout into the folder being assembled; a full disk or an
+    unwritable target ends as one OutputError naming the folder."""
+    try:
+        prov = provenance(result, command=command or result.command)
+        steps = analysis.steps if analysis is not None else result.steps
+        result.cycles.to_csv(tmp / "cycles.csv", index=False, lineterminator="\n")
+        steps.to_csv(tmp / "steps.csv", index=False, lineterminator="\n")
+        if export:
+            from torquemod.results.export import write_table
+            for fmt in export:
+                if fmt != "csv":  # written above
+                    write_table(result.cycles, tmp / "cycles", fmt)
+                    write_table(steps, tmp / "steps", fmt)
+        write_json(tmp / "provenance.json", prov)
+        write_json(tmp / STATE_FILE, _state(result, analysis))
+        np.savez(tmp / "traces.npz", **{f"s{s}c{c}__{name}": x
+                                        for (s, c), arrays in sorted(result.traces.items())
+                                        for name, x in arrays.items()})
+        if analysis is not None:
+            doc = analysis.to_dict(results_dir=str(final))
+            (tmp / "fit.json").write_text(dump_json(doc) + "\n", encoding="utf-8")
+            if report:
+                write_report(tmp, result, analysis, options=report_options,
+                             provenance_doc=prov)
+    except TorquemodError:
+        raise
+    except OSError as exc:
+        raise OutputError(f"{final}: cannot write the results "
+                          f"({exc.strerror or exc}); nothing was changed") from None
+
+
+def _state(result: ProcessResult, analysis: Analysis | None) -> dict:
+    exp = result.experiment
+    return {
+        "format": FORMAT, "format_version": FORMAT_VERSION,
+        "torquemod_version": result.torquemod_version, "created_utc": result.created_utc,
+        "experiment": {
+            "manifest_path": str(exp.manifest_path),
+            "rig": dataclasses.asdict(exp.rig), "test": dataclasses.asdict(exp.test),
+            "recordings": [{**dataclasses.asdict(e), "path": str(e.path)}
+                           for e in exp.recordings],
+            "channel_map": exp.channel_map, "extra": exp.extra},
+        "config": result.config.to_dict(),
+        "n_steps": len(result.steps), "n_cycles": len(result.cycles),
+        "cycle_details": result.cycle_details, "warnings": result.warnings,
+        "nan_actions": result.nan_actions, "timing_s": result.timing_s,
+        "input_sha256": result.input_sha256, "command": result.command,
+        "analysis": None if analysis is None else {
+            "options": dataclasses.asdict(analysis.options),
+            "created_utc": analysis.created_utc},
+    }
+
+
+# --------------------------------------------------------------------------- reading
+
+def load(folder) -> tuple[ProcessResult, Analysis | None]:
+    """Read a results folder written by :func:`save`: ``(ProcessResult, Analysis)`` (the
+    Analysis is None when the folder was saved without one, e.g. ``process --no-fit``)."""
+    folder = Path(folder)
+    if not folder.exists():
+        raise InputError("results folder does not exist", path=folder,
+                         hint="give the --out folder of 'torquemod process'")
+    if not folder.is_dir():
+        raise InputError("not a folder", path=folder,
+                         hint="give the --out folder of 'torquemod process'")
+    state = _read_state(folder / STATE_FILE)
+    path = folder / STATE_FILE
+    try:
+        exp = _experiment(state["experiment"])
+        config = ProcessingConfig.from_dict(state["config"], source=str(path))
+        n_steps, n_cycles = int(state["n_steps"]), int(state["n_cycles"])
+        details = list(state["cycle_details"])
+        fit_state = state.get("analysis")
+        options = None if fit_state is None else _fit_options(fit_state["options"])
+    except InputError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise InputError(f"damaged results state ({type(exc).__name__}: {exc})", path=path,
+                         hint="process the experiment again") from None
+    cycles = _read_table(folder / "cycles.csv", CYCLE_COLUMNS, n_cycles)
+    steps = _read_table(folder / "steps.csv", STEP_COLUMNS, n_steps)
+    traces = _read_traces(folder / "traces.npz")
+    _check_consistent(cycles, steps, details, folder)
+    result = ProcessResult(
+        experiment=exp, config=config, cycles=cycles, steps=steps, cycle_details=details,
+        traces=traces, warnings=list(state.get("warnings") or []),
+        timing_s=dict(state.get("timing_s") or {}),
+        nan_actions=list(state.get("nan_actions") or []),
+        input_sha256=dict(state.get("input_sha256") or {}),
+        created_utc=str(state.get("created_utc") or ""),
+        torquemod_version=str(state.get("torquemod_version") or ""),
+        command=state.get("command") if isinstance(state.get("command"), list) else None)
+    if options is None:
+        return result, None
+    try:
+        analysis = analyze(result, options)
+    except InputError as exc:  # tables that parse but cannot be analysed
+        raise InputError(f"cannot be analysed: {exc}", path=folder,
+                         hint="process the experiment again") from None
+    analysis.created_utc = str(fit_state.get("created_utc") or analysis.created_utc)
+    return result, analysis
+
+
+def _read_state(path: Path) -> dict:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        if (path.parent / "onboard.json").exists():
+            raise InputError("an on-board (train) results folder, not a rig one", path=path,
+                             hint="read it with tm.load_onboard(folder)") from None
+        raise InputError("not a torquemod results folder: result.json is missing", path=path,
+                         hint="give a folder written by tm.save or 'torquemod process' "
+                         "(process the experiment again to make one)") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read ({getattr(exc, 'strerror', None) or exc})",
+                         path=path) from None
+    try:
+        state = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"damaged: not valid JSON ({exc})", path=path,
+                         hint="process the experiment again") from None
+    if not isinstance(state, dict) or state.get("format") != FORMAT:
+        raise InputError("not a torquemod results state file", path=path,
+                         hint="process the experiment again")
+    if state.get("format_version") != FORMAT_VERSION:
+        raise InputError(f"results format version {state.get('format_version')!r}; this "
+                         f"torquemod reads version {FORMAT_VERSION}", path=path,
+                         hint="process the experiment again with this version")
+    return state
+
+
+def _number(value, key: str) -> float:
+    """A finite number of the state file (bool and text refused)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or \
+            not np.isfinite(value):
+        raise ValueError(f"'{key}' is {value!r}, not a finite number")
+    return float(value)
+
+
+def _experiment(doc: dict) -> Experiment:
+    rig, test = dict(doc["rig"]), dict(doc["test"])
+    for key in ("wheel_radius_m", "platform_radius_m"):
+        rig[key] = _number(rig[key], f"rig.{key}")
+    for key in ("normal_load_n", "modulation_frequency_hz", "modulation_amplitude_nm"):
+        test[key] = _number(test[key], f"test.{key}")
+    extra = dict(rig.get("extra") or {})
+    for key in ("wheel_inertia_kg_m2", "contact_stiffness"):
+        if extra.get(key) is not None:
+            extra[key] = _number(extra[key], f"rig.{key}")
+    rig["extra"] = extra
+    recs = tuple(RecordingEntry(**{**r, "path": Path(r["path"])}) for r in doc["recordings"])
+    return Experiment(manifest_path=Path(doc["manifest_path"]), rig=Rig(**rig),
+                      test=TestSetup(**test), recordings=recs,
+                      channel_map=dict(doc.get("channel_map") or {}),
+                      extra=dict(doc.get("extra") or {}))
+
+
+def _fit_options(doc) -> FitOptions:
+    """The stored fit options, each of its default's type (a bad one is reported with the
+    file's name by the caller)."""
+    try:
+        opts = FitOptions.coerce(doc)
+    except OptionError as exc:
+        raise ValueError(str(exc)) from None
+    for f in dataclasses.fields(FitOptions):
+        value, default = getattr(opts, f.name), f.default
+        if isinstance(default, bool):
+            ok = isinstance(value, bool)
+        elif isinstance(default, int | float) or default is None:
+            ok = (value is None and default is None) or (
+                isinstance(value, int | float) and not isinstance(value, bool)
+                and np.isfinite(value))
+        else:
+            ok = isinstance(value, type(default))
+        if not ok:
+            raise ValueError(f"fit option '{f.name}' is {value!r}")
+    return opts
+
+
+def _check_consistent(cycles: pd.DataFrame, steps: pd.DataFrame, details: list,
+                      folder: Path) -> None:
+    """The tables and the per-cycle details describe the same steps and cycles."""
+    if set(cycles["step"]) != set(steps["step"]) or len(details) != len(cycles):
+        raise InputError("damaged results: steps.csv, cycles.csv and result.json do not "
+                         "describe the same steps and cycles", path=folder,
+                         hint="process the experiment again")
+
+
+def _read_table(path: Path, columns: list[str], n_rows: int) -> pd.DataFrame:
+    """A table of the layout with its columns checked and typed; rows must all be there."""
+    try:
+        df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except FileNotFoundError:
+        raise InputError("missing from the results folder", path=path,
+                         hint="process the experiment again") from None
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError,
+            pd.errors.EmptyDataError) as exc:
+        raise InputError(f"damaged table ({str(exc).strip().splitlines()[0]})", path=path,
+                         hint="process the experiment again") from None
+    missing = [c for c in columns if c not in df.columns]
+    if missing:
+        raise InputError(f"damaged table: column(s) {missing} missing", path=path,
+                         hint="process the experiment again")
+    if len(df) != n_rows:
+        raise InputError(f"damaged table: {len(df)} rows where {n_rows} were written",
+                         path=path, hint="process the experiment again")
+    out = {}
+    for col in columns:
+        values = df[col].str.strip()
+        if col == "coa_source":
+            out[col] = values.to_numpy(dtype=object)
+        elif col == "slip":
+            bad = ~values.isin(list(_BOOL))
+            if bad.any():
+                raise InputError(f"damaged table: column 'slip' holds "
+                                 f"{values[bad].iloc[0]!r} in row {int(np.flatnonzero(bad)[0]) + 2}"
+                                 " (True or False expected)", path=path,
+                                 hint="process the experiment again")
+            out[col] = values.map(_BOOL).astype(bool).to_numpy()
+        else:
+            num = pd.to_numeric(values.replace({"": "nan"}), errors="coerce")
+            bad = num.isna() & ~values.str.lower().isin(["", "nan"])
+            if bad.any():
+                row = int(np.flatnonzero(bad)[0]) + 2
+                raise InputError(f"damaged table: column '{col}' holds {values[bad].iloc[0]!r} "
+                                 f"in line {row} (a number expected)", path=path,
+                                 hint="process the experiment again")
+            out[col] = num.to_numpy()
+    table = pd.DataFrame(out, columns=columns)
+    for col in ("step", "cycle", "n_cycles"):
+        if col in table:
+            values = table[col].to_numpy(float)
+            if not np.all(np.isfinite(values) & (values == np.round(values))):
+                raise InputError(f"damaged table: column '{col}' is not a whole number",
+                                 path=path, hint="process the experiment again")
+            table[col] = table[col].astype(int)
+    return table
+
+
+def _read_traces(path: Path) -> dict[tuple[int, int], dict[str, np.ndarray]]:
+    traces: dict[tuple[int, int], dict[str, np.ndarray]] = {}
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            for key in npz.files:
+                m = _TRACE_KEY.match(key)
+                if m is None:
+                    raise InputError(f"damaged: unexpected entry {key!r}", path=path,
+                                     hint="process the experiment again")
+                traces.setdefault((int(m[1]), int(m[2])), {})[m[3]] = npz[key]
+    except FileNotFoundError:
+        raise InputError("missing from the results folder", path=path,
+                         hint="process the experiment again") from None
+    except InputError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise InputError(f"damaged signal traces ({exc})", path=path,
+                         hint="process the experiment again") from None
+    return traces
+
+
+#: Column order of steps.csv after the analysis (for documentation and tests).
+ANALYSED_STEP_COLUMNS = [*STEP_COLUMNS, *ADDED_STEP_COLUMNS]

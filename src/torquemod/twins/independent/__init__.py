@@ -1,0 +1,1 @@
+"""Generators written apart from the twins and the estimator, for tests and benchmarks."""

@@ -1,0 +1,1 @@
+"""The V-Track rig twin: parameters, dynamics, theory, the simulation."""

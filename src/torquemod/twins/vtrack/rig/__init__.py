@@ -1,0 +1,21 @@
+"""The V-Track digital twin: parameters, equations of motion, sensors."""
+
+from torquemod.twins.vtrack.rig.params import (
+    ContactParams,
+    DisturbanceParams,
+    ModulationParams,
+    ProcedureParams,
+    RigParams,
+    SensorParams,
+    SimConfig,
+)
+
+__all__ = [
+    "ContactParams",
+    "DisturbanceParams",
+    "ModulationParams",
+    "ProcedureParams",
+    "RigParams",
+    "SensorParams",
+    "SimConfig",
+]

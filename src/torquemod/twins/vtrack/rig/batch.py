@@ -1,0 +1,173 @@
+"""Batch mode of the twin: many configurations (sweep points) advanced together, truth only.
+
+:func:`simulate_batch` runs the procedure of every configuration without sensors or files
+and returns per point what ``truth.json`` records per step (the simulated phase with the wobble
+fitted out, means, CoA, theory; :mod:`torquemod.twins.vtrack.rig.truth`) -- what a sweep compares.
+Every
+torque step of every point is one piece of work (each step starts from the steady state of
+the torque before, :mod:`torquemod.twins.vtrack.rig.steps`), run by a pool of threads: the compiled
+integrator releases the GIL, so the points advance side by side on all cores.
+
+For the same ``seed`` a point's steps are those of
+:func:`torquemod.twins.vtrack.simulate.run_simulation`
+(the same wobble, generator phases and integration), number for number.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from torquemod.errors import InputError
+from torquemod.twins.vtrack.rig.dynamics import pack_parameters, wobble_table
+from torquemod.twins.vtrack.rig.params import SimConfig
+from torquemod.twins.vtrack.rig.steps import StepPlan, integrate_step, plan_steps
+from torquemod.twins.vtrack.rig.truth import _step_truth, _wobble_truth, recorded_step_truth
+from torquemod.twins.vtrack.theory import creep_curve_peak
+
+
+@dataclass(frozen=True)
+class BatchPoint:
+    """The truth of one configuration of a batch: ``steps`` as ``truth.json``'s (one dict per
+    step up to and including the first that slips), ``slip_step`` (None: none slipped),
+    ``slip_time_s`` [s] (None without slip), the run's ``speed_wobble`` record and the creep
+    curve's peak (``creepage``, ``torque_nm``, ``coa``), ``seed`` the point's seed."""
+
+    seed: int
+    steps: list[dict]
+    slip_step: int | None
+    slip_time_s: float | None
+    speed_wobble: dict
+    creep_curve_peak: dict
+
+    def phases_deg(self) -> list[float]:
+        """Simulated phase [deg] of each step that did not slip, in step order."""
+        return [s["simulated"]["phase_deg"] for s in self.steps if not s["slipped"]]
+
+
+def default_workers() -> int:
+    """Threads for the batch: the CPUs this process may use."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """What one run of a configuration draws from its seed and plans before integrating: the
+    speed loop's ``wobble`` (:func:`~torquemod.twins.vtrack.rig.dynamics.wobble_table`), the
+    sensor-noise
+    seeds (one per step), the ``steps`` (:func:`~torquemod.twins.vtrack.rig.steps.plan_steps`), the
+    settling samples ``n_settle`` and the samples integrated per step ``n_step``."""
+
+    wobble: np.ndarray
+    noise_seeds: list[np.random.SeedSequence]
+    steps: list[StepPlan]
+    n_settle: int
+    n_step: int
+
+
+def plan_run(config: SimConfig, seed: int,
+             first: Callable[[RunPlan, StepPlan], None] | None = None) -> RunPlan:
+    """The :class:`RunPlan` of ``config`` for ``seed`` (shared by
+    :func:`torquemod.twins.vtrack.simulate.run_simulation` and :func:`simulate_batch`): the wobble
+    drawn
+    first, then the noise streams spawned (no draw), then one generator phase per step.
+    ``first`` is called with the plan so far (no steps yet) and the first step's plan as
+    soon as they are known (:func:`~torquemod.twins.vtrack.rig.steps.plan_steps`), so that the
+    caller can
+    start integrating step 1 while the other steps are planned."""
+    proc, fs = config.procedure, config.sensors.sample_rate_hz
+    rng = np.random.default_rng(seed)
+    wobble = wobble_table(config.disturbances, config.rig.platform_speed_rad_s, rng)
+    noise_seeds = rng.bit_generator.seed_seq.spawn(1)[0].spawn(len(proc.dc_torques_nm))
+    phases = [float(rng.uniform(0.0, 2.0 * np.pi)) if config.modulation.random_phase else 0.0
+              for _ in proc.dc_torques_nm]
+    n_settle = round(proc.settle_s * fs)
+    n_rec = math.ceil((proc.cycles_per_step * config.rig.revolution_s * 1.01 + 0.1) * fs)
+    hook = None
+    if first is not None:
+        head = RunPlan(wobble, noise_seeds, [], n_settle, n_settle + n_rec)
+
+        def hook(plan: StepPlan) -> None:
+            first(head, plan)
+    return RunPlan(wobble, noise_seeds,
+                   plan_steps(config, wobble, phases, n_settle + n_rec, hook),
+                   n_settle, n_settle + n_rec)
+
+
+def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 0,
+                   workers: int | None = None, large_signal: bool = True
+                   ) -> list[BatchPoint]:
+    """Simulate every configuration of ``configs``
+    (:class:`~torquemod.twins.vtrack.rig.params.SimConfig`,
+    e.g. from :func:`torquemod.twins.vtrack.simulate.load_config` with a point's overrides) and
+    return
+    their truth in the same order. ``seed``: one for all points or one per point (the speed
+    loop's wobble and the generator phases are drawn from it as in ``run_simulation``).
+    ``workers``: threads (default: the CPUs available). ``large_signal = False`` leaves
+    each step's ``phase_large_signal_deg`` out (None) for a caller that solves the theory
+    itself (a sweep's theory columns): ~7 ms less per step (the twin's step costs ~55 ms).
+    """
+    configs = list(configs)
+    seeds = [int(seed)] * len(configs) if np.ndim(seed) == 0 else [int(s) for s in seed]
+    if len(seeds) != len(configs):
+        raise InputError(f"simulate_batch got {len(seeds)} seeds for {len(configs)} "
+                         "configurations", hint="give one seed, or one per configuration")
+    points = [(config, plan_run(config, s), pack_parameters(config.rig, config.disturbances))
+              for config, s in zip(configs, seeds, strict=True)]
+
+    def run(point, plan, before):
+        config, rp, params = point
+        start = None if plan.y0 is not None else before.result()[2]
+        out, n_done, slipped, y_end = integrate_step(config, params, rp.wobble, plan,
+                                                     rp.n_step, start, rp.n_settle)
+        if slipped:
+            return None, plan.t0_s + n_done * (1.0 / config.sensors.sample_rate_hz), y_end
+        entry, _ = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done, plan.t0_s,
+                                       rp.wobble, rp.n_settle, large_signal)
+        return entry, None, y_end
+
+    results = []
+    with ThreadPoolExecutor(max_workers=workers or default_workers()) as pool:
+        # submitted in step order: a step waiting for the end of the one before never blocks
+        futures = []
+        for point in points:
+            futs = []
+            for plan in point[1].steps:
+                futs.append(pool.submit(run, point, plan, futs[-1] if futs else None))
+            futures.append(futs)
+        try:
+            for point, futs, s in zip(points, futures, seeds, strict=True):
+                config, wobble = point[0], point[1].wobble
+                steps, slip_step, slip_time = [], None, None
+                for plan, fut in zip(point[1].steps, futs, strict=True):
+                    entry, t_slip, _ = fut.result()
+                    if entry is None:
+                        slip_step, slip_time = plan.index, t_slip
+                        for later in futs[plan.index:]:
+                            later.cancel()
+                        entry = _step_truth(plan.index, plan.dc_nm, config, None, True,
+                                            large_signal=large_signal)
+                        entry["slip_time_s"] = t_slip
+                        steps.append(entry)
+                        break
+                    steps.append(entry)
+                xi_peak, t_peak = creep_curve_peak(config.rig)
+                rig = config.rig
+                results.append(BatchPoint(
+                    seed=s, steps=steps, slip_step=slip_step, slip_time_s=slip_time,
+                    speed_wobble=_wobble_truth(config, wobble),
+                    creep_curve_peak={"creepage": xi_peak, "torque_nm": t_peak,
+                                      "coa": t_peak / (rig.wheel_radius_m
+                                                       * rig.normal_load_n)}))
+        finally:
+            for futs in futures:
+                for fut in futs:
+                    fut.cancel()
+    return results

@@ -1,0 +1,195 @@
+"""The torque steps of a simulated procedure as independent pieces of work.
+
+A step is integrated from its start time ``t_i`` (settling, then the recorded revolutions).
+Run one after the other, each step would start from the state the step before ended in, which
+serialises the procedure. Here each step starts instead from the steady state of the DC torque
+before it (:func:`torquemod.twins.vtrack.theory.operating_point`), so that all steps can run at
+once:
+
+* the drive line and the wheel: the steady state at the previous DC torque
+  (:func:`~torquemod.twins.vtrack.rig.dynamics.initial_state`), on the speed reference as it wobbles
+  at
+  ``t_i`` (the state's speeds scaled by ``W_ref/W0``);
+* the platform angle, which no restoring force pulls back (a neutral state: an offset would
+  stay for the rest of the run and shift the sleeper and joint loads): from
+  ``d(th_p + i_pi)/dt = W_ref(t, th_p)`` -- exact for the twin's PI loop
+  (:mod:`torquemod.twins.vtrack.rig.dynamics`: ``th_p' = W_p``, ``i_pi' = W_ref - W_p``) --
+  integrated on
+  its own by RK4 (:func:`_reference_angle`), with ``i_pi`` at each step's steady value;
+* the wheel angle (read only by the encoder model): the platform's advance times
+  ``(1 + xi)*R_p/R_w`` at each step's steady creepage.
+
+What is left of the difference to the state a sequential run reaches -- the modulation's
+response, the ramp's transient, the integral state's share of the modulation -- decays during
+the settling time (the slowest mode, the PI loop's ``Ki/Kp = 2 1/s``, by ``exp(-8)`` over the
+default 4 s). Measured on the default experiment: the simulated phases change by less than
+1e-6 deg against the sequential run (benchmarks/simulate.py's docstring).
+A step whose previous DC torque has no steady state (beyond the creep curve's peak) starts
+from the end of the step before, as in a sequential run.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS, _wobble, initial_state, integrate
+from torquemod.twins.vtrack.rig.params import RigParams, SimConfig
+from torquemod.twins.vtrack.theory import operating_point
+
+#: largest |lambda*h| accepted for the integrator (RK4 is stable to 2.78 on the real axis)
+MAX_LAMBDA_H = 2.0
+
+
+def stiffest_rate(rig: RigParams) -> float:
+    """Estimate [1/s] of the fastest eigenvalue of the twin's equations: the platform's PI
+    loop ``Kp/Jp``, the torsional mode ``sqrt(k/J) + c/J`` (``1/J = 1/Jm + 1/Jw``) or the
+    creep-force damping ``(Rw^2/Jw + Rp^2/Jp)*dFx/dxi/V`` at zero creepage."""
+    c = rig.contact
+    inv_j = 1.0 / rig.drive_inertia_kg_m2 + 1.0 / rig.wheel_inertia_kg_m2
+    torsion = math.sqrt(rig.shaft_stiffness_nm_rad * inv_j) + rig.shaft_damping_nm_s_rad * inv_j
+    kx = 2.0 * (c.k_a + c.k_s) * c.stiffness_x_n / math.pi  # dFx/dxi at 0, P05 Eq. (8)
+    contact = (rig.wheel_radius_m ** 2 / rig.wheel_inertia_kg_m2
+               + rig.platform_radius_m ** 2 / rig.platform_inertia_kg_m2) * kx / rig.speed_m_s
+    return max(rig.platform_kp_nm_s_rad / rig.platform_inertia_kg_m2, torsion, contact)
+
+
+def settle_samples_per_step(config: SimConfig) -> int:
+    """Output samples per RK4 step while the step settles (its samples are not recorded):
+    the largest whole number of samples whose step keeps ``lambda*h`` within
+    :data:`MAX_LAMBDA_H` (:func:`stiffest_rate`), at least the recorded step's. Default rig:
+    8 samples (``lambda*h = 1.6``) against 4 recorded."""
+    proc, fs = config.procedure, config.sensors.sample_rate_hz
+    rec = max(1, proc.samples_per_step // proc.substeps)
+    fit = int(MAX_LAMBDA_H * fs / stiffest_rate(config.rig))
+    return max(rec, fit)
+
+
+#: RK4 step [s] of the reference angle: the wobble's lines lie below 1 Hz, so that the
+#: method's error (~(w*h)^4/120) stays below 1e-10 of the angle's wobble
+_ANGLE_STEP_S = 0.01
+
+
+@numba.njit(cache=True)
+def _reference_angle(t_ends, phi0, w0, ipi, wob):
+    """``phi = th_p + i_pi`` [rad] at the times ``t_ends`` (ascending, from 0) for
+    ``phi' = W0 + wobble(t, phi - i_pi)`` (:func:`~torquemod.twins.vtrack.rig.dynamics._wobble`),
+    ``phi(0) = phi0``, ``i_pi = ipi[k]`` on the way to ``t_ends[k]``; classical RK4."""
+    out = np.empty(t_ends.size)
+    phi, t = phi0, 0.0
+    for k in range(t_ends.size):
+        n = max(1, math.ceil((t_ends[k] - t) / _ANGLE_STEP_S))
+        h = (t_ends[k] - t) / n
+        q = ipi[k]
+        for _ in range(n):
+            k1 = w0 + _wobble(t, phi - q, wob)
+            k2 = w0 + _wobble(t + 0.5 * h, phi + 0.5 * h * k1 - q, wob)
+            k3 = w0 + _wobble(t + 0.5 * h, phi + 0.5 * h * k2 - q, wob)
+            k4 = w0 + _wobble(t + h, phi + h * k3 - q, wob)
+            phi += h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
+            t += h
+        out[k] = phi
+    return out
+
+
+@dataclass(frozen=True)
+class StepPlan:
+    """One torque step: ``index`` (from 1), the DC ramp ``dc_from_nm`` -> ``dc_nm`` [N*m]
+    starting at ``t0_s`` [s], the modulation generator's phase ``phase_rad`` and the start
+    state ``y0`` (None: the end state of the step before)."""
+
+    index: int
+    dc_from_nm: float
+    dc_nm: float
+    t0_s: float
+    phase_rad: float
+    y0: np.ndarray | None
+
+
+def plan_steps(config: SimConfig, wobble: np.ndarray, phases: list[float],
+               n_step_samples: int, first: Callable[[StepPlan], None] | None = None
+               ) -> list[StepPlan]:
+    """The steps of ``config``'s procedure, each ``n_step_samples`` long at the sample rate,
+    with their start states (module docstring); ``phases`` [rad] per step. ``first`` is
+    called with the first step's plan as soon as it is known (before the operating points
+    and the reference angle of the others), so that a caller can start integrating it."""
+    rig, proc = config.rig, config.procedure
+    dt = 1.0 / config.sensors.sample_rate_hz
+    torques = proc.dc_torques_nm
+    op0 = operating_point(torques[0], rig)
+    start = torques[0]
+    if op0.slipped:
+        op0, start = operating_point(0.0, rig), 0.0
+    y1 = initial_state(rig, creepage=op0.creepage, dc_torque_nm=start, contact_fx_n=op0.fx_n)
+    plan1 = StepPlan(1, start, torques[0], 0.0, phases[0], y1)
+    if first is not None:
+        first(plan1)
+    # step starts as the sequential run accumulates them
+    t_starts, t = [], 0.0
+    for _ in torques:
+        t_starts.append(t)
+        t += n_step_samples * dt
+    ops = [op0] + [operating_point(dc, rig) for dc in torques[:-1]]
+    steady = [None if op.slipped else initial_state(rig, creepage=op.creepage,
+                                                    dc_torque_nm=dc, contact_fx_n=op.fx_n)
+              for op, dc in zip(ops, (start, *torques[:-1]), strict=True)]
+    # i_pi on the way to each step start: steady at the DC torque of the step running then
+    ipi = np.array([y1[6] if s is None else s[6] for s in steady[1:]] or [y1[6]])
+    w0 = rig.platform_speed_rad_s
+    phi = _reference_angle(np.asarray(t_starts[1:] or [0.0]), y1[4] + y1[6], w0, ipi,
+                           np.ascontiguousarray(wobble, dtype=np.float64))
+    plans = [plan1]
+    th_w, th_prev = y1[3], y1[4]
+    for i in range(1, len(torques)):
+        y = steady[i]
+        th_p = phi[i - 1] - (y1[6] if y is None else y[6])
+        op = ops[i]
+        th_w += (th_p - th_prev) * (1.0 + (0.0 if op.slipped else op.creepage)) \
+            * rig.platform_radius_m / rig.wheel_radius_m
+        th_prev = th_p
+        if y is not None:
+            y = y.copy()
+            scale = 1.0 + _wobble(t_starts[i], th_p, wobble) / w0
+            y[[1, 2, 5]] *= scale
+            y[3], y[4] = th_w, th_p
+        plans.append(StepPlan(i + 1, torques[i - 1], torques[i], t_starts[i], phases[i], y))
+    return plans
+
+
+def integrate_step(config: SimConfig, params: np.ndarray, wobble: np.ndarray, plan: StepPlan,
+                   n_samples: int, start: np.ndarray | None = None, n_quiet: int = 0
+                   ) -> tuple[np.ndarray, int, bool, np.ndarray]:
+    """Integrate the step ``plan`` over ``n_samples`` samples from its start state (or from
+    ``start`` when the plan has none): ``(out, n_written, slipped, end state)`` with ``out``
+    the samples of :data:`~torquemod.twins.vtrack.rig.dynamics.OUT_COLUMNS`
+    (:func:`~torquemod.twins.vtrack.rig.
+    dynamics.integrate`; ``params`` from
+    :func:`~torquemod.twins.vtrack.rig.dynamics.pack_parameters`).
+
+    The first ``n_quiet`` samples (the settling, never recorded) are integrated at the
+    longest stable step (:func:`settle_samples_per_step`, one RK4 step per coarse sample, no
+    samples inside the steps): their rows of ``out`` are left unset except the last whole
+    coarse block's remainder. A slip among them is reported at the coarse sample's index
+    (``n_written`` to within a coarse step)."""
+    proc, mod = config.procedure, config.modulation
+    dt = 1.0 / config.sensors.sample_rate_hz
+    y = np.array(plan.y0 if plan.y0 is not None else start, dtype=np.float64)
+    out = np.empty((n_samples, len(OUT_COLUMNS)))
+    args = (params, plan.dc_from_nm, plan.dc_nm, plan.t0_s, proc.ramp_s, mod.amplitude_nm,
+            2.0 * np.pi * mod.actual_frequency_hz, plan.phase_rad, plan.t0_s,
+            proc.slip_creepage)
+    r = settle_samples_per_step(config)
+    n_c = min(n_quiet, n_samples) // r if r * proc.substeps > proc.samples_per_step else 0
+    i0 = n_c * r
+    if n_c:
+        coarse = np.empty((n_c, len(OUT_COLUMNS)))
+        n_done, slipped = integrate(y, plan.t0_s, n_c, r * dt, 1, *args, coarse, 1, wobble)
+        if slipped:
+            return out, (n_done - 1) * r + 1, True, y
+    n_done, slipped = integrate(y, plan.t0_s + i0 * dt, n_samples - i0, dt, proc.substeps,
+                                *args, out[i0:], proc.samples_per_step, wobble)
+    return out, i0 + n_done, slipped, y

@@ -1,0 +1,108 @@
+"""`process` in bounded memory: a step that is one recording of many revolutions is aligned
+and measured cycle by cycle while it is read (torquemod.process.stepmeasure.InOrderStep), and
+figure traces are kept for the first pipeline.TRACE_CYCLES cycles of a step only.
+
+Reference: the same recordings with every cycle held until the end and the step aligned at
+once (process_experiment(loaded=...), the fleet's path, which never measures while reading).
+The numbers must be equal bit for bit: the same functions run on the same samples.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import torquemod.process.pipeline as pl
+from torquemod.errors import InputError, ProcessingError
+from torquemod.io import read_experiment
+from torquemod.testing import write_synthetic_experiment
+
+
+def _held_to_the_end(manifest):
+    exp = read_experiment(manifest)
+    cfg = pl.resolve_config(exp)
+    loaded = [(e, pl.load_and_process(e, exp, cfg)) for e in exp.recordings]
+    return pl.process_experiment(exp, workers=1, loaded=loaded)
+
+
+@pytest.mark.parametrize("streamed", [False, True])
+def test_measured_while_read_equals_the_step_aligned_at_the_end(tmp_path, monkeypatch,
+                                                               streamed):
+    write_synthetic_experiment(tmp_path, n_steps=2, n_cycles=4, files_per_cycle=False,
+                               fmt="hdf5", seed=7)
+    manifest = tmp_path / "experiment.toml"
+    monkeypatch.setattr(pl, "TRACE_CYCLES", 2)
+    if streamed:
+        monkeypatch.setattr(pl, "STREAM_MIN_BYTES", 0)
+    seen = []
+    real = pl.InOrderStep.__call__
+
+    def spy(self, item):
+        seen.append((self.step, item[0]))
+        return real(self, item)
+
+    monkeypatch.setattr(pl.InOrderStep, "__call__", spy)
+    got = pl.process_experiment(manifest, workers=2)
+    assert sorted(seen) == [(s, c) for s in (1, 2) for c in (1, 2, 3, 4)]  # the path ran
+    n_seen = len(seen)
+    ref = _held_to_the_end(manifest)
+    assert len(seen) == n_seen  # the reference did not measure while reading
+    pd.testing.assert_frame_equal(got.cycles, ref.cycles, check_exact=True)
+    pd.testing.assert_frame_equal(got.steps, ref.steps, check_exact=True)
+    assert (json.dumps(got.cycle_details, default=str)
+            == json.dumps(ref.cycle_details, default=str))
+    assert got.warnings == ref.warnings
+    # traces: the first two cycles of each step, the same arrays under the same names
+    assert sorted(got.traces) == sorted(ref.traces) == [(1, 1), (1, 2), (2, 1), (2, 2)]
+    for key, arrays in ref.traces.items():
+        assert list(got.traces[key]) == list(arrays)
+        for name, x in arrays.items():
+            np.testing.assert_array_equal(got.traces[key][name], x)
+
+
+def test_phase_error_is_raised_in_step_order(tmp_path, monkeypatch):
+    """A cycle whose phase cannot be measured while it is read raises the same one-line
+    error as when the step is measured at the end."""
+    write_synthetic_experiment(tmp_path, n_steps=1, n_cycles=2, files_per_cycle=False,
+                               fmt="hdf5", seed=3)
+
+    def fail(*args, **kwargs):
+        raise ProcessingError("no peaks")
+
+    monkeypatch.setattr(pl.chain, "cycle_phase", fail)
+    with pytest.raises(InputError, match="phase not measurable: no peaks") as a:
+        pl.process_experiment(tmp_path / "experiment.toml", workers=1)
+    with pytest.raises(InputError, match="phase not measurable: no peaks") as b:
+        _held_to_the_end(tmp_path / "experiment.toml")
+    assert str(a.value) == str(b.value)
+
+
+def test_binary_file_streamed_by_its_decoded_size(tmp_path, monkeypatch):
+    """An HDF5 file smaller on disk than STREAM_MIN_BYTES whose samples take at least
+    STREAM_MIN_DECODED_BYTES as float64 (with the time base) is streamed, with the
+    whole-file path's numbers."""
+    write_synthetic_experiment(tmp_path, n_steps=1, n_cycles=2, files_per_cycle=False,
+                               fmt="hdf5", seed=5)
+    manifest = tmp_path / "experiment.toml"
+    whole = pl.process_experiment(manifest, workers=1)
+    (path,) = tmp_path.glob("*.h5")
+    exp = read_experiment(manifest)
+    with pl.open_stream(exp.recordings[0], experiment=exp) as s:
+        decoded = 8 * s.info.n_samples * (len(s.info.channels) + 1)
+    size = path.stat().st_size
+    assert decoded > size  # the time base is not stored as a column
+    streamed = []
+    real = pl._streamed_cycles
+    monkeypatch.setattr(pl, "_streamed_cycles",
+                        lambda *a, **k: streamed.append(a) or real(*a, **k))
+    monkeypatch.setattr(pl, "STREAM_MIN_BYTES", size + 1)
+    monkeypatch.setattr(pl, "STREAM_MIN_DECODED_BYTES", decoded)
+    same = pl.process_experiment(manifest, workers=1)
+    assert len(streamed) == 1
+    pd.testing.assert_frame_equal(same.cycles, whole.cycles, check_exact=True)
+    monkeypatch.setattr(pl, "STREAM_MIN_DECODED_BYTES", decoded + 1)  # neither: read whole
+    pl.process_experiment(manifest, workers=1)
+    assert len(streamed) == 1

@@ -1,0 +1,398 @@
+"""torquemod sweep (issue 12): the sweep file, theory and full sweeps, resuming, failures,
+the recommendation, and the twin against the large-signal theory."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+
+from torquemod import __version__
+from torquemod.errors import InputError
+from torquemod.sweep.run import run_sweep
+from torquemod.sweep.spec import RecommendOptions, SweepSpec, load_sweep, parse_sweep
+from torquemod.sweep.summary import recommend
+
+# A short procedure for the full chain: three steps, one revolution each, 1.5 s run-in.
+SHORT = """
+[fixed]
+procedure.cycles_per_step = 1
+procedure.settle_s = 1.5
+[steps]
+fractions_of_peak = [0.0, 0.4, 0.7]
+"""
+
+
+# ------------------------------------------------------------------------------ the file
+
+def test_grid_points_and_seeds():
+    spec = parse_sweep("""
+mode = "theory"
+seeds = [3, 4]
+[fixed]
+"procedure.cycles_per_step" = 2
+[grid]
+contact.condition = ["dry", "wet"]
+"modulation.frequency_hz" = [1.0, 2.0, 4.0]
+[[point]]
+rig.speed_km_h = 5.0
+[[point]]
+rig.speed_km_h = 9.0
+""")
+    # 2 listed points x 2 conditions x 3 frequencies x 2 seeds
+    assert len(spec.points) == 24
+    assert spec.swept == ("rig.speed_km_h", "contact.condition", "modulation.frequency_hz")
+    assert {p.seed for p in spec.points} == {3, 4}
+    p = spec.points[0]
+    assert p.params == {"procedure.cycles_per_step": 2, "rig.speed_km_h": 5.0,
+                        "contact.condition": "dry", "modulation.frequency_hz": 1.0}
+    assert len({q.point_id for q in spec.points}) == 24
+    # the id depends on the parameters and the seed, not on the order in the file
+    again = parse_sweep("""
+mode = "theory"
+seeds = [4, 3]
+[fixed]
+procedure.cycles_per_step = 2
+[grid]
+modulation.frequency_hz = [4.0, 2.0, 1.0]
+contact.condition = ["wet", "dry"]
+[[point]]
+rig.speed_km_h = 9.0
+[[point]]
+rig.speed_km_h = 5.0
+""")
+    assert {q.point_id for q in again.points} == {q.point_id for q in spec.points}
+
+
+def test_condition_overrides_and_explicit_polach_key_wins():
+    spec = parse_sweep("""
+[[point]]
+contact.condition = "leaves"
+[[point]]
+contact.condition = "leaves"
+contact.mu0 = 0.2
+""")
+    a, b = (p.overrides()["contact"] for p in spec.points)
+    assert a["mu0"] == 0.12 and a["k_a"] == 0.30  # train.params.CONDITIONS["leaves"]
+    assert b["mu0"] == 0.2 and b["k_a"] == 0.30
+    assert "condition" not in a
+
+
+@pytest.mark.parametrize("text, words", [
+    ("[grid]\nmodulation.frequncy_hz = [1.0]\n",
+     ["sweep.toml", "modulation.frequncy_hz", "did you mean 'modulation.frequency_hz'"]),
+    ("mdoe = 'theory'\n", ["sweep.toml", "'mdoe'", "did you mean 'mode'"]),
+    ("[[point]]\nrig.wheel_radius = 0.07\n", ["point]] #1", "'rig.wheel_radius_m'"]),
+    ("[grid]\ncontact.condition = ['icy']\n", ["unknown friction condition 'icy'"]),
+    ("mode = 'fast'\n", ["unknown mode 'fast'"]),
+    ("[grid]\nmodulation.frequency_hz = 2.0\n", ["must be a non-empty list"]),
+    ("base = 'missing.toml'\n", ["base config 'missing.toml' not found"]),
+    ("[steps]\nfractions_of_peak = [0.5, 1.2]\n", ["fractions_of_peak"]),
+    ("seeds = [1]\nrepeats = 2\n", ["not both"]),
+    ("[recommend]\nmax_swing = 1\n", ["did you mean 'max_creepage_swing'"]),
+    ("[grid\n", ["TOML syntax error"]),
+    ("[processing.phase]\nmethd = 'sinefit'\n", ["sweep.toml [processing]", "methd"]),
+])
+def test_bad_sweep_files(tmp_path, text, words):
+    path = tmp_path / "sweep.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(InputError) as err:
+        load_sweep(path)
+    for w in words:
+        assert w in str(err.value)
+
+
+def test_base_config_relative_to_the_sweep_file(tmp_path):
+    (tmp_path / "twin.toml").write_text("[rig]\nnormal_load_n = 3000.0\n", encoding="utf-8")
+    (tmp_path / "s.toml").write_text("base = 'twin.toml'\n[grid]\nrig.speed_km_h = [5.0]\n",
+                                     encoding="utf-8")
+    spec = load_sweep(tmp_path / "s.toml")
+    assert spec.base == tmp_path / "twin.toml"
+    assert spec.mode == "full" and spec.seeds == (0,)
+
+
+# ----------------------------------------------------------------------- theory sweeps
+
+THEORY = """
+name = "tiny"
+mode = "theory"
+seeds = [5]
+[steps]
+fractions_of_peak = [0.0, 0.3, 0.5, 0.6, 0.7, 0.8, 0.9]
+[grid]
+contact.condition = ["vtrack", "wet"]
+modulation.frequency_hz = [2.0, 3.0]
+"""
+
+
+@pytest.fixture(scope="module")
+def theory_sweep(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sw") / "theory"
+    spec = parse_sweep(THEORY)
+    return out, spec, run_sweep(spec, out, in_process=True)
+
+
+def test_theory_sweep_table(theory_sweep):
+    out, _, res = theory_sweep
+    assert res.count("done") == 4 and res.failures.empty
+    tab = pd.read_parquet(out / "sweep.parquet")
+    assert len(tab) == 4 * 7  # one row per point and step
+    for col in ("contact.condition", "modulation.frequency_hz", "seed", "dc_torque_nm",
+                "utilisation", "phase_theory_deg", "creep_coefficient", "mu_true",
+                "mu_phase", "mu_phase_lo", "mu_phase_hi", "creepage_swing",
+                "torque_ripple_pct", "phase_deg", "phase_se_deg"):
+        assert col in tab, col
+    assert set(tab["seed"]) == {5}
+    # DC torques are the fractions of each point's own creep-curve peak
+    assert np.allclose(tab["dc_torque_nm"] / tab["peak_torque_nm"], tab["utilisation"])
+    # the phase rises with the utilisation at every point (towards 90 deg at saturation)
+    for _, g in tab.groupby("point_id"):
+        assert np.all(np.diff(g["phase_theory_deg"].to_numpy()) > 0)
+    meta = pq.read_schema(out / "sweep.parquet").metadata
+    assert meta[b"torquemod_version"].decode() == __version__
+    assert meta[b"sweep_toml"].decode() == THEORY
+    doc = json.loads((out / "sweep.json").read_text())
+    assert doc["version"] == __version__ and doc["seeds"] == [5]
+    assert doc["points"] == {"done": 4, "skipped": 0, "failed": 0} and doc["wall_s"] > 0
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert "Recommendation" in html and html.count("data:image/png;base64,") >= 5
+    assert doc["recommendation"]["setting"]["modulation_amplitude_nm"] == 8.0
+
+
+def test_mu_from_phase_judged_against_the_available_adhesion(theory_sweep):
+    """mu_friction is Polach's Eq. 9 friction at the creepage x speed of the highest step at
+    or below the utilisation limit (recomputed here from the table and the condition's
+    parameters); on these falling-friction conditions it lies between the creep curve's
+    peak (mu_true, the available adhesion) and mu0. The errors in the summary are taken
+    against the available adhesion, the one truth the report names."""
+    from torquemod.sweep.spec import conditions
+    from torquemod.sweep.summary import point_summary
+    out, spec, _ = theory_sweep
+    tab = pd.read_parquet(out / "sweep.parquet")
+    for _, g in tab.groupby("point_id"):
+        used = g[(~g["slipped"].astype(bool)) & (g["utilisation"] <= 0.8 + 1e-9)]
+        c = conditions()[g["contact.condition"].iloc[0]]
+        w = used["creepage_true"].iloc[-1] * g["speed_m_s"].iloc[0]
+        expect = c.mu0 * ((1 - c.a_ratio) * np.exp(-c.b_s_m * w) + c.a_ratio)
+        assert g["mu_friction"].iloc[0] == pytest.approx(expect, rel=1e-12)
+        assert g["mu_true"].iloc[0] < expect <= c.mu0
+    summ = point_summary(tab, spec)
+    det = summ[summ["mu_phase_determined"]]
+    np.testing.assert_allclose(det["mu_phase_error_pct"],
+                               100 * (det["mu_phase"] / det["mu_true"] - 1), rtol=1e-12)
+
+
+def test_mu_from_phase_leaves_out_steps_that_reverse_the_torque(theory_sweep):
+    """Steps whose DC torque does not exceed the modulation amplitude (the torque changes
+    sign each period; at zero DC torque the large-signal phase lies 1-2 deg below the
+    linearised model) are not given to the mu-from-phase fit: the count of steps it used
+    is that of the others at or below the utilisation limit."""
+    out, _, _ = theory_sweep
+    tab = pd.read_parquet(out / "sweep.parquet")
+    for _, g in tab.groupby("point_id"):
+        assert (g["dc_torque_nm"] <= g["modulation_amplitude_nm"]).any()  # a zero step
+        ok = (~g["slipped"].astype(bool)) & (g["utilisation"] <= 0.8 + 1e-9) \
+            & (g["dc_torque_nm"].abs() > g["modulation_amplitude_nm"])
+        assert g["mu_phase_n_steps"].iloc[0] == int(ok.sum())
+
+
+def test_resume_skips_finished_points_and_force_reruns(theory_sweep):
+    out, spec, first = theory_sweep
+    again = run_sweep(spec, out, in_process=True, report=False)
+    assert again.count("skipped") == 4 and again.count("done") == 0
+    pd.testing.assert_frame_equal(again.table, first.table)
+    # a changed parameter is a new point; the old ones stay skipped
+    more = parse_sweep(THEORY.replace("[2.0, 3.0]", "[2.0, 3.0, 2.5]"))
+    res = run_sweep(more, out, in_process=True, report=False)
+    assert res.count("skipped") == 4 and res.count("done") == 2
+    forced = run_sweep(spec, out, in_process=True, report=False, force=True)
+    assert forced.count("done") == 4
+    cols = [c for c in first.table if c != "point_wall_s"]
+    pd.testing.assert_frame_equal(forced.table[cols], first.table[cols])
+
+
+def test_dask_local_cluster_gives_the_in_process_rows(tmp_path, theory_sweep):
+    """Two points as tasks on a LocalCluster of 2 worker processes: the same rows as the
+    in-process run of the same points (same ids: same parameters and seed)."""
+    _, _, inproc = theory_sweep
+    spec = parse_sweep(THEORY.replace("[2.0, 3.0]", "[3.0]"))
+    links = []
+    res = run_sweep(spec, tmp_path / "dask", n_workers=2, report=False,
+                    on_dashboard=links.append)
+    assert res.count("done") == 2 and links and res.dashboard == links[0]
+    ref = inproc.table[inproc.table["point_id"].isin(res.table["point_id"])]
+    cols = [c for c in ref if c not in ("point_wall_s", "point_index")]
+    pd.testing.assert_frame_equal(res.table[cols].reset_index(drop=True),
+                                  ref[cols].reset_index(drop=True))
+
+
+def test_failed_points_become_rows_and_the_sweep_goes_on(tmp_path):
+    spec = parse_sweep("""
+mode = "theory"
+[[point]]
+procedure.dc_torques_nm = [10.0, 30.0]
+[[point]]
+procedure.dc_torques_nm = [100.0]
+[[point]]
+rig.wheel_radius_m = -0.07
+""")
+    res = run_sweep(spec, tmp_path / "out", in_process=True, report=False)
+    assert res.count("done") == 1 and res.count("failed") == 2
+    fails = pd.read_csv(tmp_path / "out" / "failures.csv")
+    assert list(fails["point_index"]) == [1, 2]
+    assert "slips at the first step" in fails["message"][0]
+    assert "wheel_radius_m" in fails["message"][1]
+    assert all("\n" not in m for m in fails["message"])
+    assert len(res.table) == 2 and set(res.table["point_index"]) == {0}
+
+
+def _fake_table(errors, ripples, swings) -> tuple[pd.DataFrame, SweepSpec]:
+    """A sweep table of three settings x two conditions with given mu errors [%] per
+    setting (determined), torque ripple [%] and creepage swing: the recommendation's
+    inputs, known by construction."""
+    rows = []
+    for s, (err, rip, sw) in enumerate(zip(errors, ripples, swings, strict=True)):
+        for c, cond in enumerate(("dry", "wet")):
+            mu = 0.4
+            e = err * (1 if c else -1) / 100.0  # +-err: RMS err
+            for step, u in enumerate((0.3, 0.5, 0.7, 0.8), start=1):
+                rows.append({"point_id": f"p{s}{c}", "point_index": 2 * s + c,
+                             "contact.condition": cond, "modulation.frequency_hz": 1.0 + s,
+                             "seed": 0, "step": step, "utilisation": u, "slipped": False,
+                             "phase_theory_deg": 10 + 20 * u, "phase_deg": np.nan,
+                             "phase_se_deg": np.nan, "phase_crlb_deg": 0.1,
+                             "phase_twin_minus_theory_deg": np.nan,
+                             "creepage_swing": sw, "torque_ripple_pct": rip,
+                             "modulation_frequency_hz": 1.0 + s,
+                             "modulation_frequency_nominal_hz": 1.0 + s,
+                             "modulation_amplitude_nm": 8.0, "mu_true": mu,
+                             "mu_phase": mu * (1 + e), "mu_phase_lo": mu * (1 + e - 0.01),
+                             "mu_phase_hi": mu * (1 + e + 0.01),
+                             "mu_phase_determined": True})
+    spec = SweepSpec(path=None, text="", name="fake", description="", base=None,
+                     mode="theory", seeds=(0,), points=(),
+                     swept=("contact.condition", "modulation.frequency_hz"),
+                     recommend=RecommendOptions(max_creepage_swing=2e-3,
+                                                max_torque_ripple_pct=15.0))
+    return pd.DataFrame(rows), spec
+
+
+def test_recommendation_is_the_most_accurate_setting_within_the_limits():
+    # 1 Hz: most accurate but its ripple is too large; 2 Hz: within limits, 3 % error;
+    # 3 Hz: within limits, 5 % error -> 2 Hz
+    tab, spec = _fake_table(errors=[1.0, 3.0, 5.0], ripples=[20.0, 10.0, 10.0],
+                            swings=[1e-3, 1e-3, 1.5e-3])
+    rec = recommend(tab, spec)
+    assert rec["setting"] == {"modulation_frequency_nominal_hz": 2.0,
+                              "modulation_amplitude_nm": 8.0}
+    assert "excluded 1 Hz" in rec["reasoning"] and "3 Hz" in rec["reasoning"]
+    best = next(s for s in rec["settings"] if s["modulation_frequency_nominal_hz"] == 2.0)
+    assert best["rms_error_pct"] == pytest.approx(3.0)
+    assert best["bias_pct"] == pytest.approx(0.0, abs=1e-9)  # -3 % and +3 %
+    assert best["n_covered"] == 0  # +-3 % with a +-1 % interval: the truth is outside
+    # with no setting within the limits, the most accurate one, said so
+    tab, spec = _fake_table(errors=[4.0, 3.0, 5.0], ripples=[20.0, 20.0, 20.0],
+                            swings=[1e-3, 1e-3, 1e-3])
+    rec = recommend(tab, spec)
+    assert rec["setting"]["modulation_frequency_nominal_hz"] == 2.0
+    assert rec["within_limits"] is False and "No setting" in rec["reasoning"]
+
+
+def test_one_recommendation_per_noise_level():
+    tab, spec = _fake_table(errors=[1.0, 3.0, 5.0], ripples=[10.0, 10.0, 10.0],
+                            swings=[1e-3, 1e-3, 1e-3])
+    noisy = tab.copy()
+    noisy["sensors.torque_noise_nm"] = 1.0
+    noisy["point_id"] += "n"
+    # at the higher noise the 1 Hz setting loses its accuracy (20 %): 2 Hz is then the best
+    noisy.loc[noisy["modulation.frequency_hz"] == 1.0, "mu_phase"] *= 1.2
+    tab["sensors.torque_noise_nm"] = 0.2
+    both = pd.concat([tab, noisy], ignore_index=True)
+    both["modulation_frequency_nominal_hz"] = both["modulation_frequency_hz"]
+    spec = dataclasses.replace(spec, swept=(*spec.swept, "sensors.torque_noise_nm"))
+    rec = recommend(both, spec)
+    assert [g["noise"] for g in rec["by_noise"]] == [{"sensors.torque_noise_nm": 0.2},
+                                                     {"sensors.torque_noise_nm": 1.0}]
+    assert [g["setting"]["modulation_frequency_nominal_hz"] for g in rec["by_noise"]] == \
+        [1.0, 2.0]
+    assert rec["setting"] == rec["by_noise"][0]["setting"]
+    assert rec["reasoning"].startswith("At sensors.torque_noise_nm = 0.2:")
+
+
+# -------------------------------------------------------------------------- full sweeps
+
+def test_chain_config_scales_with_the_frequency_and_takes_the_processing_table():
+    from torquemod.io.processing import ProcessingConfig
+    from torquemod.sweep.evaluate import chain_config
+    assert chain_config(2.0) == ProcessingConfig()  # the defaults are the 2 Hz ones
+    c = chain_config(4.0, {"phase": {"method": "sinefit"}, "slow": {"max_hz": 1.0}})
+    assert c.frequency.band_hz == (3.0, 5.0) and c.bandpass.width_hz == pytest.approx(0.72)
+    assert c.highpass.cutoff_hz == 1.0 and c.phase.method == "sinefit"
+    assert c.slow.max_hz == 1.0  # given: wins over the scaled 2.4 Hz
+    assert c.phase.n_periods == ProcessingConfig().phase.n_periods
+
+
+def test_full_sweep_on_the_chain(tmp_path):
+    spec = parse_sweep('mode = "full"\nseeds = [2]\n' + SHORT
+                       + "[grid]\nmodulation.amplitude_nm = [6.0, 8.0]\n")
+    res = run_sweep(spec, tmp_path / "full", in_process=True, report=False)
+    assert res.count("done") == 2, res.failures
+    tab = res.table
+    assert len(tab) == 6 and set(tab["seed"]) == {2}
+    # the chain measured every step; its phase agrees with the theory within its own error
+    # (5 standard errors, the chain's per-step SE; the theory is exact to ~1e-3 deg)
+    assert tab["phase_deg"].notna().all() and (tab["phase_se_deg"] > 0).all()
+    assert np.all(np.abs(tab["phase_deg"] - tab["phase_theory_deg"])
+                  <= 5 * tab["phase_se_deg"] + 0.05)
+    for col in ("mu_forces", "mu_forces_lo", "mu_forces_hi", "mu_phase_lo", "coa",
+                "creepage", "creep_coefficient_fit"):
+        assert col in tab
+    # three steps up to 70 % do not determine mu from the forces: the lower bound they give
+    # (the highest CoA measured, ~0.7*mu) lies below the true mu
+    lb = tab["mu_forces_lower_bound"].to_numpy(float)
+    assert np.all((lb > 0.6 * tab["mu_true"]) & (lb < tab["mu_true"]))
+    # the experiment folders the twin wrote are gone
+    assert not (tmp_path / "full" / "_work").exists()
+
+
+def test_twin_agrees_with_large_signal_theory_over_a_small_grid(tmp_path):
+    """The twin's simulated phase (truth.json 'simulated', wobble fitted out) and the
+    large-signal theory within 0.1 deg at every step below slip, 2 conditions x 2
+    frequencies (the issue's tolerance; the theory resolves the periodic state to 1e-9 deg,
+    the RK4 twin to ~1e-6 deg, so what is left is the settling of each step)."""
+    spec = parse_sweep("""
+mode = "full"
+[fixed]
+procedure.cycles_per_step = 1
+procedure.settle_s = 3.0
+disturbances.enabled = false
+[steps]
+fractions_of_peak = [0.0, 0.3, 0.6, 0.8]
+[grid]
+contact.condition = ["vtrack", "wet"]
+modulation.frequency_hz = [2.0, 4.0]
+""")
+    res = run_sweep(spec, tmp_path / "tw", in_process=True, report=False)
+    assert res.count("done") == 4, res.failures
+    tab = res.table[~res.table["slipped"]]
+    diff = tab["phase_twin_minus_theory_deg"].to_numpy(float)
+    assert np.isfinite(diff).all() and len(diff) == 16
+    assert np.max(np.abs(diff)) < 0.1, np.max(np.abs(diff))
+    # measured 0.0023 deg (wet, near 80 %): the undisturbed twin is far inside the issue's
+    # bound; 0.01 deg still leaves 4x margin for the settling of the steps
+    assert np.max(np.abs(diff)) < 0.01, np.max(np.abs(diff))
+    agr = json.loads((tmp_path / "tw" / "sweep.json").read_text())["agreement"]
+    assert agr["twin_minus_theory_max_deg"] == pytest.approx(np.max(np.abs(diff)))
+
+
+def test_cli_reports_a_bad_sweep_file_before_starting_a_cluster(tmp_path, capsys):
+    from torquemod.cli import main
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[grid]\nrig.sped_km_h = [5.0]\n", encoding="utf-8")
+    assert main(["sweep", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml" in err and "did you mean 'rig.speed_km_h'" in err
