@@ -315,7 +315,7 @@ def test_interrupted_demo_leaves_nothing_behind(tmp_path, monkeypatch):
 
 
 def test_demo_says_why_mu_differs_from_the_peak():
-    from torquemod.cli import _why_they_differ
+    from torquemod._cli.output import why_they_differ as _why_they_differ
     truth = {"peak_coa": 0.2451, "mu0": 0.30, "mu_at_top_step": 0.262}
     text = _why_they_differ({"mu": 0.2563}, truth)
     assert "0.2563" in text and "0.2451" in text and "0.2620" in text

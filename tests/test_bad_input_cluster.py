@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 import pytest
+
 from test_outputs_safety import (  # noqa: F401
     experiment,
     no_leftovers,
@@ -29,7 +30,6 @@ from test_outputs_safety import (  # noqa: F401
     readonly,
     snapshot,
 )
-
 from torquemod._util import daskutil
 from torquemod.cli import main
 from torquemod.errors import InputError
@@ -97,7 +97,7 @@ def test_unreachable_scheduler_fails_within_the_timeout(command, inputs, tmp_pat
 
 
 def test_the_help_states_the_sweep_limit_in_force():
-    from torquemod.cli import _MAX_POINTS
+    from torquemod._cli.commands import MAX_POINTS as _MAX_POINTS
     from torquemod.sweep.spec import MAX_POINTS
     assert _MAX_POINTS == MAX_POINTS
 

@@ -15,6 +15,8 @@ import time
 import pytest
 
 from torquemod import cli
+from torquemod._cli import parser as cli_parser
+from torquemod._cli.output import why_they_differ
 from torquemod._util.progress import WarmupBar
 
 
@@ -40,7 +42,7 @@ def test_signals_end_with_the_shells_exit_codes(monkeypatch, capsys, sig, code):
         time.sleep(5)  # the handler raises before this ends
         return 0
 
-    monkeypatch.setattr(cli, "cmd_report", killed)
+    monkeypatch.setattr(cli_parser, "cmd_report", killed)  # the parser binds the command
     assert cli.main(["report", "somewhere"]) == code
     err = capsys.readouterr().err
     assert err.strip() == ("torquemod: terminated" if code == 143 else "torquemod: interrupted")
@@ -76,9 +78,9 @@ def test_no_time_left_before_the_first_item():
 
 def test_demo_words_when_mu_is_not_determined():
     truth = {"peak_coa": 0.2451, "mu0": 0.30, "mu_at_top_step": 0.262}
-    text = cli._why_they_differ({"mu": None, "mu_from_phase": None, "mu_lower_bound": 0.231,
+    text = why_they_differ({"mu": None, "mu_from_phase": None, "mu_lower_bound": 0.231,
                                  "mu_from_phase_interval_95": [0.2492, None]}, truth)
     assert "(-)" not in text and "mu >= 0.2492" in text and "not determined" in text
-    text = cli._why_they_differ({"mu": None, "mu_from_phase": 0.2505}, truth)
+    text = why_they_differ({"mu": None, "mu_from_phase": 0.2505}, truth)
     # it names the value it explains (the phase's estimate is the available adhesion)
     assert "from the phase (0.2505)" in text and "(-)" not in text

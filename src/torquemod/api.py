@@ -40,8 +40,8 @@ if TYPE_CHECKING:  # imported when first used (_LAZY)
     from torquemod.process.pipeline import ProcessResult, process_experiment, resolve_config
     from torquemod.results.folder import load, save, update
 
-__all__ = ["RunOutcome", "analyze", "fit_folder", "load", "load_onboard", "onboard",
-           "process", "read_experiment", "read_run", "report_folder", "run", "save"]
+__all__ = ["RunOutcome", "analyze", "fit_folder", "fit_results_folder", "load", "load_onboard",
+           "onboard", "process", "read_experiment", "read_run", "report_folder", "run", "save"]
 
 Stage = Callable[[str], object] | None
 
@@ -261,3 +261,13 @@ def report_folder(folder, *, report_options=None, on_stage: Stage = None) -> Pat
         say("drawing the figures and writing report.html ...")
         update(folder, res, ana, report_options=report_options)
     return Path(folder) / "report.html"
+
+
+def fit_results_folder(results_dir, *, options=None) -> dict:
+    """Refit a results folder (:func:`fit_folder`: load, analyze, update it
+    atomically with the report) and return :meth:`Analysis.summary` plus the ``fit_json``
+    and ``steps_csv`` paths."""
+    _, ana = fit_folder(results_dir, options)
+    folder = Path(results_dir)
+    return {**ana.summary(), "fit_json": str(folder / "fit.json"),
+            "steps_csv": str(folder / "steps.csv")}

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from scipy.optimize import brentq
 
-from torquemod.analysis.analyzer import ADDED_STEP_COLUMNS, FitOptions, fit_results_folder
+from torquemod.analysis.analyzer import ADDED_STEP_COLUMNS, FitOptions
 from torquemod.analysis.contact.polach import adhesion_curve, adhesion_slope
 from torquemod.analysis.creep import (
     creep_points,
@@ -21,6 +21,7 @@ from torquemod.analysis.creep import (
     time_constant_s,
 )
 from torquemod.analysis.fit import fit_polach, polach_coa, polach_slope
+from torquemod.api import fit_results_folder
 from torquemod.demo import SYNTHETIC_TRUTH, write_synthetic_results
 from torquemod.errors import InputError
 

@@ -60,7 +60,7 @@ def test_library_says_force_true_and_the_cli_says_force(tmp_path, capsys):
     with pytest.raises(OutputError) as info:
         check_output_dir(out, force=False)
     assert "force=True" in str(info.value) and "--force" not in str(info.value)
-    from torquemod.cli import _one_line
+    from torquemod._cli.output import one_line as _one_line
     assert "use --force" in _one_line(info.value) and "force=True" not in _one_line(info.value)
 
 

@@ -56,7 +56,7 @@ def fleet(tmp_path_factory):
 
 def _one_line(exc: BaseException) -> str:
     """What `torquemod process/onboard` print after 'torquemod: error: '."""
-    from torquemod.cli import _one_line
+    from torquemod._cli.output import one_line as _one_line
     return _one_line(exc)
 
 
@@ -203,7 +203,7 @@ def test_file_digest_reused_only_while_size_and_mtime_hold(tmp_path):
     import hashlib
     import os
 
-    from torquemod.fleet.run import _file_digest
+    from torquemod.fleet.plan import _file_digest
     path = tmp_path / "rec.bin"
     path.write_bytes(b"abc" * 1000)
     first = _file_digest(path, {})

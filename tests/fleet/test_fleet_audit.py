@@ -166,7 +166,8 @@ def test_run_failing_while_written_leaves_no_partition(runs, tmp_path, monkeypat
     the fix it stayed, a run half in the datasets). Sequential path, same finish_run."""
     import errno
 
-    from torquemod.fleet.run import run as fleetmod
+    from torquemod.fleet import plan as fleetmod
+    from torquemod.fleet import run as fleetrun
     real, calls = fleetmod._write_partition, []
 
     def full_disk(files, folder):
@@ -183,5 +184,5 @@ def test_run_failing_while_written_leaves_no_partition(runs, tmp_path, monkeypat
     assert row["status"] == "failed"
     assert "No space left on device" in row["message"] and "steps" in row["message"]
     assert not calls[0].exists()
-    fleetmod.prune_empty(out)
+    fleetrun.prune_empty(out)
     assert not any(p.is_file() for p in out.rglob("*"))

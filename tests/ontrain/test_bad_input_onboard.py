@@ -16,8 +16,8 @@ import shutil
 import numpy as np
 import pandas as pd
 import pytest
-from test_outputs_safety import no_leftovers, one_error_line, raise_in, readonly  # noqa: F401
 
+from test_outputs_safety import no_leftovers, one_error_line, raise_in, readonly  # noqa: F401
 from torquemod.cli import main
 from torquemod.twins.independent.train import IndependentRunSpec, simulate_independent
 

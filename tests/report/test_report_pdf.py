@@ -31,7 +31,7 @@ def test_print_stylesheet_is_shared_and_a4():
     assert "@media print" in CSS and "size:A4" in CSS
     assert "thead{display:table-header-group}" in CSS  # headers repeat on each page
     assert "break-inside:avoid" in CSS and "max-height" in CSS  # figures fit a page
-    from torquemod.fleet.run import report as fleetreport
+    from torquemod.fleet import report as fleetreport
     from torquemod.sweep import report as sweep_report
     assert fleetreport.CSS is CSS and sweep_report.CSS is CSS
 

@@ -14,8 +14,8 @@ import subprocess
 import sys
 
 import pytest
-from test_outputs_safety import no_leftovers, one_error_line, raise_in, readonly  # noqa: F401
 
+from test_outputs_safety import no_leftovers, one_error_line, raise_in, readonly  # noqa: F401
 from torquemod.cli import main
 from torquemod.twins.train import default_train_config_text
 from torquemod.twins.vtrack.simulate import default_config_text

@@ -234,7 +234,7 @@ def test_integrator_step_is_configurable_and_checked():
 def test_procedure_defaults_match_the_shipped_configuration():
     """A :class:`ProcedureParams` built in code has the procedure of the shipped
     ``vtrack_default.toml`` (its step and its seven DC torques), not an older one."""
-    from torquemod.twins.vtrack.rig.params import ProcedureParams
+    from torquemod.twins.vtrack.params import ProcedureParams
 
     assert load_config().procedure == ProcedureParams()
 

@@ -47,7 +47,7 @@ from torquemod.io.processing import check_option_types, coerce_options
 if TYPE_CHECKING:
     from torquemod.process.pipeline import ProcessResult
 
-__all__ = ["ADDED_STEP_COLUMNS", "Analysis", "FitOptions", "analyze", "fit_results_folder",
+__all__ = ["ADDED_STEP_COLUMNS", "Analysis", "FitOptions", "analyze",
            "saturation_torque"]
 
 ADDED_STEP_COLUMNS = ("torque_pct_saturation", "creep_coefficient", "phase_theory_deg",
@@ -367,16 +367,3 @@ def _phase_fit(steps_df: pd.DataFrame, pts, use: np.ndarray, constant,
     except (InputError, ProcessingError) as exc:
         return None, str(exc)
     return res, ""
-
-
-def fit_results_folder(results_dir, *, options=None) -> dict:
-    """Refit a results folder (:func:`torquemod.api.fit_folder`: load, analyze, update it
-    atomically with the report) and return :meth:`Analysis.summary` plus the ``fit_json``
-    and ``steps_csv`` paths."""
-    from pathlib import Path
-
-    from torquemod.api import fit_folder  # the orchestrator sits above this module
-    _, ana = fit_folder(results_dir, options)
-    folder = Path(results_dir)
-    return {**ana.summary(), "fit_json": str(folder / "fit.json"),
-            "steps_csv": str(folder / "steps.csv")}

@@ -261,20 +261,20 @@ class Analysis:
                          creepage_multiplier: float = 5.0):
         """Paper Figure 3 on ``ax``, returned; without one on a new Figure (not pyplot),
         whose Axes is returned."""
-        from torquemod.report.figures import creep_curve_figure
+        from torquemod.analysis.figures import creep_curve_figure
         return creep_curve_figure(self, ax=ax, coa_multiplier=coa_multiplier,
                                   creepage_multiplier=creepage_multiplier)
 
     def plot_phase(self, *, ax=None):
         """Paper Figure 4 (phase against DC torque, % of Ts, with the theory) on ``ax``;
         returns the Axes (a new Figure's when None)."""
-        from torquemod.report.figures import phase_figure
+        from torquemod.analysis.figures import phase_figure
         return phase_figure(self, ax=ax)
 
     def plot_phase_fit(self, *, ax=None):
         """The phase against the utilised adhesion with the fit giving mu from the phase;
         returns the Axes (a new Figure's when None)."""
-        from torquemod.report.figures import phase_fit_figure
+        from torquemod.analysis.figures import phase_fit_figure
         return phase_fit_figure(self, ax=ax)
 
 

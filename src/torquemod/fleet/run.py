@@ -40,441 +40,38 @@ are in place; a file whose size and modification time are unchanged keeps its re
 
 from __future__ import annotations
 
-import datetime as _dt
-import glob
-import hashlib
-import json
 import os
 import shutil
 import time
-import tomllib
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
 
-from torquemod._util.blas import single_blas
 from torquemod._util.daskutil import CONNECT_TIMEOUT_S, check_cluster
-from torquemod._version import __version__
-from torquemod.errors import InputError, TorquemodError
-from torquemod.fleet.tasks import _recording_items, may_split, part_item, run_tasks, scan_item
-
-MANIFEST_NAME = "experiment.toml"
-RUN_NAME = "run.toml"
-TABLES = ("cycles", "steps", "track")
-SUMMARY_COLUMNS = ["run", "kind", "status", "vehicle", "date", "manifest", "duration_s",
-                   "n_rows", "n_steps", "n_cycles", "mu", "mu_stderr", "mu_lower_bound",
-                   "mu_given_share", "low_adhesion_windows", "slip_windows", "seconds",
-                   "message"]
-#: summary fields a skipped run takes from its state file
-_KEPT = SUMMARY_COLUMNS[3:-2]
-
-
-def find_manifests(runs: Iterable[str | Path]) -> list[Path]:
-    """Run manifests from ``runs``: manifest files, folders (every ``experiment.toml`` and
-    ``run.toml`` below them), glob patterns, or list files (``.txt``/``.lst``: one of the
-    above a line, ``#`` comments). Sorted, without duplicates."""
-    return sorted(_spellings(runs))
-
-
-def _spellings(runs: Iterable[str | Path]) -> dict[Path, str]:
-    """{resolved manifest path: the path as found} (the first spelling: a folder's or a
-    list file's path joined with what was found there, as the user wrote it). ``runs`` may
-    also be a single path or pattern."""
-    out: dict[Path, str] = {}
-    for p in _found(_as_list(runs)):
-        out.setdefault(p.resolve(), str(p))
-    return out
-
-
-def _as_list(runs: Iterable[str | Path] | str | Path) -> list[str | Path]:
-    """``runs`` as a list: a single path or pattern is a list of one (not its characters)."""
-    return [runs] if isinstance(runs, str | Path) else list(runs)
-
-
-def _found(runs: Iterable[str | Path]) -> list[Path]:
-    found: list[Path] = []
-    for item in runs:
-        text = str(item)
-        path = Path(text)
-        if path.is_dir():
-            found += sorted([*path.rglob(MANIFEST_NAME), *path.rglob(RUN_NAME)])
-        elif path.is_file() and path.suffix.lower() in (".txt", ".lst"):
-            lines = [ln.split("#", 1)[0].strip() for ln in path.read_text().splitlines()]
-            found += _found([path.parent / ln for ln in lines if ln])
-        elif path.is_file():
-            found.append(path)
-        elif any(ch in text for ch in "*?["):
-            found += _found(sorted(glob.glob(text, recursive=True)))
-        else:
-            raise InputError("no such run manifest, folder or list", path=path,
-                             hint="give experiment.toml or run.toml files, folders holding "
-                                  "them, a glob or a .txt list of them")
-    return found
-
-
-def manifest_kind(path: Path) -> str:
-    """``"train"`` for a train run, ``"rig"`` for a rig experiment: by content (a
-    ``[vehicle]`` table without ``[rig]`` is a run, as the readers decide), else by the
-    file name (``run.toml``) when the file does not parse (its reader then names the
-    problem)."""
-    try:
-        doc = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
-        doc = None
-    if isinstance(doc, dict) and ("vehicle" in doc or "rig" in doc):
-        return "train" if "vehicle" in doc and "rig" not in doc else "rig"
-    return "train" if Path(path).name == RUN_NAME else "rig"
-
-
-def _safe(text: str) -> str:
-    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in text)
-
-
-def run_names(manifests: list[Path]) -> list[str]:
-    """A partition name per manifest: its folder's name (``folder-stem`` for a manifest not
-    named experiment.toml or run.toml), with a short hash of the full path when two
-    manifests share a name."""
-    base = [m.parent.name if m.name in (MANIFEST_NAME, RUN_NAME) or not m.parent.name
-            else f"{m.parent.name}-{m.stem}" for m in manifests]
-    out = []
-    for m, b in zip(manifests, base, strict=True):
-        safe = _safe(b or m.stem)
-        if base.count(b) > 1:
-            safe += "-" + hashlib.sha256(str(m).encode()).hexdigest()[:8]
-        out.append(safe)
-    return out
-
-
-def partition_value(value: object, *, day: bool = False) -> str:
-    """A hive partition value: ``unknown`` for nothing; with ``day`` the ISO day of a
-    date, a date-time or a text starting with an ISO date; characters other than letters,
-    digits and ``-_.`` replaced by ``_`` (no ``/`` or ``=`` can enter the path)."""
-    if value is None or (isinstance(value, str) and not value.strip()):
-        return "unknown"
-    if day:
-        if isinstance(value, _dt.datetime):
-            return value.date().isoformat()
-        if isinstance(value, _dt.date):
-            return value.isoformat()
-        try:
-            return _dt.date.fromisoformat(str(value).strip()[:10]).isoformat()
-        except ValueError:
-            pass
-    return _safe(str(value).strip())[:80]
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        while block := fh.read(1 << 22):
-            h.update(block)
-    return h.hexdigest()
-
-
-def _file_digest(path: Path, known: dict) -> list:
-    """``[size, mtime_ns, sha256]`` of a file; the digest in ``known[str(path)]`` is reused
-    when size and modification time are unchanged (a rerun does not read every file again
-    just to find it unchanged; the usual assumption of make and rsync)."""
-    st = path.stat()
-    old = known.get(str(path))
-    if old and old[0] == st.st_size and old[1] == st.st_mtime_ns:
-        return list(old)
-    return [st.st_size, st.st_mtime_ns, _sha256(path)]
-
-
-@dataclass(frozen=True)
-class Prepared:
-    """A parsed manifest and its fingerprint: ``kind`` rig or train, ``source`` the
-    Experiment or Run, ``settings`` the processing or ``[onboard]`` settings (an
-    OnboardConfig for a run), the partition labels ``vehicle`` and ``date``."""
-
-    kind: str
-    source: object
-    settings: object
-    digest: str
-    files: dict
-    vehicle: str
-    date: str
-    fresh: frozenset = frozenset()  # files hashed now (not digests kept from the last run)
-
-
-def prepare(manifest: Path, known: dict | None = None, *, kind: str | None = None,
-            fit: bool = True) -> Prepared:
-    """Read the manifest and fingerprint it: SHA-256 over the manifest's and each
-    recording's SHA-256, the settings, the kind and the torquemod version; ``files`` maps
-    each file to ``[size, mtime_ns, sha256]`` (pass it back as ``known`` next time)."""
-    known = known or {}
-    kind = kind or manifest_kind(manifest)
-    if kind == "train":
-        from torquemod.io.run import read_run
-        from torquemod.ontrain import OnboardConfig
-        src = read_run(manifest)
-        settings = OnboardConfig.from_dict(src.extra.get("onboard"),
-                                           source=str(src.manifest_path))
-        params = settings.to_dict()
-        dates = sorted(partition_value(e.date, day=True) for e in src.recordings if e.date)
-        vehicle, date = src.vehicle.name, dates[0] if dates else None
-    else:
-        from torquemod.io import read_experiment
-        src = read_experiment(manifest)
-        settings = src.processing
-        params = dict(settings.to_dict(), fit=fit)
-        vehicle, date = src.rig.extra.get("vehicle"), src.test.extra.get("date")
-    files = {str(Path(src.manifest_path)): _file_digest(Path(src.manifest_path), known)}
-    for path in sorted({str(e.path) for e in src.recordings}):
-        if Path(path).is_file():
-            files[path] = _file_digest(Path(path), known)
-    h = hashlib.sha256(kind.encode())
-    for path, (_, _, digest) in sorted(files.items()):
-        h.update(f"{path}\0{digest}\0".encode())
-    h.update(json.dumps(params, sort_keys=True, default=str).encode())
-    h.update(__version__.encode())
-    fresh = frozenset(p for p, d in files.items() if known.get(p) != d)
-    return Prepared(kind, src, settings, h.hexdigest(), files,
-                    partition_value(vehicle), partition_value(date, day=True), fresh)
-
-
-def fingerprint(manifest: Path, known: dict | None = None) -> tuple[str, object, dict]:
-    """``(hex digest, experiment or run, files)`` of :func:`prepare`."""
-    p = prepare(Path(manifest), known)
-    return p.digest, p.source, p.files
-
-
-@dataclass(frozen=True)
-class Plan:
-    """A run to (re)process, split into items: the run's recordings (rig: one task per
-    recording file, steps 1-5 and 8 of the chain; train: one task per axle), assembled by
-    :func:`finish_run` (rig: alignment, phases, steps and the fit, exactly as
-    ``process_experiment``; train: the axles' track tables)."""
-
-    prep: Prepared
-    manifest: str
-    out_dir: str
-    run: str
-    row: dict
-    old_parts: tuple[str, ...]
-    fit: bool
-    seconds: float
-    revolutions_per_task: int | None = None
-    axle_chunk_s: float | None = None
-
-    @property
-    def n_items(self) -> int:
-        return len(self.prep.source.recordings)
-
-
-def _state_path(out_dir: str, run: str) -> Path:
-    return Path(out_dir) / "_state" / f"{run}.json"
-
-
-def _failed(row: dict, exc: BaseException | str, out_dir: str, old_parts) -> dict:
-    """The failure row; an earlier good run's partitions and state are removed (no stale
-    results)."""
-    row.update(status="failed", message=exc if isinstance(exc, str) else one_line(exc))
-    _remove(Path(out_dir), old_parts)
-    _state_path(out_dir, row["run"]).unlink(missing_ok=True)
-    return row
-
-
-def plan_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
-             fit: bool = True, revolutions_per_task: int | None = None,
-             axle_chunk_s: float | None = None) -> dict | Plan:
-    """Read and fingerprint one run manifest: a summary row when the run is done with
-    (``skipped``: unchanged; ``failed``: the manifest is bad), else its :class:`Plan`
-    (``revolutions_per_task``, ``axle_chunk_s``: see :func:`scan_item`). Never raises (a
-    Dask task)."""
-    t0 = time.perf_counter()
-    row = dict.fromkeys(SUMMARY_COLUMNS)
-    row.update(run=run, manifest=str(manifest), kind=manifest_kind(Path(manifest)),
-               vehicle="unknown", date="unknown", n_steps=0, n_cycles=0, n_rows=0,
-               message="")
-    state = _state_path(out_dir, run)
-    try:
-        old = json.loads(state.read_text()) if state.is_file() else {}
-    except (OSError, ValueError):
-        old = {}
-    old_parts = tuple(old.get("partitions", [])) + tuple(f"{t}/run={run}" for t in TABLES)
-    try:
-        prep = prepare(Path(manifest), old.get("files"), kind=row["kind"], fit=fit)
-    except Exception as exc:
-        return dict(_failed(row, exc, out_dir, old_parts), seconds=time.perf_counter() - t0)
-    row.update(vehicle=prep.vehicle, date=prep.date)
-    out = Path(out_dir)
-    if (not force and old.get("fingerprint") == prep.digest and old.get("partitions")
-            and all((out / p).is_dir() for p in old["partitions"])):
-        return {**row, **{k: old.get("row", {}).get(k) for k in _KEPT}, "status": "skipped",
-                "seconds": time.perf_counter() - t0}
-    return Plan(prep, str(manifest), out_dir, run, row, old_parts, fit,
-                time.perf_counter() - t0, revolutions_per_task, axle_chunk_s)
-
-
-@single_blas
-def work_item(plan: Plan, index: int) -> tuple:
-    """Recording ``index`` of the plan: ``("ok", result, seconds)`` or ``("error", one-line
-    message, seconds)``. Never raises (a Dask task)."""
-    t0 = time.perf_counter()
-    prep = plan.prep
-    entry = prep.source.recordings[index]
-    try:
-        if prep.kind == "train":
-            from torquemod.ontrain.run import estimate_axle, track_table
-            out = track_table(estimate_axle(prep.source, entry, prep.settings))
-        else:
-            from torquemod.process.pipeline import load_and_process, resolve_config
-            out = load_and_process(entry, prep.source, resolve_config(prep.source))
-        return "ok", out, time.perf_counter() - t0
-    except Exception as exc:
-        return "error", one_line(exc), time.perf_counter() - t0
-
-
-def _rig_tables(prep: Prepared, loaded: list, fit: bool) -> tuple[dict, dict]:
-    """``torquemod process`` without its results folder, from the recordings' results:
-    {table: {file: DataFrame}} and the summary fields (the fit's mu when ``fit``)."""
-    from torquemod.process.pipeline import process_experiment
-    res = process_experiment(prep.source, workers=1,
-                             loaded=list(zip(prep.source.recordings, loaded, strict=True)))
-    info = {"n_steps": len(res.steps), "n_cycles": len(res.cycles), "n_rows": len(res.cycles),
-            "duration_s": float(sum(d["n_samples"] / d["fs_hz"] for d in res.cycle_details))}
-    if fit:
-        from torquemod.analysis.analyzer import analyze
-        ana = analyze(res)
-        pf = ana.phase_fit
-        from_phase = ana.mu is None and pf is not None and pf.mu_determined
-        mu = ana.mu if ana.mu is not None else (pf.mu if from_phase else None)
-        stderr = ana.mu_stderr if ana.mu is not None else (
-            getattr(pf, "mu_stderr", None) if from_phase else None)
-        info.update(mu=mu, mu_stderr=stderr, mu_lower_bound=ana.mu_lower_bound)
-    return {"cycles": {"part-0.parquet": res.cycles},
-            "steps": {"part-0.parquet": res.steps}}, info
-
-
-def _train_tables(prep: Prepared, tracks: list) -> tuple[dict, dict]:
-    """``torquemod onboard`` without its results folder: every axle's ``track.parquet``
-    table (:func:`torquemod.ontrain.run.track_table`) and the summary fields."""
-    run, config = prep.source, prep.settings
-    axles = [e.axle for e in run.recordings]
-    allrows = pd.concat(tracks, ignore_index=True)
-    window_s = config.window_periods / run.modulation_frequency_hz
-    given = allrows["mu"].notna()
-    from torquemod.ontrain.alongtrack import run_mu_summary
-    mu, bound = run_mu_summary(allrows)
-    info = {"n_rows": len(allrows),
-            "duration_s": max(float(t["time_s"].iloc[-1] - t["time_s"].iloc[0]) + window_s
-                              for t in tracks),
-            "mu": mu, "mu_lower_bound": bound,
-            "mu_given_share": float(given.mean()),
-            "low_adhesion_windows": int(allrows["low_adhesion"].sum()),
-            "slip_windows": int(allrows["slip"].sum())}
-    return {"track": {f"axle={a}/part-0.parquet": t
-                      for a, t in sorted(zip(axles, tracks, strict=True))}}, info
-
-
-@single_blas
-def finish_run(plan: Plan, *items: tuple, layout: list | None = None) -> dict:
-    """Assemble the run from its items (in manifest order; ``layout``: the parts of split
-    recordings, :func:`_recording_items`), write its partitions and state: the summary
-    row. The first failed item, in manifest order, fails the run with its message (the one
-    the sequential command meets first). Never raises (a Dask task)."""
-    t0 = time.perf_counter()
-    row = dict(plan.row)
-    seconds = plan.seconds
-    parts: list[str] = []  # written by this task: removed again if the run fails after all
-    try:
-        items = tuple(_recording_items(plan, items, layout))
-        seconds += sum(it[2] for it in items)
-        errors = [it[1] for it in items if it[0] != "ok"]
-        if errors:
-            raise _ItemError(errors[0])
-        results = [it[1] for it in items]
-        prep = plan.prep
-        tables, info = (_train_tables(prep, results) if prep.kind == "train"
-                        else _rig_tables(prep, results, plan.fit))
-        out = Path(plan.out_dir)
-        where = f"vehicle={prep.vehicle}/date={prep.date}/run={plan.run}"
-        for table, files in tables.items():
-            parts.append(f"{table}/{where}")
-            _write_partition(files, out / table / where)
-        _remove(out, [p for p in plan.old_parts if p not in parts])
-        row.update(info, status="processed")
-        state = _state_path(plan.out_dir, plan.run)
-        state.parent.mkdir(parents=True, exist_ok=True)
-        tmp = state.with_name(state.name + ".tmp")
-        tmp.write_text(json.dumps({"fingerprint": prep.digest, "manifest": plan.manifest,
-                                   "partitions": parts, "files": prep.files,
-                                   "row": {k: row[k] for k in _KEPT}}, default=str))
-        os.replace(tmp, state)
-    except _ItemError as exc:
-        _failed(row, str(exc), plan.out_dir, plan.old_parts)
-    except Exception as exc:  # a bad run (or a bug) is reported; the fleet goes on
-        _failed(row, exc, plan.out_dir, (*plan.old_parts, *parts))
-    row["seconds"] = seconds + time.perf_counter() - t0
-    return row
-
-
-class _ItemError(Exception):
-    """An item's failure, carried to :func:`finish_run` as its one-line message."""
-
-
-def process_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
-                fit: bool = True, revolutions_per_task: int | None = None,
-                axle_chunk_s: float | None = None) -> dict:
-    """Process one run manifest (rig or train) into its partitions in this process: what
-    :func:`run_fleet` does with tasks, in sequence. Never raises: the outcome is a summary
-    row (``status`` processed, skipped or failed; :data:`SUMMARY_COLUMNS`)."""
-    plan = plan_run(manifest, out_dir, run, force, fit=fit,
-                    revolutions_per_task=revolutions_per_task, axle_chunk_s=axle_chunk_s)
-    if isinstance(plan, dict):
-        return plan
-    items, layout = [], []
-    for i in range(plan.n_items):
-        kind, rplan, groups, scan_s, first = (scan_item(plan, i) if may_split(plan, i)
-                                              else ("whole", None, None, 0.0, None))
-        if kind == "split":
-            items += [first] if first is not None else []
-            items += [part_item(plan, i, rplan, a, b)
-                      for a, b in groups[0 if first is None else 1:]]
-            layout.append((rplan, len(groups), scan_s))
-        else:
-            items.append(work_item(plan, i))
-            layout.append(None)
-    return finish_run(plan, *items, layout=layout)
-
-
-def _write_partition(files: dict, folder: Path) -> None:
-    """``files`` ({relative path: DataFrame}) as the folder ``folder``, replacing it at once
-    (written beside it under a hidden name, which dataset readers skip, then renamed), so a
-    reader never sees half a partition."""
-    tmp = folder.with_name("." + folder.name + ".tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    for rel, df in files.items():
-        (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-        df.to_parquet(tmp / rel, index=False)
-    old = folder.with_name("." + folder.name + ".old")
-    if folder.exists():
-        shutil.rmtree(old, ignore_errors=True)
-        folder.rename(old)
-    tmp.rename(folder)
-    shutil.rmtree(old, ignore_errors=True)
-
-
-def one_line(exc: BaseException) -> str:
-    """The error as the command line prints it after ``torquemod: error:`` (one line)."""
-    from torquemod._util.fsutil import environment_error
-    if not isinstance(exc, TorquemodError) and (env := environment_error(exc)) is not None:
-        reason = env.strerror or " ".join(str(env).split())
-        return f"{env.filename}: {reason}" if env.filename else reason
-    text = " ".join(str(exc).split())
-    if isinstance(exc, TorquemodError):
-        return text
-    return f"internal error: {type(exc).__name__}: {text}"
-
-
-def _remove(out: Path, rels: Iterable[str]) -> None:
-    for rel in rels:
-        shutil.rmtree(out / rel, ignore_errors=True)
+from torquemod.errors import InputError
+from torquemod.fleet.plan import (  # noqa: F401  (the fleet's per-run API, here as before)
+    MANIFEST_NAME,
+    RUN_NAME,
+    SUMMARY_COLUMNS,
+    TABLES,
+    Plan,
+    Prepared,
+    _as_list,
+    _spellings,
+    find_manifests,
+    fingerprint,
+    finish_run,
+    manifest_kind,
+    partition_value,
+    plan_run,
+    prepare,
+    process_run,
+    run_names,
+    work_item,
+)
+from torquemod.fleet.tasks import may_split, one_line, part_item, scan_item
 
 
 def prune_empty(out: Path) -> None:
@@ -612,3 +209,96 @@ def _write_csv(df: pd.DataFrame, path: Path) -> None:
     tmp = path.with_name("." + path.name + ".tmp")
     df.to_csv(tmp, index=False)
     os.replace(tmp, path)
+
+
+def run_tasks(client, paths: list[Path], names: list[str], out: str, force: bool,
+               fit: bool, progress: bool, revolutions_per_task: int | None = None,
+               axle_chunk_s: float | None = None) -> list[dict]:
+    """The fleet's task graph, grown as results arrive: per run a :func:`plan_run` task; for
+    a run to process, per recording one :func:`work_item` task, or for a rig recording that
+    may be split a :func:`scan_item` task and then one :func:`part_item` task per group of
+    revolutions; once every recording of the run has its tasks, a :func:`finish_run` task on
+    their results. Returns the summary rows; a task lost with its worker (killed, out of
+    memory) becomes a failed row."""
+    from dask.distributed import as_completed
+    from tqdm import tqdm
+
+
+    def key(kind: str, name: str) -> str:
+        return f"torquemod-{kind}-{name}-{time.time_ns()}"
+
+    runs = {}  # plan and finish futures -> (run, manifest)
+    scans = {}  # scan futures -> (run, recording index)
+    open_runs: dict[str, dict] = {}  # run -> plan, per recording its futures and layout
+    for p, name in zip(paths, names, strict=True):
+        runs[client.submit(plan_run, str(p), out, name, force, fit=fit,
+                           revolutions_per_task=revolutions_per_task,
+                           axle_chunk_s=axle_chunk_s, pure=False,
+                           key=key("plan", name))] = (name, str(p))
+    rows = []
+    bar = tqdm(total=len(runs), desc="fleet", unit="run", disable=not progress)
+    done = as_completed(list(runs))
+
+    def whole(plan: Plan, name: str, i: int) -> tuple[list, None]:
+        return [client.submit(work_item, plan, i, pure=False, key=key(f"item{i}", name))], None
+
+    def finish_when_ready(name: str) -> None:
+        st = open_runs[name]
+        if st["waiting"]:
+            return
+        del open_runs[name]
+        futs = [f for slot in st["slots"] for f in slot[0]]
+        last = client.submit(finish_run, st["plan"], *futs,
+                             layout=[slot[1] for slot in st["slots"]], pure=False,
+                             key=key("finish", name))
+        runs[last] = (name, st["manifest"])
+        done.add(last)
+
+    for fut in done:
+        if fut in scans:
+            name, i = scans.pop(fut)
+            st = open_runs[name]
+            try:
+                kind, rplan, groups, scan_s, first = fut.result()
+            except Exception:  # the worker died under the scan: one task for the file
+                kind = "whole"
+            if kind == "split":
+                done_first = [] if first is None else [first]
+                st["slots"][i] = (done_first + [
+                    client.submit(part_item, st["plan"], i, rplan, a, b, pure=False,
+                                  key=key(f"part{i}.{a}", name))
+                    for a, b in groups[len(done_first):]], (rplan, len(groups), scan_s))
+            else:
+                st["slots"][i] = whole(st["plan"], name, i)
+            st["waiting"] -= 1
+            finish_when_ready(name)
+            continue
+        name, manifest = runs.pop(fut)  # nothing held once handled
+        try:
+            res = fut.result()
+        except Exception as exc:  # the worker died under the task
+            row = dict.fromkeys(SUMMARY_COLUMNS)
+            row.update(run=name, manifest=manifest, kind=manifest_kind(Path(manifest)),
+                       status="failed", message=one_line(exc))
+            rows.append(row)
+            bar.update()
+            continue
+        if isinstance(res, Plan):
+            st = {"plan": res, "manifest": manifest, "slots": [], "waiting": 0}
+            open_runs[name] = st
+            for i in range(res.n_items):
+                if may_split(res, i):
+                    scan = client.submit(scan_item, res, i, pure=False,
+                                         key=key(f"scan{i}", name))
+                    scans[scan] = (name, i)
+                    done.add(scan)
+                    st["slots"].append(None)
+                    st["waiting"] += 1
+                else:
+                    st["slots"].append(whole(res, name, i))
+            finish_when_ready(name)
+            continue
+        rows.append(res)
+        bar.update()
+    bar.close()
+    return rows

@@ -1,19 +1,16 @@
-"""The fleet's Dask task graph (:func:`run_tasks`, for :func:`torquemod.fleet.run.run_fleet`) and
-the tasks of a rig recording spanning many revolutions (issue 11): a cheap scan, one task per
-group of revolutions, and their merge in the run's assembly
-(:func:`torquemod.fleet.run.finish_run`). The work itself is :mod:`torquemod.process.revtasks`."""
+"""The fleet's tasks below a run: the tasks of a rig recording spanning many revolutions (a
+cheap scan, one task per group of revolutions, and their merge in the run's assembly,
+:func:`torquemod.fleet.plan.finish_run`) and a train axle's chunks. The work itself is
+:mod:`torquemod.process.revtasks` and :mod:`torquemod.ontrain.chunks`; the graph that sends
+them to Dask is :func:`torquemod.fleet.run.run_tasks`. ``plan`` arguments are
+:class:`torquemod.fleet.plan.Plan`."""
 
 from __future__ import annotations
 
 import time
-from pathlib import Path
-from typing import TYPE_CHECKING
 
 from torquemod._util.blas import single_blas
-
-if TYPE_CHECKING:
-    from torquemod.fleet.run import Plan
-
+from torquemod.errors import TorquemodError
 
 #: seconds of a train axle's recording per task (the windows it measures) by default
 AXLE_TASK_S = 600.0
@@ -22,16 +19,23 @@ AXLE_TASK_S = 600.0
 AXLE_SCAN_MIN_BYTES = 16 * 2**20
 
 
-def _fresh_sha256(plan: Plan, index: int) -> str | None:
+def _fresh_sha256(plan, index: int) -> str | None:
     """The recording's SHA-256 when the plan computed it just now (not kept from the last
     run's state by size and modification time): then no task reads the file to hash it."""
     path = str(plan.prep.source.recordings[index].path)
     return plan.prep.files[path][2] if path in plan.prep.fresh else None
 
 
-def _one_line(exc: BaseException) -> str:
-    from torquemod.fleet.run import one_line
-    return one_line(exc)
+def one_line(exc: BaseException) -> str:
+    """The error as the command line prints it after ``torquemod: error:`` (one line)."""
+    from torquemod._util.fsutil import environment_error
+    if not isinstance(exc, TorquemodError) and (env := environment_error(exc)) is not None:
+        reason = env.strerror or " ".join(str(env).split())
+        return f"{env.filename}: {reason}" if env.filename else reason
+    text = " ".join(str(exc).split())
+    if isinstance(exc, TorquemodError):
+        return text
+    return f"internal error: {type(exc).__name__}: {text}"
 
 
 def _axle_api():
@@ -41,7 +45,7 @@ def _axle_api():
     return onboard_run if all(hasattr(onboard_run, n) for n in names) else None
 
 
-def may_split(plan: Plan, index: int) -> bool:
+def may_split(plan, index: int) -> bool:
     """Whether recording ``index`` may be cut into several tasks (a rig recording without
     a manifest cycle, NaN policy ``raise``: groups of revolutions; a train axle: chunks of
     ``axle_chunk_s``, default :data:`AXLE_TASK_S` and only files of
@@ -61,7 +65,7 @@ def may_split(plan: Plan, index: int) -> bool:
 
 
 @single_blas
-def scan_item(plan: Plan, index: int) -> tuple:
+def scan_item(plan, index: int) -> tuple:
     """Recording ``index`` of a plan, cheaply: ``("split", RevolutionPlan or None, groups,
     seconds, first)`` when it becomes one task per group (rig: of revolutions,
     ``plan.revolutions_per_task`` each, default about a minute of recording,
@@ -99,7 +103,7 @@ def scan_item(plan: Plan, index: int) -> tuple:
 
 
 @single_blas
-def part_item(plan: Plan, index: int, rplan, first: int, stop: int) -> tuple:
+def part_item(plan, index: int, rplan, first: int, stop: int) -> tuple:
     """Revolutions ``first:stop`` of recording ``index`` (:func:`scan_item`'s plan):
     ``("ok", RevolutionPart, seconds)`` or ``("error", one-line message, seconds)``. Never
     raises (a Dask task)."""
@@ -117,10 +121,10 @@ def part_item(plan: Plan, index: int, rplan, first: int, stop: int) -> tuple:
                                   sha256=_fresh_sha256(plan, index) if first == 0 else None)
         return "ok", out, time.perf_counter() - t0
     except Exception as exc:
-        return "error", _one_line(exc), time.perf_counter() - t0
+        return "error", one_line(exc), time.perf_counter() - t0
 
 
-def _recording_items(plan: Plan, items: tuple, layout: list | None) -> list[tuple]:
+def _recording_items(plan, items: tuple, layout: list | None) -> list[tuple]:
     """One item per recording: ``layout`` (per recording None for one :func:`work_item`,
     or ``(RevolutionPlan or None, number of parts, scan seconds)``) says which items are
     the parts of a split recording; they are merged (rig: :func:`merge_revolutions`; train:
@@ -152,107 +156,5 @@ def _recording_items(plan: Plan, items: tuple, layout: list | None) -> list[tupl
                 merged = merge_revolutions(rplan, [p[1] for p in parts])
             out.append(("ok", merged, secs))
         except Exception as exc:
-            out.append(("error", _one_line(exc), secs))
+            out.append(("error", one_line(exc), secs))
     return out
-
-
-def run_tasks(client, paths: list[Path], names: list[str], out: str, force: bool,
-               fit: bool, progress: bool, revolutions_per_task: int | None = None,
-               axle_chunk_s: float | None = None) -> list[dict]:
-    """The fleet's task graph, grown as results arrive: per run a :func:`plan_run` task; for
-    a run to process, per recording one :func:`work_item` task, or for a rig recording that
-    may be split a :func:`scan_item` task and then one :func:`part_item` task per group of
-    revolutions; once every recording of the run has its tasks, a :func:`finish_run` task on
-    their results. Returns the summary rows; a task lost with its worker (killed, out of
-    memory) becomes a failed row."""
-    from dask.distributed import as_completed
-    from tqdm import tqdm
-
-    from torquemod.fleet.run import (
-        SUMMARY_COLUMNS,
-        Plan,
-        finish_run,
-        manifest_kind,
-        one_line,
-        plan_run,
-        work_item,
-    )
-
-    def key(kind: str, name: str) -> str:
-        return f"torquemod-{kind}-{name}-{time.time_ns()}"
-
-    runs = {}  # plan and finish futures -> (run, manifest)
-    scans = {}  # scan futures -> (run, recording index)
-    open_runs: dict[str, dict] = {}  # run -> plan, per recording its futures and layout
-    for p, name in zip(paths, names, strict=True):
-        runs[client.submit(plan_run, str(p), out, name, force, fit=fit,
-                           revolutions_per_task=revolutions_per_task,
-                           axle_chunk_s=axle_chunk_s, pure=False,
-                           key=key("plan", name))] = (name, str(p))
-    rows = []
-    bar = tqdm(total=len(runs), desc="fleet", unit="run", disable=not progress)
-    done = as_completed(list(runs))
-
-    def whole(plan: Plan, name: str, i: int) -> tuple[list, None]:
-        return [client.submit(work_item, plan, i, pure=False, key=key(f"item{i}", name))], None
-
-    def finish_when_ready(name: str) -> None:
-        st = open_runs[name]
-        if st["waiting"]:
-            return
-        del open_runs[name]
-        futs = [f for slot in st["slots"] for f in slot[0]]
-        last = client.submit(finish_run, st["plan"], *futs,
-                             layout=[slot[1] for slot in st["slots"]], pure=False,
-                             key=key("finish", name))
-        runs[last] = (name, st["manifest"])
-        done.add(last)
-
-    for fut in done:
-        if fut in scans:
-            name, i = scans.pop(fut)
-            st = open_runs[name]
-            try:
-                kind, rplan, groups, scan_s, first = fut.result()
-            except Exception:  # the worker died under the scan: one task for the file
-                kind = "whole"
-            if kind == "split":
-                done_first = [] if first is None else [first]
-                st["slots"][i] = (done_first + [
-                    client.submit(part_item, st["plan"], i, rplan, a, b, pure=False,
-                                  key=key(f"part{i}.{a}", name))
-                    for a, b in groups[len(done_first):]], (rplan, len(groups), scan_s))
-            else:
-                st["slots"][i] = whole(st["plan"], name, i)
-            st["waiting"] -= 1
-            finish_when_ready(name)
-            continue
-        name, manifest = runs.pop(fut)  # nothing held once handled
-        try:
-            res = fut.result()
-        except Exception as exc:  # the worker died under the task
-            row = dict.fromkeys(SUMMARY_COLUMNS)
-            row.update(run=name, manifest=manifest, kind=manifest_kind(Path(manifest)),
-                       status="failed", message=one_line(exc))
-            rows.append(row)
-            bar.update()
-            continue
-        if isinstance(res, Plan):
-            st = {"plan": res, "manifest": manifest, "slots": [], "waiting": 0}
-            open_runs[name] = st
-            for i in range(res.n_items):
-                if may_split(res, i):
-                    scan = client.submit(scan_item, res, i, pure=False,
-                                         key=key(f"scan{i}", name))
-                    scans[scan] = (name, i)
-                    done.add(scan)
-                    st["slots"].append(None)
-                    st["waiting"] += 1
-                else:
-                    st["slots"].append(whole(res, name, i))
-            finish_when_ready(name)
-            continue
-        rows.append(res)
-        bar.update()
-    bar.close()
-    return rows

@@ -231,7 +231,9 @@ def assemble_axle(run: Run, entry: RunRecording, config: OnboardConfig | None,
     order): positions, then the estimator's state over every window."""
     import pandas as pd
 
-    from torquemod.ontrain.run import OnboardResult, _AxleSignals, load_truth, premise_warnings
+    from torquemod.io.truth import load_truth
+    from torquemod.ontrain.quality import premise_warnings
+    from torquemod.ontrain.result import OnboardResult
     config = axle_config(run, config)
     t_start = time.perf_counter()
     starts = [s for p in parts for s in p.starts]

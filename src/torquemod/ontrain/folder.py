@@ -133,7 +133,7 @@ def load_onboard(folder, axle: int | None = None) -> OnboardResult:
     ``[truth] file`` is still where it was."""
     import pandas as pd
 
-    from torquemod.ontrain.run import load_truth
+    from torquemod.io.truth import load_truth
     folder = Path(folder)
     path = folder / META
     try:

@@ -25,6 +25,8 @@ import math
 
 import numpy as np
 
+from torquemod.errors import InputError
+
 #: the window holds the method's premise
 QUALITY_OK = "ok"
 #: what each flag means, as the warnings say it
@@ -162,3 +164,45 @@ def modulation_line_hz(torque_nm: np.ndarray, fs_hz: float, declared_hz: float,
             and at_declared < 0.1 * p[peak] and abs(f[band][peak] - declared_hz) > 2 * fs_hz / n):
         return float(f[band][peak])
     return None
+
+
+def premise_warnings(run, entry, track, config, torque_nm=None, fs_hz: float | None = None):
+    """``(track, warnings)`` of one axle (``entry``, a :class:`~torquemod.io.run.RunRecording`
+    of the :class:`~torquemod.io.run.Run` ``run``, estimated with the
+    :class:`~torquemod.ontrain.estimator.OnboardConfig` ``config``): the axle's track with
+    the torque-stepping windows judged by their neighbours (:func:`without_line_nearby`),
+    and the warnings about the method's premise (:mod:`torquemod.ontrain.quality`): the stretches
+    without it, and a run with fewer measurable windows than the friction fit needs. No
+    measurable window at all raises :class:`InputError` (as ``process`` refuses a recording
+    without a modulation line), naming the line the torque has instead when ``torque_nm``
+    (a stretch of the axle's torque at ``fs_hz`` [Hz]) shows one."""
+    f = run.modulation_frequency_hz
+    q = without_line_nearby(track["quality"].to_numpy(object), ~stepping(
+        track["dc_step_nm"], run.modulation_amplitude_nm, config.max_dc_step_ratio))
+    lost = q != track["quality"].to_numpy(object)
+    if lost.any():
+        track = track.copy()
+        track.loc[lost, ["phase_deg", "phase_se_deg", "creep_coefficient", "mu", "mu_low_95",
+                         "mu_high_95", "utilisation", "creepage",
+                         "creep_coefficient_ref"]] = math.nan
+        track.loc[lost, ["low_adhesion", "slip"]] = False
+        track["quality"] = q
+    n_ok = int((q == QUALITY_OK).sum())
+    if n_ok == 0:
+        flags = {k: int((q == k).sum()) for k in REASONS}
+        worst = max(flags, key=flags.get)
+        what = REASONS[worst].replace("the declared frequency", f"{f:g} Hz")
+        hint = {"no_modulation": "record with the torque modulation on, or check [test] "
+                                 "modulation_frequency_hz and modulation_amplitude_nm",
+                "standstill": "record while the train runs (at least [onboard] "
+                              f"min_speed_m_s = {config.min_speed_m_s:g} m/s)",
+                "reverse": "the method needs forward running; if the run went forward, "
+                           "the speed channels' sign is wrong"}[worst]
+        raise InputError(f"no window of axle {entry.axle} can be measured: {what} "
+                         f"({flags[worst]} of {q.size} windows)", path=entry.path, hint=hint)
+    out = quality_warnings(track["position_m"], q, axle=entry.axle, frequency_hz=f)
+    if n_ok < config.min_windows:
+        out.append(f"axle {entry.axle}: only {n_ok} measurable windows, fewer than the "
+                   f"{config.min_windows} the friction fit needs ([onboard] min_windows): "
+                   "the run is too short for a friction estimate (mu stays empty)")
+    return track, out

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from torquemod.report.html import CSS, _img, _kv, table
+from torquemod.report.html import CSS, definition_list, figure_html, table
 
 #: legends below the axes, outside the data (the figures' axes then share one width, so
 #: positions line up from figure to figure)
@@ -139,7 +139,7 @@ def plot_utilisation(result, *, ax=None):
     """How much of the adhesion the axle used along the track: CoA/μ where μ is
     determined, else CoA over the lower bound of its segment (an upper limit of the
     utilisation, as the adhesion is at least that bound); the simulated truth, CoA over the
-    available adhesion (:func:`torquemod.twins.train.simulate.adhesion_utilisation`); the
+    available adhesion (:func:`torquemod.io.truth.adhesion_utilisation`); the
     ``low_adhesion`` and ``slip`` flags. Returns the Axes."""
     ax = _axes(ax)
     t = result.track
@@ -159,7 +159,7 @@ def plot_utilisation(result, *, ax=None):
         ax.plot(x[given], t["utilisation"].to_numpy(dtype=float)[given], "o", color="C0",
                 ms=3, label="CoA / μ where μ is determined")
     if result.truth is not None:
-        from torquemod.twins.train.simulate import adhesion_utilisation
+        from torquemod.io.truth import adhesion_utilisation
         tr = result.truth
         ax.plot(tr["position_m"], adhesion_utilisation(tr["coa"], tr["adhesion_peak"]), "k--",
                 lw=0.8, label="truth: CoA / available adhesion")
@@ -224,7 +224,7 @@ def write_figures(folder: Path, result) -> list[dict]:
 
 
 def segment_estimates(track, segments: list[dict]) -> list[dict]:
-    """Each truth segment (:func:`torquemod.twins.train.simulate.segment_summary`) with the
+    """Each truth segment (:func:`torquemod.io.truth.segment_summary`) with the
     estimate over the track's rows inside it (the along-track rules of
     :mod:`torquemod.ontrain.alongtrack`): ``mu_estimate`` (median where μ is determined,
     else None), ``mu_lower_bound`` (95th percentile of the bounds where it is not; None
@@ -293,7 +293,7 @@ def _segments_table(result) -> str:
     tr = result.truth
     if tr is None:
         return ""
-    from torquemod.twins.train.simulate import segment_summary
+    from torquemod.io.truth import segment_summary
     rows = []
     for s in segment_estimates(result.track, segment_summary(tr)):
         rows.append([s["condition"], f"{s['start_m']:.0f}–{s['end_m']:.0f}", f"{s['mu']:.3f}",
@@ -351,7 +351,7 @@ def write_report(path: Path, result, meta: dict, figures: list[dict]) -> None:
     s = result.summary()
     notes = "".join(f"<li>{escape(n)}</li>" for n in result.notes) or "<li>none</li>"
     warns = "".join(f'<p class="warn">{escape(w)}</p>' for w in result.warnings)
-    imgs = "".join(_img(f["png"], f["alt"], f"Figure {i}: {f['caption']}")
+    imgs = "".join(figure_html(f["png"], f["alt"], f"Figure {i}: {f['caption']}")
                    for i, f in enumerate(figures, 1))
     head = "".join(f"<p>{escape(line)}</p>" for line in headline(result))
     others = [a for a in meta.get("axles", []) if a.get("axle") != result.axle]
@@ -360,8 +360,9 @@ def write_report(path: Path, result, meta: dict, figures: list[dict]) -> None:
                                 "are in " + ", ".join(a.get("track_file", "?") for a in others)
                                 + " and their along_track_axle<N>.csv.") + "</p>")
     seg, km = result.along_track(), result.along_track("km")
-    settings = _kv(sorted((k, ", ".join(str(x) for x in v) if isinstance(v, list) else v)
-                          for k, v in meta["onboard"].items()))
+    settings = definition_list(sorted(
+        (k, ", ".join(str(x) for x in v) if isinstance(v, list) else v)
+        for k, v in meta["onboard"].items()))
     body = f"""<!doctype html><html><head><meta charset="utf-8">
 <title>torquemod on-board: {escape(result.run.manifest_path.name)}</title>
 <style>{CSS}{_CSS}</style></head><body>

@@ -5,13 +5,13 @@ estimator, written as ``track.parquet`` (one row per window, :data:`TRACK_COLUMN
 
 from __future__ import annotations
 
-import math
 import time
 from pathlib import Path
 
 from torquemod._util.blas import single_blas
 from torquemod.errors import InputError
 from torquemod.io.run import Run, RunRecording, read_run
+from torquemod.io.truth import load_truth
 from torquemod.ontrain.chunks import (  # noqa: F401  (the fleet's chunk tasks: torquemod.fleet.tasks)
     CHUNK_S,
     AxlePart,
@@ -25,13 +25,9 @@ from torquemod.ontrain.chunks import (  # noqa: F401  (the fleet's chunk tasks: 
 )
 from torquemod.ontrain.estimator import TRACK_COLUMNS, OnboardConfig
 from torquemod.ontrain.quality import (
-    QUALITY_OK,
-    REASONS,
     modulation_line_hz,
-    quality_warnings,
+    premise_warnings,
     reference_rate_hz,
-    stepping,
-    without_line_nearby,
 )
 from torquemod.ontrain.result import OnboardResult
 
@@ -103,60 +99,6 @@ def check_modulation_line(run: Run, torque_nm, fs_hz: float, config: OnboardConf
         raise InputError(f"the torque's modulation line is at {found:.3g} Hz, not at the "
                          f"declared test.modulation_frequency_hz = {f:g} Hz",
                          path=run.manifest_path, hint="correct [test] modulation_frequency_hz")
-
-
-def premise_warnings(run: Run, entry: RunRecording, track, config: OnboardConfig,
-                     torque_nm=None, fs_hz: float | None = None):
-    """``(track, warnings)``: the axle's track with the torque-stepping windows judged by
-    their neighbours (:func:`~torquemod.ontrain.quality.without_line_nearby`), and the
-    warnings about the method's premise (:mod:`torquemod.ontrain.quality`): the stretches
-    without it, and a run with fewer measurable windows than the friction fit needs. No
-    measurable window at all raises :class:`InputError` (as ``process`` refuses a recording
-    without a modulation line), naming the line the torque has instead when ``torque_nm``
-    (a stretch of the axle's torque at ``fs_hz`` [Hz]) shows one."""
-    f = run.modulation_frequency_hz
-    q = without_line_nearby(track["quality"].to_numpy(object), ~stepping(
-        track["dc_step_nm"], run.modulation_amplitude_nm, config.max_dc_step_ratio))
-    lost = q != track["quality"].to_numpy(object)
-    if lost.any():
-        track = track.copy()
-        track.loc[lost, ["phase_deg", "phase_se_deg", "creep_coefficient", "mu", "mu_low_95",
-                         "mu_high_95", "utilisation", "creepage",
-                         "creep_coefficient_ref"]] = math.nan
-        track.loc[lost, ["low_adhesion", "slip"]] = False
-        track["quality"] = q
-    n_ok = int((q == QUALITY_OK).sum())
-    if n_ok == 0:
-        flags = {k: int((q == k).sum()) for k in REASONS}
-        worst = max(flags, key=flags.get)
-        what = REASONS[worst].replace("the declared frequency", f"{f:g} Hz")
-        hint = {"no_modulation": "record with the torque modulation on, or check [test] "
-                                 "modulation_frequency_hz and modulation_amplitude_nm",
-                "standstill": "record while the train runs (at least [onboard] "
-                              f"min_speed_m_s = {config.min_speed_m_s:g} m/s)",
-                "reverse": "the method needs forward running; if the run went forward, "
-                           "the speed channels' sign is wrong"}[worst]
-        raise InputError(f"no window of axle {entry.axle} can be measured: {what} "
-                         f"({flags[worst]} of {q.size} windows)", path=entry.path, hint=hint)
-    out = quality_warnings(track["position_m"], q, axle=entry.axle, frequency_hz=f)
-    if n_ok < config.min_windows:
-        out.append(f"axle {entry.axle}: only {n_ok} measurable windows, fewer than the "
-                   f"{config.min_windows} the friction fit needs ([onboard] min_windows): "
-                   "the run is too short for a friction estimate (mu stays empty)")
-    return track, out
-
-
-def load_truth(run: Run):
-    """The simulated truth named by ``[truth] file`` in run.toml (None when absent)."""
-    import pandas as pd
-    t = run.extra.get("truth")
-    if not isinstance(t, dict) or "file" not in t:
-        return None
-    path = run.folder / str(t["file"])
-    try:
-        return pd.read_parquet(path)
-    except (OSError, ValueError):
-        return None
 
 
 def track_table(result: OnboardResult):

@@ -107,7 +107,7 @@ class ProcessResult:
         ``ax`` one Axes (the wheel speed goes on a twin axis) or a pair of Axes, returned as
         given; without one a new two-panel Figure (not pyplot), whose two Axes are
         returned."""
-        from torquemod.report.figures import signals_figure
+        from torquemod.process.figures import signals_figure
         if (step, cycle) not in self.traces:
             raise InputError(f"no traces for step {step} cycle {cycle}; available: "
                              f"{sorted(self.traces)}")

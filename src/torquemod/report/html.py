@@ -86,13 +86,13 @@ def _breakable(text: str) -> str:
     return escape(text).replace(".", ".<wbr>").replace("_", "_<wbr>")
 
 
-def _img(png: bytes, alt: str, caption: str) -> str:
+def figure_html(png: bytes, alt: str, caption: str) -> str:
     data = base64.b64encode(png).decode("ascii")
     return (f'<figure><img alt="{escape(alt)}" src="data:image/png;base64,{data}">'
             f"<figcaption>{escape(caption)}</figcaption></figure>")
 
 
-def _kv(pairs) -> str:
+def definition_list(pairs) -> str:
     return '<dl class="kv">' + "".join(
         f"<dt>{escape(str(k))}</dt><dd>{escape(v if isinstance(v, str) else fmt(v))}</dd>"
         for k, v in pairs) + "</dl>"
@@ -130,7 +130,7 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
         phase_text = f"not determined by the steps (μ ≥ {fmt(lo)})"
     else:
         phase_text = "not estimated (see the warnings)"
-    summary = _kv([
+    summary = definition_list([
         ("Coefficient of friction μ from the forces (Polach fit of CoA against creepage)",
          mu_text),
         ("Coefficient of friction μ from the phase (fit of tan φ = C/k(CoA), no forces used)",
@@ -170,7 +170,7 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
     corr = fit.get("correlation") or []
     tc = table(["", *names], [[n, *row] for n, row in zip(names, corr, strict=False)],
                caption="Parameter correlation matrix", left=1) if corr else ""
-    fit_kv = _kv([("Model", fit.get("model", "—")),
+    fit_kv = definition_list([("Model", fit.get("model", "—")),
                   ("μ determined", _mu_determined_text(fit)),
                   ("χ² / dof / reduced χ²", f"{fmt(fit.get('chi2'))} / {fit.get('dof')} / "
                                              f"{fmt(fit.get('reduced_chi2'))}"),
@@ -203,11 +203,11 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
         f"{escape(str(provenance.get('torquemod_version', '')))} at "
         f"{escape(str(provenance.get('created_utc', '')))}.</p>",
         "<h2>Summary</h2>", summary,
-        "<h2>Figures</h2>", *[_img(f["png"], f["alt"], f["caption"]) for f in figures],
+        "<h2>Figures</h2>", *[figure_html(f["png"], f["alt"], f["caption"]) for f in figures],
         "<h2>Tables</h2>", t1, t2,
         "<h2>Polach fit</h2>", fit_kv, tp, tc, tr,
         "<h2>Theory check and saturation onset</h2>",
-        _kv([("Mode", theory.get("mode", "—")), ("Formula", theory.get("formula", "—")),
+        definition_list([("Mode", theory.get("mode", "—")), ("Formula", theory.get("formula", "—")),
              ("C", fmt(_scalar(theory.get("constant")))),
              ("C standard error", fmt(theory.get("constant_stderr"))),
              ("RMS difference [deg]", fmt(theory.get("rms_difference_deg"))),

@@ -19,7 +19,9 @@ import math
 import numpy as np
 import pandas as pd
 
-__all__ = ["CONDITION_COLUMN", "SETTING_KEYS", "condition_keys", "condition_labels",
+from torquemod.analysis.contact.presets import POLACH_PRESETS, PolachParameters
+
+__all__ = ["CONDITION_COLUMN", "SETTING_KEYS", "condition_keys", "condition_labels", "conditions",
            "short_name"]
 
 #: the swept keys that make a modulation setting (what the recommendation chooses)
@@ -97,3 +99,16 @@ def condition_labels(table: pd.DataFrame, swept) -> pd.Series:
         names[tup] = text if used[text] == 1 else f"{text} #{used[text]}"
     return tuples.map(names).astype(object)
 
+
+def conditions() -> dict[str, PolachParameters]:
+    """Named friction conditions a sweep can set with ``contact.condition``: the rig's
+    presets (:data:`~torquemod.analysis.contact.presets.POLACH_PRESETS`: vtrack, dry, wet) and the
+    train twin's track conditions (``torquemod.twins.train.params.CONDITIONS``: leaves,
+    friction_modifier), each with its source."""
+    out = dict(POLACH_PRESETS)
+    try:
+        from torquemod.twins.train.params import CONDITIONS
+        out.update({k: v for k, v in CONDITIONS.items() if k not in out})
+    except ImportError:  # pragma: no cover - the train twin ships with the package
+        pass
+    return out

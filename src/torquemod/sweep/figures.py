@@ -30,8 +30,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
+from torquemod._util.mpl import figure_axes
 from torquemod.analysis.creep import phase_from_constant_deg
-from torquemod.report.figures import _axes
 from torquemod.sweep.conditions import CONDITION_COLUMN
 from torquemod.sweep.summary import BAND, slipped_mask
 
@@ -235,7 +235,7 @@ def sensitivity_figure(summary: pd.DataFrame, *, ax=None):
     against the modulation frequency, one colour per condition and one line style per
     amplitude (large-signal theory: lines; chain: markers). With a single frequency the
     conditions are the x axis (categories: markers only)."""
-    _fig, ax = _axes(ax, figsize=(7.5, 4.6))
+    _fig, ax = figure_axes(ax, figsize=(7.5, 4.6))
     conds = list(dict.fromkeys(summary[CONDITION_COLUMN]))
     amps = list(dict.fromkeys(summary[AMP]))
     chain = summary["dphi_du_chain"].notna().any()
@@ -282,7 +282,7 @@ def mu_error_figure(summary: pd.DataFrame, *, ax=None):
     filled with the 95 % interval where mu is determined, open at the lower bound where it
     is not. Markers only: the conditions are categories."""
     conds = list(dict.fromkeys(summary[CONDITION_COLUMN]))
-    _fig, ax = _axes(ax, figsize=(max(7.5, 1.3 * len(conds) + 3.0), 4.8))
+    _fig, ax = figure_axes(ax, figsize=(max(7.5, 1.3 * len(conds) + 3.0), 4.8))
     freqs = sorted(dict.fromkeys(summary[FREQ]))
     amps = list(dict.fromkeys(summary[AMP]))
     settings = [(f, a) for f in freqs for a in amps
@@ -329,7 +329,7 @@ def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None,
                                     "utilisation limit; dashed: limits)"):
     """Per modulation setting the largest creepage swing amplitude and torque ripple [% of
     the saturation torque] below the utilisation limit, with the limits dashed."""
-    _fig, axes = _axes(ax, 2, figsize=(7.0, 5.5))
+    _fig, axes = figure_axes(ax, 2, figsize=(7.0, 5.5))
     label = [f"{f:.3g} Hz\n{a:.3g} N*m" for f, a in zip(
         settings["modulation_frequency_nominal_hz"], settings["modulation_amplitude_nm"],
         strict=True)]

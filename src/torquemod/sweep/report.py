@@ -18,7 +18,7 @@ import pandas as pd
 from torquemod._util.fsutil import write_atomic
 from torquemod._version import __version__
 from torquemod.report.figures import figure_of
-from torquemod.report.html import CSS, _img, table
+from torquemod.report.html import CSS, figure_html, table
 from torquemod.sweep import figures as F
 from torquemod.sweep.conditions import CONDITION_COLUMN, condition_labels
 from torquemod.sweep.spec import SweepSpec
@@ -245,7 +245,7 @@ def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
         parts.append(_settings_html(grp))
     parts.append("<h2>Figures</h2>")
     for stem, png, caption in figs:
-        parts.append(_img(png, stem, caption))
+        parts.append(figure_html(png, stem, caption))
     parts.append("<h2>Points</h2>")
     parts.append(_points_html(summary, spec))
     if failures is not None and len(failures):

@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from torquemod._util.tomlcheck import between, default_checks, read_table
-from torquemod.analysis.contact.presets import POLACH_PRESETS, PolachParameters
 from torquemod.errors import InputError
 from torquemod.io.manifest import check_keys
+from torquemod.sweep.conditions import conditions
 
 __all__ = ["CONDITION_KEY", "MAX_POINTS", "RecommendOptions", "SweepPoint", "SweepSpec",
            "conditions", "load_sweep", "parse_sweep", "twin_keys"]
@@ -37,20 +37,6 @@ _TOP_KEYS = ("name", "description", "base", "mode", "seeds", "repeats", "max_uti
 _STEP_KEYS = ("fractions_of_peak",)
 _MODES = ("full", "theory")
 _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
-
-
-def conditions() -> dict[str, PolachParameters]:
-    """Named friction conditions a sweep can set with ``contact.condition``: the rig's
-    presets (:data:`~torquemod.analysis.contact.presets.POLACH_PRESETS`: vtrack, dry, wet) and the
-    train twin's track conditions (``torquemod.twins.train.params.CONDITIONS``: leaves,
-    friction_modifier), each with its source."""
-    out = dict(POLACH_PRESETS)
-    try:
-        from torquemod.twins.train.params import CONDITIONS
-        out.update({k: v for k, v in CONDITIONS.items() if k not in out})
-    except ImportError:  # pragma: no cover - the train twin ships with the package
-        pass
-    return out
 
 
 def twin_keys() -> dict[str, object]:

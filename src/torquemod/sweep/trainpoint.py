@@ -97,7 +97,7 @@ def train_keys(base: str | Path | None = None) -> tuple[str, ...]:
 def check_train_value(key: str, value, where: str, path) -> None:
     """Values the config reader would not see until a worker runs the point: a condition
     must be known, probe levels a list of fractions in (0, 1)."""
-    from torquemod.sweep.spec import conditions
+    from torquemod.sweep.conditions import conditions
     if key.endswith(".condition"):
         if value not in conditions():
             raise InputError(f"{where}: unknown friction condition {value!r}", path=path,
@@ -122,7 +122,7 @@ def train_config(base: str | Path | None, params: dict):
     """``(TrainConfig, OnboardConfig)`` of a point: the base document with the plain keys
     set (so the train reader checks them), then the sweep-only segment and probe keys."""
     from torquemod.ontrain.estimator import OnboardConfig
-    from torquemod.sweep.spec import conditions
+    from torquemod.sweep.conditions import conditions
     from torquemod.twins.train.params import config_from_dict
     doc = base_doc(base)
     doc.pop("onboard", None)

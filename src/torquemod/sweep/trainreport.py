@@ -29,7 +29,7 @@ from matplotlib.figure import Figure
 from torquemod._util.fsutil import write_atomic
 from torquemod._version import __version__
 from torquemod.report.figures import figure_of
-from torquemod.report.html import CSS, _img, table
+from torquemod.report.html import CSS, figure_html, table
 from torquemod.sweep.report import reasoning_html, save_png
 from torquemod.sweep.spec import SweepSpec
 from torquemod.sweep.trainpoint import BANDS, band_name
@@ -364,7 +364,7 @@ def render_train(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, failure
         cls = "warn" if grp.get("qualifies") is False or grp.get("setting") is None else ""
         parts += [reasoning_html(grp.get("reasoning", ""), cls), _settings_html(grp)]
     parts.append("<h2>Figures</h2>")
-    parts += [_img(png, stem, caption) for stem, png, caption in figs]
+    parts += [figure_html(png, stem, caption) for stem, png, caption in figs]
     if failures is not None and len(failures):
         parts.append("<h2>Failed points</h2>")
         parts.append(table(["#", "parameters", "seed", "message"],

@@ -21,6 +21,7 @@ from torquemod import __version__
 from torquemod._util.fsutil import atomic_dir, check_output_dir
 from torquemod._util.jsonutil import dump_json
 from torquemod.errors import ProcessingError
+from torquemod.io.truth import adhesion_utilisation, segment_summary
 from torquemod.twins.train import dynamics as dyn
 from torquemod.twins.train.params import TrainConfig
 
@@ -139,15 +140,6 @@ def measure(raw: np.ndarray, cfg: TrainConfig, *, seed: int = 0) -> dict:
         [[0.0], np.cumsum(0.5 * (v_ref[1:] + v_ref[:-1]) * np.diff(t_ref))])
     return {"time_s": t.copy(), "torque_nm": tq, "wheel_speed_rad_s": ws,
             "reference_time_s": t_ref, "vehicle_speed_m_s": v_ref, "position_m": pos}
-
-
-def adhesion_utilisation(coa, available_adhesion):
-    """The utilisation of the adhesion: the utilised adhesion CoA [-] over the available
-    adhesion [-] (the maximum of the adhesion-creepage curve at the operating point), 1 at
-    saturation. The one definition of the truth's utilisation: the truth table's
-    ``utilisation`` column, ``simulate --train``'s "max utilisation" and the on-board
-    report's truth line."""
-    return np.asarray(coa, dtype=float) / np.asarray(available_adhesion, dtype=float)
 
 
 def truth_table(raw: np.ndarray, cfg: TrainConfig):
@@ -276,19 +268,4 @@ def run_train_simulation(cfg: TrainConfig, out_dir: str | Path, *, seed: int = 0
         (tmp / "simulation.json").write_text(dump_json(dict(summary,
                                                             config=cfg.raw or asdict(cfg))))
     return summary
-
-
-def segment_summary(truth) -> list[dict]:
-    """Per friction segment of the truth: its span, friction and peak adhesion (means)."""
-    out = []
-    cond = truth["condition"].to_numpy()
-    edges = np.flatnonzero(cond[1:] != cond[:-1]) + 1
-    for lo, hi in zip(np.r_[0, edges], np.r_[edges, cond.size], strict=True):
-        part = truth.iloc[lo:hi]
-        out.append({"condition": str(cond[lo]), "start_m": float(part.position_m.iloc[0]),
-                    "end_m": float(part.position_m.iloc[-1]), "mu": float(part.mu.mean()),
-                    "adhesion_peak": float(part.adhesion_peak.mean()),
-                    "max_utilisation": float(np.max(adhesion_utilisation(
-                        part.coa, part.adhesion_peak)))})
-    return out
 

@@ -63,14 +63,7 @@ from torquemod.errors import InputError
 from torquemod.io import write_manifest, write_recording
 from torquemod.io.checks import positive_number
 from torquemod.io.experiment import Recording
-from torquemod.twins.vtrack.rig.batch import (  # noqa: F401 - BatchPoint, simulate_batch re-exported
-    BatchPoint,
-    default_workers,
-    plan_run,
-    simulate_batch,
-)
-from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS, pack_parameters
-from torquemod.twins.vtrack.rig.params import (
+from torquemod.twins.vtrack.params import (
     ContactParams,
     DisturbanceParams,
     ModulationParams,
@@ -79,6 +72,13 @@ from torquemod.twins.vtrack.rig.params import (
     SensorParams,
     SimConfig,
 )
+from torquemod.twins.vtrack.rig.batch import (  # noqa: F401 - BatchPoint, simulate_batch re-exported
+    BatchPoint,
+    default_workers,
+    plan_run,
+    simulate_batch,
+)
+from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS, pack_parameters
 from torquemod.twins.vtrack.rig.sensors import measure
 from torquemod.twins.vtrack.rig.steps import (  # MAX_LAMBDA_H, stiffest_rate: re-exported
     MAX_LAMBDA_H,
@@ -86,11 +86,11 @@ from torquemod.twins.vtrack.rig.steps import (  # MAX_LAMBDA_H, stiffest_rate: r
     stiffest_rate,
 )
 from torquemod.twins.vtrack.rig.truth import (  # noqa: F401 - sine_fit_phase_deg, wobble_free_phase_deg re-exported
-    _step_truth,
-    _wobble_truth,
     recorded_step_truth,
     sine_fit_phase_deg,
+    step_truth,
     wobble_free_phase_deg,
+    wobble_truth,
 )
 from torquemod.twins.vtrack.theory import creep_curve_peak
 
@@ -422,7 +422,7 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
             if not fut.cancelled() and fut.exception() is None:
                 for rec in fut.result()[1]:
                     (folder / rec["file"]).unlink(missing_ok=True)
-        steps.append(_step_truth(slip_step, torques[slip_step - 1], config, None, True))
+        steps.append(step_truth(slip_step, torques[slip_step - 1], config, None, True))
         steps[-1]["slip_time_s"] = slip_time
     bar.close()
     xi_peak, t_peak = creep_curve_peak(rig)
@@ -432,7 +432,7 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         "sample_rate_hz": fs, "slip_step": slip_step,
         "creep_curve_peak": {"creepage": xi_peak, "torque_nm": t_peak,
                              "coa": t_peak / (rig.wheel_radius_m * rig.normal_load_n)},
-        "speed_wobble": _wobble_truth(config, wobble),
+        "speed_wobble": wobble_truth(config, wobble),
         "steps": steps, "parameters": asdict(config),
     }
     write_manifest(

@@ -37,7 +37,7 @@ from scipy.optimize import brentq, minimize_scalar
 from torquemod.analysis.contact.polach import creep_force
 from torquemod.analysis.creep import phase_from_constant_deg, theory_constant
 from torquemod.errors import InputError
-from torquemod.twins.vtrack.rig.params import RigParams
+from torquemod.twins.vtrack.params import RigParams
 from torquemod.twins.vtrack.theory_kernels import (
     _dense_solve,  # noqa: F401 - its old home
     newton_periodic,

@@ -1,6 +1,6 @@
 """The V-Track digital twin: parameters, equations of motion, sensors."""
 
-from torquemod.twins.vtrack.rig.params import (
+from torquemod.twins.vtrack.params import (
     ContactParams,
     DisturbanceParams,
     ModulationParams,

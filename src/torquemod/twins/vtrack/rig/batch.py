@@ -24,10 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from torquemod.errors import InputError
+from torquemod.twins.vtrack.params import SimConfig
 from torquemod.twins.vtrack.rig.dynamics import pack_parameters, wobble_table
-from torquemod.twins.vtrack.rig.params import SimConfig
 from torquemod.twins.vtrack.rig.steps import StepPlan, integrate_step, plan_steps
-from torquemod.twins.vtrack.rig.truth import _step_truth, _wobble_truth, recorded_step_truth
+from torquemod.twins.vtrack.rig.truth import recorded_step_truth, step_truth, wobble_truth
 from torquemod.twins.vtrack.theory import creep_curve_peak
 
 
@@ -105,7 +105,7 @@ def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 
                    workers: int | None = None, large_signal: bool = True
                    ) -> list[BatchPoint]:
     """Simulate every configuration of ``configs``
-    (:class:`~torquemod.twins.vtrack.rig.params.SimConfig`,
+    (:class:`~torquemod.twins.vtrack.params.SimConfig`,
     e.g. from :func:`torquemod.twins.vtrack.simulate.load_config` with a point's overrides) and
     return
     their truth in the same order. ``seed``: one for all points or one per point (the speed
@@ -152,7 +152,7 @@ def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 
                         slip_step, slip_time = plan.index, t_slip
                         for later in futs[plan.index:]:
                             later.cancel()
-                        entry = _step_truth(plan.index, plan.dc_nm, config, None, True,
+                        entry = step_truth(plan.index, plan.dc_nm, config, None, True,
                                             large_signal=large_signal)
                         entry["slip_time_s"] = t_slip
                         steps.append(entry)
@@ -162,7 +162,7 @@ def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 
                 rig = config.rig
                 results.append(BatchPoint(
                     seed=s, steps=steps, slip_step=slip_step, slip_time_s=slip_time,
-                    speed_wobble=_wobble_truth(config, wobble),
+                    speed_wobble=wobble_truth(config, wobble),
                     creep_curve_peak={"creepage": xi_peak, "torque_nm": t_peak,
                                       "coa": t_peak / (rig.wheel_radius_m
                                                        * rig.normal_load_n)}))

@@ -46,11 +46,11 @@ import numba
 import numpy as np
 
 from torquemod.analysis.contact.polach import creep_force_scalar
+from torquemod.twins.vtrack.params import DisturbanceParams, RigParams
 from torquemod.twins.vtrack.rig.kernels import FLAGS
 from torquemod.twins.vtrack.rig.kernels import cos_small as _cos_small
 from torquemod.twins.vtrack.rig.kernels import exp_small as _exp_small
 from torquemod.twins.vtrack.rig.kernels import sin_small as _sin_small
-from torquemod.twins.vtrack.rig.params import DisturbanceParams, RigParams
 from torquemod.twins.vtrack.rig.wobble import (  # noqa: F401 - the wobble's names, re-exported from their old home
     _wob_rev,
     _wob_set,

@@ -12,12 +12,12 @@ import math
 import numba
 import numpy as np
 
+from torquemod.twins.vtrack.params import DisturbanceParams, SensorParams
 from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS
 from torquemod.twins.vtrack.rig.kernels import FLAGS as _FLAGS
 from torquemod.twins.vtrack.rig.kernels import cos_small as _cos_small
 from torquemod.twins.vtrack.rig.kernels import sin_small as _sin_small
 from torquemod.twins.vtrack.rig.noise import add_normal
-from torquemod.twins.vtrack.rig.params import DisturbanceParams, SensorParams
 
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
 #: the recorded channels, in the order their noise is drawn

@@ -37,8 +37,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from torquemod.twins.vtrack.params import RigParams, SimConfig
 from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS, _wobble, initial_state, integrate
-from torquemod.twins.vtrack.rig.params import RigParams, SimConfig
 from torquemod.twins.vtrack.theory import operating_point
 
 #: largest |lambda*h| accepted for the integrator (RK4 is stable to 2.78 on the real axis)

@@ -15,9 +15,9 @@ import math
 import numba
 import numpy as np
 
+from torquemod.twins.vtrack.params import SimConfig
 from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS, wobble_basis
 from torquemod.twins.vtrack.rig.kernels import SMALL, cos_small, sin_small
-from torquemod.twins.vtrack.rig.params import SimConfig
 from torquemod.twins.vtrack.theory import (
     large_signal_phase_deg,
     operating_point,
@@ -129,7 +129,7 @@ def wobble_free_phase_deg(torque: np.ndarray, speed: np.ndarray, theta_rad: np.n
     return _phase_from_basis(x, torque[idx], speed[idx])
 
 
-def _wobble_truth(config: SimConfig, wobble: np.ndarray) -> dict:
+def wobble_truth(config: SimConfig, wobble: np.ndarray) -> dict:
     """truth.json's record of the wobble drawn for this run: configuration and realised
     terms; ``reference_rms_pct`` is the RMS of the realised reference over a long run
     (``sqrt(sum amp^2/2)/W0``) [%]."""
@@ -489,7 +489,7 @@ def _large_signal(dc: float, config: SimConfig) -> float | None:
     return None if res.slipped else float(res.phase_deg)
 
 
-def _step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None,
+def step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None,
                 slipped: bool, t0_s: float = 0.0, wobble: np.ndarray | None = None,
                 bounds: list[int] = (0, 0), large_signal: bool = True) -> dict:
     """Ground truth of one step: the steady state and theory at ``dc`` and, when not
@@ -531,12 +531,12 @@ def _step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | Non
 def recorded_step_truth(i_step: int, dc: float, config: SimConfig, out: np.ndarray,
                         n_done: int, t_step: float, wobble: np.ndarray, n_settle: int,
                         large_signal: bool = True) -> tuple[dict, list[int]]:
-    """Truth entry (:func:`_step_truth`) of a step that did not slip, integrated into ``out``
+    """Truth entry (:func:`step_truth`) of a step that did not slip, integrated into ``out``
     (``n_done`` samples from ``t_step`` [s]) and recorded from sample ``n_settle`` over the
     procedure's platform revolutions; also the revolutions' sample bounds in ``out``."""
     bounds = _cycle_bounds(out[:n_done, _COL["platform_angle_rad"]], n_settle,
                            config.procedure.cycles_per_step)
     raw = out[bounds[0]:bounds[-1]]
     t0 = t_step + bounds[0] * (1.0 / config.sensors.sample_rate_hz)
-    return _step_truth(i_step, dc, config, raw, False, t0, wobble, bounds,
+    return step_truth(i_step, dc, config, raw, False, t0, wobble, bounds,
                        large_signal), bounds

@@ -15,10 +15,10 @@ import math
 import numba
 import numpy as np
 
+from torquemod.twins.vtrack.params import DisturbanceParams
 from torquemod.twins.vtrack.rig.kernels import FLAGS, SMALL
 from torquemod.twins.vtrack.rig.kernels import cos_small as _cos_small
 from torquemod.twins.vtrack.rig.kernels import sin_small as _sin_small
-from torquemod.twins.vtrack.rig.params import DisturbanceParams
 
 _FAST = {"fastmath": FLAGS, "cache": True}
 _SMALL = SMALL
