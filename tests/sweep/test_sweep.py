@@ -169,7 +169,7 @@ def test_mu_from_phase_judged_against_the_available_adhesion(theory_sweep):
     parameters); on these falling-friction conditions it lies between the creep curve's
     peak (mu_true, the available adhesion) and mu0. The errors in the summary are taken
     against the available adhesion, the one truth the report names."""
-    from torquemod.sweep.spec import conditions
+    from torquemod.sweep.conditions import conditions
     from torquemod.sweep.summary import point_summary
     out, spec, _ = theory_sweep
     tab = pd.read_parquet(out / "sweep.parquet")

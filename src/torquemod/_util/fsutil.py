@@ -1,4 +1,4 @@
-"""Writing output folders and files so that no data is ever lost (issue 9, item 3).
+"""Writing output folders and files so that no data is ever lost.
 
 The rules every output of torquemod follows:
 

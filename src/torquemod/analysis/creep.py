@@ -1,6 +1,6 @@
 """Creep-curve points, the phase predicted by the rigid-wheel theory, and the saturation onset.
 
-Theory (FACTS §1; the constant of Eq. 1 of the V-Track paper): a rigid wheel of inertia J
+Theory (the constant of Eq. 1 of the V-Track paper): a rigid wheel of inertia J
 [kg m^2], rolling radius R [m], normal load N [N] and speed V [m/s], modulated at
 Omega = 2*pi*f_mod [rad/s], whose creep coefficient is k = dCoA/dxi, has the wheel speed
 lagging the torque by ``phi = atan(C/k)`` with ``C = Omega*J*V/(R^2*N)`` [-].
@@ -92,7 +92,7 @@ def creep_points(steps_df: pd.DataFrame) -> CreepPoints:
 
 
 def theory_constant(*, inertia_kg_m2, speed_m_s, wheel_radius_m, normal_load_n, frequency_hz):
-    """``C = Omega*J*V/(R^2*N)`` [-] of ``tan(phi) = C/k`` (FACTS §1, paper Eq. 1)."""
+    """``C = Omega*J*V/(R^2*N)`` [-] of ``tan(phi) = C/k`` (the V-Track paper, Eq. 1)."""
     omega = 2.0 * np.pi * np.asarray(frequency_hz, dtype=float)
     return (omega * inertia_kg_m2 * np.asarray(speed_m_s, dtype=float)
             / (np.asarray(wheel_radius_m, dtype=float) ** 2 * np.asarray(normal_load_n, float)))

@@ -39,7 +39,7 @@ keyword options of :func:`fit_polach`):
 Otherwise ``mu`` is None, ``mu_lower_bound`` is the largest measured CoA (adhesion cannot
 exceed friction) and a warning says so.
 
-Modulation swing (issue 8)
+Modulation swing
 --------------------------
 The torque modulation swings each step's creepage sinusoidally, ``xi(t) = xi_m + a*cos(Omega*t)``
 with amplitude ``a`` [-] (``steps.csv`` ``creepage_swing``, ``a = delta_omega*R/V``). Where the

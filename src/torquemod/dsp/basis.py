@@ -1,4 +1,4 @@
-"""Bases of the speed model (issue 8: a chain that is right on a moving speed): the slow
+"""Bases of the speed model (a chain that is right on a moving speed): the slow
 variation (Legendre polynomials and Slepian sequences) and the rotation orders that follow
 an encoder's integrated angle. Re-exported by :mod:`torquemod.dsp.filters`."""
 

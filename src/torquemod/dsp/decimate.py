@@ -1,5 +1,5 @@
-"""Step 2's decimation kernels: ``resample_poly``'s FIR design and the two-stage decimator
-(issue 11), both stages in numba, one row at a time (:func:`torquemod.dsp.filters.resample`
+"""Step 2's decimation kernels: ``resample_poly``'s FIR design and the two-stage decimator:
+both stages in numba, one row at a time (:func:`torquemod.dsp.filters.resample`
 and :func:`~torquemod.dsp.filters.resample_rows` are the entry points).
 """
 
@@ -21,7 +21,7 @@ def _resampling_fir(up: int, down: int, kaiser_beta: float) -> np.ndarray:
     return h  # resample_poly scales a given FIR by up itself
 
 
-# Two-stage decimation (issue 11). Stage 1 keeps 0..f_pass flat to STAGE1_RIPPLE (so the
+# Two-stage decimation. Stage 1 keeps 0..f_pass flat to STAGE1_RIPPLE (so the
 # amplitude at the modulation frequency moves by less than the phase target of 1e-4 deg,
 # 1.7e-6 rad, would allow) and stops everything that would alias into 0..f_pass + stage 2's
 # transition; stage 2 is resample_poly's own design for the remaining ratio.

@@ -8,7 +8,7 @@ Two estimators:
 * :func:`sinefit_phase`: a linear least-squares fit of ``c*cos(wt) + s*sin(wt)`` plus nuisance
   terms at the common frequency over whole modulation periods, time referenced to the window
   centre (IEEE Std 1057 three-parameter fit, extended). It reaches the Cramér-Rao bound
-  ``var(dphi) = (1/N)(1/eta1 + 1/eta2)`` (FACTS.md §5).
+  ``var(dphi) = (1/N)(1/eta1 + 1/eta2)`` (Rife and Boorstyn 1974, IEEE Trans. Inf. Theory 20(5)).
 
 Sign convention of the project: the phase is positive when the wheel speed lags the torque.
 """
@@ -214,7 +214,8 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
     from the window centre; phase ``phi = atan2(-s, c)``; lag ``phi_T - phi_W`` wrapped to
     (-180, 180] deg. Nuisance tones closer than one frequency resolution to ``f_mod_hz``
     are dropped (they would alias the signal). The standard error propagates the residual
-    is ``sqrt(S1/(A1^2 T) + S2/(A2^2 T))`` (FACTS.md §5) with each channel's one-sided noise
+    is ``sqrt(S1/(A1^2 T) + S2/(A2^2 T))`` (Rife and Boorstyn 1974, IEEE Trans. Inf. Theory 20(5))
+    with each channel's one-sided noise
     density S_i near ``f_mod_hz`` taken from the fit's residual (:func:`local_noise_psd`), so
     unmodelled lines far from f_mod (vibration) do not inflate it; ``noise_from`` gives other
     versions of the two channels (e.g. before a band-pass) whose residual is used instead.
@@ -261,7 +262,7 @@ def phase_crb_deg(amplitude_1: float, amplitude_2: float, noise_std_1: float, no
                   n_samples: int) -> float:
     """Cramér-Rao bound on the standard deviation [deg] of a phase difference between two
     sinusoids of a common known frequency in white noise: ``var = (1/N)(1/eta1 + 1/eta2)``,
-    ``eta_i = A_i^2/(2 sigma_i^2)`` (FACTS.md §5)."""
+    ``eta_i = A_i^2/(2 sigma_i^2)`` (Rife and Boorstyn 1974, IEEE Trans. Inf. Theory 20(5))."""
     eta1 = amplitude_1 ** 2 / (2 * noise_std_1 ** 2)
     eta2 = amplitude_2 ** 2 / (2 * noise_std_2 ** 2)
     return float(np.degrees(np.sqrt((1 / eta1 + 1 / eta2) / n_samples)))

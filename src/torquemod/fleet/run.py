@@ -1,4 +1,4 @@
-"""Many rig experiments and train runs at once on Dask (issue 11): tasks per recording, in
+"""Many rig experiments and train runs at once on Dask: tasks per recording, in
 worker processes.
 
 :func:`run_fleet` sends the fleet to Dask worker processes (a ``LocalCluster`` of processes

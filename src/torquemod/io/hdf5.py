@@ -160,7 +160,7 @@ def write_hdf5(path: Path, rec: Recording, *, group: str | None = None,
     compression): the datasets' contiguous storage is allocated when they are created and
     the values are copied into it by plain positional writes after HDF5 has closed the file
     (the same float64 values and layout); those writes run without the GIL and outside
-    h5py's lock, so that threads writing files overlap (the twin, issue 12).
+    h5py's lock, so that threads writing files overlap (the twin).
     """
     names = (["time_s"] if write_time else []) + [c for c in CHANNELS if c in rec.channels]
     if (data_after_close and compression is None and group is None and not attrs

@@ -52,7 +52,7 @@ class ResampleParams:
     target_hz: float = 53.344
     kaiser_beta: float = 5.0  # MATLAB resample's default
     max_denominator: int = 1000
-    #: "two_stage" (ours, issue 11): an integer Kaiser-FIR decimation first (numba), then
+    #: "two_stage" (ours): an integer Kaiser-FIR decimation first (numba), then
     #: resample_poly for the rest; the same samples to 1e-7 deg of phase at 2 Hz, 4x cheaper.
     #: "polyphase": one resample_poly pass, as the paper's MATLAB resample.
     method: str = "two_stage"
@@ -65,7 +65,7 @@ class ResampleParams:
 
 @dataclass(frozen=True)
 class SlowParams:
-    """Ours (issue 8): the rolling speed of every rig and train moves. Speed variation below
+    """Ours: the rolling speed of every rig and train moves. Speed variation below
     ``max_hz`` [Hz] (a speed loop's wobble, the platform's revolution harmonics, a ramp) is
     modelled by Legendre polynomials up to ``polynomial_degree`` and Slepian sequences
     (:func:`torquemod.dsp.filters.slow_basis`, ``extra_sequences`` beyond twice the

@@ -1,4 +1,4 @@
-"""The train run manifest ``run.toml`` (issue 10; format in docs/format.md).
+"""The train run manifest ``run.toml`` (format in docs/format.md).
 
 A run extends the experiment manifest: the same ``[test]`` modulation keys, ``[[recording]]``
 tables and ``[channels]`` map (read by the same readers), with ``[vehicle]`` in place of

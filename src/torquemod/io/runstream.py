@@ -1,4 +1,4 @@
-"""Train-run recordings read by row ranges, in constant memory (issues 10 and 11).
+"""Train-run recordings read by row ranges, in constant memory.
 
 A run's fast channels (``torque_nm``, ``wheel_speed_rad_s``: the logger's rate) are read by
 row ranges through the streaming tables of :mod:`torquemod.io.stream` (HDF5 and MATLAB v7.3

@@ -1,4 +1,4 @@
-"""Streaming readers (issue 11): a recording delivered in chunks of rows, in constant memory.
+"""Streaming readers: a recording delivered in chunks of rows, in constant memory.
 
 Every format the whole-file readers handle can be streamed: HDF5 and MATLAB v7.3 by dataset
 slices (h5py), MDF4 by record ranges (asammdf ``MDF.get(record_offset=, record_count=)``),

@@ -1,5 +1,5 @@
-"""Channels on their own time bases put on the torque channel's sample times (issue 8:
-logger realities), and the :class:`~torquemod.io.experiment.Recording` a reader's channels make.
+"""Channels on their own time bases put on the torque channel's sample times
+(logger realities), and the :class:`~torquemod.io.experiment.Recording` a reader's channels make.
 
 A reader finds raw channels in its file (:class:`~torquemod.io.channels.RawChannel`: values,
 unit, perhaps their own time stamps or rate); :func:`assemble_recording` converts units

@@ -1,6 +1,6 @@
 """One train axle read and estimated: the pieces the batch path
 (:func:`~torquemod.ontrain.run.estimate_axle`) and the fleet's tasks share (the axle's
-stream, signals and estimator), and the axle in parts (issue 11): the windows of a run
+stream, signals and estimator), and the axle in parts: the windows of a run
 measured by several tasks, the estimator's state advanced over them by one.
 
 The on-board estimator's work splits in two (:class:`~torquemod.ontrain.estimator.

@@ -1,4 +1,4 @@
-"""The on-board estimator (issue 10): sliding windows over a run's torque and axle speed,
+"""The on-board estimator: sliding windows over a run's torque and axle speed,
 and the friction along the track from the creep-coefficient progression.
 
 :class:`OnboardEstimator` takes chunks as they arrive (``feed``) and returns the rows of the
@@ -79,7 +79,7 @@ from torquemod.ontrain.mufit import CreepFit, fit_creep_progression
 from torquemod.ontrain.quality import QUALITY_OK, window_quality
 from torquemod.ontrain.window import WindowResult, measure_window, with_delay
 
-#: The columns of track.parquet, in order (issue 10).
+#: The columns of track.parquet, in order.
 TRACK_COLUMNS = ("time_s", "position_m", "speed_m_s", "coa", "phase_deg", "phase_se_deg",
                  "creep_coefficient", "mu", "mu_low_95", "mu_high_95", "utilisation",
                  "low_adhesion", "slip", "quality")

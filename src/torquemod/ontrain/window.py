@@ -1,5 +1,5 @@
 """One window of a train run: phase, DC torque, speeds, acceleration, CoA and the creep
-coefficient from the phase (issue 10). Pure functions; the same DSP core as the rig chain
+coefficient from the phase. Pure functions; the same DSP core as the rig chain
 (:func:`torquemod.dsp.phase.sinefit_phase`).
 """
 
@@ -139,7 +139,8 @@ def measure_window(torque_nm: np.ndarray, wheel_speed_rad_s: np.ndarray,
     Phase: the sine fit at the modulation frequency with a line and the first two orders of
     the axle's (and the motor's, :func:`rotation_orders_hz`) revolution (eccentricity, tooth
     errors) as nuisance terms, standard error at
-    the Cramer-Rao bound (FACTS §5); the declared sensor dynamics
+    the Cramer-Rao bound (Rife and Boorstyn 1974, IEEE Trans. Inf. Theory 20(5)); the declared
+    sensor dynamics
     (:meth:`~torquemod.io.run.Vehicle.sensor_response`) are divided out of the
     torque-to-speed ratio, so ``phase_deg`` is the lag behind the true torque.
     CoA = (T - J*dw/dt)/(N*R) with dw/dt the slope of the

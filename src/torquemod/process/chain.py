@@ -131,7 +131,7 @@ _RESAMPLED = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", 
 
 @dataclass(frozen=True)
 class SpeedModel:
-    """The joint least-squares model of one cycle (ours, issue 8): for every channel
+    """The joint least-squares model of one cycle (ours): for every channel
     ``x = modulation + slow + orders + harmonics + residual`` with the modulation
     ``c*cos + s*sin`` at ``modulation_hz``, the slow part in
     :func:`~torquemod.dsp.filters.slow_basis`, the rotation orders in

@@ -1,4 +1,4 @@
-"""One long rig recording as several tasks: groups of platform revolutions (issue 11).
+"""One long rig recording as several tasks: groups of platform revolutions.
 
 :func:`torquemod.process.pipeline.load_and_process` puts a whole recording through steps 1-5 and 8
 of the chain; a recording spanning many revolutions (an hour of them) would be one long

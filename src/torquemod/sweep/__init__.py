@@ -1,4 +1,4 @@
-"""``torquemod sweep``: sensitivity studies over the twin's parameters (issue 12).
+"""``torquemod sweep``: sensitivity studies over the twin's parameters.
 
 :func:`load_sweep` reads ``SWEEP.toml`` (docs/sweep.md) into a :class:`SweepSpec`;
 :func:`run_sweep` evaluates its points (in Dask worker processes, or in this process),

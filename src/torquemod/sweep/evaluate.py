@@ -5,7 +5,8 @@ table (one per torque step).
 operating_point`) and the periodic steady state under the full modulation
 (:func:`torquemod.twins.vtrack.theory.large_signal_phase_deg`, driven by the motor as in the twin);
 the
-phase's standard error is the Cramér-Rao bound of the step's record (FACTS.md §5) and mu from
+phase's standard error is the Cramér-Rao bound of the step's record (Rife and Boorstyn 1974, IEEE
+Trans. Inf. Theory 20(5)) and mu from
 the phase is fitted to those phases. ``mode = "full"``: the twin
 (:func:`torquemod.twins.vtrack.simulate.
 run_simulation`, HDF5) -> the processing chain (:func:`torquemod.api.process`) -> the fits
@@ -85,7 +86,7 @@ def phase_crlb_deg(torque_amplitude_nm, speed_amplitude_rad_s, *, torque_noise_n
                    speed_noise_rad_s: float, sample_rate_hz: float, duration_s: float):
     """Cramér-Rao bound [deg] of the phase difference of two sinusoids of amplitudes A1, A2
     in white noise sigma1, sigma2 over ``duration_s`` at ``sample_rate_hz``:
-    ``var = (2*s1^2/A1^2 + 2*s2^2/A2^2)/(fs*T)`` [rad^2] (FACTS.md §5, one-sided PSD
+    ``var = (2*s1^2/A1^2 + 2*s2^2/A2^2)/(fs*T)`` [rad^2] (Rife and Boorstyn 1974, one-sided PSD
     ``2*sigma^2/fs``). A lower bound: the chain also sees the rig's disturbances."""
     n = sample_rate_hz * duration_s
     var = (2.0 * torque_noise_nm**2 / np.asarray(torque_amplitude_nm, float) ** 2
@@ -113,7 +114,7 @@ def settle_time_s(config, rows: list[dict]) -> float:
 
     A step starts from the previous step's steady state and ramps its DC torque; near the
     creep curve's peak that transient decays slowly (tau ~ 1 s at 90 % utilisation on
-    leaves) and, not settled, it biases the recorded phase: measured (issue 12 audit) twin
+    leaves) and, not settled, it biases the recorded phase: measured (audit) twin
     minus large-signal theory -0.24 deg on leaves at 90 %, 2 Hz, after the 3 s the example
     gave, and 3e-5 deg after 10 s. exp(-8) leaves ~0.002 deg there."""
     # the steps the twin records: below the creep curve's peak and below the creepage at
@@ -238,7 +239,7 @@ def chain_config(frequency_hz: float, processing: dict | None = None):
     paper's 2 Hz, with every frequency-bound setting scaled by ``frequency_hz/2``; above
     2 Hz also the resampling rate, so that a period keeps its 26.7 samples: the paper's
     peak/valley phase interpolates each peak by a parabola, whose bias grows as the samples
-    per period fall (audit, issue 12: noise-free twin at 8 Hz, 6.7 samples a period, the
+    per period fall (audit: noise-free twin at 8 Hz, 6.7 samples a period, the
     chain's phase 0.025 deg (median) to 0.074 deg off the theory with a standard error of
     1e-4 deg; with the rate scaled, 0.0012 deg). Then the keys the sweep's ``processing``
     table gives (nested as a manifest's ``[processing]``)."""

@@ -51,7 +51,7 @@ PROBE_KEYS = ("controller.probe_levels", "controller.probe_depth", "controller.p
 BANDS = ((0.0, 0.3), (0.3, 0.5), (0.5, 0.7), (0.7, 0.85), (0.85, 1.0))
 #: the disturbance leaves out the run's first second [s] (the motor torque starts at zero)
 STARTUP_S = 1.0
-#: the low_adhesion share is counted over the windows at or below this utilisation (issue 10)
+#: the low_adhesion share is counted over the windows at or below this utilisation
 LOW_ADHESION_UTILISATION = 0.5
 
 

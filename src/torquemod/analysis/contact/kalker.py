@@ -2,7 +2,7 @@
 
 The values are Kalker's full table (J.J. Kalker, *Three-dimensional elastic bodies in rolling
 contact*, Kluwer 1990, Table E.3; all 19 ellipse shapes and the three Poisson ratios, as
-tabulated in the CONTACT program's ``linrol`` routine and in FACTS.md §3). Rows are
+tabulated in the CONTACT program's ``linrol`` routine). Rows are
 contact-ellipse shapes (a = semi-axis in the rolling direction, b = lateral semi-axis):
 a/b = 0.1 ... 1.0 in steps of 0.1, then b/a = 0.9 ... 0.1; columns are Poisson's ratio
 nu = 0, 0.25, 0.5. (One widely copied port of CONTACT's table reads c23 = 1.15 at a/b = 0.8,
@@ -94,7 +94,7 @@ def _along_nu(cols: np.ndarray, nu: np.ndarray) -> np.ndarray:
 def kalker_coefficients(a_over_b, poisson_ratio=0.25):
     """Kalker's c11, c22, c23 [-] for ellipse shape ``a_over_b`` and Poisson ratio nu.
 
-    Kalker (1990) Table E.3 (FACTS.md §3), interpolated linearly in g = a/b or b/a within the
+    Kalker (1990) Table E.3, interpolated linearly in g = a/b or b/a within the
     table's halves and quadratically through the three nu columns (module docstring).
     ``a_over_b`` must lie in [0.1, 10] and ``poisson_ratio`` in [0, 0.5]; outside the table
     an :class:`~torquemod.errors.InputError` is raised rather than extrapolating.

@@ -112,7 +112,7 @@ def adhesion_slope(xi, *, mu: float, k_a: float, k_s: float, stiffness: float):
 
 
 # --------------------------------------------------------------------------------------------
-# Scalar kernel for compiled integrators (added for the digital twin, issue 3)
+# Scalar kernel for compiled integrators (added for the digital twin)
 # --------------------------------------------------------------------------------------------
 
 def creep_force_scalar(xi_x: float, xi_y: float, normal_load_n: float, speed_m_s: float,
@@ -142,7 +142,7 @@ creep_force_kernel = numba.njit(cache=True, fastmath=False)(creep_force_scalar)
 
 
 # --------------------------------------------------------------------------------------------
-# Averages over the creepage swing of the torque modulation (issue 8)
+# Averages over the creepage swing of the torque modulation
 # --------------------------------------------------------------------------------------------
 
 def swing_nodes(n_nodes: int = 32) -> np.ndarray:

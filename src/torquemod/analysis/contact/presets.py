@@ -33,11 +33,11 @@ class PolachParameters:
 POLACH_PRESETS: dict[str, PolachParameters] = {
     "dry": PolachParameters(
         mu0=0.55, a_ratio=0.40, b_s_m=0.60, k_a=1.00, k_s=0.40,
-        source="Polach, Wear 258 (2005) 992-1000, dry rail; values as inferred in FACTS.md §2 "
+        source="Polach, Wear 258 (2005) 992-1000, dry rail; values inferred from a simulator "
                "(not checked against the paper's Table 1)"),
     "wet": PolachParameters(
         mu0=0.30, a_ratio=0.40, b_s_m=0.20, k_a=0.30, k_s=0.10,
-        source="Polach, Wear 258 (2005) 992-1000, wet rail; values as inferred in FACTS.md §2 "
+        source="Polach, Wear 258 (2005) 992-1000, wet rail; values inferred from a simulator "
                "(not checked against the paper's Table 1)"),
     "vtrack": PolachParameters(
         mu0=0.255, a_ratio=0.80, b_s_m=2.0, k_a=0.20, k_s=0.20,

@@ -1,4 +1,4 @@
-"""An independent train run for checking the on-board estimator (issue 10) on data that the
+"""An independent train run for checking the on-board estimator on data that the
 project's own twin (:mod:`torquemod.twins.train`) did not make.
 
 Written from scratch on purpose: it imports nothing of ``torquemod.twins.train``,

@@ -1,4 +1,4 @@
-"""The train twin (issue 10): a powered wheelset on a running train, its logger, and a run
+"""The train twin: a powered wheelset on a running train, its logger, and a run
 written in the run format (docs/format.md)."""
 
 from torquemod.twins.train.params import (

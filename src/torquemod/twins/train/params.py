@@ -1,4 +1,4 @@
-"""Parameters of the train twin (issue 10): a powered wheelset on a running train.
+"""Parameters of the train twin: a powered wheelset on a running train.
 
 Thin frozen containers, SI units in the names; :func:`load_train_config` reads them from a
 TOML configuration (``torquemod simulate --config train.toml``, the default in
@@ -83,7 +83,7 @@ class VehicleParams:
 
     def stiffness_x_n(self) -> float:
         """Lumped longitudinal contact stiffness of the axle [N]: ``2*pi*G*a*b*c11/4`` of
-        one wheel's Hertz ellipse (Polach 2005 Eq. 4 with Kalker's c11, FACTS §3)."""
+        one wheel's Hertz ellipse (Polach 2005 Eq. 4 with Kalker's c11, Kalker 1990 Table E.3)."""
         el = hertz_ellipse(self.normal_load_n / 2, curvature_x_1_m=1 / self.wheel_radius_m,
                            curvature_y_1_m=1 / self.wheel_profile_radius_m
                            + 1 / self.rail_head_radius_m,

@@ -378,7 +378,7 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         if slipped:
             return None, [], y_end, plan.t0_s + n_done * dt
         # (offering a step's truth to the pool while its thread draws the noise and writes
-        # the files was tried in issue 12's fifth round: 2 cores, 30 alternations, median
+        # the files was tried in an earlier version: 2 cores, 30 alternations, median
         # 271 against 248 ms a run -- two threads wanting the GIL at once wait for each
         # other's switch interval)
         entry, bounds = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done,

@@ -3,7 +3,7 @@
 Sign convention of the project: ``phase_deg > 0`` when the measured wheel angular velocity
 lags the measured torque.
 
-Rigid wheel (FACTS.md §1; the V-Track paper's Eq. (1) with its constant). Linearising the
+Rigid wheel (the V-Track paper's Eq. (1) with its constant). Linearising the
 wheel ``J*w' = T - R*F_x`` with ``F_x = N*k*xi_x`` and ``xi_x = (w*R - V)/V`` gives::
 
     dw/dT = 1 / (j*Omega*J + R^2*N*k/V)   =>   tan(phi) = Omega*J*V / (R^2*N*k)
@@ -47,7 +47,7 @@ from torquemod.twins.vtrack.theory_kernels import (
 
 def rigid_wheel_phase_deg(creep_coefficient, *, inertia_kg_m2: float, speed_m_s: float,
                           wheel_radius_m: float, normal_load_n: float, frequency_hz: float):
-    """Phase lag [deg] of wheel speed behind torque for a rigid wheel (FACTS.md §1):
+    """Phase lag [deg] of wheel speed behind torque for a rigid wheel (the V-Track paper, Eq. 1):
     ``phi = arctan(Omega*J*V / (R^2*N*k))``, ``Omega = 2*pi*f``; 90 deg at k = 0. The
     measurement's own formula (:func:`torquemod.analysis.creep.theory_constant`,
     :func:`torquemod.analysis.creep.phase_from_constant_deg`) in the rig's terms.

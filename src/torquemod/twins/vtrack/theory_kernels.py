@@ -14,7 +14,7 @@ vectorised :func:`torquemod.analysis.contact.polach.creep_force`) at the creepag
 ``xi = (V0*xi0 + u*R_w - w*R_p)/V``, ``V = (W_ref + w)*R_p``. :func:`newton_periodic` is
 Newton-Raphson on them (dense Jacobian by central differences of the force, solved by
 :func:`_dense_solve`, backtracking on the residual norm) as theory.py ran it in Python
-before issue 12's fifth round; here it runs without the GIL, so that the twin's steps
+before an earlier version; here it runs without the GIL, so that the twin's steps
 solve their theory side by side. Results agree with the Python loop to ~1e-12 (summation
 order of the matrix products; tested in tests/twins/test_theory_kernels.py).
 """

@@ -79,7 +79,7 @@ def _renamed(fn, name: str):
 # cache tells compiled functions apart by source file, name and argument types, not by the
 # compile options, so with polach.creep_force_kernel (no fast-math) both loaded whichever
 # had been compiled first into the cache directory -- the twin's values moved by ~1e-13
-# with the cache's history (issue 12, fifth round)
+# with the cache's history
 _creep_force = numba.njit(cache=True, fastmath=_FLAGS)(
     _renamed(creep_force_scalar, "creep_force_scalar_fastmath"))
 _FAST = {"fastmath": _FLAGS, "cache": True}

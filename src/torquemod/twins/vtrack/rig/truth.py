@@ -78,7 +78,7 @@ def sine_fit_phase_deg(torque: np.ndarray, speed: np.ndarray, fs_hz: float,
                        frequency_hz: float) -> float:
     """Phase [deg] of ``speed`` behind ``torque`` at ``frequency_hz`` by a least-squares fit
     of cos, sin and DC to each signal over the largest whole number of periods (IEEE Std 1057
-    three-parameter fit, FACTS.md §5; solved by its 3x3 normal equations). Positive when the
+    three-parameter fit, IEEE Std 1057; solved by its 3x3 normal equations). Positive when the
     speed lags."""
     n = int(np.floor(torque.size / fs_hz * frequency_hz) * fs_hz / frequency_hz)
     if n < 3 or speed.size < n:
