@@ -38,7 +38,7 @@ def main() -> None:
     import torquemod.api as api
     import torquemod.twins.vtrack.simulate as sim
     from torquemod.sweep import evaluate as ev
-    from torquemod.sweep.run import tasks
+    from torquemod.sweep.evaluate import tasks
     from torquemod.sweep.spec import load_sweep
 
     spec = load_sweep(args.sweep)

@@ -15,6 +15,7 @@ from matplotlib.figure import Figure
 import torquemod as tm
 from torquemod.demo import synthetic_result
 from torquemod.errors import InputError
+from torquemod.process.figures import signals_figure
 from torquemod.report import ReportOptions, write_report
 from torquemod.report.figures import (
     creep_curve_figure,
@@ -22,7 +23,6 @@ from torquemod.report.figures import (
     phase_figure,
     phase_fit_figure,
     save_figure,
-    signals_figure,
 )
 
 FIGURES = ("fig1_signals", "fig2_creep_curve", "fig3_phase")

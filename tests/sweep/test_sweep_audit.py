@@ -18,7 +18,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from torquemod.sweep import evaluate as ev
-from torquemod.sweep.run import tasks
+from torquemod.sweep.evaluate import tasks
 from torquemod.sweep.spec import parse_sweep
 
 # leaves, 2 Hz, steps at 60 % and 90 % of the creep curve's peak, noise and disturbances off,

@@ -9,9 +9,8 @@ import pandas as pd
 import pytest
 
 from torquemod.sweep.conditions import condition_labels
-from torquemod.sweep.evaluate import evaluate_point
+from torquemod.sweep.evaluate import evaluate_point, tasks
 from torquemod.sweep.report import make_figures, render
-from torquemod.sweep.run import tasks
 from torquemod.sweep.spec import parse_sweep
 from torquemod.sweep.summary import recommend
 

@@ -6,10 +6,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from torquemod._util.jsonutil import to_jsonable
+
+if TYPE_CHECKING:
+    from torquemod.analysis.friction import AdhesionFit
 
 _Z975 = 1.959963984540054
 
@@ -46,7 +50,7 @@ class PhaseMuFit:
     sigma_deg: np.ndarray
     profile: dict
     warnings: list = field(default_factory=list)
-    adhesion: object = None
+    adhesion: AdhesionFit | None = None
 
     @classmethod
     def from_adhesion(cls, fit, coa, phase_deg, se_deg, constant) -> PhaseMuFit:

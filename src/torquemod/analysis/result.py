@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from html import escape
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -15,6 +16,11 @@ import pandas as pd
 from torquemod._util.jsonutil import to_jsonable
 from torquemod._version import __version__
 from torquemod.analysis.creep import CreepPoints, OnsetResult, TheoryCheck
+from torquemod.analysis.options import FitOptions
+
+if TYPE_CHECKING:  # fit.py imports scipy: named for the types only
+    from torquemod.analysis.fit import PolachFit
+    from torquemod.analysis.phasefitresult import PhaseMuFit
 
 __all__ = ["Analysis", "curve_check", "phase_keys"]
 
@@ -88,13 +94,13 @@ class Analysis:
     radii [m].
     """
 
-    options: object
+    options: FitOptions
     steps: pd.DataFrame
     points: CreepPoints
     used: np.ndarray
-    polach: object
+    polach: PolachFit | None
     polach_skipped: str | None
-    phase_fit: object
+    phase_fit: PhaseMuFit | None
     phase_fit_skipped: str | None
     theory: TheoryCheck
     phase_theory_deg: np.ndarray

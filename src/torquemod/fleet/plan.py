@@ -18,6 +18,7 @@ import tomllib
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pandas as pd
 
@@ -25,6 +26,12 @@ from torquemod._util.blas import single_blas
 from torquemod._version import __version__
 from torquemod.errors import InputError
 from torquemod.fleet.tasks import _recording_items, may_split, one_line, part_item, scan_item
+
+if TYPE_CHECKING:
+    from torquemod.io.experiment import Experiment
+    from torquemod.io.processing import ProcessingConfig
+    from torquemod.io.run import Run
+    from torquemod.ontrain.estimator import OnboardConfig
 
 MANIFEST_NAME = "experiment.toml"
 RUN_NAME = "run.toml"
@@ -157,8 +164,8 @@ class Prepared:
     OnboardConfig for a run), the partition labels ``vehicle`` and ``date``."""
 
     kind: str
-    source: object
-    settings: object
+    source: Experiment | Run
+    settings: ProcessingConfig | OnboardConfig
     digest: str
     files: dict
     vehicle: str

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 from torquemod._util.fsutil import write_atomic
 from torquemod.errors import OptionError
 from torquemod.io.processing import check_option_types, coerce_options
+from torquemod.process.figures import signals_figure
 from torquemod.process.provenance import provenance
 from torquemod.report.figures import (
     creep_curve_figure,
@@ -31,7 +32,6 @@ from torquemod.report.figures import (
     phase_figure,
     phase_fit_figure,
     save_figure,
-    signals_figure,
 )
 from torquemod.report.html import render_report
 from torquemod.report.pdf import PDF_ENGINES, html_to_pdf

@@ -68,6 +68,18 @@ class PointTask:
     max_mu_error: float = 0.10  # train: a mu row within this relative error counts
 
 
+def tasks(spec) -> list[PointTask]:
+    """One :class:`PointTask` per point of ``spec`` (a :class:`~torquemod.sweep.spec.SweepSpec`)."""
+    base = None if spec.base is None else str(spec.base.resolve())
+    return [PointTask(point_id=p.point_id, index=p.index, params=p.params,
+                      overrides=p.overrides(), seed=p.seed, mode=spec.mode, base=base,
+                      fractions_of_peak=spec.fractions_of_peak,
+                      max_utilisation=spec.recommend.max_utilisation,
+                      processing=spec.processing if spec.mode == "full" else {},
+                      kind=spec.kind, max_mu_error=spec.recommend.max_mu_error)
+            for p in spec.points]
+
+
 def point_config(task: PointTask):
     """``(SimConfig, T_peak [N*m])``: the base config with the point's overrides, its DC
     torques set to ``fractions_of_peak`` of the creep-curve peak torque when given."""

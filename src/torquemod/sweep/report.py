@@ -72,8 +72,7 @@ def creep_curves(tab: pd.DataFrame, spec: SweepSpec) -> dict:
     Conditions whose curves are the same (they differ only in noise, say) share one entry,
     named after the first and listing all their ``labels``."""
     from torquemod.analysis.contact.polach import creep_force
-    from torquemod.sweep.evaluate import point_config
-    from torquemod.sweep.run import tasks
+    from torquemod.sweep.evaluate import point_config, tasks
     from torquemod.twins.vtrack.theory import creep_curve_peak
     by_id = {t.point_id: t for t in tasks(spec)}
     groups: dict = {}

@@ -38,24 +38,12 @@ from torquemod._util.fsutil import (
 from torquemod._util.jsonutil import dump_json
 from torquemod._version import __version__
 from torquemod.errors import InputError, OutputError, TorquemodError
-from torquemod.sweep.evaluate import PointTask, evaluate_point
+from torquemod.sweep.evaluate import PointTask, evaluate_point, tasks
 from torquemod.sweep.spec import SweepSpec, load_sweep
 
 __all__ = ["SweepResult", "fingerprint", "plan_line", "run_point", "run_sweep", "tasks"]
 
 FAILURE_COLUMNS = ["point_id", "point_index", "seed", "params", "message"]
-
-
-def tasks(spec: SweepSpec) -> list[PointTask]:
-    """One :class:`PointTask` per point of ``spec``."""
-    base = None if spec.base is None else str(spec.base.resolve())
-    return [PointTask(point_id=p.point_id, index=p.index, params=p.params,
-                      overrides=p.overrides(), seed=p.seed, mode=spec.mode, base=base,
-                      fractions_of_peak=spec.fractions_of_peak,
-                      max_utilisation=spec.recommend.max_utilisation,
-                      processing=spec.processing if spec.mode == "full" else {},
-                      kind=spec.kind, max_mu_error=spec.recommend.max_mu_error)
-            for p in spec.points]
 
 
 def fingerprint(task: PointTask) -> str:
