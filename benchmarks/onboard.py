@@ -155,8 +155,8 @@ def estimator_cpu_s(run_toml: Path, repeat: int = 3) -> tuple[float, float, floa
     CPU s, mu fits)."""
     from torquemod.io import read_recording
     from torquemod.io.run import read_run
+    from torquemod.ontrain.chunks import _AxleSignals
     from torquemod.ontrain.estimator import OnboardEstimator
-    from torquemod.ontrain.run import _AxleSignals
     run = read_run(run_toml)
     e = run.recordings[0]
     rec = read_recording(e.path, group=e.group, channel_map=run.channel_map,
