@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import pandas as pd
 
 from torquemod._util.blas import single_blas
+from torquemod._util.fsutil import sha256_file
 from torquemod._version import __version__
 from torquemod.errors import InputError
 from torquemod.fleet.tasks import _recording_items, may_split, one_line, part_item, scan_item
@@ -138,14 +139,6 @@ def partition_value(value: object, *, day: bool = False) -> str:
     return _safe(str(value).strip())[:80]
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        while block := fh.read(1 << 22):
-            h.update(block)
-    return h.hexdigest()
-
-
 def _file_digest(path: Path, known: dict) -> list:
     """``[size, mtime_ns, sha256]`` of a file; the digest in ``known[str(path)]`` is reused
     when size and modification time are unchanged (a rerun does not read every file again
@@ -154,7 +147,7 @@ def _file_digest(path: Path, known: dict) -> list:
     old = known.get(str(path))
     if old and old[0] == st.st_size and old[1] == st.st_mtime_ns:
         return list(old)
-    return [st.st_size, st.st_mtime_ns, _sha256(path)]
+    return [st.st_size, st.st_mtime_ns, sha256_file(path, chunk=1 << 22)]
 
 
 @dataclass(frozen=True)

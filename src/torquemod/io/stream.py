@@ -27,7 +27,6 @@ the input digest costs no separate pass after reading.
 
 from __future__ import annotations
 
-import hashlib
 import math
 from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -36,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from torquemod._util.fsutil import sha256_file
 from torquemod.errors import InputError
 from torquemod.io._stream_tables import DEFAULT_CHUNK_ROWS, _open_table, _Table
 from torquemod.io.channels import (
@@ -379,18 +379,10 @@ def iter_chunks(entry_or_path: RecordingEntry | str | Path,
 _HASH_POOL: ThreadPoolExecutor | None = None
 
 
-def _sha256(path: Path, block: int) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        while data := fh.read(block):
-            h.update(data)  # releases the GIL for large blocks
-    return h.hexdigest()
-
-
 def hash_file_async(path: str | Path, *, block: int = 1 << 22) -> Future:
     """Start hashing a file (SHA-256, hex) in a background thread; ``.result()`` gives the
     digest. hashlib releases the GIL while it hashes, so reading and processing go on."""
     global _HASH_POOL
     if _HASH_POOL is None:
         _HASH_POOL = ThreadPoolExecutor(max_workers=2, thread_name_prefix="torquemod-sha256")
-    return _HASH_POOL.submit(_sha256, Path(path), block)
+    return _HASH_POOL.submit(sha256_file, Path(path), chunk=block)  # hashlib frees the GIL
