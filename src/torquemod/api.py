@@ -163,7 +163,7 @@ def load_onboard(folder, axle: int | None = None):
     """Read an on-board results folder back (:meth:`OnboardResult.save` or ``torquemod
     onboard``): the :class:`~torquemod.ontrain.OnboardResult` of ``axle`` (the first when
     None)."""
-    from torquemod.ontrain.folder import load_onboard as _load
+    from torquemod.ontrain.load import load_onboard as _load
     return _load(folder, axle)
 
 

@@ -6,10 +6,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from html import escape
+from typing import TYPE_CHECKING
 
 from torquemod.io.run import Run
 from torquemod.ontrain.estimator import TRACK_COLUMNS, OnboardConfig
 from torquemod.ontrain.quality import QUALITY_OK
+
+if TYPE_CHECKING:  # pandas is imported when first used
+    import pandas as pd
 
 __all__ = ["OnboardResult"]
 
@@ -50,12 +54,12 @@ class OnboardResult:
 
     run: Run
     axle: int
-    track: object
+    track: pd.DataFrame
     config: OnboardConfig
     notes: tuple[str, ...] = ()
     seconds: float = 0.0
     n_fits: int = 0
-    truth: object | None = None
+    truth: pd.DataFrame | None = None
     changes_m: tuple[float, ...] = field(default=())
     delay_s: float | None = None
     warnings: tuple[str, ...] = ()
