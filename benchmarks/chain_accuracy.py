@@ -3,7 +3,8 @@ asserts nothing).
 
 The records come from ``tests/independent_rig.py`` (the rig's equations written apart from
 torquemod, integrated by scipy's DOP853; noise-free, 2 kHz). Each record is one cycle of
-``torquemod.process.chain`` with ``ProcessingConfig.for_modulation`` of its nominal frequency (what
+``torquemod.processing.chain`` with ``ProcessingConfig.for_modulation`` of its nominal frequency
+(what
 a manifest that gives only the frequency gets).
 
 1. Steady speed: |chain - periodic orbit| [deg] per modulation frequency (0.5-8 Hz, at
@@ -30,9 +31,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import independent_rig as ir
+from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Recording, Rig
-from torquemod.io.processing import ProcessingConfig
-from torquemod.process import chain
+from torquemod.processing import chain
 
 RIG = ir.OrbitRig()
 

@@ -48,7 +48,7 @@ def _warm_up() -> None:
     import numpy as np
 
     import torquemod.ontrain.run
-    import torquemod.process.pipeline  # noqa: F401
+    import torquemod.processing.pipeline  # noqa: F401
     from torquemod.dsp import filters
 
     filters.resample(np.zeros((2, 5000)), 2, 625, method="two_stage", padtype="constant")

@@ -130,7 +130,7 @@ def measure(folder: Path, workers: int, trace: bool, out_dir: Path) -> dict:
     import scipy.signal  # noqa: F401
 
     from torquemod.api import run  # noqa: F401
-    from torquemod.process.pipeline import process_experiment
+    from torquemod.processing.pipeline import process_experiment
     from torquemod.results.folder import save
 
     base_now = _rss_now_bytes()
@@ -309,10 +309,10 @@ def measure_read(path: Path, mode: str) -> dict:
         n = rec.n_samples
         total = sum(float(x.sum()) for x in rec.channels.values())
     elif mode == "revolutions":  # streamed, and the per-cycle chain on every revolution
+        from torquemod.io.config import ProcessingConfig
         from torquemod.io.experiment import Rig
-        from torquemod.io.processing import ProcessingConfig
         from torquemod.io.stream import open_stream
-        from torquemod.process import chain
+        from torquemod.processing import chain
 
         cfg, rig, n = ProcessingConfig(), Rig(0.0675, 2.0), 0
         with open_stream(path) as stream:

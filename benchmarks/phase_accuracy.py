@@ -19,9 +19,9 @@ import numpy as np
 
 from torquemod.dsp.phase import phase_crb_deg
 from torquemod.errors import InputError
+from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Recording, Rig
-from torquemod.io.processing import ProcessingConfig
-from torquemod.process import chain
+from torquemod.processing import chain
 
 FS = 16_670.0
 RIG = Rig(0.0675, 2.0)

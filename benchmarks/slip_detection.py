@@ -19,10 +19,10 @@ import time
 
 import numpy as np
 
+from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Rig
-from torquemod.io.processing import ProcessingConfig
-from torquemod.process import chain
-from torquemod.process.pipeline import detect_slip
+from torquemod.processing import chain
+from torquemod.processing.pipeline import detect_slip
 from torquemod.testing import SyntheticSpec, synthetic_recording
 
 #: creepage runaways over one cycle [-]

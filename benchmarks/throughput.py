@@ -37,7 +37,7 @@ reached. Against the decimator pass as it was before (3.0-3.1 ms) the chain now 
 Every change keeps the phase within 1.5e-9 deg and the creepage within 5e-15 of the code
 before (the benchmark's cycle, four other synthetic cycles, the 18-cycle demo experiment); the
 phase's standard error moves by up to 1e-5 relative (``noise_kept``, 1.4e-5, is that
-sensitive to rounding: see :meth:`torquemod.process.chain.SpeedModel.noise_depletion`).
+sensitive to rounding: see :meth:`torquemod.processing.chain.SpeedModel.noise_depletion`).
 The cold line is for cycles whose lengths all differ (per-revolution cycles): the Slepian basis
 (:func:`torquemod.dsp.filters.slow_basis`, 1.2 ms per new length, was 2.1) dominates it.
 
@@ -89,9 +89,9 @@ from pathlib import Path
 import numpy as np
 
 from torquemod.dsp import filters, spectrum
+from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Rig
-from torquemod.io.processing import ProcessingConfig
-from torquemod.process import chain
+from torquemod.processing import chain
 from torquemod.testing import SyntheticSpec, synthetic_recording, write_synthetic_experiment
 
 
@@ -235,7 +235,7 @@ def end_to_end(workdir: Path) -> None:
         write_synthetic_experiment(exp_h5, n_steps=6, n_cycles=3, fmt="hdf5")
     size = sum(p.stat().st_size for p in exp.glob("*.csv"))
     t_import = best_of(lambda: subprocess.run(
-        [sys.executable, "-c", "import torquemod.process.pipeline"], check=True), repeat=3)
+        [sys.executable, "-c", "import torquemod.processing.pipeline"], check=True), repeat=3)
     t_proc, tail = _run_process(exp / "experiment.toml", workdir / "results", "--no-fit")
     t_full, _ = _run_process(exp / "experiment.toml", workdir / "results_full")
     t_h5, tail_h5 = _run_process(exp_h5 / "experiment.toml", workdir / "results_h5", "--no-fit")
@@ -248,7 +248,7 @@ def end_to_end(workdir: Path) -> None:
     subprocess.run([sys.executable, "-c", "import numpy, scipy.signal"], check=True)
     t_base_import = time.perf_counter() - t0
     print(f"end to end, 18 recordings (6 steps x 3 cycles, 16 670 Hz), CSV {size / 1e6:.0f} MB:")
-    print(f"  interpreter + import torquemod.process.pipeline: {t_import:6.2f} s")
+    print(f"  interpreter + import torquemod.processing.pipeline: {t_import:6.2f} s")
     print(f"  torquemod process --no-fit (CSV):  {t_proc:6.2f} s wall; {tail}")
     print(f"  torquemod process (CSV, with fit and report): {t_full:6.2f} s wall")
     print(f"  torquemod process --no-fit (HDF5): {t_h5:6.2f} s wall; {tail_h5}")

@@ -157,3 +157,16 @@ def test_no_private_name_imported_from_another_package():
                     bad.append(f"{name}:{line} imports {'.'.join(parts)}")
                     break
     assert not bad, "\n".join(bad)
+
+
+def test_no_module_hides_a_public_name():
+    """Importing a subpackage makes it an attribute of ``torquemod``: no subpackage or module
+    may carry the name of a public call (``tm.process`` stays the function after
+    ``import torquemod.processing``); ``tm.twin`` is the twin's facade module on purpose."""
+    import importlib
+
+    for name in MODULES:
+        importlib.import_module(name)
+    hidden = [n for n in torquemod.__all__ if n != "twin"
+              and type(getattr(torquemod, n)).__name__ == "module"]
+    assert not hidden, hidden

@@ -23,6 +23,6 @@ def test_manifest_read_before_the_heavy_imports(tmp_path):
     assert not set(HEAVY) & set(loaded)
     # ... and the lazy names still resolve, to the modules that define them
     import torquemod.api as api
-    from torquemod.process.pipeline import process_experiment
+    from torquemod.processing.pipeline import process_experiment
     from torquemod.results.folder import save
     assert api.save is save and api.process_experiment is process_experiment

@@ -28,9 +28,9 @@ _LAZY = {"FitOptions": "torquemod.analysis.analyzer", "Analysis": "torquemod.ana
          "read_experiment": "torquemod.api", "run": "torquemod.api", "save": "torquemod.api",
          "read_run": "torquemod.api", "onboard": "torquemod.api",
          "load_onboard": "torquemod.api", "OnboardResult": "torquemod.ontrain.result",
-         "Run": "torquemod.io.run", "ProcessingConfig": "torquemod.io.processing",
+         "Run": "torquemod.io.run", "ProcessingConfig": "torquemod.io.config",
          "Experiment": "torquemod.io.experiment", "Recording": "torquemod.io.experiment",
-         "ProcessResult": "torquemod.process.pipeline"}
+         "ProcessResult": "torquemod.processing.pipeline"}
 
 __all__ = ["Analysis", "Experiment", "FitOptions", "InputError", "OnboardResult",
            "OutputError", "ProcessResult", "ProcessingConfig", "ProcessingError", "Recording",

@@ -31,13 +31,13 @@ from typing import TYPE_CHECKING
 
 from torquemod import io as _io
 from torquemod.errors import OutputError
+from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Experiment
-from torquemod.io.processing import ProcessingConfig
 
 if TYPE_CHECKING:  # imported when first used (_LAZY)
     from torquemod.analysis.analyzer import FitOptions, analyze
     from torquemod.analysis.result import Analysis
-    from torquemod.process.pipeline import ProcessResult, process_experiment, resolve_config
+    from torquemod.processing.pipeline import ProcessResult, process_experiment, resolve_config
     from torquemod.results.folder import load, save, update
 
 __all__ = ["RunOutcome", "analyze", "fit_folder", "fit_results_folder", "load", "load_onboard",
@@ -51,9 +51,9 @@ Stage = Callable[[str], object] | None
 _LAZY = {"analyze": "torquemod.analysis.analyzer", "FitOptions": "torquemod.analysis.analyzer",
          "Analysis": "torquemod.analysis.result", "load": "torquemod.results.folder",
          "save": "torquemod.results.folder", "update": "torquemod.results.folder",
-         "ProcessResult": "torquemod.process.pipeline",
-         "process_experiment": "torquemod.process.pipeline",
-         "resolve_config": "torquemod.process.pipeline"}
+         "ProcessResult": "torquemod.processing.pipeline",
+         "process_experiment": "torquemod.processing.pipeline",
+         "resolve_config": "torquemod.processing.pipeline"}
 
 
 def __getattr__(name: str):
@@ -75,7 +75,7 @@ def _bind(*names: str) -> None:
 def read_experiment(path) -> Experiment:
     """Read an experiment manifest (``experiment.toml`` or its folder). Its ``[processing]``
     table is checked now and available as ``exp.processing`` (a
-    :class:`~torquemod.io.processing.ProcessingConfig`)."""
+    :class:`~torquemod.io.config.ProcessingConfig`)."""
     exp = _io.read_experiment(path)
     _ = exp.processing  # a bad [processing] table is reported here, naming the manifest
     return exp

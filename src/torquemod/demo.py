@@ -4,7 +4,7 @@ for tests and documentation.
 :func:`run_demo` drives the digital twin (:mod:`torquemod.twin`) and the orchestrator
 (:func:`torquemod.api.run`), writing the whole demo folder atomically.
 
-:func:`synthetic_result` fabricates a :class:`~torquemod.process.pipeline.ProcessResult` from a
+:func:`synthetic_result` fabricates a :class:`~torquemod.processing.pipeline.ProcessResult` from a
 known
 Polach curve and the rigid-wheel phase law, with noise; :func:`write_synthetic_results` saves
 it as a results folder. It is independent of the simulator and the processing chain.
@@ -23,7 +23,12 @@ from scipy.optimize import brentq
 from torquemod.analysis.creep import phase_from_constant_deg, theory_constant
 from torquemod.analysis.fit import polach_coa, polach_slope
 from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
-from torquemod.process.pipeline import CYCLE_COLUMNS, ProcessResult, aggregate_steps, resolve_config
+from torquemod.processing.pipeline import (
+    CYCLE_COLUMNS,
+    ProcessResult,
+    aggregate_steps,
+    resolve_config,
+)
 
 __all__ = ["SYNTHETIC_TRUTH", "run_demo", "synthetic_result", "write_synthetic_results"]
 

@@ -16,9 +16,9 @@ from scipy import signal
 
 from torquemod.dsp import filters
 from torquemod.errors import InputError
+from torquemod.io.config import ProcessingConfig, ResampleParams
 from torquemod.io.experiment import Rig
-from torquemod.io.processing import ProcessingConfig, ResampleParams
-from torquemod.process import chain
+from torquemod.processing import chain
 from torquemod.testing import SyntheticSpec, synthetic_recording
 
 FS_RAW = 16_670.0

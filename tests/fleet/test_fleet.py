@@ -20,7 +20,7 @@ from torquemod.fleet.run import (
     run_fleet,
     run_names,
 )
-from torquemod.process.pipeline import process_experiment
+from torquemod.processing.pipeline import process_experiment
 from torquemod.testing import write_short_train_run, write_synthetic_experiment
 
 
@@ -257,7 +257,7 @@ def test_first_bad_recording_in_manifest_order_names_the_failure(fleet, tmp_path
 
 def _set_stream_min_bytes(value: int) -> int:
     """On a worker: the size from which load_and_process streams a file; returns the old."""
-    from torquemod.process import pipeline
+    from torquemod.processing import pipeline
     old = pipeline.STREAM_MIN_BYTES
     pipeline.STREAM_MIN_BYTES = value
     return old
@@ -274,7 +274,7 @@ def test_long_recordings_one_task_per_revolution_group(cluster, tmp_path, monkey
     import numpy as np
     from dask.distributed import Client, get_task_stream
 
-    from torquemod.process import pipeline
+    from torquemod.processing import pipeline
     root = tmp_path / "fleet"
     write_synthetic_experiment(root / "long", n_steps=2, n_cycles=3, files_per_cycle=False,
                                fmt="hdf5", seed=7)

@@ -87,7 +87,7 @@ def test_process_numbers_do_not_depend_on_the_callers_blas_threads(runs):
     the fix the twin's phase standard errors differed by up to 6.5e-6 deg on 2 cores)."""
     from threadpoolctl import threadpool_limits
 
-    from torquemod.process.pipeline import process_experiment
+    from torquemod.processing.pipeline import process_experiment
     manifest = runs / "runs" / "twin" / "experiment.toml"
     got = {}
     for n in (2, 1):
@@ -101,7 +101,7 @@ def test_fleet_equals_process_on_the_twin_with_relative_paths(runs, monkeypatch)
     tables are `process_experiment`'s in this process bit for bit (tolerance 0), and the
     bad manifest's line is the one `process` gives for the same path."""
     from torquemod.fleet.run import run_fleet
-    from torquemod.process.pipeline import process_experiment
+    from torquemod.processing.pipeline import process_experiment
     monkeypatch.chdir(runs)
     res = run_fleet(["runs/*/experiment.toml"], "out", n_workers=2, report=False)
     status = dict(zip(res.summary["run"], res.summary["status"], strict=True))

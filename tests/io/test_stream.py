@@ -167,7 +167,7 @@ def test_revolutions_streamed_equal_the_whole_file_split(n_rev, fmt, chunk, tmp_
     speed, chunks that cut revolutions anywhere, a file of exactly whole revolutions), and
     samples identical to Recording.slice."""
     from torquemod.io import write_recording
-    from torquemod.process.cycles import revolution_bounds
+    from torquemod.processing.cycles import revolution_bounds
     from torquemod.testing import SyntheticSpec, synthetic_recording
 
     rec = synthetic_recording(SyntheticSpec(fs_hz=FS_HZ, n_revolutions=n_rev, seed=4))
@@ -197,7 +197,7 @@ def test_last_revolution_completed_within_the_last_sample_interval(tmp_path):
     sample's interval (revolution_bounds' appended point)."""
     from torquemod.io import write_recording
     from torquemod.io.experiment import Recording
-    from torquemod.process.cycles import revolution_bounds
+    from torquemod.processing.cycles import revolution_bounds
 
     w = 0.75  # [rad/s]
     n = 3 * 2000  # 3 revolutions of 2000 samples

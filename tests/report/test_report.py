@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 import torquemod as tm
 from torquemod.demo import synthetic_result
 from torquemod.errors import InputError
-from torquemod.process.figures import signals_figure
+from torquemod.processing.figures import signals_figure
 from torquemod.report import ReportOptions, write_report
 from torquemod.report.figures import (
     creep_curve_figure,

@@ -99,7 +99,7 @@ def test_figures_numbered_from_one(written):
 def test_signals_on_one_axes_draw_one_panel(phase_only):
     from matplotlib.figure import Figure
 
-    from torquemod.process.figures import signals_figure
+    from torquemod.processing.figures import signals_figure
     res, _ = phase_only
     ax = Figure().subplots()
     signals_figure(res.traces[(3, 1)], step=3, cycle=1, ax=ax)

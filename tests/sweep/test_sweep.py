@@ -326,7 +326,7 @@ def test_one_recommendation_per_noise_level():
 # -------------------------------------------------------------------------- full sweeps
 
 def test_chain_config_scales_with_the_frequency_and_takes_the_processing_table():
-    from torquemod.io.processing import ProcessingConfig
+    from torquemod.io.config import ProcessingConfig
     from torquemod.sweep.evaluate import chain_config
     assert chain_config(2.0) == ProcessingConfig()  # the defaults are the 2 Hz ones
     c = chain_config(4.0, {"phase": {"method": "sinefit"}, "slow": {"max_hz": 1.0}})

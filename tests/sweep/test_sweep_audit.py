@@ -187,7 +187,7 @@ procedure.dc_torques_nm = [[10.0, 20.0]]
 
 
 def test_chain_resamples_faster_above_2_hz():
-    from torquemod.io.processing import ProcessingConfig
+    from torquemod.io.config import ProcessingConfig
     rate = ProcessingConfig().resample.target_hz
     assert ev.chain_config(1.0).resample.target_hz == rate  # never slower than the paper's
     assert ev.chain_config(2.0).resample.target_hz == rate

@@ -1,7 +1,7 @@
 """The fit stage, in memory: creep points -> Polach fit -> mu from the phase -> theory check
 -> saturation onset.
 
-:func:`analyze` takes a :class:`~torquemod.process.pipeline.ProcessResult` and returns an
+:func:`analyze` takes a :class:`~torquemod.processing.pipeline.ProcessResult` and returns an
 :class:`~torquemod.analysis.result.Analysis`. Everything comes from the result and its
 experiment: the per-step tables, the per-cycle means (normal load, lateral force), the
 measured modulation frequencies and the rig (radius, inertia, contact stiffness). Nothing is
@@ -43,7 +43,7 @@ from torquemod.analysis.result import Analysis
 from torquemod.errors import InputError, OptionError, ProcessingError
 
 if TYPE_CHECKING:
-    from torquemod.process.pipeline import ProcessResult
+    from torquemod.processing.pipeline import ProcessResult
 
 __all__ = ["ADDED_STEP_COLUMNS", "Analysis", "FitOptions", "analyze",
            "saturation_torque"]
@@ -206,7 +206,7 @@ def saturation_torque(polach, phase_fit, *, normal_load_n: float, wheel_radius_m
 def _require_process_result(result) -> None:
     """A clear error when :func:`analyze` is given something else than a processed result
     (an experiment, a manifest path, a results folder)."""
-    from torquemod.process.pipeline import ProcessResult
+    from torquemod.processing.pipeline import ProcessResult
     if isinstance(result, ProcessResult):
         return
     what = type(result).__name__

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from torquemod.analysis.creep import ONSET_CRITERIA
 from torquemod.errors import OptionError
-from torquemod.io.processing import check_option_types, coerce_options
+from torquemod.io.config import check_option_types, coerce_options
 
 __all__ = ["FitOptions"]
 

@@ -29,8 +29,8 @@ from torquemod.errors import InputError
 from torquemod.fleet.tasks import _recording_items, may_split, one_line, part_item, scan_item
 
 if TYPE_CHECKING:
+    from torquemod.io.config import ProcessingConfig
     from torquemod.io.experiment import Experiment
-    from torquemod.io.processing import ProcessingConfig
     from torquemod.io.run import Run
     from torquemod.ontrain.estimator import OnboardConfig
 
@@ -288,7 +288,7 @@ def work_item(plan: Plan, index: int) -> tuple:
             from torquemod.ontrain.run import estimate_axle, track_table
             out = track_table(estimate_axle(prep.source, entry, prep.settings))
         else:
-            from torquemod.process.pipeline import load_and_process, resolve_config
+            from torquemod.processing.pipeline import load_and_process, resolve_config
             out = load_and_process(entry, prep.source, resolve_config(prep.source))
         return "ok", out, time.perf_counter() - t0
     except Exception as exc:
@@ -298,7 +298,7 @@ def work_item(plan: Plan, index: int) -> tuple:
 def _rig_tables(prep: Prepared, loaded: list, fit: bool) -> tuple[dict, dict]:
     """``torquemod process`` without its results folder, from the recordings' results:
     {table: {file: DataFrame}} and the summary fields (the fit's mu when ``fit``)."""
-    from torquemod.process.pipeline import process_experiment
+    from torquemod.processing.pipeline import process_experiment
     res = process_experiment(prep.source, workers=1,
                              loaded=list(zip(prep.source.recordings, loaded, strict=True)))
     info = {"n_steps": len(res.steps), "n_cycles": len(res.cycles), "n_rows": len(res.cycles),

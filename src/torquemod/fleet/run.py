@@ -7,7 +7,7 @@ fingerprints it (:func:`plan_run`); a run to process becomes one task per record
 (:func:`work_item`: for a rig experiment, steps 1-5 and 8 of the chain on one recording file,
 usually one cycle; for a train run, the on-board estimator on one axle), except that a long
 rig file of many revolutions becomes a scan task and one task per group of revolutions
-(:mod:`torquemod.fleet.tasks`, :mod:`torquemod.process.revtasks`), and a task that
+(:mod:`torquemod.fleet.tasks`, :mod:`torquemod.processing.revtasks`), and a task that
 assembles them (:func:`finish_run`: for a rig, the alignment, phases, steps and creep-curve fit
 of ``process_experiment`` and ``torquemod process``; for a train run, the axles' tracks of
 ``torquemod onboard``). Each worker runs one thread (the processes are the parallelism: the
@@ -130,8 +130,8 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     ``on_dashboard(link)`` is called with the dashboard address when there is one;
     ``progress`` shows a bar on stderr. A rig recording spanning many revolutions becomes
     one task per ``revolutions_per_task`` revolutions (default: about
-    :data:`torquemod.process.revtasks.TASK_SECONDS` of recording each, and only for files that
-    ``process`` streams, >= 256 MiB; :func:`scan_item`, :mod:`torquemod.process.revtasks`).
+    :data:`torquemod.processing.revtasks.TASK_SECONDS` of recording each, and only for files that
+    ``process`` streams, >= 256 MiB; :func:`scan_item`, :mod:`torquemod.processing.revtasks`).
     ``axle_chunk_s`` [s]: a train axle recording with random row access (HDF5, MAT v7.3,
     MDF4, TDMS) longer than that becomes one task per chunk of that length, measuring its
     windows, and the run's assembly advances the estimator over them

@@ -1,7 +1,7 @@
 """The fleet's tasks below a run: the tasks of a rig recording spanning many revolutions (a
 cheap scan, one task per group of revolutions, and their merge in the run's assembly,
 :func:`torquemod.fleet.plan.finish_run`) and a train axle's chunks. The work itself is
-:mod:`torquemod.process.revtasks` and :mod:`torquemod.ontrain.chunks`; the graph that sends
+:mod:`torquemod.processing.revtasks` and :mod:`torquemod.ontrain.chunks`; the graph that sends
 them to Dask is :func:`torquemod.fleet.run.run_tasks`. ``plan`` arguments are
 :class:`torquemod.fleet.plan.Plan`."""
 
@@ -69,7 +69,8 @@ def scan_item(plan, index: int) -> tuple:
     """Recording ``index`` of a plan, cheaply: ``("split", RevolutionPlan or None, groups,
     seconds, first)`` when it becomes one task per group (rig: of revolutions,
     ``plan.revolutions_per_task`` each, default about a minute of recording,
-    :mod:`torquemod.process.revtasks`; ``first`` the first group's item when the scan computed it,
+    :mod:`torquemod.processing.revtasks`; ``first`` the first group's item when the scan computed
+    it,
     else None; train: chunks of the axle), else ``("whole", None, None, seconds, None)``:
     one :func:`work_item` (also when the scan meets an error: the one task then gives the
     error ``process`` gives). Never raises (a Dask task)."""
@@ -86,8 +87,8 @@ def scan_item(plan, index: int) -> tuple:
             return "whole", None, None, time.perf_counter() - t0, None
         return "split", None, [tuple(c) for c in chunks], time.perf_counter() - t0, None
     try:
-        from torquemod.process.pipeline import resolve_config
-        from torquemod.process.revtasks import scan_revolutions
+        from torquemod.processing.pipeline import resolve_config
+        from torquemod.processing.revtasks import scan_revolutions
         got = scan_revolutions(prep.source.recordings[index], prep.source,
                                resolve_config(prep.source),
                                revolutions_per_task=plan.revolutions_per_task,
@@ -114,8 +115,8 @@ def part_item(plan, index: int, rplan, first: int, stop: int) -> tuple:
             out = _axle_api().measure_axle_chunk(prep.source, prep.source.recordings[index],
                                                  prep.settings, first, stop)
             return "ok", out, time.perf_counter() - t0
-        from torquemod.process.pipeline import resolve_config
-        from torquemod.process.revtasks import process_revolutions
+        from torquemod.processing.pipeline import resolve_config
+        from torquemod.processing.revtasks import process_revolutions
         out = process_revolutions(prep.source.recordings[index], prep.source,
                                   resolve_config(prep.source), rplan, first, stop,
                                   sha256=_fresh_sha256(plan, index) if first == 0 else None)
@@ -152,7 +153,7 @@ def _recording_items(plan, items: tuple, layout: list | None) -> list[tuple]:
                     prep.source, prep.source.recordings[index], prep.settings,
                     [p[1] for p in parts]))
             else:
-                from torquemod.process.revtasks import merge_revolutions
+                from torquemod.processing.revtasks import merge_revolutions
                 merged = merge_revolutions(rplan, [p[1] for p in parts])
             out.append(("ok", merged, secs))
         except Exception as exc:

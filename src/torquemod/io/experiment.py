@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from torquemod.io.processing import ProcessingConfig
+from torquemod.io.config import ProcessingConfig
 
 #: The method's channels, SI units, in the order the CSV format lists them.
 CHANNELS: tuple[str, ...] = (
@@ -101,8 +101,8 @@ class Experiment:
     @property
     def processing(self) -> ProcessingConfig:
         """The manifest's ``[processing]`` table as a
-        :class:`~torquemod.io.processing.ProcessingConfig` over the defaults for the test's
-        nominal modulation frequency (:meth:`~torquemod.io.processing.ProcessingConfig.
+        :class:`~torquemod.io.config.ProcessingConfig` over the defaults for the test's
+        nominal modulation frequency (:meth:`~torquemod.io.config.ProcessingConfig.
         for_modulation`: the paper's 2 Hz values, scaled at another frequency)."""
         table = self.extra.get("processing")
         return ProcessingConfig.for_modulation(self.test.modulation_frequency_hz, table or {},

@@ -207,7 +207,7 @@ class RecordingStream:
                     ) -> Iterator[tuple[int, Recording, tuple[int, int]]]:
         """``(k, recording of revolution k, (start, stop))`` for every whole platform
         revolution, k = 1, 2, ..., read in one pass holding at most a revolution and a
-        chunk: the same index ranges as :func:`torquemod.process.cycles.revolution_bounds` on the
+        chunk: the same index ranges as :func:`torquemod.processing.cycles.revolution_bounds` on the
         whole platform speed (the angle is the same trapezoidal sum, accumulated in the same
         order, so bit for bit the same) and the same samples as ``Recording.slice``. After
         the last one, ``self.tail_samples`` holds the samples of the partial revolution

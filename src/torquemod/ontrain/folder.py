@@ -24,7 +24,7 @@ from torquemod._util.jsonutil import dump_json
 from torquemod._version import __version__
 from torquemod.errors import InputError
 from torquemod.io.run import Run
-from torquemod.process.provenance import software_versions
+from torquemod.processing.provenance import software_versions
 from torquemod.results.export import check_formats, write_table
 
 __all__ = ["check_onboard_out", "save_onboard", "track_name"]

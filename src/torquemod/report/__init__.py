@@ -10,7 +10,8 @@
     report.html                         summary, figures, Tables 1-2, fit, warnings, provenance
     report.pdf                          the same on A4 (only with the ``pdf`` option)
 
-Everything is drawn from the objects in memory (:class:`~torquemod.process.pipeline.ProcessResult`,
+Everything is drawn from the objects in memory
+(:class:`~torquemod.processing.pipeline.ProcessResult`,
 :class:`~torquemod.analysis.result.Analysis`); nothing is read from the folder.
 """
 
@@ -23,9 +24,9 @@ from typing import TYPE_CHECKING
 
 from torquemod._util.fsutil import write_atomic
 from torquemod.errors import OptionError
-from torquemod.io.processing import check_option_types, coerce_options
-from torquemod.process.figures import signals_figure
-from torquemod.process.provenance import provenance
+from torquemod.io.config import check_option_types, coerce_options
+from torquemod.processing.figures import signals_figure
+from torquemod.processing.provenance import provenance
 from torquemod.report.figures import (
     creep_curve_figure,
     figure_of,
@@ -38,7 +39,7 @@ from torquemod.report.pdf import PDF_ENGINES, html_to_pdf
 
 if TYPE_CHECKING:
     from torquemod.analysis.result import Analysis
-    from torquemod.process.pipeline import ProcessResult
+    from torquemod.processing.pipeline import ProcessResult
 
 __all__ = ["ReportOptions", "creep_curve_figure", "phase_figure", "phase_fit_figure",
            "signals_figure", "write_report"]

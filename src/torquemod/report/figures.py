@@ -12,7 +12,7 @@ headless.
 
 from torquemod._util.mpl import figure_of, save_figure
 from torquemod.analysis.figures import creep_curve_figure, phase_figure, phase_fit_figure
-from torquemod.process.figures import signals_figure
+from torquemod.processing.figures import signals_figure
 
 __all__ = ["creep_curve_figure", "figure_of", "phase_figure", "phase_fit_figure",
            "save_figure", "signals_figure"]

@@ -12,7 +12,7 @@
     figures/, report.html   the report (:mod:`torquemod.report`), when analysed
 
 :func:`load` is the only reader. It reads ``result.json``, the two tables and the traces,
-checks them, and rebuilds the :class:`~torquemod.process.pipeline.ProcessResult`; the
+checks them, and rebuilds the :class:`~torquemod.processing.pipeline.ProcessResult`; the
 :class:`~torquemod.analysis.result.Analysis` is recomputed in memory with the stored fit
 options (deterministic, so it equals the saved one). ``provenance.json``, ``fit.json`` and the
 report are outputs only. A missing or damaged file raises :class:`InputError` naming it.
@@ -36,10 +36,10 @@ from torquemod._util import fsutil
 from torquemod._util.jsonutil import dump_json, write_json
 from torquemod.analysis.analyzer import ADDED_STEP_COLUMNS, FitOptions, analyze
 from torquemod.errors import InputError, OptionError, OutputError, TorquemodError
+from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
-from torquemod.io.processing import ProcessingConfig
-from torquemod.process.pipeline import CYCLE_COLUMNS, STEP_COLUMNS, ProcessResult
-from torquemod.process.provenance import provenance
+from torquemod.processing.pipeline import CYCLE_COLUMNS, STEP_COLUMNS, ProcessResult
+from torquemod.processing.provenance import provenance
 from torquemod.report import write_report
 
 if TYPE_CHECKING:

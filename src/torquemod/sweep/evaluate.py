@@ -47,7 +47,7 @@ SETTLE_TIME_CONSTANTS = 8.0
 SETTLE_RULE = "8 creep-mode time constants of the slowest recorded step (< slip_creepage)"
 #: how :func:`chain_config` scales the chain with the frequency (in the fingerprint too)
 CHAIN_RULE = "band, band-pass, high-pass, slow model x f/2; resampling rate x max(f/2, 1)"
-#: (the same rule as torquemod.io.processing.FREQUENCY_RULE; kept as the fingerprint's text)
+#: (the same rule as torquemod.io.config.FREQUENCY_RULE; kept as the fingerprint's text)
 
 
 @dataclass(frozen=True)
@@ -247,7 +247,7 @@ def _f(x) -> float:
 
 def chain_config(frequency_hz: float, processing: dict | None = None):
     """The processing chain's parameters for a modulation at ``frequency_hz`` [Hz]
-    (:meth:`torquemod.io.processing.ProcessingConfig.for_modulation`: the defaults, tuned for the
+    (:meth:`torquemod.io.config.ProcessingConfig.for_modulation`: the defaults, tuned for the
     paper's 2 Hz, with every frequency-bound setting scaled by ``frequency_hz/2``; above
     2 Hz also the resampling rate, so that a period keeps its 26.7 samples: the paper's
     peak/valley phase interpolates each peak by a parabola, whose bias grows as the samples
@@ -255,7 +255,7 @@ def chain_config(frequency_hz: float, processing: dict | None = None):
     chain's phase 0.025 deg (median) to 0.074 deg off the theory with a standard error of
     1e-4 deg; with the rate scaled, 0.0012 deg). Then the keys the sweep's ``processing``
     table gives (nested as a manifest's ``[processing]``)."""
-    from torquemod.io.processing import ProcessingConfig
+    from torquemod.io.config import ProcessingConfig
     return ProcessingConfig.for_modulation(frequency_hz, processing or {},
                                            source="sweep [processing]")
 

@@ -231,7 +231,7 @@ def _processing(doc: dict, path) -> dict:
     """The ``[processing]`` table (the chain's parameters as an experiment manifest takes
     them, docs/processing.md), checked now so that a typo names the sweep file."""
     table = doc.get("processing", {})
-    from torquemod.io.processing import ProcessingConfig
+    from torquemod.io.config import ProcessingConfig
     ProcessingConfig.from_dict(table, source=f"{path} [processing]")
     return table
 

@@ -11,7 +11,7 @@ import pytest
 from scipy import optimize, signal
 
 from torquemod.dsp import filters, phase, spectrum
-from torquemod.process import chain
+from torquemod.processing import chain
 
 FS = 53.344
 

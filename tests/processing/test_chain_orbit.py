@@ -17,10 +17,10 @@ import pytest
 
 import independent_rig as ir
 from torquemod.io import read_experiment, write_manifest
+from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Recording
-from torquemod.io.processing import ProcessingConfig
 from torquemod.io.recording import write_recording
-from torquemod.process.pipeline import process_experiment
+from torquemod.processing.pipeline import process_experiment
 
 RIG = ir.OrbitRig()
 

@@ -1,4 +1,4 @@
-"""A long rig recording cut into groups of revolutions (torquemod.process.revtasks), in this
+"""A long rig recording cut into groups of revolutions (torquemod.processing.revtasks), in this
 process:
 the merged groups must be exactly what `load_and_process` returns for the whole recording,
 in both of its ways of splitting a file (whole-file read; streaming, forced here by lowering
@@ -18,8 +18,8 @@ import pytest
 from torquemod.errors import InputError
 from torquemod.io import read_experiment
 from torquemod.io.stream import open_stream
-from torquemod.process import pipeline
-from torquemod.process.revtasks import (
+from torquemod.processing import pipeline
+from torquemod.processing.revtasks import (
     merge_revolutions,
     plan_revolutions,
     process_revolutions,
@@ -246,7 +246,7 @@ def test_digest_hashed_once_when_fresh(long_exp, tmp_path):
 def test_default_groups_hold_about_a_minute():
     """groups() without revolutions_per_task: round(TASK_SECONDS / revolution length)
     revolutions each (V-Track: 6.46 s revolutions -> 9 per group, 58 s); at least one."""
-    from torquemod.process.revtasks import TASK_SECONDS, RevolutionPlan
+    from torquemod.processing.revtasks import TASK_SECONDS, RevolutionPlan
     fs = 16_670.0
     rev = round(6.46 * fs)
     bounds = tuple((k * rev, (k + 1) * rev) for k in range(20))

@@ -3,7 +3,7 @@
 :func:`phase_parts` turns one aligned cycle into its row of the cycle table, its details and
 its figure traces. :class:`InOrderStep` applies steps 6 and 7 to the cycles of a step that
 is one recording split into revolutions as each cycle is done, so that a long recording's
-cycles are never all held (:func:`torquemod.process.pipeline.process_experiment`).
+cycles are never all held (:func:`torquemod.processing.pipeline.process_experiment`).
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from torquemod.errors import InputError, ProcessingError
+from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Experiment, RecordingEntry
-from torquemod.io.processing import ProcessingConfig
-from torquemod.process import chain
+from torquemod.processing import chain
 
 __all__ = ["InOrderStep", "in_order_steps", "phase_parts"]
 
@@ -78,7 +78,8 @@ class _Measured:
 class InOrderStep:
     """Steps 6 and 7 of a step whose cycles arrive in cycle order (the step is one recording
     split into revolutions), applied to each cycle as it is done: the first is the alignment
-    reference (:func:`torquemod.process.chain.align_lags`), only it is held, and a cycle keeps its
+    reference (:func:`torquemod.processing.chain.align_lags`), only it is held, and a cycle keeps
+    its
     row, details and, for the first ``trace_cycles``, its traces. The numbers are those
     of aligning the whole step at the end (tests)."""
 

@@ -1,5 +1,5 @@
 """The chain's figure: the V-Track paper's Figure 2 of one cycle (torque and wheel speed, raw
-and filtered), drawn from a :class:`~torquemod.process.pipeline.ProcessResult`'s traces.
+and filtered), drawn from a :class:`~torquemod.processing.pipeline.ProcessResult`'s traces.
 :mod:`torquemod.report.figures` gathers it with the analysis' figures.
 """
 

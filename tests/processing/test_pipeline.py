@@ -17,8 +17,8 @@ import pandas as pd
 import pytest
 
 from torquemod.dsp.phase import phase_crb_deg
-from torquemod.io.processing import ProcessingConfig
-from torquemod.process.pipeline import CYCLE_COLUMNS, STEP_COLUMNS, process_experiment
+from torquemod.io.config import ProcessingConfig
+from torquemod.processing.pipeline import CYCLE_COLUMNS, STEP_COLUMNS, process_experiment
 from torquemod.results.folder import save
 from torquemod.testing import SyntheticSpec, write_synthetic_experiment
 
@@ -207,7 +207,7 @@ def test_trailing_part_noted_only_when_it_matters(extra_samples, noted):
     from pathlib import Path
 
     from torquemod.io.experiment import Recording, RecordingEntry
-    from torquemod.process.pipeline import _cycles_of
+    from torquemod.processing.pipeline import _cycles_of
 
     fs, rev = 1000.0, 1000  # one revolution per second at 2*pi rad/s
     n = 2 * rev + extra_samples
@@ -228,7 +228,7 @@ def test_long_files_streamed_by_revolution_give_identical_results(tmp_path, monk
     """Files spanning several revolutions are split while they are read when they are
     large (pipeline.STREAM_MIN_BYTES); the cycles and steps are identical, number for
     number, to the whole-file path."""
-    import torquemod.process.pipeline as pl
+    import torquemod.processing.pipeline as pl
 
     write_synthetic_experiment(tmp_path, n_steps=2, n_cycles=3, files_per_cycle=False,
                                fmt=fmt, seed=4)

@@ -29,10 +29,10 @@ from hypothesis import strategies as st
 
 from torquemod.dsp.phase import phase_crb_deg
 from torquemod.io.channels import UNITS
+from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Recording, Rig
-from torquemod.io.processing import ProcessingConfig
-from torquemod.process import chain
-from torquemod.process.pipeline import process_experiment
+from torquemod.processing import chain
+from torquemod.processing.pipeline import process_experiment
 from torquemod.testing import SyntheticSpec, synthetic_recording, write_synthetic_experiment
 
 FS_HZ = 2000.0

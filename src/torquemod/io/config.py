@@ -29,7 +29,7 @@ class FrequencyParams:
     detrend: str = "linear"
     zero_pad: int = 8
     #: ours: each peak refined to the least-squares frequency of the speed model
-    #: (torquemod.process.chain._SlowOrdersRemoval.refine) to ``tolerance_hz`` [Hz]
+    #: (torquemod.processing.chain._SlowOrdersRemoval.refine) to ``tolerance_hz`` [Hz]
     refine: bool = True
     tolerance_hz: float = 1e-6
     #: the common modulation frequency: the "torque"'s peak (ours, the excitation's), or
@@ -84,7 +84,7 @@ class SlowParams:
     extra_sequences: int = 2
     polynomial_degree: int = 5
     #: the modulation's harmonics 2..this fitted beside it and removed with the slow part
-    #: (torquemod.process.chain.modulation_harmonics); 1 fits none
+    #: (torquemod.processing.chain.modulation_harmonics); 1 fits none
     modulation_harmonics: int = 3
 
 
@@ -141,7 +141,7 @@ class PhaseParams:
 
 @dataclass(frozen=True)
 class SlipParams:
-    """Slip detection per step (values ours; see :func:`torquemod.process.pipeline.detect_slip`).
+    """Slip detection per step (values ours; see :func:`torquemod.processing.pipeline.detect_slip`).
 
     A step is flagged as slipping when one of its cycles shows
 
@@ -186,7 +186,7 @@ class ProcessingConfig:
     def __post_init__(self) -> None:
         problems = _range_problems(self)
         if problems:
-            raise InputError(f"[processing] {problems[0]}", hint="see torquemod.io.processing for "
+            raise InputError(f"[processing] {problems[0]}", hint="see torquemod.io.config for "
                              "the meaning and the default of each parameter")
         if self.phase.method not in ("paper", "sinefit"):
             raise InputError(f"unknown phase method '{self.phase.method}'",

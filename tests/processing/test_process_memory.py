@@ -1,5 +1,5 @@
 """`process` in bounded memory: a step that is one recording of many revolutions is aligned
-and measured cycle by cycle while it is read (torquemod.process.stepmeasure.InOrderStep), and
+and measured cycle by cycle while it is read (torquemod.processing.stepmeasure.InOrderStep), and
 figure traces are kept for the first pipeline.TRACE_CYCLES cycles of a step only.
 
 Reference: the same recordings with every cycle held until the end and the step aligned at
@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import torquemod.process.pipeline as pl
+import torquemod.processing.pipeline as pl
 from torquemod.errors import InputError, ProcessingError
 from torquemod.io import read_experiment
 from torquemod.testing import write_synthetic_experiment

@@ -15,7 +15,7 @@ from torquemod._util.fsutil import sha256_file
 from torquemod._version import __version__
 
 if TYPE_CHECKING:
-    from torquemod.process.pipeline import ProcessResult
+    from torquemod.processing.pipeline import ProcessResult
 
 __all__ = ["provenance", "software_versions"]
 

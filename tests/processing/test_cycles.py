@@ -1,4 +1,4 @@
-"""Cycles (torquemod.process.cycles.revolution_bounds) against analytic platform angles, and the
+"""Cycles (torquemod.processing.cycles.revolution_bounds) against analytic platform angles, and the
 per-cycle creep point (chain.creepage_coa, Eq. 3 and 4 of the V-Track paper)."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy import optimize
 
-from torquemod.process.chain import creepage_coa
-from torquemod.process.cycles import revolution_bounds
+from torquemod.processing.chain import creepage_coa
+from torquemod.processing.cycles import revolution_bounds
 
 FS = 1000.0  # [Hz]
 

@@ -16,10 +16,10 @@ import dataclasses
 import numpy as np
 import pytest
 
+from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Rig
-from torquemod.io.processing import ProcessingConfig
-from torquemod.process import chain
-from torquemod.process.pipeline import detect_slip
+from torquemod.processing import chain
+from torquemod.processing.pipeline import detect_slip
 from torquemod.testing import SyntheticSpec, synthetic_recording
 
 RMS = np.sqrt(2.0)  # amplitude of a sinusoid per unit RMS

@@ -1,7 +1,8 @@
 """The processing orchestrator: experiment in, per-cycle and per-step results out.
 
 :func:`process_experiment` reads every recording, splits files that span several platform
-revolutions into cycles, runs the chain of :mod:`torquemod.process.chain` on each cycle, aligns the
+revolutions into cycles, runs the chain of :mod:`torquemod.processing.chain` on each cycle, aligns
+the
 cycles of a step and measures their phase, then aggregates per step. It returns a
 :class:`ProcessResult` held in memory; :mod:`torquemod.results.folder` writes and reads it.
 """
@@ -26,13 +27,13 @@ from torquemod._util.progress import WarmupBar
 from torquemod._version import __version__
 from torquemod.errors import InputError
 from torquemod.io import read_entry, read_experiment
+from torquemod.io.config import ProcessingConfig, SlipParams
 from torquemod.io.experiment import Experiment, Recording, RecordingEntry
-from torquemod.io.processing import ProcessingConfig, SlipParams
 from torquemod.io.stream import hash_file_async, open_stream
 from torquemod.io.validate import check_finite, clipping_notes
-from torquemod.process import chain
-from torquemod.process.cycles import revolution_bounds
-from torquemod.process.stepmeasure import InOrderStep, in_order_steps, phase_parts
+from torquemod.processing import chain
+from torquemod.processing.cycles import revolution_bounds
+from torquemod.processing.stepmeasure import InOrderStep, in_order_steps, phase_parts
 
 __all__ = ["CYCLE_COLUMNS", "STEP_COLUMNS", "TRACE_NAMES", "ProcessResult", "ProcessingConfig",
            "aggregate_steps", "detect_slip", "process_experiment", "resolve_config"]
@@ -107,7 +108,7 @@ class ProcessResult:
         ``ax`` one Axes (the wheel speed goes on a twin axis) or a pair of Axes, returned as
         given; without one a new two-panel Figure (not pyplot), whose two Axes are
         returned."""
-        from torquemod.process.figures import signals_figure
+        from torquemod.processing.figures import signals_figure
         if (step, cycle) not in self.traces:
             raise InputError(f"no traces for step {step} cycle {cycle}; available: "
                              f"{sorted(self.traces)}")
@@ -496,7 +497,7 @@ def process_experiment(experiment: Experiment | str | Path, *,
 def detect_slip(creepage, coa, drift, params: SlipParams) -> list[str | None]:
     """Slip check of one step's cycles (in time order): for each cycle the reason it looks
     like wheel slip, or None. The rules and thresholds are those of
-    :class:`~torquemod.io.processing.SlipParams`: a creepage jump above the step's other cycles
+    :class:`~torquemod.io.config.SlipParams`: a creepage jump above the step's other cycles
     (beyond an absolute threshold and k robust standard deviations of the others), a CoA
     falling from the previous cycle while the creepage rises, a creepage rising within the
     cycle."""

@@ -1,6 +1,7 @@
 """One long rig recording as several tasks: groups of platform revolutions.
 
-:func:`torquemod.process.pipeline.load_and_process` puts a whole recording through steps 1-5 and 8
+:func:`torquemod.processing.pipeline.load_and_process` puts a whole recording through steps 1-5 and
+8
 of the chain; a recording spanning many revolutions (an hour of them) would be one long
 task. Here the same work is cut in three:
 
@@ -15,14 +16,15 @@ task. Here the same work is cut in three:
 
 ``load_and_process`` has two ways to split a file, and each is reproduced:
 
-* ``"stream"`` (files of at least :data:`torquemod.process.pipeline.STREAM_MIN_BYTES`): the
+* ``"stream"`` (files of at least :data:`torquemod.processing.pipeline.STREAM_MIN_BYTES`): the
   revolutions come from :meth:`~torquemod.io.stream.RecordingStream.revolutions`; each is
   checked for NaN/inf and clipping as it comes (a clipping note once per channel, from the
   first revolution showing it), the dropped tail is noted at the end. The plan reads only
   the platform-speed channel.
 * ``"whole"`` (smaller files): the whole file is read (bounded by ``STREAM_MIN_BYTES``),
   its reader notes, clipping notes and NaN check taken on the whole record and the
-  revolutions found by :func:`torquemod.process.cycles.revolution_bounds`; the plan's task runs the
+  revolutions found by :func:`torquemod.processing.cycles.revolution_bounds`; the plan's task runs
+  the
   first group on that record, the other groups read their rows through the stream, whose
   time base and sample count the plan checks against the whole-file reader's (else the
   recording stays one task). Only when ``revolutions_per_task`` is given: by default such a
@@ -48,8 +50,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from torquemod.errors import InputError
+from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Experiment, Recording, RecordingEntry
-from torquemod.io.processing import ProcessingConfig
 from torquemod.io.stream import hash_file_async, open_stream
 from torquemod.io.validate import check_finite, clipping_notes
 
@@ -93,7 +95,7 @@ def _where(entry: RecordingEntry) -> str:
 
 def _tail_note(where: str, tail: int, revs: list[int], fs_hz: float) -> list[str]:
     rev = float(np.mean(revs))
-    if tail > 0.01 * rev:  # as torquemod.process.pipeline words it
+    if tail > 0.01 * rev:  # as torquemod.processing.pipeline words it
         return [f"{where}: dropped a trailing part of {tail / fs_hz:.3g} s "
                 f"({100 * tail / rev:.0f} % of a platform revolution)"]
     return []
@@ -119,7 +121,12 @@ def scan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
     groups then read their rows; a file read whole is read about once, not twice). In
     stream mode (or without ``first_group``) the part is None. ``sha256``: the file's
     digest when the caller has just computed it (else the file is hashed)."""
-    from torquemod.process.pipeline import STREAM_MIN_BYTES, _cycle_item, _cycles_of, _open_stream
+    from torquemod.processing.pipeline import (
+        STREAM_MIN_BYTES,
+        _cycle_item,
+        _cycles_of,
+        _open_stream,
+    )
     if entry.cycle is not None or cfg.nan_policy != "raise":
         return None
     where = _where(entry)
@@ -199,7 +206,7 @@ def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingC
     ``load_and_process`` does), unless the caller gives the digest it has just computed
     (``sha256``). Raises the error ``load_and_process`` meets on these
     revolutions."""
-    from torquemod.process.pipeline import _cycle_item
+    from torquemod.processing.pipeline import _cycle_item
     where = _where(entry)
     digest = hash_file_async(entry.path) if first == 0 and sha256 is None else None
     read_s = compute_s = 0.0
@@ -228,7 +235,8 @@ def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingC
 
 
 def merge_revolutions(plan: RevolutionPlan, parts: list[RevolutionPart]) -> tuple:
-    """The groups of a recording, in order, as :func:`torquemod.process.pipeline.load_and_process`
+    """The groups of a recording, in order, as
+    :func:`torquemod.processing.pipeline.load_and_process`
     returns the recording: (read s, compute s, sha256, NaN actions, notes, cycles)."""
     notes = list(plan.head_notes)
     seen: set[str] = set()

@@ -1,7 +1,7 @@
 """The per-cycle steps of the V-Track processing chain (Section 2.4 of the paper).
 
 Pure functions over one cycle's samples; the orchestration over an experiment is in
-:mod:`torquemod.process.pipeline`.
+:mod:`torquemod.processing.pipeline`.
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ from torquemod.dsp.align import alignment_lag
 from torquemod.dsp.phase import SineFitResult, local_noise_psd, peak_valley_phase, sinefit_phase
 from torquemod.dsp.spectrum import peak_frequency
 from torquemod.errors import InputError, ProcessingError
+from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Recording, Rig
-from torquemod.io.processing import ProcessingConfig
 
 
 @dataclass

@@ -9,7 +9,7 @@ import pytest
 from scipy import linalg, optimize, signal
 
 from torquemod.dsp import filters, spectrum
-from torquemod.process import chain
+from torquemod.processing import chain
 
 FS = 53.344
 RNG = np.random.default_rng(11)

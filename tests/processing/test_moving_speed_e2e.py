@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from torquemod.io import read_experiment, write_manifest
-from torquemod.io.processing import ProcessingConfig
-from torquemod.process.pipeline import process_experiment
+from torquemod.io.config import ProcessingConfig
+from torquemod.processing.pipeline import process_experiment
 from torquemod.testing import SyntheticSpec, synthetic_recording
 
 NAMES = {"torque_nm": "Torque", "wheel_speed_rad_s": "WheelSpeed",
