@@ -373,10 +373,10 @@ def test_import_graph_of_the_stages_has_no_cycles():
     assert not {"torquemod.results.folder", "torquemod.api"} & graph["torquemod.analysis.analyzer"]
 
 
-def test_trace_key_strings_live_only_in_the_layout_module():
-    users = [p.name for p in SRC.rglob("*.py")
+def test_trace_key_strings_live_only_in_the_results_folder_module():
+    users = [p.relative_to(SRC).as_posix() for p in SRC.rglob("*.py")
              if re.search(r"""["']s\{[a-z_.\[\]0-9]+\}c\{""", p.read_text(encoding="utf-8"))]
-    assert users == ["layout.py"]
+    assert users == ["results/folder.py"]
 
 
 def _readme_block(heading: str) -> str:

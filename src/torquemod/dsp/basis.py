@@ -109,7 +109,7 @@ def _order_columns(theta: np.ndarray, orders: np.ndarray) -> np.ndarray:
     """``cos(k*theta)``, ``sin(k*theta)`` for each k of ``orders`` (positive integers): one
     ``cos`` and ``sin`` of theta per sample, then ``exp(1j*k*theta)`` by repeated complex
     multiplication (k - 1 products, ~k units in the last place from the direct evaluation;
-    tests/process/test_chain_kernels.py); a non-positive order is evaluated directly."""
+    tests/processing/test_chain_kernels.py); a non-positive order is evaluated directly."""
     n = theta.size
     out = np.empty((n, 2 * orders.size))
     k_max = 0

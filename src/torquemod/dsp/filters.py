@@ -136,7 +136,7 @@ def design_notch(f0_hz: float, q: float, fs_hz: float) -> tuple[np.ndarray, np.n
     """Second-order IIR notch at ``f0_hz`` with quality factor ``q`` (bandwidth f0/q):
     ``scipy.signal.iirnotch(f0_hz, q, fs=fs_hz)`` by its own arithmetic on Python floats
     (Orfanidis, Introduction to Signal Processing, eqs. 11.3.4-11.3.7: ``beta = tan(bw/2)``,
-    ``gain = 1/(1 + beta)``), the same bits (tests/process/test_chain_kernels.py) without its
+    ``gain = 1/(1 + beta)``), the same bits (tests/processing/test_chain_kernels.py) without its
     per-call array handling."""
     fs = float(fs_hz)
     w0 = 2 * float(f0_hz) / fs
@@ -249,7 +249,8 @@ def _filtfilt_rows(b: np.ndarray, a: np.ndarray, zi: np.ndarray, x: np.ndarray) 
     steady state ``zi`` times the first sample it meets: ``filtfilt(b, a, row, padlen=0)``.
     The direct form II transposed with scipy's order of operations (``y = z0 + b0*x``,
     ``z_i = z_(i+1) + x*b_(i+1) - y*a_(i+1)``; ``a[0] = 1``, ``b`` and ``a`` of one length)
-    and no fast-math, so the same bits as ``lfilter`` (tests/process/test_chain_speed_equivalence.py
+    and no fast-math, so the same bits as ``lfilter``
+    (tests/processing/test_chain_speed_equivalence.py
     and tests/dsp/test_decimate_kernels.py). The rows advance together: their recursions are
     independent, so the processor overlaps them."""
     n_rows, n = x.shape
@@ -294,7 +295,7 @@ def _steady_state_solve(b: np.ndarray, a: np.ndarray) -> np.ndarray:
     """``lfilter_zi``'s system ``(I - C^T) zi = b[1:] - a[1:]*b[0]`` (C the companion matrix
     of ``a``: first row ``-a[1:]/a[0]``, ones below the diagonal) built entry by entry with
     the same arithmetic and solved by LAPACK ``gesv`` as ``numpy.linalg.solve`` does: the
-    same bits (tests/dsp/test_decimate_kernels.py and tests/process/test_chain_kernels.py)."""
+    same bits (tests/dsp/test_decimate_kernels.py and tests/processing/test_chain_kernels.py)."""
     n = a.size
     m = np.zeros((n - 1, n - 1))
     for i in range(n - 1):

@@ -66,7 +66,7 @@ def _strict_extrema_times(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.n
     """:func:`extrema_times` of a record without plateaus in one pass: the samples above
     (below) both neighbours, each moved to the vertex of the parabola through it and its
     neighbours with :func:`parabolic_vertex`'s arithmetic (so the same bits,
-    tests/process/test_chain_kernels.py). The third value is True, and the times empty, when two
+    tests/processing/test_chain_kernels.py). The third value is True, and the times empty, when two
     neighbouring samples are equal (a plateau: left to ``find_peaks``)."""
     n = x.size
     for i in range(n - 1):

@@ -135,7 +135,7 @@ def _line_search(spec: np.ndarray, freqs: np.ndarray, idx: np.ndarray, wide: np.
     the largest within ``2*lobe`` [Hz] of it; and the floor, the median of ``spec**2`` over
     the bins of ``wide`` farther than ``lobe`` from it (NaN when there are none), the
     median as ``np.median`` takes it (the middle value, or the mean of the two middle
-    ones; the same numbers, tests/process/test_chain_kernels.py)."""
+    ones; the same numbers, tests/processing/test_chain_kernels.py)."""
     k = idx[0]
     for i in idx:
         if spec[i] > spec[k]:
@@ -191,7 +191,8 @@ def _dtft_peak(wx: np.ndarray, fs_hz: float, lo: float, hi: float, xatol: float,
     sample), by Brent's bounded search (Brent 1973, ch. 5: golden-section steps with
     parabolic interpolation) with the same steps and the same arithmetic as
     ``scipy.optimize.fminbound(lambda f: -|X_w(f)|, lo, hi, xtol=xatol, maxfun=maxfun)``,
-    so the same result bit for bit (tests/process/test_chain_kernels.py), in one compiled call."""
+    so the same result bit for bit (tests/processing/test_chain_kernels.py), in one compiled
+    call."""
     sqrt_eps = 1.4832396974191326e-08  # math.sqrt(2.2e-16), as scipy's
     golden = 0.3819660112501051  # 0.5*(3 - sqrt(5))
     two_pi = 2.0 * math.pi
