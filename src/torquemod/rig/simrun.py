@@ -75,9 +75,10 @@ class SimulatedRun:
                                             encoding="utf-8")
         return folder / "experiment.toml"
 
-    def experiment(self, folder: str | Path = "twin") -> Experiment:
+    def experiment(self, folder: str | Path = "twin (in memory)") -> Experiment:
         """The :class:`~torquemod.data.Experiment` that reading ``write(folder)``'s
-        manifest gives (HDF5 recordings; nothing is written)."""
+        manifest gives (HDF5 recordings; nothing is written). The recordings' paths, which
+        messages name, lie in ``folder``."""
         from ..io.manifest import experiment_from_doc
         path = Path(folder) / "experiment.toml"
         doc = {"rig": dict(self.rig), "test": dict(self.test), **self.extra,
