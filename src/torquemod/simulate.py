@@ -361,8 +361,8 @@ class _NoProgress:
 
 
 def _simulate(config: SimConfig, folder: Path | None, *, seed: int, fmt: str | None,
-              progress: bool, files_per_cycle: bool, workers: int | None = None
-              ) -> dict | SimulatedRun:
+              progress: bool, files_per_cycle: bool, workers: int | None = None,
+              large_signal: bool = True) -> dict | SimulatedRun:
     """The run: each step's recordings written into ``folder`` as soon as the step is
     done (returns the truth), or kept in memory when ``folder`` is None (returns the
     :class:`SimulatedRun`)."""
@@ -396,7 +396,7 @@ def _simulate(config: SimConfig, folder: Path | None, *, seed: int, fmt: str | N
         # 271 against 248 ms a run -- two threads wanting the GIL at once wait for each
         # other's switch interval)
         entry, bounds = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done,
-                                            plan.t0_s, rp.wobble, rp.n_settle)
+                                            plan.t0_s, rp.wobble, rp.n_settle, large_signal)
         noise_rng = np.random.Generator(np.random.SFC64(rp.noise_seeds[plan.index - 1]))
         channels = measure(out[bounds[0]:bounds[-1]], disturbances=config.disturbances,
                            sensors=config.sensors, rng=noise_rng)
@@ -492,7 +492,7 @@ def run_simulation(config: SimConfig, out_dir: Path, *, seed: int = 0, fmt: str 
 
 
 def simulate_run(config: SimConfig, *, seed: int = 0, files_per_cycle: bool = True,
-                 workers: int | None = None) -> SimulatedRun:
+                 workers: int | None = None, large_signal: bool = True) -> SimulatedRun:
     """Simulate ``config`` as :func:`run_simulation` does and keep the experiment in memory.
 
     Parameters
@@ -506,6 +506,9 @@ def simulate_run(config: SimConfig, *, seed: int = 0, files_per_cycle: bool = Tr
         One recording per platform revolution (else one per torque step).
     workers : int, optional
         Threads that run the torque steps side by side (default: the CPUs available).
+    large_signal : bool
+        False leaves each step's large-signal theory phase out of the truth (None), for a
+        caller that solves the theory itself (a sweep's theory columns; ~7 ms a step).
 
     Returns
     -------
@@ -515,5 +518,6 @@ def simulate_run(config: SimConfig, *, seed: int = 0, files_per_cycle: bool = Tr
         the processing chain without files.
     """
     return _simulate(config, None, seed=seed, fmt=None, progress=False,
-                     files_per_cycle=files_per_cycle, workers=workers)
+                     files_per_cycle=files_per_cycle, workers=workers,
+                     large_signal=large_signal)
 

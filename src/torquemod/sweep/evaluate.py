@@ -6,8 +6,10 @@ operating_point`) and the periodic steady state under the full modulation
 (:func:`torquemod.theory.large_signal_phase_deg`, driven by the motor as in the twin); the
 phase's standard error is the Cramér-Rao bound of the step's record (FACTS.md §5) and mu from
 the phase is fitted to those phases. ``mode = "full"``: the twin (:func:`torquemod.simulate.
-run_simulation`, HDF5) -> the processing chain (:func:`torquemod.api.process`) -> the fits
-(:func:`torquemod.api.analyze`), with the theory columns beside the chain's.
+simulate_run`, recordings in memory) -> the processing chain (as :func:`torquemod.api.
+process`, on those recordings) -> the fits (:func:`torquemod.api.analyze`), with the theory
+columns beside the chain's; ``through_files`` writes the twin's experiment as HDF5 and reads
+it back instead (the same rows).
 
 ``utilisation`` is ``T_dc / T_peak`` = longitudinal CoA / mu_true, with ``mu_true`` the peak of
 the twin's creep curve (``T_peak/(R_w*N)``: the adhesion the wheel can use; truth.json's
@@ -259,7 +261,9 @@ def _full_steps(config, t_peak: float, seed: int, workdir: Path | None,
         truth = run_simulation(config, workdir / "experiment", seed=seed, fmt="hdf5",
                                progress=False, workers=1)
     else:
-        run = simulate_run(config, seed=seed, workers=1)
+        # the theory columns come from _theory_steps: the truth's large-signal phase is
+        # not needed (it is not part of the rows)
+        run = simulate_run(config, seed=seed, workers=1, large_signal=False)
         truth = run.truth
     if truth["slip_step"] == 1:
         raise ProcessingError(

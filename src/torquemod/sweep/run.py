@@ -271,7 +271,7 @@ def _lost(batch: list[PointTask], out: Path, why: str) -> list[dict]:
 #: rough seconds a point takes on one worker of a 2-core machine under load (theory: docs;
 #: a full rig point of the default procedure and a train point of the default 4 km run are
 #: larger, measured once with ``torquemod sweep``); a resumed sweep uses its own points' times
-POINT_SECONDS = {("rig", "theory"): 0.5, ("rig", "full"): 60.0, ("train", "full"): 120.0}
+POINT_SECONDS = {("rig", "theory"): 0.5, ("rig", "full"): 5.0, ("train", "full"): 120.0}
 
 
 def plan_line(spec: SweepSpec, out: str | Path, *, n_workers: int | None = None,
