@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import time
 
 import numpy as np
 import pandas as pd
@@ -388,10 +389,15 @@ def test_points_go_to_the_cluster_in_batches(tmp_path):
         assert sorted(t.index for batch in b for t in batch) == [0, 1, 2, 3]
     assert [t.index for t in point_batches(todo, 1)[0]] == [0, 3]
     out = tmp_path / "out"
+    before = time.time() - 1.0
     assert run_point(todo[0], str(out))["status"] == "done"
-    rows = _lost(todo[:2], out, "killed")
+    rows = _lost(todo[:2], out, "killed", before)
     assert [r["status"] for r in rows] == ["done", "failed"]
     assert rows[0]["n_rows"] > 0 and rows[1]["message"] == "worker lost: killed"
+    # a point finished by an earlier run was skipped, or, when forced, not rerun: failed
+    later = time.time() + 10.0
+    assert [r["status"] for r in _lost(todo[:1], out, "killed", later)] == ["skipped"]
+    assert [r["status"] for r in _lost(todo[:1], out, "killed", later, True)] == ["failed"]
 
 
 def test_twin_agrees_with_large_signal_theory_over_a_small_grid(tmp_path):

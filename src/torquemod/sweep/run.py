@@ -214,6 +214,7 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
         begin()  # once the cluster answers
         bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
         slots = sum(client.nthreads().values()) or 1
+        since = time.time()
         futures = {client.submit(run_points, b, str(out), force, pure=False,
                                  key=f"torquemod-sweep-{b[0].point_id}-{time.time_ns()}"): b
                    for b in point_batches(todo, slots)}
@@ -221,7 +222,7 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
             try:
                 rows.extend(fut.result())
             except Exception as exc:  # the worker died (memory, a kill): its points failed
-                rows.extend(_lost(futures[fut], out, _one_line(exc)))
+                rows.extend(_lost(futures[fut], out, _one_line(exc), since, force))
             bar.update(len(futures[fut]))
     bar.close()
     return rows, (links[0] if links else None)
@@ -249,21 +250,27 @@ def run_points(batch: list[PointTask], out_dir: str, force: bool = False) -> lis
     return [run_point(t, out_dir, force) for t in batch]
 
 
-def _lost(batch: list[PointTask], out: Path, why: str) -> list[dict]:
-    """Status rows of a batch whose worker died: a point whose partition and state of this
-    fingerprint are in place is done, the others failed."""
+def _lost(batch: list[PointTask], out: Path, why: str, since: float = 0.0,
+          force: bool = False) -> list[dict]:
+    """Status rows of a batch whose worker died: a point whose partition and state of its
+    fingerprint are in place is done when its state was written at or after ``since`` [s,
+    epoch] (by this run), skipped when older (unless ``force``, which wanted it rerun); the
+    others failed."""
     rows = []
     for t in batch:
         row = {"point_id": t.point_id, "point_index": t.index, "seed": t.seed,
                "status": "failed", "n_rows": 0, "seconds": float("nan"),
                "message": f"worker lost: {why}"}
+        state = out / "_state" / f"{t.point_id}.json"
         try:
-            st = json.loads((out / "_state" / f"{t.point_id}.json").read_text("utf-8"))
+            st, written = json.loads(state.read_text("utf-8")), state.stat().st_mtime
         except (OSError, ValueError):
-            st = {}
+            st, written = {}, 0.0
         if _part(out, t.point_id).is_file() and st.get("fingerprint") == fingerprint(t):
-            row.update(status="done", n_rows=int(st.get("n_rows", 0)), message="",
-                       seconds=float(st.get("seconds", float("nan"))))
+            status = "done" if written >= since else None if force else "skipped"
+            if status is not None:
+                row.update(status=status, n_rows=int(st.get("n_rows", 0)), message="",
+                           seconds=float(st.get("seconds", float("nan"))))
         rows.append(row)
     return rows
 
