@@ -7,14 +7,13 @@ Public entry points (the CLI in :mod:`torquemod.cli` only parses arguments and c
 * :func:`load_config` -- default config, optionally overridden by a user TOML file,
 * :func:`run_simulation` -- simulate the procedure and write ``experiment.toml``, one file per
   recording and ``truth.json`` (the simulated ground truth per step),
-* :func:`simulate_batch` (from :mod:`torquemod.twins.vtrack.rig.batch`) -- the ground truth of many
+* :func:`simulate_batch` (from :mod:`torquemod.rig.batch`) -- the ground truth of many
   configurations (sweep points) at once, without sensors or files.
 
 The torque steps run side by side on a pool of threads, one per CPU up to one per step (each
 integrates a step and draws its truth, noise and files; step 1 starts while the other steps
 are planned): every step starts from the steady state of the torque before it
-(:mod:`torquemod.twins.vtrack.rig.steps`), which moves the simulated phases by < 1e-6 deg against
-running
+(:mod:`torquemod.rig.steps`), which moves the simulated phases by < 1e-6 deg against running
 the steps one after the other. Most of a step's work runs in compiled kernels that release
 the GIL (integrator, truth sums, the theory's Newton solve, noise, sample times) and the
 files' values are copied in by ``os.pwrite`` after h5py has closed them; what holds the GIL
@@ -22,11 +21,10 @@ files' values are copied in by ``os.pwrite`` after h5py has closed them; what ho
 ~12 % of a run's CPU (benchmarks/simulate.py prints the split and the projection to more
 cores).
 The sensor noise of each step comes from its own stream (an SFC64 child of the seed's, which
-seeds the compiled splitmix64/ziggurat generator of :mod:`torquemod.twins.vtrack.rig.noise` per
-channel),
+seeds the compiled splitmix64/ziggurat generator of :mod:`torquemod.rig.noise` per channel),
 so a run is deterministic for its seed whatever the threads' timing. The settling before the
 recorded revolutions is integrated at the longest stable RK4 step without output samples
-(:func:`torquemod.twins.vtrack.rig.steps.integrate_step`).
+(:func:`torquemod.rig.steps.integrate_step`).
 
 ``truth.json`` holds the run's speed-loop wobble (``speed_wobble``: configuration, realised
 terms, reference RMS) and per step the steady state, the theory phases and what was simulated
@@ -52,18 +50,24 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from torquemod import __version__
-from torquemod._util.fsutil import atomic_dir
-from torquemod._util.jsonutil import dump_json
-from torquemod._util.tomlcheck import below_nyquist, between, checked_value, unknown_keys
-from torquemod.analysis.contact.hertz import hertz_ellipse
-from torquemod.analysis.contact.kalker import kalker_coefficients
-from torquemod.analysis.contact.presets import polach_preset
-from torquemod.errors import InputError
-from torquemod.io import write_manifest, write_recording
-from torquemod.io.checks import positive_number
-from torquemod.io.experiment import Recording
-from torquemod.twins.vtrack.params import (
+from . import __version__
+from .checks import positive_number
+from .contact.hertz import hertz_ellipse
+from .contact.kalker import kalker_coefficients
+from .contact.presets import polach_preset
+from .data import Recording
+from .errors import InputError
+from .fsutil import atomic_dir
+from .io import write_manifest, write_recording
+from .jsonutil import dump_json
+from .rig.batch import (  # noqa: F401 - BatchPoint, simulate_batch re-exported
+    BatchPoint,
+    default_workers,
+    plan_run,
+    simulate_batch,
+)
+from .rig.dynamics import OUT_COLUMNS, pack_parameters
+from .rig.params import (
     ContactParams,
     DisturbanceParams,
     ModulationParams,
@@ -72,27 +76,22 @@ from torquemod.twins.vtrack.params import (
     SensorParams,
     SimConfig,
 )
-from torquemod.twins.vtrack.rig.batch import (  # noqa: F401 - BatchPoint, simulate_batch re-exported
-    BatchPoint,
-    default_workers,
-    plan_run,
-    simulate_batch,
-)
-from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS, pack_parameters
-from torquemod.twins.vtrack.rig.sensors import measure
-from torquemod.twins.vtrack.rig.steps import (  # MAX_LAMBDA_H, stiffest_rate: re-exported
+from .rig.sensors import measure
+from .rig.simrun import SimulatedRun
+from .rig.steps import (  # MAX_LAMBDA_H, stiffest_rate: re-exported
     MAX_LAMBDA_H,
     integrate_step,
     stiffest_rate,
 )
-from torquemod.twins.vtrack.rig.truth import (  # noqa: F401 - sine_fit_phase_deg, wobble_free_phase_deg re-exported
+from .rig.truth import (  # noqa: F401 - sine_fit_phase_deg, wobble_free_phase_deg re-exported
+    _step_truth,
+    _wobble_truth,
     recorded_step_truth,
     sine_fit_phase_deg,
-    step_truth,
     wobble_free_phase_deg,
-    wobble_truth,
 )
-from torquemod.twins.vtrack.theory import creep_curve_peak
+from .theory import creep_curve_peak
+from .tomlcheck import below_nyquist, between, checked_value, unknown_keys
 
 _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
@@ -314,29 +313,40 @@ class _TwinRecording(Recording):
         return out
 
 
-def _write_step(folder: Path, plan, channels: dict, bounds: list[int], fs: float, fmt: str,
-                files_per_cycle: bool) -> list[dict]:
-    """Write a step's sensor ``channels`` (sample 0 at ``bounds[0]`` of the step) as one
-    file per revolution or one per step; return their ``[[recording]]`` entries."""
+def _step_pieces(plan, channels: dict, bounds: list[int], fs: float,
+                 files_per_cycle: bool) -> list[tuple[dict, _TwinRecording]]:
+    """A step's sensor ``channels`` (sample 0 at ``bounds[0]`` of the step) cut into one
+    recording per revolution or one per step, each with its ``[[recording]]`` entry (the
+    ``file`` without its suffix)."""
     dt = 1.0 / fs
     spans = (list(itertools.pairwise(bounds)) if files_per_cycle
              else [(bounds[0], bounds[-1])])
-    recs = []
+    pieces = []
     for j, (a, b) in enumerate(spans, start=1):
         sl = slice(a - bounds[0], b - bounds[0])
         rec = _TwinRecording({k: v[sl] for k, v in channels.items()}, fs_hz=fs,
                              t0_s=plan.t0_s + a * dt, source="torquemod simulate")
-        name = f"step{plan.index:02d}_cycle{j}" if files_per_cycle else f"step{plan.index:02d}"
-        file = name + _SUFFIX[fmt]
+        entry = {"step": plan.index, "dc_torque_nm": plan.dc_nm,
+                 "file": f"step{plan.index:02d}_cycle{j}" if files_per_cycle
+                 else f"step{plan.index:02d}"}
+        if files_per_cycle:
+            entry["cycle"] = j
+        pieces.append((entry, rec))
+    return pieces
+
+
+def _write_step(folder: Path, pieces: list[tuple[dict, Recording]], fmt: str) -> list[dict]:
+    """Write a step's recordings (:func:`_step_pieces`) into ``folder``; return their
+    ``[[recording]]`` entries with the files' names."""
+    recs = []
+    for entry, rec in pieces:
+        file = entry["file"] + _SUFFIX[fmt]
         if fmt == "hdf5":  # the values copied in after h5py closes the file: no GIL held
             write_recording(folder / file, rec, fmt=fmt, write_time=True,
                             data_after_close=True)
         else:
             write_recording(folder / file, rec, fmt=fmt)
-        entry = {"step": plan.index, "dc_torque_nm": plan.dc_nm, "file": file}
-        if files_per_cycle:
-            entry["cycle"] = j
-        recs.append(entry)
+        recs.append({**entry, "file": file})
     return recs
 
 
@@ -350,8 +360,12 @@ class _NoProgress:
         pass
 
 
-def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress: bool,
-              files_per_cycle: bool, workers: int | None = None) -> dict:
+def _simulate(config: SimConfig, folder: Path | None, *, seed: int, fmt: str | None,
+              progress: bool, files_per_cycle: bool, workers: int | None = None,
+              large_signal: bool = True) -> dict | SimulatedRun:
+    """The run: each step's recordings written into ``folder`` as soon as the step is
+    done (returns the truth), or kept in memory when ``folder`` is None (returns the
+    :class:`SimulatedRun`)."""
     rig, mod, proc = config.rig, config.modulation, config.procedure
     fs = config.sensors.sample_rate_hz
     dt = 1.0 / fs
@@ -364,7 +378,7 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
     # the steady state of the torque before (rig/steps.py), so that they run side by side:
     # each worker integrates a step and finishes it (truth, noise, files)
     if progress:  # tqdm imported only when shown (~7 ms of a quiet process's start)
-        from torquemod._util.progress import WarmupBar
+        from .progress import WarmupBar
 
         bar = WarmupBar(total=len(torques), desc="simulate", unit="step", file=sys.stderr)
     else:
@@ -378,16 +392,18 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         if slipped:
             return None, [], y_end, plan.t0_s + n_done * dt
         # (offering a step's truth to the pool while its thread draws the noise and writes
-        # the files was tried in an earlier version: 2 cores, 30 alternations, median
+        # the files was tried in issue 12's fifth round: 2 cores, 30 alternations, median
         # 271 against 248 ms a run -- two threads wanting the GIL at once wait for each
         # other's switch interval)
         entry, bounds = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done,
-                                            plan.t0_s, rp.wobble, rp.n_settle)
+                                            plan.t0_s, rp.wobble, rp.n_settle, large_signal)
         noise_rng = np.random.Generator(np.random.SFC64(rp.noise_seeds[plan.index - 1]))
         channels = measure(out[bounds[0]:bounds[-1]], disturbances=config.disturbances,
                            sensors=config.sensors, rng=noise_rng)
-        return entry, _write_step(folder, plan, channels, bounds, fs, fmt,
-                                  files_per_cycle), y_end, None
+        pieces = _step_pieces(plan, channels, bounds, fs, files_per_cycle)
+        if folder is not None:
+            return entry, _write_step(folder, pieces, fmt), y_end, None
+        return entry, pieces, y_end, None
 
     steps, recordings = [], []
     slip_step = slip_time = None
@@ -416,13 +432,14 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         finally:
             for fut in futures:  # the steps after a slip are not needed
                 fut.cancel()
-    if slip_step is not None:
+    if slip_step is not None and folder is not None:
         # files of steps after the slip that ran anyway are not part of the experiment
         for fut in futures[slip_step:]:
             if not fut.cancelled() and fut.exception() is None:
                 for rec in fut.result()[1]:
                     (folder / rec["file"]).unlink(missing_ok=True)
-        steps.append(step_truth(slip_step, torques[slip_step - 1], config, None, True))
+    if slip_step is not None:
+        steps.append(_step_truth(slip_step, torques[slip_step - 1], config, None, True))
         steps[-1]["slip_time_s"] = slip_time
     bar.close()
     xi_peak, t_peak = creep_curve_peak(rig)
@@ -432,20 +449,23 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         "sample_rate_hz": fs, "slip_step": slip_step,
         "creep_curve_peak": {"creepage": xi_peak, "torque_nm": t_peak,
                              "coa": t_peak / (rig.wheel_radius_m * rig.normal_load_n)},
-        "speed_wobble": wobble_truth(config, wobble),
+        "speed_wobble": _wobble_truth(config, wobble),
         "steps": steps, "parameters": asdict(config),
     }
-    write_manifest(
-        folder / "experiment.toml",
-        rig={"wheel_radius_m": rig.wheel_radius_m, "platform_radius_m": rig.platform_radius_m,
-             # inertia between the torque sensor and the contact: sets the theory constant
-             "wheel_inertia_kg_m2": rig.wheel_inertia_kg_m2},
-        test={"normal_load_n": rig.normal_load_n, "modulation_frequency_hz": mod.frequency_hz,
-              "modulation_amplitude_nm": mod.amplitude_nm},
-        recordings=recordings,
-        extra={"simulation": {"generator": "torquemod simulate", "version": __version__,
-                              "seed": seed, "slip_step": slip_step or 0,
-                              "truth": "truth.json"}})
+    manifest_rig = {"wheel_radius_m": rig.wheel_radius_m,
+                    "platform_radius_m": rig.platform_radius_m,
+                    # inertia between the torque sensor and the contact: sets the theory
+                    # constant
+                    "wheel_inertia_kg_m2": rig.wheel_inertia_kg_m2}
+    test = {"normal_load_n": rig.normal_load_n, "modulation_frequency_hz": mod.frequency_hz,
+            "modulation_amplitude_nm": mod.amplitude_nm}
+    extra = {"simulation": {"generator": "torquemod simulate", "version": __version__,
+                            "seed": seed, "slip_step": slip_step or 0, "truth": "truth.json"}}
+    if folder is None:
+        return SimulatedRun(truth, manifest_rig, test, extra,
+                            tuple(e for e, _ in recordings), tuple(r for _, r in recordings))
+    write_manifest(folder / "experiment.toml", rig=manifest_rig, test=test,
+                   recordings=recordings, extra=extra)
     (folder / "truth.json").write_text(dump_json(truth), encoding="utf-8")
     return truth
 
@@ -469,3 +489,35 @@ def run_simulation(config: SimConfig, out_dir: Path, *, seed: int = 0, fmt: str 
         truth = _simulate(config, tmp, seed=seed, fmt=fmt, progress=progress,
                           files_per_cycle=files_per_cycle, workers=workers)
     return truth
+
+
+def simulate_run(config: SimConfig, *, seed: int = 0, files_per_cycle: bool = True,
+                 workers: int | None = None, large_signal: bool = True) -> SimulatedRun:
+    """Simulate ``config`` as :func:`run_simulation` does and keep the experiment in memory.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The twin's configuration (:func:`load_config`).
+    seed : int
+        The run's seed: the same seed gives the same recordings and truth as
+        :func:`run_simulation` (value for value).
+    files_per_cycle : bool
+        One recording per platform revolution (else one per torque step).
+    workers : int, optional
+        Threads that run the torque steps side by side (default: the CPUs available).
+    large_signal : bool
+        False leaves each step's large-signal theory phase out of the truth (None), for a
+        caller that solves the theory itself (a sweep's theory columns; ~7 ms a step).
+
+    Returns
+    -------
+    SimulatedRun
+        The recordings, manifest tables and truth; ``write(folder)`` gives the folder
+        :func:`run_simulation` writes, ``experiment()`` and ``recording(exp, entry)`` feed
+        the processing chain without files.
+    """
+    return _simulate(config, None, seed=seed, fmt=None, progress=False,
+                     files_per_cycle=files_per_cycle, workers=workers,
+                     large_signal=large_signal)
+
