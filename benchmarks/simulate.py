@@ -195,24 +195,29 @@ from pathlib import Path
 import numpy as np
 
 import torquemod.io.hdf5 as _hdf5
-import torquemod.rig.noise as _noise
-import torquemod.rig.sensors as _sensors
-import torquemod.rig.steps as _steps
-import torquemod.rig.truth as _truth
-import torquemod.simulate as _simulate
-import torquemod.theory as _theory
-from torquemod.rig.batch import plan_run
-from torquemod.rig.dynamics import OUT_COLUMNS, initial_state, integrate, pack_parameters
-from torquemod.rig.sensors import measure
-from torquemod.rig.steps import integrate_step
-from torquemod.simulate import (
+import torquemod.twins.vtrack.rig.noise as _noise
+import torquemod.twins.vtrack.rig.sensors as _sensors
+import torquemod.twins.vtrack.rig.steps as _steps
+import torquemod.twins.vtrack.rig.truth as _truth
+import torquemod.twins.vtrack.simulate as _simulate
+import torquemod.twins.vtrack.theory as _theory
+from torquemod.twins.vtrack.rig.batch import plan_run
+from torquemod.twins.vtrack.rig.dynamics import (
+    OUT_COLUMNS,
+    initial_state,
+    integrate,
+    pack_parameters,
+)
+from torquemod.twins.vtrack.rig.sensors import measure
+from torquemod.twins.vtrack.rig.steps import integrate_step
+from torquemod.twins.vtrack.simulate import (
     load_config,
     run_simulation,
     simulate_batch,
     simulate_run,
     sine_fit_phase_deg,
 )
-from torquemod.theory import operating_point
+from torquemod.twins.vtrack.theory import operating_point
 
 
 def cold_theory() -> None:
@@ -471,7 +476,7 @@ def threads_speedup(config, repeat: int, rec_s: float) -> None:
 def fresh_process(repeat: int, rec_s: float) -> None:
     """Wall seconds of ``torquemod simulate --format hdf5`` in a new process (what a user
     starting the CLI waits for: imports, loading the compiled kernels, the run), and of the
-    bare ``import torquemod.simulate`` in a new process."""
+    bare ``import torquemod.twins.vtrack.simulate`` in a new process."""
     cli = Path(sys.executable).with_name("torquemod")
     if not cli.exists():
         print("fresh process: no torquemod console script next to this Python")
@@ -484,11 +489,12 @@ def fresh_process(repeat: int, rec_s: float) -> None:
                             "hdf5", "--force", "--quiet"], check=True, capture_output=True)
             walls.append(time.perf_counter() - t0)
             t0 = time.perf_counter()
-            subprocess.run([sys.executable, "-c", "import torquemod.simulate"], check=True)
+            subprocess.run([sys.executable, "-c", "import torquemod.twins.vtrack.simulate"],
+                           check=True)
             imports.append(time.perf_counter() - t0)
     print(f"fresh process: torquemod simulate --format hdf5 {min(walls):.2f} s wall -> "
           f"{rec_s / min(walls):.0f} x real time, of which starting Python and importing "
-          f"torquemod.simulate {min(imports):.2f} s")
+          f"torquemod.twins.vtrack.simulate {min(imports):.2f} s")
 
 
 def _report(label: str, sim_s: float, walls: list[float], what: str) -> None:

@@ -4,7 +4,8 @@ Evaluates the first ``--points`` points of a sweep (default: the example V-Track
 ``mode = "full"``) one after the other in this process, after one warm-up point, and charges
 each point's CPU time to its stages (the innermost stage wins):
 
-* ``twin``: ``torquemod.simulate.simulate_run`` (integration, sensors, truth; the recordings
+* ``twin``: ``torquemod.twins.vtrack.simulate.simulate_run`` (integration, sensors, truth; the
+recordings
   stay in memory), or with ``--through-files`` ``run_simulation`` (HDF5 files);
 * ``chain``: the processing chain on the recordings in memory, or with ``--through-files``
   ``torquemod.api.process`` (reading the files, the chain);
@@ -90,9 +91,9 @@ def main() -> None:
         return
 
     import torquemod.api as api
-    import torquemod.simulate as sim
+    import torquemod.twins.vtrack.simulate as sim
     from torquemod.sweep import evaluate as ev
-    from torquemod.sweep.run import tasks
+    from torquemod.sweep.evaluate import tasks
     from torquemod.sweep.spec import load_sweep
 
     spec = load_sweep(args.sweep)

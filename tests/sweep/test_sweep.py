@@ -364,8 +364,7 @@ def test_a_full_point_in_memory_gives_the_rows_of_the_point_through_files(tmp_pa
     """A full-mode point runs twin -> recordings -> chain -> fits in memory; through an HDF5
     experiment folder written and read back it gives the same rows, bit for bit (five
     steps: both fits run)."""
-    from torquemod.sweep.evaluate import evaluate_point
-    from torquemod.sweep.run import tasks
+    from torquemod.sweep.evaluate import evaluate_point, tasks
     spec = parse_sweep('mode = "full"\nseeds = [4]\n' + SHORT.replace(
         "[0.0, 0.4, 0.7]", "[0.0, 0.3, 0.5, 0.7, 0.85]"))
     task = tasks(spec)[0]
@@ -380,7 +379,8 @@ def test_a_full_point_in_memory_gives_the_rows_of_the_point_through_files(tmp_pa
 def test_points_go_to_the_cluster_in_batches(tmp_path):
     """Batches: every point once, round-robin, at most slots*3 of them; a batch whose
     worker died reports the points it finished as done and the others as failed."""
-    from torquemod.sweep.run import _lost, point_batches, run_point, tasks
+    from torquemod.sweep.evaluate import tasks
+    from torquemod.sweep.run import _lost, point_batches, run_point
     todo = tasks(parse_sweep(THEORY))
     assert len(todo) == 4
     for slots, n in ((1, 3), (2, 4), (8, 4)):

@@ -122,7 +122,7 @@ def test_a_run_in_memory_is_the_run_written_to_files(two, tmp_path):
     the HDF5 reader gives it back from the file (channels, rate, start time, value for
     value); write(folder) gives the same experiment again."""
     from torquemod.io import read_entry, read_experiment
-    from torquemod.simulate import simulate_run
+    from torquemod.twins.vtrack.simulate import simulate_run
     truth = run_simulation(two, tmp_path / "files", seed=3, fmt="hdf5", progress=False)
     run = simulate_run(two, seed=3)
     assert {**run.truth, "format": "hdf5"} == truth and run.slip_step is None

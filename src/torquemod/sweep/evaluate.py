@@ -1,11 +1,14 @@
 """One sweep point: its twin configuration, its torque progression and its rows of the sweep
 table (one per torque step).
 
-``mode = "theory"``: per step the steady operating point (:func:`torquemod.theory.
+``mode = "theory"``: per step the steady operating point (:func:`torquemod.twins.vtrack.theory.
 operating_point`) and the periodic steady state under the full modulation
-(:func:`torquemod.theory.large_signal_phase_deg`, driven by the motor as in the twin); the
-phase's standard error is the Cramér-Rao bound of the step's record (FACTS.md §5) and mu from
-the phase is fitted to those phases. ``mode = "full"``: the twin (:func:`torquemod.simulate.
+(:func:`torquemod.twins.vtrack.theory.large_signal_phase_deg`, driven by the motor as in the twin);
+the
+phase's standard error is the Cramér-Rao bound of the step's record (Rife and Boorstyn 1974, IEEE
+Trans. Inf. Theory 20(5)) and mu from
+the phase is fitted to those phases. ``mode = "full"``: the twin
+(:func:`torquemod.twins.vtrack.simulate.
 simulate_run`, recordings in memory) -> the processing chain (as :func:`torquemod.api.
 process`, on those recordings) -> the fits (:func:`torquemod.api.analyze`), with the theory
 columns beside the chain's; ``through_files`` writes the twin's experiment as HDF5 and reads
@@ -31,8 +34,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..creep import theory_constant, time_constant_s
-from ..errors import InputError, ProcessingError
+from torquemod.analysis.creep import theory_constant, time_constant_s
+from torquemod.errors import InputError, ProcessingError
 
 __all__ = ["CHAIN_RULE", "SETTLE_RULE", "SETTLE_TIME_CONSTANTS", "PointTask", "chain_config",
            "evaluate_point", "phase_crlb_deg", "point_config", "settle_time_s"]
@@ -46,7 +49,7 @@ SETTLE_TIME_CONSTANTS = 8.0
 SETTLE_RULE = "8 creep-mode time constants of the slowest recorded step (< slip_creepage)"
 #: how :func:`chain_config` scales the chain with the frequency (in the fingerprint too)
 CHAIN_RULE = "band, band-pass, high-pass, slow model x f/2; resampling rate x max(f/2, 1)"
-#: (the same rule as torquemod.config.FREQUENCY_RULE; kept as the fingerprint's text)
+#: (the same rule as torquemod.io.config.FREQUENCY_RULE; kept as the fingerprint's text)
 
 
 @dataclass(frozen=True)
@@ -67,11 +70,23 @@ class PointTask:
     max_mu_error: float = 0.10  # train: a mu row within this relative error counts
 
 
+def tasks(spec) -> list[PointTask]:
+    """One :class:`PointTask` per point of ``spec`` (a :class:`~torquemod.sweep.spec.SweepSpec`)."""
+    base = None if spec.base is None else str(spec.base.resolve())
+    return [PointTask(point_id=p.point_id, index=p.index, params=p.params,
+                      overrides=p.overrides(), seed=p.seed, mode=spec.mode, base=base,
+                      fractions_of_peak=spec.fractions_of_peak,
+                      max_utilisation=spec.recommend.max_utilisation,
+                      processing=spec.processing if spec.mode == "full" else {},
+                      kind=spec.kind, max_mu_error=spec.recommend.max_mu_error)
+            for p in spec.points]
+
+
 def point_config(task: PointTask):
     """``(SimConfig, T_peak [N*m])``: the base config with the point's overrides, its DC
     torques set to ``fractions_of_peak`` of the creep-curve peak torque when given."""
-    from ..simulate import load_config
-    from ..theory import creep_curve_peak
+    from torquemod.twins.vtrack.simulate import load_config
+    from torquemod.twins.vtrack.theory import creep_curve_peak
     config = load_config(task.base, overrides=task.overrides)
     _, t_peak = creep_curve_peak(config.rig)
     if task.fractions_of_peak is not None:
@@ -85,7 +100,7 @@ def phase_crlb_deg(torque_amplitude_nm, speed_amplitude_rad_s, *, torque_noise_n
                    speed_noise_rad_s: float, sample_rate_hz: float, duration_s: float):
     """Cramér-Rao bound [deg] of the phase difference of two sinusoids of amplitudes A1, A2
     in white noise sigma1, sigma2 over ``duration_s`` at ``sample_rate_hz``:
-    ``var = (2*s1^2/A1^2 + 2*s2^2/A2^2)/(fs*T)`` [rad^2] (FACTS.md §5, one-sided PSD
+    ``var = (2*s1^2/A1^2 + 2*s2^2/A2^2)/(fs*T)`` [rad^2] (Rife and Boorstyn 1974, one-sided PSD
     ``2*sigma^2/fs``). A lower bound: the chain also sees the rig's disturbances."""
     n = sample_rate_hz * duration_s
     var = (2.0 * torque_noise_nm**2 / np.asarray(torque_amplitude_nm, float) ** 2
@@ -95,7 +110,7 @@ def phase_crlb_deg(torque_amplitude_nm, speed_amplitude_rad_s, *, torque_noise_n
 
 def creep_time_constant_s(config, creep_coefficient) -> np.ndarray:
     """Time constant [s] of the wheel's speed relative to the platform at an operating point
-    of creep coefficient k = dCoA/dxi [-] (:func:`torquemod.creep.time_constant_s`): the
+    of creep coefficient k = dCoA/dxi [-] (:func:`torquemod.analysis.creep.time_constant_s`): the
     drive line turns as one body below its torsional mode, so its inertia is the wheel's
     and the motor side's, ``J_w + J_m``."""
     rig = config.rig
@@ -113,7 +128,7 @@ def settle_time_s(config, rows: list[dict]) -> float:
 
     A step starts from the previous step's steady state and ramps its DC torque; near the
     creep curve's peak that transient decays slowly (tau ~ 1 s at 90 % utilisation on
-    leaves) and, not settled, it biases the recorded phase: measured (issue 12 audit) twin
+    leaves) and, not settled, it biases the recorded phase: measured (audit) twin
     minus large-signal theory -0.24 deg on leaves at 90 %, 2 Hz, after the 3 s the example
     gave, and 3e-5 deg after 10 s. exp(-8) leaves ~0.002 deg there."""
     # the steps the twin records: below the creep curve's peak and below the creepage at
@@ -129,7 +144,7 @@ def settle_time_s(config, rows: list[dict]) -> float:
 def _theory_steps(config, t_peak: float) -> list[dict]:
     """Operating point and large-signal periodic state of each step until the first that
     slips (included, flagged)."""
-    from ..theory import large_signal_phase_deg, operating_point
+    from torquemod.twins.vtrack.theory import large_signal_phase_deg, operating_point
     rig, mod = config.rig, config.modulation
     f = mod.actual_frequency_hz
     sens, dist = config.sensors, config.disturbances
@@ -169,13 +184,13 @@ def _theory_steps(config, t_peak: float) -> list[dict]:
 
 
 def _phase_mu(coa, phase_deg, se_deg, constant, swing, speed_m_s=None) -> dict:
-    """The available adhesion from the phase (:func:`torquemod.phasefit.fit_mu_from_phase`)
+    """The available adhesion from the phase (:func:`torquemod.analysis.phasefit.fit_mu_from_phase`)
     over the given steps. ``mu_phase*`` (the names of earlier versions): value (NaN when not
     determined), 95 % interval (low end = lower bound when not determined), determined
     flag, and why it was not fitted; ``adhesion_available_phase*`` the same quantity named:
     the estimate, the interval whenever it is closed, the lower bound, the probe depth that
     would determine it; ``mu0_phase`` the law's friction coefficient where identified."""
-    from ..phasefit import fit_mu_from_phase
+    from torquemod.analysis.phasefit import fit_mu_from_phase
     out = {"mu_phase": math.nan, "mu_phase_lo": math.nan, "mu_phase_hi": math.nan,
            "mu_phase_determined": False, "mu_phase_note": "",
            "adhesion_available_phase": math.nan, "adhesion_available_phase_low": math.nan,
@@ -207,10 +222,10 @@ def _phase_mu(coa, phase_deg, se_deg, constant, swing, speed_m_s=None) -> dict:
 
 
 def _forces_mu_theory(df: pd.DataFrame) -> dict:
-    """The Polach force fit (:func:`torquemod.fit.fit_polach`, as the chain's analysis
+    """The Polach force fit (:func:`torquemod.analysis.fit.fit_polach`, as the chain's analysis
     calls it, unweighted) on the exact steady-state creep points of the steps that do not
     slip: what the force method gives with perfect measurements."""
-    from ..fit import fit_polach
+    from torquemod.analysis.fit import fit_polach
     live = df[~df["slipped"].astype(bool)]
     out = {"mu_forces": math.nan, "mu_forces_lo": math.nan, "mu_forces_hi": math.nan,
            "mu_forces_determined": False,
@@ -234,15 +249,15 @@ def _f(x) -> float:
 
 def chain_config(frequency_hz: float, processing: dict | None = None):
     """The processing chain's parameters for a modulation at ``frequency_hz`` [Hz]
-    (:meth:`torquemod.config.ProcessingConfig.for_modulation`: the defaults, tuned for the
+    (:meth:`torquemod.io.config.ProcessingConfig.for_modulation`: the defaults, tuned for the
     paper's 2 Hz, with every frequency-bound setting scaled by ``frequency_hz/2``; above
     2 Hz also the resampling rate, so that a period keeps its 26.7 samples: the paper's
     peak/valley phase interpolates each peak by a parabola, whose bias grows as the samples
-    per period fall (audit, issue 12: noise-free twin at 8 Hz, 6.7 samples a period, the
+    per period fall (audit: noise-free twin at 8 Hz, 6.7 samples a period, the
     chain's phase 0.025 deg (median) to 0.074 deg off the theory with a standard error of
     1e-4 deg; with the rate scaled, 0.0012 deg). Then the keys the sweep's ``processing``
     table gives (nested as a manifest's ``[processing]``)."""
-    from ..config import ProcessingConfig
+    from torquemod.io.config import ProcessingConfig
     return ProcessingConfig.for_modulation(frequency_hz, processing or {},
                                            source="sweep [processing]")
 
@@ -253,8 +268,8 @@ def _full_steps(config, t_peak: float, seed: int, workdir: Path | None,
     force fit and mu from the phase over all steps (the analysis of ``torquemod fit``).
     The twin's recordings go to the chain in memory, or, with a ``workdir``, through an
     HDF5 experiment folder there (the same numbers)."""
-    from ..api import analyze, process
-    from ..simulate import run_simulation, simulate_run
+    from torquemod.api import analyze, process
+    from torquemod.twins.vtrack.simulate import run_simulation, simulate_run
     cfg = chain_config(config.modulation.frequency_hz, processing)
     # workers=1: the sweep's parallel units are Dask worker processes, one per core
     if workdir is not None:
@@ -306,8 +321,8 @@ def _full_steps(config, t_peak: float, seed: int, workdir: Path | None,
 
 def _process_in_memory(run, cfg):
     """The processing chain (as :func:`torquemod.api.process` with ``workers=1``) on a
-    :class:`~torquemod.rig.simrun.SimulatedRun`'s recordings, without files."""
-    from ..pipeline import load_and_process, process_experiment, resolve_config
+    :class:`~torquemod.twins.vtrack.rig.simrun.SimulatedRun`'s recordings, without files."""
+    from torquemod.processing.pipeline import load_and_process, process_experiment, resolve_config
     exp = run.experiment()
     cfg = resolve_config(exp, cfg)
     loaded = ((e, load_and_process(e, exp, cfg, recording=run.recording(exp, e)))
@@ -321,7 +336,7 @@ def _friction_at_top(df: pd.DataFrame, use: pd.Series, rig) -> float:
     reported beside ``mu_true`` (the creep curve's peak, the available adhesion, which that
     fit estimates and which lies below it where friction falls with slip). NaN when no step
     was used."""
-    from ..contact.polach import friction_coefficient
+    from torquemod.analysis.contact.polach import friction_coefficient
     used = df[use]
     if not len(used) or not np.isfinite(used["creepage_true"].iloc[-1]):
         return math.nan
@@ -341,7 +356,7 @@ def evaluate_point(task: PointTask, *, workdir: str | Path | None = None,
     train point (:func:`torquemod.sweep.trainpoint.evaluate_train_point`) uses
     ``workdir`` for its run."""
     if task.kind == "train":
-        from .trainpoint import evaluate_train_point
+        from torquemod.sweep.trainpoint import evaluate_train_point
         return evaluate_train_point(task, workdir=workdir)
     t0 = time.perf_counter()
     config, t_peak = point_config(task)

@@ -7,13 +7,14 @@ Public entry points (the CLI in :mod:`torquemod.cli` only parses arguments and c
 * :func:`load_config` -- default config, optionally overridden by a user TOML file,
 * :func:`run_simulation` -- simulate the procedure and write ``experiment.toml``, one file per
   recording and ``truth.json`` (the simulated ground truth per step),
-* :func:`simulate_batch` (from :mod:`torquemod.rig.batch`) -- the ground truth of many
+* :func:`simulate_batch` (from :mod:`torquemod.twins.vtrack.rig.batch`) -- the ground truth of many
   configurations (sweep points) at once, without sensors or files.
 
 The torque steps run side by side on a pool of threads, one per CPU up to one per step (each
 integrates a step and draws its truth, noise and files; step 1 starts while the other steps
 are planned): every step starts from the steady state of the torque before it
-(:mod:`torquemod.rig.steps`), which moves the simulated phases by < 1e-6 deg against running
+(:mod:`torquemod.twins.vtrack.rig.steps`), which moves the simulated phases by < 1e-6 deg against
+running
 the steps one after the other. Most of a step's work runs in compiled kernels that release
 the GIL (integrator, truth sums, the theory's Newton solve, noise, sample times) and the
 files' values are copied in by ``os.pwrite`` after h5py has closed them; what holds the GIL
@@ -21,10 +22,11 @@ files' values are copied in by ``os.pwrite`` after h5py has closed them; what ho
 ~12 % of a run's CPU (benchmarks/simulate.py prints the split and the projection to more
 cores).
 The sensor noise of each step comes from its own stream (an SFC64 child of the seed's, which
-seeds the compiled splitmix64/ziggurat generator of :mod:`torquemod.rig.noise` per channel),
+seeds the compiled splitmix64/ziggurat generator of :mod:`torquemod.twins.vtrack.rig.noise` per
+channel),
 so a run is deterministic for its seed whatever the threads' timing. The settling before the
 recorded revolutions is integrated at the longest stable RK4 step without output samples
-(:func:`torquemod.rig.steps.integrate_step`).
+(:func:`torquemod.twins.vtrack.rig.steps.integrate_step`).
 
 ``truth.json`` holds the run's speed-loop wobble (``speed_wobble``: configuration, realised
 terms, reference RMS) and per step the steady state, the theory phases and what was simulated
@@ -50,24 +52,18 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from . import __version__
-from .checks import positive_number
-from .contact.hertz import hertz_ellipse
-from .contact.kalker import kalker_coefficients
-from .contact.presets import polach_preset
-from .data import Recording
-from .errors import InputError
-from .fsutil import atomic_dir
-from .io import write_manifest, write_recording
-from .jsonutil import dump_json
-from .rig.batch import (  # noqa: F401 - BatchPoint, simulate_batch re-exported
-    BatchPoint,
-    default_workers,
-    plan_run,
-    simulate_batch,
-)
-from .rig.dynamics import OUT_COLUMNS, pack_parameters
-from .rig.params import (
+from torquemod import __version__
+from torquemod._util.fsutil import atomic_dir
+from torquemod._util.jsonutil import dump_json
+from torquemod._util.tomlcheck import below_nyquist, between, checked_value, unknown_keys
+from torquemod.analysis.contact.hertz import hertz_ellipse
+from torquemod.analysis.contact.kalker import kalker_coefficients
+from torquemod.analysis.contact.presets import polach_preset
+from torquemod.errors import InputError
+from torquemod.io import write_manifest, write_recording
+from torquemod.io.checks import positive_number
+from torquemod.io.experiment import Recording
+from torquemod.twins.vtrack.params import (
     ContactParams,
     DisturbanceParams,
     ModulationParams,
@@ -76,22 +72,28 @@ from .rig.params import (
     SensorParams,
     SimConfig,
 )
-from .rig.sensors import measure
-from .rig.simrun import SimulatedRun
-from .rig.steps import (  # MAX_LAMBDA_H, stiffest_rate: re-exported
+from torquemod.twins.vtrack.rig.batch import (  # noqa: F401 - BatchPoint, simulate_batch re-exported
+    BatchPoint,
+    default_workers,
+    plan_run,
+    simulate_batch,
+)
+from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS, pack_parameters
+from torquemod.twins.vtrack.rig.sensors import measure
+from torquemod.twins.vtrack.rig.simrun import SimulatedRun
+from torquemod.twins.vtrack.rig.steps import (  # MAX_LAMBDA_H, stiffest_rate: re-exported
     MAX_LAMBDA_H,
     integrate_step,
     stiffest_rate,
 )
-from .rig.truth import (  # noqa: F401 - sine_fit_phase_deg, wobble_free_phase_deg re-exported
-    _step_truth,
-    _wobble_truth,
+from torquemod.twins.vtrack.rig.truth import (  # noqa: F401 - sine_fit_phase_deg, wobble_free_phase_deg re-exported
     recorded_step_truth,
     sine_fit_phase_deg,
+    step_truth,
     wobble_free_phase_deg,
+    wobble_truth,
 )
-from .theory import creep_curve_peak
-from .tomlcheck import below_nyquist, between, checked_value, unknown_keys
+from torquemod.twins.vtrack.theory import creep_curve_peak
 
 _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
@@ -378,7 +380,7 @@ def _simulate(config: SimConfig, folder: Path | None, *, seed: int, fmt: str | N
     # the steady state of the torque before (rig/steps.py), so that they run side by side:
     # each worker integrates a step and finishes it (truth, noise, files)
     if progress:  # tqdm imported only when shown (~7 ms of a quiet process's start)
-        from .progress import WarmupBar
+        from torquemod._util.progress import WarmupBar
 
         bar = WarmupBar(total=len(torques), desc="simulate", unit="step", file=sys.stderr)
     else:
@@ -392,7 +394,7 @@ def _simulate(config: SimConfig, folder: Path | None, *, seed: int, fmt: str | N
         if slipped:
             return None, [], y_end, plan.t0_s + n_done * dt
         # (offering a step's truth to the pool while its thread draws the noise and writes
-        # the files was tried in issue 12's fifth round: 2 cores, 30 alternations, median
+        # the files was tried in an earlier version: 2 cores, 30 alternations, median
         # 271 against 248 ms a run -- two threads wanting the GIL at once wait for each
         # other's switch interval)
         entry, bounds = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done,
@@ -439,7 +441,7 @@ def _simulate(config: SimConfig, folder: Path | None, *, seed: int, fmt: str | N
                 for rec in fut.result()[1]:
                     (folder / rec["file"]).unlink(missing_ok=True)
     if slip_step is not None:
-        steps.append(_step_truth(slip_step, torques[slip_step - 1], config, None, True))
+        steps.append(step_truth(slip_step, torques[slip_step - 1], config, None, True))
         steps[-1]["slip_time_s"] = slip_time
     bar.close()
     xi_peak, t_peak = creep_curve_peak(rig)
@@ -449,7 +451,7 @@ def _simulate(config: SimConfig, folder: Path | None, *, seed: int, fmt: str | N
         "sample_rate_hz": fs, "slip_step": slip_step,
         "creep_curve_peak": {"creepage": xi_peak, "torque_nm": t_peak,
                              "coa": t_peak / (rig.wheel_radius_m * rig.normal_load_n)},
-        "speed_wobble": _wobble_truth(config, wobble),
+        "speed_wobble": wobble_truth(config, wobble),
         "steps": steps, "parameters": asdict(config),
     }
     manifest_rig = {"wheel_radius_m": rig.wheel_radius_m,

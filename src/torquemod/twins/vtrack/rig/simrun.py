@@ -1,6 +1,7 @@
 """A simulated run of the V-Track twin held in memory: its recordings, manifest and truth.
 
-:func:`torquemod.simulate.simulate_run` returns a :class:`SimulatedRun`; ``write(folder)``
+:func:`torquemod.twins.vtrack.simulate.simulate_run` returns a :class:`SimulatedRun`;
+``write(folder)``
 turns it into the experiment folder that ``torquemod simulate`` writes (``experiment.toml``,
 one file per recording, ``truth.json``), and ``experiment()`` with ``recording(entry)`` hand
 it to the processing chain without files: the recordings come out as the HDF5 reader would
@@ -13,10 +14,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..data import CHANNEL_UNITS, Experiment, Recording, RecordingEntry
-from ..fsutil import atomic_dir
-from ..io import write_manifest, write_recording
-from ..jsonutil import dump_json
+from torquemod._util.fsutil import atomic_dir
+from torquemod._util.jsonutil import dump_json
+from torquemod.io import write_manifest, write_recording
+from torquemod.io.experiment import CHANNEL_UNITS, Experiment, Recording, RecordingEntry
 
 __all__ = ["SimulatedRun"]
 
@@ -31,7 +32,7 @@ class SimulatedRun:
     ----------
     truth : dict
         The ``truth.json`` document (``format`` None until written): per step the steady
-        state, the theory phases and what was simulated (:mod:`torquemod.rig.truth`).
+        state, the theory phases and what was simulated (:mod:`torquemod.twins.vtrack.rig.truth`).
     rig, test, extra : dict
         The ``[rig]``, ``[test]`` and other tables of ``experiment.toml``.
     entries : tuple of dict
@@ -76,10 +77,10 @@ class SimulatedRun:
         return folder / "experiment.toml"
 
     def experiment(self, folder: str | Path = "twin (in memory)") -> Experiment:
-        """The :class:`~torquemod.data.Experiment` that reading ``write(folder)``'s
+        """The :class:`~torquemod.io.experiment.Experiment` that reading ``write(folder)``'s
         manifest gives (HDF5 recordings; nothing is written). The recordings' paths, which
         messages name, lie in ``folder``."""
-        from ..io.manifest import experiment_from_doc
+        from torquemod.io.manifest import experiment_from_doc
         path = Path(folder) / "experiment.toml"
         doc = {"rig": dict(self.rig), "test": dict(self.test), **self.extra,
                "recording": self._manifest_entries("hdf5")}
@@ -89,9 +90,9 @@ class SimulatedRun:
         """The recording of ``entry`` (of :meth:`experiment`) as the HDF5 reader returns it
         from the written file: the same channel lookup, units, time base and checks
         (:func:`torquemod.io.timebase.assemble_recording`), on the values in memory."""
-        from ..io.channels import RawChannel, resolve_channel_map, source_name
-        from ..io.timebase import assemble_recording
-        from ..io.validate import check_channels
+        from torquemod.io.channels import RawChannel, resolve_channel_map, source_name
+        from torquemod.io.timebase import assemble_recording
+        from torquemod.io.validate import check_channels
         rec = self.recordings[entry.index]
         cmap = resolve_channel_map(experiment.channel_map, entry.path).with_sample_rate(
             entry.sample_rate_hz, path=entry.path)
