@@ -51,3 +51,17 @@ def test_means_stay_put_when_an_order_sits_at_the_slow_bands_top(offset):
         assert model.mean("platform_speed_rad_s") == pytest.approx(
             2 * np.pi * f_rot, rel=1e-3)
         assert np.isfinite(model.noise_depletion())
+
+
+def test_noise_depletion_of_a_rank_deficient_design_is_that_of_its_span():
+    # a design whose fit fell back to the SVD (here a slow column given twice) has no
+    # Cholesky factor; the fraction kept depends on the design's span only. 1e-4: the
+    # normal-equation route of the full-rank design is ~1.5e-5 relative off an SVD's
+    # (SpeedModel.noise_depletion)
+    slow = filters.slow_basis(N, FS, MAX_HZ)
+    ch = _cycle(0.3, 0)
+    full = chain.fit_speed_model(ch, FS, F_MOD, slow, np.empty((N, 0)))
+    twice = chain.fit_speed_model(ch, FS, F_MOD, np.column_stack([slow, slow[:, -1]]),
+                                  np.empty((N, 0)))
+    assert twice.factor is None and full.factor is not None
+    assert twice.noise_depletion() == pytest.approx(full.noise_depletion(), rel=1e-4)

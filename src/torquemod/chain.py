@@ -209,14 +209,18 @@ class SpeedModel:
         sel = k[(off <= half_width_hz) & (off > 1.5 * df)]
         if sel.size < 2:
             return 1.0
-        fac = self.factor
-        if fac is not None and fac.gram is not None:  # the fit's own numbers
-            dn, gram = fac.dn, fac.gram
-        else:
-            dn = d / np.sqrt(np.einsum("ij,ij->j", d, d))
-            gram = dn.T @ dn
-        chol = np.linalg.cholesky(gram)
         v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
+        fac = self.factor
+        if fac is None or fac.gram is None:
+            # the fit fell back to the SVD (a design rank deficient to rounding, whose
+            # normal matrix has no Cholesky factor): Q from the SVD, its numerical rank
+            u, sv, _ = np.linalg.svd(d / np.sqrt(np.einsum("ij,ij->j", d, d)),
+                                     full_matrices=False)
+            qv = u[:, sv > sv[0] * 1e-10].T @ v
+            kept = 1.0 - (qv * qv).sum(axis=0).reshape(2, -1).sum(axis=0) / v_power
+            return float(np.clip(np.mean(kept), 0.05, 1.0))
+        dn, gram = fac.dn, fac.gram  # the fit's own numbers
+        chol = np.linalg.cholesky(gram)
         # Q = D L^-T has orthonormal columns spanning D, and Q^H v = L^-1 (D^T v): a solve with
         # the small factor instead of forming Q (the fraction kept agrees with forming Q to
         # ~4e-12 relative, measured; it scales only the standard error). Both routes go
@@ -382,8 +386,9 @@ def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
                    harmonics: tuple[int, ...], *, above_hz: float, avoid_hz: float,
                    modulation_hz: float | None = None) -> tuple[np.ndarray, float]:
     """Columns of an encoder's eccentricity at the rotation orders ``harmonics`` that lie above
-    the slow band (``above_hz``), below 0.45 x the sample rate and clear of the modulation at
-    ``avoid_hz`` [Hz]; and the mean rotation frequency [Hz].
+    the slow band (``above_hz``), below 0.45 x the sample rate, clear of the modulation at
+    ``avoid_hz`` [Hz] and not already spanned by the slow basis (:func:`_separable_orders`);
+    and the mean rotation frequency [Hz].
 
     An eccentric encoder reads ``w*(1 + e(theta))``: its error follows the angle and scales
     with the speed. The columns are ``(w_s/mean w_s)*cos(k*theta)``, ``... sin(k*theta)``
@@ -451,7 +456,7 @@ def _separable_orders(cols: np.ndarray, base: np.ndarray,
     least-squares residual of each of its columns on ``base`` keeps at least
     :data:`ORDER_MIN_RESIDUAL` of the column's norm.
 
-    The slow basis's Slepian sequences and polynomials reach about two frequency
+    The slow basis's Slepian sequences (Slepian 1978) and polynomials reach about two frequency
     resolutions above the slow band's nominal top (a tone one resolution above it keeps
     ~1e-3 of its norm, a tone 0.01 resolution above it ~1e-6). An order that close to the
     band is a slow variation over this record: fitted beside the slow basis as well, the
