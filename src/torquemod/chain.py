@@ -209,18 +209,22 @@ class SpeedModel:
         sel = k[(off <= half_width_hz) & (off > 1.5 * df)]
         if sel.size < 2:
             return 1.0
-        v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
         fac = self.factor
-        if fac is None or fac.gram is None:
-            # the fit fell back to the SVD (a design rank deficient to rounding, whose
-            # normal matrix has no Cholesky factor): Q from the SVD, its numerical rank
-            u, sv, _ = np.linalg.svd(d / np.sqrt(np.einsum("ij,ij->j", d, d)),
-                                     full_matrices=False)
+        if fac is not None and fac.gram is not None:  # the fit's own numbers
+            dn, gram = fac.dn, fac.gram
+        else:
+            dn = d / np.sqrt(np.einsum("ij,ij->j", d, d))
+            gram = dn.T @ dn
+        v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
+        try:
+            chol = np.linalg.cholesky(gram)
+        except np.linalg.LinAlgError:
+            # a design rank deficient to rounding (the fit fell back to the SVD): Q from
+            # the SVD, over its numerical rank
+            u, sv, _ = np.linalg.svd(dn, full_matrices=False)
             qv = u[:, sv > sv[0] * 1e-10].T @ v
             kept = 1.0 - (qv * qv).sum(axis=0).reshape(2, -1).sum(axis=0) / v_power
             return float(np.clip(np.mean(kept), 0.05, 1.0))
-        dn, gram = fac.dn, fac.gram  # the fit's own numbers
-        chol = np.linalg.cholesky(gram)
         # Q = D L^-T has orthonormal columns spanning D, and Q^H v = L^-1 (D^T v): a solve with
         # the small factor instead of forming Q (the fraction kept agrees with forming Q to
         # ~4e-12 relative, measured; it scales only the standard error). Both routes go
