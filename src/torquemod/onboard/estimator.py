@@ -18,13 +18,23 @@ with constant and falling friction, Burckhardt, saturating laws) and gives the *
 adhesion** (the maximum of the adhesion-creepage curve; track.parquet's ``mu``) with its 95 %
 profile interval over the whole family. mu is reported
 only when that interval is closed and within ``max_rel_half_width``, no change is suspected,
-the current window is steady, its CoA is not above the fit, and a window worked at
+the current window is steady (or, while the torque steps, the last steady window's row gave
+mu: a step's windows cannot confirm the curve, but the fit does not depend on them), its
+CoA is not above the fit, and a window worked at
 ``info_utilisation`` of mu or more within the last ``info_m`` metres (at low utilisation the
 creep coefficient hardly depends on mu, so a fit is not carried far past its evidence).
 Otherwise mu is empty and ``mu_low_95`` is the lower bound: the CoA less two standard errors
 of the windows of the last ``bound_m`` metres (by default the current window alone), because
 adhesion cannot exceed the friction where it was measured. The fit is redone every
 ``refit_m`` metres.
+
+Per segment
+-----------
+When the run has ended (:meth:`OnboardEstimator.finish`), each segment between detected
+friction changes is fitted once more from all its steady windows held, leaving out those
+within a window's length of a change (they may mix two frictions):
+:class:`~torquemod.onboard.mufit.SegmentFit`, the table ``segments.csv``. A live row
+cannot have that fit (it uses windows after the row), so the rows' mu stays the causal one.
 
 Friction changes
 ----------------
@@ -248,8 +258,12 @@ class MuTracker:
             self.changes.append(change)
             self.segments.append(self._segment(self.seg_start, change, end_guard=True))
             self.seg_start, self.seg_from_change = change, True
+            # the fit keeps the windows from half a window past the change on (one reaching
+            # further back mixes the two frictions); the lower bound all since the change
+            first = {id(self.mem): change + 0.5 * self.window_s * w.speed_m_s,
+                     id(self.recent): change}
             for q in (self.mem, self.recent):
-                while q and q[0].position_m < change:
+                while q and q[0].position_m < first[id(q)]:
                     q.popleft()
             self.fit = None
         if not slip:
@@ -384,6 +398,7 @@ class OnboardEstimator:
                                      min_windows=c.delay_min_windows,
                                      max_se_s=c.delay_max_se_s)
         self.delay_s = 0.0  # the net delay taken out of every window now [s]
+        self._steady_gave_mu = False  # the last steady window's row gave mu
 
     def feed(self, torque_nm, wheel_speed_rad_s, vehicle_speed_m_s, position_m) -> list[dict]:
         chunk = np.vstack([np.asarray(a, dtype=np.float64) for a in
@@ -483,12 +498,16 @@ class OnboardEstimator:
         self.tracker.add(w, slip)
         fit = self.tracker.fit
         mu = fit.mu if fit is not None and not self.tracker.detector.suspicious else None
-        if w.dc_step_ratio > self.cfg.max_dc_step_ratio:
-            mu = None  # the torque is stepping: the window cannot confirm the curve
+        stepping = w.dc_step_ratio > self.cfg.max_dc_step_ratio
+        if stepping and not self._steady_gave_mu:
+            mu = None  # the torque is stepping: the window cannot confirm the curve, and the
+            # last steady window did not either
         if mu is not None and w.coa - 2 * w.coa_se > mu:
             mu = None  # the window's adhesion is above the fitted friction: the fit is stale
         if mu is not None and not self.tracker.informed(w.position_m, mu):
             mu = None  # no window near saturation lately: a change would go unseen
+        if not stepping:
+            self._steady_gave_mu = mu is not None
         if mu is not None and fit is not None:
             lo, hi = fit.low, fit.high
         else:
