@@ -19,6 +19,7 @@ adhesion** (the maximum of the adhesion-creepage curve; track.parquet's ``mu``) 
 profile interval over the whole family. mu is reported
 only when that interval is closed and within ``max_rel_half_width``, no change is suspected,
 the current window is steady (or, while the torque steps, the last steady window's row gave
+mu less than half a window's length back and the window's CoA plus its whole step is not above
 mu: a step's windows cannot confirm the curve, but the fit does not depend on them), its
 CoA is not above the fit, and a window worked at
 ``info_utilisation`` of mu or more within the last ``info_m`` metres (at low utilisation the
@@ -119,6 +120,9 @@ class OnboardConfig:
     min_coa_ratio: float = 2.0
     ratio_bounds: tuple[float, float] = R_BOUNDS
     power_shapes: int = 1
+    #: fit the windows' slopes as the describing function of the curve over the
+    #: modulation's creepage swing (1) or as small-signal slopes (0)
+    model_swing: int = 1
     baseline_m: float = 600.0
     low_adhesion_ratio: float = 0.25
     slip_creepage: float = 0.03
@@ -165,6 +169,7 @@ class _Fit:
 #: ranges of the [onboard] settings (besides their types): positive unless listed here
 _CHECKS = default_checks(OnboardConfig, {
     "power_shapes": one_of(0, 1), "calibrate_delay": one_of(0, 1),
+    "model_swing": one_of(0, 1),
     "window_periods": between(1, None), "n_bins": between(1, None),
     "min_windows": between(1, None), "delay_min_windows": between(1, None),
     "info_utilisation": between(0.0, 1.0, lo_open=True),
@@ -290,8 +295,10 @@ class MuTracker:
         coa, k, k_se = coa[ok], k[ok], k_se[ok]
         if coa.size < self.cfg.min_windows or coa.max() < self.cfg.min_coa_ratio * coa.min():
             return None
+        swing = np.array([m.creepage_swing for m in self.mem])[ok]
         return group_points(coa, k, k_se, overlap=self.overlap, n_bins=self.cfg.n_bins,
-                            model_rel_error=self.cfg.model_rel_error)
+                            model_rel_error=self.cfg.model_rel_error,
+                            swing=np.nan_to_num(swing) if self.cfg.model_swing else None)
 
     def _segment(self, start_m: float, end_m: float, *, end_guard: bool) -> SegmentFit:
         """The fit of the segment ``[start_m, end_m]`` [m] from the windows held: those
@@ -308,6 +315,7 @@ class MuTracker:
         c = self.cfg
         return fit_segment([m.coa for m in use], [m.creep_coefficient for m in use],
                            [m.creep_coefficient_se for m in use], start_m, end_m,
+                           swing=[m.creepage_swing for m in use] if c.model_swing else None,
                            overlap=self.overlap, n_bins=c.n_bins,
                            model_rel_error=c.model_rel_error, min_windows=c.min_windows,
                            min_coa_ratio=c.min_coa_ratio, ratio_bounds=c.ratio_bounds,
@@ -329,9 +337,10 @@ class MuTracker:
         pts = self._points()
         speed = float(np.median([m.speed_m_s for m in self.mem])) if self.mem else None
         res = None if pts is None else fit_creep_progression(
-            *pts.T, coa_now=w.coa, ratio_bounds=self.cfg.ratio_bounds,
+            *pts[:, :3].T, coa_now=w.coa, ratio_bounds=self.cfg.ratio_bounds,
             power=bool(self.cfg.power_shapes),
-            max_rel_half_width=self.cfg.max_rel_half_width, speed_m_s=speed)
+            max_rel_half_width=self.cfg.max_rel_half_width, speed_m_s=speed,
+            swing=pts[:, 3] if pts.shape[1] > 3 else None)
         self.n_fits += pts is not None
         if res is None:
             return _Fit(w.position_m, None, math.nan, None)
@@ -398,7 +407,7 @@ class OnboardEstimator:
                                      min_windows=c.delay_min_windows,
                                      max_se_s=c.delay_max_se_s)
         self.delay_s = 0.0  # the net delay taken out of every window now [s]
-        self._steady_gave_mu = False  # the last steady window's row gave mu
+        self._steady_gave_at: float | None = None  # where the last steady row gave mu [m]
 
     def feed(self, torque_nm, wheel_speed_rad_s, vehicle_speed_m_s, position_m) -> list[dict]:
         chunk = np.vstack([np.asarray(a, dtype=np.float64) for a in
@@ -499,15 +508,23 @@ class OnboardEstimator:
         fit = self.tracker.fit
         mu = fit.mu if fit is not None and not self.tracker.detector.suspicious else None
         stepping = w.dc_step_ratio > self.cfg.max_dc_step_ratio
-        if stepping and not self._steady_gave_mu:
-            mu = None  # the torque is stepping: the window cannot confirm the curve, and the
-            # last steady window did not either
+        if stepping and mu is not None:
+            # the torque is stepping: the window cannot confirm the curve; it keeps mu only
+            # when the last steady window gave it less than half a window's length back (a
+            # window centred further on reaches mostly past that evidence: measured, such
+            # rows carried a leaf segment's mu into dry rail) and the adhesion the step may
+            # reach (its mean CoA plus the whole step) is not above mu
+            near = self._steady_gave_at is not None and (
+                w.position_m - self._steady_gave_at <= 0.5 * self.n_win / self.fs * w.speed_m_s)
+            top = w.coa + step_nm / (self.v.normal_load_n * self.v.wheel_radius_m)
+            if not near or top - 2 * w.coa_se > mu:
+                mu = None
         if mu is not None and w.coa - 2 * w.coa_se > mu:
             mu = None  # the window's adhesion is above the fitted friction: the fit is stale
         if mu is not None and not self.tracker.informed(w.position_m, mu):
             mu = None  # no window near saturation lately: a change would go unseen
         if not stepping:
-            self._steady_gave_mu = mu is not None
+            self._steady_gave_at = w.position_m if mu is not None else None
         if mu is not None and fit is not None:
             lo, hi = fit.low, fit.high
         else:

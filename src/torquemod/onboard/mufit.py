@@ -51,18 +51,21 @@ def fit_creep_progression(coa, k, k_se, *, coa_now: float | None = None,
                           ratio_bounds: tuple[float, float] = (0.3, 7.0),
                           mu_span: float = 6.0, max_rel_half_width: float = 0.10,
                           power: bool = True, probe: bool = False,
-                          speed_m_s: float | None = None) -> CreepFit | None:
+                          speed_m_s: float | None = None, swing=None) -> CreepFit | None:
     """Fit creep coefficients ``k`` [-] with standard errors ``k_se`` at utilised adhesions
     ``coa`` [-] (module docstring). ``ratio_bounds``: kA/kS of the Polach members;
     ``power``: also the non-Polach laws; ``mu_span``: the largest P tried, as a multiple of
     the largest CoA; ``probe``: also the probe depth that would determine P; ``speed_m_s``
     [m/s]: the rolling speed (bounds the friction's fall with the slip velocity). ``coa_now`` is
     accepted for compatibility (the available adhesion does not depend on the operating
-    point). None when fewer than four usable points remain."""
+    point). ``swing`` [-]: the creepage swing amplitude of the modulation per point (None:
+    small-signal slopes; near the peak a swing of a few tenths of ``mu/k0`` changes the
+    measured slope, the describing function of the curve over the swing). None when fewer
+    than four usable points remain."""
     del coa_now
     fit = fit_available_adhesion(coa, k, k_se, max_rel_half_width=max_rel_half_width,
                                  p_span=mu_span, probe=probe, ratio_bounds=ratio_bounds,
-                                 other_laws=power, speed_m_s=speed_m_s)
+                                 other_laws=power, speed_m_s=speed_m_s, swing=swing)
     if fit is None:
         return None
     high = fit.high if fit.closed else math.nan
@@ -72,7 +75,8 @@ def fit_creep_progression(coa, k, k_se, *, coa_now: float | None = None,
 
 
 def group_points(coa, k, k_se, *, overlap: float = 1.0, n_bins: int = 12,
-                 model_rel_error: float = 0.0, min_points: int = 4) -> np.ndarray | None:
+                 model_rel_error: float = 0.0, min_points: int = 4,
+                 swing=None) -> np.ndarray | None:
     """The windows' creep coefficients ``k`` [-] (standard errors ``k_se``) at utilised
     adhesions ``coa`` [-] reduced to at most ``n_bins`` points, (n, 3) rows of (CoA, k, se).
 
@@ -85,8 +89,9 @@ def group_points(coa, k, k_se, *, overlap: float = 1.0, n_bins: int = 12,
     Each point: the inverse-variance mean of k; its standard error the larger of the
     windows' own (widened by ``overlap``, the windows each sample falls in) and the
     group's scatter, combined with ``model_rel_error`` times k (the windows' systematic
-    error; a single window's group has no scatter). None when fewer than ``min_points``
-    points remain."""
+    error; a single window's group has no scatter). With ``swing`` (the windows' creepage
+    swing amplitudes [-]) a fourth column: the group's mean swing. None when fewer than
+    ``min_points`` points remain."""
     coa, k, k_se = (np.asarray(a, dtype=float) for a in (coa, k, k_se))
     if coa.size == 0:
         return None
@@ -108,7 +113,10 @@ def group_points(coa, k, k_se, *, overlap: float = 1.0, n_bins: int = 12,
         scatter = (float(np.std(k[grp], ddof=1)) / math.sqrt(grp.size / overlap)
                    if grp.size > 1 else 0.0)
         se = math.hypot(max(se_b, scatter), model_rel_error * k_b)
-        pts.append((float(coa[grp].mean()), k_b, se))
+        row = (float(coa[grp].mean()), k_b, se)
+        if swing is not None:
+            row += (float(np.mean(np.asarray(swing, dtype=float)[grp])),)
+        pts.append(row)
     return np.array(pts) if len(pts) >= min_points else None
 
 
@@ -153,25 +161,30 @@ class SegmentFit:
                 "probe_depth_needed": nan if a is None else a.probe_depth}
 
 
-def fit_segment(coa, k, k_se, start_m: float, end_m: float, *, overlap: float = 1.0,
+def fit_segment(coa, k, k_se, start_m: float, end_m: float, *, swing=None,
+                overlap: float = 1.0,
                 n_bins: int = 12, model_rel_error: float = 0.0, min_windows: int = 12,
                 min_coa_ratio: float = 2.0, ratio_bounds: tuple[float, float] = (0.3, 7.0),
                 power: bool = True, max_rel_half_width: float = 0.10,
                 speed_m_s: float | None = None) -> SegmentFit:
     """The :class:`SegmentFit` of a stretch ``[start_m, end_m]`` [m] from its steady
-    windows' CoA, k and k's standard error [-] (:func:`group_points`, then
+    windows' CoA, k and k's standard error [-] and creepage swing [-] (None: not
+    modelled) (:func:`group_points`, then
     :func:`fit_creep_progression` with the probe depth); no fit when fewer than
     ``min_windows`` windows or a CoA range below ``min_coa_ratio``."""
     coa, k, k_se = (np.asarray(a, dtype=float) for a in (coa, k, k_se))
     ok = (coa > 0) & np.isfinite(k) & (k > 0) & np.isfinite(k_se) & (k_se > 0)
     coa, k, k_se = coa[ok], k[ok], k_se[ok]
+    if swing is not None:
+        swing = np.nan_to_num(np.asarray(swing, dtype=float)[ok])
     reached = float(coa.max()) if coa.size else math.nan
     fit = None
     if coa.size >= min_windows and coa.max() >= min_coa_ratio * coa.min():
         pts = group_points(coa, k, k_se, overlap=overlap, n_bins=n_bins,
-                           model_rel_error=model_rel_error)
+                           model_rel_error=model_rel_error, swing=swing)
         if pts is not None:
-            fit = fit_creep_progression(*pts.T, ratio_bounds=ratio_bounds, power=power,
-                                        max_rel_half_width=max_rel_half_width,
-                                        probe=True, speed_m_s=speed_m_s)
+            fit = fit_creep_progression(*pts[:, :3].T, ratio_bounds=ratio_bounds,
+                                        power=power, max_rel_half_width=max_rel_half_width,
+                                        probe=True, speed_m_s=speed_m_s,
+                                        swing=pts[:, 3] if swing is not None else None)
     return SegmentFit(float(start_m), float(end_m), int(coa.size), reached, fit)
