@@ -11,9 +11,12 @@ per friction segment: rows, the share with mu, the median |mu error|/mu where gi
 coverage of the 95 % interval where given, how often the lower bound (``mu_low_95`` on rows
 without mu) exceeds the true mu, ``low_adhesion`` flags at <= 50 % true utilisation; and
 diagnostics: the median ratio of the measured creep coefficient to the truth on steady
-windows, the median phase standard error; and seconds of run per CPU second (end to end:
-reading MDF4, estimating, writing figures and tables). Then a driver's constant demand into
-a leaf patch (low_adhesion delay, false flags on dry rail) and the estimator's own speed.
+windows, the median phase standard error; the rows' interval coverage over all segments;
+the per-segment table (segments.csv against the truth: best fit, 95 % interval, lower
+bound, determined, error, depth reached) and its counts; and seconds of run per CPU
+second (end to end: reading MDF4, estimating, writing figures and tables). Then a driver's
+constant demand into a leaf patch (low_adhesion delay, false flags on dry rail) and the
+estimator's own speed.
 
     python benchmarks/onboard_independent.py [--seeds 2] [--laws tanh burckhardt]
         [--depth 0.8 0.9] [--eccentricity 0.002 0.0] [--ratio-bounds 1 7]

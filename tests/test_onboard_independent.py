@@ -243,8 +243,8 @@ def test_segments_tanh_interval_honest(processed, tmp_path):
 def test_segments_burckhardt_determined_within_10_percent(tmp_path):
     """Burckhardt's law (falling beyond its peak; the generator's own parametrisation),
     three 500-m segments each probed to 80 %: every segment determined, within 10 % (the
-    target for constant-friction runs; measured on the benchmark's 2 x 4 segments: within
-    6.6 %), the truth inside its interval; the rows' mu, where given, cover the truth in
+    target for constant-friction runs; measured on the benchmark's 4 x 4 segments: within
+    6.7 %), the truth inside its interval; the rows' mu, where given, cover the truth in
     >= 90 % (the coverage target)."""
     spec = replace(SPEC, law="burckhardt", seed=5)
     path, _ = write_independent_run(spec, tmp_path / "run")
