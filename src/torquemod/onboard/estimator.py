@@ -265,11 +265,11 @@ class MuTracker:
             self.seg_start, self.seg_from_change = change, True
             # the fit keeps the windows from half a window past the change on (one reaching
             # further back mixes the two frictions); the lower bound all since the change
-            first = {id(self.mem): change + 0.5 * self.window_s * w.speed_m_s,
-                     id(self.recent): change}
-            for q in (self.mem, self.recent):
-                while q and q[0].position_m < first[id(q)]:
-                    q.popleft()
+            cut_m = change + 0.5 * self.window_s * w.speed_m_s
+            while self.mem and self.mem[0].position_m < cut_m:
+                self.mem.popleft()
+            while self.recent and self.recent[0].position_m < change:
+                self.recent.popleft()
             self.fit = None
         if not slip:
             self.recent.append(w)
