@@ -450,6 +450,62 @@ def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
     return float(torque / (normal_load_n * wheel_radius_m))
 
 
+#: Thresholds of :func:`needs_wide_band`: the platform speed's variation above the quiet
+#: band must be significant (F test; false-alarm probability on white noise) ...
+WIDE_BAND_FALSE_ALARM = 1e-3
+#: ... and move the wheel's modulation by more than this phase [rad] (0.006 deg) if left out
+#: of the slow model (the wheel follows the platform's relative speed variation).
+WIDE_BAND_RISK_RAD = 1e-4
+
+
+def needs_wide_band(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float,
+                    modulation_hz: float, quiet_hz: float, wide_hz: float, *, extra: int,
+                    degree: int) -> bool:
+    """Whether the speed model needs its full slow band (``wide_hz`` [Hz], ``slow.max_hz``)
+    rather than the quiet one (``quiet_hz``, ``slow.quiet_max_hz``) for one cycle.
+
+    Under a speed wobble at f_w the wheel's answer to the modulation at f moves with the
+    operating point and carries sidebands at f +- f_w and, near saturation, f +- 2 f_w. A slow
+    band reaching them takes part of the answer away and changes the phase (0.3-0.5 deg at
+    80-90 % of the peak under a 0.3 % wobble at 0.2-0.6 Hz with a 1.2 Hz band at 2 Hz;
+    independent rig, benchmarks/chain_accuracy.py). The quiet band keeps them, but a speed
+    variation above it (a speed loop wobbling at 0.8-1.2 Hz) then leaks into the modulation.
+    The platform speed [rad/s] carries the speed loop's variation and hardly any answer to
+    the modulation, so it decides: it is fitted with the modulation at ``modulation_hz``
+    beside the Slepian sequences of the quiet band (without extra sequences, whose reach
+    beyond the band would hide most of a line just above it) and beside the full slow basis
+    of the wide band (:func:`~torquemod.dsp.filters.slow_basis`). The wide band is needed
+    when it explains significantly more (the F test of nested least-squares models,
+    :data:`WIDE_BAND_FALSE_ALARM`) and when the platform's modulation coefficients of the
+    two fits differ, relative to its mean speed, by more than :data:`WIDE_BAND_RISK_RAD`
+    times the wheel's relative modulation amplitude (the phase [rad] the variation would
+    cost the wheel, which follows the platform's relative speed). Without a platform
+    speed, always.
+    """
+    if platform is None:
+        return True
+    from scipy.stats import f as f_dist
+    n = wheel.size
+    mod = modulation_columns(n, fs_hz, modulation_hz)
+    y = np.column_stack([wheel, platform])
+    fits = []
+    for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
+        design = np.hstack([mod, filters.slow_basis(n, fs_hz, band, extra=ext, degree=degree)])
+        coef, rank = filters.lstsq(design, y)
+        resid = platform - design @ coef[:, 1]
+        fits.append((float(resid @ resid), rank, coef[:2]))
+    (rss_q, rank_q, coef_q), (rss_w, rank_w, coef_w) = fits
+    dfn, dfd = rank_w - rank_q, n - rank_w
+    w_mean, p_mean = float(np.mean(wheel)), float(np.mean(platform))
+    wheel_rel = float(np.hypot(*coef_w[:, 0])) / abs(w_mean) if w_mean else 0.0
+    if dfn <= 0 or dfd <= 0 or not (p_mean and wheel_rel > 0):
+        return True
+    f_stat = (rss_q - rss_w) / dfn / max(rss_w / dfd, 1e-300)
+    risk = float(np.hypot(*(coef_q[:, 1] - coef_w[:, 1]))) / abs(p_mean) / wheel_rel
+    return bool(f_stat > f_dist.isf(WIDE_BAND_FALSE_ALARM, dfn, dfd)
+                and risk > WIDE_BAND_RISK_RAD)
+
+
 #: The slow band's top stays at least this many frequency resolutions (1/T, T the cycle's
 #: duration) below the nominal modulation frequency. Its extra Slepian sequences reach
 #: beyond it, and a slow basis that overlaps the modulation's main lobe makes the joint fit
@@ -458,6 +514,26 @@ def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
 #: (tests/test_chain_orbit.py). At 2 Hz on a V-Track cycle the limit (1.34 Hz) lies above
 #: the default 1.2 Hz and changes nothing.
 SLOW_GAP_RESOLUTIONS = 4.0
+
+
+def _slow_and_orders(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float,
+                     f_start_hz: float, max_hz: float, cfg: ProcessingConfig
+                     ) -> tuple[np.ndarray, np.ndarray, list[float]]:
+    """The speed model's slow basis up to ``max_hz`` [Hz], the tracked rotation orders of
+    both speeds above it and their frequencies [Hz] (:func:`tracked_orders`)."""
+    n, nq = wheel.size, cfg.notch
+    slow = filters.slow_basis(n, fs_hz, max(max_hz, 0.0), extra=cfg.slow.extra_sequences,
+                              degree=cfg.slow.polynomial_degree)
+    cols, rotation_hz = [], []
+    base = _order_base(n, fs_hz, slow, f_start_hz)  # the same first design for both speeds
+    base_factor = filters.LstsqFactor.of(base)
+    for speed, harmonics in ((wheel, nq.wheel_harmonics), (platform, nq.platform_harmonics)):
+        if speed is not None:
+            c, f_rot = _tracked_orders(speed, fs_hz, slow, harmonics, base, base_factor,
+                                       above_hz=max_hz, avoid_hz=f_start_hz)
+            cols.append(c)
+            rotation_hz += [h * f_rot for h in harmonics]
+    return slow, np.column_stack(cols), rotation_hz
 
 
 def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str,
@@ -501,20 +577,14 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # angles, and the modulation, fitted jointly (SpeedModel).
     f_start = nominal_hz if nominal_hz is not None else 0.5 * sum(fp.band_hz)
     # the slow band stops SLOW_GAP_RESOLUTIONS frequency resolutions below the modulation
-    max_hz = min(cfg.slow.max_hz, f_start - SLOW_GAP_RESOLUTIONS * fs_r / n) \
-        if cfg.slow.enabled else 0.0
-    slow = filters.slow_basis(n, fs_r, max(max_hz, 0.0), extra=cfg.slow.extra_sequences,
-                              degree=cfg.slow.polynomial_degree)
-    cols, rotation_hz = [], []
-    base = _order_base(n, fs_r, slow, f_start)  # the same first design for both speeds
-    base_factor = filters.LstsqFactor.of(base)
-    for speed, harmonics in ((wh, nq.wheel_harmonics), (pl, nq.platform_harmonics)):
-        if speed is not None:
-            c, f_rot = _tracked_orders(speed, fs_r, slow, harmonics, base, base_factor,
-                                       above_hz=max_hz, avoid_hz=f_start)
-            cols.append(c)
-            rotation_hz += [h * f_rot for h in harmonics]
-    orders = np.column_stack(cols)
+    top = f_start - SLOW_GAP_RESOLUTIONS * fs_r / n
+    max_hz = min(cfg.slow.max_hz, top) if cfg.slow.enabled else 0.0
+    quiet_hz = min(cfg.slow.quiet_max_hz, top)
+    if cfg.slow.enabled and 0.0 < quiet_hz < max_hz and not needs_wide_band(
+            wh, pl, fs_r, f_start, quiet_hz, max_hz, extra=cfg.slow.extra_sequences,
+            degree=cfg.slow.polynomial_degree):
+        max_hz = quiet_hz  # the narrower band: no speed variation above it (needs_wide_band)
+    slow, orders, rotation_hz = _slow_and_orders(wh, pl, fs_r, f_start, max_hz, cfg)
     mod_harmonics = modulation_harmonics(f_start, fs_r, n, cfg.slow.modulation_harmonics,
                                          above_hz=max_hz, avoid_hz=rotation_hz)
     # Step 1: modulation frequency = mean of the torque's and wheel speed's peaks, taken on
@@ -705,10 +775,14 @@ def cycle_phase(c: CycleSignals, cfg: ProcessingConfig, *, center_index: float
                                             / c.extra.get("noise_kept", 1.0))
     if cfg.phase.method == "sinefit":
         return fit.phase_deg, float(se_fit), fit.window_s
-    half = (cfg.phase.n_periods / 2 + cfg.phase.edge_trim_periods) * period_n
+    n_periods = cfg.phase.n_periods
+    if cfg.phase.paper_window == "cycle":  # every whole period between the trimmed edges
+        n_periods = max(n_periods, int(np.floor(n / period_n + 1e-9
+                                                - 2 * cfg.phase.edge_trim_periods)))
+    half = (n_periods / 2 + cfg.phase.edge_trim_periods) * period_n
     center = min(max(center_index, half), n - half)
     res = peak_valley_phase(c.torque_filtered, c.wheel_filtered, c.fs_hz, c.modulation_hz,
-                            center_s=center / c.fs_hz, n_periods=cfg.phase.n_periods)
-    hw = cfg.phase.n_periods / 2 / c.modulation_hz
+                            center_s=center / c.fs_hz, n_periods=n_periods)
+    hw = n_periods / 2 / c.modulation_hz
     se = PAPER_SE_FACTOR * se_fit
     return res.phase_deg, float(se), (center / c.fs_hz - hw, center / c.fs_hz + hw)
