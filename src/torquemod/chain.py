@@ -46,7 +46,8 @@ class CycleSignals:
     notes: list[str] = field(default_factory=list)  # warnings for the user and provenance
     creepage_drift: float = float("nan")  # creepage change over the cycle [-] (slip check)
     #: torque_amplitude_nm, wheel_amplitude_rad_s, creepage_swing [-], speed_m_s [m/s],
-    #: coa_torque [-], coa_source ("forces" or "torque")
+    #: coa_torque [-], coa_source ("forces" or "torque"), slow_band_hz (the speed model's slow
+    #: band's top [Hz], chain.needs_wide_band)
     extra: dict = field(default_factory=dict)
 
 
@@ -669,7 +670,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                        tq_n, wh_n, tq_f, wh_f, xi, coa, means,
                        {"wheel": wheel_notches, "platform": plat_notches}, notes,
                        creepage_drift=drift)
-    out.extra.update({"speed_model": model, "variance_factor": model.variance_factor(),
+    out.extra.update({"speed_model": model, "slow_band_hz": float(max_hz),
+                      "variance_factor": model.variance_factor(),
                       "noise_kept": model.noise_depletion(),
                       "torque_amplitude_nm": model.amplitude("torque_nm"),
                       "wheel_amplitude_rad_s": wheel_amp,

@@ -76,16 +76,14 @@ class SlowParams:
     gives the previous chain (a line and fixed-frequency tones)."""
 
     enabled: bool = True
-    #: ours: a wobble up to 1.2 Hz is removed. Under a wobble at 0.2-0.6 Hz near saturation
-    #: the wheel's answer carries sidebands at f - 2 x 0.6 Hz that this band reaches; 0.4 x
-    #: f (0.8 Hz) with ``phase.sinefit_input = "model"`` gives the phase of a moving
-    #: operating point to 0.015 deg (docs/processing.md), but lets a wobble at 0.8-1.2 Hz in
+    #: ours: the slow band's top [Hz] where the speed varies above ``quiet_max_hz``: a
+    #: speed loop's wobble up to 1.2 Hz is removed
     max_hz: float = 1.2
-    #: ours: the slow band's top [Hz] when the platform speed shows no variation between it
-    #: and ``max_hz`` that would move the modulation (torquemod.chain.slow_band_hz): 0.4 x f
-    #: keeps the sidebands a moving operating point puts on the wheel's answer (f +- 0.6 Hz,
-    #: f +- 1.2 Hz for a wobble up to 0.6 Hz) out of the slow model. Equal to ``max_hz``:
-    #: always the full band (the behaviour before; also without a platform-speed channel)
+    #: ours: the slow band's top [Hz] when the platform speed does not vary above it
+    #: (torquemod.chain.needs_wide_band): 0.4 x f keeps the sidebands that a moving operating
+    #: point puts on the wheel's answer (f +- f_w for a wobble at f_w) out of the slow model;
+    #: 1.2 Hz took up to 0.5 deg of the phase at 80-90 % of the peak under a 0.3 % wobble at
+    #: 0.2-0.6 Hz (docs/processing.md). Equal to ``max_hz``: always the full band
     quiet_max_hz: float = 0.8
     extra_sequences: int = 2
     polynomial_degree: int = 5
@@ -146,8 +144,8 @@ class PhaseParams:
     paper_window: str = "cycle"
     #: "bandpassed" (the band-passed signals over whole periods; robust to vibration lines
     #: and noise away from the modulation), "notched", or "model" (the speed model's own
-    #: least-squares modulation over the cycle, docs/processing.md "The phase of a moving
-    #: operating point"; 3-4 x the scatter of "bandpassed" on records with vibration lines)
+    #: least-squares modulation over the cycle; 3-4 x the scatter of "bandpassed" on records
+    #: with vibration lines, docs/processing.md "The phase of a moving operating point")
     sinefit_input: str = "bandpassed"
     sinefit_trend: bool = True
 
