@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.signal import get_window
+from scipy.special import fdtri
 
 from .config import ProcessingConfig
 from .data import Recording, Rig
@@ -485,7 +486,6 @@ def needs_wide_band(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float
     """
     if platform is None:
         return True
-    from scipy.stats import f as f_dist
     n = wheel.size
     mod = modulation_columns(n, fs_hz, modulation_hz)
     y = np.column_stack([wheel, platform])
@@ -503,7 +503,7 @@ def needs_wide_band(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float
         return True
     f_stat = (rss_q - rss_w) / dfn / max(rss_w / dfd, 1e-300)
     risk = float(np.hypot(*(coef_q[:, 1] - coef_w[:, 1]))) / abs(p_mean) / wheel_rel
-    return bool(f_stat > f_dist.isf(WIDE_BAND_FALSE_ALARM, dfn, dfd)
+    return bool(f_stat > fdtri(dfn, dfd, 1.0 - WIDE_BAND_FALSE_ALARM)
                 and risk > WIDE_BAND_RISK_RAD)
 
 
