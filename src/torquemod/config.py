@@ -80,7 +80,7 @@ class SlowParams:
     #: speed loop's wobble up to 1.2 Hz is removed
     max_hz: float = 1.2
     #: ours: the slow band's top [Hz] when the platform speed does not vary above it
-    #: (torquemod.chain.needs_wide_band): 0.4 x f keeps the sidebands that a moving operating
+    #: (torquemod.dsp.basis.needs_wide_band): 0.4 x f keeps the sidebands that a moving operating
     #: point puts on the wheel's answer (f +- f_w for a wobble at f_w) out of the slow model;
     #: 1.2 Hz took up to 0.5 deg of the phase at 80-90 % of the peak under a 0.3 % wobble at
     #: 0.2-0.6 Hz (docs/processing.md). Equal to ``max_hz``: always the full band
