@@ -691,9 +691,11 @@ def model_phase(model: SpeedModel, torque: np.ndarray, wheel: np.ndarray, fs_hz:
                          phases[1], n, (0.0, n / fs_hz))
 
 
-#: The paper's peak/valley estimator scatters 1.21-1.32 times the Cramér-Rao bound where the
-#: sine fit reaches 0.97-1.07 of it (benchmarks/phase_accuracy.py): its standard error is
-#: taken as this factor times the sine fit's on the same data.
+#: The paper's peak/valley estimator over its three middle periods scatters 1.21-1.32 times
+#: the Cramér-Rao bound where the sine fit reaches 0.97-1.07 of it (benchmarks/phase_accuracy.py):
+#: its standard error is taken as this factor times the sine fit's on the same data. Over the
+#: whole cycle (``phase.paper_window = "cycle"``) it scatters 0.98-1.14 times the bound, so
+#: the factor errs on the safe side there.
 PAPER_SE_FACTOR = 1.3
 
 
