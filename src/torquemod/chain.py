@@ -16,6 +16,7 @@ from .config import ProcessingConfig
 from .data import Recording, Rig
 from .dsp import filters
 from .dsp.align import alignment_lag
+from .dsp.basis import needs_wide_band
 from .dsp.phase import SineFitResult, local_noise_psd, peak_valley_phase, sinefit_phase
 from .dsp.spectrum import peak_frequency
 from .errors import InputError, ProcessingError
@@ -46,7 +47,8 @@ class CycleSignals:
     notes: list[str] = field(default_factory=list)  # warnings for the user and provenance
     creepage_drift: float = float("nan")  # creepage change over the cycle [-] (slip check)
     #: torque_amplitude_nm, wheel_amplitude_rad_s, creepage_swing [-], speed_m_s [m/s],
-    #: coa_torque [-], coa_source ("forces" or "torque")
+    #: coa_torque [-], coa_source ("forces" or "torque"), slow_band_hz (the speed model's slow
+    #: band's top [Hz], dsp.basis.needs_wide_band)
     extra: dict = field(default_factory=dict)
 
 
@@ -503,6 +505,26 @@ def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
 SLOW_GAP_RESOLUTIONS = 4.0
 
 
+def _slow_and_orders(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float,
+                     f_start_hz: float, max_hz: float, cfg: ProcessingConfig
+                     ) -> tuple[np.ndarray, np.ndarray, list[float]]:
+    """The speed model's slow basis up to ``max_hz`` [Hz], the tracked rotation orders of
+    both speeds above it and their frequencies [Hz] (:func:`tracked_orders`)."""
+    n, nq = wheel.size, cfg.notch
+    slow = filters.slow_basis(n, fs_hz, max(max_hz, 0.0), extra=cfg.slow.extra_sequences,
+                              degree=cfg.slow.polynomial_degree)
+    cols, rotation_hz = [], []
+    base = _order_base(n, fs_hz, slow, f_start_hz)  # the same first design for both speeds
+    base_factor = filters.LstsqFactor.of(base)
+    for speed, harmonics in ((wheel, nq.wheel_harmonics), (platform, nq.platform_harmonics)):
+        if speed is not None:
+            c, f_rot = _tracked_orders(speed, fs_hz, slow, harmonics, base, base_factor,
+                                       above_hz=max_hz, avoid_hz=f_start_hz)
+            cols.append(c)
+            rotation_hz += [h * f_rot for h in harmonics]
+    return slow, np.column_stack(cols), rotation_hz
+
+
 def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str,
                   nominal_hz: float | None = None, normal_load_n: float | None = None
                   ) -> CycleSignals:
@@ -544,20 +566,14 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # angles, and the modulation, fitted jointly (SpeedModel).
     f_start = nominal_hz if nominal_hz is not None else 0.5 * sum(fp.band_hz)
     # the slow band stops SLOW_GAP_RESOLUTIONS frequency resolutions below the modulation
-    max_hz = min(cfg.slow.max_hz, f_start - SLOW_GAP_RESOLUTIONS * fs_r / n) \
-        if cfg.slow.enabled else 0.0
-    slow = filters.slow_basis(n, fs_r, max(max_hz, 0.0), extra=cfg.slow.extra_sequences,
-                              degree=cfg.slow.polynomial_degree)
-    cols, rotation_hz = [], []
-    base = _order_base(n, fs_r, slow, f_start)  # the same first design for both speeds
-    base_factor = filters.LstsqFactor.of(base)
-    for speed, harmonics in ((wh, nq.wheel_harmonics), (pl, nq.platform_harmonics)):
-        if speed is not None:
-            c, f_rot = _tracked_orders(speed, fs_r, slow, harmonics, base, base_factor,
-                                       above_hz=max_hz, avoid_hz=f_start)
-            cols.append(c)
-            rotation_hz += [h * f_rot for h in harmonics]
-    orders = np.column_stack(cols)
+    top = f_start - SLOW_GAP_RESOLUTIONS * fs_r / n
+    max_hz = min(cfg.slow.max_hz, top) if cfg.slow.enabled else 0.0
+    quiet_hz = min(cfg.slow.quiet_max_hz, top)
+    if cfg.slow.enabled and 0.0 < quiet_hz < max_hz and not needs_wide_band(
+            wh, pl, fs_r, f_start, quiet_hz, max_hz, extra=cfg.slow.extra_sequences,
+            degree=cfg.slow.polynomial_degree):
+        max_hz = quiet_hz  # the narrower band: no speed variation above it (needs_wide_band)
+    slow, orders, rotation_hz = _slow_and_orders(wh, pl, fs_r, f_start, max_hz, cfg)
     mod_harmonics = modulation_harmonics(f_start, fs_r, n, cfg.slow.modulation_harmonics,
                                          above_hz=max_hz, avoid_hz=rotation_hz)
     # Step 1: modulation frequency = mean of the torque's and wheel speed's peaks, taken on
@@ -642,7 +658,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                        tq_n, wh_n, tq_f, wh_f, xi, coa, means,
                        {"wheel": wheel_notches, "platform": plat_notches}, notes,
                        creepage_drift=drift)
-    out.extra.update({"speed_model": model, "variance_factor": model.variance_factor(),
+    out.extra.update({"speed_model": model, "slow_band_hz": float(max_hz),
+                      "variance_factor": model.variance_factor(),
                       "noise_kept": model.noise_depletion(),
                       "torque_amplitude_nm": model.amplitude("torque_nm"),
                       "wheel_amplitude_rad_s": wheel_amp,
@@ -717,9 +734,11 @@ def model_phase(model: SpeedModel, torque: np.ndarray, wheel: np.ndarray, fs_hz:
                          phases[1], n, (0.0, n / fs_hz))
 
 
-#: The paper's peak/valley estimator scatters 1.21-1.32 times the Cramér-Rao bound where the
-#: sine fit reaches 0.97-1.07 of it (benchmarks/phase_accuracy.py): its standard error is
-#: taken as this factor times the sine fit's on the same data.
+#: The paper's peak/valley estimator over its three middle periods scatters 1.21-1.32 times
+#: the Cramér-Rao bound where the sine fit reaches 0.97-1.07 of it (benchmarks/phase_accuracy.py):
+#: its standard error is taken as this factor times the sine fit's on the same data. Over the
+#: whole cycle (``phase.paper_window = "cycle"``) it scatters 0.98-1.14 times the bound, so
+#: the factor errs on the safe side there.
 PAPER_SE_FACTOR = 1.3
 
 
@@ -748,10 +767,14 @@ def cycle_phase(c: CycleSignals, cfg: ProcessingConfig, *, center_index: float
                                             / c.extra.get("noise_kept", 1.0))
     if cfg.phase.method == "sinefit":
         return fit.phase_deg, float(se_fit), fit.window_s
-    half = (cfg.phase.n_periods / 2 + cfg.phase.edge_trim_periods) * period_n
+    n_periods = cfg.phase.n_periods
+    if cfg.phase.paper_window == "cycle":  # every whole period between the trimmed edges
+        n_periods = max(n_periods, int(np.floor(n / period_n + 1e-9
+                                                - 2 * cfg.phase.edge_trim_periods)))
+    half = (n_periods / 2 + cfg.phase.edge_trim_periods) * period_n
     center = min(max(center_index, half), n - half)
     res = peak_valley_phase(c.torque_filtered, c.wheel_filtered, c.fs_hz, c.modulation_hz,
-                            center_s=center / c.fs_hz, n_periods=cfg.phase.n_periods)
-    hw = cfg.phase.n_periods / 2 / c.modulation_hz
+                            center_s=center / c.fs_hz, n_periods=n_periods)
+    hw = n_periods / 2 / c.modulation_hz
     se = PAPER_SE_FACTOR * se_fit
     return res.phase_deg, float(se), (center / c.fs_hz - hw, center / c.fs_hz + hw)
