@@ -1,5 +1,5 @@
 """The available adhesion from the creep-coefficient progression (onboard.mufit, the on-board
-use of torquemod.friction) and the friction-change detector, against curves computed
+use of torquemod.analysis.friction) and the friction-change detector, against curves computed
 independently of the fit's tables, the phase path of the same estimator, and Monte Carlo
 coverage."""
 
@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from torquemod.contact.polach import force_function
+from torquemod.analysis.contact.polach import force_function
+from torquemod.analysis.phasefit import fit_mu_from_phase
 from torquemod.dsp.phase import periodogram_density
-from torquemod.onboard.estimator import ChangeDetector
-from torquemod.onboard.mufit import fit_creep_progression, fit_segment, group_points
-from torquemod.onboard.window import WindowResult
-from torquemod.phasefit import fit_mu_from_phase
+from torquemod.ontrain.estimator import ChangeDetector
+from torquemod.ontrain.mufit import fit_creep_progression, fit_segment, group_points
+from torquemod.ontrain.window import WindowResult
 
 
 def _curve(r: float, a_ratio: float, beta: float, mu0: float, k0: float):

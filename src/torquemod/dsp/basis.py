@@ -12,7 +12,7 @@ import numba
 import numpy as np
 from scipy.special import fdtri
 
-from .lstsq import lstsq
+from torquemod.dsp.lstsq import lstsq
 
 
 @functools.lru_cache(maxsize=64)

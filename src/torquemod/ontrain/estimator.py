@@ -1,4 +1,4 @@
-"""The on-board estimator (issue 10): sliding windows over a run's torque and axle speed,
+"""The on-board estimator: sliding windows over a run's torque and axle speed,
 and the friction along the track from the creep-coefficient progression.
 
 :class:`OnboardEstimator` takes chunks as they arrive (``feed``) and returns the rows of the
@@ -12,8 +12,8 @@ The steady windows since the last friction change (at most ``memory_m`` metres; 
 windows with a DC torque step inside left out) are sorted by CoA and grouped (up to
 ``n_bins`` groups); each group gives one point (inverse-variance mean of k; its standard error
 the larger of the windows' own, widened by their overlap, and the group's scatter, plus a
-relative model error ``model_rel_error``). :func:`torquemod.onboard.mufit.fit_creep_progression`
-(the one estimator of :mod:`torquemod.friction`) fits a broad family of creep laws (Polach
+relative model error ``model_rel_error``). :func:`torquemod.ontrain.mufit.fit_creep_progression`
+(the one estimator of :mod:`torquemod.analysis.friction`) fits a broad family of creep laws (Polach
 with constant and falling friction, Burckhardt, saturating laws) and gives the **available
 adhesion** (the maximum of the adhesion-creepage curve; track.parquet's ``mu``) with its 95 %
 profile interval over the whole family. mu is reported
@@ -34,7 +34,7 @@ Per segment
 When the run has ended (:meth:`OnboardEstimator.finish`), each segment between detected
 friction changes is fitted once more from all its steady windows held, leaving out those
 within a window's length of a change (they may mix two frictions):
-:class:`~torquemod.onboard.mufit.SegmentFit`, the table ``segments.csv``. A live row
+:class:`~torquemod.ontrain.mufit.SegmentFit`, the table ``segments.csv``. A live row
 cannot have that fit (it uses windows after the row), so the rows' mu stays the causal one.
 
 Friction changes
@@ -57,12 +57,12 @@ The premise of a window
 -----------------------
 A window whose torque has no modulation line at the declared frequency, whose train stands
 or runs backwards gives no numbers: its row keeps time, position and speed, ``quality`` says
-why (:mod:`torquemod.onboard.quality`), and it leaves the state alone.
+why (:mod:`torquemod.ontrain.quality`), and it leaves the state alone.
 
 Delay between torque and speed
 ------------------------------
 A net delay of the torque signal behind the speed's that run.toml does not declare biases k
-(~4 % per ms at 4 Hz). With ``calibrate_delay`` (default) :class:`~torquemod.onboard.delay.
+(~4 % per ms at 4 Hz). With ``calibrate_delay`` (default) :class:`~torquemod.ontrain.delay.
 DelayCalibrator` measures it from the steady windows seen so far (the vehicle's impedance
 does not change with the operating point); once its standard error is below
 ``delay_max_se_s`` every window's phase and k are taken with it, and the windows the mu fit
@@ -70,7 +70,7 @@ holds are corrected too (when the estimate moves by more than a quarter of that)
 estimate that is not trusted (too few operating points yet, or the crossing lost) leaves the
 last trusted one in place. Delays are searched in both directions (a speed counted over a
 gate is half a gate late: 5 ms at 200 Hz with a two-sample gate), within ``delay_max_s``
-and a sixth of the modulation period (:func:`~torquemod.onboard.delay.delay_grid`).
+and a sixth of the modulation period (:func:`~torquemod.ontrain.delay.delay_grid`).
 """
 
 from __future__ import annotations
@@ -81,16 +81,22 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..errors import InputError, ProcessingError
-from ..io.run import Vehicle
-from ..phasefit import R_BOUNDS
-from ..tomlcheck import NON_NEGATIVE, between, default_checks, one_of, read_table
-from .delay import DelayCalibrator, delay_grid
-from .mufit import CreepFit, SegmentFit, fit_creep_progression, fit_segment, group_points
-from .quality import QUALITY_OK, window_quality
-from .window import WindowResult, measure_window, with_delay
+from torquemod._util.tomlcheck import NON_NEGATIVE, between, default_checks, one_of, read_table
+from torquemod.analysis.phasefit import R_BOUNDS
+from torquemod.errors import InputError, ProcessingError
+from torquemod.io.run import Vehicle
+from torquemod.ontrain.delay import DelayCalibrator, delay_grid
+from torquemod.ontrain.mufit import (
+    CreepFit,
+    SegmentFit,
+    fit_creep_progression,
+    fit_segment,
+    group_points,
+)
+from torquemod.ontrain.quality import QUALITY_OK, window_quality
+from torquemod.ontrain.window import WindowResult, measure_window, with_delay
 
-#: The columns of track.parquet, in order (issue 10).
+#: The columns of track.parquet, in order.
 TRACK_COLUMNS = ("time_s", "position_m", "speed_m_s", "coa", "phase_deg", "phase_se_deg",
                  "creep_coefficient", "mu", "mu_low_95", "mu_high_95", "utilisation",
                  "low_adhesion", "slip", "quality")
@@ -131,7 +137,7 @@ class OnboardConfig:
     delay_max_s: float = 0.02
     delay_max_se_s: float = 5e-4
     delay_min_windows: int = 40
-    #: the premise of a window (:mod:`torquemod.onboard.quality`): the reference speed
+    #: the premise of a window (:mod:`torquemod.ontrain.quality`): the reference speed
     #: [m/s] below which the train counts as standing (twice the 0.5 m/s floor of the
     #: creepage's reference speed; ours) and the share of the declared modulation amplitude
     #: the torque's line must reach (ours: windows of the twin's and the independent runs
@@ -142,7 +148,7 @@ class OnboardConfig:
     @classmethod
     def from_dict(cls, table: dict | None, *, source: str = "[onboard]") -> OnboardConfig:
         """The settings from run.toml's ``[onboard]`` table (None: the defaults); every key
-        and value checked (:func:`torquemod.tomlcheck.read_table`), an :class:`InputError`
+        and value checked (:func:`torquemod._util.tomlcheck.read_table`), an :class:`InputError`
         naming ``source`` and the key otherwise."""
         cfg = read_table(cls, table, section="onboard", path=source, checks=_CHECKS)
         lo, hi = cfg.ratio_bounds
@@ -324,7 +330,7 @@ class MuTracker:
 
     def finish(self, end_m: float | None = None) -> list[SegmentFit]:
         """Close the last segment (at ``end_m`` [m], by default the last window held) and
-        return every segment's fit, in order (:class:`~torquemod.onboard.mufit.SegmentFit`).
+        return every segment's fit, in order (:class:`~torquemod.ontrain.mufit.SegmentFit`).
         Idempotent: a second call returns the same list."""
         if self.seg_start is not None and not self._finished:
             last = end_m if end_m is not None else max(
@@ -431,7 +437,7 @@ class OnboardEstimator:
 
     def finish(self) -> list[dict]:
         """The run has ended: the per-segment table (rows of
-        :data:`~torquemod.onboard.mufit.SEGMENT_COLUMNS`), each segment between detected
+        :data:`~torquemod.ontrain.mufit.SEGMENT_COLUMNS`), each segment between detected
         friction changes fitted from all its windows (:meth:`MuTracker.finish`)."""
         return [s.to_dict(i + 1) for i, s in enumerate(self.tracker.finish())]
 
@@ -474,7 +480,7 @@ class OnboardEstimator:
     def update(self, w: WindowResult) -> dict:
         """The row of a measured window, advancing the state (slip, reference creep
         coefficient, mu tracker); windows must come in order. A window without the
-        method's premise (:func:`~torquemod.onboard.quality.window_quality`) keeps its time,
+        method's premise (:func:`~torquemod.ontrain.quality.window_quality`) keeps its time,
         position and speed, the rest empty, and leaves the state alone."""
         step_nm = w.dc_step_ratio * max(w.torque_amplitude_nm, 1e-12)
         quality = window_quality(w.speed_m_s, w.wheel_speed_rad_s, w.torque_amplitude_nm,

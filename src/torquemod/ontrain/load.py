@@ -73,4 +73,5 @@ def load_onboard(folder, axle: int | None = None) -> OnboardResult:
                          float(entry.get("seconds", 0.0)), int(entry.get("mu_fits", 0)),
                          truth=load_truth(run), changes_m=entry.get("changes_m", ()),
                          delay_s=entry.get("measured_delay_s"),
-                         warnings=entry.get("warnings", ()))
+                         warnings=entry.get("warnings", ()),
+                         segments=entry.get("segments", ()))

@@ -308,7 +308,7 @@ def _segments_table(result) -> str:
 
 
 def segment_fits_html(result) -> str:
-    """The per-segment fit (:meth:`~torquemod.onboard.OnboardResult.segment_table`,
+    """The per-segment fit (:meth:`~torquemod.ontrain.OnboardResult.segment_table`,
     ``segments.csv``) as HTML: the available adhesion where determined, else the best fit,
     its 95 % interval and the lower bound."""
     segs = result.segment_table()

@@ -53,7 +53,7 @@ class OnboardResult:
     segments : tuple of dict
         The available adhesion per segment between detected friction changes, each fitted
         once the segment had ended from all its steady windows: rows of
-        :data:`~torquemod.onboard.mufit.SEGMENT_COLUMNS` (``segments.csv``;
+        :data:`~torquemod.ontrain.mufit.SEGMENT_COLUMNS` (``segments.csv``;
         :meth:`segment_table`).
     """
 
@@ -132,11 +132,11 @@ class OnboardResult:
 
     def segment_table(self):
         """The per-segment table (``segments.csv``): one row per segment between detected
-        friction changes, :data:`~torquemod.onboard.mufit.SEGMENT_COLUMNS` (the available
+        friction changes, :data:`~torquemod.ontrain.mufit.SEGMENT_COLUMNS` (the available
         adhesion where determined, the best fit, its 95 % interval, the lower bound)."""
         import pandas as pd
 
-        from .mufit import SEGMENT_COLUMNS
+        from torquemod.ontrain.mufit import SEGMENT_COLUMNS
         t = pd.DataFrame([dict(s) for s in self.segments], columns=list(SEGMENT_COLUMNS))
         for c in SEGMENT_COLUMNS:
             if c not in ("segment", "windows", "determined", "best_law"):

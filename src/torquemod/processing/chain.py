@@ -1,7 +1,7 @@
 """The per-cycle steps of the V-Track processing chain (Section 2.4 of the paper).
 
 Pure functions over one cycle's samples; the orchestration over an experiment is in
-:mod:`torquemod.pipeline`.
+:mod:`torquemod.processing.pipeline`.
 """
 
 from __future__ import annotations
@@ -12,14 +12,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import get_window
 
-from .config import ProcessingConfig
-from .data import Recording, Rig
-from .dsp import filters
-from .dsp.align import alignment_lag
-from .dsp.basis import needs_wide_band
-from .dsp.phase import SineFitResult, local_noise_psd, peak_valley_phase, sinefit_phase
-from .dsp.spectrum import peak_frequency
-from .errors import InputError, ProcessingError
+from torquemod.dsp import filters
+from torquemod.dsp.align import alignment_lag
+from torquemod.dsp.basis import needs_wide_band
+from torquemod.dsp.phase import SineFitResult, local_noise_psd, peak_valley_phase, sinefit_phase
+from torquemod.dsp.spectrum import peak_frequency
+from torquemod.errors import InputError, ProcessingError
+from torquemod.io.config import ProcessingConfig
+from torquemod.io.experiment import Recording, Rig
 
 
 @dataclass
@@ -133,7 +133,7 @@ _RESAMPLED = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", 
 
 @dataclass(frozen=True)
 class SpeedModel:
-    """The joint least-squares model of one cycle (ours, issue 8): for every channel
+    """The joint least-squares model of one cycle (ours): for every channel
     ``x = modulation + slow + orders + harmonics + residual`` with the modulation
     ``c*cos + s*sin`` at ``modulation_hz``, the slow part in
     :func:`~torquemod.dsp.filters.slow_basis`, the rotation orders in
@@ -232,7 +232,7 @@ class SpeedModel:
         # ~4e-12 relative, measured; it scales only the standard error). Both routes go
         # through the normal equations, which square the design's condition number: against
         # an SVD of the design the fraction is off by ~1.5e-5 relative (measured on
-        # tests/test_chain_speed_equivalence.py's design), and rounding-level changes of
+        # tests/processing/test_chain_speed_equivalence.py's design), and rounding-level changes of
         # the inputs move it by up to that much (the fit's own upper factor, transposed,
         # moved it by 1e-6: not used here).
         qv = np.linalg.solve(chol, dn.T @ v)  # v: the real parts, then the imaginary parts
@@ -322,7 +322,7 @@ class _SlowOrdersRemoval:
     ``y - B c_B = r(y) + (M - r(M)) c_M``: B is factored and ``r(y)`` computed once for every
     f, and each f costs the fit of M's two columns on B (instead of a new factorisation of
     the whole design). The same numbers as :func:`fit_speed_model`'s parts to rounding
-    (tests/test_chain_kernels.py)."""
+    (tests/processing/test_chain_kernels.py)."""
 
     def __init__(self, y: np.ndarray, slow: np.ndarray, orders: np.ndarray, fs_hz: float,
                  harmonics: tuple[int, ...] = ()):
@@ -500,7 +500,7 @@ def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
 #: beyond it, and a slow basis that overlaps the modulation's main lobe makes the joint fit
 #: nearly collinear: at 0.5 Hz on a 14 s record the scaled 0.3 Hz band (2.8 resolutions
 #: away) left 0.05 deg on noise-free records at 90 % of the peak, 0.2 Hz 0.007 deg
-#: (tests/test_chain_orbit.py). At 2 Hz on a V-Track cycle the limit (1.34 Hz) lies above
+#: (tests/processing/test_chain_orbit.py). At 2 Hz on a V-Track cycle the limit (1.34 Hz) lies above
 #: the default 1.2 Hz and changes nothing.
 SLOW_GAP_RESOLUTIONS = 4.0
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from torquemod import chain
 from torquemod.dsp import filters
+from torquemod.processing import chain
 
 FS = 53.344  # the chain's resampled rate for the V-Track recordings [Hz]
 N = 262  # one platform revolution at 8.5 km/h after the resampler's edges [samples]
