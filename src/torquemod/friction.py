@@ -64,8 +64,8 @@ from .creeplaws import (
 )
 from .errors import InputError
 
-__all__ = ["CHI2_95", "MODEL_REL_ERROR", "AdhesionFit", "fit_available_adhesion",
-           "fit_available_adhesion_from_phase"]
+__all__ = ["CHI2_95", "MAX_REL_HALF_WIDTH", "MODEL_REL_ERROR", "AdhesionFit",
+           "fit_available_adhesion", "fit_available_adhesion_from_phase"]
 
 #: chi-square quantile of one degree of freedom at 95 %
 CHI2_95 = 3.841458820694124
@@ -82,18 +82,25 @@ MODEL_REL_COA = 0.01
 #: the largest B of Polach's falling friction [s/m] (Polach 2005: 0.2 wet, 0.6 dry; a fit
 #: to the Engel-Beck-Alders locomotive curve: 0.8)
 B_MAX_S_M = 1.0
+#: the widest half interval, as a fraction of the estimate, that counts as determined (the
+#: trade-off against the share determined and the error: ``benchmarks/friction_coverage.py``)
+MAX_REL_HALF_WIDTH = 0.10
 #: the probe depths (utilisation of the deepest point) tried when P is not determined
 PROBE_DEPTHS = (0.7, 0.8, 0.86, 0.9, 0.95)
 #: k0 values [-] profiled when the swing is given without C
 K0_GRID = np.geomspace(3.0, 3000.0, 19)
 
 
-def _p_grid(c_max: float, p_span: float, dz: float = 0.015) -> np.ndarray:
-    """Trial P on a grid uniform in ``z = ln(P/c_max - 1)`` from 1e-4 to ``p_span - 1``:
-    the relative step ``(1 - c_max/P)*dz`` follows how sharply the points near the peak
-    fix P (the slope there changes by ~dz/(1 - u) per step)."""
-    z = np.arange(np.log(1e-4), np.log(max(p_span, 1.5) - 1.0) + dz, dz)
-    return c_max * (1.0 + np.exp(z))
+def _p_grid(c_max: float, p_span: float, dz: float = 0.015, z_fine: float = 0.02,
+            n_near: int = 40) -> np.ndarray:
+    """Trial P on a grid uniform in ``z = ln(P/c_max - 1)`` from ``z_fine`` to
+    ``p_span - 1``: the relative step ``(1 - c_max/P)*dz`` follows how sharply the points
+    near the peak fix P (the slope there changes by ~dz/(1 - u) per step); below
+    ``z_fine`` (the top point within 2 % of the peak) ``n_near`` steps, geometric in
+    ``P/c_max - 1`` down to 1e-4, keep the relative step under 0.3 %."""
+    near = np.geomspace(1e-4, z_fine, n_near + 1)[:-1]
+    z = np.arange(np.log(z_fine), np.log(max(p_span, 1.5) - 1.0) + dz, dz)
+    return c_max * (1.0 + np.r_[near, np.exp(z)])
 
 
 @njit(cache=True, nogil=True)
@@ -326,7 +333,7 @@ def _as_points(name: str, x, n: int | None) -> np.ndarray:
 def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.0,
                            model_rel_error: float = MODEL_REL_ERROR,
                            model_rel_coa: float = MODEL_REL_COA,
-                           max_rel_half_width: float = 0.10, p_span: float = 20.0,
+                           max_rel_half_width: float = MAX_REL_HALF_WIDTH, p_span: float = 20.0,
                            scale_by_chi2: bool = True, probe: bool = True,
                            min_points: int = 4, ratio_bounds: tuple = (0.3, 7.0),
                            other_laws: bool = True, speed_m_s: float | None = None
@@ -540,7 +547,7 @@ def fit_available_adhesion_from_phase(coa, phase_deg, phase_se_deg, *, constant=
                                       creepage_swing=None, coa_se=None,
                                       model_rel_error: float = MODEL_REL_ERROR,
                                       model_rel_coa: float = MODEL_REL_COA,
-                                      max_rel_half_width: float = 0.10,
+                                      max_rel_half_width: float = MAX_REL_HALF_WIDTH,
                                       scale_by_chi2: bool = True, probe: bool = True,
                                       ratio_bounds: tuple = (0.3, 7.0),
                                       speed_m_s: float | None = None
