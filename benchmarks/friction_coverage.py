@@ -121,7 +121,7 @@ def tabulate(results: dict, thr: float) -> None:
         print(f"| {mode} | {law} | {depth:.2f} | {noise:g} | {j['n']} | {_pct(j['cov'])}{flag} "
               f"| {_pct(j['det'])} | {_pct(j['med'], 2)} | {_pct(j['worst'], 2)} |")
     print(f"\nlowest coverage of any cell: {_pct(worst[0])} ({worst[1]})")
-    print("\n### Trade-off over the 80-95 % cells, all noise levels: determined share / "
+    print("\n### Trade-off over the 80-95 % cells, every noise level run: determined share / "
           "coverage where determined / median, 90th percentile and worst error where "
           "determined / share of those within 5 %\n")
     modes = sorted({k[1] for k in results})
