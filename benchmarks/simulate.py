@@ -11,10 +11,12 @@ Run: ``python benchmarks/simulate.py [--repeat N] [--cores N] [--points N]``. Pr
   seconds (7 columns -- time and 6 channels -- at 16 670 Hz) per wall-clock second of the
   whole call (integration, sensors, ground truth, files). Targets: issue 3 >= 100x real
   time for HDF5 on one core; issue 12 >= 1000x;
-* the batch mode (issue 12): ``--points`` sweep points of the default experiment (mu0 from
-  0.22 to 0.30, modulation at 2 and 3 Hz) as points per second: ``simulate_batch`` of all
-  points at once (also without the large-signal theory column), the same one point at a
-  time, and ``run_simulation`` (HDF5) one at a time;
+* the batch mode: ``--points`` (default 16) sweep points of the default experiment (mu0
+  from 0.22 to 0.30, modulation at 2 and 3 Hz) as points per second and as recorded seconds
+  per CPU-second (x real time per core): ``simulate_batch`` of all points at once (also
+  without the large-signal theory column), the same one point at a time, ``simulate_run``
+  (recordings in memory, what a sweep point runs) and ``run_simulation`` (HDF5) one at a
+  time, and the ratio batch / one at a time (``--batch-only``: this part alone);
 * the CPU split of one run (``run_simulation`` HDF5 on one worker thread): per phase of a
   step its CPU and the part of it outside the compiled kernels that release the GIL (the
   "serial" part: h5py, the theory's Python, the run's set-up), and from it an Amdahl
@@ -186,6 +188,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import types
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -202,7 +205,13 @@ from torquemod.rig.batch import plan_run
 from torquemod.rig.dynamics import OUT_COLUMNS, initial_state, integrate, pack_parameters
 from torquemod.rig.sensors import measure
 from torquemod.rig.steps import integrate_step
-from torquemod.simulate import load_config, run_simulation, simulate_batch, sine_fit_phase_deg
+from torquemod.simulate import (
+    load_config,
+    run_simulation,
+    simulate_batch,
+    simulate_run,
+    sine_fit_phase_deg,
+)
 from torquemod.theory import operating_point
 
 
@@ -267,31 +276,57 @@ def batch_configs(n_points: int) -> list:
             for k, mu in enumerate(mus)]
 
 
+def _recorded_s(configs, points) -> float:
+    """Recorded seconds [s] of a batch's results: the revolutions of its unslipped steps."""
+    total = 0.0
+    for c, p in zip(configs, points, strict=True):
+        steps = p.steps if hasattr(p, "steps") else p.truth["steps"]
+        total += sum(1 for s in steps if not s["slipped"]) * (
+            c.procedure.cycles_per_step * c.rig.revolution_s)
+    return total
+
+
 def batch_throughput(configs, repeat: int) -> None:
-    """Points per second: :func:`simulate_batch` of all points at once, the same one point
-    at a time, and ``run_simulation`` (HDF5 files) one point at a time."""
+    """Points per second and recorded seconds per CPU-second (x real time per core):
+    :func:`simulate_batch` of all points at once, the same one point at a time, and
+    ``simulate_run`` (recordings in memory, as a sweep point) and ``run_simulation`` (HDF5
+    files) one point at a time. CPU is the process's (every thread's) over the call."""
     runs = {"simulate_batch (all points at once)": lambda: simulate_batch(configs, seed=0),
             "simulate_batch (all at once, large_signal=False)":
                 lambda: simulate_batch(configs, seed=0, large_signal=False),
             "simulate_batch (one point at a time)":
-                lambda: [simulate_batch([c], seed=0) for c in configs]}
+                lambda: [simulate_batch([c], seed=0)[0] for c in configs],
+            "simulate_run, in memory (one point at a time)":  # each run dropped when done
+                lambda: [types.SimpleNamespace(steps=simulate_run(c, seed=0).truth["steps"])
+                         for c in configs]}
 
     def files():
+        truths = []
         for c in configs:
             with tempfile.TemporaryDirectory() as tmp:
-                run_simulation(c, Path(tmp) / "exp", seed=0, fmt="hdf5", progress=False)
+                truths.append(types.SimpleNamespace(steps=run_simulation(
+                    c, Path(tmp) / "exp", seed=0, fmt="hdf5", progress=False)["steps"]))
+        return truths
     runs["run_simulation hdf5 (one point at a time)"] = files
+    per_core = {}
     for label, fn in runs.items():
-        walls = []
+        walls, cpus = [], []
         for _ in range(repeat):
             cold_theory()
-            t0 = time.perf_counter()
-            fn()
+            c0, t0 = time.process_time(), time.perf_counter()
+            points = fn()
             walls.append(time.perf_counter() - t0)
-        best = min(walls)
+            cpus.append(time.process_time() - c0)
+        best, cpu = min(walls), min(cpus)
+        rec = _recorded_s(configs, points)
+        per_core[label] = rec / cpu
         extra = f"  (runs: {', '.join(f'{w:.2f} s' for w in walls)})" if repeat > 1 else ""
         print(f"batch: {label}: {len(configs)} points in {best:.2f} s -> "
-              f"{len(configs) / best:.2f} points/s{extra}")
+              f"{len(configs) / best:.2f} points/s; {rec:.0f} recorded s in {cpu:.2f} CPU-s "
+              f"-> {rec / cpu:.0f}x real time per core{extra}")
+    one = per_core["simulate_batch (one point at a time)"]
+    print(f"batch: all {len(configs)} at once / one at a time, recorded s per CPU-s: "
+          f"x{per_core['simulate_batch (all points at once)'] / one:.2f}")
 
 
 #: the phases of a step as the twin runs them (module, function name, label); nested calls
@@ -466,10 +501,12 @@ def _report(label: str, sim_s: float, walls: list[float], what: str) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=1, help="runs per measurement (best shown)")
-    ap.add_argument("--points", type=int, default=4,
+    ap.add_argument("--points", type=int, default=16,
                     help="sweep points of the batch measurement (0: skip it)")
     ap.add_argument("--cores", type=int, default=0,
                     help="pin the process to this many CPUs (0: leave as it is)")
+    ap.add_argument("--batch-only", action="store_true",
+                    help="only the batch measurement (after the warm-up)")
     args = ap.parse_args()
     if args.cores > 0:
         os.sched_setaffinity(0, set(sorted(os.sched_getaffinity(0))[:args.cores]))
@@ -480,6 +517,9 @@ def main() -> None:
           f"short first run_simulation {first_run(config):.2f} s -- not counted below")
     print(f"step: {proc.samples_per_step} sample(s) per {proc.substeps} RK4 step(s) at "
           f"{config.sensors.sample_rate_hz:g} Hz")
+    if args.batch_only:
+        batch_throughput(batch_configs(args.points), args.repeat)
+        return
     for coarse in (False, True):
         walls = []
         for _ in range(args.repeat):

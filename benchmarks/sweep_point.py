@@ -4,35 +4,90 @@ Evaluates the first ``--points`` points of a sweep (default: the example V-Track
 ``mode = "full"``) one after the other in this process, after one warm-up point, and charges
 each point's CPU time to its stages (the innermost stage wins):
 
-* ``twin``: ``torquemod.simulate.run_simulation`` (integration, sensors, truth, HDF5 files);
-* ``chain``: ``torquemod.api.process`` (reading the files, the processing chain);
+* ``twin``: ``torquemod.simulate.simulate_run`` (integration, sensors, truth; the recordings
+  stay in memory), or with ``--through-files`` ``run_simulation`` (HDF5 files);
+* ``chain``: the processing chain on the recordings in memory, or with ``--through-files``
+  ``torquemod.api.process`` (reading the files, the chain);
 * ``fits``: ``torquemod.api.analyze`` (Polach fit with its profile interval, mu from the
   phase, the theory constant) and the sweep's own mu-from-phase fit (``_phase_mu``);
 * ``rest``: the point's set-up, theory columns and table.
 
 It prints each stage's CPU per point and its share, and the twin's CPU against the recorded
-seconds it simulates (x real time per core). These shares bound what a faster stage can
-give the sweep: a stage of share s made infinitely fast speeds the sweep up by at most
-1/(1 - s) (Amdahl).
+seconds it simulates (x real time per core).
 
-    python benchmarks/sweep_point.py [--points 6] [--sweep examples/sweep_vtrack_conditions.toml]
+``--wall`` instead times the whole sweep as a user runs it (``torquemod sweep SWEEP --out
+TMP --workers 2``, a fresh process, its local Dask cluster included), alternating this
+checkout with ``--src OTHER/src`` (e.g. the main branch) ``--repeat`` times, and prints
+each wall time, the CPU of the command and its workers, and the ratio of the medians.
+
+The shares bound what a faster stage can give the sweep: a stage of share s made
+infinitely fast speeds the sweep up by at most 1/(1 - s) (Amdahl).
+
+    python benchmarks/sweep_point.py [--points 6] [--through-files]
+                                     [--sweep examples/sweep_vtrack_conditions.toml]
+    python benchmarks/sweep_point.py --wall [--src /work/main/src] [--repeat 1]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
+import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
+
+HERE = Path(__file__).resolve().parents[1]
+
+
+def sweep_wall(sweep: str, srcs: dict[str, str], repeat: int, workers: int) -> None:
+    """Wall and CPU seconds of ``torquemod sweep`` for each source tree, alternated."""
+    walls: dict[str, list[float]] = {k: [] for k in srcs}
+    for r in range(repeat):
+        for label, src in srcs.items():
+            with tempfile.TemporaryDirectory() as tmp:
+                env = {**os.environ, "PYTHONPATH": src}
+                load0 = os.getloadavg()[0]
+                c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+                t0 = time.perf_counter()
+                done = subprocess.run(
+                    [sys.executable, "-m", "torquemod.cli", "sweep", sweep, "--out",
+                     str(Path(tmp) / "out"), "--workers", str(workers), "--quiet"],
+                    env=env, capture_output=True, text=True, check=False)
+                wall = time.perf_counter() - t0
+                c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+                cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
+            walls[label].append(wall)
+            print(f"round {r + 1} {label:>7s} ({src}): wall {wall:6.1f} s, CPU {cpu:6.1f} s "
+                  f"(command and workers), exit {done.returncode}, load {load0:.2f} -> "
+                  f"{os.getloadavg()[0]:.2f}", flush=True)
+    med = {k: statistics.median(v) for k, v in walls.items()}
+    if "before" in med:
+        print(f"median wall: before {med['before']:.1f} s, after {med['after']:.1f} s -> "
+              f"x{med['before'] / med['after']:.2f}")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=6)
+    ap.add_argument("--through-files", action="store_true",
+                    help="the twin's experiment through an HDF5 folder, as before")
     ap.add_argument("--sweep", default=str(Path(__file__).resolve().parents[1] / "examples"
                                            / "sweep_vtrack_conditions.toml"))
+    ap.add_argument("--wall", action="store_true",
+                    help="time whole sweeps (a fresh torquemod sweep) instead")
+    ap.add_argument("--src", default=None,
+                    help="with --wall: another checkout's src to alternate with (before)")
+    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
+    if args.wall:
+        srcs = ({"before": args.src} if args.src else {}) | {"after": str(HERE / "src")}
+        sweep_wall(args.sweep, srcs, args.repeat, args.workers)
+        return
 
     import torquemod.api as api
     import torquemod.simulate as sim
@@ -60,31 +115,36 @@ def main() -> None:
 
         setattr(mod, name, wrapped)
 
-    real_sim = sim.run_simulation
+    twin_name = "run_simulation" if args.through_files else "simulate_run"
+    real_sim = getattr(sim, twin_name)
 
     def counted(config, *a, **k):
-        truth = real_sim(config, *a, **k)
+        got = real_sim(config, *a, **k)
+        truth = got if isinstance(got, dict) else got.truth
         p = config.procedure
         recorded[0] += sum(1 for s in truth["steps"] if not s.get("slipped")) * (
             p.cycles_per_step * config.rig.revolution_s)
-        return truth
+        return got
 
-    sim.run_simulation = counted
-    charge(sim, "run_simulation", "twin")
+    setattr(sim, twin_name, counted)
+    charge(sim, twin_name, "twin")
     charge(api, "process", "chain")
+    charge(ev, "_process_in_memory", "chain")
     charge(api, "analyze", "fits")
     charge(ev, "_phase_mu", "fits (sweep)")
     with tempfile.TemporaryDirectory() as tmp:
-        ev.evaluate_point(todo[0], workdir=tmp)  # warm-up: kernels, caches
+        files = {"workdir": tmp, "through_files": args.through_files}
+        ev.evaluate_point(todo[0], **files)  # warm-up: kernels, caches
         acc.clear()
         recorded[0] = 0.0
         load0 = os.getloadavg()[0]
         c0, w0 = time.process_time(), time.perf_counter()
         for task in todo[1:]:
-            ev.evaluate_point(task, workdir=tmp)
+            ev.evaluate_point(task, **files)
         total, wall = time.process_time() - c0, time.perf_counter() - w0
     n = len(todo) - 1
-    print(f"{n} points of {Path(args.sweep).name} (mode {spec.mode}) in this process; load "
+    how = "through HDF5 files" if args.through_files else "in memory"
+    print(f"{n} points of {Path(args.sweep).name} (mode {spec.mode}, {how}) in this process; load "
           f"{load0:.2f} -> {os.getloadavg()[0]:.2f}; CPU {total:.2f} s, wall {wall:.2f} s")
     shares = {**acc, "rest": total - sum(acc.values())}
     for label, cpu in shares.items():

@@ -115,3 +115,28 @@ def test_batch_without_the_large_signal_theory(two):
         assert isinstance(a["phase_large_signal_deg"], float)
         assert {k: v for k, v in a.items() if k != "phase_large_signal_deg"} == \
             {k: v for k, v in b.items() if k != "phase_large_signal_deg"}
+
+
+def test_a_run_in_memory_is_the_run_written_to_files(two, tmp_path):
+    """simulate_run keeps what run_simulation writes: the same truth, and each recording as
+    the HDF5 reader gives it back from the file (channels, rate, start time, value for
+    value); write(folder) gives the same experiment again."""
+    from torquemod.io import read_entry, read_experiment
+    from torquemod.simulate import simulate_run
+    truth = run_simulation(two, tmp_path / "files", seed=3, fmt="hdf5", progress=False)
+    run = simulate_run(two, seed=3)
+    assert {**run.truth, "format": "hdf5"} == truth and run.slip_step is None
+    written = run.write(tmp_path / "again")
+    mem = run.experiment()
+    for folder in (tmp_path / "files", written.parent):
+        exp = read_experiment(folder)
+        assert len(exp.recordings) == len(mem.recordings) == 2
+        assert (exp.rig, exp.test, exp.extra) == (mem.rig, mem.test, mem.extra)
+        for e, m in zip(exp.recordings, mem.recordings, strict=True):
+            assert (e.step, e.cycle, e.dc_torque_nm, e.path.name) == \
+                (m.step, m.cycle, m.dc_torque_nm, m.path.name)
+            got, want = run.recording(mem, m), read_entry(exp, e)
+            assert (got.fs_hz, got.t0_s, got.notes) == (want.fs_hz, want.t0_s, want.notes)
+            assert got.channels.keys() == want.channels.keys()
+            for k, v in want.channels.items():
+                assert np.array_equal(got.channels[k], v), k

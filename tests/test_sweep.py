@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import time
 
 import numpy as np
 import pandas as pd
@@ -357,6 +358,46 @@ def test_full_sweep_on_the_chain(tmp_path):
     assert np.all((lb > 0.6 * tab["mu_true"]) & (lb < tab["mu_true"]))
     # the experiment folders the twin wrote are gone
     assert not (tmp_path / "full" / "_work").exists()
+
+
+def test_a_full_point_in_memory_gives_the_rows_of_the_point_through_files(tmp_path):
+    """A full-mode point runs twin -> recordings -> chain -> fits in memory; through an HDF5
+    experiment folder written and read back it gives the same rows, bit for bit (five
+    steps: both fits run)."""
+    from torquemod.sweep.evaluate import evaluate_point
+    from torquemod.sweep.run import tasks
+    spec = parse_sweep('mode = "full"\nseeds = [4]\n' + SHORT.replace(
+        "[0.0, 0.4, 0.7]", "[0.0, 0.3, 0.5, 0.7, 0.85]"))
+    task = tasks(spec)[0]
+    mem = evaluate_point(task)
+    files = evaluate_point(task, workdir=tmp_path, through_files=True)
+    assert list(tmp_path.iterdir()) == []  # the experiment folder is removed
+    assert mem["phase_deg"].notna().sum() == 5 and np.isfinite(mem["mu_forces_lower_bound"]).all()
+    pd.testing.assert_frame_equal(mem.drop(columns="point_wall_s"),
+                                  files.drop(columns="point_wall_s"), check_exact=True)
+
+
+def test_points_go_to_the_cluster_in_batches(tmp_path):
+    """Batches: every point once, round-robin, at most slots*3 of them; a batch whose
+    worker died reports the points it finished as done and the others as failed."""
+    from torquemod.sweep.run import _lost, point_batches, run_point, tasks
+    todo = tasks(parse_sweep(THEORY))
+    assert len(todo) == 4
+    for slots, n in ((1, 3), (2, 4), (8, 4)):
+        b = point_batches(todo, slots)
+        assert len(b) == n
+        assert sorted(t.index for batch in b for t in batch) == [0, 1, 2, 3]
+    assert [t.index for t in point_batches(todo, 1)[0]] == [0, 3]
+    out = tmp_path / "out"
+    before = time.time() - 1.0
+    assert run_point(todo[0], str(out))["status"] == "done"
+    rows = _lost(todo[:2], out, "killed", before)
+    assert [r["status"] for r in rows] == ["done", "failed"]
+    assert rows[0]["n_rows"] > 0 and rows[1]["message"] == "worker lost: killed"
+    # a point finished by an earlier run was skipped, or, when forced, not rerun: failed
+    later = time.time() + 10.0
+    assert [r["status"] for r in _lost(todo[:1], out, "killed", later)] == ["skipped"]
+    assert [r["status"] for r in _lost(todo[:1], out, "killed", later, True)] == ["failed"]
 
 
 def test_twin_agrees_with_large_signal_theory_over_a_small_grid(tmp_path):

@@ -265,18 +265,21 @@ def _streamed_cycles(stream, where: str, notes: list[str]):
 
 
 def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig,
-                      reduce=None) -> tuple[float, float, str, list[str], list[str], list]:
+                      reduce=None, recording: Recording | None = None
+                      ) -> tuple[float, float, str, list[str], list[str], list]:
     """Read one recording, apply the NaN policy, split it into cycles and run steps 1-5 and 8
     on each. Runs in a worker thread, so it reports by return value, not by warnings:
     (read s, compute s, sha256, NaN actions, notes, cycles). ``reduce`` (optional) maps each
     cycle's item to what is kept of it, as soon as the cycle is done, so that a long file's
-    cycles are not all held at once."""
+    cycles are not all held at once. ``recording``: the entry's samples already in memory,
+    as :func:`~torquemod.io.read_entry` would return them (nothing is read; the digest is
+    empty)."""
     where = str(entry.path) + (f":{entry.group}" if entry.group else "")
     t0 = time.perf_counter()
     # the input's SHA-256 (provenance) in a background thread while the file is read and
     # processed: hashlib releases the GIL, so on a free core it costs no wall time
-    digest_future = hash_file_async(entry.path)
-    stream = _open_stream(entry, exp, cfg)
+    digest_future = hash_file_async(entry.path) if recording is None else _NoDigest()
+    stream = _open_stream(entry, exp, cfg) if recording is None else None
     actions: list[str] = []
     notes: list[str] = []
     bad = None
@@ -284,7 +287,7 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
         t1 = time.perf_counter()
         segments = _streamed_cycles(stream, where, notes)
     else:
-        rec = read_entry(exp, entry)
+        rec = read_entry(exp, entry) if recording is None else recording
         t1 = time.perf_counter()
         # what the reader did to the time bases (offsets, other rates), for provenance
         notes += [f"{where}: {n}" for n in getattr(rec, "notes", [])]
@@ -315,6 +318,13 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
         notes += item[1].notes
         out.append(item if reduce is None else reduce(item))
     return t1 - t0, time.perf_counter() - t1, digest_future.result(), actions, notes, out
+
+
+class _NoDigest:
+    """The digest of a recording that was never a file: empty."""
+
+    def result(self) -> str:
+        return ""
 
 
 def _cycle_item(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig, where: str,

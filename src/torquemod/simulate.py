@@ -77,6 +77,7 @@ from .rig.params import (
     SimConfig,
 )
 from .rig.sensors import measure
+from .rig.simrun import SimulatedRun
 from .rig.steps import (  # MAX_LAMBDA_H, stiffest_rate: re-exported
     MAX_LAMBDA_H,
     integrate_step,
@@ -312,29 +313,40 @@ class _TwinRecording(Recording):
         return out
 
 
-def _write_step(folder: Path, plan, channels: dict, bounds: list[int], fs: float, fmt: str,
-                files_per_cycle: bool) -> list[dict]:
-    """Write a step's sensor ``channels`` (sample 0 at ``bounds[0]`` of the step) as one
-    file per revolution or one per step; return their ``[[recording]]`` entries."""
+def _step_pieces(plan, channels: dict, bounds: list[int], fs: float,
+                 files_per_cycle: bool) -> list[tuple[dict, _TwinRecording]]:
+    """A step's sensor ``channels`` (sample 0 at ``bounds[0]`` of the step) cut into one
+    recording per revolution or one per step, each with its ``[[recording]]`` entry (the
+    ``file`` without its suffix)."""
     dt = 1.0 / fs
     spans = (list(itertools.pairwise(bounds)) if files_per_cycle
              else [(bounds[0], bounds[-1])])
-    recs = []
+    pieces = []
     for j, (a, b) in enumerate(spans, start=1):
         sl = slice(a - bounds[0], b - bounds[0])
         rec = _TwinRecording({k: v[sl] for k, v in channels.items()}, fs_hz=fs,
                              t0_s=plan.t0_s + a * dt, source="torquemod simulate")
-        name = f"step{plan.index:02d}_cycle{j}" if files_per_cycle else f"step{plan.index:02d}"
-        file = name + _SUFFIX[fmt]
+        entry = {"step": plan.index, "dc_torque_nm": plan.dc_nm,
+                 "file": f"step{plan.index:02d}_cycle{j}" if files_per_cycle
+                 else f"step{plan.index:02d}"}
+        if files_per_cycle:
+            entry["cycle"] = j
+        pieces.append((entry, rec))
+    return pieces
+
+
+def _write_step(folder: Path, pieces: list[tuple[dict, Recording]], fmt: str) -> list[dict]:
+    """Write a step's recordings (:func:`_step_pieces`) into ``folder``; return their
+    ``[[recording]]`` entries with the files' names."""
+    recs = []
+    for entry, rec in pieces:
+        file = entry["file"] + _SUFFIX[fmt]
         if fmt == "hdf5":  # the values copied in after h5py closes the file: no GIL held
             write_recording(folder / file, rec, fmt=fmt, write_time=True,
                             data_after_close=True)
         else:
             write_recording(folder / file, rec, fmt=fmt)
-        entry = {"step": plan.index, "dc_torque_nm": plan.dc_nm, "file": file}
-        if files_per_cycle:
-            entry["cycle"] = j
-        recs.append(entry)
+        recs.append({**entry, "file": file})
     return recs
 
 
@@ -348,8 +360,12 @@ class _NoProgress:
         pass
 
 
-def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress: bool,
-              files_per_cycle: bool, workers: int | None = None) -> dict:
+def _simulate(config: SimConfig, folder: Path | None, *, seed: int, fmt: str | None,
+              progress: bool, files_per_cycle: bool, workers: int | None = None,
+              large_signal: bool = True) -> dict | SimulatedRun:
+    """The run: each step's recordings written into ``folder`` as soon as the step is
+    done (returns the truth), or kept in memory when ``folder`` is None (returns the
+    :class:`SimulatedRun`)."""
     rig, mod, proc = config.rig, config.modulation, config.procedure
     fs = config.sensors.sample_rate_hz
     dt = 1.0 / fs
@@ -380,12 +396,14 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         # 271 against 248 ms a run -- two threads wanting the GIL at once wait for each
         # other's switch interval)
         entry, bounds = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done,
-                                            plan.t0_s, rp.wobble, rp.n_settle)
+                                            plan.t0_s, rp.wobble, rp.n_settle, large_signal)
         noise_rng = np.random.Generator(np.random.SFC64(rp.noise_seeds[plan.index - 1]))
         channels = measure(out[bounds[0]:bounds[-1]], disturbances=config.disturbances,
                            sensors=config.sensors, rng=noise_rng)
-        return entry, _write_step(folder, plan, channels, bounds, fs, fmt,
-                                  files_per_cycle), y_end, None
+        pieces = _step_pieces(plan, channels, bounds, fs, files_per_cycle)
+        if folder is not None:
+            return entry, _write_step(folder, pieces, fmt), y_end, None
+        return entry, pieces, y_end, None
 
     steps, recordings = [], []
     slip_step = slip_time = None
@@ -414,12 +432,13 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         finally:
             for fut in futures:  # the steps after a slip are not needed
                 fut.cancel()
-    if slip_step is not None:
+    if slip_step is not None and folder is not None:
         # files of steps after the slip that ran anyway are not part of the experiment
         for fut in futures[slip_step:]:
             if not fut.cancelled() and fut.exception() is None:
                 for rec in fut.result()[1]:
                     (folder / rec["file"]).unlink(missing_ok=True)
+    if slip_step is not None:
         steps.append(_step_truth(slip_step, torques[slip_step - 1], config, None, True))
         steps[-1]["slip_time_s"] = slip_time
     bar.close()
@@ -433,17 +452,20 @@ def _simulate(config: SimConfig, folder: Path, *, seed: int, fmt: str, progress:
         "speed_wobble": _wobble_truth(config, wobble),
         "steps": steps, "parameters": asdict(config),
     }
-    write_manifest(
-        folder / "experiment.toml",
-        rig={"wheel_radius_m": rig.wheel_radius_m, "platform_radius_m": rig.platform_radius_m,
-             # inertia between the torque sensor and the contact: sets the theory constant
-             "wheel_inertia_kg_m2": rig.wheel_inertia_kg_m2},
-        test={"normal_load_n": rig.normal_load_n, "modulation_frequency_hz": mod.frequency_hz,
-              "modulation_amplitude_nm": mod.amplitude_nm},
-        recordings=recordings,
-        extra={"simulation": {"generator": "torquemod simulate", "version": __version__,
-                              "seed": seed, "slip_step": slip_step or 0,
-                              "truth": "truth.json"}})
+    manifest_rig = {"wheel_radius_m": rig.wheel_radius_m,
+                    "platform_radius_m": rig.platform_radius_m,
+                    # inertia between the torque sensor and the contact: sets the theory
+                    # constant
+                    "wheel_inertia_kg_m2": rig.wheel_inertia_kg_m2}
+    test = {"normal_load_n": rig.normal_load_n, "modulation_frequency_hz": mod.frequency_hz,
+            "modulation_amplitude_nm": mod.amplitude_nm}
+    extra = {"simulation": {"generator": "torquemod simulate", "version": __version__,
+                            "seed": seed, "slip_step": slip_step or 0, "truth": "truth.json"}}
+    if folder is None:
+        return SimulatedRun(truth, manifest_rig, test, extra,
+                            tuple(e for e, _ in recordings), tuple(r for _, r in recordings))
+    write_manifest(folder / "experiment.toml", rig=manifest_rig, test=test,
+                   recordings=recordings, extra=extra)
     (folder / "truth.json").write_text(dump_json(truth), encoding="utf-8")
     return truth
 
@@ -467,3 +489,35 @@ def run_simulation(config: SimConfig, out_dir: Path, *, seed: int = 0, fmt: str 
         truth = _simulate(config, tmp, seed=seed, fmt=fmt, progress=progress,
                           files_per_cycle=files_per_cycle, workers=workers)
     return truth
+
+
+def simulate_run(config: SimConfig, *, seed: int = 0, files_per_cycle: bool = True,
+                 workers: int | None = None, large_signal: bool = True) -> SimulatedRun:
+    """Simulate ``config`` as :func:`run_simulation` does and keep the experiment in memory.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The twin's configuration (:func:`load_config`).
+    seed : int
+        The run's seed: the same seed gives the same recordings and truth as
+        :func:`run_simulation` (value for value).
+    files_per_cycle : bool
+        One recording per platform revolution (else one per torque step).
+    workers : int, optional
+        Threads that run the torque steps side by side (default: the CPUs available).
+    large_signal : bool
+        False leaves each step's large-signal theory phase out of the truth (None), for a
+        caller that solves the theory itself (a sweep's theory columns; ~7 ms a step).
+
+    Returns
+    -------
+    SimulatedRun
+        The recordings, manifest tables and truth; ``write(folder)`` gives the folder
+        :func:`run_simulation` writes, ``experiment()`` and ``recording(exp, entry)`` feed
+        the processing chain without files.
+    """
+    return _simulate(config, None, seed=seed, fmt=None, progress=False,
+                     files_per_cycle=files_per_cycle, workers=workers,
+                     large_signal=large_signal)
+

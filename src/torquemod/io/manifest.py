@@ -155,7 +155,15 @@ def read_experiment(path: str | Path) -> Experiment:
     path = Path(path)
     if path.is_dir():
         path = path / "experiment.toml"
-    doc = _load_toml(path)
+    return experiment_from_doc(_load_toml(path), path)
+
+
+def experiment_from_doc(doc: dict, path: str | Path) -> Experiment:
+    """Check the tables of an ``experiment.toml`` already parsed into ``doc`` (as
+    :func:`read_experiment` does after reading ``path``) and return the
+    :class:`Experiment`; ``path`` is where the manifest is (or would be): its folder holds
+    the recordings and messages name it. Nothing is read."""
+    path = Path(path)
     if "vehicle" in doc and "rig" not in doc:
         raise ManifestError("is a train run (it has [vehicle], no [rig])", path=path,
                             hint="process it with 'torquemod onboard' (docs/format.md)")

@@ -6,8 +6,10 @@ operating_point`) and the periodic steady state under the full modulation
 (:func:`torquemod.theory.large_signal_phase_deg`, driven by the motor as in the twin); the
 phase's standard error is the Cramér-Rao bound of the step's record (FACTS.md §5) and mu from
 the phase is fitted to those phases. ``mode = "full"``: the twin (:func:`torquemod.simulate.
-run_simulation`, HDF5) -> the processing chain (:func:`torquemod.api.process`) -> the fits
-(:func:`torquemod.api.analyze`), with the theory columns beside the chain's.
+simulate_run`, recordings in memory) -> the processing chain (as :func:`torquemod.api.
+process`, on those recordings) -> the fits (:func:`torquemod.api.analyze`), with the theory
+columns beside the chain's; ``through_files`` writes the twin's experiment as HDF5 and reads
+it back instead (the same rows).
 
 ``utilisation`` is ``T_dc / T_peak`` = longitudinal CoA / mu_true, with ``mu_true`` the peak of
 the twin's creep curve (``T_peak/(R_w*N)``: the adhesion the wheel can use; truth.json's
@@ -245,21 +247,32 @@ def chain_config(frequency_hz: float, processing: dict | None = None):
                                            source="sweep [processing]")
 
 
-def _full_steps(config, t_peak: float, seed: int, workdir: Path,
+def _full_steps(config, t_peak: float, seed: int, workdir: Path | None,
                 processing: dict | None = None) -> tuple[list[dict], dict]:
     """Twin -> chain -> fits: the chain's and the twin's columns per step, and the point's
-    force fit and mu from the phase over all steps (the analysis of ``torquemod fit``)."""
+    force fit and mu from the phase over all steps (the analysis of ``torquemod fit``).
+    The twin's recordings go to the chain in memory, or, with a ``workdir``, through an
+    HDF5 experiment folder there (the same numbers)."""
     from ..api import analyze, process
-    from ..simulate import run_simulation
+    from ..simulate import run_simulation, simulate_run
+    cfg = chain_config(config.modulation.frequency_hz, processing)
     # workers=1: the sweep's parallel units are Dask worker processes, one per core
-    truth = run_simulation(config, workdir / "experiment", seed=seed, fmt="hdf5",
-                           progress=False, workers=1)
+    if workdir is not None:
+        truth = run_simulation(config, workdir / "experiment", seed=seed, fmt="hdf5",
+                               progress=False, workers=1)
+    else:
+        # the theory columns come from _theory_steps: the truth's large-signal phase is
+        # not needed (it is not part of the rows)
+        run = simulate_run(config, seed=seed, workers=1, large_signal=False)
+        truth = run.truth
     if truth["slip_step"] == 1:
         raise ProcessingError(
             f"the wheel slips at the first step (DC torque "
             f"{config.procedure.dc_torques_nm[0]:.4g} N*m, creep-curve peak {t_peak:.4g} N*m)")
-    res = process(workdir / "experiment" / "experiment.toml",
-                  chain_config(config.modulation.frequency_hz, processing), workers=1)
+    if workdir is not None:
+        res = process(workdir / "experiment" / "experiment.toml", cfg, workers=1)
+    else:
+        res = _process_in_memory(run, cfg)
     ana = analyze(res)
     chain = ana.steps.set_index("step")
     rows = []
@@ -291,6 +304,17 @@ def _full_steps(config, t_peak: float, seed: int, workdir: Path,
     return rows, point
 
 
+def _process_in_memory(run, cfg):
+    """The processing chain (as :func:`torquemod.api.process` with ``workers=1``) on a
+    :class:`~torquemod.rig.simrun.SimulatedRun`'s recordings, without files."""
+    from ..pipeline import load_and_process, process_experiment, resolve_config
+    exp = run.experiment()
+    cfg = resolve_config(exp, cfg)
+    loaded = ((e, load_and_process(e, exp, cfg, recording=run.recording(exp, e)))
+              for e in exp.recordings)
+    return process_experiment(exp, config=cfg, workers=1, loaded=loaded)
+
+
 def _friction_at_top(df: pd.DataFrame, use: pd.Series, rig) -> float:
     """The twin's friction coefficient (Polach 2005 Eq. 9) at the slip velocity of the
     highest step the fit from the phase used (creepage x speed at its operating point),
@@ -306,10 +330,16 @@ def _friction_at_top(df: pd.DataFrame, use: pd.Series, rig) -> float:
     return float(friction_coefficient(w, mu0=c.mu0, a_ratio=c.a_ratio, b_s_m=c.b_s_m))
 
 
-def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.DataFrame:
+def evaluate_point(task: PointTask, *, workdir: str | Path | None = None,
+                   through_files: bool = False) -> pd.DataFrame:
     """The rows of one point (raises :class:`~torquemod.errors.TorquemodError` when the
     point cannot be evaluated: a bad parameter, a wheel that slips at the first step).
-    ``workdir`` holds the twin's experiment while the full chain runs (removed after)."""
+
+    A rig point in full mode runs the twin, the chain and the fits in memory; with
+    ``through_files`` the twin's experiment is written as HDF5 into a temporary folder in
+    ``workdir`` (removed after) and read back by the chain, which gives the same rows. A
+    train point (:func:`torquemod.sweep.trainpoint.evaluate_train_point`) uses
+    ``workdir`` for its run."""
     if task.kind == "train":
         from .trainpoint import evaluate_train_point
         return evaluate_train_point(task, workdir=workdir)
@@ -324,11 +354,15 @@ def evaluate_point(task: PointTask, *, workdir: str | Path | None = None) -> pd.
         settle = settle_time_s(config, rows)
         config = dataclasses.replace(config, procedure=dataclasses.replace(
             config.procedure, settle_s=settle))
-        tmp = Path(tempfile.mkdtemp(prefix=f"sweep-{task.point_id}-", dir=workdir))
-        try:
-            chain_rows, point = _full_steps(config, t_peak, task.seed, tmp, task.processing)
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
+        if through_files:
+            tmp = Path(tempfile.mkdtemp(prefix=f"sweep-{task.point_id}-", dir=workdir))
+            try:
+                chain_rows, point = _full_steps(config, t_peak, task.seed, tmp,
+                                                task.processing)
+            finally:
+                shutil.rmtree(tmp, ignore_errors=True)
+        else:
+            chain_rows, point = _full_steps(config, t_peak, task.seed, None, task.processing)
         by_step = {r["step"]: r for r in chain_rows}
         for r in rows:
             r.update(by_step.get(r["step"], {}))

@@ -1,5 +1,6 @@
-"""Running a sweep: one task per point, on Dask worker processes or in this process,
-resumable, every output written atomically::
+"""Running a sweep: batches of points as Dask tasks on worker processes (each point
+evaluated and written on its own inside its batch), or the points in this process;
+resumable point by point, every output written atomically::
 
     OUT/points/point=<id>/part-0.parquet   the rows of one finished point
     OUT/_state/<id>.json                   its fingerprint (parameters, seed, mode, base
@@ -36,7 +37,8 @@ from ..jsonutil import dump_json
 from .evaluate import PointTask, evaluate_point
 from .spec import SweepSpec, load_sweep
 
-__all__ = ["SweepResult", "fingerprint", "plan_line", "run_point", "run_sweep", "tasks"]
+__all__ = ["SweepResult", "fingerprint", "plan_line", "point_batches", "run_point",
+           "run_points", "run_sweep", "tasks"]
 
 FAILURE_COLUMNS = ["point_id", "point_index", "seed", "params", "message"]
 
@@ -142,8 +144,10 @@ def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
         if not force and part.is_file() and old.get("fingerprint") == digest:
             return {**row, "status": "skipped", "n_rows": old.get("n_rows", 0),
                     "seconds": time.perf_counter() - t0}
-        work = out / "_work"
-        work.mkdir(parents=True, exist_ok=True)
+        work = None
+        if task.kind == "train":  # its run goes through a folder
+            work = out / "_work"
+            work.mkdir(parents=True, exist_ok=True)
         df = evaluate_point(task, workdir=work)
         _write_parquet(df, part)
         state.parent.mkdir(parents=True, exist_ok=True)
@@ -209,26 +213,72 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
                      connect_timeout_s=connect_timeout_s) as client:
         begin()  # once the cluster answers
         bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
-        futures = {client.submit(run_point, t, str(out), force, pure=False,
-                                 key=f"torquemod-sweep-{t.point_id}-{time.time_ns()}"): t
-                   for t in todo}
+        slots = sum(client.nthreads().values()) or 1
+        since = time.time()
+        futures = {client.submit(run_points, b, str(out), force, pure=False,
+                                 key=f"torquemod-sweep-{b[0].point_id}-{time.time_ns()}"): b
+                   for b in point_batches(todo, slots)}
         for fut in as_completed(futures):
             try:
-                rows.append(fut.result())
-            except Exception as exc:  # the worker died (memory, a kill): the point failed
-                t = futures[fut]
-                rows.append({"point_id": t.point_id, "point_index": t.index, "seed": t.seed,
-                             "status": "failed", "n_rows": 0, "seconds": float("nan"),
-                             "message": f"worker lost: {_one_line(exc)}"})
-            bar.update()
+                rows.extend(fut.result())
+            except Exception as exc:  # the worker died (memory, a kill): its points failed
+                rows.extend(_lost(futures[fut], out, _one_line(exc), since, force))
+            bar.update(len(futures[fut]))
     bar.close()
     return rows, (links[0] if links else None)
+
+
+#: batches per worker thread (:func:`point_batches`): enough that the workers finish close
+#: together, few enough that each task holds several points
+BATCHES_PER_SLOT = 3
+
+
+def point_batches(todo: list[PointTask], slots: int,
+                  per_slot: int = BATCHES_PER_SLOT) -> list[list[PointTask]]:
+    """The points cut into ``slots * per_slot`` batches (fewer when there are fewer
+    points), one Dask task each. Points are dealt round-robin, so that neighbours in the
+    grid (often alike in cost: the same frequency, the same condition) spread over the
+    batches."""
+    n = max(1, min(len(todo), slots * per_slot))
+    return [b for b in (todo[k::n] for k in range(n)) if b]
+
+
+def run_points(batch: list[PointTask], out_dir: str, force: bool = False) -> list[dict]:
+    """:func:`run_point` for each point of ``batch``, one after another in this process (a
+    Dask task): each point's partition and state are written as soon as it is done, so an
+    interrupted batch resumes point by point."""
+    return [run_point(t, out_dir, force) for t in batch]
+
+
+def _lost(batch: list[PointTask], out: Path, why: str, since: float = 0.0,
+          force: bool = False) -> list[dict]:
+    """Status rows of a batch whose worker died: a point whose partition and state of its
+    fingerprint are in place is done when its state was written at or after ``since`` [s,
+    epoch] (by this run), skipped when older (unless ``force``, which wanted it rerun); the
+    others failed."""
+    rows = []
+    for t in batch:
+        row = {"point_id": t.point_id, "point_index": t.index, "seed": t.seed,
+               "status": "failed", "n_rows": 0, "seconds": float("nan"),
+               "message": f"worker lost: {why}"}
+        state = out / "_state" / f"{t.point_id}.json"
+        try:
+            st, written = json.loads(state.read_text("utf-8")), state.stat().st_mtime
+        except (OSError, ValueError):
+            st, written = {}, 0.0
+        if _part(out, t.point_id).is_file() and st.get("fingerprint") == fingerprint(t):
+            status = "done" if written >= since else None if force else "skipped"
+            if status is not None:
+                row.update(status=status, n_rows=int(st.get("n_rows", 0)), message="",
+                           seconds=float(st.get("seconds", float("nan"))))
+        rows.append(row)
+    return rows
 
 
 #: rough seconds a point takes on one worker of a 2-core machine under load (theory: docs;
 #: a full rig point of the default procedure and a train point of the default 4 km run are
 #: larger, measured once with ``torquemod sweep``); a resumed sweep uses its own points' times
-POINT_SECONDS = {("rig", "theory"): 0.5, ("rig", "full"): 60.0, ("train", "full"): 120.0}
+POINT_SECONDS = {("rig", "theory"): 0.5, ("rig", "full"): 5.0, ("train", "full"): 120.0}
 
 
 def plan_line(spec: SweepSpec, out: str | Path, *, n_workers: int | None = None,
