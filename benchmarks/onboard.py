@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from onboard_independent import print_segments  # beside this script
 
 from torquemod.onboard.run import run_onboard
 from torquemod.train import load_train_config, run_train_simulation
@@ -64,6 +65,7 @@ def _segment_stats(cfg, seeds: int, out: Path, title: str, tag: str) -> None:
     """Run ``cfg`` over the seeds and print per friction segment: rows, share with mu, median
     error, coverage, lower bound above the truth, low_adhesion at <= 50 % utilisation."""
     stats: dict[str, list] = {}
+    seg_rows: list[dict] = []
     wall = sim_s = 0.0
     for seed in range(seeds):
         run = out / f"run{tag}_{seed}"
@@ -76,6 +78,7 @@ def _segment_stats(cfg, seeds: int, out: Path, title: str, tag: str) -> None:
         util = _truth_at(t, tr, "utilisation")
         cond = np.array(tr["condition"])[np.clip(np.searchsorted(
             tr["position_m"], t["position_m"]), 0, len(tr) - 1)]
+        seg_rows += _segment_rows(res, tr, f"{tag} seed {seed}")
         for c in dict.fromkeys(cond):
             sel = cond == c
             part, mt = t[sel], mu_true[sel]
@@ -100,7 +103,37 @@ def _segment_stats(cfg, seeds: int, out: Path, title: str, tag: str) -> None:
         covs = f"{100 * cov / g:.0f} %" if g else "-"
         print(f"{c:>18} {n:>6} {100 * g / n:>8.0f}% {med:>11} {covs:>9} "
               f"{100 * lb_bad / max(n_lb, 1):>10.1f}% {la:>9}/{n_la:<5} windows")
+    print("per segment (segments.csv against the twin's available adhesion):")
+    print_segments(seg_rows)
     print(f"end to end (reading MDF4, estimating, writing): {sim_s / wall:.0f} x real time")
+
+
+def _segment_rows(res, tr, run: str) -> list[dict]:
+    """The twin's friction segments (runs of one ``condition`` in the truth; the truth's
+    ``mu``, the available adhesion, as their median) against the estimator's per-segment
+    table: the estimated segment overlapping each most."""
+    x = tr["position_m"].to_numpy()
+    cond = np.asarray(tr["condition"])
+    cuts = np.flatnonzero(cond[1:] != cond[:-1]) + 1
+    segs = res.segment_table()
+    rows = []
+    for a, b in zip(np.r_[0, cuts], np.r_[cuts, cond.size], strict=True):
+        lo, hi = x[a], x[b - 1]
+        row = {"run": run, "segment": str(cond[a])[:7],
+               "truth": float(np.median(tr["mu"].to_numpy()[a:b])), "estimate": np.nan,
+               "low": np.nan, "high": np.nan, "lower_bound": np.nan, "determined": False,
+               "error": np.nan, "law": "-", "coa_reached": np.nan}
+        ov = [min(hi, r.end_m) - max(lo, r.start_m) for r in segs.itertuples()]
+        if ov and max(ov) > 0:
+            r = segs.iloc[int(np.argmax(ov))]
+            est = r["adhesion_available_best_fit"]
+            row.update(estimate=est, low=r["adhesion_available_low_95"],
+                       high=r["adhesion_available_high_95"],
+                       lower_bound=r["adhesion_available_lower_bound"],
+                       determined=bool(r["determined"]), error=est / row["truth"] - 1,
+                       law=r["best_law"] or "-", coa_reached=r["coa_reached"])
+        rows.append(row)
+    return rows
 
 
 def low_adhesion(seeds: int, out: Path) -> None:

@@ -11,9 +11,12 @@ per friction segment: rows, the share with mu, the median |mu error|/mu where gi
 coverage of the 95 % interval where given, how often the lower bound (``mu_low_95`` on rows
 without mu) exceeds the true mu, ``low_adhesion`` flags at <= 50 % true utilisation; and
 diagnostics: the median ratio of the measured creep coefficient to the truth on steady
-windows, the median phase standard error; and seconds of run per CPU second (end to end:
-reading MDF4, estimating, writing figures and tables). Then a driver's constant demand into
-a leaf patch (low_adhesion delay, false flags on dry rail) and the estimator's own speed.
+windows, the median phase standard error; the rows' interval coverage over all segments;
+the per-segment table (segments.csv against the truth: best fit, 95 % interval, lower
+bound, determined, error, depth reached) and its counts; and seconds of run per CPU
+second (end to end: reading MDF4, estimating, writing figures and tables). Then a driver's
+constant demand into a leaf patch (low_adhesion delay, false flags on dry rail) and the
+estimator's own speed.
 
     python benchmarks/onboard_independent.py [--seeds 2] [--laws tanh burckhardt]
         [--depth 0.8 0.9] [--eccentricity 0.002 0.0] [--ratio-bounds 1 7]
@@ -73,6 +76,61 @@ def evaluate(spec: IndependentRunSpec, track, truth) -> dict[str, dict]:
     return out
 
 
+def segment_rows(spec: IndependentRunSpec, res, truth, run: str) -> list[dict]:
+    """The estimator's per-segment table (``segments.csv``) against the truth: for each true
+    friction segment, the estimated segment overlapping it most (positions mapped to the
+    truth's through the rows' times), its best fit, interval, whether determined, and the
+    error of the best fit."""
+    t = res.track
+    x_true = np.interp(t["time_s"], truth["time_s"], truth["position_m"])
+    x_est = t["position_m"].to_numpy()
+    segs = res.segment_table()
+    starts = [s.start_m for s in spec.segments] + [spec.length_m]
+    out = []
+    for i, s in enumerate(spec.segments):
+        a, b = starts[i], starts[i + 1]
+        best, best_ov = None, 0.0
+        for _, r in segs.iterrows():
+            ra, rb = np.interp([r["start_m"], r["end_m"]], x_est, x_true)
+            ov = min(b, rb) - max(a, ra)
+            if ov > best_ov:
+                best, best_ov = r, ov
+        row = {"run": run, "segment": s.name, "truth": s.mu, "estimate": np.nan,
+               "low": np.nan, "high": np.nan, "lower_bound": np.nan, "determined": False,
+               "error": np.nan, "law": "-", "coa_reached": np.nan}
+        if best is not None:
+            est = best["adhesion_available_best_fit"]
+            row.update(estimate=est, low=best["adhesion_available_low_95"],
+                       high=best["adhesion_available_high_95"],
+                       lower_bound=best["adhesion_available_lower_bound"],
+                       determined=bool(best["determined"]), error=est / s.mu - 1,
+                       law=best["best_law"] or "-", coa_reached=best["coa_reached"])
+        out.append(row)
+    return out
+
+
+def print_segments(rows: list[dict]) -> None:
+    """The per-segment table and its counts."""
+    print(f"{'run':>14} {'segment':>7} {'truth':>6} {'best fit':>8} {'95 % interval':>15} "
+          f"{'LB':>6} {'det.':>4} {'error':>7} {'reached':>7} {'law':>14}")
+    for r in rows:
+        hi = f"{r['high']:.3f}" if np.isfinite(r["high"]) else "open"
+        print(f"{r['run']:>14} {r['segment']:>7} {r['truth']:>6.3f} {r['estimate']:>8.3f} "
+              f"[{r['low']:.3f}, {hi:>5}] {r['lower_bound']:>6.3f} "
+              f"{'yes' if r['determined'] else 'no':>4} {100 * r['error']:>6.1f}% "
+              f"{r['coa_reached'] / r['truth']:>6.0%} {r['law']:>14}")
+    n = len(rows)
+    det = [r for r in rows if r["determined"]]
+    within = sum(abs(r["error"]) <= 0.10 for r in det)
+    best_within = sum(abs(r["error"]) <= 0.10 for r in rows if np.isfinite(r["error"]))
+    cov = sum(r["low"] <= r["truth"] <= (r["high"] if np.isfinite(r["high"]) else np.inf)
+              for r in rows if np.isfinite(r["low"]))
+    lb = sum(r["lower_bound"] > r["truth"] for r in rows)
+    print(f"segments determined {len(det)}/{n}, determined and within 10 %: {within}/{n}; "
+          f"best fit within 10 % (determined or not): {best_within}/{n}; truth inside the "
+          f"segment's 95 % interval: {cov}/{n}; lower bound above the truth: {lb}/{n}")
+
+
 def _merge(acc: dict, new: dict) -> None:
     for c, d in new.items():
         a = acc.setdefault(c, {k: ([] if isinstance(v, list) else 0) for k, v in d.items()})
@@ -83,8 +141,13 @@ def _merge(acc: dict, new: dict) -> None:
                 a[k] = a[k] + v
 
 
+#: every scenario's per-segment rows (the summary at the end)
+SEGMENTS: list[dict] = []
+
+
 def scenario(spec: IndependentRunSpec, seeds: int, out: Path, title: str) -> None:
     acc: dict = {}
+    seg_rows: list[dict] = []
     run_s = cpu_s = 0.0
     delays: list[float] = []
     for seed in range(seeds):
@@ -99,6 +162,7 @@ def scenario(spec: IndependentRunSpec, seeds: int, out: Path, title: str) -> Non
         truth = pd.read_parquet(folder / "truth.parquet")
         run_s += float(truth["time_s"].iloc[-1] - truth["time_s"].iloc[0])
         _merge(acc, evaluate(s, res.track, truth))
+        seg_rows += segment_rows(s, res, truth, f"{spec.law} seed {seed}")
     print(f"\n{title} ({seeds} seeds)")
     print(f"{'segment':>8} {'true mu':>7} {'rows':>5} {'mu given':>8} {'median mu':>9} "
           f"{'med |err|':>9} {'coverage':>8} {'LB>truth':>8} {'low_adh u<=.5':>13} "
@@ -113,6 +177,17 @@ def scenario(spec: IndependentRunSpec, seeds: int, out: Path, title: str) -> Non
         print(f"{c:>8} {a['mu_true']:>7.2f} {a['rows']:>5} {100 * a['given'] / a['rows']:>7.0f}% "
               f"{med_mu:>9} {err:>9} {cov:>8} {lb:>8} {la:>13} {kr:>8} "
               f"{np.median(a['phase_se']):>7.2f}°")
+    tot = {k: sum(a[k] for a in acc.values()) for k in ("given", "covered", "lb_rows",
+                                                          "lb_above", "rows")}
+    print(f"rows with mu (a closed interval): {tot['given']}/{tot['rows']}, truth inside "
+          f"{tot['covered']}/{tot['given']} "
+          f"({100 * tot['covered'] / max(tot['given'], 1):.1f} %); lower bound above the "
+          f"truth in {tot['lb_above']}/{tot['lb_rows']} rows without mu "
+          f"({100 * tot['lb_above'] / max(tot['lb_rows'], 1):.1f} %)")
+    print("per segment (segments.csv: each segment between detected changes fitted from all "
+          "its windows once it ended; error of the best fit):")
+    print_segments(seg_rows)
+    SEGMENTS.extend(seg_rows)
     print("net torque-behind-speed delay measured from the run and taken out: "
           + ", ".join(f"{d:.2f} ms" for d in delays))
     print(f"end to end (MDF4 read, estimate, write): {run_s / cpu_s:.0f} s of run per CPU s")
@@ -226,6 +301,9 @@ def main() -> None:
                              + f", torque lag {spec.torque_lag_s * 1e3:g} ms"
                              + (" (declared)" if args.declare_sensors else "")
                              + f", logger {spec.sample_rate_hz:g} Hz")
+        if len(SEGMENTS) > len(args.laws) * 4:
+            print("\nall scenarios:")
+            print_segments(SEGMENTS)
         if args.scenarios_only:
             return
         for law in args.laws:

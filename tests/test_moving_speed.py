@@ -171,3 +171,21 @@ def test_logger_rates_and_16_bit_quantization(fs_hz):
         assert abs(phase - 40.0) < tol
         assert abs(sig.creepage - spec.creepage) < 1e-5
         assert abs(sig.modulation_hz - spec.modulation_hz) < 5e-4
+
+
+@pytest.mark.parametrize("line_hz,rel,wide", [(0.3, 2e-3, False), (1.0, 8e-4, True),
+                                              (None, 0.0, False)])
+def test_slow_band_follows_the_platform_speed(line_hz, rel, wide):
+    """The speed model's full slow band only where the platform speed varies above the quiet
+    band (0.8 Hz at 2 Hz): a 0.08 % line at 1.0 Hz leaks into a wheel modulation of 0.007 %
+    of the speed (the test suite's default) by degrees; a 0.2 % line at 0.3 Hz or noise alone
+    (SyntheticSpec's noise densities, resampled) must keep the quiet band."""
+    from torquemod.dsp.basis import needs_wide_band
+    fs, n = 53.344, 323
+    t = np.arange(n) / fs
+    rng = np.random.default_rng(3)
+    line = rel * np.sin(2 * np.pi * line_hz * t + 0.4) if line_hz else 0.0
+    platform = 0.972 * (1 + line) + 6e-5 * rng.standard_normal(n)
+    wheel = 28.8 * (1 + line) + 2e-3 * np.cos(2 * np.pi * 2.001 * t) \
+        + 1.1e-4 * rng.standard_normal(n)
+    assert needs_wide_band(wheel, platform, fs, 2.0, 0.8, 1.2, extra=2, degree=5) is wide

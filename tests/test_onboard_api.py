@@ -56,6 +56,18 @@ def test_cli_is_the_api_and_the_folder_reads_back(twin, result, tmp_path):
     pd.testing.assert_frame_equal(back.along_track(), result.along_track())
     pd.testing.assert_frame_equal(pd.read_csv(out / "along_track.csv"),
                                   result.along_track(), check_dtype=False)
+    # the per-segment fit: one row per segment between detected changes, written and read
+    # back; the available adhesion given only where determined, never below the lower bound
+    segs = result.segment_table()
+    assert len(segs) == len(result.changes_m) + 1
+    pd.testing.assert_frame_equal(back.segment_table(), segs)
+    pd.testing.assert_frame_equal(pd.read_csv(out / "segments.csv", keep_default_na=False,
+                                              na_values=[""]).astype(segs.dtypes.to_dict()),
+                                  segs, check_dtype=False)
+    assert (segs["adhesion_available"].notna() == segs["determined"]).all()
+    fitted = segs["adhesion_available_best_fit"].notna()
+    assert (segs.loc[fitted, "adhesion_available_lower_bound"]
+            >= segs.loc[fitted, "coa_reached"] - 1e-12).all()
     assert repr(back) == repr(result)
     # the exports: the same numbers in CSV (exact floats) and MATLAB
     from scipy.io import loadmat

@@ -6,6 +6,8 @@ read and processed end to end with the default settings."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -206,3 +208,55 @@ def test_other_logger_formats_read_like_the_mdf4(processed, tmp_path, fmt):
     assert len(got.track) == len(t)
     for col in ("position_m", "speed_m_s", "coa", "phase_deg", "creep_coefficient"):
         np.testing.assert_allclose(got.track[col], t[col], rtol=rtol, atol=atol, err_msg=col)
+
+
+def _segment_against_truth(res, truth, spec):
+    """For each true segment, the estimator's segment (segments.csv) overlapping it most
+    (positions mapped to the truth's through the rows' times)."""
+    t = res.track
+    x_true = np.interp(t["time_s"], truth["time_s"], truth["position_m"])
+    x_est = t["position_m"].to_numpy()
+    segs = res.segment_table()
+    starts = [s.start_m for s in spec.segments] + [spec.length_m]
+    out = []
+    for i, s in enumerate(spec.segments):
+        ov = [min(starts[i + 1], b) - max(starts[i], a) for a, b in
+              (np.interp([r.start_m, r.end_m], x_est, x_true) for r in segs.itertuples())]
+        out.append((s.mu, segs.iloc[int(np.argmax(ov))]))
+    return out
+
+
+def test_segments_tanh_interval_honest(processed, tmp_path):
+    """The per-segment fit on the tanh run (staircase to 80 %): every segment gets a fit;
+    the truth lies inside each 95 % interval (open above where the data allow far larger
+    adhesion) and no lower bound exceeds it."""
+    res, _, _ = processed
+    truth = pd.read_parquet(res.run.folder / "truth.parquet")
+    for mu, seg in _segment_against_truth(res, truth, SPEC):
+        assert np.isfinite(seg["adhesion_available_best_fit"])
+        assert seg["adhesion_available_lower_bound"] <= mu
+        assert seg["adhesion_available_low_95"] <= mu
+        hi = seg["adhesion_available_high_95"]
+        assert not np.isfinite(hi) or mu <= hi
+
+
+def test_segments_burckhardt_determined_within_10_percent(tmp_path):
+    """Burckhardt's law (falling beyond its peak; the generator's own parametrisation),
+    three 500-m segments each probed to 80 %: every segment determined, within 10 % (the
+    target for constant-friction runs; measured on the benchmark's 4 x 4 segments: within
+    6.7 %), the truth inside its interval; the rows' mu, where given, cover the truth in
+    >= 90 % (the coverage target)."""
+    spec = replace(SPEC, law="burckhardt", seed=5)
+    path, _ = write_independent_run(spec, tmp_path / "run")
+    res = run_onboard(path, tmp_path / "out", force=True)[0]
+    truth = pd.read_parquet(tmp_path / "run" / "truth.parquet")
+    for mu, seg in _segment_against_truth(res, truth, spec):
+        assert seg["determined"], seg.to_dict()
+        assert seg["adhesion_available"] == pytest.approx(mu, rel=0.10)
+        assert seg["adhesion_available_low_95"] <= mu <= seg["adhesion_available_high_95"]
+    t = res.track
+    given = t["mu"].notna().to_numpy()
+    mu_t = np.interp(t["time_s"], truth["time_s"], truth["mu"])[given]
+    lo, hi = t["mu_low_95"].to_numpy()[given], t["mu_high_95"].to_numpy()[given]
+    assert given.sum() >= 20
+    assert np.mean((lo <= mu_t) & (mu_t <= hi)) >= 0.9

@@ -16,6 +16,7 @@ from .config import ProcessingConfig
 from .data import Recording, Rig
 from .dsp import filters
 from .dsp.align import alignment_lag
+from .dsp.basis import needs_wide_band
 from .dsp.phase import SineFitResult, local_noise_psd, peak_valley_phase, sinefit_phase
 from .dsp.spectrum import peak_frequency
 from .errors import InputError, ProcessingError
@@ -46,7 +47,8 @@ class CycleSignals:
     notes: list[str] = field(default_factory=list)  # warnings for the user and provenance
     creepage_drift: float = float("nan")  # creepage change over the cycle [-] (slip check)
     #: torque_amplitude_nm, wheel_amplitude_rad_s, creepage_swing [-], speed_m_s [m/s],
-    #: coa_torque [-], coa_source ("forces" or "torque")
+    #: coa_torque [-], coa_source ("forces" or "torque"), slow_band_hz (the speed model's slow
+    #: band's top [Hz], dsp.basis.needs_wide_band)
     extra: dict = field(default_factory=dict)
 
 
@@ -215,8 +217,16 @@ class SpeedModel:
         else:
             dn = d / np.sqrt(np.einsum("ij,ij->j", d, d))
             gram = dn.T @ dn
-        chol = np.linalg.cholesky(gram)
         v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
+        try:
+            chol = np.linalg.cholesky(gram)
+        except np.linalg.LinAlgError:
+            # a design rank deficient to rounding (the fit fell back to the SVD): Q from
+            # the SVD, over its numerical rank
+            u, sv, _ = np.linalg.svd(dn, full_matrices=False)
+            qv = u[:, sv > sv[0] * 1e-10].T @ v
+            kept = 1.0 - (qv * qv).sum(axis=0).reshape(2, -1).sum(axis=0) / v_power
+            return float(np.clip(np.mean(kept), 0.05, 1.0))
         # Q = D L^-T has orthonormal columns spanning D, and Q^H v = L^-1 (D^T v): a solve with
         # the small factor instead of forming Q (the fraction kept agrees with forming Q to
         # ~4e-12 relative, measured; it scales only the standard error). Both routes go
@@ -382,8 +392,9 @@ def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
                    harmonics: tuple[int, ...], *, above_hz: float, avoid_hz: float,
                    modulation_hz: float | None = None) -> tuple[np.ndarray, float]:
     """Columns of an encoder's eccentricity at the rotation orders ``harmonics`` that lie above
-    the slow band (``above_hz``), below 0.45 x the sample rate and clear of the modulation at
-    ``avoid_hz`` [Hz]; and the mean rotation frequency [Hz].
+    the slow band (``above_hz``), below 0.45 x the sample rate, clear of the modulation at
+    ``avoid_hz`` [Hz] and not already spanned by the slow basis (:func:`_separable_orders`);
+    and the mean rotation frequency [Hz].
 
     An eccentric encoder reads ``w*(1 + e(theta))``: its error follows the angle and scales
     with the speed. The columns are ``(w_s/mean w_s)*cos(k*theta)``, ``... sin(k*theta)``
@@ -433,7 +444,41 @@ def _tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
             return np.empty((speed_rad_s.size, 0)), f_rot
         cols = filters.order_design(filters.unwrapped_angle(w_s, fs_hz), kept) \
             * (w_s / mean)[:, None]
+        cols = _separable_orders(cols, base, base_factor)
+        if not cols.shape[1]:
+            return cols, f_rot
     return cols, f_rot
+
+
+#: an order's columns whose residual on the slow basis and the modulation keeps less than
+#: this fraction of their norm are left to the slow basis (:func:`_separable_orders`)
+ORDER_MIN_RESIDUAL = 0.1
+
+
+def _separable_orders(cols: np.ndarray, base: np.ndarray,
+                      base_factor: filters.LstsqFactor | None) -> np.ndarray:
+    """The pairs of order columns ``cols`` (cos, sin per order) that the first design
+    ``base`` (slow basis and modulation) does not already span: an order is kept when the
+    least-squares residual of each of its columns on ``base`` keeps at least
+    :data:`ORDER_MIN_RESIDUAL` of the column's norm.
+
+    The slow basis's Slepian sequences (Slepian 1978) and polynomials reach about two frequency
+    resolutions above the slow band's nominal top (a tone one resolution above it keeps
+    ~1e-3 of its norm, a tone 0.01 resolution above it ~1e-6). An order that close to the
+    band is a slow variation over this record: fitted beside the slow basis as well, the
+    joint design is rank deficient to rounding (variance inflation ``1/r**2`` for a
+    residual fraction r), the split between the slow part and the order is arbitrary, and
+    so is every channel's step-8 mean, the slow part's mean (a V-Track platform turning at
+    0.188 Hz on a one-revolution cycle with the slow band's top at 0.186 Hz gave a mean
+    normal force of -1110 N on a 4200 N record). Left out, the slow basis models it.
+    """
+    if not cols.shape[1]:
+        return cols
+    fit = base_factor.solve(cols) if base_factor is not None else filters.lstsq(base, cols)[0]
+    res = cols - base @ fit
+    frac = np.sqrt(np.einsum("ij,ij->j", res, res) / np.einsum("ij,ij->j", cols, cols))
+    keep = np.repeat(frac.reshape(-1, 2).min(axis=1) >= ORDER_MIN_RESIDUAL, 2)
+    return cols if keep.all() else np.ascontiguousarray(cols[:, keep])
 
 
 def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
@@ -458,6 +503,26 @@ def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
 #: (tests/test_chain_orbit.py). At 2 Hz on a V-Track cycle the limit (1.34 Hz) lies above
 #: the default 1.2 Hz and changes nothing.
 SLOW_GAP_RESOLUTIONS = 4.0
+
+
+def _slow_and_orders(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float,
+                     f_start_hz: float, max_hz: float, cfg: ProcessingConfig
+                     ) -> tuple[np.ndarray, np.ndarray, list[float]]:
+    """The speed model's slow basis up to ``max_hz`` [Hz], the tracked rotation orders of
+    both speeds above it and their frequencies [Hz] (:func:`tracked_orders`)."""
+    n, nq = wheel.size, cfg.notch
+    slow = filters.slow_basis(n, fs_hz, max(max_hz, 0.0), extra=cfg.slow.extra_sequences,
+                              degree=cfg.slow.polynomial_degree)
+    cols, rotation_hz = [], []
+    base = _order_base(n, fs_hz, slow, f_start_hz)  # the same first design for both speeds
+    base_factor = filters.LstsqFactor.of(base)
+    for speed, harmonics in ((wheel, nq.wheel_harmonics), (platform, nq.platform_harmonics)):
+        if speed is not None:
+            c, f_rot = _tracked_orders(speed, fs_hz, slow, harmonics, base, base_factor,
+                                       above_hz=max_hz, avoid_hz=f_start_hz)
+            cols.append(c)
+            rotation_hz += [h * f_rot for h in harmonics]
+    return slow, np.column_stack(cols), rotation_hz
 
 
 def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str,
@@ -501,20 +566,14 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # angles, and the modulation, fitted jointly (SpeedModel).
     f_start = nominal_hz if nominal_hz is not None else 0.5 * sum(fp.band_hz)
     # the slow band stops SLOW_GAP_RESOLUTIONS frequency resolutions below the modulation
-    max_hz = min(cfg.slow.max_hz, f_start - SLOW_GAP_RESOLUTIONS * fs_r / n) \
-        if cfg.slow.enabled else 0.0
-    slow = filters.slow_basis(n, fs_r, max(max_hz, 0.0), extra=cfg.slow.extra_sequences,
-                              degree=cfg.slow.polynomial_degree)
-    cols, rotation_hz = [], []
-    base = _order_base(n, fs_r, slow, f_start)  # the same first design for both speeds
-    base_factor = filters.LstsqFactor.of(base)
-    for speed, harmonics in ((wh, nq.wheel_harmonics), (pl, nq.platform_harmonics)):
-        if speed is not None:
-            c, f_rot = _tracked_orders(speed, fs_r, slow, harmonics, base, base_factor,
-                                       above_hz=max_hz, avoid_hz=f_start)
-            cols.append(c)
-            rotation_hz += [h * f_rot for h in harmonics]
-    orders = np.column_stack(cols)
+    top = f_start - SLOW_GAP_RESOLUTIONS * fs_r / n
+    max_hz = min(cfg.slow.max_hz, top) if cfg.slow.enabled else 0.0
+    quiet_hz = min(cfg.slow.quiet_max_hz, top)
+    if cfg.slow.enabled and 0.0 < quiet_hz < max_hz and not needs_wide_band(
+            wh, pl, fs_r, f_start, quiet_hz, max_hz, extra=cfg.slow.extra_sequences,
+            degree=cfg.slow.polynomial_degree):
+        max_hz = quiet_hz  # the narrower band: no speed variation above it (needs_wide_band)
+    slow, orders, rotation_hz = _slow_and_orders(wh, pl, fs_r, f_start, max_hz, cfg)
     mod_harmonics = modulation_harmonics(f_start, fs_r, n, cfg.slow.modulation_harmonics,
                                          above_hz=max_hz, avoid_hz=rotation_hz)
     # Step 1: modulation frequency = mean of the torque's and wheel speed's peaks, taken on
@@ -599,7 +658,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                        tq_n, wh_n, tq_f, wh_f, xi, coa, means,
                        {"wheel": wheel_notches, "platform": plat_notches}, notes,
                        creepage_drift=drift)
-    out.extra.update({"speed_model": model, "variance_factor": model.variance_factor(),
+    out.extra.update({"speed_model": model, "slow_band_hz": float(max_hz),
+                      "variance_factor": model.variance_factor(),
                       "noise_kept": model.noise_depletion(),
                       "torque_amplitude_nm": model.amplitude("torque_nm"),
                       "wheel_amplitude_rad_s": wheel_amp,
@@ -674,9 +734,11 @@ def model_phase(model: SpeedModel, torque: np.ndarray, wheel: np.ndarray, fs_hz:
                          phases[1], n, (0.0, n / fs_hz))
 
 
-#: The paper's peak/valley estimator scatters 1.21-1.32 times the Cramér-Rao bound where the
-#: sine fit reaches 0.97-1.07 of it (benchmarks/phase_accuracy.py): its standard error is
-#: taken as this factor times the sine fit's on the same data.
+#: The paper's peak/valley estimator over its three middle periods scatters 1.21-1.32 times
+#: the Cramér-Rao bound where the sine fit reaches 0.97-1.07 of it (benchmarks/phase_accuracy.py):
+#: its standard error is taken as this factor times the sine fit's on the same data. Over the
+#: whole cycle (``phase.paper_window = "cycle"``) it scatters 0.98-1.14 times the bound, so
+#: the factor errs on the safe side there.
 PAPER_SE_FACTOR = 1.3
 
 
@@ -705,10 +767,14 @@ def cycle_phase(c: CycleSignals, cfg: ProcessingConfig, *, center_index: float
                                             / c.extra.get("noise_kept", 1.0))
     if cfg.phase.method == "sinefit":
         return fit.phase_deg, float(se_fit), fit.window_s
-    half = (cfg.phase.n_periods / 2 + cfg.phase.edge_trim_periods) * period_n
+    n_periods = cfg.phase.n_periods
+    if cfg.phase.paper_window == "cycle":  # every whole period between the trimmed edges
+        n_periods = max(n_periods, int(np.floor(n / period_n + 1e-9
+                                                - 2 * cfg.phase.edge_trim_periods)))
+    half = (n_periods / 2 + cfg.phase.edge_trim_periods) * period_n
     center = min(max(center_index, half), n - half)
     res = peak_valley_phase(c.torque_filtered, c.wheel_filtered, c.fs_hz, c.modulation_hz,
-                            center_s=center / c.fs_hz, n_periods=cfg.phase.n_periods)
-    hw = cfg.phase.n_periods / 2 / c.modulation_hz
+                            center_s=center / c.fs_hz, n_periods=n_periods)
+    hw = n_periods / 2 / c.modulation_hz
     se = PAPER_SE_FACTOR * se_fit
     return res.phase_deg, float(se), (center / c.fs_hz - hw, center / c.fs_hz + hw)

@@ -76,11 +76,15 @@ class SlowParams:
     gives the previous chain (a line and fixed-frequency tones)."""
 
     enabled: bool = True
-    #: ours: a wobble up to 1.2 Hz is removed. Under a wobble at 0.2-0.6 Hz near saturation
-    #: the wheel's answer carries sidebands at f - 2 x 0.6 Hz that this band reaches; 0.4 x
-    #: f (0.8 Hz) with ``phase.sinefit_input = "model"`` gives the phase of a moving
-    #: operating point to 0.015 deg (docs/processing.md), but lets a wobble at 0.8-1.2 Hz in
+    #: ours: the slow band's top [Hz] where the speed varies above ``quiet_max_hz``: a
+    #: speed loop's wobble up to 1.2 Hz is removed
     max_hz: float = 1.2
+    #: ours: the slow band's top [Hz] when the platform speed does not vary above it
+    #: (torquemod.dsp.basis.needs_wide_band): 0.4 x f keeps the sidebands that a moving operating
+    #: point puts on the wheel's answer (f +- f_w for a wobble at f_w) out of the slow model;
+    #: 1.2 Hz took up to 0.5 deg of the phase at 80-90 % of the peak under a 0.3 % wobble at
+    #: 0.2-0.6 Hz (docs/processing.md). Equal to ``max_hz``: always the full band
+    quiet_max_hz: float = 0.8
     extra_sequences: int = 2
     polynomial_degree: int = 5
     #: the modulation's harmonics 2..this fitted beside it and removed with the slow part
@@ -131,10 +135,17 @@ class PhaseParams:
     method: str = "paper"
     n_periods: int = 3
     edge_trim_periods: float = 1.0
+    #: which peaks and valleys "paper" pairs: "cycle" (ours: every whole period between the
+    #: trimmed edges) or "middle" (the paper's: the ``n_periods`` nearest the aligned middle).
+    #: Where the operating point moves within a cycle the phase of its middle is not the
+    #: cycle's: up to 2.7 deg apart at 90 % of the peak under a 0.3 % speed wobble, and the
+    #: middle periods were 1.1 deg off the cycle's phase where the whole cycle is 0.3 deg off
+    #: (docs/processing.md, "The phase of a moving operating point")
+    paper_window: str = "cycle"
     #: "bandpassed" (the band-passed signals over whole periods; robust to vibration lines
     #: and noise away from the modulation), "notched", or "model" (the speed model's own
-    #: least-squares modulation over the cycle, docs/processing.md "The phase of a moving
-    #: operating point"; 3-4 x the scatter of "bandpassed" on records with vibration lines)
+    #: least-squares modulation over the cycle; 3-4 x the scatter of "bandpassed" on records
+    #: with vibration lines, docs/processing.md "The phase of a moving operating point")
     sinefit_input: str = "bandpassed"
     sinefit_trend: bool = True
 
@@ -191,6 +202,9 @@ class ProcessingConfig:
         if self.phase.method not in ("paper", "sinefit"):
             raise InputError(f"unknown phase method '{self.phase.method}'",
                              hint="use 'paper' or 'sinefit'")
+        if self.phase.paper_window not in ("cycle", "middle"):
+            raise InputError(f"unknown phase.paper_window '{self.phase.paper_window}'",
+                             hint="use 'cycle' or 'middle' (the paper's)")
         if self.phase.sinefit_input not in ("bandpassed", "notched", "model"):
             raise InputError(f"unknown sinefit_input '{self.phase.sinefit_input}'",
                              hint="use 'bandpassed', 'notched' or 'model'")
@@ -227,7 +241,8 @@ class ProcessingConfig:
                                          target_hz=d.resample.target_hz * max(s, 1.0)),
             bandpass=dataclasses.replace(d.bandpass, width_hz=d.bandpass.width_hz * s),
             highpass=dataclasses.replace(d.highpass, cutoff_hz=d.highpass.cutoff_hz * s),
-            slow=dataclasses.replace(d.slow, max_hz=d.slow.max_hz * s))
+            slow=dataclasses.replace(d.slow, max_hz=d.slow.max_hz * s,
+                                     quiet_max_hz=d.slow.quiet_max_hz * s))
         return cls.from_dict(doc or {}, source=source, base=base)
 
     @classmethod
@@ -316,6 +331,7 @@ def _range_problems(cfg: ProcessingConfig) -> list[str]:
                 "bandpass.order": cfg.bandpass.order,
                 "align.max_lag_periods": cfg.align.max_lag_periods,
                 "phase.n_periods": cfg.phase.n_periods, "slow.max_hz": cfg.slow.max_hz,
+                "slow.quiet_max_hz": cfg.slow.quiet_max_hz,
                 "slow.modulation_harmonics": cfg.slow.modulation_harmonics,
                 "frequency.tolerance_hz": cfg.frequency.tolerance_hz}
     out += [f"{k} must be positive, got {v}" for k, v in positive.items()

@@ -39,6 +39,7 @@ def phase_parts(step: int, cyc: int, sig: chain.CycleSignals, info: dict, lag: i
               "wheel_rotation_hz": sig.wheel_rotation_hz,
               "platform_rotation_hz": sig.platform_rotation_hz,
               "notches_hz": sig.notches_hz, "speed_m_s": sig.extra["speed_m_s"],
+              "slow_band_hz": sig.extra.get("slow_band_hz"),
               "creepage_drift": sig.creepage_drift, "slip": None, **sig.means}
     trace = {"t_s": sig.t0_s + np.arange(sig.torque_filtered.size) / sig.fs_hz,
              "torque_resampled_nm": sig.torque_resampled,

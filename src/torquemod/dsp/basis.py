@@ -1,6 +1,7 @@
 """Bases of the speed model (issue 8: a chain that is right on a moving speed): the slow
 variation (Legendre polynomials and Slepian sequences) and the rotation orders that follow
-an encoder's integrated angle. Re-exported by :mod:`torquemod.dsp.filters`."""
+an encoder's integrated angle, and the choice of the slow band for a cycle. Re-exported by
+:mod:`torquemod.dsp.filters`."""
 
 from __future__ import annotations
 
@@ -9,6 +10,9 @@ import math
 
 import numba
 import numpy as np
+from scipy.special import fdtri
+
+from .lstsq import lstsq
 
 
 @functools.lru_cache(maxsize=64)
@@ -129,3 +133,60 @@ def _order_columns(theta: np.ndarray, orders: np.ndarray) -> np.ndarray:
                 out[i, 2 * j] = math.cos(orders[j] * theta[i])
                 out[i, 2 * j + 1] = math.sin(orders[j] * theta[i])
     return out
+
+
+#: Thresholds of :func:`needs_wide_band`: the platform speed's variation above the quiet
+#: band must be significant (F test; false-alarm probability on white noise) ...
+WIDE_BAND_FALSE_ALARM = 1e-3
+#: ... and move the wheel's modulation by more than this phase [rad] (0.006 deg) if left out
+#: of the slow model (the wheel follows the platform's relative speed variation).
+WIDE_BAND_RISK_RAD = 1e-4
+
+
+def needs_wide_band(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float,
+                    modulation_hz: float, quiet_hz: float, wide_hz: float, *, extra: int,
+                    degree: int) -> bool:
+    """Whether the speed model needs its full slow band (``wide_hz`` [Hz], ``slow.max_hz``)
+    rather than the quiet one (``quiet_hz``, ``slow.quiet_max_hz``) for one cycle.
+
+    Under a speed wobble at f_w the wheel's answer to the modulation at f moves with the
+    operating point and carries sidebands at f +- f_w and, near saturation, f +- 2 f_w. A slow
+    band reaching them takes part of the answer away and changes the phase (0.3-0.5 deg at
+    80-90 % of the peak under a 0.3 % wobble at 0.2-0.6 Hz with a 1.2 Hz band at 2 Hz;
+    independent rig, benchmarks/chain_accuracy.py). The quiet band keeps them, but a speed
+    variation above it (a speed loop wobbling at 0.8-1.2 Hz) then leaks into the modulation.
+    The platform speed [rad/s] carries the speed loop's variation and hardly any answer to
+    the modulation, so it decides: it is fitted with the modulation at ``modulation_hz``
+    beside the Slepian sequences of the quiet band (without extra sequences, whose reach
+    beyond the band would hide most of a line just above it) and beside the full slow basis
+    of the wide band (:func:`slow_basis`). The wide band is needed
+    when it explains significantly more (the F test of nested least-squares models,
+    :data:`WIDE_BAND_FALSE_ALARM`) and when the platform's modulation coefficients of the
+    two fits differ, relative to its mean speed, by more than :data:`WIDE_BAND_RISK_RAD`
+    times the wheel's relative modulation amplitude (the phase [rad] the variation would
+    cost the wheel, which follows the platform's relative speed). Without a platform
+    speed, always.
+    """
+    if platform is None:
+        return True
+    n = wheel.size
+    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    mod = np.column_stack([np.cos(2 * np.pi * modulation_hz * t),
+                           np.sin(2 * np.pi * modulation_hz * t)])
+    y = np.column_stack([wheel, platform])
+    fits = []
+    for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
+        design = np.hstack([mod, slow_basis(n, fs_hz, band, extra=ext, degree=degree)])
+        coef, rank = lstsq(design, y)
+        resid = platform - design @ coef[:, 1]
+        fits.append((float(resid @ resid), rank, coef[:2]))
+    (rss_q, rank_q, coef_q), (rss_w, rank_w, coef_w) = fits
+    dfn, dfd = rank_w - rank_q, n - rank_w
+    w_mean, p_mean = float(np.mean(wheel)), float(np.mean(platform))
+    wheel_rel = float(np.hypot(*coef_w[:, 0])) / abs(w_mean) if w_mean else 0.0
+    if dfn <= 0 or dfd <= 0 or not (p_mean and wheel_rel > 0):
+        return True
+    f_stat = (rss_q - rss_w) / dfn / max(rss_w / dfd, 1e-300)
+    risk = float(np.hypot(*(coef_q[:, 1] - coef_w[:, 1]))) / abs(p_mean) / wheel_rel
+    return bool(f_stat > fdtri(dfn, dfd, 1.0 - WIDE_BAND_FALSE_ALARM)
+                and risk > WIDE_BAND_RISK_RAD)

@@ -244,9 +244,10 @@ def assemble_axle(run: Run, entry: RunRecording, config: OnboardConfig | None,
     rows = [est.update(dataclasses.replace(w, position_m=float(x)))
             for w, x in zip(windows, positions, strict=True)]
     track = pd.DataFrame(rows)
+    segments = est.finish()
     track, warnings = premise_warnings(run, entry, track, config) if len(track) else (track,
                                                                                       [])
     return OnboardResult(run, entry.axle, track, config, notes,
                          time.perf_counter() - t_start, est.tracker.n_fits,
                          truth=load_truth(run), changes_m=tuple(est.tracker.changes),
-                         delay_s=est.delay_s, warnings=warnings)
+                         delay_s=est.delay_s, warnings=warnings, segments=segments)

@@ -18,13 +18,24 @@ with constant and falling friction, Burckhardt, saturating laws) and gives the *
 adhesion** (the maximum of the adhesion-creepage curve; track.parquet's ``mu``) with its 95 %
 profile interval over the whole family. mu is reported
 only when that interval is closed and within ``max_rel_half_width``, no change is suspected,
-the current window is steady, its CoA is not above the fit, and a window worked at
+the current window is steady (or, while the torque steps, the last steady window's row gave
+mu less than half a window's length back and the window's CoA plus its whole step is not above
+mu: a step's windows cannot confirm the curve, but the fit does not depend on them), its
+CoA is not above the fit, and a window worked at
 ``info_utilisation`` of mu or more within the last ``info_m`` metres (at low utilisation the
 creep coefficient hardly depends on mu, so a fit is not carried far past its evidence).
 Otherwise mu is empty and ``mu_low_95`` is the lower bound: the CoA less two standard errors
 of the windows of the last ``bound_m`` metres (by default the current window alone), because
 adhesion cannot exceed the friction where it was measured. The fit is redone every
 ``refit_m`` metres.
+
+Per segment
+-----------
+When the run has ended (:meth:`OnboardEstimator.finish`), each segment between detected
+friction changes is fitted once more from all its steady windows held, leaving out those
+within a window's length of a change (they may mix two frictions):
+:class:`~torquemod.onboard.mufit.SegmentFit`, the table ``segments.csv``. A live row
+cannot have that fit (it uses windows after the row), so the rows' mu stays the causal one.
 
 Friction changes
 ----------------
@@ -75,7 +86,7 @@ from ..io.run import Vehicle
 from ..phasefit import R_BOUNDS
 from ..tomlcheck import NON_NEGATIVE, between, default_checks, one_of, read_table
 from .delay import DelayCalibrator, delay_grid
-from .mufit import CreepFit, fit_creep_progression
+from .mufit import CreepFit, SegmentFit, fit_creep_progression, fit_segment, group_points
 from .quality import QUALITY_OK, window_quality
 from .window import WindowResult, measure_window, with_delay
 
@@ -97,7 +108,10 @@ class OnboardConfig:
     change_drift: float = 1.0
     change_threshold: float = 10.0
     max_rel_half_width: float = 0.25
-    model_rel_error: float = 0.05
+    #: each point's relative systematic error: on the independent train runs the median
+    #: measured/true creep coefficient differs between the staircase's levels by up to
+    #: 0.04 (0.987 at 20 %, 1.028 at 60 % of the adhesion; benchmarks/onboard_independent.py)
+    model_rel_error: float = 0.02
     max_dc_step_ratio: float = 0.25
     info_utilisation: float = 0.5
     info_m: float = 30.0
@@ -106,6 +120,9 @@ class OnboardConfig:
     min_coa_ratio: float = 2.0
     ratio_bounds: tuple[float, float] = R_BOUNDS
     power_shapes: int = 1
+    #: fit the windows' slopes as the describing function of the curve over the
+    #: modulation's creepage swing (1) or as small-signal slopes (0)
+    model_swing: int = 1
     baseline_m: float = 600.0
     low_adhesion_ratio: float = 0.25
     slip_creepage: float = 0.03
@@ -152,6 +169,7 @@ class _Fit:
 #: ranges of the [onboard] settings (besides their types): positive unless listed here
 _CHECKS = default_checks(OnboardConfig, {
     "power_shapes": one_of(0, 1), "calibrate_delay": one_of(0, 1),
+    "model_swing": one_of(0, 1),
     "window_periods": between(1, None), "n_bins": between(1, None),
     "min_windows": between(1, None), "delay_min_windows": between(1, None),
     "info_utilisation": between(0.0, 1.0, lo_open=True),
@@ -220,9 +238,14 @@ class MuTracker:
     module docstring)."""
 
     def __init__(self, vehicle: Vehicle, frequency_hz: float, config: OnboardConfig,
-                 overlap: float):
+                 overlap: float, window_s: float = 0.0):
         self.v, self.f, self.cfg = vehicle, frequency_hz, config
         self.overlap = max(1.0, overlap)
+        self.window_s = window_s  # one window's duration [s]: the segments' guard
+        self.seg_start: float | None = None  # where the current segment began [m]
+        self.seg_from_change = False  # it began at a detected change (not the run's start)
+        self.segments: list[SegmentFit] = []
+        self._finished = False
         self.mem: deque[WindowResult] = deque()
         self.recent: deque[WindowResult] = deque()
         self.fit: _Fit | None = None
@@ -234,11 +257,19 @@ class MuTracker:
         model = self.fit.model if self.fit is not None else None
         steady = w.dc_step_ratio <= self.cfg.max_dc_step_ratio
         change = None if slip else self.detector.update(w, model, steady)
+        if self.seg_start is None:
+            self.seg_start = w.position_m
         if change is not None:
             self.changes.append(change)
-            for q in (self.mem, self.recent):
-                while q and q[0].position_m < change:
-                    q.popleft()
+            self.segments.append(self._segment(self.seg_start, change, end_guard=True))
+            self.seg_start, self.seg_from_change = change, True
+            # the fit keeps the windows from half a window past the change on (one reaching
+            # further back mixes the two frictions); the lower bound all since the change
+            cut_m = change + 0.5 * self.window_s * w.speed_m_s
+            while self.mem and self.mem[0].position_m < cut_m:
+                self.mem.popleft()
+            while self.recent and self.recent[0].position_m < change:
+                self.recent.popleft()
             self.fit = None
         if not slip:
             self.recent.append(w)
@@ -264,25 +295,52 @@ class MuTracker:
         coa, k, k_se = coa[ok], k[ok], k_se[ok]
         if coa.size < self.cfg.min_windows or coa.max() < self.cfg.min_coa_ratio * coa.min():
             return None
-        order = np.argsort(coa, kind="stable")
-        size = max(4, -(-coa.size // self.cfg.n_bins))  # ceil: at most n_bins groups
-        pts = []
-        for grp in np.array_split(order, max(1, coa.size // size)):
-            wgt = 1.0 / k_se[grp] ** 2
-            k_b = float(np.sum(wgt * k[grp]) / wgt.sum())
-            se_b = math.sqrt(self.overlap / wgt.sum())
-            scatter = float(np.std(k[grp], ddof=1)) / math.sqrt(grp.size / self.overlap)
-            se = math.hypot(max(se_b, scatter), self.cfg.model_rel_error * k_b)
-            pts.append((float(coa[grp].mean()), k_b, se))
-        return np.array(pts) if len(pts) >= 4 else None
+        swing = np.array([m.creepage_swing for m in self.mem])[ok]
+        return group_points(coa, k, k_se, overlap=self.overlap, n_bins=self.cfg.n_bins,
+                            model_rel_error=self.cfg.model_rel_error,
+                            swing=np.nan_to_num(swing) if self.cfg.model_swing else None)
+
+    def _segment(self, start_m: float, end_m: float, *, end_guard: bool) -> SegmentFit:
+        """The fit of the segment ``[start_m, end_m]`` [m] from the windows held: those
+        more than a window's length [m] inside a detected change (a window reaching across
+        it mixes the two frictions; the change's position is itself uncertain by about
+        that much), or all of them when fewer than ``min_windows`` remain so."""
+        held = [m for m in self.mem if start_m <= m.position_m <= end_m]
+        speed = float(np.median([m.speed_m_s for m in held])) if held else 0.0
+        guard = self.window_s * speed
+        a = start_m + (guard if self.seg_from_change else 0.0)
+        b = end_m - (guard if end_guard else 0.0)
+        inner = [m for m in held if a <= m.position_m <= b]
+        use = inner if len(inner) >= self.cfg.min_windows else held
+        c = self.cfg
+        return fit_segment([m.coa for m in use], [m.creep_coefficient for m in use],
+                           [m.creep_coefficient_se for m in use], start_m, end_m,
+                           swing=[m.creepage_swing for m in use] if c.model_swing else None,
+                           overlap=self.overlap, n_bins=c.n_bins,
+                           model_rel_error=c.model_rel_error, min_windows=c.min_windows,
+                           min_coa_ratio=c.min_coa_ratio, ratio_bounds=c.ratio_bounds,
+                           power=bool(c.power_shapes), max_rel_half_width=c.max_rel_half_width,
+                           speed_m_s=speed or None)
+
+    def finish(self, end_m: float | None = None) -> list[SegmentFit]:
+        """Close the last segment (at ``end_m`` [m], by default the last window held) and
+        return every segment's fit, in order (:class:`~torquemod.onboard.mufit.SegmentFit`).
+        Idempotent: a second call returns the same list."""
+        if self.seg_start is not None and not self._finished:
+            last = end_m if end_m is not None else max(
+                (m.position_m for m in self.mem), default=self.seg_start)
+            self.segments.append(self._segment(self.seg_start, last, end_guard=False))
+            self._finished = True
+        return list(self.segments)
 
     def _fit(self, w: WindowResult) -> _Fit:
         pts = self._points()
         speed = float(np.median([m.speed_m_s for m in self.mem])) if self.mem else None
         res = None if pts is None else fit_creep_progression(
-            *pts.T, coa_now=w.coa, ratio_bounds=self.cfg.ratio_bounds,
+            *pts[:, :3].T, coa_now=w.coa, ratio_bounds=self.cfg.ratio_bounds,
             power=bool(self.cfg.power_shapes),
-            max_rel_half_width=self.cfg.max_rel_half_width, speed_m_s=speed)
+            max_rel_half_width=self.cfg.max_rel_half_width, speed_m_s=speed,
+            swing=pts[:, 3] if pts.shape[1] > 3 else None)
         self.n_fits += pts is not None
         if res is None:
             return _Fit(w.position_m, None, math.nan, None)
@@ -341,13 +399,15 @@ class OnboardEstimator:
         self.buf = np.empty((4, 0))
         self.buf_start = 0  # global index of buf[:, 0]
         self.next_start = 0  # global index of the next window's first sample
-        self.tracker = MuTracker(vehicle, self.f, self.cfg, self.n_win / self.hop)
+        self.tracker = MuTracker(vehicle, self.f, self.cfg, self.n_win / self.hop,
+                                 self.n_win / self.fs)
         self.k_hist: deque[tuple[float, float, float]] = deque()  # (position, CoA, k)
         c = self.cfg
         self.delay = DelayCalibrator(vehicle, self.f, delay_grid(c.delay_max_s, self.f),
                                      min_windows=c.delay_min_windows,
                                      max_se_s=c.delay_max_se_s)
         self.delay_s = 0.0  # the net delay taken out of every window now [s]
+        self._steady_gave_at: float | None = None  # where the last steady row gave mu [m]
 
     def feed(self, torque_nm, wheel_speed_rad_s, vehicle_speed_m_s, position_m) -> list[dict]:
         chunk = np.vstack([np.asarray(a, dtype=np.float64) for a in
@@ -368,6 +428,12 @@ class OnboardEstimator:
             self.buf = self.buf[:, drop:].copy()
             self.buf_start = self.next_start
         return rows
+
+    def finish(self) -> list[dict]:
+        """The run has ended: the per-segment table (rows of
+        :data:`~torquemod.onboard.mufit.SEGMENT_COLUMNS`), each segment between detected
+        friction changes fitted from all its windows (:meth:`MuTracker.finish`)."""
+        return [s.to_dict(i + 1) for i, s in enumerate(self.tracker.finish())]
 
     def _baseline(self, w: WindowResult) -> float:
         while self.k_hist and self.k_hist[0][0] < w.position_m - self.cfg.baseline_m:
@@ -441,12 +507,24 @@ class OnboardEstimator:
         self.tracker.add(w, slip)
         fit = self.tracker.fit
         mu = fit.mu if fit is not None and not self.tracker.detector.suspicious else None
-        if w.dc_step_ratio > self.cfg.max_dc_step_ratio:
-            mu = None  # the torque is stepping: the window cannot confirm the curve
+        stepping = w.dc_step_ratio > self.cfg.max_dc_step_ratio
+        if stepping and mu is not None:
+            # the torque is stepping: the window cannot confirm the curve; it keeps mu only
+            # when the last steady window gave it less than half a window's length back (a
+            # window centred further on reaches mostly past that evidence: measured, such
+            # rows carried a leaf segment's mu into dry rail) and the adhesion the step may
+            # reach (its mean CoA plus the whole step) is not above mu
+            near = self._steady_gave_at is not None and (
+                w.position_m - self._steady_gave_at <= 0.5 * self.n_win / self.fs * w.speed_m_s)
+            top = w.coa + step_nm / (self.v.normal_load_n * self.v.wheel_radius_m)
+            if not near or top - 2 * w.coa_se > mu:
+                mu = None
         if mu is not None and w.coa - 2 * w.coa_se > mu:
             mu = None  # the window's adhesion is above the fitted friction: the fit is stale
         if mu is not None and not self.tracker.informed(w.position_m, mu):
             mu = None  # no window near saturation lately: a change would go unseen
+        if not stepping:
+            self._steady_gave_at = w.position_m if mu is not None else None
         if mu is not None and fit is not None:
             lo, hi = fit.low, fit.high
         else:

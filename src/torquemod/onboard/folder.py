@@ -4,6 +4,8 @@
     track.parquet              the first axle's track (TRACK_COLUMNS), one row per window
     track_axle<N>.parquet      every further axle's
     along_track.csv            the first axle per segment between detected friction changes
+    segments.csv               the first axle's available adhesion per segment, fitted from
+                               all the segment's windows (segments_axle<N>.csv: the others)
     along_track_km.csv         ... and per kilometre (along_track_axle<N>*.csv: the others)
     onboard.json               provenance, settings and each axle's summary
     *.png, report.html         the figures and the report of the first axle
@@ -84,6 +86,8 @@ def write_onboard(folder: Path, results: list[OnboardResult], *,
         stretch = track_name(results, r, "along_track")
         r.along_track().to_csv(folder / f"{stretch}.csv", index=False)
         r.along_track("km").to_csv(folder / f"{stretch}_km.csv", index=False)
+        r.segment_table().to_csv(folder / f"{track_name(results, r, 'segments')}.csv",
+                                 index=False)
     (folder / META).write_text(dump_json(meta))
     figs = write_figures(folder, results[0])
     write_report(folder / "report.html", results[0], meta, figs)
@@ -168,4 +172,5 @@ def load_onboard(folder, axle: int | None = None) -> OnboardResult:
                          float(entry.get("seconds", 0.0)), int(entry.get("mu_fits", 0)),
                          truth=load_truth(run), changes_m=entry.get("changes_m", ()),
                          delay_s=entry.get("measured_delay_s"),
-                         warnings=entry.get("warnings", ()))
+                         warnings=entry.get("warnings", ()),
+                         segments=entry.get("segments", ()))

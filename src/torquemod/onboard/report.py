@@ -307,6 +307,35 @@ def _segments_table(result) -> str:
                     left=1))
 
 
+def segment_fits_html(result) -> str:
+    """The per-segment fit (:meth:`~torquemod.onboard.OnboardResult.segment_table`,
+    ``segments.csv``) as HTML: the available adhesion where determined, else the best fit,
+    its 95 % interval and the lower bound."""
+    segs = result.segment_table()
+    if not len(segs):
+        return ""
+
+    def num(v):
+        return "—" if not math.isfinite(v) else f"{v:.3f}"
+
+    rows = [[int(r["segment"]), f"{r['start_m']:.0f}–{r['end_m']:.0f}", int(r["windows"]),
+             num(r["coa_reached"]), num(r["adhesion_available"]),
+             num(r["adhesion_available_best_fit"]),
+             f"{num(r['adhesion_available_low_95'])}–"
+             + ("open" if not math.isfinite(r["adhesion_available_high_95"])
+                else num(r["adhesion_available_high_95"])),
+             num(r["adhesion_available_lower_bound"]), "yes" if r["determined"] else "no",
+             "—" if not math.isfinite(r["probe_depth_needed"])
+             else f"{100 * r['probe_depth_needed']:.0f}"]
+            for _, r in segs.iterrows()]
+    return ('<div class="wrap">' + table(
+        ["segment", "span [m]", "windows", "CoA reached", "available adhesion",
+         "best fit", "95 % interval", "lower bound", "determined",
+         "probe depth needed [%]"], rows,
+        caption="Available adhesion per segment, fitted from all its windows once it ended "
+                "(segments.csv)", left=0) + "</div>")
+
+
 def _delay_sentence(result, s: dict) -> str:
     """What the report says about the torque-speed delay (declared and measured)."""
     v = result.run.vehicle
@@ -372,6 +401,7 @@ def write_report(path: Path, result, meta: dict, figures: list[dict]) -> None:
 <h2>Along the track</h2>
 {along_track_html(seg, "Per segment between detected friction changes (along_track.csv)")}
 {along_track_html(km, "Per kilometre (along_track_km.csv)")}
+{segment_fits_html(result)}
 {_rules()}
 {_segments_table(result)}
 <h2>Figures</h2>{imgs}

@@ -46,6 +46,11 @@ class OnboardResult:
     warnings : tuple of str
         What the user must know: stretches of track without the method's premise (no
         modulation, standstill, reverse running), a run too short for a friction estimate.
+    segments : tuple of dict
+        The available adhesion per segment between detected friction changes, each fitted
+        once the segment had ended from all its steady windows: rows of
+        :data:`~torquemod.onboard.mufit.SEGMENT_COLUMNS` (``segments.csv``;
+        :meth:`segment_table`).
     """
 
     run: Run
@@ -59,8 +64,10 @@ class OnboardResult:
     changes_m: tuple[float, ...] = field(default=())
     delay_s: float | None = None
     warnings: tuple[str, ...] = ()
+    segments: tuple[dict, ...] = ()
 
     def __post_init__(self):
+        object.__setattr__(self, "segments", tuple(dict(s) for s in self.segments))
         object.__setattr__(self, "notes", tuple(self.notes))
         object.__setattr__(self, "warnings", tuple(self.warnings))
         object.__setattr__(self, "changes_m", tuple(float(c) for c in self.changes_m))
@@ -94,7 +101,8 @@ class OnboardResult:
                "length_m": float(t["position_m"].iloc[-1] - t["position_m"].iloc[0])
                if len(t) else 0.0,
                "changes_m": list(self.changes_m),
-               "measured_delay_s": self.measured_delay_s}
+               "measured_delay_s": self.measured_delay_s,
+               "segments": [dict(s) for s in self.segments]}
         if mu is not None:
             out["mu_median"] = mu
         if bound is not None:
@@ -118,6 +126,20 @@ class OnboardResult:
         from .alongtrack import along_track
         return along_track(self.track, changes_m=self.changes_m, by=by, length_m=length_m)
 
+    def segment_table(self):
+        """The per-segment table (``segments.csv``): one row per segment between detected
+        friction changes, :data:`~torquemod.onboard.mufit.SEGMENT_COLUMNS` (the available
+        adhesion where determined, the best fit, its 95 % interval, the lower bound)."""
+        import pandas as pd
+
+        from .mufit import SEGMENT_COLUMNS
+        t = pd.DataFrame([dict(s) for s in self.segments], columns=list(SEGMENT_COLUMNS))
+        for c in SEGMENT_COLUMNS:
+            if c not in ("segment", "windows", "determined", "best_law"):
+                t[c] = pd.to_numeric(t[c], errors="coerce").astype(float)
+        t["determined"] = t["determined"].astype(bool)
+        return t
+
     # --- text ------------------------------------------------------------------------------
     def __repr__(self) -> str:
         s = self.summary()
@@ -137,8 +159,14 @@ class OnboardResult:
         import pandas as pd
         with pd.option_context("display.width", 250, "display.max_columns", 50):
             table = seg.to_string(index=False, float_format=lambda v: f"{v:.3f}", na_rep="-")
+        segs = self.segment_table()
+        with pd.option_context("display.width", 250, "display.max_columns", 50):
+            fits = segs.to_string(index=False, float_format=lambda v: f"{v:.3f}", na_rep="-")
         return "\n".join([*headline(self), "", "Along the track, per segment between "
-                          "detected friction changes:", table])
+                          "detected friction changes:", table, "",
+                          "The available adhesion per segment, fitted from all its windows "
+                          "once it ended (adhesion_available where determined; best fit and "
+                          "95 % interval always):", fits])
 
     def _repr_html_(self) -> str:
         from .report import along_track_html

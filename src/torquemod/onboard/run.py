@@ -68,6 +68,7 @@ def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = 
             if rows:
                 frames.append(pd.DataFrame(rows))
     track = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+    segments = est.finish()
     if track.empty:
         raise InputError("the recording is shorter than one estimator window",
                          path=entry.path, hint="record longer or shorten [onboard] "
@@ -77,7 +78,7 @@ def estimate_axle(run: Run, entry: RunRecording, config: OnboardConfig | None = 
     return OnboardResult(run, entry.axle, track, config, notes,
                          time.perf_counter() - t_start, est.tracker.n_fits,
                          truth=load_truth(run), changes_m=tuple(est.tracker.changes),
-                         delay_s=est.delay_s, warnings=warnings)
+                         delay_s=est.delay_s, warnings=warnings, segments=segments)
 
 
 def coarse_reference(speed_m_s, fs_hz: float, window_s: float, axle: int) -> str | None:
