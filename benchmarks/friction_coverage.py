@@ -43,28 +43,29 @@ THRESHOLDS = (0.05, 0.075, 0.10, 0.125, 0.15, 0.20)
 FIELDS = ("P", "estimate", "low", "high", "lower_bound", "closed", "r")
 
 
-def fit_record(r: dict, mode: str, rig_c: str, ratio_max: float = 7.0):
+def fit_record(r: dict, mode: str, rig_c: str, ratio_max: float = 7.0, knee: bool = False):
     """The fit of one record (None when it fits nothing); ``ratio_max``: the largest kA/kS
     of the family's Polach members (a shape prior; 7 is the estimator's default)."""
     from torquemod.friction import fit_available_adhesion, fit_available_adhesion_from_phase
     bounds = (0.3, ratio_max)
     if mode == "train":
         return fit_available_adhesion(r["coa"], r["y"], r["se"], probe=False,
-                                      speed_m_s=r["speed_m_s"], ratio_bounds=bounds)
+                                      speed_m_s=r["speed_m_s"], ratio_bounds=bounds,
+                                      knee=knee)
     return fit_available_adhesion_from_phase(
         r["coa"], r["y"], r["se"], constant=r["constant"] if rig_c == "given" else None,
         creepage_swing=r["swing"], probe=False, speed_m_s=r["speed_m_s"],
-        ratio_bounds=bounds)
+        ratio_bounds=bounds, knee=knee)
 
 
 def run_cell(task: tuple) -> tuple:
     """Fit ``trials`` records of one cell: (task, (n, 7) array of FIELDS, skipped)."""
-    law, mode, depth, noise, trials, rig_c, ratio_max = task
+    law, mode, depth, noise, trials, rig_c, ratio_max, knee = task
     rng = np.random.default_rng(zlib.crc32(repr((mode, law, depth, noise)).encode()))
     rows, skipped = [], 0
     for _ in range(trials):
         r = laws.record(law, rng, depth, mode=mode, noise=noise)
-        f = None if r is None else fit_record(r, mode, rig_c, ratio_max)
+        f = None if r is None else fit_record(r, mode, rig_c, ratio_max, knee)
         if f is None:
             skipped += 1
             continue
@@ -158,6 +159,8 @@ def main() -> None:
     ap.add_argument("--rig-c", choices=("given", "unknown"), default="given")
     ap.add_argument("--ratio-max", type=float, default=7.0,
                     help="largest kA/kS of the family's Polach members (default 7)")
+    ap.add_argument("--knee", action="store_true",
+                    help="also the family's knee members (Dugoff's law; off by default)")
     ap.add_argument("--threshold", type=float, default=None,
                     help="the half width rule of the cell table (default: the estimator's)")
     ap.add_argument("--workers", type=int, default=2)
@@ -176,7 +179,7 @@ def main() -> None:
     else:
         tasks = [(law, mode, depth, noise,
                   args.trials[0] if 0.8 <= depth <= 0.9 else args.trials[1], args.rig_c,
-                  args.ratio_max)
+                  args.ratio_max, args.knee)
                  for mode in args.modes for law in args.laws for depth in args.depths
                  for noise in args.noise]
         tasks.sort(key=lambda t: -t[4] * (4 if t[1] == "rig" else 1))  # long ones first

@@ -296,14 +296,14 @@ class AdhesionFit:
         }
 
 
-def _pairs(ratio_bounds, other_laws: bool) -> np.ndarray:
+def _pairs(ratio_bounds, other_laws: bool, knee: bool = False) -> np.ndarray:
     """The neighbour pairs (:func:`torquemod.creeplaws.neighbour_pairs`) whose Polach members
     have kA/kS within ``ratio_bounds`` (widened to the grid values that bracket it, so that
     the pairs' mixtures cover it), and, without ``other_laws``, Polach members only."""
     pairs = neighbour_pairs()
     members = family_tables().members
     lo, hi = (float(b) for b in ratio_bounds)
-    if lo <= R_GRID[0] and hi >= R_GRID[-1] and other_laws:
+    if lo <= R_GRID[0] and hi >= R_GRID[-1] and other_laws and knee:
         return pairs
     lo_g = R_GRID[max(np.searchsorted(R_GRID, lo * (1 + 1e-9), side="right") - 1, 0)]
     hi_g = R_GRID[min(np.searchsorted(R_GRID, hi * (1 - 1e-9)), R_GRID.size - 1)]
@@ -316,6 +316,8 @@ def _pairs(ratio_bounds, other_laws: bool) -> np.ndarray:
             hi_m = hi_g if m.law == "polach" else R_GRID_FALLING[min(np.searchsorted(
                 R_GRID_FALLING, hi * (1 - 1e-9)), R_GRID_FALLING.size - 1)]
             return lo_m * (1 - 1e-9) <= r <= hi_m * (1 + 1e-9)
+        if m.law == "knee":
+            return other_laws and knee
         return other_laws
 
     ok = np.array([keep(m) for m in members])
@@ -336,8 +338,8 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
                            max_rel_half_width: float = MAX_REL_HALF_WIDTH, p_span: float = 20.0,
                            scale_by_chi2: bool = True, probe: bool = True,
                            min_points: int = 4, ratio_bounds: tuple = (0.3, 7.0),
-                           other_laws: bool = True, speed_m_s: float | None = None
-                           ) -> AdhesionFit | None:
+                           other_laws: bool = True, speed_m_s: float | None = None,
+                           knee: bool = False) -> AdhesionFit | None:
     """The available adhesion P from creep coefficients ``k`` [-] (or any fixed multiple of
     them: the phase fit passes ``cot(phi) = k/C``) with standard errors ``k_se`` at utilised
     adhesions ``coa`` [-] (module docstring). ``coa_se`` [-]: the CoA's standard errors;
@@ -350,8 +352,10 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
     ``speed_m_s``: the rolling speed V [m/s]; with it (and k0 in absolute units: creep
     coefficients, or phases with C given) a falling-friction member counts only where its
     fall ``exp(-B*xi*V)`` needs B <= :data:`B_MAX_S_M` (at a rig's few km/h the slip
-    velocity stays far too small for friction to fall much). None when fewer than
-    ``min_points`` usable points remain."""
+    velocity stays far too small for friction to fall much). ``knee``: also the members
+    linear up to a knee (Dugoff's law; off by default: they cover Dugoff's law but leave
+    Burckhardt's on-board segments undetermined). None when fewer than ``min_points``
+    usable points remain."""
     coa = np.abs(_as_points("coa", coa, None))
     n = coa.size
     y = _as_points("k", k, n)
@@ -367,7 +371,7 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
     c_se = np.hypot(c_se, model_rel_coa * coa)
     c_max = float(coa.max())
     tabs = family_tables(bool(np.any(amp > 0)))
-    pairs = _pairs(ratio_bounds, other_laws)
+    pairs = _pairs(ratio_bounds, other_laws, knee)
     p_grid = _p_grid(c_max, p_span)
     with np.errstate(over="ignore", invalid="ignore"):
         bmax_v = B_MAX_S_M * float(speed_m_s) if speed_m_s else 0.0
@@ -376,7 +380,7 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
     p_grid = p_grid[cols]
     return _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max,
                       model_rel_error, max_rel_half_width, scale_by_chi2, probe, c_se, amp,
-                      constant, p_span, ratio_bounds, other_laws, speed_m_s)
+                      constant, p_span, ratio_bounds, other_laws, speed_m_s, knee)
 
 
 def _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_rel, bmax_v=0.0):
@@ -453,7 +457,7 @@ def _vertex(profile: np.ndarray, j: int) -> float:
 
 def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_rel, max_rel,
                scale_by_chi2, probe, c_se, amp, constant, p_span, ratio_bounds,
-               other_laws, speed_m_s) -> AdhesionFit | None:
+               other_laws, speed_m_s, knee=False) -> AdhesionFit | None:
     prof = chi.min(axis=0)
     if not np.isfinite(prof).any():
         return None
@@ -509,7 +513,7 @@ def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_r
     depth = math.nan
     if probe and not determined:
         depth = _probe_depth(best_s, est, k0, coa, y, se, c_se, amp, constant, model_rel,
-                             max_rel, p_span, ratio_bounds, other_laws, speed_m_s)
+                             max_rel, p_span, ratio_bounds, other_laws, speed_m_s, knee)
     return AdhesionFit(
         estimate=est, low=low, high=high, lower_bound=lower, determined=determined,
         closed=closed, mu0=mu0, mu0_low=mu0_low, mu0_high=mu0_high, mu0_identified=mu0_ok,
@@ -519,7 +523,7 @@ def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_r
 
 
 def _probe_depth(best_s, est, k0, coa, y, se, c_se, amp, constant, model_rel, max_rel,
-                 p_span, ratio_bounds, other_laws, speed_m_s) -> float:
+                 p_span, ratio_bounds, other_laws, speed_m_s, knee=False) -> float:
     """The smallest of :data:`PROBE_DEPTHS` beyond the present one at which one more point on
     the best-fitting curve (its relative error the median of the present points') makes P
     determined; NaN when none does."""
@@ -537,7 +541,8 @@ def _probe_depth(best_s, est, k0, coa, y, se, c_se, amp, constant, model_rel, ma
             swing=np.append(amp, 0.0) if np.any(amp > 0) else None, constant=constant,
             model_rel_error=model_rel, model_rel_coa=0.0,
             max_rel_half_width=max_rel, p_span=p_span, probe=False,
-            ratio_bounds=ratio_bounds, other_laws=other_laws, speed_m_s=speed_m_s)
+            ratio_bounds=ratio_bounds, other_laws=other_laws, speed_m_s=speed_m_s,
+            knee=knee)
         if fit is not None and fit.determined:
             return float(d)
     return math.nan
@@ -550,7 +555,7 @@ def fit_available_adhesion_from_phase(coa, phase_deg, phase_se_deg, *, constant=
                                       max_rel_half_width: float = MAX_REL_HALF_WIDTH,
                                       scale_by_chi2: bool = True, probe: bool = True,
                                       ratio_bounds: tuple = (0.3, 7.0),
-                                      speed_m_s: float | None = None
+                                      speed_m_s: float | None = None, knee: bool = False
                                       ) -> AdhesionFit | None:
     """P from the phases of the wheel speed behind the torque, ``tan(phi) = C/k`` (V-Track
     paper Eq. 1): :func:`fit_available_adhesion` on ``y = cot(phi) = k/C`` with standard
@@ -568,4 +573,5 @@ def fit_available_adhesion_from_phase(coa, phase_deg, phase_se_deg, *, constant=
                                   model_rel_coa=model_rel_coa,
                                   max_rel_half_width=max_rel_half_width,
                                   scale_by_chi2=scale_by_chi2, probe=probe,
-                                  ratio_bounds=ratio_bounds, speed_m_s=speed_m_s)
+                                  ratio_bounds=ratio_bounds, speed_m_s=speed_m_s,
+                                  knee=knee)
