@@ -23,7 +23,10 @@ Laws (ranges):
 * ``magic``: Pacejka's magic formula ``D*sin(Cm*atan(B*xi - E*(B*xi - atan(B*xi))))``,
   Cm in 1.2..1.9, E in -1..0.5 (not a member of the estimator's family);
 * ``dugoff``: Dugoff, Fancher and Segel (1970): linear ``k0*xi`` up to half the friction,
-  then ``mu*(1 - mu/(4*k0*xi))`` (not a member either: a kink, slope constant at first).
+  then ``mu*(1 - mu/(4*k0*xi))`` (a kink, slope constant at first; the estimator's family
+  has held this shape since it was found to miss it);
+* ``hyperbolic``: ``mu*z/(1 + z)`` with ``z = k0*xi/mu``: a smooth saturation whose slope
+  falls as ``(1 - u)^2`` from the start (not a member of the estimator's family).
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ import math
 import numpy as np
 
 LAWS = ("polach", "polach_falling", "burckhardt", "exponential", "tanh", "she", "magic",
-        "dugoff")
+        "dugoff", "hyperbolic")
 
 # the rig: V-Track-like (N, R, V, f, J, modulation amplitude); C = Omega*J*V/(R^2*N)
 RIG = {"load_n": 4200.0, "radius_m": 0.0675, "speed_m_s": 1.944, "freq_hz": 2.0,
@@ -106,6 +109,11 @@ def draw_law(name: str, rng: np.random.Generator, *, speed_m_s: float):
             return np.sign(xi) * np.where(lin <= mu / 2, lin,
                                           mu * (1 - mu / (4 * np.maximum(lin, 1e-300))))
         return dugoff, ""
+    if name == "hyperbolic":
+        def hyperbolic(xi):
+            z = k0 * np.abs(np.asarray(xi, float)) / mu
+            return np.sign(xi) * mu * z / (1 + z)
+        return hyperbolic, ""
     raise ValueError(name)
 
 

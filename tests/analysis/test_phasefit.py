@@ -223,3 +223,30 @@ def test_bad_input():
     coa, phase, _ = truth(0.25, DRY, 100.0, 0.8)
     fit = fit_mu_from_phase(np.r_[coa, 0.1], np.r_[phase, np.nan], np.full(7, 0.1))
     assert fit.coa.size == 6
+
+
+def test_rig_without_forces_or_inertia():
+    """The small version of benchmarks/mu_from_phase.py: Polach's dry set (kA/kS = 2.5,
+    mu = 0.3) on the independent rig (tests/independent_rig.py: motor, elastic shaft, wheel
+    on a platform, DOP853; it shares nothing with the estimator), six steps to 90 % of the
+    available adhesion, the phase by that module's reference definition, the creepage swing
+    from the wheel speed's amplitude, CoA from the DC torque; no forces, C not given, phases
+    stated with 0.3 deg. Determined, within 3 % (the target for such recordings) and the
+    truth inside the interval."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import mu_from_phase as bench
+
+    import independent_rig as ir
+    from torquemod.friction import fit_available_adhesion_from_phase
+
+    rig = ir.OrbitRig(mu=0.3, k_a=1.0, k_s=0.4)
+    case = bench.simulate_case(rig, 0.9)
+    fit = fit_available_adhesion_from_phase(case["coa"], case["phase"], np.full(6, 0.3),
+                                            creepage_swing=case["swing"],
+                                            speed_m_s=rig.speed_m_s, probe=False)
+    assert case["P"] == pytest.approx(0.3)
+    assert fit.determined and fit.low <= case["P"] <= fit.high
+    assert fit.estimate == pytest.approx(case["P"], rel=0.03)

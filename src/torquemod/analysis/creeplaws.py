@@ -42,6 +42,17 @@ Members (the ranges and where they come from)
     exponential approach ``1 - exp(-x)`` (Burckhardt with d = 0), ``p = 2, q = 1`` is
     ``tanh``, ``q = 1/2`` Carter's two-dimensional rolling-contact law, ``q = 2/3`` the
     Vermeulen-Johnson/Shen-Hedrick-Elkins cubic. p from 0.7 to 4, q from 0.5 to 1.5.
+``knee``
+    Linear up to a knee, then saturating: the brush model with uniform pressure (Dugoff,
+    Fancher and Segel 1970) keeps the initial slope up to half its friction and then follows
+    ``F = 1 - 1/(4x)``; generalised to a knee at ``u = kappa``:
+    ``s(u) = 1`` up to kappa, ``((1 - u)/(1 - kappa))^2`` beyond, i.e.
+    ``F(x) = 1 - (1 - kappa)^2/(1 - 2*kappa + x)`` for ``x >= kappa``. kappa from 0.2 to 0.7
+    (Dugoff's law: 0.5). No rail law of the list
+    above keeps its slope that long; the member is there so that curves with a sharp
+    transition to saturation widen the interval instead of being fitted by a smooth member
+    that peaks just above the points. The estimator searches it only when asked
+    (``knee=True`` in :mod:`torquemod.friction`).
 
 Nothing here knows how a test curve was made: the estimator's coverage on laws outside this
 family is measured by ``benchmarks/friction_coverage.py`` with generators written apart.
@@ -85,15 +96,17 @@ BETA_GRID = np.geomspace(1e-4, 4.0, 10)
 D_GRID = (0.003, 0.01, 0.03, 0.1, 0.3)
 P_GRID = np.geomspace(0.7, 4.0, 9)
 Q_GRID = (0.5, 2.0 / 3.0, 0.8, 1.0, 1.25, 1.5)
+KAPPA_GRID = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7)
 
 #: the member laws' names
-FAMILY = ("polach", "polach_falling", "burckhardt", "saturation")
+FAMILY = ("polach", "polach_falling", "burckhardt", "saturation", "knee")
 
 
 @dataclass(frozen=True)
 class Member:
     """One curve of the family: its law and parameters (``polach``: (r,);
-    ``polach_falling``: (r, A, beta); ``burckhardt``: (d,); ``saturation``: (p, q))."""
+    ``polach_falling``: (r, A, beta); ``burckhardt``: (d,); ``saturation``: (p, q);
+    ``knee``: (kappa,))."""
 
     law: str
     params: tuple
@@ -106,6 +119,7 @@ def family() -> tuple[Member, ...]:
             for a in A_GRID for b in BETA_GRID for r in R_GRID_FALLING]
     out += [Member("burckhardt", (d,)) for d in D_GRID]
     out += [Member("saturation", (float(p), q)) for q in Q_GRID for p in P_GRID]
+    out += [Member("knee", (k,)) for k in KAPPA_GRID]
     return tuple(out)
 
 
@@ -113,9 +127,9 @@ def family() -> tuple[Member, ...]:
 def neighbour_pairs() -> np.ndarray:
     """(K, 2) indices of the members that are neighbours on one parameter's grid (r of
     ``polach``; r, A and beta of ``polach_falling``; d of ``burckhardt``; p and q of
-    ``saturation``). The estimator fits every non-negative mixture ``(alpha*s_a +
-    beta*s_b)/(alpha + beta)`` of a pair: itself a valid curve (s falls from 1 to 0), so the
-    family is continuous along those grids instead of stepping with them."""
+    ``saturation``; kappa of ``knee``). The estimator fits every non-negative mixture
+    ``(alpha*s_a + beta*s_b)/(alpha + beta)`` of a pair: itself a valid curve (s falls from 1
+    to 0), so the family is continuous along those grids instead of stepping with them."""
     members = family()
     index = {(m.law, m.params): i for i, m in enumerate(members)}
     pairs = []
@@ -138,6 +152,7 @@ def neighbour_pairs() -> np.ndarray:
         link("saturation", [(float(p), q) for p in P_GRID])
     for p in P_GRID:
         link("saturation", [(float(p), q) for q in Q_GRID])
+    link("knee", [(k,) for k in KAPPA_GRID])
     return np.array(pairs, dtype=np.int64)
 
 
@@ -172,6 +187,10 @@ def member_curve(m: Member, x: np.ndarray | None = None) -> tuple[np.ndarray, np
     if m.law == "burckhardt":
         d = m.params[0]
         return x, (1.0 + d) * (1.0 - np.exp(-x)) - d * x
+    if m.law == "knee":
+        kappa = m.params[0]
+        tail = 1.0 - (1.0 - kappa) ** 2 / (1.0 - 2.0 * kappa + np.maximum(x, kappa))
+        return x, np.where(x <= kappa, x, tail)
     return _saturation_curve(m.params[0], m.params[1], float(x[-1]))
 
 

@@ -5,8 +5,7 @@ Estimand
 --------
 The **available adhesion** ``P``: the maximum of the adhesion-creepage curve at the operating
 speed, what limits traction and braking, defined for every creep law. Written in its
-utilisation ``u = CoA/P`` every law of :mod:`torquemod.analysis.creeplaws` gives the creep
-coefficient
+utilisation ``u = CoA/P`` every law of :mod:`torquemod.creeplaws` gives the creep coefficient
 on its rising branch as ``k(CoA) = k0*s(CoA/P; theta)`` with ``s(0) = 1``, ``s(1) = 0``. The
 law's own friction coefficient ``mu0`` (``P/F_pk``) is secondary: reported only where the
 fits that the data allow agree on it.
@@ -20,8 +19,7 @@ Observations
   (:func:`fit_available_adhesion_from_phase`).
 
 Large modulations swing the creepage by ``a_i``; the wheel then sees the describing-function
-slope about the mean point (tables in :mod:`torquemod.analysis.creeplaws`), whose size in reduced
-units
+slope about the mean point (tables in :mod:`torquemod.creeplaws`), whose size in reduced units
 ``a_i*k0/mu0`` needs k0: from ``C`` times the fitted ``k0/C`` when C is given, else profiled
 over a grid of k0.
 
@@ -55,7 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from torquemod.analysis.creeplaws import (
+from .creeplaws import (
     N_U,
     N_U_SWING,
     R_GRID,
@@ -64,10 +62,10 @@ from torquemod.analysis.creeplaws import (
     family_tables,
     neighbour_pairs,
 )
-from torquemod.errors import InputError
+from .errors import InputError
 
-__all__ = ["CHI2_95", "MODEL_REL_ERROR", "AdhesionFit", "fit_available_adhesion",
-           "fit_available_adhesion_from_phase"]
+__all__ = ["CHI2_95", "MAX_REL_HALF_WIDTH", "MODEL_REL_ERROR", "AdhesionFit",
+           "fit_available_adhesion", "fit_available_adhesion_from_phase"]
 
 #: chi-square quantile of one degree of freedom at 95 %
 CHI2_95 = 3.841458820694124
@@ -84,18 +82,25 @@ MODEL_REL_COA = 0.01
 #: the largest B of Polach's falling friction [s/m] (Polach 2005: 0.2 wet, 0.6 dry; a fit
 #: to the Engel-Beck-Alders locomotive curve: 0.8)
 B_MAX_S_M = 1.0
+#: the widest half interval, as a fraction of the estimate, that counts as determined (the
+#: trade-off against the share determined and the error: ``benchmarks/friction_coverage.py``)
+MAX_REL_HALF_WIDTH = 0.10
 #: the probe depths (utilisation of the deepest point) tried when P is not determined
 PROBE_DEPTHS = (0.7, 0.8, 0.86, 0.9, 0.95)
 #: k0 values [-] profiled when the swing is given without C
 K0_GRID = np.geomspace(3.0, 3000.0, 19)
 
 
-def _p_grid(c_max: float, p_span: float, dz: float = 0.015) -> np.ndarray:
-    """Trial P on a grid uniform in ``z = ln(P/c_max - 1)`` from 1e-4 to ``p_span - 1``:
-    the relative step ``(1 - c_max/P)*dz`` follows how sharply the points near the peak
-    fix P (the slope there changes by ~dz/(1 - u) per step)."""
-    z = np.arange(np.log(1e-4), np.log(max(p_span, 1.5) - 1.0) + dz, dz)
-    return c_max * (1.0 + np.exp(z))
+def _p_grid(c_max: float, p_span: float, dz: float = 0.015, z_fine: float = 0.02,
+            n_near: int = 40) -> np.ndarray:
+    """Trial P on a grid uniform in ``z = ln(P/c_max - 1)`` from ``z_fine`` to
+    ``p_span - 1``: the relative step ``(1 - c_max/P)*dz`` follows how sharply the points
+    near the peak fix P (the slope there changes by ~dz/(1 - u) per step); below
+    ``z_fine`` (the top point within 2 % of the peak) ``n_near`` steps, geometric in
+    ``P/c_max - 1`` down to 1e-4, keep the relative step under 0.3 %."""
+    near = np.geomspace(1e-4, z_fine, n_near + 1)[:-1]
+    z = np.arange(np.log(z_fine), np.log(max(p_span, 1.5) - 1.0) + dz, dz)
+    return c_max * (1.0 + np.r_[near, np.exp(z)])
 
 
 @njit(cache=True, nogil=True)
@@ -291,15 +296,14 @@ class AdhesionFit:
         }
 
 
-def _pairs(ratio_bounds, other_laws: bool) -> np.ndarray:
-    """The neighbour pairs (:func:`torquemod.analysis.creeplaws.neighbour_pairs`) whose Polach
-    members
+def _pairs(ratio_bounds, other_laws: bool, knee: bool = False) -> np.ndarray:
+    """The neighbour pairs (:func:`torquemod.creeplaws.neighbour_pairs`) whose Polach members
     have kA/kS within ``ratio_bounds`` (widened to the grid values that bracket it, so that
     the pairs' mixtures cover it), and, without ``other_laws``, Polach members only."""
     pairs = neighbour_pairs()
     members = family_tables().members
     lo, hi = (float(b) for b in ratio_bounds)
-    if lo <= R_GRID[0] and hi >= R_GRID[-1] and other_laws:
+    if lo <= R_GRID[0] and hi >= R_GRID[-1] and other_laws and knee:
         return pairs
     lo_g = R_GRID[max(np.searchsorted(R_GRID, lo * (1 + 1e-9), side="right") - 1, 0)]
     hi_g = R_GRID[min(np.searchsorted(R_GRID, hi * (1 - 1e-9)), R_GRID.size - 1)]
@@ -312,6 +316,8 @@ def _pairs(ratio_bounds, other_laws: bool) -> np.ndarray:
             hi_m = hi_g if m.law == "polach" else R_GRID_FALLING[min(np.searchsorted(
                 R_GRID_FALLING, hi * (1 - 1e-9)), R_GRID_FALLING.size - 1)]
             return lo_m * (1 - 1e-9) <= r <= hi_m * (1 + 1e-9)
+        if m.law == "knee":
+            return other_laws and knee
         return other_laws
 
     ok = np.array([keep(m) for m in members])
@@ -329,11 +335,11 @@ def _as_points(name: str, x, n: int | None) -> np.ndarray:
 def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.0,
                            model_rel_error: float = MODEL_REL_ERROR,
                            model_rel_coa: float = MODEL_REL_COA,
-                           max_rel_half_width: float = 0.10, p_span: float = 20.0,
+                           max_rel_half_width: float = MAX_REL_HALF_WIDTH, p_span: float = 20.0,
                            scale_by_chi2: bool = True, probe: bool = True,
                            min_points: int = 4, ratio_bounds: tuple = (0.3, 7.0),
-                           other_laws: bool = True, speed_m_s: float | None = None
-                           ) -> AdhesionFit | None:
+                           other_laws: bool = True, speed_m_s: float | None = None,
+                           knee: bool = False) -> AdhesionFit | None:
     """The available adhesion P from creep coefficients ``k`` [-] (or any fixed multiple of
     them: the phase fit passes ``cot(phi) = k/C``) with standard errors ``k_se`` at utilised
     adhesions ``coa`` [-] (module docstring). ``coa_se`` [-]: the CoA's standard errors;
@@ -346,8 +352,10 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
     ``speed_m_s``: the rolling speed V [m/s]; with it (and k0 in absolute units: creep
     coefficients, or phases with C given) a falling-friction member counts only where its
     fall ``exp(-B*xi*V)`` needs B <= :data:`B_MAX_S_M` (at a rig's few km/h the slip
-    velocity stays far too small for friction to fall much). None when fewer than
-    ``min_points`` usable points remain."""
+    velocity stays far too small for friction to fall much). ``knee``: also the members
+    linear up to a knee (Dugoff's law; off by default: they cover Dugoff's law but leave
+    Burckhardt's on-board segments undetermined). None when fewer than ``min_points``
+    usable points remain."""
     coa = np.abs(_as_points("coa", coa, None))
     n = coa.size
     y = _as_points("k", k, n)
@@ -363,7 +371,7 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
     c_se = np.hypot(c_se, model_rel_coa * coa)
     c_max = float(coa.max())
     tabs = family_tables(bool(np.any(amp > 0)))
-    pairs = _pairs(ratio_bounds, other_laws)
+    pairs = _pairs(ratio_bounds, other_laws, knee)
     p_grid = _p_grid(c_max, p_span)
     with np.errstate(over="ignore", invalid="ignore"):
         bmax_v = B_MAX_S_M * float(speed_m_s) if speed_m_s else 0.0
@@ -372,7 +380,7 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
     p_grid = p_grid[cols]
     return _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max,
                       model_rel_error, max_rel_half_width, scale_by_chi2, probe, c_se, amp,
-                      constant, p_span, ratio_bounds, other_laws, speed_m_s)
+                      constant, p_span, ratio_bounds, other_laws, speed_m_s, knee)
 
 
 def _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_rel, bmax_v=0.0):
@@ -449,7 +457,7 @@ def _vertex(profile: np.ndarray, j: int) -> float:
 
 def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_rel, max_rel,
                scale_by_chi2, probe, c_se, amp, constant, p_span, ratio_bounds,
-               other_laws, speed_m_s) -> AdhesionFit | None:
+               other_laws, speed_m_s, knee=False) -> AdhesionFit | None:
     prof = chi.min(axis=0)
     if not np.isfinite(prof).any():
         return None
@@ -505,7 +513,7 @@ def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_r
     depth = math.nan
     if probe and not determined:
         depth = _probe_depth(best_s, est, k0, coa, y, se, c_se, amp, constant, model_rel,
-                             max_rel, p_span, ratio_bounds, other_laws, speed_m_s)
+                             max_rel, p_span, ratio_bounds, other_laws, speed_m_s, knee)
     return AdhesionFit(
         estimate=est, low=low, high=high, lower_bound=lower, determined=determined,
         closed=closed, mu0=mu0, mu0_low=mu0_low, mu0_high=mu0_high, mu0_identified=mu0_ok,
@@ -515,7 +523,7 @@ def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_r
 
 
 def _probe_depth(best_s, est, k0, coa, y, se, c_se, amp, constant, model_rel, max_rel,
-                 p_span, ratio_bounds, other_laws, speed_m_s) -> float:
+                 p_span, ratio_bounds, other_laws, speed_m_s, knee=False) -> float:
     """The smallest of :data:`PROBE_DEPTHS` beyond the present one at which one more point on
     the best-fitting curve (its relative error the median of the present points') makes P
     determined; NaN when none does."""
@@ -533,7 +541,8 @@ def _probe_depth(best_s, est, k0, coa, y, se, c_se, amp, constant, model_rel, ma
             swing=np.append(amp, 0.0) if np.any(amp > 0) else None, constant=constant,
             model_rel_error=model_rel, model_rel_coa=0.0,
             max_rel_half_width=max_rel, p_span=p_span, probe=False,
-            ratio_bounds=ratio_bounds, other_laws=other_laws, speed_m_s=speed_m_s)
+            ratio_bounds=ratio_bounds, other_laws=other_laws, speed_m_s=speed_m_s,
+            knee=knee)
         if fit is not None and fit.determined:
             return float(d)
     return math.nan
@@ -543,10 +552,10 @@ def fit_available_adhesion_from_phase(coa, phase_deg, phase_se_deg, *, constant=
                                       creepage_swing=None, coa_se=None,
                                       model_rel_error: float = MODEL_REL_ERROR,
                                       model_rel_coa: float = MODEL_REL_COA,
-                                      max_rel_half_width: float = 0.10,
+                                      max_rel_half_width: float = MAX_REL_HALF_WIDTH,
                                       scale_by_chi2: bool = True, probe: bool = True,
                                       ratio_bounds: tuple = (0.3, 7.0),
-                                      speed_m_s: float | None = None
+                                      speed_m_s: float | None = None, knee: bool = False
                                       ) -> AdhesionFit | None:
     """P from the phases of the wheel speed behind the torque, ``tan(phi) = C/k`` (V-Track
     paper Eq. 1): :func:`fit_available_adhesion` on ``y = cot(phi) = k/C`` with standard
@@ -564,4 +573,5 @@ def fit_available_adhesion_from_phase(coa, phase_deg, phase_se_deg, *, constant=
                                   model_rel_coa=model_rel_coa,
                                   max_rel_half_width=max_rel_half_width,
                                   scale_by_chi2=scale_by_chi2, probe=probe,
-                                  ratio_bounds=ratio_bounds, speed_m_s=speed_m_s)
+                                  ratio_bounds=ratio_bounds, speed_m_s=speed_m_s,
+                                  knee=knee)
