@@ -46,7 +46,10 @@ FIELDS = ("P", "estimate", "low", "high", "lower_bound", "closed", "r")
 def fit_record(r: dict, mode: str, rig_c: str, ratio_max: float = 7.0, knee: bool = False):
     """The fit of one record (None when it fits nothing); ``ratio_max``: the largest kA/kS
     of the family's Polach members (a shape prior; 7 is the estimator's default)."""
-    from torquemod.friction import fit_available_adhesion, fit_available_adhesion_from_phase
+    from torquemod.analysis.friction import (
+        fit_available_adhesion,
+        fit_available_adhesion_from_phase,
+    )
     bounds = (0.3, ratio_max)
     if mode == "train":
         return fit_available_adhesion(r["coa"], r["y"], r["se"], probe=False,
@@ -167,7 +170,7 @@ def main() -> None:
     ap.add_argument("--save", default=None, help="keep the raw results (.npz)")
     ap.add_argument("--load", default=None, help="tabulate saved raw results, no fitting")
     args = ap.parse_args()
-    from torquemod.friction import MAX_REL_HALF_WIDTH, MODEL_REL_COA, MODEL_REL_ERROR
+    from torquemod.analysis.friction import MAX_REL_HALF_WIDTH, MODEL_REL_COA, MODEL_REL_ERROR
     thr = MAX_REL_HALF_WIDTH if args.threshold is None else args.threshold
     t0 = time.perf_counter()
     results: dict = {}

@@ -29,7 +29,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import independent_rig as ir
-from torquemod.friction import fit_available_adhesion_from_phase
+from torquemod.analysis.friction import fit_available_adhesion_from_phase
 
 FRACTIONS = np.array([0.0035, 0.35, 0.68, 0.84, 0.92, 1.0])
 #: (name, kA, kS): Polach's dry and wet sets (kA/kS 2.5 and 3), kA = kS (the independent

@@ -1,4 +1,4 @@
-"""The one estimator of the available adhesion (torquemod.friction): its compiled kernel
+"""The one estimator of the available adhesion (torquemod.analysis.friction): its compiled kernel
 against the array formula and an NNLS solver, its swing tables against the library's own
 describing function, recovery and honesty on curves made by code apart from it
 (benchmarks/_independent_laws.py), and the named outputs."""
@@ -14,9 +14,14 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq, nnls
 
-from torquemod.contact.polach import adhesion_curve, adhesion_slope, swing_average, swing_slope
-from torquemod.creeplaws import KAPPA_GRID, SWING_A, family, family_tables
-from torquemod.friction import (
+from torquemod.analysis.contact.polach import (
+    adhesion_curve,
+    adhesion_slope,
+    swing_average,
+    swing_slope,
+)
+from torquemod.analysis.creeplaws import KAPPA_GRID, SWING_A, family, family_tables
+from torquemod.analysis.friction import (
     CHI2_95,
     MODEL_REL_ERROR,
     PROBE_DEPTHS,
@@ -25,7 +30,7 @@ from torquemod.friction import (
     fit_available_adhesion_from_phase,
 )
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import _independent_laws as laws
 
 
@@ -59,7 +64,8 @@ def test_kernel_equals_nonnegative_least_squares():
 def test_swing_table_matches_the_library_describing_function():
     """The tabulated describing-function slope of the constant-friction Polach member (kA/kS
     = 2.5) at a mean CoA: against brentq on the library's 32-node swing average and
-    swing slope (torquemod.contact.polach), within 2e-3 of k0 (bilinear interpolation on the
+    swing slope (torquemod.analysis.contact.polach), within 2e-3 of k0 (bilinear interpolation on
+    the
     table's grid) for swings up to 0.7 in reduced units."""
     tabs = family_tables(swing=True)
     members = family()

@@ -236,11 +236,11 @@ def test_rig_without_forces_or_inertia():
     import sys
     from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
     import mu_from_phase as bench
 
     import independent_rig as ir
-    from torquemod.friction import fit_available_adhesion_from_phase
+    from torquemod.analysis.friction import fit_available_adhesion_from_phase
 
     rig = ir.OrbitRig(mu=0.3, k_a=1.0, k_s=0.4)
     case = bench.simulate_case(rig, 0.9)

@@ -118,9 +118,9 @@ def _fleet(work: Path) -> dict:
     from torquemod.testing import write_synthetic_experiment
 
     try:
-        from torquemod.fleet import run_fleet
-    except ImportError:  # after the relayout
-        from torquemod.fleet.fleet import run_fleet
+        from torquemod.fleet.run import run_fleet  # packages by stage
+    except ImportError:  # the flat layout before (relayout: keep)
+        from torquemod.fleet import run_fleet  # relayout: keep
     root = work / "fleet_in"
     for k, name in enumerate(("axle1", "axle2")):
         write_synthetic_experiment(root / name, n_steps=2, n_cycles=1, fmt="hdf5", seed=k)

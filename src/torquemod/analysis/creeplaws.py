@@ -52,7 +52,7 @@ Members (the ranges and where they come from)
     above keeps its slope that long; the member is there so that curves with a sharp
     transition to saturation widen the interval instead of being fitted by a smooth member
     that peaks just above the points. The estimator searches it only when asked
-    (``knee=True`` in :mod:`torquemod.friction`).
+    (``knee=True`` in :mod:`torquemod.analysis.friction`).
 
 Nothing here knows how a test curve was made: the estimator's coverage on laws outside this
 family is measured by ``benchmarks/friction_coverage.py`` with generators written apart.

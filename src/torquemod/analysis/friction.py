@@ -5,7 +5,8 @@ Estimand
 --------
 The **available adhesion** ``P``: the maximum of the adhesion-creepage curve at the operating
 speed, what limits traction and braking, defined for every creep law. Written in its
-utilisation ``u = CoA/P`` every law of :mod:`torquemod.creeplaws` gives the creep coefficient
+utilisation ``u = CoA/P`` every law of :mod:`torquemod.analysis.creeplaws` gives the creep
+coefficient
 on its rising branch as ``k(CoA) = k0*s(CoA/P; theta)`` with ``s(0) = 1``, ``s(1) = 0``. The
 law's own friction coefficient ``mu0`` (``P/F_pk``) is secondary: reported only where the
 fits that the data allow agree on it.
@@ -19,7 +20,8 @@ Observations
   (:func:`fit_available_adhesion_from_phase`).
 
 Large modulations swing the creepage by ``a_i``; the wheel then sees the describing-function
-slope about the mean point (tables in :mod:`torquemod.creeplaws`), whose size in reduced units
+slope about the mean point (tables in :mod:`torquemod.analysis.creeplaws`), whose size in reduced
+units
 ``a_i*k0/mu0`` needs k0: from ``C`` times the fitted ``k0/C`` when C is given, else profiled
 over a grid of k0.
 
@@ -53,7 +55,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from .creeplaws import (
+from torquemod.analysis.creeplaws import (
     N_U,
     N_U_SWING,
     R_GRID,
@@ -62,7 +64,7 @@ from .creeplaws import (
     family_tables,
     neighbour_pairs,
 )
-from .errors import InputError
+from torquemod.errors import InputError
 
 __all__ = ["CHI2_95", "MAX_REL_HALF_WIDTH", "MODEL_REL_ERROR", "AdhesionFit",
            "fit_available_adhesion", "fit_available_adhesion_from_phase"]
@@ -297,7 +299,8 @@ class AdhesionFit:
 
 
 def _pairs(ratio_bounds, other_laws: bool, knee: bool = False) -> np.ndarray:
-    """The neighbour pairs (:func:`torquemod.creeplaws.neighbour_pairs`) whose Polach members
+    """The neighbour pairs (:func:`torquemod.analysis.creeplaws.neighbour_pairs`) whose Polach
+    members
     have kA/kS within ``ratio_bounds`` (widened to the grid values that bracket it, so that
     the pairs' mixtures cover it), and, without ``other_laws``, Polach members only."""
     pairs = neighbour_pairs()
