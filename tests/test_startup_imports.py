@@ -26,3 +26,18 @@ def test_manifest_read_before_the_heavy_imports(tmp_path):
     from torquemod.processing.pipeline import process_experiment
     from torquemod.results.folder import save
     assert api.save is save and api.process_experiment is process_experiment
+
+
+def test_twin_config_checked_before_the_simulator_loads():
+    """``torquemod simulate`` checks its configuration (a bad file refused before any stage)
+    with the Hertz ellipse and Kalker's coefficients only: the compiled kernels (numba), the
+    large-signal theory's solvers and the writers load once the simulation stage has begun."""
+    code = ("import sys, json; from torquemod.twins.vtrack.simconfig import load_config; "
+            "cfg = load_config(); assert cfg.rig.contact.a_m > 0; "
+            "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules})))")
+    loaded = json.loads(subprocess.run([sys.executable, "-c", code], check=True,
+                                       capture_output=True, text=True).stdout)
+    assert not {"numba", "pandas", "matplotlib", "h5py", "pyarrow"} & set(loaded)
+    # the re-exported names are the configuration module's own
+    from torquemod.twins.vtrack import simconfig, simulate
+    assert simulate.load_config is simconfig.load_config

@@ -124,8 +124,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         sys.stdout.write(default_train_config_text())
         return 0
     if args.print_config:
-        from torquemod.twins.vtrack import simulate
-        sys.stdout.write(simulate.default_config_text())
+        from torquemod.twins.vtrack.simconfig import default_config_text
+        sys.stdout.write(default_config_text())
         return 0
     if args.out is None:
         raise UsageError("simulate needs --out DIR (or --print-config)")
@@ -133,11 +133,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     train = train_config(args)
     if train is not None:
         return cmd_simulate_train(args, train)
-    from torquemod.twins.vtrack import simulate
-    config = simulate.load_config(args.config)  # a bad config is one line, before any stage
+    from torquemod.twins.vtrack.simconfig import load_config
+    config = load_config(args.config)  # a bad config is one line, before any stage
     say = stage_printer(args)
     if say:
         say(COMPILE_NOTE)
+    from torquemod.twins.vtrack import simulate  # the simulator's stage has begun
     truth = simulate.run_simulation(config, Path(args.out), seed=args.seed, fmt=args.format,
                                     progress=not args.quiet, force=args.force)
     print(f"experiment written to {args.out}/experiment.toml")

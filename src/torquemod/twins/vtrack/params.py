@@ -181,3 +181,20 @@ class SimConfig:
     disturbances: DisturbanceParams = field(default_factory=DisturbanceParams)
     sensors: SensorParams = field(default_factory=SensorParams)
     procedure: ProcedureParams = field(default_factory=ProcedureParams)
+
+
+#: largest |lambda*h| accepted for the integrator (RK4 is stable to 2.78 on the real axis)
+MAX_LAMBDA_H = 2.0
+
+
+def stiffest_rate(rig: RigParams) -> float:
+    """Estimate [1/s] of the fastest eigenvalue of the twin's equations: the platform's PI
+    loop ``Kp/Jp``, the torsional mode ``sqrt(k/J) + c/J`` (``1/J = 1/Jm + 1/Jw``) or the
+    creep-force damping ``(Rw^2/Jw + Rp^2/Jp)*dFx/dxi/V`` at zero creepage."""
+    c = rig.contact
+    inv_j = 1.0 / rig.drive_inertia_kg_m2 + 1.0 / rig.wheel_inertia_kg_m2
+    torsion = math.sqrt(rig.shaft_stiffness_nm_rad * inv_j) + rig.shaft_damping_nm_s_rad * inv_j
+    kx = 2.0 * (c.k_a + c.k_s) * c.stiffness_x_n / math.pi  # dFx/dxi at 0, P05 Eq. (8)
+    contact = (rig.wheel_radius_m ** 2 / rig.wheel_inertia_kg_m2
+               + rig.platform_radius_m ** 2 / rig.platform_inertia_kg_m2) * kx / rig.speed_m_s
+    return max(rig.platform_kp_nm_s_rad / rig.platform_inertia_kg_m2, torsion, contact)
