@@ -37,7 +37,7 @@ reached. Against the decimator pass as it was before (3.0-3.1 ms) the chain now 
 Every change keeps the phase within 1.5e-9 deg and the creepage within 5e-15 of the code
 before (the benchmark's cycle, four other synthetic cycles, the 18-cycle demo experiment); the
 phase's standard error moves by up to 1e-5 relative (``noise_kept``, 1.4e-5, is that
-sensitive to rounding: see :meth:`torquemod.processing.chain.SpeedModel.noise_depletion`).
+sensitive to rounding: see :meth:`torquemod.processing.speedmodel.SpeedModel.noise_depletion`).
 The cold line is for cycles whose lengths all differ (per-revolution cycles): the Slepian basis
 (:func:`torquemod.dsp.filters.slow_basis`, 1.2 ms per new length, was 2.1) dominates it.
 
@@ -175,9 +175,12 @@ def chain_throughput(repeat: int = 7) -> None:
 
     # per-length caches (a cycle of a new length misses them); getattr: also runs on older
     # trees, for before/after comparisons
+    # (the speed model's caches were in chain.py before it was split)
+    speedmodel = sys.modules.get("torquemod.processing.speedmodel", chain)
     per_length = [getattr(mod, name) for mod, name in (
         (filters, "_slow_basis_cached"), (spectrum, "_window"), (spectrum, "_trend_design"),
-        (spectrum, "_grid"), (chain, "_hann"), (chain, "_hann_fourier")) if hasattr(mod, name)]
+        (spectrum, "_grid"), (speedmodel, "_hann"), (speedmodel, "_hann_fourier"))
+        if hasattr(mod, name)]
 
     def cold() -> None:  # every cycle of a new length: the per-length caches miss
         for cached in per_length:

@@ -17,7 +17,7 @@ from scipy.optimize import brentq
 
 import torquemod as tm
 from torquemod.analysis.creep import phase_from_constant_deg, theory_constant
-from torquemod.analysis.fit import polach_coa, polach_slope
+from torquemod.analysis.polachcurve import polach_coa, polach_slope
 from torquemod.io import write_manifest, write_recording
 from torquemod.testing import SyntheticSpec, synthetic_recording
 

@@ -21,7 +21,7 @@ import pandas as pd
 from scipy.optimize import brentq
 
 from torquemod.analysis.creep import phase_from_constant_deg, theory_constant
-from torquemod.analysis.fit import polach_coa, polach_slope
+from torquemod.analysis.polachcurve import polach_coa, polach_slope
 from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
 from torquemod.processing.pipeline import (
     CYCLE_COLUMNS,

@@ -241,7 +241,7 @@ def write_creep_experiment(folder, *, mu: float = 0.3, k_a: float = 1.0, k_s: fl
     determined when the steps reach ~90 % of saturation)."""
     from torquemod.analysis.contact.polach import swing_average, swing_slope
     from torquemod.analysis.creep import phase_from_constant_deg, theory_constant
-    from torquemod.analysis.fit import polach_coa, polach_slope
+    from torquemod.analysis.polachcurve import polach_coa, polach_slope
     from torquemod.io import write_manifest, write_recording
 
     folder = Path(folder)

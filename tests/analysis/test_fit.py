@@ -20,7 +20,8 @@ from torquemod.analysis.creep import (
     theory_constant,
     time_constant_s,
 )
-from torquemod.analysis.fit import fit_polach, polach_coa, polach_slope
+from torquemod.analysis.fit import fit_polach
+from torquemod.analysis.polachcurve import polach_coa, polach_slope
 from torquemod.api import fit_results_folder
 from torquemod.demo import SYNTHETIC_TRUTH, write_synthetic_results
 from torquemod.errors import InputError

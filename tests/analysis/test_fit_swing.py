@@ -18,7 +18,8 @@ from scipy.integrate import quad
 from scipy.optimize import brentq
 
 from torquemod.analysis.contact.polach import adhesion_curve, swing_average
-from torquemod.analysis.fit import fit_polach, longitudinal_mean, polach_coa
+from torquemod.analysis.fit import fit_polach
+from torquemod.analysis.polachcurve import longitudinal_mean, polach_coa
 from torquemod.errors import InputError
 
 MU = 0.25

@@ -11,7 +11,7 @@ import pytest
 from scipy import optimize, signal
 
 from torquemod.dsp import filters, phase, spectrum
-from torquemod.processing import chain
+from torquemod.processing import speedmodel
 
 FS = 53.344
 
@@ -99,11 +99,11 @@ def test_model_statistics_reuse_the_fits_normal_matrix():
     n = 331
     slow = filters.slow_basis(n, FS, 1.2)
     orders = filters.order_design(2 * np.pi * 4.6 * np.arange(n) / FS, [1, 2])
-    model = chain.fit_speed_model({"a": _record(n, 7), "b": _record(n, 8)}, FS, 2.03, slow,
+    model = speedmodel.fit_speed_model({"a": _record(n, 7), "b": _record(n, 8)}, FS, 2.03, slow,
                                   orders)
     d = model.design
     np.testing.assert_array_equal(model.factor.dn, d / np.sqrt(np.einsum("ij,ij->j", d, d)))
-    bare = chain.SpeedModel(model.modulation_hz, model.fs_hz, d, model.n_slow, model.coef,
+    bare = speedmodel.SpeedModel(model.modulation_hz, model.fs_hz, d, model.n_slow, model.coef,
                             model.names)  # no factor: the model computes dn itself
     assert model.noise_depletion() == bare.noise_depletion()
     # the other columns' fit from the kept normal matrix (trailing) or from scratch: 1e-12
@@ -159,7 +159,7 @@ def test_variance_factor_against_the_qr_of_the_design():
     n = 331
     slow = filters.slow_basis(n, FS, 1.2)
     orders = filters.order_design(2 * np.pi * 4.6 * np.arange(n) / FS, [1, 2])
-    model = chain.fit_speed_model({"a": _record(n, 3)}, FS, 2.03, slow, orders)
+    model = speedmodel.fit_speed_model({"a": _record(n, 3)}, FS, 2.03, slow, orders)
     r_inv = np.linalg.inv(np.linalg.qr(model.design)[1])
     m = model.design[:, :2]
     ref = np.trace((r_inv @ r_inv.T)[:2, :2]) / np.trace(np.linalg.inv(m.T @ m))
@@ -192,9 +192,9 @@ def test_slow_orders_removal_is_the_speed_models_parts():
                          30 * (1 + 0.002 * np.sin(2 * np.pi * 0.3 * t)) + 0.05 * np.cos(
                              2 * np.pi * 4.6 * t) + 2e-3 * np.cos(2 * np.pi * 2.01 * t - 0.1)
                          + 2e-3 * rng.standard_normal(n)])
-    removal = chain._SlowOrdersRemoval(y, slow, orders, FS)
+    removal = speedmodel._SlowOrdersRemoval(y, slow, orders, FS)
     for f in (1.95, 2.0, 2.0137):
-        model = chain.fit_speed_model({"a": y[:, 0], "b": y[:, 1]}, FS, f, slow, orders)
+        model = speedmodel.fit_speed_model({"a": y[:, 0], "b": y[:, 1]}, FS, f, slow, orders)
         ref = np.column_stack([y[:, j] - model.part(k, "slow") - model.part(k, "orders")
                                for j, k in enumerate(("a", "b"))])
         q, r = np.linalg.qr(model.design)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from torquemod.dsp import filters
-from torquemod.processing import chain
+from torquemod.processing import chain, speedmodel, trackedorders
 
 FS = 53.344  # the chain's resampled rate for the V-Track recordings [Hz]
 N = 262  # one platform revolution at 8.5 km/h after the resampler's edges [samples]
@@ -38,11 +38,11 @@ def test_means_stay_put_when_an_order_sits_at_the_slow_bands_top(offset):
     slow = filters.slow_basis(N, FS, MAX_HZ)
     for seed in range(3):
         ch = _cycle(MAX_HZ * (1 + offset), seed)
-        orders, f_rot = chain.tracked_orders(ch["platform_speed_rad_s"], FS, slow, (1, 2),
+        orders, f_rot = trackedorders.tracked_orders(ch["platform_speed_rad_s"], FS, slow, (1, 2),
                                              above_hz=MAX_HZ, avoid_hz=F_MOD,
                                              modulation_hz=F_MOD)
         assert f_rot == pytest.approx(MAX_HZ * (1 + offset), rel=5e-3)
-        model = chain.fit_speed_model(ch, FS, F_MOD, slow, orders)
+        model = speedmodel.fit_speed_model(ch, FS, F_MOD, slow, orders)
         # 2 N: 7x the noise's standard error of the mean (5 N/sqrt(262)); the sleeper line
         # adds < 0.2 N over a fractional number of its periods
         assert model.mean("fz_n") == pytest.approx(4200.0, abs=2.0)
@@ -60,8 +60,8 @@ def test_noise_depletion_of_a_rank_deficient_design_is_that_of_its_span():
     # (SpeedModel.noise_depletion)
     slow = filters.slow_basis(N, FS, MAX_HZ)
     ch = _cycle(0.3, 0)
-    full = chain.fit_speed_model(ch, FS, F_MOD, slow, np.empty((N, 0)))
-    twice = chain.fit_speed_model(ch, FS, F_MOD, np.column_stack([slow, slow[:, -1]]),
+    full = speedmodel.fit_speed_model(ch, FS, F_MOD, slow, np.empty((N, 0)))
+    twice = speedmodel.fit_speed_model(ch, FS, F_MOD, np.column_stack([slow, slow[:, -1]]),
                                   np.empty((N, 0)))
     assert twice.factor is None and full.factor is not None
     assert twice.noise_depletion() == pytest.approx(full.noise_depletion(), rel=1e-4)

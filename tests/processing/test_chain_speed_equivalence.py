@@ -9,7 +9,7 @@ import pytest
 from scipy import linalg, optimize, signal
 
 from torquemod.dsp import filters, spectrum
-from torquemod.processing import chain
+from torquemod.processing import speedmodel, trackedorders
 
 FS = 53.344
 RNG = np.random.default_rng(11)
@@ -157,7 +157,7 @@ def test_speed_model_noise_depletion_without_forming_q():
     n = 331
     slow = filters.slow_basis(n, FS, 1.2)
     orders = filters.order_design(2 * np.pi * 4.6 * np.arange(n) / FS, [1, 2])
-    model = chain.fit_speed_model({"a": _record(n, 7)}, FS, 2.03, slow, orders)
+    model = speedmodel.fit_speed_model({"a": _record(n, 7)}, FS, 2.03, slow, orders)
     got = model.noise_depletion()
     # reference: the former route, Q = D L^-T formed explicitly
     d = model.design
@@ -183,15 +183,15 @@ def test_speed_model_noise_depletion_without_forming_q():
 def test_tracked_orders_with_a_shared_first_factor_bit_for_bit():
     n = 331
     slow = filters.slow_basis(n, FS, 1.2)
-    base = chain._order_base(n, FS, slow, 2.03)
+    base = trackedorders._order_base(n, FS, slow, 2.03)
     fac = filters.LstsqFactor.of(base)
     for seed, f_rot in ((8, 4.6), (9, 0.35)):
         t = np.arange(n) / FS
         speed = 2 * np.pi * f_rot * (1 + 0.01 * np.cos(2 * np.pi * f_rot * t)) \
             + 1e-3 * np.random.default_rng(seed).standard_normal(n)
-        ref = chain.tracked_orders(speed, FS, slow, (1, 2), above_hz=1.2, avoid_hz=2.03,
+        ref = trackedorders.tracked_orders(speed, FS, slow, (1, 2), above_hz=1.2, avoid_hz=2.03,
                                    modulation_hz=2.03)
-        got = chain._tracked_orders(speed, FS, slow, (1, 2), base, fac, above_hz=1.2,
+        got = trackedorders._tracked_orders(speed, FS, slow, (1, 2), base, fac, above_hz=1.2,
                                     avoid_hz=2.03)
         np.testing.assert_array_equal(got[0], ref[0])
         assert got[1] == ref[1]

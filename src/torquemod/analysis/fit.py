@@ -75,89 +75,19 @@ scatter exceeds the stated errors, never scaled down).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 from scipy.optimize import least_squares
 
-from torquemod._util.jsonutil import to_jsonable
-from torquemod.analysis.contact.polach import (
-    force_function,
-    force_function_slope,
-    friction_coefficient,
-    swing_average,
-)
+from torquemod.analysis.polachcurve import _mean_slope, longitudinal_mean, polach_coa
+from torquemod.analysis.polachfitresult import PolachFit
 from torquemod.errors import InputError, ProcessingError
 
-__all__ = ["MU_BOUNDS", "PolachFit", "fit_polach", "polach_coa", "polach_slope"]
+__all__ = ["MU_BOUNDS", "fit_polach"]
 
 #: Bounds of the friction coefficient in the fit [-].
 MU_BOUNDS: tuple[float, float] = (1e-3, 2.0)
 #: Upper bound of B [s/m] in the velocity-dependent fit.
 B_MAX_S_M = 50.0
-
-
-def polach_coa(xi, theta, *, speed_m_s=None):
-    """CoA of the lumped Polach model for the internal parameter vector ``theta``.
-
-    ``theta = (mu, kA*s, kS*s)`` (constant friction) or ``(mu0, kA*s, kS*s, A, B[s/m])``
-    (P05 Eq. 9, slip velocity ``w = |xi|*V`` with ``speed_m_s`` V [m/s]).
-    """
-    xi = np.abs(np.asarray(xi, dtype=float))
-    mu = theta[0]
-    if len(theta) == 5:
-        if speed_m_s is None:
-            raise InputError("the velocity-dependent model needs speed_m_s")
-        mu = friction_coefficient(xi * np.asarray(speed_m_s, dtype=float), mu0=theta[0],
-                                  a_ratio=theta[3], b_s_m=theta[4])
-    mu = np.maximum(mu, 1e-12)
-    return mu * force_function(xi / mu, k_a=theta[1], k_s=theta[2])
-
-
-def polach_slope(xi, theta, *, speed_m_s=None):
-    """Creep coefficient dCoA/dxi [-] of :func:`polach_coa` at ``|xi|``.
-
-    Analytic for constant friction; central difference for the velocity-dependent model.
-    """
-    xi = np.abs(np.asarray(xi, dtype=float))
-    if len(theta) == 3:
-        mu, a, s = (float(v) for v in theta)
-        return force_function_slope(xi / mu, k_a=a, k_s=s)
-    h = np.maximum(1e-7, 1e-4 * xi)
-    lo = np.maximum(xi - h, 0.0)
-    hi = xi + h
-    f_hi = polach_coa(hi, theta, speed_m_s=speed_m_s)
-    f_lo = polach_coa(lo, theta, speed_m_s=speed_m_s)
-    return (f_hi - f_lo) / (hi - lo)
-
-
-def longitudinal_mean(xi, theta, swing=None, speed_m_s=None):
-    """Mean longitudinal CoA [-] at creepage ``xi`` [-]: the static curve, or, with a
-    creepage swing [-], its period average over the swing (the mean of a modulated step,
-    ``CoA_mean`` of the module docstring, via
-    :func:`torquemod.analysis.contact.polach.swing_average` of the signed curve).
-
-    ``theta`` as in :func:`polach_coa`; ``speed_m_s`` [m/s] per point for the
-    velocity-dependent model (slip velocity ``|xi + a*cos(theta)|*V``, P05 Eq. 9)."""
-    if swing is None:
-        return polach_coa(xi, theta, speed_m_s=speed_m_s)
-    spd = None if speed_m_s is None else np.asarray(speed_m_s, dtype=float)[..., None]
-
-    def signed(x):
-        return np.sign(x) * polach_coa(np.abs(x), theta, speed_m_s=spd)
-    return np.abs(swing_average(signed, xi, swing))
-
-
-def _mean_slope(xi, theta, swing=None, speed_m_s=None):
-    """d CoA_mean/d xi [-] of :func:`longitudinal_mean` at ``xi`` [-]: the static slope
-    without swing, else a central difference of the period average (module docstring)."""
-    if swing is None:
-        return polach_slope(xi, theta, speed_m_s=speed_m_s)
-    xi = np.abs(np.asarray(xi, dtype=float))
-    h = np.maximum(1e-7, 1e-4 * xi)
-    x_lo, x_hi = np.maximum(xi - h, 0.0), xi + h
-    return ((longitudinal_mean(x_hi, theta, swing, speed_m_s)
-             - longitudinal_mean(x_lo, theta, swing, speed_m_s)) / (x_hi - x_lo))
 
 
 def _clean(name, x, n=None):
@@ -167,152 +97,6 @@ def _clean(name, x, n=None):
     if n is not None and arr.size != n:
         raise InputError(f"{name} has {arr.size} values, expected {n}")
     return arr
-
-
-@dataclass
-class PolachFit:
-    """Result of :func:`fit_polach` (lmfit-like). Units: CoA and creepage dimensionless,
-    ``b_s_m`` in s/m, speeds in m/s."""
-
-    model: str
-    param_names: tuple[str, ...]
-    params: dict[str, float]
-    stderr: dict[str, float]
-    covariance: np.ndarray
-    correlation: np.ndarray
-    theta: np.ndarray  # internal vector (mu, kA*s, kS*s[, A, B])
-    residuals: np.ndarray  # model - data, CoA units
-    weighted_residuals: np.ndarray
-    sigma: np.ndarray  # standard error used per point (CoA units)
-    xi: np.ndarray
-    coa: np.ndarray
-    speeds_m_s: np.ndarray | None
-    converged: bool
-    status: int
-    message: str
-    nfev: int
-    chi2: float
-    reduced_chi2: float
-    dof: int
-    mu_estimate: float
-    mu_stderr_estimate: float
-    mu_determined: bool
-    mu_lower_bound: float
-    curve_peak_coa: float
-    stiffness: float | None
-    weighted: bool
-    mu_interval_68: tuple[float | None, float | None] = (None, None)
-    mu_interval_95: tuple[float | None, float | None] = (None, None)
-    mu_profile: dict = field(default_factory=dict)
-    starts: list[dict] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    options: dict = field(default_factory=dict)
-    swing: np.ndarray | None = None  # creepage swing per point [-] when modelled
-
-    @property
-    def mu(self) -> float | None:
-        """Fitted friction coefficient [-] (mu0 when velocity-dependent); None when the points
-        do not determine it (see the module docstring)."""
-        return self.mu_estimate if self.mu_determined else None
-
-    @property
-    def mu_stderr(self) -> float | None:
-        return self.mu_stderr_estimate if self.mu_determined else None
-
-    @property
-    def velocity_dependent(self) -> bool:
-        return len(self.theta) == 5
-
-    @property
-    def initial_slope(self) -> float:
-        """dCoA/dxi at xi = 0, ``2*(kA + kS)*s/pi`` [-]."""
-        return float(2.0 * (self.theta[1] + self.theta[2]) / np.pi)
-
-    def _speed(self, xi, speed_m_s):
-        if not self.velocity_dependent:
-            return None
-        if speed_m_s is None:
-            speed_m_s = float(np.mean(self.speeds_m_s))
-        return np.broadcast_to(np.asarray(speed_m_s, dtype=float), np.shape(xi))
-
-    def curve(self, xi, speed_m_s=None):
-        """Fitted CoA at creepage ``xi`` [-] (speed defaults to the mean of the data)."""
-        return polach_coa(xi, self.theta, speed_m_s=self._speed(xi, speed_m_s))
-
-    def mean_curve(self, xi, swing, speed_m_s=None):
-        """Mean CoA [-] of a step at mean creepage ``xi`` [-] whose creepage swings
-        sinusoidally by amplitude ``swing`` [-]: the period average of the static curve
-        (``CoA_mean`` of the module docstring), the model fitted with ``creepage_swing=``.
-        ``swing = 0`` gives :meth:`curve`, the static curve. Speed as in :meth:`curve`."""
-        return longitudinal_mean(xi, self.theta, np.asarray(swing, dtype=float),
-                                 self._speed(xi, speed_m_s))
-
-    def slope(self, xi, speed_m_s=None):
-        """Creep coefficient dCoA/dxi of the fitted curve at ``xi`` [-]."""
-        return polach_slope(xi, self.theta, speed_m_s=self._speed(xi, speed_m_s))
-
-    def report(self) -> str:
-        """Plain-text summary of the fit."""
-        lines = [f"[[Polach fit]] model={self.model}  points={self.xi.size}  dof={self.dof}",
-                 f"  converged={self.converged}  status={self.status}  nfev={self.nfev}",
-                 f"  message: {self.message}",
-                 f"  chi2={self.chi2:.4g}  reduced chi2={self.reduced_chi2:.4g}  "
-                 f"weighted={self.weighted}"]
-        if self.mu_determined:
-            lines.append(f"  mu = {self.mu_estimate:.4f} +/- {self.mu_stderr_estimate:.4f}")
-        else:
-            lines.append(f"  mu NOT determined by these points; mu >= {self.mu_lower_bound:.4f}")
-        lines.append(f"  maximum of the fitted curve (creepage <= "
-                     f"{self.options.get('creepage_limit')}): CoA = {self.curve_peak_coa:.4f}")
-        lines.append("[[Parameters]]")
-        for name in self.param_names:
-            if name == "mu" and not self.mu_determined:  # never a value +/- error here
-                lo, hi = self.mu_interval_95
-                lines.append(f"  {name:16s}   not determined (95 % range {lo:.4g} .. {hi:.4g})"
-                             if lo is not None and hi is not None else
-                             f"  {name:16s}   not determined")
-                continue
-            lines.append(f"  {name:16s} = {self.params[name]:12.6g} +/- {self.stderr[name]:.3g}")
-        lines.append(f"  initial slope 2(kA+kS)s/pi = {self.initial_slope:.6g}")
-        for w in self.warnings:
-            lines.append(f"  WARNING: {w}")
-        return "\n".join(lines)
-
-    def to_dict(self) -> dict:
-        """JSON-ready dictionary (non-finite numbers become None)."""
-        return to_jsonable({
-            "model": self.model,
-            "mu": self.mu,
-            "mu_stderr": self.mu_stderr,
-            "mu_determined": self.mu_determined,
-            "mu_lower_bound": self.mu_lower_bound,
-            "mu_interval_68": list(self.mu_interval_68),
-            "mu_interval_95": list(self.mu_interval_95),
-            "mu_profile": self.mu_profile,
-            "curve_peak_coa": self.curve_peak_coa,
-            "mu_estimate_unreliable": None if self.mu_determined else self.mu_estimate,
-            "parameters": dict(self.params),
-            "stderr": dict(self.stderr),
-            "initial_slope": self.initial_slope,
-            "theta_internal": {"names": ["mu", "k_a*stiffness", "k_s*stiffness"]
-                               + (["a_ratio", "b_s_m"] if self.velocity_dependent else []),
-                               "values": self.theta.tolist()},
-            "stiffness": self.stiffness,
-            "covariance": {"names": list(self.param_names),
-                           "matrix": self.covariance.tolist()},
-            "correlation": self.correlation.tolist(),
-            "data": {"creepage": self.xi.tolist(), "coa": self.coa.tolist(),
-                     "sigma_coa": self.sigma.tolist(),
-                     "creepage_swing": None if self.swing is None else self.swing.tolist(),
-                     "speed_m_s": None if self.speeds_m_s is None
-                     else self.speeds_m_s.tolist()},
-            "residuals": self.residuals.tolist(),
-            "weighted_residuals": self.weighted_residuals.tolist(),
-            "chi2": self.chi2, "reduced_chi2": self.reduced_chi2, "dof": self.dof,
-            "converged": self.converged, "status": self.status, "message": self.message,
-            "nfev": self.nfev, "weighted": self.weighted,
-            "starts": self.starts, "warnings": list(self.warnings), "options": self.options,
-        })
 
 
 def _fmt_interval(interval) -> str:

@@ -18,9 +18,9 @@ from torquemod._version import __version__
 from torquemod.analysis.creep import CreepPoints, OnsetResult, TheoryCheck
 from torquemod.analysis.options import FitOptions
 
-if TYPE_CHECKING:  # fit.py imports scipy: named for the types only
-    from torquemod.analysis.fit import PolachFit
+if TYPE_CHECKING:  # named for the types only
     from torquemod.analysis.phasefitresult import PhaseMuFit
+    from torquemod.analysis.polachfitresult import PolachFit
 
 __all__ = ["Analysis", "curve_check", "phase_keys"]
 
@@ -81,8 +81,8 @@ def curve_check(polach, creepage_limit: float, *, n: int = 2000) -> tuple[bool, 
 class Analysis:
     """The fit stage's result (:func:`torquemod.analyze`).
 
-    ``polach`` the force fit (:class:`torquemod.analysis.fit.PolachFit`, None with the reason in
-    ``polach_skipped``), ``phase_fit`` mu from the phase
+    ``polach`` the force fit (:class:`torquemod.analysis.polachfitresult.PolachFit`, None
+    with the reason in ``polach_skipped``), ``phase_fit`` mu from the phase
     (:class:`torquemod.analysis.phasefit.PhaseMuFit`,
     None with ``phase_fit_skipped``), ``theory`` the rigid-wheel check, ``onset`` the
     saturation onset, ``steps`` the steps table with the analysis columns, ``used`` which of

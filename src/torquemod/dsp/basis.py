@@ -76,7 +76,7 @@ def slow_basis(n_samples: int, fs_hz: float, max_hz: float, *, extra: int = 2,
     ``max_hz = 1.2``, ``extra = 2``, ``degree = 5``: a unit sinusoid anywhere in 0.2-1.0 Hz
     leaks < 1e-5 into a jointly fitted 2 Hz modulation (2e-4 at 1.2 Hz), and the joint fit
     costs the modulation 23 % of variance
-    (:meth:`torquemod.processing.chain.SpeedModel.variance_factor`).
+    (:meth:`torquemod.processing.speedmodel.SpeedModel.variance_factor`).
     ``max_hz = 0`` gives the polynomials alone.
     """
     duration = n_samples / fs_hz

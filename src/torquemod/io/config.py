@@ -29,7 +29,7 @@ class FrequencyParams:
     detrend: str = "linear"
     zero_pad: int = 8
     #: ours: each peak refined to the least-squares frequency of the speed model
-    #: (torquemod.processing.chain._SlowOrdersRemoval.refine) to ``tolerance_hz`` [Hz]
+    #: (torquemod.processing.speedmodel._SlowOrdersRemoval.refine) to ``tolerance_hz`` [Hz]
     refine: bool = True
     tolerance_hz: float = 1e-6
     #: the common modulation frequency: the "torque"'s peak (ours, the excitation's), or
@@ -88,7 +88,7 @@ class SlowParams:
     extra_sequences: int = 2
     polynomial_degree: int = 5
     #: the modulation's harmonics 2..this fitted beside it and removed with the slow part
-    #: (torquemod.processing.chain.modulation_harmonics); 1 fits none
+    #: (torquemod.processing.speedmodel.modulation_harmonics); 1 fits none
     modulation_harmonics: int = 3
 
 

@@ -1,0 +1,160 @@
+"""The result of the Polach force fit (:func:`torquemod.analysis.fit.fit_polach`): the fitted
+parameters, their uncertainties, the data and the fitted curve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from torquemod._util.jsonutil import to_jsonable
+from torquemod.analysis.polachcurve import longitudinal_mean, polach_coa, polach_slope
+
+__all__ = ["PolachFit"]
+
+
+@dataclass
+class PolachFit:
+    """Result of :func:`fit_polach` (lmfit-like). Units: CoA and creepage dimensionless,
+    ``b_s_m`` in s/m, speeds in m/s."""
+
+    model: str
+    param_names: tuple[str, ...]
+    params: dict[str, float]
+    stderr: dict[str, float]
+    covariance: np.ndarray
+    correlation: np.ndarray
+    theta: np.ndarray  # internal vector (mu, kA*s, kS*s[, A, B])
+    residuals: np.ndarray  # model - data, CoA units
+    weighted_residuals: np.ndarray
+    sigma: np.ndarray  # standard error used per point (CoA units)
+    xi: np.ndarray
+    coa: np.ndarray
+    speeds_m_s: np.ndarray | None
+    converged: bool
+    status: int
+    message: str
+    nfev: int
+    chi2: float
+    reduced_chi2: float
+    dof: int
+    mu_estimate: float
+    mu_stderr_estimate: float
+    mu_determined: bool
+    mu_lower_bound: float
+    curve_peak_coa: float
+    stiffness: float | None
+    weighted: bool
+    mu_interval_68: tuple[float | None, float | None] = (None, None)
+    mu_interval_95: tuple[float | None, float | None] = (None, None)
+    mu_profile: dict = field(default_factory=dict)
+    starts: list[dict] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    options: dict = field(default_factory=dict)
+    swing: np.ndarray | None = None  # creepage swing per point [-] when modelled
+
+    @property
+    def mu(self) -> float | None:
+        """Fitted friction coefficient [-] (mu0 when velocity-dependent); None when the points
+        do not determine it (see :mod:`torquemod.analysis.fit`)."""
+        return self.mu_estimate if self.mu_determined else None
+
+    @property
+    def mu_stderr(self) -> float | None:
+        return self.mu_stderr_estimate if self.mu_determined else None
+
+    @property
+    def velocity_dependent(self) -> bool:
+        return len(self.theta) == 5
+
+    @property
+    def initial_slope(self) -> float:
+        """dCoA/dxi at xi = 0, ``2*(kA + kS)*s/pi`` [-]."""
+        return float(2.0 * (self.theta[1] + self.theta[2]) / np.pi)
+
+    def _speed(self, xi, speed_m_s):
+        if not self.velocity_dependent:
+            return None
+        if speed_m_s is None:
+            speed_m_s = float(np.mean(self.speeds_m_s))
+        return np.broadcast_to(np.asarray(speed_m_s, dtype=float), np.shape(xi))
+
+    def curve(self, xi, speed_m_s=None):
+        """Fitted CoA at creepage ``xi`` [-] (speed defaults to the mean of the data)."""
+        return polach_coa(xi, self.theta, speed_m_s=self._speed(xi, speed_m_s))
+
+    def mean_curve(self, xi, swing, speed_m_s=None):
+        """Mean CoA [-] of a step at mean creepage ``xi`` [-] whose creepage swings
+        sinusoidally by amplitude ``swing`` [-]: the period average of the static curve
+        (``CoA_mean`` of :mod:`torquemod.analysis.fit`), the model fitted with ``creepage_swing=``.
+        ``swing = 0`` gives :meth:`curve`, the static curve. Speed as in :meth:`curve`."""
+        return longitudinal_mean(xi, self.theta, np.asarray(swing, dtype=float),
+                                 self._speed(xi, speed_m_s))
+
+    def slope(self, xi, speed_m_s=None):
+        """Creep coefficient dCoA/dxi of the fitted curve at ``xi`` [-]."""
+        return polach_slope(xi, self.theta, speed_m_s=self._speed(xi, speed_m_s))
+
+    def report(self) -> str:
+        """Plain-text summary of the fit."""
+        lines = [f"[[Polach fit]] model={self.model}  points={self.xi.size}  dof={self.dof}",
+                 f"  converged={self.converged}  status={self.status}  nfev={self.nfev}",
+                 f"  message: {self.message}",
+                 f"  chi2={self.chi2:.4g}  reduced chi2={self.reduced_chi2:.4g}  "
+                 f"weighted={self.weighted}"]
+        if self.mu_determined:
+            lines.append(f"  mu = {self.mu_estimate:.4f} +/- {self.mu_stderr_estimate:.4f}")
+        else:
+            lines.append(f"  mu NOT determined by these points; mu >= {self.mu_lower_bound:.4f}")
+        lines.append(f"  maximum of the fitted curve (creepage <= "
+                     f"{self.options.get('creepage_limit')}): CoA = {self.curve_peak_coa:.4f}")
+        lines.append("[[Parameters]]")
+        for name in self.param_names:
+            if name == "mu" and not self.mu_determined:  # never a value +/- error here
+                lo, hi = self.mu_interval_95
+                lines.append(f"  {name:16s}   not determined (95 % range {lo:.4g} .. {hi:.4g})"
+                             if lo is not None and hi is not None else
+                             f"  {name:16s}   not determined")
+                continue
+            lines.append(f"  {name:16s} = {self.params[name]:12.6g} +/- {self.stderr[name]:.3g}")
+        lines.append(f"  initial slope 2(kA+kS)s/pi = {self.initial_slope:.6g}")
+        for w in self.warnings:
+            lines.append(f"  WARNING: {w}")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """JSON-ready dictionary (non-finite numbers become None)."""
+        return to_jsonable({
+            "model": self.model,
+            "mu": self.mu,
+            "mu_stderr": self.mu_stderr,
+            "mu_determined": self.mu_determined,
+            "mu_lower_bound": self.mu_lower_bound,
+            "mu_interval_68": list(self.mu_interval_68),
+            "mu_interval_95": list(self.mu_interval_95),
+            "mu_profile": self.mu_profile,
+            "curve_peak_coa": self.curve_peak_coa,
+            "mu_estimate_unreliable": None if self.mu_determined else self.mu_estimate,
+            "parameters": dict(self.params),
+            "stderr": dict(self.stderr),
+            "initial_slope": self.initial_slope,
+            "theta_internal": {"names": ["mu", "k_a*stiffness", "k_s*stiffness"]
+                               + (["a_ratio", "b_s_m"] if self.velocity_dependent else []),
+                               "values": self.theta.tolist()},
+            "stiffness": self.stiffness,
+            "covariance": {"names": list(self.param_names),
+                           "matrix": self.covariance.tolist()},
+            "correlation": self.correlation.tolist(),
+            "data": {"creepage": self.xi.tolist(), "coa": self.coa.tolist(),
+                     "sigma_coa": self.sigma.tolist(),
+                     "creepage_swing": None if self.swing is None else self.swing.tolist(),
+                     "speed_m_s": None if self.speeds_m_s is None
+                     else self.speeds_m_s.tolist()},
+            "residuals": self.residuals.tolist(),
+            "weighted_residuals": self.weighted_residuals.tolist(),
+            "chi2": self.chi2, "reduced_chi2": self.reduced_chi2, "dof": self.dof,
+            "converged": self.converged, "status": self.status, "message": self.message,
+            "nfev": self.nfev, "weighted": self.weighted,
+            "starts": self.starts, "warnings": list(self.warnings), "options": self.options,
+        })

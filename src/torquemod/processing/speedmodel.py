@@ -1,0 +1,295 @@
+"""The joint least-squares speed model of one cycle (ours): the modulation, the slow speed
+variation, the rotation orders and the modulation's harmonics fitted together
+(:class:`SpeedModel`, :func:`fit_speed_model`), and the removal of its slow part and orders
+for the search of the modulation frequency (:class:`_SlowOrdersRemoval`). Used by the
+per-cycle steps of :mod:`torquemod.processing.chain`.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import get_window
+
+from torquemod.dsp import filters
+
+
+@functools.lru_cache(maxsize=16)
+def _hann(n: int) -> np.ndarray:
+    """``get_window("hann", n)`` (periodic), cached read-only: one per record length."""
+    w = get_window("hann", n)
+    w.setflags(write=False)
+    return w
+
+
+@functools.lru_cache(maxsize=16)
+def _hann_fourier(n: int, bins: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The Hann-windowed Fourier vectors ``w[t]*exp(-2j*pi*t*k/n)`` of the DFT bins ``k`` of an
+    ``n``-sample record and their squared norms, cached read-only (the bins near the
+    modulation are the same for most cycles of a given length). Real columns: the real
+    parts of all bins, then their imaginary parts (real products with the design)."""
+    v = _hann(n)[:, None] * np.exp(-2j * np.pi * np.outer(np.arange(n), np.array(bins)) / n)
+    power = np.sum(np.abs(v) ** 2, axis=0)
+    v = np.hstack([v.real, v.imag])
+    v.setflags(write=False)
+    power.setflags(write=False)
+    return v, power
+
+
+@dataclass(frozen=True)
+class SpeedModel:
+    """The joint least-squares model of one cycle (ours): for every channel
+    ``x = modulation + slow + orders + harmonics + residual`` with the modulation
+    ``c*cos + s*sin`` at ``modulation_hz``, the slow part in
+    :func:`~torquemod.dsp.filters.slow_basis`, the rotation orders in
+    :func:`~torquemod.dsp.filters.order_design` and the modulation's own harmonics (the
+    creep curve's bend distorts the wheel's answer; :func:`modulation_harmonics`). One
+    design serves every channel, so any linear functional of it (the step-8 mean) treats a
+    speed variation that wheel and platform share alike, and it cancels in the creepage of
+    Eq. (3)."""
+
+    modulation_hz: float
+    fs_hz: float
+    design: np.ndarray  # (n, 2 + n_slow + n_orders + n_harmonics)
+    n_slow: int
+    coef: np.ndarray  # (columns, channels)
+    names: tuple[str, ...]
+    #: the design's least-squares factor (None when lstsq fell back to the SVD)
+    factor: filters.LstsqFactor | None = field(default=None, repr=False, compare=False)
+    #: columns of the modulation's harmonics, the design's last ones
+    n_harmonic_columns: int = 0
+    _parts: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def part(self, name: str, which: str) -> np.ndarray:
+        """``"modulation"``, ``"slow"``, ``"orders"`` or ``"harmonics"`` part of channel
+        ``name`` (computed once, read-only)."""
+        key = (name, which)
+        if key not in self._parts:
+            j = self.names.index(name)
+            end = self.design.shape[1] - self.n_harmonic_columns
+            sl = {"modulation": slice(0, 2), "slow": slice(2, 2 + self.n_slow),
+                  "orders": slice(2 + self.n_slow, end), "harmonics": slice(end, None)}[which]
+            y = self.design[:, sl] @ self.coef[sl, j]
+            y.setflags(write=False)
+            self._parts[key] = y
+        return self._parts[key]
+
+    def amplitude(self, name: str) -> float:
+        """Amplitude of the fitted modulation of channel ``name`` [its unit]."""
+        c, s = self.coef[:2, self.names.index(name)]
+        return float(np.hypot(c, s))
+
+    def variance_factor(self) -> float:
+        """Variance of the modulation's coefficients in this joint model over their variance
+        with the modulation fitted alone (>= 1): the price in phase noise of separating the
+        modulation from the slow part and the orders, at the Cramér-Rao bound of the joint
+        model (white noise)."""
+        d = self.design
+        m = d[:, :2]
+        # (D'D)^-1 restricted to the modulation is (M'(I - P_B)M)^-1, P_B the projection on
+        # the other columns (the Schur complement), by a refined least-squares fit on them.
+        # Not the block of the inverse of the fit's normal matrix: that squares the design's
+        # condition number (~1e6 here) and came out 6e-5 relative off the SVD's (this route:
+        # 1e-11, measured). The fit's normal matrix gives the other columns' factor.
+        other = d[:, 2:]
+        sub = self.factor.trailing(2) if self.factor is not None else None
+        if other.shape[1]:
+            c_o = sub.solve(m) if sub is not None else filters.lstsq(other, m)[0]
+            m_res = m - other @ c_o
+        else:
+            m_res = m
+        return float(max(1.0, _trace_of_inverse_2x2(m_res.T @ m_res)
+                         / _trace_of_inverse_2x2(m.T @ m)))
+
+    def noise_depletion(self, *, half_width_hz: float = 0.75) -> float:
+        """Fraction (<= 1) of white noise's power near the modulation that the model's
+        residual keeps, averaged over the bins :func:`~torquemod.dsp.phase.local_noise_psd`
+        reads: ``1 - |Q^H v_f|^2/|v_f|^2`` for the Hann-windowed Fourier vector ``v_f`` of each
+        bin and Q an orthonormal basis of the design. The slow basis overlaps the modulation's
+        neighbourhood, so its residual understates the noise density there; dividing by this
+        restores it (E[r r^T] = sigma^2 (I - H) for least squares)."""
+        d = self.design
+        n = d.shape[0]
+        df = self.fs_hz / n
+        k = np.arange(n // 2 + 1)
+        off = np.abs(k * df - self.modulation_hz)
+        sel = k[(off <= half_width_hz) & (off > 1.5 * df)]
+        if sel.size < 2:
+            return 1.0
+        fac = self.factor
+        if fac is not None and fac.gram is not None:  # the fit's own numbers
+            dn, gram = fac.dn, fac.gram
+        else:
+            dn = d / np.sqrt(np.einsum("ij,ij->j", d, d))
+            gram = dn.T @ dn
+        v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
+        try:
+            chol = np.linalg.cholesky(gram)
+        except np.linalg.LinAlgError:
+            # a design rank deficient to rounding (the fit fell back to the SVD): Q from
+            # the SVD, over its numerical rank
+            u, sv, _ = np.linalg.svd(dn, full_matrices=False)
+            qv = u[:, sv > sv[0] * 1e-10].T @ v
+            kept = 1.0 - (qv * qv).sum(axis=0).reshape(2, -1).sum(axis=0) / v_power
+            return float(np.clip(np.mean(kept), 0.05, 1.0))
+        # Q = D L^-T has orthonormal columns spanning D, and Q^H v = L^-1 (D^T v): a solve with
+        # the small factor instead of forming Q (the fraction kept agrees with forming Q to
+        # ~4e-12 relative, measured; it scales only the standard error). Both routes go
+        # through the normal equations, which square the design's condition number: against
+        # an SVD of the design the fraction is off by ~1.5e-5 relative (measured on
+        # tests/processing/test_chain_speed_equivalence.py's design), and rounding-level changes of
+        # the inputs move it by up to that much (the fit's own upper factor, transposed,
+        # moved it by 1e-6: not used here).
+        qv = np.linalg.solve(chol, dn.T @ v)  # v: the real parts, then the imaginary parts
+        kept = 1.0 - (qv * qv).sum(axis=0).reshape(2, -1).sum(axis=0) / v_power
+        return float(np.clip(np.mean(kept), 0.05, 1.0))
+
+    def mean(self, name: str) -> float:
+        """Step-8 mean: the record's mean less the fitted modulation and rotation orders (the
+        mean of the slow part; the residual has zero mean since the constant is fitted)."""
+        key = (name, "mean")
+        if key not in self._parts:
+            slow = self.part(name, "slow")
+            self._parts[key] = float(slow.sum()) / slow.size  # np.mean's numbers, cheaper
+        return self._parts[key]
+
+
+def _trace_of_inverse_2x2(a: np.ndarray) -> float:
+    """``trace(inv(a))`` of a 2x2 matrix: ``(a00 + a11)/det(a)``."""
+    a00, a01, a10, a11 = (float(v) for v in a.ravel())
+    return (a00 + a11) / (a00 * a11 - a01 * a10)
+
+
+def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
+                       harmonics: tuple[int, ...] = ()) -> np.ndarray:
+    """``cos`` and ``sin`` of ``2*pi*k*f*t`` for k = 1 and each of ``harmonics`` (in that
+    order), over ``n`` samples at ``fs_hz`` [Hz] with t [s] from the record's middle (so a
+    fitted phase is decoupled from a small error of the frequency)."""
+    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    w = 2 * np.pi * modulation_hz
+    out = np.empty((n, 2 + 2 * len(harmonics)))
+    for i, k in enumerate((1, *harmonics)):
+        out[:, 2 * i] = np.cos(k * w * t)
+        out[:, 2 * i + 1] = np.sin(k * w * t)
+    return out
+
+
+def modulation_harmonics(modulation_hz: float, fs_hz: float, n_samples: int,
+                         highest: int, *, above_hz: float, avoid_hz=()) -> tuple[int, ...]:
+    """Harmonics k = 2..``highest`` of the modulation fitted beside it (ours): those below
+    0.45 x the sample rate, above the slow band (``above_hz``) and more than two frequency
+    resolutions away from every frequency in ``avoid_hz`` [Hz] (the fitted rotation orders,
+    which would alias them).
+
+    The wheel's answer to the modulation is not a pure sinusoid: where the creep curve
+    bends, the creepage swing meets a changing slope and the wheel speed and the shaft torque
+    carry 2nd and 3rd harmonics (1-3 % of the fundamental at 1 Hz on the V-Track twin at 60-90
+    % utilisation). Over a record holding a fractional number of periods they are not
+    orthogonal to the slow basis, and, left out of the edge padding, they step at the
+    record's ends, where the narrow band-pass rings: together up to 0.3 deg at 1 Hz.
+    """
+    resolution = fs_hz / n_samples
+    return tuple(k for k in range(2, int(highest) + 1)
+                 if above_hz < k * modulation_hz < 0.45 * fs_hz
+                 and all(abs(k * modulation_hz - g) > 2 * resolution for g in avoid_hz))
+
+
+def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz: float,
+                    slow: np.ndarray, orders: np.ndarray, harmonics: tuple[int, ...] = ()
+                    ) -> SpeedModel:
+    """Least-squares fit of :class:`SpeedModel` to every channel at once (time referenced to
+    the record's middle so the modulation's phase is decoupled from its frequency), with
+    the modulation's ``harmonics`` (:func:`modulation_harmonics`) as its last columns."""
+    names = tuple(channels)
+    n = slow.shape[0]
+    mod = modulation_columns(n, fs_hz, modulation_hz, harmonics)
+    n_s, n_o = slow.shape[1], orders.shape[1]
+    # [cos, sin, slow, orders, harmonics]
+    design = np.empty((n, 2 + n_s + n_o + 2 * len(harmonics)))
+    design[:, :2] = mod[:, :2]
+    design[:, 2:2 + n_s] = slow
+    design[:, 2 + n_s:2 + n_s + n_o] = orders
+    design[:, 2 + n_s + n_o:] = mod[:, 2:]
+    y = np.column_stack([channels[k] for k in names])
+    fac = filters.LstsqFactor.of(design, keep_gram=True)  # the model's statistics reuse it
+    coef = fac.solve(y) if fac is not None else filters.lstsq(design, y)[0]
+    return SpeedModel(modulation_hz, fs_hz, design, slow.shape[1], coef, names, fac,
+                      2 * len(harmonics))
+
+
+class _SlowOrdersRemoval:
+    """Records ``y`` (columns) less the slow part and the rotation orders of the
+    :class:`SpeedModel` fitted with the modulation at a frequency f: ``y - B c_B`` of the
+    least-squares fit ``y ~ M c_M + B c_B`` with ``B = [slow, orders]`` and M the cos and sin
+    at f and at its ``harmonics`` (time from the record's middle; the harmonics stay in the
+    result). By Frisch-Waugh-Lovell, with ``r(z)`` the
+    residual of z fitted on B alone, ``c_M = (r(M)'r(M))^-1 r(M)'r(y)`` and
+    ``y - B c_B = r(y) + (M - r(M)) c_M``: B is factored and ``r(y)`` computed once for every
+    f, and each f costs the fit of M's two columns on B (instead of a new factorisation of
+    the whole design). The same numbers as :func:`fit_speed_model`'s parts to rounding
+    (tests/processing/test_chain_kernels.py)."""
+
+    def __init__(self, y: np.ndarray, slow: np.ndarray, orders: np.ndarray, fs_hz: float,
+                 harmonics: tuple[int, ...] = ()):
+        self.y, self.fs_hz, self.harmonics = y, fs_hz, tuple(harmonics)
+        self.slow, self.orders = slow, orders
+        self.b = np.hstack([slow, orders])
+        self.fac = filters.LstsqFactor.of(self.b)
+        if self.fac is not None:
+            self.r_y = y - self.b @ self.fac.solve(y)
+
+    def at(self, modulation_hz: float) -> np.ndarray:
+        """``y`` less its slow part and orders with the modulation at ``modulation_hz``."""
+        if self.fac is None:  # (nearly) rank-deficient: the whole model, fitted by the SVD
+            model = fit_speed_model({str(i): c for i, c in enumerate(self.y.T)}, self.fs_hz,
+                                    modulation_hz, self.slow, self.orders, self.harmonics)
+            end = model.design.shape[1] - model.n_harmonic_columns
+            fit = model.design[:, 2:end] @ model.coef[2:end]
+            return self.y - fit
+        m = modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
+        r_m = m - self.b @ self.fac.solve(m)
+        c_m = np.linalg.solve(r_m.T @ r_m, r_m.T @ self.r_y)
+        return self.r_y + (m - r_m) @ c_m
+
+    def explained(self, column: int, modulation_hz: float) -> float:
+        """Power of record ``column`` that the modulation (and its harmonics) at
+        ``modulation_hz`` [Hz] explains beyond the slow part and the orders:
+        ``r_y' r_M (r_M' r_M)^-1 r_M' r_y`` (Frisch-Waugh-Lovell, as :meth:`at`)."""
+        m = modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
+        r_m = m - self.b @ self.fac.solve(m)
+        b = r_m.T @ self.r_y[:, column]
+        return float(b @ np.linalg.solve(r_m.T @ r_m, b))
+
+    def refine(self, column: int, peak_hz: float, *, tol_hz: float = 1e-6) -> float:
+        """The frequency [Hz] near ``peak_hz`` at which the model explains most of record
+        ``column``: the least-squares (for white noise, maximum-likelihood) frequency of the
+        modulation beside the slow part and the orders (variable projection, Golub and
+        Pereyra 1973). A plain spectral peak of the record less a slow part fitted at another
+        frequency is pulled towards that frequency (by up to 0.9 mHz at 1 Hz on a 6.5 s
+        record) and carries the window's own bias from the modulation's negative-frequency
+        image; this maximum has neither: on a noise-free record it is the modulation's
+        frequency.
+
+        Parabolic steps through three values of the explained power, 0.05/T, 0.005/T and
+        0.0005/T apart (T the record's duration), each from the previous vertex, until a step
+        is below ``tol_hz``: near its maximum the explained power is a parabola to
+        (pi*h*T)^2/3 relative, so each step leaves ~2 % of the previous offset at the first
+        spacing and 0.03 % at the next. A smooth function of the record (unlike a bracketing
+        search, whose stopping point moves within its tolerance with rounding-level changes
+        of the input). ``peak_hz`` itself when the design is (nearly) rank deficient."""
+        if self.fac is None:
+            return peak_hz
+        duration = self.y.shape[0] / self.fs_hz
+        f = float(peak_hz)
+        for h in (0.05 / duration, 0.005 / duration, 0.0005 / duration):
+            e_lo, e_0, e_hi = (self.explained(column, f + k * h) for k in (-1.0, 0.0, 1.0))
+            curvature = e_lo - 2.0 * e_0 + e_hi
+            if not curvature < 0:  # not near a maximum: keep the spectral peak's value
+                return float(peak_hz)
+            step = float(np.clip(0.5 * h * (e_lo - e_hi) / curvature, -2.0 * h, 2.0 * h))
+            f += step
+            if abs(step) < tol_hz:
+                break
+        return f
