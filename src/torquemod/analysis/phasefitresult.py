@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -90,6 +91,50 @@ class PhaseMuFit:
                      "level": fit.level, "n_evaluations": int(fit.p_grid.size)},
             warnings=warnings, adhesion=fit)
 
+    def state(self) -> dict:
+        """Every field, the adhesion fit's included, JSON-ready with non-finite numbers as the
+        text ``"inf"``, ``"-inf"`` or ``"nan"``: what :meth:`from_state` rebuilds the fit
+        from."""
+        doc = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+               if f.name not in ("adhesion", "profile")}
+        doc["adhesion"] = {f.name: getattr(self.adhesion, f.name)
+                           for f in dataclasses.fields(self.adhesion)}
+        return to_jsonable(_nonfinite_as_text(doc))
+
+    @classmethod
+    def from_state(cls, doc: dict) -> PhaseMuFit:
+        """The fit back from :meth:`state` (None read as NaN in the numeric fields)."""
+        from torquemod.analysis.friction import AdhesionFit
+
+        def back(value, default):
+            if isinstance(default, np.ndarray):
+                return np.array([float(v) for v in value], dtype=float)
+            return float(value)
+        a = dict(doc["adhesion"])
+        a_types = {"estimate": 0.0, "low": 0.0, "high": 0.0, "lower_bound": 0.0, "mu0": 0.0,
+                   "mu0_low": 0.0, "mu0_high": 0.0, "probe_depth": 0.0, "chi2": 0.0,
+                   "k0": 0.0, "chi2_scale": 0.0, "max_rel_half_width": 0.0,
+                   "model_rel_error": 0.0, "c_max": 0.0, "level": 0.0,
+                   "p_grid": np.zeros(0), "profile": np.zeros(0), "best_s": np.zeros(0)}
+        for key, default in a_types.items():
+            a[key] = back(a[key], default)
+        a["params"] = tuple(float(v) for v in a["params"])
+        adhesion = AdhesionFit(**a)
+        d = dict(doc)
+        for key in ("mu_estimate", "mu_lower_bound", "constant", "ratio_ka_ks",
+                    "initial_slope", "level", "chi2", "chi2_scale"):
+            d[key] = back(d[key], 0.0)
+        for key in ("coa", "phase_deg", "sigma_deg"):
+            d[key] = back(d[key], np.zeros(0))
+        if d["mu_stderr_estimate"] is not None:
+            d["mu_stderr_estimate"] = float(d["mu_stderr_estimate"])
+        d["mu_interval_95"] = tuple(None if v is None else float(v)
+                                    for v in d["mu_interval_95"])
+        d["adhesion"] = adhesion
+        d["profile"] = {"adhesion_available": adhesion.p_grid, "chi2": adhesion.profile,
+                        "level": adhesion.level, "n_evaluations": int(adhesion.p_grid.size)}
+        return cls(**d)
+
     @property
     def mu(self) -> float | None:
         """The available adhesion from the phase [-]; None when the steps do not determine
@@ -155,3 +200,17 @@ class PhaseMuFit:
             "utilisation": self.utilisation, "profile": self.profile,
             "warnings": list(self.warnings), **self.adhesion.to_dict(),
         })
+
+
+def _nonfinite_as_text(obj):
+    """``obj`` with every non-finite float (also in arrays, lists, tuples and dicts) as its
+    text, which ``float()`` reads back."""
+    if isinstance(obj, dict):
+        return {k: _nonfinite_as_text(v) for k, v in obj.items()}
+    if isinstance(obj, np.ndarray):
+        return _nonfinite_as_text(obj.tolist())
+    if isinstance(obj, list | tuple):
+        return [_nonfinite_as_text(v) for v in obj]
+    if isinstance(obj, float | np.floating) and not math.isfinite(obj):
+        return str(float(obj))
+    return obj

@@ -123,6 +123,36 @@ class PolachFit:
             lines.append(f"  WARNING: {w}")
         return "\n".join(lines)
 
+    @classmethod
+    def from_dict(cls, doc: dict, *, converged: bool, mu_stderr_estimate,
+                  warnings: list[str]) -> PolachFit:
+        """The fit back from its :meth:`to_dict` document (None read as NaN). What a
+        document merged into a larger one may lose is passed in: the optimiser's own
+        ``converged`` flag, the standard error of an undetermined mu and the fit's
+        ``warnings``."""
+        data = doc["data"]
+        mu_det = bool(doc["mu_determined"])
+        return cls(
+            model=doc["model"], param_names=tuple(doc["covariance"]["names"]),
+            params={k: _num(v) for k, v in doc["parameters"].items()},
+            stderr={k: _num(v) for k, v in doc["stderr"].items()},
+            covariance=_arr(doc["covariance"]["matrix"]), correlation=_arr(doc["correlation"]),
+            theta=_arr(doc["theta_internal"]["values"]), residuals=_arr(doc["residuals"]),
+            weighted_residuals=_arr(doc["weighted_residuals"]), sigma=_arr(data["sigma_coa"]),
+            xi=_arr(data["creepage"]), coa=_arr(data["coa"]),
+            speeds_m_s=None if data["speed_m_s"] is None else _arr(data["speed_m_s"]),
+            converged=bool(converged), status=doc["status"], message=doc["message"],
+            nfev=doc["nfev"], chi2=_num(doc["chi2"]), reduced_chi2=_num(doc["reduced_chi2"]),
+            dof=doc["dof"],
+            mu_estimate=_num(doc["mu"] if mu_det else doc["mu_estimate_unreliable"]),
+            mu_stderr_estimate=_num(mu_stderr_estimate), mu_determined=mu_det,
+            mu_lower_bound=_num(doc["mu_lower_bound"]),
+            curve_peak_coa=_num(doc["curve_peak_coa"]), stiffness=doc["stiffness"],
+            weighted=bool(doc["weighted"]), mu_interval_68=tuple(doc["mu_interval_68"]),
+            mu_interval_95=tuple(doc["mu_interval_95"]), mu_profile=doc["mu_profile"],
+            starts=doc["starts"], warnings=list(warnings), options=doc["options"],
+            swing=None if data["creepage_swing"] is None else _arr(data["creepage_swing"]))
+
     def to_dict(self) -> dict:
         """JSON-ready dictionary (non-finite numbers become None)."""
         return to_jsonable({
@@ -158,3 +188,13 @@ class PolachFit:
             "nfev": self.nfev, "weighted": self.weighted,
             "starts": self.starts, "warnings": list(self.warnings), "options": self.options,
         })
+
+
+def _num(x) -> float:
+    """A JSON number back as a float (None, written for a non-finite one, as NaN)."""
+    return float("nan") if x is None else float(x)
+
+
+def _arr(x) -> np.ndarray:
+    """A JSON list (of lists) of numbers back as a float array (None as NaN)."""
+    return np.array(x, dtype=float)

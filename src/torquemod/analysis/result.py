@@ -22,7 +22,7 @@ if TYPE_CHECKING:  # named for the types only
     from torquemod.analysis.phasefitresult import PhaseMuFit
     from torquemod.analysis.polachfitresult import PolachFit
 
-__all__ = ["Analysis", "curve_check", "phase_keys"]
+__all__ = ["Analysis", "curve_check", "from_saved", "phase_keys", "saved_state"]
 
 
 def phase_keys(pfit) -> dict:
@@ -320,3 +320,76 @@ def headline_lines(ana: Analysis) -> list[str]:
     rms = ana.theory_difference[0]
     out.append(f"saturation onset: {onset}; theory vs measured phase: RMS {_f(rms, '.2f')} deg")
     return out
+
+
+# --- saving and reading back ----------------------------------------------------------------
+def saved_state(ana: Analysis) -> dict:
+    """What :func:`from_saved` needs besides the ``fit.json`` document (:meth:`Analysis.to_dict`)
+    and the steps table: the few values that document does not hold (JSON-ready)."""
+    return to_jsonable({
+        "polach_converged": None if ana.polach is None else bool(ana.polach.converged),
+        "polach_mu_stderr_estimate": None if ana.polach is None
+        else str(float(ana.polach.mu_stderr_estimate)),  # text keeps inf (float() reads it)
+        "polach_warnings": None if ana.polach is None else list(ana.polach.warnings),
+        "phase_fit": None if ana.phase_fit is None else ana.phase_fit.state(),
+        "phase_fit_skipped": ana.phase_fit_skipped, "stiffness": ana.stiffness,
+        "speed_m_s": ana.speed_m_s, "onset_index": ana.onset.index})
+
+
+def from_saved(doc: dict, state: dict, steps: pd.DataFrame, options: FitOptions, *,
+               name: str = "") -> Analysis:
+    """The :class:`Analysis` back from its ``fit.json`` document ``doc``, the
+    :func:`saved_state` ``state`` and the analysed steps table, without fitting again.
+
+    Raises KeyError, TypeError or ValueError on a document that does not fit together."""
+    from torquemod.analysis.creep import creep_points
+    from torquemod.analysis.phasefitresult import PhaseMuFit
+    from torquemod.analysis.polachfitresult import PolachFit
+
+    def num(x):
+        return np.nan if x is None else float(x)
+
+    pts = creep_points(steps.drop(columns=[c for c in _ADDED if c in steps]))
+    recs = doc["steps"]
+    if [r["step"] for r in recs] != [int(s) for s in pts.step]:
+        raise ValueError("fit.json steps differ from steps.csv")
+    used = np.array([not r["slip"] for r in recs], dtype=bool)
+    polach = None
+    if "theta_internal" in doc:
+        polach = PolachFit.from_dict(doc, converged=state["polach_converged"],
+                                     mu_stderr_estimate=state["polach_mu_stderr_estimate"],
+                                     warnings=state["polach_warnings"])
+    pfit = None if state["phase_fit"] is None else PhaseMuFit.from_state(state["phase_fit"])
+    th = doc["theory"]
+    k = np.array([num(r["creep_coefficient"]) for r in recs])
+    theory_deg = np.array([num(r["phase_theory_deg"]) for r in recs])
+    c = th["constant"]
+    const = np.broadcast_to(np.array(c, dtype=float), theory_deg.shape).copy()
+    diff = pts.phase_deg - theory_deg
+    theory = TheoryCheck(th["mode"], const, num(th["constant_stderr"]), k, pts.phase_deg,
+                         theory_deg, diff, num(th["rms_difference_deg"]),
+                         num(th["max_abs_difference_deg"]), int(th["n_steps_compared"]))
+    o = doc["onset"]
+    onset = OnsetResult(step=o["step"], index=state["onset_index"], criterion=o["criterion"],
+                        threshold_deg=num(o["threshold_deg"]),
+                        pooled_phase_std_deg=num(o["pooled_phase_std_deg"]),
+                        phase_jumps_deg=list(o["phase_jumps_deg"]),
+                        creep_coefficient_ratios=list(o["creep_coefficient_ratios"]),
+                        parameters=dict(o["parameters"]), tan_ratios=list(o["tan_ratios"]))
+    source = {k_: v for k_, v in doc["source"].items() if k_ != "results_dir"}
+    return Analysis(
+        options=options, steps=steps, points=pts, used=used, polach=polach,
+        polach_skipped=doc["fit_skipped"], phase_fit=pfit,
+        phase_fit_skipped=state["phase_fit_skipped"], theory=theory,
+        phase_theory_deg=theory_deg, theory_rig=th.get("rig"), onset=onset,
+        saturation_torque_nm=doc["saturation_torque_nm"],
+        saturation_torque_stderr_nm=doc["saturation_torque_stderr_nm"],
+        saturation_torque_source=doc["saturation_torque_source"],
+        normal_load_n=float(doc["normal_load_n"]), wheel_radius_m=float(doc["wheel_radius_m"]),
+        stiffness=state["stiffness"], speed_m_s=state["speed_m_s"],
+        warnings=list(doc["warnings"]), created_utc=str(doc["created_utc"]), source=source,
+        name=name)
+
+
+_ADDED = ("torque_pct_saturation", "creep_coefficient", "phase_theory_deg", "phase_fit_deg",
+          "utilisation_phase")

@@ -13,8 +13,11 @@
 
 :func:`load` is the only reader. It reads ``result.json``, the two tables and the traces,
 checks them, and rebuilds the :class:`~torquemod.processing.pipeline.ProcessResult`; the
-:class:`~torquemod.analysis.result.Analysis` is recomputed in memory with the stored fit
-options (deterministic, so it equals the saved one). ``provenance.json``, ``fit.json`` and the
+:class:`~torquemod.analysis.result.Analysis` is read back from ``fit.json``, the analysed
+steps table and the values ``result.json`` keeps beside them
+(:func:`~torquemod.analysis.result.saved_state`), without fitting again. When ``fit.json``
+is missing, was written by another version or with other fit options, the analysis is
+recomputed with the stored fit options (deterministic), with a warning. ``provenance.json`` and the
 report are outputs only. A missing or damaged file raises :class:`InputError` naming it.
 """
 
@@ -24,6 +27,7 @@ import contextlib
 import dataclasses
 import json
 import re
+import warnings
 import zipfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -34,7 +38,9 @@ import pandas as pd
 
 from torquemod._util import fsutil
 from torquemod._util.jsonutil import dump_json, write_json
+from torquemod._version import __version__
 from torquemod.analysis.analyzer import ADDED_STEP_COLUMNS, FitOptions, analyze
+from torquemod.analysis.result import from_saved, saved_state
 from torquemod.errors import InputError, OptionError, OutputError, TorquemodError
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
@@ -158,7 +164,8 @@ def _state(result: ProcessResult, analysis: Analysis | None) -> dict:
         "input_sha256": result.input_sha256, "command": result.command,
         "analysis": None if analysis is None else {
             "options": dataclasses.asdict(analysis.options),
-            "created_utc": analysis.created_utc},
+            "created_utc": analysis.created_utc,
+            "saved_with": __version__, "saved": saved_state(analysis)},
     }
 
 
@@ -189,7 +196,10 @@ def load(folder) -> tuple[ProcessResult, Analysis | None]:
         raise InputError(f"damaged results state ({type(exc).__name__}: {exc})", path=path,
                          hint="process the experiment again") from None
     cycles = _read_table(folder / "cycles.csv", CYCLE_COLUMNS, n_cycles)
-    steps = _read_table(folder / "steps.csv", STEP_COLUMNS, n_steps)
+    doc = None if options is None else _saved_fit(folder, fit_state, options)
+    steps = _read_table(folder / "steps.csv",
+                        STEP_COLUMNS if doc is None else ANALYSED_STEP_COLUMNS, n_steps)
+    analysed_steps, steps = steps, steps[STEP_COLUMNS].copy()
     traces = _read_traces(folder / "traces.npz")
     _check_consistent(cycles, steps, details, folder)
     result = ProcessResult(
@@ -203,6 +213,14 @@ def load(folder) -> tuple[ProcessResult, Analysis | None]:
         command=state.get("command") if isinstance(state.get("command"), list) else None)
     if options is None:
         return result, None
+    if doc is not None:
+        try:
+            return result, from_saved(doc, fit_state["saved"], analysed_steps, options,
+                                      name=result.name)
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise InputError(f"damaged fit document ({type(exc).__name__}: {exc})",
+                             path=folder / "fit.json",
+                             hint="process the experiment again") from None
     try:
         analysis = analyze(result, options)
     except InputError as exc:  # tables that parse but cannot be analysed
@@ -210,6 +228,35 @@ def load(folder) -> tuple[ProcessResult, Analysis | None]:
                          hint="process the experiment again") from None
     analysis.created_utc = str(fit_state.get("created_utc") or analysis.created_utc)
     return result, analysis
+
+
+def _saved_fit(folder: Path, fit_state: dict, options: FitOptions) -> dict | None:
+    """The ``fit.json`` document when this version wrote it with these fit options, else
+    None with a warning that the analysis is computed again from the steps."""
+    path = folder / "fit.json"
+    why = None
+    if not isinstance(fit_state.get("saved"), dict) or \
+            fit_state.get("saved_with") != __version__:
+        why = (f"result.json was written by torquemod {fit_state.get('saved_with')}"
+               if fit_state.get("saved_with") else "an earlier results format")
+    else:
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            why = "it is missing"
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise InputError(f"cannot read ({exc})", path=path,
+                             hint="process the experiment again") from None
+        else:
+            if not isinstance(doc, dict) or doc.get("torquemod_version") != __version__:
+                why = "it was written by another torquemod version"
+            elif doc.get("fit_options") != json.loads(dump_json(dataclasses.asdict(options))):
+                why = "its fit options differ from result.json's"
+            else:
+                return doc
+    warnings.warn(f"{path}: not read back ({why}); the analysis is computed again from "
+                  "steps.csv with the stored fit options", UserWarning, stacklevel=3)
+    return None
 
 
 def _read_state(path: Path) -> dict:

@@ -1,0 +1,85 @@
+"""``tm.load`` reads the analysis back from fit.json instead of fitting again: every field
+of the rebuilt :class:`Analysis` (and of its fits) equals the saved one's, ``analyze`` is
+not called, and a save of the loaded result writes the same fit.json. A folder whose fit
+was written by another version or format is analysed again, with a warning."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import torquemod as tm
+from torquemod.demo import synthetic_result
+from torquemod.results import folder as results_folder
+
+
+def _same(a, b, where: str) -> None:
+    """Deep equality (NaN equals NaN; arrays, frames, dataclasses field by field)."""
+    if dataclasses.is_dataclass(a) and not isinstance(a, type):
+        assert type(a) is type(b), where
+        for f in dataclasses.fields(a):
+            _same(getattr(a, f.name), getattr(b, f.name), f"{where}.{f.name}")
+    elif isinstance(a, pd.DataFrame):
+        pd.testing.assert_frame_equal(a, b, obj=where)
+    elif isinstance(a, np.ndarray):
+        np.testing.assert_array_equal(a, np.asarray(b), err_msg=where)
+    elif isinstance(a, dict):
+        assert sorted(a) == sorted(b), where
+        for k in a:
+            _same(a[k], b[k], f"{where}[{k!r}]")
+    elif isinstance(a, list | tuple):
+        assert len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _same(x, y, f"{where}[{i}]")
+    elif isinstance(a, float) and np.isnan(a):
+        assert b is None or np.isnan(b), where
+    else:
+        assert a == b, f"{where}: {a!r} != {b!r}"
+
+
+CASES = {
+    "both fits": (dict(seed=3), dict(onset_criterion="either")),
+    "velocity dependent": (dict(seed=5), dict(velocity_dependent=True)),
+    "both fits skipped": (dict(seed=2, saturation_fractions=(0.003, 0.3, 0.55),
+                               include_inertia=False), {}),
+    "mu not determined": (dict(seed=4, saturation_fractions=(0.003, 0.1, 0.2, 0.3, 0.4)), {}),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_load_reads_the_saved_fit_without_fitting(case, tmp_path, monkeypatch):
+    make, options = CASES[case]
+    res = synthetic_result(**make)
+    ana = tm.analyze(res, **options)
+    tm.save(res, ana, tmp_path / "r", report=False)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("load called analyze")
+    monkeypatch.setattr(results_folder, "analyze", refuse)
+    res2, ana2 = tm.load(tmp_path / "r")
+    _same(ana, ana2, "analysis")
+    pd.testing.assert_frame_equal(res2.steps, res.steps)
+    assert ana2.report() == ana.report()
+    tm.save(res2, ana2, tmp_path / "again", report=False)
+    first, second = (json.loads((tmp_path / d / "fit.json").read_text(encoding="utf-8"))
+                     for d in ("r", "again"))
+    first["source"].pop("results_dir")
+    second["source"].pop("results_dir")
+    assert second == first
+
+
+def test_a_fit_of_an_older_format_is_computed_again(tmp_path):
+    res = synthetic_result(seed=3)
+    ana = tm.analyze(res)
+    tm.save(res, ana, tmp_path / "r", report=False)
+    state_path = tmp_path / "r" / "result.json"
+    state = json.loads(state_path.read_text(encoding="utf-8"))
+    del state["analysis"]["saved"], state["analysis"]["saved_with"]  # as written before
+    state_path.write_text(json.dumps(state), encoding="utf-8")
+    with pytest.warns(UserWarning, match="computed again"):
+        _, ana2 = tm.load(tmp_path / "r")
+    assert json.dumps(ana2.to_dict()) == json.dumps(ana.to_dict())
