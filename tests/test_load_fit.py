@@ -83,3 +83,14 @@ def test_a_fit_of_an_older_format_is_computed_again(tmp_path):
     with pytest.warns(UserWarning, match="computed again"):
         _, ana2 = tm.load(tmp_path / "r")
     assert json.dumps(ana2.to_dict()) == json.dumps(ana.to_dict())
+
+
+def test_a_damaged_fit_document_is_named(tmp_path):
+    res = synthetic_result(seed=3)
+    tm.save(res, tm.analyze(res), tmp_path / "r", report=False)
+    path = tmp_path / "r" / "fit.json"
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    del doc["onset"]
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    with pytest.raises(tm.InputError, match=r"fit\.json"):
+        tm.load(tmp_path / "r")
