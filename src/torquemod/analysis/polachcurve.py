@@ -20,10 +20,38 @@ __all__ = ["longitudinal_mean", "polach_coa", "polach_slope"]
 
 
 def polach_coa(xi, theta, *, speed_m_s=None):
-    """CoA of the lumped Polach model for the internal parameter vector ``theta``.
+    """Coefficient of adhesion of the lumped Polach model,
+    ``CoA = mu*force_function(|xi|/mu; kA*s, kS*s)``.
 
-    ``theta = (mu, kA*s, kS*s)`` (constant friction) or ``(mu0, kA*s, kS*s, A, B[s/m])``
-    (P05 Eq. 9, slip velocity ``w = |xi|*V`` with ``speed_m_s`` V [m/s]).
+    Parameters
+    ----------
+    xi : float or array_like
+        Creepage [-]; its magnitude is used.
+    theta : sequence of float
+        ``(mu, kA*s, kS*s)`` [-] (constant friction) or ``(mu0, kA*s, kS*s, A, B)``
+        [-, -, -, -, s/m] (friction falling with slip velocity ``w = |xi|*V``).
+    speed_m_s : float or array_like, optional
+        Rolling speed V [m/s]; required with five parameters.
+
+    Returns
+    -------
+    ndarray
+        CoA [-], non-negative.
+
+    Raises
+    ------
+    InputError
+        Five parameters without ``speed_m_s``.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (3), (8) and (9).
+
+    Examples
+    --------
+    >>> float(polach_coa(0.0, (0.3, 40.0, 10.0)))
+    0.0
     """
     xi = np.abs(np.asarray(xi, dtype=float))
     mu = theta[0]
@@ -37,9 +65,34 @@ def polach_coa(xi, theta, *, speed_m_s=None):
 
 
 def polach_slope(xi, theta, *, speed_m_s=None):
-    """Creep coefficient dCoA/dxi [-] of :func:`polach_coa` at ``|xi|``.
+    """Creep coefficient k = dCoA/dxi of :func:`polach_coa` at ``|xi|``.
 
-    Analytic for constant friction; central difference for the velocity-dependent model.
+    Analytic for constant friction; a central difference for the velocity-dependent model.
+
+    Parameters
+    ----------
+    xi : float or array_like
+        Creepage [-].
+    theta : sequence of float
+        As for :func:`polach_coa`.
+    speed_m_s : float or array_like, optional
+        Rolling speed V [m/s] (velocity-dependent model).
+
+    Returns
+    -------
+    ndarray
+        k [-]; ``2*(kA*s + kS*s)/pi`` at xi = 0.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eq. (8), differentiated.
+
+    Examples
+    --------
+    >>> import math
+    >>> math.isclose(polach_slope(0.0, (0.3, 40.0, 10.0)), 2 * 50.0 / math.pi)
+    True
     """
     xi = np.abs(np.asarray(xi, dtype=float))
     if len(theta) == 3:
