@@ -9,6 +9,7 @@ import importlib
 import pytest
 
 MODULES = ("torquemod.analysis.contact.polach", "torquemod.analysis.contact.kalker",
+           "torquemod.analysis.contact.hertz",
            "torquemod.analysis.creep", "torquemod.analysis.polachcurve",
            "torquemod.dsp.phase")
 

@@ -107,13 +107,40 @@ def polach_slope(xi, theta, *, speed_m_s=None):
 
 
 def longitudinal_mean(xi, theta, swing=None, speed_m_s=None):
-    """Mean longitudinal CoA [-] at creepage ``xi`` [-]: the static curve, or, with a
-    creepage swing [-], its period average over the swing (the mean of a modulated step,
-    ``CoA_mean`` of :mod:`torquemod.analysis.fit`, via
+    """Mean longitudinal CoA at creepage ``xi``: the static curve, or its period average
+    over a sinusoidal creepage swing (the mean of a modulated step, ``CoA_mean`` of
+    :mod:`torquemod.analysis.fit`, via
     :func:`torquemod.analysis.contact.polach.swing_average` of the signed curve).
 
-    ``theta`` as in :func:`polach_coa`; ``speed_m_s`` [m/s] per point for the
-    velocity-dependent model (slip velocity ``|xi + a*cos(theta)|*V``, P05 Eq. 9)."""
+    Parameters
+    ----------
+    xi : float or array_like
+        Mean creepage [-].
+    theta : sequence of float
+        As for :func:`polach_coa`.
+    swing : float or array_like, optional
+        Creepage swing amplitude a [-]; None for the static curve.
+    speed_m_s : float or array_like, optional
+        Rolling speed V [m/s] per point for the velocity-dependent model (slip velocity
+        ``|xi + a*cos(theta)|*V``).
+
+    Returns
+    -------
+    ndarray
+        Mean CoA [-].
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (3), (8) and (9).
+
+    Examples
+    --------
+    >>> import math
+    >>> th = (0.3, 40.0, 10.0)
+    >>> math.isclose(longitudinal_mean(0.01, th, swing=0.0), polach_coa(0.01, th))
+    True
+    """
     if swing is None:
         return polach_coa(xi, theta, speed_m_s=speed_m_s)
     spd = None if speed_m_s is None else np.asarray(speed_m_s, dtype=float)[..., None]
