@@ -62,9 +62,25 @@ class CreepPoints:
 
 
 def creep_points(steps_df: pd.DataFrame) -> CreepPoints:
-    """Creep-curve points from a ``steps.csv`` table (columns ``step, dc_torque_nm, phase_deg,
-    phase_std_deg, creepage, creepage_std, coa, coa_std, n_cycles``; only ``step``,
-    ``creepage`` and ``coa`` are required). Rows with a non-finite creepage or CoA are dropped.
+    """Creep-curve points from a steps table, sorted by step.
+
+    Parameters
+    ----------
+    steps_df : pandas.DataFrame
+        A ``steps.csv`` table: ``step``, ``creepage`` [-] and ``coa`` [-] are required;
+        ``dc_torque_nm`` [N*m], ``phase_deg``, ``phase_std_deg`` [deg], ``creepage_std``,
+        ``coa_std`` [-] and ``n_cycles`` are used when present. Rows with a non-finite
+        creepage or CoA are dropped.
+
+    Returns
+    -------
+    CreepPoints
+        One point per step, with the standard error of the CoA ``coa_std/sqrt(n_cycles)``.
+
+    Raises
+    ------
+    InputError
+        A required column is missing or no row is finite.
     """
     missing = [c for c in REQUIRED_COLUMNS if c not in steps_df.columns]
     if missing:
@@ -367,6 +383,44 @@ def saturation_onset(step, phase_deg, phase_std_deg=None, creep_coefficient=None
       ``s_pooled = sqrt(mean(phase_std^2))`` over the steps (0 when unknown);
     * ``"creep_coefficient"``: ``k_i < (1 - rel_k_drop) * k_{i-1}`` (slope of the fitted curve);
     * ``"either"`` / ``"both"``: the union / intersection of the two.
+
+    Parameters
+    ----------
+    step : array_like
+        Step numbers, in DC-torque order.
+    phase_deg : array_like
+        Phase lag per step [deg].
+    phase_std_deg : array_like, optional
+        Its standard deviation per step [deg]; unknown counts as 0.
+    creep_coefficient : array_like, optional
+        k = dCoA/dxi per step [-] (needed by the ``"creep_coefficient"`` criterion).
+    criterion : {"tan_ratio", "phase", "creep_coefficient", "either", "both"}
+        As above.
+    k_sigma : float, default 3.0
+        Significance of a rise, in pooled standard deviations [-].
+    min_jump_deg : float, default 5.0
+        Smallest phase jump flagged by ``"phase"`` [deg].
+    rel_k_drop : float, default 0.5
+        Relative fall of k flagged by ``"creep_coefficient"`` [-].
+    tan_ratio : float, default 2.0
+        Rise of ``tan(phi)`` over the baseline flagged by ``"tan_ratio"`` [-].
+    baseline_steps : int, default 2
+        Low-torque steps whose median phase is the baseline.
+
+    Returns
+    -------
+    OnsetResult
+        The first flagged step (None when no step meets the criterion) and why.
+
+    Raises
+    ------
+    InputError
+        Unknown ``criterion``.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
     """
     if criterion not in ONSET_CRITERIA:
         raise InputError(f"unknown onset criterion {criterion!r}; choose one of {ONSET_CRITERIA}")
