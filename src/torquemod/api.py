@@ -73,9 +73,25 @@ def _bind(*names: str) -> None:
 
 
 def read_experiment(path) -> Experiment:
-    """Read an experiment manifest (``experiment.toml`` or its folder). Its ``[processing]``
-    table is checked now and available as ``exp.processing`` (a
-    :class:`~torquemod.io.config.ProcessingConfig`)."""
+    """Read a rig experiment manifest.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``experiment.toml`` or the folder that holds it.
+
+    Returns
+    -------
+    Experiment
+        The manifest and its recordings; ``exp.processing`` is its ``[processing]`` table as
+        a :class:`~torquemod.io.config.ProcessingConfig` (SI units: Hz, s, m, N, kg m^2).
+
+    Raises
+    ------
+    InputError
+        The manifest, a recording it names or its ``[processing]`` table is missing or
+        invalid (the message names the file and the key).
+    """
     exp = _io.read_experiment(path)
     _ = exp.processing  # a bad [processing] table is reported here, naming the manifest
     return exp
@@ -84,13 +100,47 @@ def read_experiment(path) -> Experiment:
 def process(experiment, config: ProcessingConfig | None = None, *,
             phase_method: str | None = None, nan_policy: str | None = None,
             progress: bool = False, workers: int | None = None) -> ProcessResult:
-    """Run the processing chain on an experiment (an :class:`Experiment` or a manifest path).
+    """Run the processing chain on a rig experiment: per cycle and per torque step, the
+    creepage [-], coefficient of adhesion [-] and torque-to-speed phase lag [deg].
 
-    The parameters are the manifest's ``[processing]`` table, or ``config`` when given (a
-    whole :class:`ProcessingConfig` replaces the table); the flat keywords ``phase_method``
-    ("paper" or "sinefit") and ``nan_policy`` ("raise", "interpolate", "drop-cycle") are
-    applied over either. The CLI's ``--phase-method``/``--nan-policy`` do the same, so the
-    library and the command line give the same result.
+    The phase lag is the quantity of Eq. (1) of the V-Track torque-modulation paper
+    (References): the wheel speed lags the modulated torque by ``phi = atan(C/k)``.
+
+    Parameters
+    ----------
+    experiment : Experiment or path
+        An :class:`Experiment` (:func:`read_experiment`) or its manifest's path.
+    config : ProcessingConfig, optional
+        Replaces the manifest's whole ``[processing]`` table.
+    phase_method : {"paper", "sinefit"}, optional
+        Applied over the table or ``config``: the paper's paired peaks and valleys
+        (Eq. 2 of [1]_) or a least-squares sine fit (:mod:`torquemod.dsp.phase`).
+    nan_policy : {"raise", "interpolate", "drop-cycle"}, optional
+        What to do with missing samples; applied over the table or ``config``.
+    progress : bool, default False
+        Show a progress bar on stderr.
+    workers : int, optional
+        Processes for the per-recording work; default from the configuration.
+
+    Returns
+    -------
+    ProcessResult
+        The cycles and steps tables, per-recording details and traces.
+
+    Raises
+    ------
+    InputError
+        Bad manifest, recording or option (one line naming the file and key).
+
+    Notes
+    -----
+    The CLI's ``--phase-method``/``--nan-policy`` apply the same overrides, so the library
+    and ``torquemod process`` give the same result.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
     """
     _bind("resolve_config", "process_experiment")
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
@@ -99,8 +149,23 @@ def process(experiment, config: ProcessingConfig | None = None, *,
 
 
 def read_run(path):
-    """Read a train run manifest (``run.toml`` or its folder): a
-    :class:`~torquemod.io.run.Run`. Its ``[onboard]`` table is checked now."""
+    """Read a train run manifest.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``run.toml`` or the folder that holds it.
+
+    Returns
+    -------
+    Run
+        The ``[vehicle]`` and ``[test]`` tables (SI units) and the recordings, one per axle.
+
+    Raises
+    ------
+    InputError
+        The manifest, a recording or its ``[onboard]`` table (checked now) is invalid.
+    """
     from torquemod.io.run import read_run as _read_run
     from torquemod.ontrain.estimator import OnboardConfig
     run = _read_run(path)
@@ -160,9 +225,25 @@ def onboard(run, *, axle: int | None = None, config=None, **options):
 
 
 def load_onboard(folder, axle: int | None = None):
-    """Read an on-board results folder back (:meth:`OnboardResult.save` or ``torquemod
-    onboard``): the :class:`~torquemod.ontrain.OnboardResult` of ``axle`` (the first when
-    None)."""
+    """Read an on-board results folder back.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        What :meth:`OnboardResult.save` or ``torquemod onboard`` wrote.
+    axle : int, optional
+        Which axle; the first in the folder when None.
+
+    Returns
+    -------
+    OnboardResult
+        The axle's friction track, as :func:`onboard` returned it.
+
+    Raises
+    ------
+    InputError
+        The folder is not an on-board results folder or holds no such axle.
+    """
     from torquemod.ontrain.load import load_onboard as _load
     return _load(folder, axle)
 
@@ -198,8 +279,46 @@ def run(experiment, out, *, config: ProcessingConfig | None = None,
         phase_method: str | None = None, nan_policy: str | None = None, fit: bool = True,
         fit_options=None, report_options=None, force: bool = False, progress: bool = False,
         command: list[str] | None = None, on_stage: Stage = None, export=()) -> RunOutcome:
-    """process -> analyze -> save (with the report): ``torquemod process``; ``export``:
-    the cycles and steps tables also as MATLAB ``mat`` and/or ``parquet``."""
+    """Process, analyse and save a rig experiment: what ``torquemod process`` does.
+
+    Parameters
+    ----------
+    experiment : Experiment or path
+        As for :func:`process`.
+    out : str or os.PathLike
+        The results folder to write (atomically; refused if it is or holds an input).
+    config, phase_method, nan_policy
+        As for :func:`process`.
+    fit : bool, default True
+        Also fit the creep curve (:func:`analyze`) and write the figures and report.
+    fit_options : FitOptions or dict, optional
+        Passed to :func:`analyze`.
+    report_options : dict, optional
+        Passed to the report writer.
+    force : bool, default False
+        Replace an existing ``out``.
+    progress : bool, default False
+        Show a progress bar on stderr.
+    command : list of str, optional
+        The command line recorded in the folder's provenance.
+    on_stage : callable, optional
+        Called with one line of text at each stage; nothing is printed otherwise.
+    export : iterable of {"mat", "parquet"}
+        The cycles and steps tables also in these formats.
+
+    Returns
+    -------
+    RunOutcome
+        The result, the analysis, the folder, the report path and the wall time of each
+        stage [s].
+
+    Raises
+    ------
+    InputError
+        Bad input or export format (before any work is done).
+    OutputError
+        ``out`` is occupied (without ``force``) or would replace an input.
+    """
     from torquemod.results.export import check_formats
     export = check_formats(export)  # a bad format is refused before the work
     say = on_stage or (lambda _text: None)
@@ -232,8 +351,25 @@ def run(experiment, out, *, config: ProcessingConfig | None = None,
 def fit_folder(folder, options: FitOptions | dict | None = None, *, report_options=None,
                on_stage: Stage = None
                ) -> tuple[ProcessResult, Analysis]:
-    """load -> analyze(options) -> update the folder atomically, report included:
-    ``torquemod fit``."""
+    """Refit a results folder in place: what ``torquemod fit`` does.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        A results folder written by :func:`run` or :func:`save`.
+    options : FitOptions or dict, optional
+        Passed to :func:`analyze`.
+    report_options : dict, optional
+        Passed to the report writer.
+    on_stage : callable, optional
+        Called with one line of text at each stage.
+
+    Returns
+    -------
+    tuple of (ProcessResult, Analysis)
+        The loaded result and its new analysis; ``fit.json``, ``steps.csv``, the figures
+        and ``report.html`` are rewritten atomically.
+    """
     from torquemod._util.fsutil import output_lock
     say = on_stage or (lambda _text: None)
     _bind("load", "analyze", "update")
@@ -247,9 +383,23 @@ def fit_folder(folder, options: FitOptions | dict | None = None, *, report_optio
 
 
 def report_folder(folder, *, report_options=None, on_stage: Stage = None) -> Path:
-    """load -> render the figures and report.html -> update the folder atomically:
-    ``torquemod report`` (a folder saved without an analysis is analysed with the default
-    options first)."""
+    """Redraw the figures and ``report.html`` of a results folder: ``torquemod report``.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        A results folder; one saved without an analysis is analysed with the default
+        options first.
+    report_options : dict, optional
+        Passed to the report writer.
+    on_stage : callable, optional
+        Called with one line of text at each stage.
+
+    Returns
+    -------
+    pathlib.Path
+        The path of ``report.html``.
+    """
     from torquemod._util.fsutil import output_lock
     say = on_stage or (lambda _text: None)
     _bind("load", "analyze", "update")
@@ -264,9 +414,20 @@ def report_folder(folder, *, report_options=None, on_stage: Stage = None) -> Pat
 
 
 def fit_results_folder(results_dir, *, options=None) -> dict:
-    """Refit a results folder (:func:`fit_folder`: load, analyze, update it
-    atomically with the report) and return :meth:`Analysis.summary` plus the ``fit_json``
-    and ``steps_csv`` paths."""
+    """Refit a results folder (:func:`fit_folder`) and summarise the fit.
+
+    Parameters
+    ----------
+    results_dir : str or os.PathLike
+        A results folder.
+    options : FitOptions or dict, optional
+        Passed to :func:`analyze`.
+
+    Returns
+    -------
+    dict
+        :meth:`Analysis.summary` plus the ``fit_json`` and ``steps_csv`` paths (str).
+    """
     _, ana = fit_folder(results_dir, options)
     folder = Path(results_dir)
     return {**ana.summary(), "fit_json": str(folder / "fit.json"),

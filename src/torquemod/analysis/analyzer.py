@@ -92,10 +92,38 @@ def _rig_value(result: ProcessResult, key: str, override):
 
 def analyze(result: ProcessResult, options: FitOptions | dict | None = None, **fit_options
             ) -> Analysis:
-    """The fit stage on a processed experiment, in memory; returns an :class:`Analysis`.
+    """The fit stage on a processed experiment, in memory.
 
-    Options are :class:`FitOptions` fields, given as ``options`` (an instance or a mapping)
-    and/or as keywords (keywords win), e.g. ``analyze(res, velocity_dependent=True)``.
+    Fits Polach's creep-force curve (Polach 2005, Eqs. 3, 8 and 9) to the steps' creepage
+    [-] and coefficient of adhesion [-], and the friction coefficient from the measured
+    phase lags through ``tan(phi) = C/k`` (Eq. 1 of the V-Track paper).
+
+    Parameters
+    ----------
+    result : ProcessResult
+        What :func:`torquemod.process` (or :func:`torquemod.load`) returned.
+    options : FitOptions or dict, optional
+        :class:`FitOptions` fields as an instance or a mapping.
+    **fit_options
+        Single :class:`FitOptions` fields over ``options`` (keywords win), e.g.
+        ``analyze(res, velocity_dependent=True)``.
+
+    Returns
+    -------
+    Analysis
+        The creep points, the Polach fit, the phase fit and their summaries.
+
+    Raises
+    ------
+    InputError
+        ``result`` is not a :class:`ProcessResult` or an option is invalid.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000.
+    .. [2] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
     """
     _require_process_result(result)
     base = FitOptions.coerce(options)

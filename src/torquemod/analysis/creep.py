@@ -62,9 +62,25 @@ class CreepPoints:
 
 
 def creep_points(steps_df: pd.DataFrame) -> CreepPoints:
-    """Creep-curve points from a ``steps.csv`` table (columns ``step, dc_torque_nm, phase_deg,
-    phase_std_deg, creepage, creepage_std, coa, coa_std, n_cycles``; only ``step``,
-    ``creepage`` and ``coa`` are required). Rows with a non-finite creepage or CoA are dropped.
+    """Creep-curve points from a steps table, sorted by step.
+
+    Parameters
+    ----------
+    steps_df : pandas.DataFrame
+        A ``steps.csv`` table: ``step``, ``creepage`` [-] and ``coa`` [-] are required;
+        ``dc_torque_nm`` [N*m], ``phase_deg``, ``phase_std_deg`` [deg], ``creepage_std``,
+        ``coa_std`` [-] and ``n_cycles`` are used when present. Rows with a non-finite
+        creepage or CoA are dropped.
+
+    Returns
+    -------
+    CreepPoints
+        One point per step, with the standard error of the CoA ``coa_std/sqrt(n_cycles)``.
+
+    Raises
+    ------
+    InputError
+        A required column is missing or no row is finite.
     """
     missing = [c for c in REQUIRED_COLUMNS if c not in steps_df.columns]
     if missing:
@@ -92,7 +108,48 @@ def creep_points(steps_df: pd.DataFrame) -> CreepPoints:
 
 
 def theory_constant(*, inertia_kg_m2, speed_m_s, wheel_radius_m, normal_load_n, frequency_hz):
-    """``C = Omega*J*V/(R^2*N)`` [-] of ``tan(phi) = C/k`` (the V-Track paper, Eq. 1)."""
+    """Rigid-wheel constant ``C = Omega*J*V/(R^2*N)`` of ``tan(phi) = C/k``.
+
+    A rigid wheel modulated at ``Omega = 2*pi*f`` whose creep coefficient is
+    ``k = dCoA/dxi`` has its speed lagging the torque by ``phi = atan(C/k)``.
+
+    Parameters
+    ----------
+    inertia_kg_m2 : float
+        Wheel (wheelset) inertia J [kg m^2].
+    speed_m_s : float or array_like
+        Rolling speed V [m/s].
+    wheel_radius_m : float or array_like
+        Rolling radius R [m].
+    normal_load_n : float or array_like
+        Normal load N [N].
+    frequency_hz : float or array_like
+        Modulation frequency f [Hz].
+
+    Returns
+    -------
+    float or ndarray
+        C [-].
+
+    Notes
+    -----
+    Eq. (1) of [1]_ states ``tan(phi)`` proportional to ``1/k``; C is the constant of
+    proportionality for a rigid wheel, ``J*d(omega)/dt = T - R*N*CoA``, linearised about
+    the operating point and driven at ``Omega``.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+
+    Examples
+    --------
+    >>> import math
+    >>> c = theory_constant(inertia_kg_m2=1.0, speed_m_s=1.0, wheel_radius_m=1.0,
+    ...                     normal_load_n=2 * math.pi, frequency_hz=1.0)
+    >>> round(float(c), 12)
+    1.0
+    """
     omega = 2.0 * np.pi * np.asarray(frequency_hz, dtype=float)
     return (omega * inertia_kg_m2 * np.asarray(speed_m_s, dtype=float)
             / (np.asarray(wheel_radius_m, dtype=float) ** 2 * np.asarray(normal_load_n, float)))
@@ -100,10 +157,29 @@ def theory_constant(*, inertia_kg_m2, speed_m_s, wheel_radius_m, normal_load_n, 
 
 def time_constant_s(*, inertia_kg_m2, speed_m_s, wheel_radius_m, normal_load_n,
                     creep_coefficient):
-    """``tau = J*V/(R^2*N*k)`` [s]: the time constant with which the rigid wheel's speed
-    relative to the rail settles at creep coefficient ``k`` (the same model as
-    :func:`theory_constant`: ``tan(phi) = Omega*tau = C/k``). It grows without bound
-    towards the creep curve's peak (k -> 0)."""
+    """Time constant ``tau = J*V/(R^2*N*k)`` with which the rigid wheel's speed relative to
+    the rail settles at creep coefficient k.
+
+    The same model as :func:`theory_constant`: ``tan(phi) = Omega*tau = C/k``. It grows
+    without bound towards the creep curve's peak (k -> 0).
+
+    Parameters
+    ----------
+    inertia_kg_m2, speed_m_s, wheel_radius_m, normal_load_n
+        J [kg m^2], V [m/s], R [m], N [N] as for :func:`theory_constant`.
+    creep_coefficient : float or array_like
+        k = dCoA/dxi [-].
+
+    Returns
+    -------
+    float or ndarray
+        tau [s]; inf at k = 0.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+    """
     k = np.asarray(creep_coefficient, dtype=float)
     with np.errstate(divide="ignore"):
         return (inertia_kg_m2 * np.asarray(speed_m_s, dtype=float)
@@ -112,17 +188,64 @@ def time_constant_s(*, inertia_kg_m2, speed_m_s, wheel_radius_m, normal_load_n,
 
 
 def phase_from_constant_deg(constant, creep_coefficient):
-    """Rigid-wheel phase lag ``atan2(C, k)`` [deg]: 90 deg at k = 0, beyond 90 deg for k < 0
-    (the falling branch of the creep curve, where the small-signal wheel is unstable)."""
+    """Rigid-wheel phase lag ``phi = atan2(C, k)`` of the wheel speed behind the torque.
+
+    Parameters
+    ----------
+    constant : float or array_like
+        C [-] (:func:`theory_constant`).
+    creep_coefficient : float or array_like
+        k = dCoA/dxi [-].
+
+    Returns
+    -------
+    float or ndarray
+        phi [deg]: 90 deg at k = 0, beyond 90 deg for k < 0 (the falling branch of the
+        creep curve, where the small-signal wheel is unstable).
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+
+    Examples
+    --------
+    >>> float(phase_from_constant_deg(1.0, 1.0))
+    45.0
+    >>> float(phase_from_constant_deg(1.0, 0.0))
+    90.0
+    """
     return np.degrees(np.arctan2(np.asarray(constant, dtype=float),
                                  np.asarray(creep_coefficient, dtype=float)))
 
 
 def fit_theory_constant(phase_deg, creep_coefficient) -> tuple[float, float, int]:
-    """One scale factor C for all steps: least squares of ``tan(phi_measured)`` on ``1/k``
-    through the origin. Uses points with 0 < |phi| < 90 deg and k > 0.
+    """One constant C for all steps: least squares of ``tan(phi_measured)`` on ``1/k``
+    through the origin, the model ``tan(phi) = C/k``.
 
-    Returns ``(C, stderr of C, number of points used)``; NaNs when no point is usable.
+    Parameters
+    ----------
+    phase_deg : array_like
+        Measured phase lag per step [deg]; points with 0 < |phi| < 90 deg are used.
+    creep_coefficient : array_like
+        k = dCoA/dxi per step [-]; points with k > 0 are used.
+
+    Returns
+    -------
+    tuple of (float, float, int)
+        C [-], its standard error [-] and the number of points used; NaNs and 0 when no
+        point is usable (the standard error is NaN with one point).
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+
+    Examples
+    --------
+    >>> c, se, n = fit_theory_constant([45.0, 63.43494882292201], [1.0, 0.5])
+    >>> round(c, 9), n
+    (1.0, 2)
     """
     phi = np.radians(np.asarray(phase_deg, dtype=float))
     k = np.asarray(creep_coefficient, dtype=float)
@@ -167,8 +290,28 @@ class TheoryCheck:
 
 
 def theory_check(phase_deg, creep_coefficient, *, constant=None) -> TheoryCheck:
-    """Compare measured phases [deg] with ``atan(C/k)``; C from the rig (``constant``, scalar or
-    per step) or, when None, fitted with :func:`fit_theory_constant`."""
+    """Compare measured phases with the rigid-wheel prediction ``atan(C/k)``.
+
+    Parameters
+    ----------
+    phase_deg : array_like
+        Measured phase lag per step [deg].
+    creep_coefficient : array_like
+        k = dCoA/dxi per step [-].
+    constant : float or array_like, optional
+        C [-] from the rig (scalar or per step, :func:`theory_constant`); when None it is
+        fitted with :func:`fit_theory_constant`.
+
+    Returns
+    -------
+    TheoryCheck
+        Predicted against measured phase per step [deg] and the C used.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+    """
     phase = np.asarray(phase_deg, dtype=float)
     k = np.asarray(creep_coefficient, dtype=float)
     if constant is None:
@@ -240,6 +383,44 @@ def saturation_onset(step, phase_deg, phase_std_deg=None, creep_coefficient=None
       ``s_pooled = sqrt(mean(phase_std^2))`` over the steps (0 when unknown);
     * ``"creep_coefficient"``: ``k_i < (1 - rel_k_drop) * k_{i-1}`` (slope of the fitted curve);
     * ``"either"`` / ``"both"``: the union / intersection of the two.
+
+    Parameters
+    ----------
+    step : array_like
+        Step numbers, in DC-torque order.
+    phase_deg : array_like
+        Phase lag per step [deg].
+    phase_std_deg : array_like, optional
+        Its standard deviation per step [deg]; unknown counts as 0.
+    creep_coefficient : array_like, optional
+        k = dCoA/dxi per step [-] (needed by the ``"creep_coefficient"`` criterion).
+    criterion : {"tan_ratio", "phase", "creep_coefficient", "either", "both"}
+        As above.
+    k_sigma : float, default 3.0
+        Significance of a rise, in pooled standard deviations [-].
+    min_jump_deg : float, default 5.0
+        Smallest phase jump flagged by ``"phase"`` [deg].
+    rel_k_drop : float, default 0.5
+        Relative fall of k flagged by ``"creep_coefficient"`` [-].
+    tan_ratio : float, default 2.0
+        Rise of ``tan(phi)`` over the baseline flagged by ``"tan_ratio"`` [-].
+    baseline_steps : int, default 2
+        Low-torque steps whose median phase is the baseline.
+
+    Returns
+    -------
+    OnsetResult
+        The first flagged step (None when no step meets the criterion) and why.
+
+    Raises
+    ------
+    InputError
+        Unknown ``criterion``.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
     """
     if criterion not in ONSET_CRITERIA:
         raise InputError(f"unknown onset criterion {criterion!r}; choose one of {ONSET_CRITERIA}")

@@ -16,10 +16,50 @@ __all__ = ["FitOptions"]
 class FitOptions:
     """Options of the fit stage (all recorded in fit.json).
 
-    ``velocity_dependent`` fits P05 Eq. (9) too (needs differing speeds); ``stiffness``
-    overrides ``rig.contact_stiffness``; ``inertia_kg_m2`` overrides ``rig.wheel_inertia_kg_m2``;
-    ``theory_constant`` forces C; ``weighted`` uses the steps' standard errors; ``onset_*`` are
-    the arguments of :func:`torquemod.analysis.creep.saturation_onset`.
+    Attributes
+    ----------
+    velocity_dependent : bool, default False
+        Also fit friction falling with slip velocity (Polach 2005, Eq. 9); needs steps at
+        differing speeds.
+    lateral : bool, default True
+        Model ``CoA = sqrt(f(xi)^2 + (Fy/Fz)^2)`` with the measured lateral force ratio.
+    n_starts : int, default 12
+        Optimiser start points.
+    seed : int, default 0
+        Seed of the start points.
+    weighted : bool, default True
+        Weight the points by the steps' standard errors.
+    sigma_floor : float, default 1e-4
+        Floor of a point's CoA standard error [-] (the floor applied is
+        ``max(sigma_floor, 0.1*median(sigma))``).
+    max_rel_stderr : float, default 0.10
+        Largest relative standard error of mu for mu to count as determined [-].
+    min_saturation_fraction : float, default 0.5
+        The largest measured CoA must reach this fraction of mu [-].
+    min_peak_fraction : float, default 0.9
+        The fitted curve must reach this fraction of mu within ``creepage_limit`` [-].
+    creepage_limit : float, default 0.1
+        Creepage range over which the curve's peak is sought [-].
+    stiffness : float, optional
+        Lumped contact stiffness s [-] (Polach 2005, Eq. 3); overrides
+        ``rig.contact_stiffness``.
+    inertia_kg_m2 : float, optional
+        Wheel inertia J [kg m^2]; overrides ``rig.wheel_inertia_kg_m2``.
+    theory_constant : float, optional
+        Forces the rigid-wheel constant C [-] of ``tan(phi) = C/k``.
+    onset_criterion : str, default "tan_ratio"
+        ``criterion`` of :func:`torquemod.analysis.creep.saturation_onset`.
+    onset_k_sigma, onset_rel_k_drop, onset_tan_ratio : float
+        Its ``k_sigma`` [-], ``rel_k_drop`` [-] and ``tan_ratio`` [-].
+    onset_min_jump_deg : float, default 5.0
+        Its ``min_jump_deg`` [deg].
+    onset_baseline_steps : int, default 2
+        Its ``baseline_steps``.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000.
     """
 
     velocity_dependent: bool = False

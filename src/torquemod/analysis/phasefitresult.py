@@ -30,6 +30,58 @@ class PhaseMuFit:
     that would determine it). ``constant`` is C when given; otherwise the observations fix
     k only relative to C and ``initial_slope`` is ``k0/C`` (``k_relative``).
     ``ratio_ka_ks`` is the best member's kA/kS when that member is a Polach law, else NaN.
+
+    The phases follow ``tan(phi) = C/k`` (Eq. 1 of the V-Track torque-modulation paper),
+    ``k = dCoA/dxi`` the creep coefficient of the adhesion-creepage law.
+
+    Attributes
+    ----------
+    mu_estimate : float
+        Available adhesion [-] (the maximum of the adhesion-creepage curve).
+    mu_determined : bool
+        The phases determine it (a closed, narrow enough 95 % interval).
+    mu_interval_95 : tuple
+        ``(low, high)`` [-]; ``(mu_lower_bound, None)`` when not determined.
+    mu_lower_bound : float
+        Lower bound of the available adhesion [-].
+    mu_stderr_estimate : float or None
+        Width of the 95 % interval over ``2*1.96`` [-] when closed, else None.
+    constant : float
+        Rigid-wheel constant ``C = Omega*J*V/(R^2*N)`` [-] of ``tan(phi) = C/k`` when
+        given, else 1.0.
+    constant_given : bool
+        C was given (from the rig) rather than fitted.
+    ratio_ka_ks : float
+        kA/kS [-] of the best-fitting Polach law (Polach 2005, Eq. 8), else NaN.
+    initial_slope : float
+        ``k0`` = dCoA/dxi at xi = 0 [-]; ``k0/C`` when ``k_relative``.
+    k_relative : bool
+        C unknown, so k is known only relative to C.
+    level : float
+        The profile's 95 % threshold [-] (chi2 units) that bounds the interval.
+    chi2 : float
+        Sum of squared standardised phase residuals [-] at the best fit.
+    dof : int
+        Points minus fitted parameters.
+    chi2_scale : float
+        Factor (>= 1) by which the interval's chi2 was rescaled for excess scatter [-].
+    coa : ndarray
+        CoA of the points [-].
+    phase_deg, sigma_deg : ndarray
+        Measured phase lag and its standard error per point [deg].
+    profile : dict
+        The chi2 profile over the available adhesion behind the interval.
+    warnings : list of str
+        What the caller should know.
+    adhesion : AdhesionFit or None
+        The full fit behind these numbers.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+    .. [2] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000.
     """
 
     mu_estimate: float

@@ -20,10 +20,38 @@ __all__ = ["longitudinal_mean", "polach_coa", "polach_slope"]
 
 
 def polach_coa(xi, theta, *, speed_m_s=None):
-    """CoA of the lumped Polach model for the internal parameter vector ``theta``.
+    """Coefficient of adhesion of the lumped Polach model,
+    ``CoA = mu*force_function(|xi|/mu; kA*s, kS*s)``.
 
-    ``theta = (mu, kA*s, kS*s)`` (constant friction) or ``(mu0, kA*s, kS*s, A, B[s/m])``
-    (P05 Eq. 9, slip velocity ``w = |xi|*V`` with ``speed_m_s`` V [m/s]).
+    Parameters
+    ----------
+    xi : float or array_like
+        Creepage [-]; its magnitude is used.
+    theta : sequence of float
+        ``(mu, kA*s, kS*s)`` [-] (constant friction) or ``(mu0, kA*s, kS*s, A, B)``
+        [-, -, -, -, s/m] (friction falling with slip velocity ``w = |xi|*V``).
+    speed_m_s : float or array_like, optional
+        Rolling speed V [m/s]; required with five parameters.
+
+    Returns
+    -------
+    ndarray
+        CoA [-], non-negative.
+
+    Raises
+    ------
+    InputError
+        Five parameters without ``speed_m_s``.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (3), (8) and (9).
+
+    Examples
+    --------
+    >>> float(polach_coa(0.0, (0.3, 40.0, 10.0)))
+    0.0
     """
     xi = np.abs(np.asarray(xi, dtype=float))
     mu = theta[0]
@@ -37,9 +65,34 @@ def polach_coa(xi, theta, *, speed_m_s=None):
 
 
 def polach_slope(xi, theta, *, speed_m_s=None):
-    """Creep coefficient dCoA/dxi [-] of :func:`polach_coa` at ``|xi|``.
+    """Creep coefficient k = dCoA/dxi of :func:`polach_coa` at ``|xi|``.
 
-    Analytic for constant friction; central difference for the velocity-dependent model.
+    Analytic for constant friction; a central difference for the velocity-dependent model.
+
+    Parameters
+    ----------
+    xi : float or array_like
+        Creepage [-].
+    theta : sequence of float
+        As for :func:`polach_coa`.
+    speed_m_s : float or array_like, optional
+        Rolling speed V [m/s] (velocity-dependent model).
+
+    Returns
+    -------
+    ndarray
+        k [-]; ``2*(kA*s + kS*s)/pi`` at xi = 0.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eq. (8), differentiated.
+
+    Examples
+    --------
+    >>> import math
+    >>> math.isclose(polach_slope(0.0, (0.3, 40.0, 10.0)), 2 * 50.0 / math.pi)
+    True
     """
     xi = np.abs(np.asarray(xi, dtype=float))
     if len(theta) == 3:
@@ -54,13 +107,40 @@ def polach_slope(xi, theta, *, speed_m_s=None):
 
 
 def longitudinal_mean(xi, theta, swing=None, speed_m_s=None):
-    """Mean longitudinal CoA [-] at creepage ``xi`` [-]: the static curve, or, with a
-    creepage swing [-], its period average over the swing (the mean of a modulated step,
-    ``CoA_mean`` of :mod:`torquemod.analysis.fit`, via
+    """Mean longitudinal CoA at creepage ``xi``: the static curve, or its period average
+    over a sinusoidal creepage swing (the mean of a modulated step, ``CoA_mean`` of
+    :mod:`torquemod.analysis.fit`, via
     :func:`torquemod.analysis.contact.polach.swing_average` of the signed curve).
 
-    ``theta`` as in :func:`polach_coa`; ``speed_m_s`` [m/s] per point for the
-    velocity-dependent model (slip velocity ``|xi + a*cos(theta)|*V``, P05 Eq. 9)."""
+    Parameters
+    ----------
+    xi : float or array_like
+        Mean creepage [-].
+    theta : sequence of float
+        As for :func:`polach_coa`.
+    swing : float or array_like, optional
+        Creepage swing amplitude a [-]; None for the static curve.
+    speed_m_s : float or array_like, optional
+        Rolling speed V [m/s] per point for the velocity-dependent model (slip velocity
+        ``|xi + a*cos(theta)|*V``).
+
+    Returns
+    -------
+    ndarray
+        Mean CoA [-].
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (3), (8) and (9).
+
+    Examples
+    --------
+    >>> import math
+    >>> th = (0.3, 40.0, 10.0)
+    >>> math.isclose(longitudinal_mean(0.01, th, swing=0.0), polach_coa(0.01, th))
+    True
+    """
     if swing is None:
         return polach_coa(xi, theta, speed_m_s=speed_m_s)
     spd = None if speed_m_s is None else np.asarray(speed_m_s, dtype=float)[..., None]

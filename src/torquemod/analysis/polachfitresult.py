@@ -16,8 +16,80 @@ __all__ = ["PolachFit"]
 
 @dataclass
 class PolachFit:
-    """Result of :func:`fit_polach` (lmfit-like). Units: CoA and creepage dimensionless,
-    ``b_s_m`` in s/m, speeds in m/s."""
+    """Result of :func:`~torquemod.analysis.fit.fit_polach` (lmfit-like): Polach's creep-force
+    curve (Polach 2005, Eqs. 3, 8 and 9) fitted to a creep curve.
+
+    CoA (coefficient of adhesion) and creepage are dimensionless [-].
+
+    Attributes
+    ----------
+    model : {"polach", "polach_velocity"}
+        Constant friction, or friction falling with slip velocity (Polach 2005, Eq. 9).
+    param_names : tuple of str
+        The reported parameters, in order: ``mu`` [-] (mu0 when velocity-dependent),
+        ``k_a``/``k_s`` [-] when the contact stiffness is known, else
+        ``k_a_stiffness``/``k_s_stiffness`` [-]; ``a_ratio`` (Polach's A) [-] and
+        ``b_s_m`` (Polach's B) [s/m] when velocity-dependent.
+    params, stderr : dict of str to float
+        The reported parameters and their standard errors, in the units above.
+    covariance, correlation : ndarray
+        Of the internal vector ``theta`` (units of ``theta`` squared; correlation [-]).
+    theta : ndarray
+        Internal vector ``(mu, kA*s, kS*s[, A, B])`` [-, -, -, -, s/m], ``s`` the lumped
+        stiffness of Polach 2005, Eq. 3.
+    residuals : ndarray
+        Model minus data per point [-] (CoA).
+    weighted_residuals : ndarray
+        ``residuals / sigma`` [-].
+    sigma : ndarray
+        Standard error used per point [-] (CoA).
+    xi, coa : ndarray
+        The fitted points: creepage [-] and CoA [-].
+    speeds_m_s : ndarray or None
+        Rolling speed per point [m/s] (velocity-dependent model only).
+    converged : bool
+        The optimiser reported success.
+    status : int
+    message : str
+        The optimiser's status code and message.
+    nfev : int
+        Number of model evaluations.
+    chi2, reduced_chi2 : float
+        Sum of squared weighted residuals [-], and that divided by ``dof``.
+    dof : int
+        Points minus fitted parameters.
+    mu_estimate, mu_stderr_estimate : float
+        The fitted friction coefficient [-] and its standard error, whether or not
+        determined (use :attr:`mu`).
+    mu_determined : bool
+        The points determine mu (criteria in :mod:`torquemod.analysis.fit`).
+    mu_lower_bound : float
+        Largest measured CoA [-]: friction is at least this.
+    curve_peak_coa : float
+        Maximum of the fitted curve [-] over the creepage range considered.
+    stiffness : float or None
+        Lumped contact stiffness ``s = pi*G*a*b*c11/(4*Q)`` [-] when given (Polach 2005,
+        Eq. 3 with Kalker's c11).
+    weighted : bool
+        Points weighted by ``1/sigma``.
+    mu_interval_68, mu_interval_95 : tuple of (float or None)
+        Profile-likelihood intervals of mu [-]; None where an end is not bounded.
+    mu_profile : dict
+        The profile of chi2 over mu behind the intervals.
+    starts : list of dict
+        The optimiser's start points and their costs.
+    warnings : list of str
+        What the caller should know (e.g. mu not determined).
+    options : dict
+        The options the fit ran with.
+    swing : ndarray or None
+        Creepage swing amplitude per point [-] when the modulation is modelled.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000.
+    """
 
     model: str
     param_names: tuple[str, ...]

@@ -92,6 +92,60 @@ class Analysis:
     the mu named by ``saturation_torque_source`` ("forces", "phase"; None when neither fit
     determines mu); it is the one Ts of every table and figure. Torques [N*m], loads [N],
     radii [m].
+
+    Attributes
+    ----------
+    options : FitOptions
+        The options the fit ran with.
+    steps : pandas.DataFrame
+        The steps table plus ``torque_pct_saturation`` [%], ``creep_coefficient`` k [-],
+        ``phase_theory_deg`` and ``phase_fit_deg`` [deg], ``utilisation_phase`` [-].
+    points : CreepPoints
+        Creep-curve points per step: creepage [-], CoA [-], phase [deg].
+    used : ndarray of bool
+        Which ``points`` entered the Polach fit (not slipping).
+    polach : PolachFit or None
+        The force fit (Polach 2005, Eqs. 3, 8 and 9); None with the reason in
+        ``polach_skipped`` (str or None).
+    phase_fit : PhaseMuFit or None
+        The available adhesion from the phases; None with the reason in
+        ``phase_fit_skipped`` (str or None).
+    theory : TheoryCheck
+        Measured against rigid-wheel phases ``atan(C/k)`` (the V-Track paper, Eq. 1).
+    phase_theory_deg : ndarray
+        The rigid-wheel phase per step [deg].
+    theory_rig : dict or None
+        ``wheel_inertia_kg_m2`` [kg m^2] and ``wheel_radius_m`` [m] behind C when the rig
+        gives them.
+    onset : OnsetResult
+        The saturation onset.
+    saturation_torque_nm, saturation_torque_stderr_nm : float or None
+        ``Ts = mu*N*Rw`` [N*m] and its standard error [N*m].
+    normal_load_n : float
+        Nominal normal load N [N].
+    wheel_radius_m : float
+        Wheel rolling radius Rw [m].
+    stiffness : float or None
+        Lumped contact stiffness ``s`` [-] (Polach 2005, Eq. 3) when known.
+    speed_m_s : float or None
+        Mean rolling speed [m/s].
+    warnings : list of str
+        What the caller should know.
+    created_utc : str
+        ISO 8601 time of the analysis (UTC).
+    source : dict
+        The processing run behind it (version, time, manifest).
+    name : str
+        The experiment's name.
+    saturation_torque_source : {"forces", "phase"} or None
+        Which fit's mu gives ``saturation_torque_nm``.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000.
+    .. [2] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
     """
 
     options: FitOptions

@@ -29,7 +29,26 @@ from torquemod.errors import ProcessingError
 
 
 def parabolic_vertex(y_m1: np.ndarray, y_0: np.ndarray, y_p1: np.ndarray) -> np.ndarray:
-    """Offset in samples (-0.5..0.5) of the vertex of the parabola through three samples."""
+    """Offset of the vertex of the parabola through three equally spaced samples.
+
+    Parameters
+    ----------
+    y_m1, y_0, y_p1 : array_like
+        The samples before, at and after the extremum.
+
+    Returns
+    -------
+    ndarray
+        Vertex offset from the middle sample [samples], clipped to [-0.5, 0.5]; 0 where the
+        three samples are collinear.
+
+    Examples
+    --------
+    >>> round(float(parabolic_vertex(0.0, 1.0, 0.5)), 4)
+    0.1667
+    >>> float(parabolic_vertex(0.0, 1.0, 1.0))
+    0.5
+    """
     den = y_m1 - 2.0 * y_0 + y_p1
     d = np.zeros(np.broadcast(y_m1, y_0, y_p1).shape)
     np.divide(0.5 * (y_m1 - y_p1), den, out=d, where=den != 0)  # 0 where den == 0
@@ -109,9 +128,41 @@ class PeakValleyResult:
 
 def peak_valley_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz: float, *,
                       center_s: float, n_periods: int = 3) -> PeakValleyResult:
-    """The paper's estimator (step 7, Eq. 2): the ``n_periods`` torque peaks and valleys
-    nearest ``center_s`` [s], each paired with the wheel-speed extremum of the same kind
-    nearest to it (within half a period), ``phi = 360*f_mod*(t_wheel - t_torque)``, averaged.
+    """Phase lag of the wheel speed behind the torque from paired peaks and valleys,
+    ``phi_pair = 360*f_mod*(t_wheel - t_torque)``, averaged over the pairs.
+
+    The ``n_periods`` torque peaks and valleys nearest ``center_s`` are each paired with the
+    wheel-speed extremum of the same kind nearest to it (within half a period); extrema are
+    located to a fraction of a sample by :func:`parabolic_vertex`.
+
+    Parameters
+    ----------
+    torque, wheel : ndarray
+        Band-passed torque [N*m] and wheel angular velocity [rad/s] (any units: only the
+        times of their extrema matter), sampled together.
+    fs_hz : float
+        Sampling rate [Hz].
+    f_mod_hz : float
+        Modulation frequency [Hz].
+    center_s : float
+        Centre of the cycle [s from the first sample].
+    n_periods : int, default 3
+        Peaks (and valleys) used.
+
+    Returns
+    -------
+    PeakValleyResult
+        Mean phase [deg], per-pair phases [deg] and the paired times [s].
+
+    Raises
+    ------
+    ProcessingError
+        Too few extrema, or no wheel-speed extremum within half a period of a torque one.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (2).
     """
     t_pk, t_vl = extrema_times(torque, fs_hz)
     w_pk, w_vl = extrema_times(wheel, fs_hz)
@@ -148,8 +199,35 @@ class SineFitResult:
 
 def whole_period_window(n_samples: int, fs_hz: float, f_hz: float, center_s: float | None = None
                         ) -> tuple[int, int]:
-    """Index range [start, stop) of the largest whole number of periods of ``f_hz`` that fits
-    in the record, centred on ``center_s`` (default the record's middle) as far as it can be."""
+    """Index range of the largest whole number of periods of ``f_hz`` that fits in a record.
+
+    Parameters
+    ----------
+    n_samples : int
+        Record length [samples].
+    fs_hz : float
+        Sampling rate [Hz].
+    f_hz : float
+        Frequency whose periods are counted [Hz].
+    center_s : float, optional
+        Centre of the window [s from the first sample], as far as the record allows;
+        default the record's middle.
+
+    Returns
+    -------
+    tuple of (int, int)
+        ``[start, stop)`` [samples].
+
+    Raises
+    ------
+    ProcessingError
+        The record is shorter than one period.
+
+    Examples
+    --------
+    >>> whole_period_window(1050, 100.0, 1.0)
+    (25, 1025)
+    """
     duration = n_samples / fs_hz
     n_per = int(np.floor(duration * f_hz + 1e-9))
     if n_per < 1:
@@ -208,17 +286,57 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
                   nuisance_hz: tuple[float, ...] = (), trend: bool = True,
                   center_s: float | None = None, noise_from: tuple[np.ndarray, np.ndarray]
                   | None = None) -> SineFitResult:
-    """Least-squares sine fit at the common frequency over whole modulation periods.
+    """Phase lag of the wheel speed behind the torque by a least-squares sine fit at the
+    common frequency over whole modulation periods.
 
     Model per channel: ``c*cos(w t) + s*sin(w t) + d (+ e*t) + sum(nuisance tones)`` with t
     from the window centre; phase ``phi = atan2(-s, c)``; lag ``phi_T - phi_W`` wrapped to
     (-180, 180] deg. Nuisance tones closer than one frequency resolution to ``f_mod_hz``
-    are dropped (they would alias the signal). The standard error propagates the residual
-    is ``sqrt(S1/(A1^2 T) + S2/(A2^2 T))`` (Rife and Boorstyn 1974, IEEE Trans. Inf. Theory 20(5))
-    with each channel's one-sided noise
-    density S_i near ``f_mod_hz`` taken from the fit's residual (:func:`local_noise_psd`), so
-    unmodelled lines far from f_mod (vibration) do not inflate it; ``noise_from`` gives other
-    versions of the two channels (e.g. before a band-pass) whose residual is used instead.
+    are dropped (they would alias the signal).
+
+    Parameters
+    ----------
+    torque, wheel : ndarray
+        Torque [N*m] and wheel angular velocity [rad/s] (any consistent units), sampled
+        together.
+    fs_hz : float
+        Sampling rate [Hz].
+    f_mod_hz : float
+        Modulation frequency [Hz].
+    nuisance_hz : tuple of float
+        Other tones fitted alongside [Hz] (e.g. wheel rotation, mains hum).
+    trend : bool, default True
+        Fit a linear trend as well as an offset.
+    center_s : float, optional
+        Centre of the whole-period window [s] (:func:`whole_period_window`).
+    noise_from : tuple of (ndarray, ndarray), optional
+        Other versions of the two channels (e.g. before a band-pass) whose fit residual
+        gives the noise density instead.
+
+    Returns
+    -------
+    SineFitResult
+        Lag [deg] and its standard error [deg], both amplitudes (input units) and phases
+        [rad], the samples used and the window [s].
+
+    Raises
+    ------
+    ProcessingError
+        Record shorter than a period, rank-deficient design or zero amplitude.
+
+    Notes
+    -----
+    The standard error is ``sqrt(S1/(A1^2 T) + S2/(A2^2 T))`` [rad], the Cramér-Rao bound
+    of [1]_ for white noise of one-sided density S_i near ``f_mod_hz``, taken from each
+    channel's fit residual (:func:`local_noise_psd`), so that unmodelled lines far from
+    f_mod (vibration) do not inflate it. The fit is the IEEE Std 1057 three-parameter sine
+    fit [2]_ extended with nuisance terms.
+
+    References
+    ----------
+    .. [1] D.C. Rife and R.R. Boorstyn, "Single-tone parameter estimation from discrete-time
+       observations", IEEE Trans. Inf. Theory 20(5) (1974) 591-598.
+    .. [2] IEEE Std 1057-2017, "IEEE Standard for Digitizing Waveform Recorders".
     """
     torque = np.asarray(torque, dtype=np.float64)
     wheel = np.asarray(wheel, dtype=np.float64)
@@ -260,9 +378,36 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
 
 def phase_crb_deg(amplitude_1: float, amplitude_2: float, noise_std_1: float, noise_std_2: float,
                   n_samples: int) -> float:
-    """Cramér-Rao bound on the standard deviation [deg] of a phase difference between two
-    sinusoids of a common known frequency in white noise: ``var = (1/N)(1/eta1 + 1/eta2)``,
-    ``eta_i = A_i^2/(2 sigma_i^2)`` (Rife and Boorstyn 1974, IEEE Trans. Inf. Theory 20(5))."""
+    """Cramér-Rao bound on the standard deviation of the phase difference between two
+    sinusoids of a common known frequency in white noise:
+    ``var = (1/N)(1/eta1 + 1/eta2)``, ``eta_i = A_i^2/(2 sigma_i^2)``.
+
+    Parameters
+    ----------
+    amplitude_1, amplitude_2 : float
+        Sinusoid amplitudes A_i (units of each signal).
+    noise_std_1, noise_std_2 : float
+        White-noise standard deviations sigma_i (same units as the amplitudes).
+    n_samples : int
+        Samples N.
+
+    Returns
+    -------
+    float
+        Standard deviation bound [deg].
+
+    References
+    ----------
+    .. [1] D.C. Rife and R.R. Boorstyn, "Single-tone parameter estimation from discrete-time
+       observations", IEEE Trans. Inf. Theory 20(5) (1974) 591-598.
+
+    Examples
+    --------
+    >>> import math
+    >>> s = phase_crb_deg(1.0, 1.0, math.sqrt(0.5), math.sqrt(0.5), 2)
+    >>> round(s, 9) == round(math.degrees(1.0), 9)
+    True
+    """
     eta1 = amplitude_1 ** 2 / (2 * noise_std_1 ** 2)
     eta2 = amplitude_2 ** 2 / (2 * noise_std_2 ** 2)
     return float(np.degrees(np.sqrt((1 / eta1 + 1 / eta2) / n_samples)))

@@ -62,11 +62,40 @@ TRACE_NAMES = ("t_raw_s", "torque_raw_nm", "wheel_speed_raw_rad_s", "t_s",
 class ProcessResult:
     """Everything the processing produced, in memory.
 
-    ``cycles``/``steps`` are the per-cycle and per-step tables (columns
-    :data:`CYCLE_COLUMNS`, :data:`STEP_COLUMNS`), ``cycle_details`` one dict per cycle
-    (means of every channel, filters, windows, slip reason), ``traces[(step, cycle)]`` a dict
-    of the named arrays :data:`TRACE_NAMES` for the figures, ``warnings`` what the user should
-    know, ``input_sha256`` the digest of each recording file.
+    Attributes
+    ----------
+    experiment : Experiment
+        The experiment processed.
+    config : ProcessingConfig
+        The processing parameters used.
+    cycles : pandas.DataFrame
+        One row per modulation cycle (:data:`CYCLE_COLUMNS`): frequencies [Hz], phase lag
+        of the wheel speed behind the torque ``phase_deg`` and its standard error
+        ``phase_se_deg`` [deg], ``creepage`` [-], ``coa`` [-], ``speed_m_s`` [m/s],
+        ``torque_amplitude_nm`` [N*m], ``wheel_amplitude_rad_s`` [rad/s],
+        ``creepage_swing`` and ``creepage_drift`` [-].
+    steps : pandas.DataFrame
+        One row per torque step (:data:`STEP_COLUMNS`): ``dc_torque_nm`` [N*m], the cycle
+        means and standard deviations of the phase [deg], creepage [-] and CoA [-],
+        ``n_cycles``, ``slip`` and the step means of the per-cycle amplitudes.
+    cycle_details : list of dict
+        Per cycle: the means of every channel (SI units), filters, windows, slip reason.
+    traces : dict
+        ``(step, cycle)`` -> named arrays (:data:`TRACE_NAMES`) for the figures.
+    warnings : list of str
+        What the user should know.
+    timing_s : dict
+        Wall time of the stages [s].
+    nan_actions : list of str
+        What the NaN policy did.
+    input_sha256 : dict of str to str
+        SHA-256 digest of each recording file.
+    created_utc : str
+        ISO 8601 time of the processing (UTC).
+    torquemod_version : str
+        The version that processed it.
+    command : list of str or None
+        The command line that processed it.
     """
 
     experiment: Experiment

@@ -67,11 +67,40 @@ def save(result: ProcessResult, analysis: Analysis | None, folder, *, force: boo
          report_options=None, export=()) -> Path:
     """Write a new results folder (see the module docstring) in one atomic step.
 
-    An existing non-empty ``folder`` is refused unless ``force``; ``inputs`` (the manifest and
-    the recordings) are files the folder must never replace or contain. ``report=False``
-    skips the figures and report.html. ``export``: the cycles and steps tables also as
-    ``mat`` (MATLAB) and/or ``parquet`` (:mod:`torquemod.results.export`; CSV is always written);
-    :func:`update` keeps them current."""
+    Parameters
+    ----------
+    result : ProcessResult
+        What :func:`torquemod.process` returned.
+    analysis : Analysis or None
+        What :func:`torquemod.analyze` returned; None writes no fit (``process --no-fit``).
+    folder : str or os.PathLike
+        The folder to create; an existing non-empty one is refused unless ``force``.
+    force : bool, default False
+        Replace an existing ``folder``.
+    inputs : iterable of path
+        The manifest and the recordings: files the folder must never replace or contain.
+    command : list of str, optional
+        The command line recorded in the provenance.
+    report : bool, default True
+        Also draw the figures and ``report.html``.
+    report_options : dict, optional
+        Passed to the report writer.
+    export : iterable of {"mat", "parquet"}
+        The cycles and steps tables also as MATLAB ``mat`` and/or ``parquet``
+        (:mod:`torquemod.results.export`; CSV is always written); :func:`update` keeps
+        them current.
+
+    Returns
+    -------
+    pathlib.Path
+        ``folder``.
+
+    Raises
+    ------
+    OutputError
+        ``folder`` is occupied (without ``force``), would replace an input, or cannot be
+        written; nothing partial is left behind.
+    """
     from torquemod.results.export import check_formats
     export = check_formats(export)
     if command is not None:
@@ -172,8 +201,23 @@ def _state(result: ProcessResult, analysis: Analysis | None) -> dict:
 # --------------------------------------------------------------------------- reading
 
 def load(folder) -> tuple[ProcessResult, Analysis | None]:
-    """Read a results folder written by :func:`save`: ``(ProcessResult, Analysis)`` (the
-    Analysis is None when the folder was saved without one, e.g. ``process --no-fit``)."""
+    """Read a results folder written by :func:`save`.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        The results folder.
+
+    Returns
+    -------
+    tuple of (ProcessResult, Analysis or None)
+        The Analysis is None when the folder was saved without one (``process --no-fit``).
+
+    Raises
+    ------
+    InputError
+        The folder does not exist, is not a folder or is not a results folder.
+    """
     folder = Path(folder)
     if not folder.exists():
         raise InputError("results folder does not exist", path=folder,

@@ -37,7 +37,29 @@ class ContactEllipse:
 
 
 def contact_modulus(youngs_modulus_pa: float, poisson_ratio: float) -> float:
-    """E* [Pa] of two bodies of the same material: ``E/(2(1-nu^2))`` (Johnson Eq. 3.64)."""
+    """Contact modulus of two bodies of the same material, ``E* = E/(2(1-nu^2))``.
+
+    Parameters
+    ----------
+    youngs_modulus_pa : float
+        Young's modulus E [Pa].
+    poisson_ratio : float
+        Poisson's ratio nu [-].
+
+    Returns
+    -------
+    float
+        E* [Pa].
+
+    References
+    ----------
+    .. [1] K.L. Johnson, "Contact Mechanics", Cambridge University Press 1985, Eq. (3.64).
+
+    Examples
+    --------
+    >>> contact_modulus(2.0, 0.0)
+    1.0
+    """
     return youngs_modulus_pa / (2.0 * (1.0 - poisson_ratio**2))
 
 
@@ -50,15 +72,49 @@ def _ratio_b_over_a_curv(m: float) -> float:
 def hertz_ellipse(normal_load_n: float, *, curvature_x_1_m: float, curvature_y_1_m: float,
                   youngs_modulus_pa: float = 210e9, poisson_ratio: float = 0.28
                   ) -> ContactEllipse:
-    """Semi-axes of the Hertz contact ellipse (Johnson 1985, §3.4).
+    """Semi-axes and peak pressure of the Hertz contact ellipse.
 
-    ``curvature_x_1_m`` is the sum of the two bodies' principal curvatures in the rolling
-    direction [1/m] (e.g. ``1/R_wheel + 0`` for a straight rail), ``curvature_y_1_m`` the sum
-    in the lateral direction (``1/r_wheel_profile + 1/r_rail_head``). Both bodies are of one
-    material (``youngs_modulus_pa`` E, ``poisson_ratio`` nu). Returns a, b [m] and p0 [Pa].
+    Parameters
+    ----------
+    normal_load_n : float
+        Normal load N [N], positive.
+    curvature_x_1_m : float
+        Sum of the two bodies' principal curvatures in the rolling direction [1/m]
+        (e.g. ``1/R_wheel + 0`` for a straight rail).
+    curvature_y_1_m : float
+        The sum in the lateral direction [1/m] (``1/r_wheel_profile + 1/r_rail_head``).
+    youngs_modulus_pa : float, default 210e9
+        Young's modulus E of both bodies [Pa].
+    poisson_ratio : float, default 0.28
+        Poisson's ratio nu of both bodies [-].
 
+    Returns
+    -------
+    ContactEllipse
+        Semi-axes a (rolling) and b (lateral) [m] and maximum pressure p0 [Pa].
+
+    Raises
+    ------
+    InputError
+        A non-positive load or curvature sum.
+
+    Notes
+    -----
     A circle results when the two sums are equal: ``a = (3 N R / (4 E*))^(1/3)`` with
-    ``1/R = curvature`` (the sphere-on-flat case).
+    ``1/R`` the curvature sum (the sphere-on-flat case).
+
+    References
+    ----------
+    .. [1] K.L. Johnson, "Contact Mechanics", Cambridge University Press 1985, §3.4,
+       Eqs. (3.64) and (3.67)-(3.68).
+
+    Examples
+    --------
+    >>> import math
+    >>> e = hertz_ellipse(1000.0, curvature_x_1_m=2.0, curvature_y_1_m=2.0,
+    ...                   youngs_modulus_pa=2.0, poisson_ratio=0.0)
+    >>> math.isclose(e.a_m, (3 * 1000.0 * 0.5 / 4) ** (1 / 3)), math.isclose(e.a_m, e.b_m)
+    (True, True)
     """
     if not (normal_load_n > 0 and curvature_x_1_m > 0 and curvature_y_1_m > 0):
         raise InputError("Hertz contact needs a positive normal load and positive curvature "

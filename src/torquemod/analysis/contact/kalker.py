@@ -92,15 +92,35 @@ def _along_nu(cols: np.ndarray, nu: np.ndarray) -> np.ndarray:
 
 
 def kalker_coefficients(a_over_b, poisson_ratio=0.25):
-    """Kalker's c11, c22, c23 [-] for ellipse shape ``a_over_b`` and Poisson ratio nu.
+    """Kalker's creepage coefficients c11, c22, c23 of the linear theory of rolling contact.
 
-    Kalker (1990) Table E.3, interpolated linearly in g = a/b or b/a within the
-    table's halves and quadratically through the three nu columns (module docstring).
-    ``a_over_b`` must lie in [0.1, 10] and ``poisson_ratio`` in [0, 0.5]; outside the table
-    an :class:`~torquemod.errors.InputError` is raised rather than extrapolating.
+    Table E.3 of [1]_, interpolated linearly in g = a/b or b/a within the table's halves
+    and quadratically through the three nu columns (module docstring).
 
-    Returns a :class:`KalkerCoefficients` of floats for scalar input, of arrays otherwise.
+    Parameters
+    ----------
+    a_over_b : float or array_like
+        Contact-ellipse shape a/b [-] (a rolling, b lateral semi-axis), in [0.1, 10].
+    poisson_ratio : float or array_like, default 0.25
+        Poisson's ratio nu [-], in [0, 0.5].
 
+    Returns
+    -------
+    KalkerCoefficients
+        c11, c22, c23 [-]: floats for scalar input, arrays otherwise.
+
+    Raises
+    ------
+    InputError
+        ``a_over_b`` or ``poisson_ratio`` outside the table (no extrapolation).
+
+    References
+    ----------
+    .. [1] J.J. Kalker, "Three-dimensional elastic bodies in rolling contact", Kluwer,
+       Dordrecht 1990, Table E.3.
+
+    Examples
+    --------
     >>> kalker_coefficients(1.0, 0.25).c11
     4.12
     """

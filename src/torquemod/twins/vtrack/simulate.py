@@ -269,14 +269,45 @@ def _simulate(config: SimConfig, folder: Path | None, *, seed: int, fmt: str | N
 def run_simulation(config: SimConfig, out_dir: Path, *, seed: int = 0, fmt: str = "csv",
                    progress: bool = True, files_per_cycle: bool = True,
                    force: bool = False, workers: int | None = None) -> dict:
-    """Simulate ``config`` and write the experiment folder ``out_dir``; return the truth dict.
+    """Simulate ``config`` and write the experiment folder ``out_dir``.
 
     The folder is written into a temporary sibling and renamed into place at the end, so an
-    interrupted run leaves no half-written experiment. An existing non-empty ``out_dir``
-    raises :class:`~torquemod.errors.OutputError` unless ``force`` (then it is replaced).
-    Deterministic for a given ``seed`` (and the same for any ``workers``: the threads that
-    run the steps side by side, default the CPUs available, at most one per step; 1 runs
-    them one after the other, e.g. inside a process pool that already fills the cores).
+    interrupted run leaves no half-written experiment.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The rig, the contact and the test programme (SI units; :func:`load_config`).
+    out_dir : str or os.PathLike
+        The experiment folder to write (``experiment.toml`` and the recordings).
+    seed : int, default 0
+        Seed of the noise; the run is deterministic for a given seed, for any ``workers``.
+    fmt : {"csv", "hdf5"}, default "csv"
+        Recording format.
+    progress : bool, default True
+        Show a progress bar on stderr.
+    files_per_cycle : bool, default True
+        One recording per modulation cycle rather than one per step.
+    force : bool, default False
+        Replace an existing non-empty ``out_dir``.
+    workers : int, optional
+        Threads that run the steps side by side; default the CPUs available, at most one
+        per step; 1 runs them one after the other (e.g. inside a process pool).
+
+    Returns
+    -------
+    dict
+        The simulation's truth, also written as ``truth.json``: per-step truth
+        (``steps``), the creep curve's peak (creepage [-], torque [N*m], CoA [-]), the
+        actual modulation frequency [Hz], the sample rate [Hz], the slip step (or None),
+        the speed wobble and the parameters.
+
+    Raises
+    ------
+    InputError
+        Unknown ``fmt``.
+    OutputError
+        ``out_dir`` exists and is not empty (without ``force``).
     """
     if fmt not in _SUFFIX:
         raise InputError(f"unknown output format '{fmt}'", hint="use csv or hdf5")
