@@ -205,7 +205,13 @@ def _start(args, tmp: Path, cwd: Path) -> subprocess.Popen:
     env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=path)
     return subprocess.Popen([sys.executable, "-m", "torquemod.cli", *args], cwd=cwd, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_default_sigint)
+
+
+def _default_sigint() -> None:
+    """Ctrl-C's default action in the child even when this test run was started with SIGINT
+    ignored (``nohup``, a background job without job control): a terminal's job has it."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _wait_for(pred, timeout: float) -> None:

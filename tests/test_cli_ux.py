@@ -43,7 +43,12 @@ def test_signals_end_with_the_shells_exit_codes(monkeypatch, capsys, sig, code):
         return 0
 
     monkeypatch.setattr(cli_parser, "cmd_report", killed)  # the parser binds the command
-    assert cli.main(["report", "somewhere"]) == code
+    # Ctrl-C as a terminal delivers it, also when this run was started with SIGINT ignored
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        assert cli.main(["report", "somewhere"]) == code
+    finally:
+        signal.signal(signal.SIGINT, previous)
     err = capsys.readouterr().err
     assert err.strip() == ("torquemod: terminated" if code == 143 else "torquemod: interrupted")
     assert signal.getsignal(signal.SIGTERM) is not None  # the previous handler is restored
