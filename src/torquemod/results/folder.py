@@ -23,20 +23,17 @@ report are outputs only. A missing or damaged file raises :class:`InputError` na
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import re
 import warnings
 import zipfile
-from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
-from torquemod._util import fsutil
 from torquemod._util.jsonutil import dump_json, write_json
 from torquemod._version import __version__
 from torquemod.analysis.analyzer import ADDED_STEP_COLUMNS, FitOptions, analyze
@@ -47,6 +44,7 @@ from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
 from torquemod.processing.pipeline import CYCLE_COLUMNS, STEP_COLUMNS, ProcessResult
 from torquemod.processing.provenance import provenance
 from torquemod.report import write_report
+from torquemod.results.writer import Writing, write_folder
 
 if TYPE_CHECKING:
     from torquemod.analysis.result import Analysis
@@ -105,9 +103,11 @@ def save(result: ProcessResult, analysis: Analysis | None, folder, *, force: boo
     export = check_formats(export)
     if command is not None:
         result = dataclasses.replace(result, command=list(command))
-    with _new_dir(folder, force=force, inputs=inputs) as tmp:
-        _write_all(tmp, Path(folder), result, analysis, command=None, report=report,
-                   report_options=report_options, export=export)
+    prov = provenance(result, command=result.command)
+    with write_folder(folder, kind="results", provenance=prov, force=force,
+                      refuse=inputs or ()) as w:
+        _write_all(w, result, analysis, report=report, report_options=report_options,
+                   export=export)
     return Path(folder)
 
 
@@ -122,32 +122,20 @@ def update(folder, result: ProcessResult, analysis: Analysis | None, *,
     # the exported copies of the tables the folder holds are rewritten with them
     export = [f for f, suffix in EXPORT_FORMATS.items()
               if f != "csv" and (folder / f"steps{suffix}").exists()]
-    with _update_dir(folder) as tmp:
-        _write_all(tmp, folder, result, analysis, command=command, report=report,
-                   report_options=report_options, export=export)
+    prov = provenance(result, command=command or result.command)
+    with write_folder(folder, mode="update", provenance=prov) as w:
+        _write_all(w, result, analysis, report=report, report_options=report_options,
+                   export=export)
     return folder
 
 
-@contextlib.contextmanager
-def _new_dir(folder, *, force: bool, inputs) -> Iterator[Path]:
-    """fsutil's atomic folder, refusing an ``--out`` that is or holds an input."""
-    with fsutil.atomic_dir(folder, force=force, inputs=list(inputs or ())) as tmp:
-        yield tmp
-
-
-@contextlib.contextmanager
-def _update_dir(folder: Path) -> Iterator[Path]:
-    """An atomic in-place update of a results folder (:func:`torquemod._util.fsutil.update_dir`)."""
-    with fsutil.update_dir(folder) as tmp:
-        yield tmp
-
-
-def _write_all(tmp: Path, final: Path, result: ProcessResult, analysis: Analysis | None, *,
-               command, report: bool, report_options, export=()) -> None:
-    """Every file of the layout into the folder being assembled; a full disk or an
-    unwritable target ends as one OutputError naming the folder."""
+def _write_all(w: Writing, result: ProcessResult, analysis: Analysis | None, *,
+               report: bool, report_options, export=()) -> None:
+    """Every file of the layout but provenance.json (the writer's) into the folder being
+    assembled; a full disk or an unwritable target ends as one OutputError naming the
+    folder."""
+    tmp, final = w.path, w.target
     try:
-        prov = provenance(result, command=command or result.command)
         steps = analysis.steps if analysis is not None else result.steps
         result.cycles.to_csv(tmp / "cycles.csv", index=False, lineterminator="\n")
         steps.to_csv(tmp / "steps.csv", index=False, lineterminator="\n")
@@ -157,7 +145,6 @@ def _write_all(tmp: Path, final: Path, result: ProcessResult, analysis: Analysis
                 if fmt != "csv":  # written above
                     write_table(result.cycles, tmp / "cycles", fmt)
                     write_table(steps, tmp / "steps", fmt)
-        write_json(tmp / "provenance.json", prov)
         write_json(tmp / STATE_FILE, _state(result, analysis))
         np.savez(tmp / "traces.npz", **{f"s{s}c{c}__{name}": x
                                         for (s, c), arrays in sorted(result.traces.items())
@@ -167,7 +154,7 @@ def _write_all(tmp: Path, final: Path, result: ProcessResult, analysis: Analysis
             (tmp / "fit.json").write_text(dump_json(doc) + "\n", encoding="utf-8")
             if report:
                 write_report(tmp, result, analysis, options=report_options,
-                             provenance_doc=prov)
+                             provenance_doc=w.provenance)
     except TorquemodError:
         raise
     except OSError as exc:
