@@ -4,7 +4,8 @@ Every command writes through :func:`write_folder`: ``process`` (and ``fit``/``re
 updating its folder), ``onboard``, the fleet (each run's partitions and the fleet's summary)
 and the sweep (each point's partition and the sweep's summary). The writer
 
-* takes the output's lock (one run at a time writes it; :func:`~torquemod._util.fsutil.output_lock`),
+* takes the output's lock (one run at a time writes it:
+  :func:`~torquemod._util.fsutil.output_lock`),
 * hands the caller a temporary folder beside the output (or, for a summary, a staging folder
   inside it) to write the files into,
 * writes the provenance block (:func:`~torquemod.processing.provenance.provenance_block`:
