@@ -15,10 +15,12 @@
 checks them, and rebuilds the :class:`~torquemod.processing.pipeline.ProcessResult`; the
 :class:`~torquemod.analysis.result.Analysis` is read back from ``fit.json``, the analysed
 steps table and the values ``result.json`` keeps beside them
-(:func:`~torquemod.analysis.result.saved_state`), without fitting again. When ``fit.json``
-is missing, was written by another version or with other fit options, the analysis is
-recomputed with the stored fit options (deterministic), with a warning. ``provenance.json`` and the
-report are outputs only. A missing or damaged file raises :class:`InputError` naming it.
+(:func:`~torquemod.analysis.result.saved_state`; the phase fit's tabulated curve is left out
+and rebuilt from its law and parameters, :func:`_without_curve`), without fitting again.
+When ``fit.json`` is missing, was written by another version or with other fit options, the
+analysis is recomputed with the stored fit options (deterministic), with a warning.
+``provenance.json`` and the report are outputs only. A missing or damaged file raises
+:class:`InputError` naming it.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ import pandas as pd
 from torquemod._util.jsonutil import dump_json, write_json
 from torquemod._version import __version__
 from torquemod.analysis.analyzer import ADDED_STEP_COLUMNS, FitOptions, analyze
+from torquemod.analysis.creeplaws import mixture_curve
 from torquemod.analysis.result import from_saved, saved_state
 from torquemod.errors import InputError, OptionError, OutputError, TorquemodError
 from torquemod.io.config import ProcessingConfig
@@ -181,8 +184,46 @@ def _state(result: ProcessResult, analysis: Analysis | None) -> dict:
         "analysis": None if analysis is None else {
             "options": dataclasses.asdict(analysis.options),
             "created_utc": analysis.created_utc,
-            "saved_with": __version__, "saved": saved_state(analysis)},
+            "saved_with": __version__, "saved": _without_curve(saved_state(analysis))},
     }
+
+
+#: the relative tolerance within which the phase fit's curve rebuilt from its law and
+#: parameters must equal the fitted one for result.json to leave it out (the rebuild mixes
+#: the same two tabulated members with a mixing fraction recovered from the parameters:
+#: a few ulp apart, ~4e-16 relative on the demo's fits)
+CURVE_RTOL = 1e-12
+
+
+def _without_curve(saved: dict) -> dict:
+    """The saved state without the phase fit's tabulated curve ``best_s`` (2001 numbers)
+    when :func:`~torquemod.analysis.creeplaws.mixture_curve` rebuilds it from the stored law
+    and parameters within :data:`CURVE_RTOL` (``best_s_rebuilt`` says so); else as it is."""
+    adhesion = (saved.get("phase_fit") or {}).get("adhesion")
+    if not adhesion or "best_s" not in adhesion:
+        return saved
+    fitted = np.array([float(v) for v in adhesion["best_s"]])
+    rebuilt = mixture_curve(adhesion["law"], adhesion["params"])
+    if rebuilt is None or not np.allclose(rebuilt, fitted, rtol=CURVE_RTOL, atol=0.0,
+                                          equal_nan=True):
+        return saved
+    adhesion = {k: v for k, v in adhesion.items() if k != "best_s"}
+    adhesion["best_s_rebuilt"] = True
+    return {**saved, "phase_fit": {**saved["phase_fit"], "adhesion": adhesion}}
+
+
+def _with_curve(saved: dict) -> dict:
+    """The saved state with the phase fit's curve rebuilt where :func:`_without_curve` left
+    it out."""
+    adhesion = (saved.get("phase_fit") or {}).get("adhesion")
+    if not adhesion or not adhesion.get("best_s_rebuilt"):
+        return saved
+    curve = mixture_curve(adhesion["law"], adhesion["params"])
+    if curve is None:
+        raise ValueError("the phase fit's curve cannot be rebuilt from its law and parameters")
+    adhesion = {k: v for k, v in adhesion.items() if k != "best_s_rebuilt"}
+    adhesion["best_s"] = curve.tolist()
+    return {**saved, "phase_fit": {**saved["phase_fit"], "adhesion": adhesion}}
 
 
 # --------------------------------------------------------------------------- reading
@@ -246,8 +287,8 @@ def load(folder) -> tuple[ProcessResult, Analysis | None]:
         return result, None
     if doc is not None:
         try:
-            return result, from_saved(doc, fit_state["saved"], analysed_steps, options,
-                                      name=result.name)
+            return result, from_saved(doc, _with_curve(fit_state["saved"]), analysed_steps,
+                                      options, name=result.name)
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise InputError(f"damaged fit document ({type(exc).__name__}: {exc})",
                              path=folder / "fit.json",
