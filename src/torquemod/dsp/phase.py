@@ -366,7 +366,8 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
         a2 = c * c + s * s
         if a2 == 0:
             raise ProcessingError("zero amplitude at the modulation frequency")
-        # var(phi_i) = S_i/(A_i^2 T) with S_i the one-sided noise density at f_mod (§5)
+        # var(phi_i) = S_i/(A_i^2 T) with S_i the one-sided noise density at f_mod
+        # (Rife and Boorstyn 1974)
         psd = local_noise_psd(resid[:, ch], fs_hz, f_mod_hz)
         var_phi += psd / (a2 * t_win)
         phases.append(float(np.arctan2(-s, c)))

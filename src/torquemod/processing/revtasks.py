@@ -56,7 +56,7 @@ from torquemod.io.stream import hash_file_async, open_stream
 from torquemod.io.validate import check_finite, clipping_notes
 
 #: Seconds of recording a group of revolutions aims at when ``revolutions_per_task`` is not
-#: given (the issue: tasks of about a minute, never an hour).
+#: given: tasks of about a minute, never an hour (a lost task costs little to redo).
 TASK_SECONDS = 60.0
 
 
