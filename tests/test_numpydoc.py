@@ -14,14 +14,13 @@ import ast
 import dataclasses
 import importlib
 import inspect
+import itertools
 import pkgutil
 import re
 import sys
 import textwrap
 
 import pytest
-
-import torquemod
 
 # the packages whose public callables must be documented in full; private packages and
 # modules (a leading underscore), the CLI (documented by its --help) and the twins (the
@@ -152,7 +151,7 @@ def _field_docstrings(cls) -> dict[str, str]:
         return {}
     body = tree.body[0].body
     out = {}
-    for a, b in zip(body, body[1:], strict=False):
+    for a, b in itertools.pairwise(body):
         if (isinstance(a, ast.AnnAssign) and isinstance(a.target, ast.Name)
                 and isinstance(b, ast.Expr) and isinstance(b.value, ast.Constant)
                 and isinstance(b.value.value, str)):

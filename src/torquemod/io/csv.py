@@ -63,7 +63,9 @@ def read_csv(path: Path, *, group: str | None = None,
     Raises
     ------
     InputError
-        Duplicate or missing columns, fewer than two data rows, a non-numeric value, a file separated otherwise than by commas, or a file the parser cannot read; the message names the file and, where one is at fault, the channel.
+        Duplicate or missing columns, fewer than two data rows, a non-numeric value, a file
+        separated otherwise than by commas, or a file the parser cannot read; the message
+        names the file and, where one is at fault, the channel.
     """
     path = Path(path)
     cmap = resolve_channel_map(channel_map, path)

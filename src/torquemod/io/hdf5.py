@@ -144,7 +144,9 @@ def read_hdf5(path: Path, *, group: str | None = None,
     Raises
     ------
     InputError
-        The file cannot be opened as HDF5, the group is missing or is a dataset, or a channel is missing or malformed; the message names the file and, where one is at fault, the channel.
+        The file cannot be opened as HDF5, the group is missing or is a dataset, or a
+        channel is missing or malformed; the message names the file and, where one is at
+        fault, the channel.
     """
     path = Path(path)
     cmap = resolve_channel_map(channel_map, path)

@@ -367,7 +367,9 @@ def read_mat(path: Path, *, group: str | None = None,
     Raises
     ------
     InputError
-        The file is damaged or not a MAT file, the struct or a channel is missing, or a channel is not a numeric vector; the message names the file and, where one is at fault, the channel.
+        The file is damaged or not a MAT file, the struct or a channel is missing, or a
+        channel is not a numeric vector; the message names the file and, where one is at
+        fault, the channel.
     """
     path = Path(path)
     cmap = resolve_channel_map(channel_map, path)

@@ -166,7 +166,8 @@ def read_mdf(path: Path, *, group: str | None = None,
     Raises
     ------
     InputError
-        The file cannot be opened as MDF, or a channel is missing, ambiguous or on another time base; the message names the file and, where one is at fault, the channel.
+        The file cannot be opened as MDF, or a channel is missing, ambiguous or on another
+        time base; the message names the file and, where one is at fault, the channel.
     """
     path = Path(path)
     cmap = resolve_channel_map(channel_map, path)

@@ -86,7 +86,8 @@ def read_parquet(path: Path, *, group: str | None = None,
     Raises
     ------
     InputError
-        A ``group`` given, the file cannot be opened or read as Parquet, or a column cannot be converted; the message names the file and, where one is at fault, the channel.
+        A ``group`` given, the file cannot be opened or read as Parquet, or a column cannot
+        be converted; the message names the file and, where one is at fault, the channel.
     """
     path = Path(path)
     cmap = resolve_channel_map(channel_map, path)

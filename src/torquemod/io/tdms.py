@@ -123,7 +123,8 @@ def read_tdms(path: Path, *, group: str | None = None,
     Raises
     ------
     InputError
-        The file cannot be opened or parsed as TDMS, or a channel is missing or ambiguous; the message names the file and, where one is at fault, the channel.
+        The file cannot be opened or parsed as TDMS, or a channel is missing or ambiguous;
+        the message names the file and, where one is at fault, the channel.
     """
     path = Path(path)
     cmap = resolve_channel_map(channel_map, path)
