@@ -77,7 +77,7 @@ class CycleSignals:
     References
     ----------
     .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
-       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.4.
     """
 
     fs_hz: float
@@ -291,7 +291,7 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     References
     ----------
     .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
-       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.4.
     """
     fs = rec.fs_hz
     up, down = filters.resample_ratio(fs, cfg.resample.target_hz,

@@ -497,7 +497,7 @@ def process_experiment(experiment: Experiment | str | Path, *,
     References
     ----------
     .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
-       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.4.
     """
     workers = workers if workers is not None else min(4, os.cpu_count() or 1)
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
