@@ -1,7 +1,7 @@
 """The ``Examples`` sections of the docstrings run and give what they show (pytest does not
 collect doctests here: ``--doctest-modules`` is not in the configuration).
 
-Every module of the measurement packages whose docstrings hold examples is collected; the
+Every module of the packages whose docstrings hold examples is collected; the
 modules listed in :data:`MUST_HAVE` must keep theirs (so that the collection cannot go
 silently empty). Examples are meant to be cheap (well under 0.2 s each): nothing here
 compiles a numba kernel or reads a file.
@@ -15,10 +15,10 @@ import pkgutil
 
 import pytest
 
-#: packages whose modules are searched for examples (the twins and the CLI are left out)
+#: packages whose modules are searched for examples
 PACKAGES = ("torquemod.analysis", "torquemod.dsp", "torquemod.fleet", "torquemod.io",
-            "torquemod.ontrain", "torquemod.processing", "torquemod.results",
-            "torquemod.sweep", "torquemod._util")
+            "torquemod.ontrain", "torquemod.processing", "torquemod.report",
+            "torquemod.results", "torquemod.sweep", "torquemod.twins", "torquemod._util")
 #: modules that must hold examples: the equation modules and the ones each stage leans on
 MUST_HAVE = ("torquemod.analysis.contact.polach", "torquemod.analysis.contact.kalker",
              "torquemod.analysis.contact.hertz", "torquemod.analysis.creep",
