@@ -33,7 +33,18 @@ SOFTWARE_KEYS = ("torquemod", "python", "numpy", "scipy", "pandas", "platform")
 
 
 def file_digest(path) -> str | None:
-    """SHA-256 of a file (hex), None when it cannot be read any more (moved inputs)."""
+    """SHA-256 of a file.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+
+    Returns
+    -------
+    str or None
+        The hex digest; None when the file cannot be read any more (moved inputs).
+    """
     try:
         return sha256_file(Path(path))
     except OSError:
@@ -41,12 +52,24 @@ def file_digest(path) -> str | None:
 
 
 def utc_now() -> str:
-    """The current time, UTC, ISO 8601 to the second (``created_utc``)."""
+    """The current time (``created_utc``).
+
+    Returns
+    -------
+    str
+        UTC, ISO 8601 to the second.
+    """
     return datetime.now(UTC).isoformat(timespec="seconds")
 
 
 def software_versions() -> dict:
-    """Versions of torquemod, Python and the numerical libraries used (:data:`SOFTWARE_KEYS`)."""
+    """Versions of torquemod, Python and the numerical libraries used.
+
+    Returns
+    -------
+    dict of str to str
+        By package (:data:`SOFTWARE_KEYS`).
+    """
     import numpy
     import pandas
     import scipy
@@ -100,7 +123,22 @@ def provenance_block(kind: str, parameters: dict, inputs: Iterable = (), *,
 def provenance(result: ProcessResult, *, command: list[str] | None = None) -> dict:
     """The provenance record of a processing run: :func:`provenance_block` (kind
     ``"results"``) with the experiment, the warnings, the NaN actions, the per-cycle details
-    and the timing."""
+    and the timing.
+
+    Parameters
+    ----------
+    result : ProcessResult
+        The run.
+    command : list of str or None
+        The command line. Default None.
+
+    Returns
+    -------
+    dict
+        JSON-ready: kind, version, time, command, software, the experiment (manifest and
+        inputs with their SHA-256, rig, test, channels), the parameters, warnings, NaN
+        actions, cycles and timing [s].
+    """
     exp = result.experiment
     known = result.input_sha256
     block = provenance_block(

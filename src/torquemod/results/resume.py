@@ -35,7 +35,18 @@ _COMMON = ("name", "status", "fingerprint", "version", "parameters_digest", "inp
 
 
 def digest(obj) -> str:
-    """SHA-256 (hex) of ``obj`` as canonical JSON (sorted keys; other objects as text)."""
+    """SHA-256 of a JSON-able object.
+
+    Parameters
+    ----------
+    obj : object
+        Dicts, lists, numbers, text (other objects as their text).
+
+    Returns
+    -------
+    str
+        The hex digest of its canonical JSON (sorted keys).
+    """
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()
 
 
@@ -97,13 +108,38 @@ class ResumeRecord:
 
 
 def record_path(out, name: str) -> Path:
-    """The record file of part ``name`` in the output folder ``out``."""
+    """The record file of a part.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        The output folder.
+    name : str
+        The part.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out/_state/<name>.json``.
+    """
     return Path(out) / STATE_DIR / f"{name}.json"
 
 
 def read_record(out, name: str) -> ResumeRecord | None:
-    """The record of part ``name``, None when there is none or it cannot be read (the part
-    is then redone)."""
+    """The record of a part: the one reader of the resume state.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        The output folder.
+    name : str
+        The part.
+
+    Returns
+    -------
+    ResumeRecord or None
+        None when there is none or it cannot be read (the part is then redone).
+    """
     try:
         doc = json.loads(record_path(out, name).read_text(encoding="utf-8"))
     except (OSError, ValueError):
@@ -114,7 +150,20 @@ def read_record(out, name: str) -> ResumeRecord | None:
 
 
 def write_record(out, record: ResumeRecord) -> Path:
-    """Write ``record`` (atomically: a reader sees the old record or the new one)."""
+    """Write a record atomically: a reader sees the old record or the new one.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        The output folder.
+    record : ResumeRecord
+        The finished part's record.
+
+    Returns
+    -------
+    pathlib.Path
+        The record's file.
+    """
     path = record_path(out, record.name)
     path.parent.mkdir(parents=True, exist_ok=True)
     text = json.dumps(to_jsonable(record.to_dict()), default=str, allow_nan=False)
@@ -122,14 +171,29 @@ def write_record(out, record: ResumeRecord) -> Path:
 
 
 def drop_record(out, name: str) -> None:
-    """Remove the record of part ``name`` (its outputs are gone or stale)."""
+    """Remove the record of a part (its outputs are gone or stale).
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        The output folder.
+    name : str
+        The part.
+    """
     record_path(out, name).unlink(missing_ok=True)
 
 
 @dataclass(frozen=True)
 class Decision:
-    """:func:`decide`'s answer: ``redo`` the part or skip it, and why (``reason``:
-    ``"new"``, ``"forced"``, ``"unchanged"`` or what changed)."""
+    """:func:`decide`'s answer.
+
+    Attributes
+    ----------
+    redo : bool
+        Redo the part (else skip it).
+    reason : str
+        Why: ``"new"``, ``"forced"``, ``"unchanged"`` or what changed.
+    """
 
     redo: bool
     reason: str
@@ -144,9 +208,28 @@ class Decision:
 def decide(record: ResumeRecord | None, fingerprint: str, *, outputs_ok: bool = True,
            parameters_digest: str | None = None, inputs_digest: str | None = None,
            force: bool = False) -> Decision:
-    """Skip or redo a part: skipped when ``record`` holds ``fingerprint`` and the outputs
-    are in place (``outputs_ok``) and not ``force``; else redone, saying what changed
-    (torquemod version, parameters, inputs, or outputs missing) when the record tells."""
+    """Skip or redo a part: the one rule of the fleet and the sweep.
+
+    Parameters
+    ----------
+    record : ResumeRecord or None
+        What :func:`read_record` found.
+    fingerprint : str
+        The part's fingerprint now.
+    outputs_ok : bool
+        Whether the part's outputs are in place. Default True.
+    parameters_digest, inputs_digest : str or None
+        Its parameters' and inputs' digests now (to say what changed). Default None.
+    force : bool
+        Redo it anyway. Default False.
+
+    Returns
+    -------
+    Decision
+        Skipped when ``record`` holds ``fingerprint``, the outputs are in place and not
+        ``force``; else redone, saying what changed (torquemod version, parameters, inputs,
+        or outputs missing) when the record tells.
+    """
     if record is None:
         return Decision(True, "new")
     if force:

@@ -65,6 +65,8 @@ class Writing:
         Where they will be.
     provenance : dict or None
         The provenance block that will be written (for reports that show it).
+    dropped : list of str
+        Files of the target to remove when the block succeeds (:meth:`drop`).
     """
 
     path: Path
