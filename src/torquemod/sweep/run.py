@@ -23,7 +23,6 @@ wheel slipping at the first step, ...) becomes a row of failures.csv and the swe
 from __future__ import annotations
 
 import csv
-import hashlib
 import json
 import os
 import shutil
@@ -38,66 +37,26 @@ from torquemod._util.fsutil import (
     environment_error,
     output_lock,
     removed_if_left_empty,
-    write_atomic,
 )
 from torquemod._util.jsonutil import dump_json
 from torquemod._version import __version__
 from torquemod.errors import InputError, OutputError, TorquemodError
-from torquemod.processing.provenance import provenance_block
 from torquemod.results import resume
 from torquemod.results.writer import write_folder
 from torquemod.sweep.evaluate import PointTask, evaluate_point, tasks
 from torquemod.sweep.spec import SweepSpec, load_sweep
+from torquemod.sweep.state import (  # noqa: F401  (fingerprint: the sweep's API, here as before)
+    digests,
+    fingerprint,
+    one_study,
+    study_key,
+    sweep_provenance,
+)
 
 __all__ = ["SweepResult", "fingerprint", "plan_line", "point_batches", "run_point",
            "run_points", "run_sweep", "tasks"]
 
 FAILURE_COLUMNS = ["point_id", "point_index", "seed", "params", "message"]
-
-
-def _fingerprint_doc(task: PointTask) -> dict:
-    """What :func:`fingerprint` digests."""
-    from torquemod.twins.train.params import default_train_config_text
-    from torquemod.twins.vtrack.simulate import default_config_text
-    default = default_train_config_text if task.kind == "train" else default_config_text
-    base_text = (Path(task.base).read_text(encoding="utf-8") if task.base else default())
-    extra = {"kind": task.kind, "max_mu_error": task.max_mu_error} if task.kind != "rig" else {}
-    if task.kind == "rig" and task.mode == "full":  # the run-in rule (evaluate.settle_time_s)
-        from torquemod.sweep.evaluate import CHAIN_RULE, SETTLE_RULE, SETTLE_TIME_CONSTANTS
-        extra["rules"] = [SETTLE_RULE, SETTLE_TIME_CONSTANTS, CHAIN_RULE]
-    return {**extra, "params": task.params, "seed": task.seed, "mode": task.mode,
-            "fractions": task.fractions_of_peak,
-            "max_utilisation": task.max_utilisation, "version": __version__,
-            "processing": task.processing,
-            "base": hashlib.sha256(base_text.encode()).hexdigest()}
-
-
-def fingerprint(task: PointTask) -> str:
-    """SHA-256 over what a point's rows depend on.
-
-    Its parameters and seed, the mode, the torque fractions, the utilisation limit of the
-    phase fit, the base config's text (the default config's when none), the torquemod
-    version and, in full mode, the run-in rule and the chain's frequency scaling (a changed
-    rule reruns the points). The resume record keeps it (:mod:`torquemod.results.resume`).
-
-    Parameters
-    ----------
-    task : PointTask
-        The point.
-
-    Returns
-    -------
-    str
-        Hex digest.
-    """
-    return resume.digest(_fingerprint_doc(task))
-
-
-def _digests(task: PointTask) -> tuple[str, str, str]:
-    """(fingerprint, parameters digest, inputs digest: the base config's) of a point."""
-    doc = _fingerprint_doc(task)
-    params = {k: v for k, v in doc.items() if k not in ("version", "base")}
-    return resume.digest(doc), resume.digest(params), doc["base"]
 
 
 def _part(out: Path, point_id: str) -> Path:
@@ -168,7 +127,7 @@ def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
            "status": "failed", "n_rows": 0, "message": ""}
     part = _part(out, task.point_id)
     try:
-        digest, params_digest, inputs_digest = _digests(task)
+        digest, params_digest, inputs_digest = digests(task)
         old = resume.read_record(out, task.point_id)
         decision = resume.decide(old, digest, outputs_ok=part.is_file(), force=force,
                                  parameters_digest=params_digest, inputs_digest=inputs_digest)
@@ -413,78 +372,6 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 3600:.1f} h"
 
 
-#: the file in ``_state`` that names the study whose points the folder holds
-STUDY_FILE = "study.json"
-
-
-def study_key(spec: SweepSpec) -> str:
-    """SHA-256 of what makes every point's rows comparable.
-
-    Mode, kind, the base config's text, the torque fractions and the ``[processing]`` table
-    (the points themselves are compared by their ids).
-
-    Parameters
-    ----------
-    spec : SweepSpec
-        The sweep.
-
-    Returns
-    -------
-    str
-        Hex digest.
-    """
-    base = Path(spec.base).read_text(encoding="utf-8") if spec.base else spec.kind
-    blob = json.dumps({"mode": spec.mode, "kind": spec.kind,
-                       "base": hashlib.sha256(base.encode()).hexdigest(),
-                       "fractions": spec.fractions_of_peak, "processing": spec.processing},
-                      sort_keys=True, default=str)
-    return hashlib.sha256(blob.encode()).hexdigest()
-
-
-def _held_points(out: Path) -> set[str]:
-    """Ids of the points whose partition or state the folder holds."""
-    ids = {p.name.split("=", 1)[1] for p in (out / "points").glob("point=*")}
-    ids |= {p.stem for p in (out / resume.STATE_DIR).glob("*.json") if p.name != STUDY_FILE}
-    return ids
-
-
-def _one_study(out: Path, spec: SweepSpec, todo: list[PointTask], force: bool):
-    """Make sure ``out`` holds one study: points of a sweep file whose grid, ``[fixed]``
-    values, mode, base, torque fractions or ``[processing]`` differ from ``spec``'s are
-    never left beside its points. A folder holding such points is refused at once, or with
-    ``force`` they are removed (a new study) by the function returned, which creates ``out``
-    and records the study (called once the cluster answers); a grown grid (every held point
-    still in the sweep) resumes."""
-    key = study_key(spec)
-    state = out / resume.STATE_DIR / STUDY_FILE
-    try:
-        old_key = json.loads(state.read_text(encoding="utf-8")).get("key")
-    except (OSError, ValueError, AttributeError):
-        old_key = None
-    ids = {t.point_id for t in todo}
-    stale = sorted(_held_points(out) - ids) if out.is_dir() else []
-    changed = old_key is not None and old_key != key
-    if stale or changed:
-        why = (f"{len(stale)} of its points are not in this sweep (grid or [fixed] changed)"
-               if stale else "mode, base, [steps] or [processing] changed")
-        if not force:
-            raise InputError(f"the folder holds the results of another study ({why})",
-                             path=out, hint="choose another --out, or pass --force to start "
-                                            "a new study there (the old points are removed)")
-
-    def begin() -> None:
-        if stale or changed:
-            for pid in stale if not changed else sorted(_held_points(out)):
-                shutil.rmtree(out / "points" / f"point={pid}", ignore_errors=True)
-                resume.drop_record(out, pid)
-            for name in ("sweep.parquet", "sweep.json", "failures.csv"):
-                (out / name).unlink(missing_ok=True)
-        state.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(state, lambda fh: fh.write(json.dumps(
-            {"key": key, "sweep": str(spec.path), "n_points": len(ids)})))
-    return begin
-
-
 def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
     """The sweep table from the partitions of the points that are done.
 
@@ -594,7 +481,7 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
                 force, progress, report, on_dashboard, connect_timeout_s,
                 on_start) -> SweepResult:
     todo = tasks(spec)
-    begin = _one_study(out, spec, todo, force)
+    begin = one_study(out, spec, todo, force)
     if on_start is not None:
         on_start()
     with removed_if_left_empty(out):
@@ -656,23 +543,3 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
         (w.path / "sweep.json").write_text(dump_json(doc), encoding="utf-8")
     return SweepResult(out, table, status, failures, rec, report_path, link,
                        time.perf_counter() - t0)
-
-
-def sweep_provenance(spec: SweepSpec) -> dict:
-    """The provenance block of a sweep's folder.
-
-    Parameters
-    ----------
-    spec : SweepSpec
-        The sweep.
-
-    Returns
-    -------
-    dict
-        :func:`~torquemod.processing.provenance.provenance_block` (kind ``"sweep"``) of the
-        spec as parameters, the sweep file and its base config with their SHA-256.
-    """
-    inputs = [{"file": p, "role": role} for p, role in ((spec.path, "sweep"),
-                                                        (spec.base, "base"))
-              if p is not None]
-    return provenance_block("sweep", spec.to_dict(), inputs)
