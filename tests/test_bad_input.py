@@ -443,7 +443,7 @@ CASES: list[tuple[str, Callable, tuple[str, ...]]] = [
      ("rec.tdms", "channel 'fx_n'", "starts", "at least 90 %", "export all channels")),
     ("wrong_unit", c_wrong_unit, ("channel 'torque_nm'", "unit 'N'", "torque")),
     ("unknown_unit", c_unknown_unit, ("'furlong'",)),
-    ("unknown_processing_key", c_unknown_processing_key, ("bandpas", "known keys")),
+    ("unknown_processing_key", c_unknown_processing_key, ("bandpas", "did you mean 'bandpass'")),
     ("nan", c_nan, ("step1_cycle1.csv", "channel 'torque_nm'", "NaN/inf", "--nan-policy")),
     ("inf", c_inf, ("step1_cycle1.csv", "channel 'fz_n'", "NaN/inf", "--nan-policy")),
     ("nan_time", c_nan_time, ("step1_cycle1.csv", "channel 'time_s'", "non-finite")),
