@@ -88,7 +88,7 @@ contact.mu0 = 0.2
      ["sweep.toml", "modulation.frequncy_hz", "did you mean 'modulation.frequency_hz'"]),
     ("mdoe = 'theory'\n", ["sweep.toml", "'mdoe'", "did you mean 'mode'"]),
     ("[[point]]\nrig.wheel_radius = 0.07\n", ["point]] #1", "'rig.wheel_radius_m'"]),
-    ("[grid]\ncontact.condition = ['icy']\n", ["unknown friction condition 'icy'"]),
+    ("[grid]\ncontact.condition = ['icy']\n", ["'contact.condition' must be one of", "'icy'"]),
     ("mode = 'fast'\n", ["unknown mode 'fast'"]),
     ("[grid]\nmodulation.frequency_hz = 2.0\n", ["must be a non-empty list"]),
     ("base = 'missing.toml'\n", ["base config 'missing.toml' not found"]),

@@ -40,8 +40,8 @@ from dataclasses import dataclass
 from torquemod.errors import InputError
 
 __all__ = ["NON_NEGATIVE", "POSITIVE", "Check", "below_nyquist", "between", "check_fields",
-           "checked", "checked_value", "default_checks", "defaults_from", "one_of", "read_table",
-           "unknown_keys"]
+           "check_key", "checked", "checked_value", "default_checks", "defaults_from", "one_of",
+           "read_table", "unknown_keys"]
 
 
 @dataclass(frozen=True)
@@ -298,6 +298,15 @@ def read_table(cls, table: object, *, section: str, path: object,
                         hint=f"add '{name} = <value>' under [{section}]" if section
                         else f"add '{name} = <value>'")
     return cls(**kwargs)
+
+
+def check_key(cls, name: str, value: object, key: str, path: object, *,
+              error: type[InputError] = InputError):
+    """``value`` checked as :func:`read_table` checks the field ``name`` of the dataclass
+    ``cls`` (its type and its ``metadata["check"]``), an error naming ``key``; converted."""
+    f = {f.name: f for f in dataclasses.fields(cls)}[name]
+    kind = _kind(typing.get_type_hints(cls)[name])
+    return checked_value(value, kind, key, path, f.metadata.get("check"), error=error)
 
 
 def check_fields(instance, section: str, *, path: object = None,

@@ -5,11 +5,12 @@ A sweep names a base twin configuration (the V-Track default, or a config TOML a
 ``torquemod simulate`` reads it; or a train run: ``base = "train"``, or a train config TOML
 with ``kind = "train"``, see :mod:`torquemod.sweep.trainpoint`), the twin parameters to vary
 by their dotted config key (``"modulation.frequency_hz"``, ``"contact.mu0"``,
-``"sensors.torque_noise_nm"``, ...; the keys of ``torquemod/data/vtrack_default.toml``, or
-the train's), as a cartesian ``[grid]`` and/or a list of
-``[[point]]`` tables, the mode (``"full"``: twin + processing chain + fits; ``"theory"``:
-large-signal theory only) and the seeds. Every mistake is an :class:`InputError` naming the
-sweep file and the key, with the nearest known key when it looks like a typo.
+``"sensors.torque_noise_nm"``, ...; the keys of the twin's configuration,
+:class:`~torquemod.twins.vtrack.simconfig.SimTables`, or the train's), as a cartesian
+``[grid]`` and/or a list of ``[[point]]`` tables, the mode (``"full"``: twin + processing
+chain + fits; ``"theory"``: large-signal theory only) and the seeds. Every mistake is an
+:class:`InputError` naming the sweep file and the key, with the nearest known key when it
+looks like a typo.
 """
 
 from __future__ import annotations
@@ -19,10 +20,10 @@ import itertools
 import json
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
-from torquemod._util.tomlcheck import between, default_checks, read_table
+from torquemod._util.tomlcheck import between, checked_value, default_checks, one_of, read_table
 from torquemod.errors import InputError
 from torquemod.io.manifest import check_keys
 from torquemod.sweep.conditions import conditions
@@ -40,10 +41,12 @@ _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 
 
 def twin_keys() -> dict[str, object]:
-    """Every dotted key of the rig twin's configuration with its default value."""
-    from torquemod.twins.vtrack.simulate import default_config_text
-    doc = tomllib.loads(default_config_text())
-    return {f"{s}.{k}": v for s, table in doc.items() for k, v in table.items()}
+    """Every dotted key of the rig twin's configuration with its default value (the fields
+    of :class:`~torquemod.twins.vtrack.simconfig.SimTables`, read from the default file)."""
+    from torquemod.twins.vtrack.simconfig import default_tables
+    tables = default_tables()
+    return {f"{s.name}.{f.name}": getattr(getattr(tables, s.name), f.name)
+            for s in fields(tables) for f in fields(getattr(tables, s.name))}
 
 
 @dataclass(frozen=True)
@@ -145,25 +148,23 @@ def _flatten(table: dict, prefix: str = "") -> dict:
 
 
 def _check_value(key: str, value, where: str, path, kind: str = "rig") -> None:
-    """A parameter value must be a number, a string, a bool or a list of numbers, and a
-    condition must be a known name."""
-    ok = (isinstance(value, bool | str) or
-          (isinstance(value, int | float) and math.isfinite(value)) or
-          (isinstance(value, list) and all(isinstance(v, int | float)
-                                           and not isinstance(v, bool) for v in value)))
-    if not ok:
-        raise InputError(f"{where}: '{key}' has an unusable value {value!r}", path=path,
-                         hint="give a number, a string, true/false or a list of numbers")
+    """A parameter's value checked as the twin's reader checks its key (type and range,
+    :func:`~torquemod.twins.vtrack.simconfig.twin_key_check`; a condition: a known name),
+    so that a mistake names the sweep file, the table and the key before any point runs."""
     if kind == "train":
         from torquemod.sweep.trainpoint import check_train_value
         check_train_value(key, value, where, path)
         return
-    if key == CONDITION_KEY:
-        known = conditions()
-        if value not in known:
-            raise InputError(f"{where}: unknown friction condition {value!r}", path=path,
-                             hint=f"use one of {', '.join(known)}, or give the Polach "
-                                  "parameters (contact.mu0, a_ratio, b_s_m, k_a, k_s)")
+    try:
+        if key == CONDITION_KEY:
+            checked_value(value, str, key, None, one_of(*conditions()))
+        else:
+            from torquemod.twins.vtrack.simconfig import twin_key_check
+            twin_key_check(key, value, None)
+    except InputError as exc:
+        hint = ("or give the Polach parameters (contact.mu0, a_ratio, b_s_m, k_a, k_s)"
+                if key == CONDITION_KEY else None)
+        raise InputError(f"{where}: {exc}", path=path, hint=hint) from None
 
 
 def _params(table, where: str, path, allowed) -> dict:
