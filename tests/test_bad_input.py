@@ -422,7 +422,7 @@ CASES: list[tuple[str, Callable, tuple[str, ...]]] = [
     ("negative_radius", c_negative_radius, ("rig.wheel_radius_m", "positive")),
     ("zero_normal_load", c_zero_normal_load, ("test.normal_load_n", "positive")),
     ("empty_experiment", c_empty_experiment, ("experiment.toml", "no [[recording]]")),
-    ("step_not_integer", c_step_not_integer, ("recording #1", "'step'", "integer")),
+    ("step_not_integer", c_step_not_integer, ("recording #1", "'step'", "whole number")),
     ("duplicate_step_cycle", c_duplicate_step_cycle, ("step 1 cycle 1", "listed twice")),
     ("same_file_twice", c_same_file_twice, ("step1_cycle1.csv", "listed twice")),
     ("cycle_overlap", c_cycle_overlap, ("step 1", "more than once")),

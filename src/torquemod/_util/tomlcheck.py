@@ -41,7 +41,7 @@ from torquemod.errors import InputError
 
 __all__ = ["NON_NEGATIVE", "POSITIVE", "Check", "below_nyquist", "between", "check_fields",
            "check_key", "checked", "checked_value", "default_checks", "defaults_from", "one_of",
-           "read_table", "unknown_keys"]
+           "prefixed", "read_table", "unknown_keys"]
 
 
 @dataclass(frozen=True)
@@ -228,6 +228,14 @@ def defaults_from(table: Mapping):
     return deco
 
 
+def prefixed(where: str, error: type[InputError] = InputError):
+    """An ``error`` maker (for the ``error`` arguments here) whose messages start with
+    ``where``, e.g. ``"recording #2"``."""
+    def make(message: str, **kwargs) -> InputError:
+        return error(f"{where}: {message}", **kwargs)
+    return make
+
+
 def _section_text(section: str) -> tuple[str, str]:
     """The key prefix and the 'takes' text of the table ``section`` ("" for the file)."""
     if not section:
@@ -238,7 +246,7 @@ def _section_text(section: str) -> tuple[str, str]:
 def read_table(cls, table: object, *, section: str, path: object,
                checks: Mapping[str, Check] | None = None, skip: Iterable[str] = (),
                given: Mapping | None = None, error: type[InputError] = InputError,
-               base: object = None, extra: str | None = None):
+               base: object = None, extra: str | None = None, key_prefix: str | None = None):
     """An instance of the frozen dataclass ``cls`` from the TOML ``table`` ``[section]`` of
     the file ``path`` ("" for the whole file).
 
@@ -248,12 +256,14 @@ def read_table(cls, table: object, *, section: str, path: object,
     a ``tuple[SomeDataclass, ...]`` a list of tables (``[[section.key]]``). Keys in ``skip``
     may be in the table but are not read (sub-tables the caller reads itself); ``given``
     supplies fields the caller built (not keys of the table); ``extra`` names a dict field
-    that keeps the keys the dataclass does not have instead of refusing them. Missing keys
+    that keeps the keys the dataclass does not have instead of refusing them; ``key_prefix``
+    replaces ``"section."`` before the keys in messages. Missing keys
     keep the values of ``base`` (an instance of ``cls``) or the defaults; a field with
     neither is a missing key."""
     if table is None:
         table = {}
     prefix, takes = _section_text(section)
+    prefix = prefix if key_prefix is None else key_prefix
     if not isinstance(table, Mapping):
         raise error(f"[{section}] must be a table, got {table!r}", path=path,
                     hint=f"write [{section}] with its keys")
