@@ -190,7 +190,8 @@ def checked_value(value: object, kind, key: str, path: object, check: Check | No
         out = value
     if check is not None:
         if not check.ok(out):
-            raise bad(check.text())
+            need = check.text()
+            raise bad(need.replace(" number", " whole number", 1) if kind is int else need)
         if check.test is not None and not check.test(out):
             raise bad(check.need)
     return out

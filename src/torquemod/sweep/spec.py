@@ -23,9 +23,16 @@ import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
-from torquemod._util.tomlcheck import between, checked_value, default_checks, one_of, read_table
+from torquemod._util.tomlcheck import (
+    between,
+    checked,
+    checked_value,
+    default_checks,
+    one_of,
+    read_table,
+    unknown_keys,
+)
 from torquemod.errors import InputError
-from torquemod.io.manifest import check_keys
 from torquemod.sweep.conditions import conditions
 
 __all__ = ["CONDITION_KEY", "MAX_POINTS", "RecommendOptions", "SweepPoint", "SweepSpec",
@@ -35,7 +42,6 @@ __all__ = ["CONDITION_KEY", "MAX_POINTS", "RecommendOptions", "SweepPoint", "Swe
 CONDITION_KEY = "contact.condition"
 _TOP_KEYS = ("name", "description", "base", "mode", "seeds", "repeats", "max_utilisation",
              "fixed", "steps", "grid", "point", "recommend", "processing")
-_STEP_KEYS = ("fractions_of_peak",)
 _MODES = ("full", "theory")
 _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 
@@ -171,7 +177,7 @@ def _params(table, where: str, path, allowed) -> dict:
     if not isinstance(table, dict):
         raise InputError(f"{where} must be a table of 'section.key = value'", path=path)
     flat = _flatten(table)
-    check_keys(flat, allowed, where, path, takes="twin parameters are", error=InputError)
+    unknown_keys(flat, allowed, where, path, takes="twin parameters are")
     return flat
 
 
@@ -194,23 +200,15 @@ def _seeds(doc: dict, path) -> tuple[int, ...]:
     return tuple(dict.fromkeys(seeds))
 
 
+@dataclass(frozen=True)
+class _Steps:
+    """``[steps]``: the DC torques as fractions of each point's creep-curve peak torque."""
+
+    fractions_of_peak: tuple[float, ...] | None = checked(None, between(0.0, 1.0, hi_open=True))
+
+
 def _fractions(doc: dict, path) -> tuple[float, ...] | None:
-    steps = doc.get("steps")
-    if steps is None:
-        return None
-    if not isinstance(steps, dict):
-        raise InputError("[steps] must be a table", path=path)
-    check_keys(steps, _STEP_KEYS, "[steps]", path, takes="[steps] takes", error=InputError)
-    fr = steps.get("fractions_of_peak")
-    if fr is None:
-        return None
-    if (not isinstance(fr, list) or not fr
-            or not all(isinstance(v, int | float) and not isinstance(v, bool)
-                       and 0.0 <= v < 1.0 for v in fr)):
-        raise InputError(f"[steps] fractions_of_peak must be a non-empty list of numbers in "
-                         f"[0, 1), got {fr!r}", path=path,
-                         hint="fractions of the creep-curve peak torque, e.g. [0.0, 0.3, 0.5]")
-    return tuple(float(v) for v in fr)
+    return read_table(_Steps, doc.get("steps"), section="steps", path=path).fractions_of_peak
 
 
 def _recommend(doc: dict, path) -> RecommendOptions:
@@ -306,7 +304,7 @@ def parse_sweep(text: str, *, path: str | Path | None = None,
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"TOML syntax error: {exc}", path=where,
                          hint="fix the line named") from None
-    check_keys(doc, _TOP_KEYS, "sweep file", where, takes="a sweep takes", error=InputError)
+    unknown_keys(doc, _TOP_KEYS, "sweep file", where, takes="a sweep takes")
     mode = doc.get("mode", "full")
     if mode not in _MODES:
         raise InputError(f"unknown mode {mode!r}", path=where,
