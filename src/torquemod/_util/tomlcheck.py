@@ -305,9 +305,11 @@ def read_table(cls, table: object, *, section: str, path: object,
     for name, f in fields.items():
         if (name not in kwargs and f.default is dataclasses.MISSING
                 and f.default_factory is dataclasses.MISSING):
-            raise error(f"missing key '{prefix}{name}'", path=path,
-                        hint=f"add '{name} = <value>' under [{section}]" if section
-                        else f"add '{name} = <value>'")
+            near = difflib.get_close_matches(name, [str(k) for k in table], n=1)
+            raise error(f"missing key '{prefix}{name}'", path=path, hint=(
+                f"is '{near[0]}' meant to be '{name}'? " if near else "")
+                + (f"add '{name} = <value>' under [{section}]" if section
+                   else f"add '{name} = <value>'"))
     return cls(**kwargs)
 
 
