@@ -1,4 +1,5 @@
-"""Every configuration table a user writes is read by one reader
+"""Every configuration table a user writes (processing, the rig and train twins, [onboard],
+sweep files, experiment.toml, run.toml) is read by one reader
 (:func:`torquemod._util.tomlcheck.read_table`): for each, a misspelt key is refused with the
 nearest known key, a value of the wrong type and a value out of range are refused, and the
 message names the file and the dotted key."""
@@ -15,6 +16,7 @@ from torquemod._util.tomlcheck import POSITIVE, Check, check_fields, checked, re
 from torquemod.errors import InputError
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.manifest import experiment_from_doc
+from torquemod.io.run import read_run
 from torquemod.ontrain.estimator import OnboardConfig
 from torquemod.sweep.spec import parse_sweep
 from torquemod.twins.train.params import default_train_config_text, load_train_config
@@ -25,6 +27,9 @@ MANIFEST = {"rig": {"wheel_radius_m": 0.0675, "platform_radius_m": 2.0},
             "test": {"normal_load_n": 4200.0, "modulation_frequency_hz": 2.0,
                      "modulation_amplitude_nm": 8.0},
             "recording": [{"step": 1, "dc_torque_nm": 10.0, "file": "s1.csv"}]}
+RUN = {"vehicle": {"wheel_radius_m": 0.46, "normal_load_n": 2e5, "inertia_kg_m2": 270.0},
+       "test": {"modulation_frequency_hz": 5.0, "modulation_amplitude_nm": 1500.0},
+       "recording": [{"file": "run.csv"}]}
 
 
 def _read(kind: str, doc: dict, path):
@@ -40,6 +45,8 @@ def _read(kind: str, doc: dict, path):
         return load_train_config(path)
     if kind == "sweep":
         return parse_sweep(path.read_text(encoding="utf-8"), path=path)
+    if kind == "run":
+        return read_run(path)
     return experiment_from_doc(doc, path)
 
 
@@ -55,6 +62,7 @@ def _doc(kind: str, dotted: str, value) -> dict:
     """The smallest valid document of ``kind`` with ``dotted`` set to ``value`` (a list
     index in the key, ``recording.0.step``, reaches into an array of tables)."""
     doc = {"manifest": lambda: tomllib.loads(tomli_w.dumps(MANIFEST)),
+           "run": lambda: tomllib.loads(tomli_w.dumps(RUN)),
            "train twin": lambda: tomllib.loads(default_train_config_text())}.get(kind, dict)()
     *parents, leaf = dotted.split(".")
     node = doc
@@ -109,6 +117,12 @@ CASES = [  # (config, key, value, what the message says besides the file)
                                                    "did you mean 'dc_torque_nm'"]),
     ("manifest", "recording.0.step", 0, ["recording #1", "'step'", "whole number >= 1"]),
     ("manifest", "recording.0.sample_rate_hz", "fast", ["recording #1", "'sample_rate_hz'"]),
+    ("run", "vehicle.wheel_radius", 0.46, ["'vehicle.wheel_radius'",
+                                           "did you mean 'wheel_radius_m'"]),
+    ("run", "vehicle.torque_lag_s", "2 ms", ["'vehicle.torque_lag_s'", "finite number"]),
+    ("run", "vehicle.speed_delay_s", 1.5, ["'vehicle.speed_delay_s'", "a time in seconds",
+                                           "e.g. 0.002 for 2 ms"]),
+    ("run", "recording.0.axle", 0, ["recording #1", "'axle'", "whole number >= 1"]),
 ]
 
 

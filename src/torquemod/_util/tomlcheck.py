@@ -49,7 +49,8 @@ class Check:
     """What a value must satisfy beyond its type: ``lo <= v <= hi`` (``lo_open``/``hi_open``
     make a bound strict; None: unbounded) or one of ``choices``; for a list, each item.
     ``test`` is a last condition on the whole value (a list: the whole list), said as
-    ``need`` when it fails."""
+    ``need`` when it fails (without a test, ``need`` replaces the text of the range);
+    ``hint`` says what to do."""
 
     lo: float | None = None
     hi: float | None = None
@@ -62,6 +63,7 @@ class Check:
     allow_empty: bool = False
     test: Callable[[object], bool] | None = None
     need: str = ""
+    hint: str | None = None
 
     def ok(self, v: object) -> bool:
         """Whether the item ``v`` is in range (or one of the choices); ``test`` aside."""
@@ -78,6 +80,8 @@ class Check:
         """What the check asks for, as the error says it."""
         if self.choices:
             return "one of " + ", ".join(repr(c) for c in self.choices)
+        if self.need and self.test is None:
+            return self.need
         if self.lo is None and self.hi is None:
             return self.need or "a valid value"
         if self.lo == 0 and self.hi is None:
@@ -155,7 +159,8 @@ def checked_value(value: object, kind, key: str, path: object, check: Check | No
     checked by ``check``; else ``error`` naming ``key`` [e.g. 'vehicle.mass_share_kg'], the
     value and ``path``."""
     def bad(need: str) -> InputError:
-        return error(f"'{key}' must be {need}, got {value!r}", path=path)
+        return error(f"'{key}' must be {need}, got {value!r}", path=path,
+                     hint=None if check is None else check.hint)
     if isinstance(kind, tuple):
         _, item, length = kind
         empty_ok = check is not None and check.allow_empty and length is None
@@ -164,7 +169,8 @@ def checked_value(value: object, kind, key: str, path: object, check: Check | No
             many = (f"a list of {length}" if length else "a list of" if empty_ok
                     else "a non-empty list of")
             raise bad(f"{many} {_name(item)}s")
-        item_check = None if check is None else dataclasses.replace(check, test=None)
+        item_check = None if check is None else dataclasses.replace(
+            check, test=None, need="" if check.test else check.need)
         out = tuple(checked_value(v, item, f"{key}[{i}]", path, item_check, error=error)
                     for i, v in enumerate(value))
         if check is not None and check.test is not None and not check.test(out):
@@ -343,7 +349,8 @@ def check_fields(instance, section: str, *, path: object = None,
             need = check.need
         else:
             continue
-        raise error(f"'{section}.{f.name}' must be {need}, got {value!r}", path=path)
+        raise error(f"'{section}.{f.name}' must be {need}, got {value!r}", path=path,
+                    hint=check.hint)
 
 
 def below_nyquist(frequency_hz: float, sample_rate_hz: float, key: str, rate_key: str,

@@ -22,7 +22,6 @@ from torquemod._util.tomlcheck import (
     default_checks,
     prefixed,
     read_table,
-    unknown_keys,
 )
 from torquemod.errors import InputError, ManifestError
 from torquemod.io.channels import resolve_channel_map
@@ -83,14 +82,6 @@ def _load_toml(path: Path, name: str = "experiment.toml") -> dict:
         if text.startswith(("Cannot overwrite a value", "Cannot declare")):
             hint = "a key or table is given twice; keep one of them"
         raise ManifestError(f"TOML syntax error: {text}", path=path, hint=hint) from None
-
-
-def check_keys(table: dict, allowed, where: str, path: object, *,
-               takes: str = "known keys:", error: type[InputError] = ManifestError) -> None:
-    """Raise ``error`` naming the first key of ``table`` not in ``allowed`` (a typo such as
-    'dc_torque' or 'stpe' must not pass unnoticed), with the nearest allowed key
-    (:func:`torquemod._util.tomlcheck.unknown_keys`; a manifest error by default)."""
-    unknown_keys(table, allowed, where, path, takes=takes, error=error)
 
 
 def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEntry:
