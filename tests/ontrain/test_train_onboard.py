@@ -207,7 +207,7 @@ def test_run_manifest_errors(tmp_path):
         read_run(p)
     p.write_text(p.read_text().replace("normal_load_n = 2e5", "normal_load_n = 2e5\n"
                                        "inertia_kg_m2 = 270.0\nintertia = 3"))
-    with pytest.raises(ManifestError, match="unknown key 'intertia'"):
+    with pytest.raises(ManifestError, match=r"unknown key 'vehicle\.intertia'; did you mean"):
         read_run(p)
     p.write_text(p.read_text().replace("intertia = 3\n", ""))
     assert read_run(p).vehicle.inertia_kg_m2 == 270.0
