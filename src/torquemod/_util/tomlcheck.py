@@ -1,10 +1,13 @@
 """One way to read a TOML table into a typed, frozen dataclass.
 
-Every configuration a user writes by hand (the rig twin's config, the train twin's config,
-run.toml's ``[onboard]``, sweep files and their bases) is read through :func:`read_table`:
-the fields of the dataclass say which keys exist and of which type, a :class:`Check` per field
-says which values make sense. Any mistake is one :class:`~torquemod.errors.InputError` that
-names the file and the dotted key, what was found and what is expected:
+Every configuration a user writes by hand (the ``[processing]`` table, experiment.toml and
+run.toml, the rig and train twins' configs, run.toml's ``[onboard]``, sweep files and their
+bases) is read through :func:`read_table`: the fields of the dataclass say which keys exist
+and of which type (a dataclass-typed field is a sub-table, a tuple of dataclasses a list of
+tables), the :class:`Check` in each field's metadata (:func:`checked`) says which values make
+sense, once for the file and for values built in code (:func:`check_fields`). Any mistake is
+one :class:`~torquemod.errors.InputError` that names the file and the dotted key, what was
+found and what is expected:
 
 * a key the dataclass does not have (with the nearest known key, :func:`unknown_keys`),
 * a value of the wrong type (a string or ``true`` where a number belongs, a fraction where a
@@ -264,9 +267,9 @@ def read_table(cls, table: object, *, section: str, path: object,
     may be in the table but are not read (sub-tables the caller reads itself); ``given``
     supplies fields the caller built (not keys of the table); ``extra`` names a dict field
     that keeps the keys the dataclass does not have instead of refusing them; ``key_prefix``
-    replaces ``"section."`` before the keys in messages. Missing keys
-    keep the values of ``base`` (an instance of ``cls``) or the defaults; a field with
-    neither is a missing key."""
+    replaces ``"section."`` before the keys in messages. Missing keys keep the values of
+    ``base`` (an instance of ``cls``) or the defaults; a field with neither is a missing key
+    (with the given key it may be misspelt as)."""
     if table is None:
         table = {}
     prefix, takes = _section_text(section)
