@@ -30,10 +30,25 @@ from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
 
 @dataclass(frozen=True)
 class RecordingTable:
-    """One ``[[recording]]`` table as written: ``step`` (from 1), its ``dc_torque_nm``
-    [N*m], the ``file`` (relative to the manifest), optionally the ``cycle`` (from 1), the
-    ``group`` inside the file, the ``sample_rate_hz`` [Hz] replacing the file's time base,
-    and free text in ``note`` and ``comment``."""
+    """One ``[[recording]]`` table as written, each key's check declared on its field.
+
+    Attributes
+    ----------
+    step : int
+        The torque step, from 1.
+    dc_torque_nm : float
+        Its DC torque [N*m].
+    file : str
+        The recording, relative to the manifest's folder.
+    cycle : int or None
+        The platform revolution, from 1 (None: the file may span several).
+    group : str or None
+        The group inside the file.
+    sample_rate_hz : float or None
+        The recording's sample rate [Hz], replacing the file's time base.
+    note, comment : object
+        Free text.
+    """
 
     step: int = checked(check=between(1, None))
     dc_torque_nm: float = checked()
@@ -95,9 +110,39 @@ def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEn
 
 def recording_file(rec: dict, where: str, folder: Path, path: Path, kind: str = "experiment"
                    ) -> tuple[Path, str | None, float | None]:
-    """The checked ``file`` (resolved inside ``folder``), ``group`` and ``sample_rate_hz``
-    of one ``[[recording]]`` table (shared by experiment.toml and run.toml), each checked
-    as :class:`RecordingTable` declares it."""
+    """The checked file, group and sample rate of one ``[[recording]]`` table.
+
+    Shared by experiment.toml and run.toml; each value is checked as
+    :class:`RecordingTable` declares it.
+
+    Parameters
+    ----------
+    rec : dict
+        The table.
+    where : str
+        The entry, named in messages (e.g. "recording #2").
+    folder : pathlib.Path
+        The manifest's folder; ``file`` is resolved inside it.
+    path : pathlib.Path
+        The manifest, named in messages.
+    kind : str
+        "experiment" or "run", for messages. Default "experiment".
+
+    Returns
+    -------
+    file : pathlib.Path
+        The resolved file.
+    group : str or None
+        The group inside it.
+    sample_rate_hz : float or None
+        Its sample rate [Hz].
+
+    Raises
+    ------
+    ManifestError
+        ``file`` empty or pointing outside the folder, ``group`` not a string, or
+        ``sample_rate_hz`` not a positive number.
+    """
     error = prefixed(where, ManifestError)
 
     def value(key: str):
@@ -112,8 +157,29 @@ def recording_file(rec: dict, where: str, folder: Path, path: Path, kind: str = 
 
 
 def checked_channel_map(channel_map: object, path: Path, rates=()) -> dict:
-    """The manifest's raw ``[channels]`` table after checking it (and each recording's
-    ``sample_rate_hz`` against it), mistakes raised as :class:`ManifestError`."""
+    """A manifest's raw ``[channels]`` table after checking it.
+
+    Each recording's ``sample_rate_hz`` is checked against it too.
+
+    Parameters
+    ----------
+    channel_map : object
+        The table as read (None or a dict).
+    path : pathlib.Path
+        The manifest, named in messages.
+    rates : sequence of float or None
+        The recordings' own ``sample_rate_hz`` [Hz], in manifest order. Default ().
+
+    Returns
+    -------
+    dict
+        The table, unchanged.
+
+    Raises
+    ------
+    ManifestError
+        Not a table, a bad key or unit, or a sample rate that cannot be used with it.
+    """
     if not isinstance(channel_map, dict):
         raise ManifestError("[channels] must be a table", path=path)
     try:  # checked here so a mistake in [channels] shows before any recording is read
@@ -134,7 +200,24 @@ def checked_channel_map(channel_map: object, path: Path, rates=()) -> dict:
 
 
 def read_experiment(path: str | Path) -> Experiment:
-    """Parse and validate an ``experiment.toml``; recordings are not opened here."""
+    """Parse and validate an ``experiment.toml``; the recordings are not opened.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The manifest.
+
+    Returns
+    -------
+    Experiment
+        The parsed experiment.
+
+    Raises
+    ------
+    ManifestError
+        An unreadable file, TOML syntax, or anything :func:`experiment_from_doc` refuses; the
+        message names the file and key.
+    """
     path = Path(path)
     if path.is_dir():
         path = path / "experiment.toml"
@@ -142,10 +225,29 @@ def read_experiment(path: str | Path) -> Experiment:
 
 
 def experiment_from_doc(doc: dict, path: str | Path) -> Experiment:
-    """Check the tables of an ``experiment.toml`` already parsed into ``doc`` (as
-    :func:`read_experiment` does after reading ``path``) and return the
-    :class:`Experiment`; ``path`` is where the manifest is (or would be): its folder holds
-    the recordings and messages name it. Nothing is read."""
+    """Check the tables of an already parsed ``experiment.toml`` and build the experiment.
+
+    Nothing is read.
+
+    Parameters
+    ----------
+    doc : dict
+        The parsed TOML.
+    path : str or pathlib.Path
+        Where the manifest is (or would be): its folder holds the recordings and messages
+        name it.
+
+    Returns
+    -------
+    Experiment
+        The experiment.
+
+    Raises
+    ------
+    ManifestError
+        A train run, no recordings, a missing section or key, an unknown key, a bad value, a
+        recording listed twice, or a step with two DC torques.
+    """
     path = Path(path)
     if "vehicle" in doc and "rig" not in doc:
         raise ManifestError("is a train run (it has [vehicle], no [rig])", path=path,
@@ -202,7 +304,24 @@ def write_manifest(path: str | Path, *, rig: dict, test: dict, recordings: list[
                    extra: dict | None = None) -> Path:
     """Write an ``experiment.toml`` from plain dicts (the inverse of :func:`read_experiment`).
 
-    ``recordings`` are dicts with ``step``, optional ``cycle``, ``dc_torque_nm``, ``file``.
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+    rig : dict
+        The ``[rig]`` table (``wheel_radius_m`` [m], ``platform_radius_m`` [m], ...).
+    test : dict
+        The ``[test]`` table (``normal_load_n`` [N], ``modulation_frequency_hz`` [Hz],
+        ``modulation_amplitude_nm`` [N*m], ...).
+    recordings : list of dict
+        With ``step``, optional ``cycle``, ``dc_torque_nm`` [N*m], ``file``.
+    extra : dict or None
+        Further top-level tables. Default None.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
     """
     path = Path(path)
     doc = {"rig": dict(rig), "test": dict(test)}

@@ -50,8 +50,38 @@ _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 @dataclass(frozen=True)
 @defaults_from(DEFAULT_DOC["rig"])
 class RigTable:
-    """The ``[rig]`` table as the file gives it (speed in km/h; :class:`RigParams` the
-    mechanics built from it): every value a positive number."""
+    """The ``[rig]`` table as the file gives it; :class:`RigParams` is built from it.
+
+    Every value a positive number; the defaults are ``vtrack_default.toml``'s.
+
+    Attributes
+    ----------
+    wheel_radius_m : float
+        Rolling radius of the measuring wheel [m].
+    platform_radius_m : float
+        Radius of the wheel path on the ring [m].
+    speed_km_h : float
+        Set speed at the wheel path [km/h].
+    normal_load_n : float
+        Normal load [N].
+    wheel_inertia_kg_m2 : float
+        Everything rigidly attached downstream of the torque sensor, at the wheel axle
+        [kg*m^2].
+    drive_inertia_kg_m2 : float
+        Motor and gearboxes referred to the wheel axle [kg*m^2].
+    shaft_stiffness_nm_rad : float
+        Torque shaft and sensor [N*m/rad].
+    shaft_damping_nm_s_rad : float
+        Their damping [N*m*s/rad].
+    platform_inertia_kg_m2 : float
+        Platform with the reflected drive [kg*m^2].
+    platform_kp_nm_s_rad : float
+        Proportional gain of the platform's speed controller [N*m*s/rad].
+    platform_ki_nm_rad : float
+        Its integral gain [N*m/rad].
+    rolling_resistance_nm : float
+        Rolling resistance at the platform axis [N*m].
+    """
 
     wheel_radius_m: float = checked(check=POSITIVE)
     platform_radius_m: float = checked(check=POSITIVE)
@@ -70,9 +100,42 @@ class RigTable:
 @dataclass(frozen=True)
 @defaults_from(DEFAULT_DOC["contact"])
 class ContactTable:
-    """The ``[contact]`` table: a Polach preset and its five parameters, the materials and
-    the geometry (semi-axes given, or both 0: from Hertz with the transverse radii);
-    :class:`ContactParams` is built from it."""
+    """The ``[contact]`` table; :class:`ContactParams` is built from it.
+
+    A Polach preset and its five parameters (a preset named in a file fills those the file
+    does not give), the materials and the geometry: the semi-axes given, or both 0 and the
+    ellipse from Hertz's theory with the transverse radii. The defaults are
+    ``vtrack_default.toml``'s.
+
+    Attributes
+    ----------
+    preset : str
+        A Polach preset's name (:data:`torquemod.analysis.contact.presets.POLACH_PRESETS`).
+    mu0 : float
+        Static friction coefficient [-] (Polach 2005).
+    a_ratio : float
+        Ratio of the friction at infinite slip velocity to ``mu0`` [-].
+    b_s_m : float
+        Friction decay with slip velocity [s/m].
+    k_a : float
+        Polach's reduction factor in the area of adhesion [-].
+    k_s : float
+        Polach's reduction factor in the area of slip [-].
+    youngs_modulus_pa : float
+        Young's modulus [Pa].
+    poisson_ratio : float
+        Poisson's ratio [-], in (0, 0.5).
+    wheel_transverse_radius_m : float
+        Transverse radius of the wheel tread [m]; 0 for a flat tread.
+    rail_transverse_radius_m : float
+        Crown radius of the rail head [m]; 0 for a flat head.
+    semi_axis_a_m : float
+        Contact semi-axis in the rolling direction [m]; 0: from Hertz.
+    semi_axis_b_m : float
+        Lateral contact semi-axis [m]; 0: from Hertz.
+    lateral_creepage : float
+        Constant lateral creepage from running on the ring [-].
+    """
 
     preset: str = checked(check=one_of(*POLACH_PRESETS))
     mu0: float = checked(check=POSITIVE)
@@ -91,9 +154,26 @@ class ContactTable:
 
 @dataclass(frozen=True)
 class SimTables:
-    """The twin's configuration file, table by table, as read and checked
-    (:func:`~torquemod._util.tomlcheck.read_table`); the defaults are
-    ``vtrack_default.toml``'s."""
+    """The twin's configuration file, table by table, as read and checked.
+
+    Read by :func:`~torquemod._util.tomlcheck.read_table`; the defaults are
+    ``vtrack_default.toml``'s.
+
+    Attributes
+    ----------
+    rig : RigTable
+        ``[rig]``.
+    contact : ContactTable
+        ``[contact]``.
+    modulation : ModulationParams
+        ``[modulation]``.
+    disturbances : DisturbanceParams
+        ``[disturbances]``.
+    sensors : SensorParams
+        ``[sensors]``.
+    procedure : ProcedureParams
+        ``[procedure]``.
+    """
 
     rig: RigTable = field(default_factory=RigTable)
     contact: ContactTable = field(default_factory=ContactTable)
@@ -113,7 +193,13 @@ def _parse(text: str, where: str) -> dict:
 
 @functools.cache
 def default_tables() -> SimTables:
-    """The default configuration (``vtrack_default.toml``), read and checked as a user's."""
+    """The default configuration (``vtrack_default.toml``), read and checked as a user's.
+
+    Returns
+    -------
+    SimTables
+        Its tables.
+    """
     return read_table(SimTables, DEFAULT_DOC, section="", path="vtrack_default.toml")
 
 
@@ -130,8 +216,22 @@ def _merge(base: SimTables, doc: dict, where: str) -> SimTables:
 
 
 def twin_key_check(key: str, value: object, path: object) -> None:
-    """Check ``value`` for the dotted key ``key`` (``"contact.mu0"``) as the configuration
-    file's would be: its type and range (an :class:`InputError` naming the key)."""
+    """Check a value for one key as the configuration file's would be: its type and range.
+
+    Parameters
+    ----------
+    key : str
+        The dotted key, e.g. ``"contact.mu0"``.
+    value : object
+        Its value.
+    path : object
+        The file, named in the message (None: none).
+
+    Raises
+    ------
+    InputError
+        The value has the wrong type or is out of range; the message names the key.
+    """
     section, name = key.split(".", 1)
     check_key(type(getattr(default_tables(), section)), name, value, key, path)
 
@@ -162,9 +262,30 @@ def _contact(c: ContactTable, rig: RigTable, where: str) -> ContactParams:
 
 
 def config_from_tables(t: SimTables, *, where: str = "<config>") -> SimConfig:
-    """The :class:`SimConfig` of the checked tables ``t``: the rig's mechanics and contact
-    built, the modulation checked against the Nyquist frequency and the integrator's step
-    against the rig's fastest mode."""
+    """The configuration the twin runs from the checked tables of a file.
+
+    The rig's mechanics and contact are built (the contact ellipse from Hertz's theory when
+    its semi-axes are not given, Kalker's coefficients), the modulation is checked against
+    the Nyquist frequency and the integrator's step against the rig's fastest mode.
+
+    Parameters
+    ----------
+    t : SimTables
+        The tables.
+    where : str
+        The source, named in messages. Default "<config>".
+
+    Returns
+    -------
+    SimConfig
+        The configuration.
+
+    Raises
+    ------
+    InputError
+        No lateral curvature, one semi-axis without the other, a modulation at or above
+        the Nyquist frequency, or an integrator step too long for the rig.
+    """
     r = t.rig
     rig = RigParams(
         wheel_radius_m=r.wheel_radius_m, platform_radius_m=r.platform_radius_m,
@@ -183,8 +304,26 @@ def config_from_tables(t: SimTables, *, where: str = "<config>") -> SimConfig:
 
 
 def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
-    """Build a :class:`SimConfig` from a configuration dict (its tables and keys; a missing
-    one keeps the default), every key and value checked as a file's."""
+    """Build a :class:`SimConfig` from a configuration dict, checked as a file.
+
+    Parameters
+    ----------
+    doc : dict
+        The configuration's tables and keys; a missing one keeps the default.
+    where : str
+        The source, named in messages. Default "<config>".
+
+    Returns
+    -------
+    SimConfig
+        The configuration.
+
+    Raises
+    ------
+    InputError
+        An unknown key (with the nearest known one), a value of the wrong type or out of
+        range, or a mistake :func:`config_from_tables` finds.
+    """
     return config_from_tables(_merge(default_tables(), doc, where), where=where)
 
 
@@ -212,6 +351,23 @@ def load_config(path: str | Path | None = None, *, overrides: dict | None = None
 
     Unknown sections or keys and TOML syntax errors raise :class:`InputError` naming the key
     or the line.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path or None
+        A TOML file with any subset of the keys; None: the defaults alone.
+    overrides : dict or None
+        Further values, in the same layout. Default None.
+
+    Returns
+    -------
+    SimConfig
+        The configuration.
+
+    Raises
+    ------
+    InputError
+        An unreadable file, TOML syntax, an unknown section or key, or a bad value.
     """
     tables = default_tables()
     where = "<default>"
