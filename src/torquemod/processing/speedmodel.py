@@ -246,12 +246,14 @@ class _SlowOrdersRemoval:
         self.fac = filters.LstsqFactor.of(self.b)
         self.qt = None
         if self.fac is not None:
-            self.r_y = y - self.b @ self.fac.solve(y)
-            # an orthonormal basis of B (dsp.projection): each trial frequency then costs
-            # one product with it instead of a least-squares solve on B
+            # an orthonormal basis Q of B (dsp.projection): the residual is y - Q Q'y, and
+            # each trial frequency costs one product with Q instead of a solve on B
             self.qt = projection.orthonormal_basis_t(self.fac)
             if self.qt is not None:
-                self.qy = self.qt @ self.r_y
+                self.r_y = y - self.qt.T @ (self.qt @ y)
+                self.qy = self.qt @ self.r_y  # ~0: kept for the rounding's sake
+            else:
+                self.r_y = y - self.b @ self.fac.solve(y)
 
     def at(self, modulation_hz: float) -> np.ndarray:
         """``y`` less its slow part and orders with the modulation at ``modulation_hz``."""
