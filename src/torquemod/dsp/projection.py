@@ -30,9 +30,21 @@ _TRTRS, _POTRF = linalg.get_lapack_funcs(("trtrs", "potrf"), (np.zeros((1, 1)),)
 
 
 def orthonormal_basis_t(factor: LstsqFactor) -> np.ndarray | None:
-    """``Q'`` (``p x n``, C order) for an orthonormal basis Q of the span of the design that
-    ``factor`` holds (CholeskyQR2 from its normal equations' upper factor); None when the
-    second factorisation fails (a design too ill-conditioned for it)."""
+    """An orthonormal basis of a design's span by CholeskyQR2, transposed.
+
+    Parameters
+    ----------
+    factor : LstsqFactor
+        The design's least-squares factor (its column-normalised design ``dn`` and the upper
+        Cholesky factor R of ``dn'dn``).
+
+    Returns
+    -------
+    ndarray or None
+        ``Q'`` (``p x n``, C order) with ``Q = dn R^-1 R2^-1`` orthonormal to rounding
+        (Fukaya et al. 2014); None when a triangular solve or the second factorisation
+        fails (a design too ill-conditioned for it).
+    """
     qt1, info = _TRTRS(factor.factor, factor.dn.T, lower=False, trans=1)  # R^-T D'
     if info != 0:
         return None
@@ -91,12 +103,36 @@ def _fill_tones_t(out: np.ndarray, fs_hz: float, omegas: np.ndarray, orders: np.
 
 def explained_power(qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray, fs_hz: float,
                     frequencies_hz, columns, orders=(1,)) -> np.ndarray:
-    """For each i, the power of record ``r_y[:, columns[i]]`` (records already less their
-    least-squares fit on the basis) that the tone at ``frequencies_hz[i]`` [Hz] with its
-    ``orders`` explains beyond the basis: ``r_y' r_M (r_M'r_M)^-1 r_M' r_y`` with r_M the
-    tone's columns (:func:`tone_columns`) less their projection on the basis. ``qt`` is
-    ``Q'`` of an orthonormal basis (:func:`orthonormal_basis_t`), ``qy = Q' r_y``. NaN where
-    the tone's columns are (numerically) in the basis's span."""
+    """Power of a record's residual that a tone explains beyond a basis, at many trial
+    frequencies in one compiled call.
+
+    For each i, ``r_y' r_M (r_M'r_M)^-1 r_M' r_y`` with ``r_y`` record ``columns[i]`` less its
+    least-squares fit on the basis and ``r_M`` the tone's columns at ``frequencies_hz[i]``
+    (:func:`tone_columns`) less their projection on it (Frisch-Waugh-Lovell):
+    ``r_M'r_M = M'M - C'C`` and ``r_M'r_y = M'r_y - C'Q'r_y`` with ``C = Q'M``.
+
+    Parameters
+    ----------
+    qt : ndarray
+        ``Q'`` (``p x n``) of an orthonormal basis Q of the basis's span
+        (:func:`orthonormal_basis_t`).
+    r_y : ndarray
+        Records less their fit on the basis (``n x records``).
+    qy : ndarray
+        ``Q' r_y`` (``p x records``; zero to rounding).
+    fs_hz : float
+        Sample rate [Hz]; time runs from the record's middle.
+    frequencies_hz, columns : sequence
+        Trial frequency [Hz] and record index of each evaluation.
+    orders : sequence of int
+        The tone's orders (1 and its harmonics).
+
+    Returns
+    -------
+    ndarray
+        The explained power of each evaluation [record unit^2]; NaN where the tone's
+        columns are (numerically) in the basis's span.
+    """
     return _explained(qt, np.ascontiguousarray(r_y), np.ascontiguousarray(qy), float(fs_hz),
                       2 * np.pi * np.asarray(frequencies_hz, dtype=np.float64),
                       np.asarray(columns, dtype=np.int64), np.asarray(orders, dtype=np.int64))

@@ -233,10 +233,11 @@ class _SlowOrdersRemoval:
     at f and at its ``harmonics`` (time from the record's middle; the harmonics stay in the
     result). By Frisch-Waugh-Lovell, with ``r(z)`` the
     residual of z fitted on B alone, ``c_M = (r(M)'r(M))^-1 r(M)'r(y)`` and
-    ``y - B c_B = r(y) + (M - r(M)) c_M``: B is factored and ``r(y)`` computed once for every
-    f, and each f costs the fit of M's two columns on B (instead of a new factorisation of
-    the whole design). The same numbers as :func:`fit_speed_model`'s parts to rounding
-    (tests/processing/test_chain_kernels.py)."""
+    ``y - B c_B = r(y) + (M - r(M)) c_M``: B is factored, an orthonormal basis Q of it formed
+    (:func:`torquemod.dsp.projection.orthonormal_basis_t`) and ``r(y)`` computed once for
+    every f, and each f costs the product ``Q'M`` (``r(M) = M - Q Q'M``) instead of a new
+    factorisation of the whole design. The same numbers as :func:`fit_speed_model`'s parts
+    to rounding (tests/processing/test_chain_kernels.py)."""
 
     def __init__(self, y: np.ndarray, slow: np.ndarray, orders: np.ndarray, fs_hz: float,
                  harmonics: tuple[int, ...] = ()):
@@ -264,7 +265,7 @@ class _SlowOrdersRemoval:
             fit = model.design[:, 2:end] @ model.coef[2:end]
             return self.y - fit
         m = modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
-        if self.qt is not None:  # B c_B - r_y + y = Q Q'M c_M, r_M'r_M = M'M - (Q'M)'(Q'M)
+        if self.qt is not None:  # y - B c_B = r_y + Q Q'M c_M, r_M'r_M = M'M - (Q'M)'(Q'M)
             c = self.qt @ m
             c_m = np.linalg.solve(m.T @ m - c.T @ c, m.T @ self.r_y - c.T @ self.qy)
             return self.r_y + self.qt.T @ (c @ c_m)
@@ -280,8 +281,9 @@ class _SlowOrdersRemoval:
 
     def explained_many(self, columns, frequencies_hz) -> list[float]:
         """:meth:`explained` of record ``columns[i]`` at ``frequencies_hz[i]`` [Hz] for every
-        i, with one least-squares solve on B for all the frequencies' columns together (the
-        same numbers as one call per frequency: each column's solve is its own arithmetic)."""
+        i, in one compiled call on the orthonormal basis of B
+        (:func:`torquemod.dsp.projection.explained_power`); without that basis, with one
+        least-squares solve on B for all the frequencies' columns together."""
         freqs = [float(f) for f in frequencies_hz]
         if self.qt is not None:  # one compiled call (dsp.projection)
             return [float(v) for v in projection.explained_power(
