@@ -58,12 +58,28 @@ def orthonormal_basis_t(factor: LstsqFactor) -> np.ndarray | None:
 
 
 def tone_columns(n: int, fs_hz: float, frequencies_hz, orders=(1,)) -> np.ndarray:
-    """``cos`` and ``sin`` of ``2*pi*k*f*t`` (columns in that order, for each frequency f of
-    ``frequencies_hz`` [Hz] and each k of ``orders``), ``n x 2*len(f)*len(k)``, with t [s]
-    from the record's middle, ``(i - (n-1)/2)/fs_hz``: the columns of
-    :func:`torquemod.processing.speedmodel.modulation_columns` side by side (to ~1e-14:
-    exact every 32 samples, rotated by one sample's angle between, the harmonics as powers
-    of the fundamental's phasor)."""
+    """Cosine and sine columns of tones and their harmonics, time from the record's middle.
+
+    Parameters
+    ----------
+    n : int
+        Samples.
+    fs_hz : float
+        Sample rate [Hz]; sample i is at ``t = (i - (n-1)/2)/fs_hz`` [s].
+    frequencies_hz : sequence of float
+        Fundamental frequencies f [Hz].
+    orders : sequence of int
+        Orders k (1 for the fundamental, 2, 3, ... for its harmonics).
+
+    Returns
+    -------
+    ndarray
+        ``n x 2*len(frequencies_hz)*len(orders)``: for each f, for each k, ``cos(2*pi*k*f*t)``
+        then ``sin(2*pi*k*f*t)``; the columns of
+        :func:`torquemod.processing.speedmodel.modulation_columns` side by side to ~1e-14
+        (exact every 32 samples, rotated by one sample's angle between, the harmonics as
+        powers of the fundamental's phasor).
+    """
     out = np.empty((2 * len(frequencies_hz) * len(orders), n))
     _fill_tones_t(out, float(fs_hz), 2 * np.pi * np.asarray(frequencies_hz, dtype=np.float64),
                   np.asarray(orders, dtype=np.int64))

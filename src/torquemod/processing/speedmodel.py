@@ -206,7 +206,7 @@ def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
     return out
 
 
-def modulation_columns_many(n: int, fs_hz: float, frequencies_hz, harmonics: tuple[int, ...] = ()
+def _modulation_columns_many(n: int, fs_hz: float, frequencies_hz, harmonics: tuple[int, ...] = ()
                             ) -> np.ndarray:
     """:func:`modulation_columns` at each of ``frequencies_hz`` [Hz], side by side (the same
     numbers: each element is the same product and the same ``cos`` or ``sin``), in one
@@ -374,7 +374,7 @@ class _SlowOrdersRemoval:
         if self.qt is not None:  # one compiled call (dsp.projection)
             return [float(v) for v in projection.explained_power(
                 self.qt, self.r_y, self.qy, self.fs_hz, freqs, columns, (1, *self.harmonics))]
-        m = modulation_columns_many(self.y.shape[0], self.fs_hz, freqs, self.harmonics)
+        m = _modulation_columns_many(self.y.shape[0], self.fs_hz, freqs, self.harmonics)
         r_all = m - self.b @ self.fac.solve(m)
         k = m.shape[1] // len(freqs)
         out = []
