@@ -80,7 +80,8 @@ methods, and the 18-cycle demo experiment); the standard error moves by up to 8.
 Fifth round, ``--ratio-only`` (medians of 21 interleaved samples, one BLAS thread as
 ``process`` runs; "before" = c5a0493 by this script, interleaved twice, load 11.2-11.5):
 decimation 1.08-1.10 ms both; chain 6.44-6.55 -> 4.99-5.02 ms; chain / decimator pass
-5.95x -> 4.56-4.61x. Step 1's search on an orthonormal basis in one compiled call per step
+5.95x -> 4.56-4.61x (load 5.8, two more pairs: 6.22-6.30 -> 4.64-4.69 ms, 6.02-6.14x ->
+4.95-5.04x). Step 1's search on an orthonormal basis in one compiled call per step
 (torquemod.dsp.projection), per-length designs cached; docs/performance.md has the rest.
 """
 
