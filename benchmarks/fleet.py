@@ -49,9 +49,9 @@ def _warm_up() -> None:
 
     import torquemod.ontrain.run
     import torquemod.processing.pipeline  # noqa: F401
-    from torquemod.dsp import filters
+    from torquemod.dsp import resampling
 
-    filters.resample(np.zeros((2, 5000)), 2, 625, method="two_stage", padtype="constant")
+    resampling.resample(np.zeros((2, 5000)), 2, 625, method="two_stage", padtype="constant")
 
 
 def write_fleet(root: Path, runs: int, cycles: int, train_runs: int = 0,

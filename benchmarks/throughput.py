@@ -98,7 +98,7 @@ from pathlib import Path
 
 import numpy as np
 
-from torquemod.dsp import filters, spectrum
+from torquemod.dsp import filters, resampling, spectrum
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Rig
 from torquemod.processing import chain
@@ -135,18 +135,18 @@ def chain_throughput(repeat: int = 7) -> None:
     n = rec.n_samples
     names = [k for k in chain._RESAMPLED if k in rec.channels]
     stacked = np.vstack([rec.channels[k] for k in names])
-    up, down = filters.resample_ratio(rec.fs_hz, cfg.resample.target_hz)
+    up, down = resampling.resample_ratio(rec.fs_hz, cfg.resample.target_hz)
     print(f"one cycle: {n} samples x {len(names)} resampled channels at {rec.fs_hz:.0f} Hz "
           f"({up}/{down}); best of {repeat}; wall and CPU (process_time) figures")
 
     decimators = {
         "resample_poly, line padding (old)":
-            lambda: filters.resample(stacked, up, down, method="polyphase", padtype="line"),
+            lambda: resampling.resample(stacked, up, down, method="polyphase", padtype="line"),
         "resample_poly, zero padding":
-            lambda: filters.resample(stacked, up, down, method="polyphase",
+            lambda: resampling.resample(stacked, up, down, method="polyphase",
                                      padtype="constant"),
         "two-stage, stacked 2-D array":
-            lambda: filters.resample(stacked, up, down, method="two_stage",
+            lambda: resampling.resample(stacked, up, down, method="two_stage",
                                      padtype="constant"),
     }
     decimators["two-stage, stacked 2-D array"]()  # numba compile / cache load
@@ -173,7 +173,7 @@ def chain_throughput(repeat: int = 7) -> None:
               f"  -> {n / wall / 1e6:6.2f} | {n / cpu / 1e6:6.2f} M samples/s")
     c = _with_resample(cfg, "two_stage")
     rows = [rec.channels[k] for k in names]
-    t_dec = best_of_both(lambda: filters.resample_rows(rows, up, down, method="two_stage",
+    t_dec = best_of_both(lambda: resampling.resample_rows(rows, up, down, method="two_stage",
                                                        padtype="constant"), repeat)[1]
     t_chain = best_of_both(lambda: run(c), repeat)[1]
     print(f"  two_stage chain {t_chain * 1e3:6.2f} ms CPU = its own decimation (resample_rows "
@@ -220,10 +220,10 @@ def chain_vs_decimator(repeat: int = 21, per_sample: int = 5) -> dict[str, float
     rec = synthetic_recording(SyntheticSpec(seed=3))
     names = [k for k in chain._RESAMPLED if k in rec.channels]
     rows = [rec.channels[k] for k in names]
-    up, down = filters.resample_ratio(rec.fs_hz, cfg.resample.target_hz)
+    up, down = resampling.resample_ratio(rec.fs_hz, cfg.resample.target_hz)
 
     def decimate() -> None:
-        filters.resample_rows(rows, up, down, method="two_stage", padtype="constant")
+        resampling.resample_rows(rows, up, down, method="two_stage", padtype="constant")
 
     def run() -> None:
         sig = chain.process_cycle(rec, rig, cfg, where="bench")
@@ -245,9 +245,9 @@ def chain_vs_decimator(repeat: int = 21, per_sample: int = 5) -> dict[str, float
         sig = chain.process_cycle(rec, rig, cfg, where="bench")
         wh, pl = sig.wheel_resampled, None
         from torquemod.dsp.basis import needs_wide_band
-        pl_full = filters.resample_rows([rec.channels["platform_speed_rad_s"]], up, down,
+        pl_full = resampling.resample_rows([rec.channels["platform_speed_rad_s"]], up, down,
                                         method="two_stage", padtype="constant")[0]
-        edge = filters.resampler_edge_samples(up, down)
+        edge = resampling.resampler_edge_samples(up, down)
         pl = pl_full[edge:-edge]
         t_wide = [cpu(lambda: needs_wide_band(wh, pl, sig.fs_hz, 2.0, cfg.slow.quiet_max_hz,
                                               cfg.slow.max_hz,

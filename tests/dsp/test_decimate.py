@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from torquemod.dsp import filters
+from torquemod.dsp import filters, resampling
 from torquemod.errors import InputError
 from torquemod.io.config import ProcessingConfig, ResampleParams
 from torquemod.io.experiment import Rig
@@ -83,7 +83,7 @@ def test_kept_samples_do_not_depend_on_the_padding(up, down, fs):
     n = int(20 * fs)
     t = np.arange(n) / fs
     x = 0.7 * np.sin(2 * np.pi * 2.0 * t + 0.2) + 0.05 * rng.standard_normal(n) + 0.3 * t
-    edge = filters.resampler_edge_samples(up, down)
+    edge = resampling.resampler_edge_samples(up, down)
     full = filters.decimate_two_stage(x, up, down)
     a, b = 7 * down, 7 * down + int(6.5 * fs)  # starts on an output sample
     seg = filters.decimate_two_stage(x[a:b], up, down)
@@ -93,8 +93,8 @@ def test_kept_samples_do_not_depend_on_the_padding(up, down, fs):
     np.testing.assert_allclose(seg[kept], ref[kept], rtol=0, atol=1e-12)
     assert np.max(np.abs(seg[:edge] - ref[:edge])) > 1e-3  # the ends do see the padding
     # the old design: line against zero padding
-    y_line = filters.resample(x[a:b], up, down, method="polyphase", padtype="line")
-    y_zero = filters.resample(x[a:b], up, down, method="polyphase", padtype="constant")
+    y_line = resampling.resample(x[a:b], up, down, method="polyphase", padtype="line")
+    y_zero = resampling.resample(x[a:b], up, down, method="polyphase", padtype="constant")
     np.testing.assert_array_equal(y_line[kept], y_zero[kept])
     assert np.max(np.abs(y_line[:edge] - y_zero[:edge])) > 1e-3
 
@@ -111,7 +111,7 @@ def test_two_stage_against_an_analytic_sine(f_hz):
     t = np.arange(n) / FS_RAW
     amp, ph = 0.8, 0.4
     x = 5.0 + amp * np.sin(2 * np.pi * f_hz * t + ph)
-    y = filters.resample(x, UP, DOWN, method="two_stage", padtype="constant")
+    y = resampling.resample(x, UP, DOWN, method="two_stage", padtype="constant")
     assert y.size == -(-n * UP // DOWN)
     t_out = np.arange(y.size) * DOWN / (UP * FS_RAW)
     q1, down2 = filters.two_stage_plan(UP, DOWN)
@@ -119,7 +119,7 @@ def test_two_stage_against_an_analytic_sine(f_hz):
     h2 = signal.firwin(2 * 10 * down2 + 1, 1.0 / down2, window=("kaiser", 5.0))
     _, g2 = signal.freqz(h2, 1, worN=[f_hz], fs=FS_RAW / q1 * UP)
     gain = abs(g1[0] * g2[0])
-    edge = filters.resampler_edge_samples(UP, DOWN)
+    edge = resampling.resampler_edge_samples(UP, DOWN)
     kept = slice(edge, y.size - edge)
     ref = 5.0 + gain * amp * np.sin(2 * np.pi * f_hz * t_out + ph)
     assert np.max(np.abs(y - ref)[kept]) < 5e-6 * amp
@@ -140,9 +140,9 @@ def test_two_stage_against_the_one_stage_design(f_hz):
     t = np.arange(n) / FS_RAW
     rng = np.random.default_rng(11)
     x = 30.0 + 0.02 * np.sin(2 * np.pi * f_hz * t + 1.1) + 1e-3 * rng.standard_normal(n)
-    old = filters.resample(x, UP, DOWN, method="polyphase")
-    new = filters.resample(x, UP, DOWN, method="two_stage", padtype="constant")
-    edge = filters.resampler_edge_samples(UP, DOWN)
+    old = resampling.resample(x, UP, DOWN, method="polyphase")
+    new = resampling.resample(x, UP, DOWN, method="two_stage", padtype="constant")
+    edge = resampling.resampler_edge_samples(UP, DOWN)
     kept = slice(edge, old.size - edge)
     t_out = (np.arange(old.size) * DOWN / (UP * FS_RAW))[kept]
     a_old, p_old = _ls_tone(old[kept], t_out, f_hz)
@@ -157,7 +157,7 @@ def test_line_padding_of_the_two_stage_path_keeps_the_ends_near_a_trend():
     n = int(6.5 * FS_RAW)
     t = np.arange(n) / FS_RAW
     x = 4.0 + 1.5 * t
-    y = filters.resample(x, UP, DOWN, method="two_stage", padtype="line")
+    y = resampling.resample(x, UP, DOWN, method="two_stage", padtype="line")
     t_out = np.arange(y.size) * DOWN / (UP * FS_RAW)
     np.testing.assert_allclose(y, 4.0 + 1.5 * t_out, rtol=0, atol=1e-9)
 
@@ -186,4 +186,4 @@ def test_default_method_and_validation():
     cfg = ProcessingConfig.from_dict({"resample": {"method": "polyphase"}})
     assert cfg.resample.method == "polyphase"
     with pytest.raises(ValueError):
-        filters.resample(np.zeros(100), 1, 2, method="fft")
+        resampling.resample(np.zeros(100), 1, 2, method="fft")

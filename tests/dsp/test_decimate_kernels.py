@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from torquemod.dsp import filters
+from torquemod.dsp import filters, resampling, tonemodel
 
 
 @pytest.mark.parametrize("n", [50, 1_000, 1_013, 5_003])
@@ -45,7 +45,7 @@ def test_two_stage_equals_the_former_route():
     t = np.arange(n) / 16_670.0
     rows = [30.0 + 0.3 * t + 1e-3 * np.sin(2 * np.pi * 2.0 * t) + 1e-3 * rng.standard_normal(n),
             5.0 * rng.standard_normal(n) - 7.0]
-    got, means = filters.resample_rows(rows, 2, 625, method="two_stage", padtype="constant",
+    got, means = resampling.resample_rows(rows, 2, 625, method="two_stage", padtype="constant",
                                        return_means=True)
     q1, down2 = filters.two_stage_plan(2, 625)
     h = filters.stage1_fir(q1, 2, 625)
@@ -58,7 +58,7 @@ def test_two_stage_equals_the_former_route():
         np.testing.assert_allclose(y, ref, rtol=0, atol=1e-13 * np.abs(row).max())
     # the stacked entry point gives the same bits as the rows
     np.testing.assert_array_equal(
-        filters.resample(np.vstack(rows), 2, 625, method="two_stage", padtype="constant"), got)
+        resampling.resample(np.vstack(rows), 2, 625, method="two_stage", padtype="constant"), got)
 
 
 @pytest.mark.parametrize("order", [1, 2, 3, 4])
@@ -103,7 +103,7 @@ def test_cos_sin_blocks_match_direct_evaluation():
     fs, pad, n = 53.344, 1008, 323
     t = np.arange(-pad, n + pad) / fs
     for f in (0.3, 2.003, 9.22, 26.0):
-        cos, sin = filters._cos_sin(2 * np.pi * f / fs, -pad, n + 2 * pad)
+        cos, sin = tonemodel._cos_sin(2 * np.pi * f / fs, -pad, n + 2 * pad)
         # the direct argument 2*pi*f*t is itself rounded (a few units in the last place of
         # the largest argument, up to 9e-13 rad at 26 Hz here)
         tol = 4 * np.spacing(2 * np.pi * f * np.abs(t).max())

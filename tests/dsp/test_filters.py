@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import optimize, signal
 
-from torquemod.dsp import filters
+from torquemod.dsp import filters, resampling, tonemodel
 
 FS_RAW = 16_670.0  # V-Track acquisition rate [Hz]
 FS = 53.344  # the chain's rate after resampling [Hz]
@@ -50,14 +50,14 @@ def _ls_phase(y: np.ndarray, t: np.ndarray, f_hz: float) -> float:
 
 def test_resample_ratio_of_the_vtrack_rates():
     # 53.344/16670 = 0.0032 = 2/625 exactly (the paper's MATLAB resample(x, 2, 625)).
-    assert filters.resample_ratio(FS_RAW, FS) == (2, 625)
-    assert filters.resample_ratio(1000.0, 500.0) == (1, 2)
-    assert filters.resample_ratio(44_100.0, 48_000.0) == (160, 147)
+    assert resampling.resample_ratio(FS_RAW, FS) == (2, 625)
+    assert resampling.resample_ratio(1000.0, 500.0) == (1, 2)
+    assert resampling.resample_ratio(44_100.0, 48_000.0) == (160, 147)
 
 
 def test_resample_ratio_rejects_a_ratio_that_rounds_to_zero():
     with pytest.raises(ValueError):
-        filters.resample_ratio(1e6, 1e-4)  # 1e-10 has no numerator with denominator <= 1000
+        resampling.resample_ratio(1e6, 1e-4)  # 1e-10 has no numerator with denominator <= 1000
 
 
 def _dc_and_slow_tone(t: np.ndarray, f_hz: float = 0.3) -> np.ndarray:
@@ -66,13 +66,13 @@ def _dc_and_slow_tone(t: np.ndarray, f_hz: float = 0.3) -> np.ndarray:
 
 @pytest.mark.parametrize(("f_tone", "edge_tol"), [(0.3, 1e-2), (2.0037, 5e-2)])
 def test_resample_dc_offset_and_tone_no_ringing_and_analytic_middle(f_tone, edge_tol):
-    up, down = filters.resample_ratio(FS_RAW, FS)
+    up, down = resampling.resample_ratio(FS_RAW, FS)
     t_in = np.arange(round(6.5 * FS_RAW)) / FS_RAW
-    y = filters.resample(_dc_and_slow_tone(t_in, f_tone), up, down)
+    y = resampling.resample(_dc_and_slow_tone(t_in, f_tone), up, down)
     t_out = np.arange(y.size) * down / (up * FS_RAW)  # output m sits at input time m*down/up
     assert y.size == int(np.ceil(t_in.size * up / down))
     err = y - _dc_and_slow_tone(t_out, f_tone)
-    edge = filters.resampler_edge_samples(up, down)
+    edge = resampling.resampler_edge_samples(up, down)
     # Edges: with plain zero padding resample_poly's first output is off by ~2.6 (half the DC
     # offset of 5, measured). Mean removal + line padding leave only the tone's curvature
     # over the pad: measured 2.6e-3 (0.3 Hz) and 1.8e-2 (2 Hz) at the first output, so the
@@ -99,9 +99,9 @@ def test_resample_works_row_wise_along_the_last_axis():
     up, down = 2, 625
     t_in = np.arange(round(3.0 * FS_RAW)) / FS_RAW
     rows = np.vstack([_dc_and_slow_tone(t_in), -40.0 + np.cos(2 * np.pi * 1.7 * t_in), t_in])
-    stacked = filters.resample(rows, up, down)
+    stacked = resampling.resample(rows, up, down)
     for k in range(3):
-        np.testing.assert_allclose(stacked[k], filters.resample(rows[k], up, down),
+        np.testing.assert_allclose(stacked[k], resampling.resample(rows[k], up, down),
                                    rtol=0, atol=1e-12)
 
 
@@ -121,7 +121,7 @@ def test_resampler_edge_samples_is_the_span_touched_by_the_padding(up, down):
     n_tail = int(y0.size - touched[touched > y0.size // 2].min())
     expected = int(np.ceil(10 * max(up, down) / down))
     assert max(n_head, n_tail) <= expected  # the derivation bounds the measurement
-    edge = filters.resampler_edge_samples(up, down)
+    edge = resampling.resampler_edge_samples(up, down)
     # Safe: nothing inside [edge, size - edge) depends on the padding ...
     assert edge >= max(n_head, n_tail)
     # ... and tight, as the docstring promises (one sample of margin allowed): cutting more
@@ -207,7 +207,7 @@ def test_model_padded_bandpass_keeps_the_phase_difference(f_sig):
     g2 = abs(_gain(bp, f_sig, FS)) ** 2
     fitted = []
     for x, amp, ph, line in zip(x_list, amps, phases, lines, strict=True):
-        xp, level, slope = filters.model_padded(x, FS, [f_sig], pad)
+        xp, level, slope = tonemodel.model_padded(x, FS, [f_sig], pad)
         assert xp.size == N_REC + 2 * pad
         assert (level, slope) == pytest.approx(line, abs=1e-9)  # exact model, rounding only
         y = filters.zero_phase(bp, xp, method="none")[pad:pad + N_REC]
@@ -243,7 +243,7 @@ def test_notch_removes_a_tone_at_its_centre_in_the_middle():
     notch = filters.design_notch(f0, q, FS)
     x = 1.3 + 100.0 * np.cos(2 * np.pi * f0 * t + 0.7) + np.cos(2 * np.pi * f_mod * t - 0.2)
     pad = filters.settling_samples(notch)
-    xp, _, _ = filters.model_padded(x, FS, [f_mod, f0], pad)
+    xp, _, _ = tonemodel.model_padded(x, FS, [f_mod, f0], pad)
     y = filters.zero_phase(notch, xp, method="none")[pad:pad + N_REC]
     mid = slice(N_REC // 3, 2 * N_REC // 3)
     ref = abs(_gain(notch, f_mod, FS)) ** 2 * np.cos(2 * np.pi * f_mod * t - 0.2)
@@ -266,7 +266,7 @@ def test_fit_line_and_tones_recovers_injected_coefficients():
     x = 2.5 - 0.3 * t_c + 0.7 * np.cos(2 * np.pi * 2.0 * t) - 0.2 * np.sin(2 * np.pi * 2.0 * t)
     x += 4.0 * np.cos(2 * np.pi * 4.6 * t) + 1.5 * np.sin(2 * np.pi * 4.6 * t)
     # 2.05 Hz is within one resolution (0.154 Hz) of 2.0 and must be dropped; 30 Hz > Nyquist.
-    coef, kept = filters.fit_line_and_tones(x, FS, [2.0, 2.05, 4.6, 30.0])
+    coef, kept = tonemodel.fit_line_and_tones(x, FS, [2.0, 2.05, 4.6, 30.0])
     np.testing.assert_allclose(kept, [2.0, 4.6])
     np.testing.assert_allclose(coef, [2.5, -0.3, 0.7, -0.2, 4.0, 1.5], atol=1e-10)
 
@@ -277,7 +277,7 @@ def test_model_padded_continues_the_tones_and_removes_the_line():
     t = t_all[50:-50]
     t_mid = t.mean()
     x = 11.0 + 0.25 * (t - t_mid) + tones[50:-50]
-    xp, level, slope = filters.model_padded(x, FS, [2.0037, 1.1], 50)
+    xp, level, slope = tonemodel.model_padded(x, FS, [2.0037, 1.1], 50)
     assert level == pytest.approx(11.0, abs=1e-9)
     assert slope == pytest.approx(0.25, abs=1e-9)
     np.testing.assert_allclose(xp, tones, atol=1e-9)  # pad = analytic continuation
@@ -293,9 +293,9 @@ def test_tone_free_mean_equals_the_true_dc(revolutions):
     t = np.arange(round(revolutions / f_rot * FS)) / FS
     x = (dc + 0.08 * dc * np.cos(2 * np.pi * f_rot * t + 0.9)
          + 0.03 * dc * np.sin(2 * np.pi * 2 * f_rot * t - 0.3))
-    got = filters.tone_free_mean(x, FS, [f_rot, 2 * f_rot, 40.0])  # 40 Hz > Nyquist: ignored
+    got = tonemodel.tone_free_mean(x, FS, [f_rot, 2 * f_rot, 40.0])  # 40 Hz > Nyquist: ignored
     # 1e-9 relative: noise-free, the model is exact; only rounding in a 5-column LS (cond ~1e3)
     assert got == pytest.approx(dc, rel=1e-9)
     if revolutions == 0.95:
         assert abs(np.mean(x) - dc) > 1e-3 * dc  # the plain mean fails here
-    assert filters.tone_free_mean(x, FS, []) == pytest.approx(np.mean(x), rel=1e-15)
+    assert tonemodel.tone_free_mean(x, FS, []) == pytest.approx(np.mean(x), rel=1e-15)

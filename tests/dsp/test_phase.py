@@ -249,8 +249,8 @@ def test_sine_fit_design_matches_direct_trigonometry():
     between exact anchors every 64 samples) equals cos/sin evaluated directly: the fixed
     columns exactly, the tones to 1e-12 (the argument 2*pi*f*t itself is only defined to
     |2*pi*f*t|*eps ~ 2e-13 at 500 Hz over 1.25 s)."""
-    from torquemod.dsp.filters import tone_design
     from torquemod.dsp.phase import _design
+    from torquemod.dsp.tonemodel import tone_design
     for n, fs, f, tones, trend in ((2500, 2000.0, 4.0, (7.9, 15.8, 41.2, 82.4, 499.0), True),
                                    (1001, 1000.0, 5.0, (6.9,), False), (345, 53.344, 2.0, (),
                                                                         True)):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import optimize, signal
 
-from torquemod.dsp import filters, phase, spectrum
+from torquemod.dsp import filters, phase, resampling, spectrum, tonemodel
 from torquemod.processing import speedmodel
 
 FS = 53.344
@@ -76,10 +76,10 @@ def test_model_padded_rows_against_the_direct_tone_model():
     tones = [2.03, 4.6, 9.2]
     rows = [30 + 0.2 * t + sum(rng.uniform(0.1, 1) * np.cos(2 * np.pi * f * t + rng.uniform(0, 6))
                                for f in tones) + 0.01 * rng.standard_normal(n) for _ in range(2)]
-    got = filters.model_padded_rows(rows, FS, tones, pad)
+    got = tonemodel.model_padded_rows(rows, FS, tones, pad)
     t_all = np.arange(-pad, n + pad) / FS
     for x, (out, level, slope) in zip(rows, got, strict=True):
-        design = filters.tone_design(t, tones, line=True)  # the direct evaluation
+        design = tonemodel.tone_design(t, tones, line=True)  # the direct evaluation
         coef = np.linalg.lstsq(design, x, rcond=None)[0]
         ref = sum(coef[2 + 2 * k] * np.cos(2 * np.pi * f * t_all)
                   + coef[3 + 2 * k] * np.sin(2 * np.pi * f * t_all)
@@ -91,7 +91,7 @@ def test_model_padded_rows_against_the_direct_tone_model():
         assert level == pytest.approx(coef[0], rel=1e-13)
         assert slope == pytest.approx(coef[1], rel=1e-9, abs=1e-12)
         # model_padded is the same computation for one record
-        single = filters.model_padded(x, FS, tones, pad)
+        single = tonemodel.model_padded(x, FS, tones, pad)
         np.testing.assert_array_equal(single[0], out)
 
 
@@ -217,4 +217,4 @@ def test_design_notch_is_scipy_iirnotch_bit_for_bit():
             np.testing.assert_array_equal(g, r)
     with pytest.raises(ValueError):
         filters.design_notch(30.0, 3.0, 50.0)  # above Nyquist: scipy's error
-    assert filters.resample_ratio(16_670.0, 53.344) == (2, 625)
+    assert resampling.resample_ratio(16_670.0, 53.344) == (2, 625)

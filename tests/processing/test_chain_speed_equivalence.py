@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import linalg, optimize, signal
 
-from torquemod.dsp import filters, spectrum
+from torquemod.dsp import filters, resampling, spectrum, tonemodel
 from torquemod.processing import speedmodel, trackedorders
 
 FS = 53.344
@@ -41,8 +41,8 @@ def test_zero_phase_cascade_is_filtfilt_in_sequence_bit_for_bit():
 def test_resample_rows_is_resample_of_the_stack_bit_for_bit(method):
     n = 40_000
     rows = [100.0 + RNG.standard_normal(n), 3.0 * RNG.standard_normal(n) - 7.0]
-    ref = filters.resample(np.vstack(rows), 2, 625, method=method, padtype="constant")
-    got, means = filters.resample_rows(rows, 2, 625, method=method, padtype="constant",
+    ref = resampling.resample(np.vstack(rows), 2, 625, method=method, padtype="constant")
+    got, means = resampling.resample_rows(rows, 2, 625, method=method, padtype="constant",
                                        return_means=True)
     np.testing.assert_array_equal(got, ref)
     np.testing.assert_array_equal(means, [np.mean(r) for r in rows])
@@ -51,9 +51,9 @@ def test_resample_rows_is_resample_of_the_stack_bit_for_bit(method):
 def test_model_padded_rows_is_model_padded_of_each_row_bit_for_bit():
     rows = [_record(331, 3), _record(331, 4) * 0.01]
     tones, pad = [2.03, 4.6, 9.2], 500
-    got = filters.model_padded_rows(rows, FS, tones, pad)
+    got = tonemodel.model_padded_rows(rows, FS, tones, pad)
     for x, (out, level, slope) in zip(rows, got, strict=True):
-        ref_out, ref_level, ref_slope = filters.model_padded(x, FS, tones, pad)
+        ref_out, ref_level, ref_slope = tonemodel.model_padded(x, FS, tones, pad)
         np.testing.assert_array_equal(out, ref_out)
         assert (level, slope) == (ref_level, ref_slope)
 
@@ -129,7 +129,7 @@ def _peak_reference(x, fs_hz, band_hz=(1.5, 2.5), zero_pad=8, xtol_hz=1e-6):
     """The former refinement (detrend, Hann, zero-padded FFT, minimize_scalar on |DTFT|)
     without the line-detection checks."""
     n = x.size
-    design = filters.tone_design(np.arange(n) / fs_hz, [], line=True)
+    design = tonemodel.tone_design(np.arange(n) / fs_hz, [], line=True)
     xd = x - design @ filters.lstsq(design, x)[0]
     w = signal.get_window("hann", n, fftbins=False)
     nfft = int(2 ** np.ceil(np.log2(zero_pad * n)))

@@ -1,6 +1,6 @@
 """Step 2's decimation kernels: ``resample_poly``'s FIR design and the two-stage decimator:
-both stages in numba, one row at a time (:func:`torquemod.dsp.filters.resample`
-and :func:`~torquemod.dsp.filters.resample_rows` are the entry points).
+both stages in numba, one row at a time (:func:`torquemod.dsp.resampling.resample`
+and :func:`~torquemod.dsp.resampling.resample_rows` are the entry points).
 """
 
 from __future__ import annotations

@@ -23,8 +23,8 @@ import numpy as np
 from numba import njit
 from scipy import signal
 
-from torquemod.dsp.filters import tone_design
 from torquemod.dsp.lstsq import LstsqFactor, lstsq
+from torquemod.dsp.tonemodel import tone_design
 from torquemod.errors import ProcessingError
 
 

@@ -16,8 +16,8 @@ import numba
 import numpy as np
 from scipy import signal
 
-from torquemod.dsp.filters import tone_design
 from torquemod.dsp.lstsq import LstsqFactor, lstsq
+from torquemod.dsp.tonemodel import tone_design
 from torquemod.errors import ProcessingError
 
 

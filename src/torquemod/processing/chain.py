@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from torquemod.dsp import filters
+from torquemod.dsp import filters, resampling, tonemodel
 from torquemod.dsp.align import alignment_lag
 from torquemod.dsp.basis import needs_wide_band
 from torquemod.dsp.phase import SineFitResult, local_noise_psd, peak_valley_phase, sinefit_phase
@@ -294,7 +294,7 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
        Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.4.
     """
     fs = rec.fs_hz
-    up, down = filters.resample_ratio(fs, cfg.resample.target_hz,
+    up, down = resampling.resample_ratio(fs, cfg.resample.target_hz,
                                       max_denominator=cfg.resample.max_denominator)
     fs_r = fs * up / down
     if fs < cfg.resample.target_hz:
@@ -306,8 +306,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # Step 2 (done first: step 1's spectral peak is the same on the resampled record, whose
     # anti-alias filter is flat across the search band, and costs 300x less there). The
     # output samples the FIR's zero padding touches are cut off.
-    edge = filters.resampler_edge_samples(up, down)
-    resampled, full_means = filters.resample_rows([ch[k] for k in names], up, down,
+    edge = resampling.resampler_edge_samples(up, down)
+    resampled, full_means = resampling.resample_rows([ch[k] for k in names], up, down,
                                                   kaiser_beta=cfg.resample.kaiser_beta,
                                                   method=cfg.resample.method,
                                                   padtype="constant", return_means=True)
@@ -380,7 +380,7 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     pad = max(filters.settling_samples(ba) for ba in [hp, bp, *notch_ba.values()])
     tones = [f_mod, *wheel_notches]
 
-    (wh_p, wh_level, _), (tq_p, tq_level, _) = filters.model_padded_rows(
+    (wh_p, wh_level, _), (tq_p, tq_level, _) = tonemodel.model_padded_rows(
         [sig[k] - model.part(k, "slow") - model.part(k, "orders") - model.part(k, "harmonics")
          for k in ("wheel_speed_rad_s", "torque_nm")], fs_r, tones, pad)
     # the wheel speed through its notches, then both records through the high-pass and the
