@@ -441,7 +441,8 @@ def measure_train(folder: Path, mode: str) -> dict:
 
     from torquemod.io.recording import read_recording
     from torquemod.io.run import read_run
-    from torquemod.ontrain.estimator import OnboardConfig, OnboardEstimator
+    from torquemod.ontrain.estimator import OnboardEstimator
+    from torquemod.ontrain.onboardconfig import OnboardConfig
     from torquemod.ontrain.run import estimate_axle
 
     run = read_run(folder / "run.toml")

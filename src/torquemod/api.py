@@ -167,7 +167,7 @@ def read_run(path):
         The manifest, a recording or its ``[onboard]`` table (checked now) is invalid.
     """
     from torquemod.io.run import read_run as _read_run
-    from torquemod.ontrain.estimator import OnboardConfig
+    from torquemod.ontrain.onboardconfig import OnboardConfig
     run = _read_run(path)
     OnboardConfig.from_dict(run.extra.get("onboard"), source=str(run.manifest_path))
     return run
@@ -195,7 +195,7 @@ def onboard(run, *, axle: int | None = None, config=None, **options):
     """
     from torquemod.errors import InputError
     from torquemod.io.run import Run
-    from torquemod.ontrain.estimator import OnboardConfig
+    from torquemod.ontrain.onboardconfig import OnboardConfig
     from torquemod.ontrain.run import estimate_axle
     run = run if isinstance(run, Run) else read_run(run)
     if config is None:

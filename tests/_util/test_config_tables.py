@@ -17,7 +17,7 @@ from torquemod.errors import InputError
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.manifest import experiment_from_doc
 from torquemod.io.run import read_run
-from torquemod.ontrain.estimator import OnboardConfig
+from torquemod.ontrain.onboardconfig import OnboardConfig
 from torquemod.sweep.spec import parse_sweep
 from torquemod.twins.train.params import default_train_config_text, load_train_config
 from torquemod.twins.vtrack.params import DEFAULT_DOC, ModulationParams, ProcedureParams

@@ -74,7 +74,8 @@ def _whole_track(run, entry, chunk_s):
     the position integrated over all of it, the rows fed in ``chunk_s`` blocks."""
     import pandas as pd
 
-    from torquemod.ontrain.estimator import OnboardConfig, OnboardEstimator
+    from torquemod.ontrain.estimator import OnboardEstimator
+    from torquemod.ontrain.onboardconfig import OnboardConfig
     rec = read_recording(entry.path, group=entry.group, channel_map=run.channel_map,
                          sample_rate_hz=entry.sample_rate_hz)
     ch, g = rec.channels, run.vehicle.gear_ratio

@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from torquemod.io.config import ProcessingConfig
     from torquemod.io.experiment import Experiment
     from torquemod.io.run import Run
-    from torquemod.ontrain.estimator import OnboardConfig
+    from torquemod.ontrain.onboardconfig import OnboardConfig
 
 MANIFEST_NAME = "experiment.toml"
 RUN_NAME = "run.toml"

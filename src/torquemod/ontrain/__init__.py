@@ -6,7 +6,8 @@ package holds its stages: windows (:mod:`.window`), the estimator (:mod:`.estima
 run over chunks of a recording (:mod:`.run`, :mod:`.chunks`), the result and its folder.
 """
 
-from torquemod.ontrain.estimator import TRACK_COLUMNS, MuTracker, OnboardConfig, OnboardEstimator
+from torquemod.ontrain.estimator import TRACK_COLUMNS, MuTracker, OnboardEstimator
+from torquemod.ontrain.onboardconfig import OnboardConfig
 from torquemod.ontrain.result import OnboardResult
 from torquemod.ontrain.run import estimate_axle, run_onboard
 from torquemod.ontrain.window import (

@@ -38,7 +38,8 @@ from torquemod._util.tomlcheck import below_nyquist
 from torquemod.errors import InputError
 from torquemod.io.run import Run, RunRecording
 from torquemod.io.runstream import RunStream
-from torquemod.ontrain.estimator import OnboardConfig, OnboardEstimator
+from torquemod.ontrain.estimator import OnboardEstimator
+from torquemod.ontrain.onboardconfig import OnboardConfig
 from torquemod.ontrain.window import WindowResult
 
 #: seconds of rows read at a time by the batch path (estimate_axle) and the assembly

@@ -9,8 +9,8 @@ from pathlib import Path
 
 from torquemod.errors import InputError
 from torquemod.io.run import Run, RunRecording, Vehicle
-from torquemod.ontrain.estimator import OnboardConfig
 from torquemod.ontrain.folder import META
+from torquemod.ontrain.onboardconfig import OnboardConfig
 from torquemod.ontrain.result import OnboardResult
 
 __all__ = ["load_onboard"]

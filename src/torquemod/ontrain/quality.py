@@ -329,7 +329,7 @@ def premise_warnings(run, entry, track, config, torque_nm=None, fs_hz: float | N
         The axle's recording.
     track : pandas.DataFrame
         The axle's track (track.parquet columns plus ``dc_step_nm``).
-    config : torquemod.ontrain.estimator.OnboardConfig
+    config : torquemod.ontrain.onboardconfig.OnboardConfig
         The settings it was estimated with.
     torque_nm : ndarray or None
         A stretch of the axle's torque [N*m]. Accepted and not used: the line the torque

@@ -9,7 +9,8 @@ from html import escape
 from typing import TYPE_CHECKING
 
 from torquemod.io.run import Run
-from torquemod.ontrain.estimator import TRACK_COLUMNS, OnboardConfig
+from torquemod.ontrain.estimator import TRACK_COLUMNS
+from torquemod.ontrain.onboardconfig import OnboardConfig
 from torquemod.ontrain.quality import QUALITY_OK
 
 if TYPE_CHECKING:  # pandas is imported when first used

@@ -23,7 +23,8 @@ from torquemod.ontrain.chunks import (  # noqa: F401  (the fleet's chunk tasks: 
     measure_axle_chunk,
     plan_axle_chunks,
 )
-from torquemod.ontrain.estimator import TRACK_COLUMNS, OnboardConfig
+from torquemod.ontrain.estimator import TRACK_COLUMNS
+from torquemod.ontrain.onboardconfig import OnboardConfig
 from torquemod.ontrain.quality import (
     modulation_line_hz,
     premise_warnings,
