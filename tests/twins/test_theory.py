@@ -13,16 +13,14 @@ from torquemod.analysis.contact.polach import adhesion_curve
 from torquemod.errors import InputError
 from torquemod.twins.vtrack.rig.dynamics import N_STATES, _deriv, initial_state, pack_parameters
 from torquemod.twins.vtrack.simulate import load_config
-from torquemod.twins.vtrack.theory import (
+from torquemod.twins.vtrack.smallsignal import (
     creep_coefficient_from_phase,
     creep_coefficient_from_predicted_phase,
-    creep_curve_peak,
     drive_line_response,
-    large_signal_phase_deg,
-    operating_point,
     predicted_phase_deg,
     rigid_wheel_phase_deg,
 )
+from torquemod.twins.vtrack.theory import creep_curve_peak, large_signal_phase_deg, operating_point
 
 TABLE1 = (0.23, 22.84, 44.47, 55.22, 60.45, 65.82)
 RIGID = dict(inertia_kg_m2=1.5, speed_m_s=7 / 3.6, wheel_radius_m=0.0675, normal_load_n=4200.0,

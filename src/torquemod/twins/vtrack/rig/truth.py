@@ -18,12 +18,8 @@ import numpy as np
 from torquemod.twins.vtrack.params import SimConfig
 from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS, wobble_basis
 from torquemod.twins.vtrack.rig.kernels import SMALL, cos_small, sin_small
-from torquemod.twins.vtrack.theory import (
-    large_signal_phase_deg,
-    operating_point,
-    predicted_phase_deg,
-    rigid_wheel_phase_deg,
-)
+from torquemod.twins.vtrack.smallsignal import predicted_phase_deg, rigid_wheel_phase_deg
+from torquemod.twins.vtrack.theory import large_signal_phase_deg, operating_point
 
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
 #: columns of the output the truth fit reads: platform angle, torque, wheel speed
