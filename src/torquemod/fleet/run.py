@@ -56,24 +56,18 @@ import pandas as pd
 
 from torquemod._util.daskutil import CONNECT_TIMEOUT_S, check_cluster
 from torquemod.errors import InputError
-from torquemod.fleet.plan import (  # noqa: F401  (the fleet's per-run API, here as before)
-    MANIFEST_NAME,
-    RUN_NAME,
+from torquemod.fleet.discover import (
+    _as_list,
+    _spellings,
+    manifest_kind,
+    run_names,
+)
+from torquemod.fleet.plan import (
     SUMMARY_COLUMNS,
     TABLES,
     Plan,
-    Prepared,
-    _as_list,
-    _spellings,
-    find_manifests,
-    fingerprint,
     finish_run,
-    manifest_kind,
-    partition_value,
     plan_run,
-    prepare,
-    process_run,
-    run_names,
     work_item,
 )
 from torquemod.fleet.tasks import may_split, one_line, part_item, scan_item
@@ -158,7 +152,7 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
     Parameters
     ----------
     manifests : iterable of str or pathlib.Path
-        As :func:`~torquemod.fleet.plan.find_manifests` takes them.
+        As :func:`~torquemod.fleet.discover.find_manifests` takes them.
     out_dir : str or pathlib.Path
         The output folder (new, or one a fleet wrote).
     scheduler : str or None
