@@ -31,7 +31,7 @@ from torquemod.io.config import ProcessingConfig, SlipParams
 from torquemod.io.experiment import Experiment, Recording, RecordingEntry
 from torquemod.io.stream import hash_file_async, open_stream
 from torquemod.io.validate import check_finite, clipping_notes
-from torquemod.processing import chain
+from torquemod.processing import chain, cyclechecks
 from torquemod.processing.cycles import revolution_bounds
 from torquemod.processing.stepmeasure import InOrderStep, in_order_steps, phase_parts
 
@@ -404,7 +404,7 @@ def _cycle_item(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig, w
     """Steps 1-5 and 8 of the chain on one cycle's samples: ``(cycle, CycleSignals, info,
     raw traces)`` as :func:`_load_and_process` lists them."""
     cwhere = f"{where} (step {entry.step} cycle {cyc})"
-    chain.check_cycle_length(seg.n_samples, seg.fs_hz, exp.test.modulation_frequency_hz,
+    cyclechecks.check_cycle_length(seg.n_samples, seg.fs_hz, exp.test.modulation_frequency_hz,
                              cfg, where=cwhere)
     sig = chain.process_cycle(seg, exp.rig, cfg, where=cwhere,
                               nominal_hz=exp.test.modulation_frequency_hz,
