@@ -6,7 +6,7 @@ speed wobble (0.1-0.5 % RMS, two terms in 0.1-1.2 Hz), revolution harmonics and 
 within +-0.05 m/s^2; the wheel follows the platform, so the creepage only follows the speed.
 The cycles of a step share the creepage, torque and modulation response. With slip,
 the last cycle's creepage runs away linearly by ``rise`` over the cycle while the creep force
-falls 5 %. Prints the fraction of steps flagged (``pipeline.detect_slip``).
+falls 5 %. Prints the fraction of steps flagged (``steptable.detect_slip``).
 
     python benchmarks/slip_detection.py [--steps 100]
 """
@@ -22,7 +22,7 @@ import numpy as np
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Rig
 from torquemod.processing import chain
-from torquemod.processing.pipeline import detect_slip
+from torquemod.processing.steptable import detect_slip
 from torquemod.testing import SyntheticSpec, synthetic_recording
 
 #: creepage runaways over one cycle [-]

@@ -647,7 +647,7 @@ def test_nan_policy_is_recorded_in_provenance(base_experiment, tmp_path, capsys,
 
 def test_detect_slip_rules():
     from torquemod.io.config import SlipParams
-    from torquemod.processing.pipeline import detect_slip
+    from torquemod.processing.steptable import detect_slip
     p = SlipParams()
     steady = detect_slip([3.0e-3, 3.1e-3, 2.9e-3], [0.15, 0.151, 0.149], [0.0, 1e-4, -1e-4], p)
     assert steady == [None, None, None]
@@ -687,7 +687,7 @@ def test_slip_is_flagged_per_step_and_left_out_of_the_fit(slip_experiment, tmp_p
     import json
 
     from torquemod.analysis.analyzer import ADDED_STEP_COLUMNS
-    from torquemod.processing.pipeline import STEP_COLUMNS
+    from torquemod.processing.steptable import STEP_COLUMNS
     out = tmp_path / "out"
     rc = main(["process", str(slip_experiment), "--out", str(out), "--quiet"])
     cap = capsys.readouterr()

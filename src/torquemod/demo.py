@@ -23,12 +23,8 @@ from scipy.optimize import brentq
 from torquemod.analysis.creep import phase_from_constant_deg, theory_constant
 from torquemod.analysis.polachcurve import polach_coa, polach_slope
 from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
-from torquemod.processing.pipeline import (
-    CYCLE_COLUMNS,
-    ProcessResult,
-    aggregate_steps,
-    resolve_config,
-)
+from torquemod.processing.pipeline import CYCLE_COLUMNS, ProcessResult, resolve_config
+from torquemod.processing.steptable import aggregate_steps
 
 __all__ = ["SYNTHETIC_TRUTH", "run_demo", "synthetic_result", "write_synthetic_results"]
 

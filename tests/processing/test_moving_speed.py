@@ -19,7 +19,7 @@ import pytest
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Rig
 from torquemod.processing import chain
-from torquemod.processing.pipeline import detect_slip
+from torquemod.processing.steptable import detect_slip
 from torquemod.testing import SyntheticSpec, synthetic_recording
 
 RMS = np.sqrt(2.0)  # amplitude of a sinusoid per unit RMS

@@ -18,7 +18,8 @@ import pytest
 
 from torquemod.dsp.phase import phase_crb_deg
 from torquemod.io.config import ProcessingConfig
-from torquemod.processing.pipeline import CYCLE_COLUMNS, STEP_COLUMNS, process_experiment
+from torquemod.processing.pipeline import CYCLE_COLUMNS, process_experiment
+from torquemod.processing.steptable import STEP_COLUMNS
 from torquemod.results.folder import save
 from torquemod.testing import SyntheticSpec, write_synthetic_experiment
 

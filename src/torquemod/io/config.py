@@ -307,7 +307,7 @@ class PhaseParams:
 
 @dataclass(frozen=True)
 class SlipParams:
-    """Slip detection per step (values ours; :func:`torquemod.processing.pipeline.detect_slip`).
+    """Slip detection per step (values ours; :func:`torquemod.processing.steptable.detect_slip`).
 
     A step is flagged as slipping when one of its cycles shows a creepage jump above the
     step's other cycles, a falling CoA while the creepage rises (the falling branch of the

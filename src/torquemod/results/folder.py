@@ -44,8 +44,9 @@ from torquemod.analysis.result import from_saved, saved_state
 from torquemod.errors import InputError, OptionError, OutputError, TorquemodError
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
-from torquemod.processing.pipeline import CYCLE_COLUMNS, STEP_COLUMNS, ProcessResult
+from torquemod.processing.pipeline import CYCLE_COLUMNS, ProcessResult
 from torquemod.processing.provenance import provenance
+from torquemod.processing.steptable import STEP_COLUMNS
 from torquemod.report import write_report
 from torquemod.results.writer import Writing, write_folder
 
