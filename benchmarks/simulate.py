@@ -199,6 +199,7 @@ import torquemod.twins.vtrack.rig.noise as _noise
 import torquemod.twins.vtrack.rig.sensors as _sensors
 import torquemod.twins.vtrack.rig.steps as _steps
 import torquemod.twins.vtrack.rig.truth as _truth
+import torquemod.twins.vtrack.rig.truthphase as _truthphase
 import torquemod.twins.vtrack.simulate as _simulate
 import torquemod.twins.vtrack.theory as _theory
 from torquemod.twins.vtrack.rig.batch import plan_run
@@ -344,7 +345,7 @@ _PHASES = ((_simulate, "integrate_step", "integrator"),
            (_simulate, "_write_step", "HDF5 files"))
 #: the compiled kernels (numba, nogil=True) and system calls that run without the GIL
 _GIL_FREE = ((_steps, "integrate"), (_truth, "_fit_sums"), (_truth, "_partition_moments"),
-             (_truth, "_span_moments"), (_truth, "_sine_fit_sums"),
+             (_truth, "_span_moments"), (_truthphase, "_sine_fit_sums"),
              (_sensors, "_encoder_kernel"), (_noise, "_add_normal"), (_theory, "newton_periodic"),
              (_simulate, "_sample_times"), (_hdf5.os, "pwrite"))
 
