@@ -349,8 +349,9 @@ def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.nda
     ``WOBBLE_FIT_STRIDE``-th sample of the span's whole modulation periods), the creepage's
     and the platform speed's variation (``std``; the latter ``/mean`` [%]) and that of the
     speed reference over the same samples
-    (``amp*sin(arg + ph) = amp*(sin(arg)*cos(ph) + cos(arg)*sin(ph))`` from the fit's basis). The sums run in compiled kernels that release the GIL
-    (:func:`_fit_sums`, :func:`_partition_moments`), so that steps finish side by side."""
+    (``amp*sin(arg + ph) = amp*(sin(arg)*cos(ph) + cos(arg)*sin(ph))`` from the fit's basis).
+    The sums run in compiled kernels that release the GIL (:func:`_fit_sums`,
+    :func:`_partition_moments`), so that steps finish side by side."""
     f, fs = config.modulation.actual_frequency_hz, config.sensors.sample_rate_hz
     w0 = config.rig.platform_speed_rad_s
     stride = WOBBLE_FIT_STRIDE
