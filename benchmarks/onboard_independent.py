@@ -36,12 +36,8 @@ import numpy as np
 
 from torquemod.ontrain.run import run_onboard
 from torquemod.twins.independent.compare import match_segments
-from torquemod.twins.independent.train import (
-    FrictionSegment,
-    IndependentRunSpec,
-    segment_names,
-    write_independent_run,
-)
+from torquemod.twins.independent.train import write_independent_run
+from torquemod.twins.independent.vehicle import FrictionSegment, IndependentRunSpec, segment_names
 
 
 def evaluate(spec: IndependentRunSpec, track, truth) -> dict[str, dict]:

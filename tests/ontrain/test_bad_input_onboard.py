@@ -19,7 +19,8 @@ import pytest
 
 from test_outputs_safety import no_leftovers, one_error_line, raise_in, readonly  # noqa: F401
 from torquemod.cli import main
-from torquemod.twins.independent.train import IndependentRunSpec, simulate_independent
+from torquemod.twins.independent.train import simulate_independent
+from torquemod.twins.independent.vehicle import IndependentRunSpec
 
 SPEC = IndependentRunSpec(length_m=320.0, sample_rate_hz=1000.0, seed=5)
 F_HZ = SPEC.modulation_frequency_hz

@@ -17,12 +17,12 @@ pytest.importorskip("asammdf")
 
 from torquemod.ontrain.run import run_onboard
 from torquemod.twins.independent.compare import match_segments
-from torquemod.twins.independent.train import (
+from torquemod.twins.independent.train import write_independent_run
+from torquemod.twins.independent.vehicle import (
     FrictionSegment,
     IndependentRunSpec,
     creep_law,
     creep_slope,
-    write_independent_run,
 )
 
 SPEC = IndependentRunSpec(

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from torquemod.twins.independent.train import FrictionSegment, IndependentRunSpec
+from torquemod.twins.independent.vehicle import FrictionSegment, IndependentRunSpec
 
 __all__ = ["match_segments"]
 
