@@ -23,7 +23,8 @@ PACKAGES = ("torquemod.analysis", "torquemod.dsp", "torquemod.fleet", "torquemod
 MUST_HAVE = ("torquemod.analysis.contact.polach", "torquemod.analysis.contact.kalker",
              "torquemod.analysis.contact.hertz", "torquemod.analysis.creep",
              "torquemod.analysis.polachcurve", "torquemod.analysis.polachshape",
-             "torquemod.dsp.phase", "torquemod.dsp.filters", "torquemod.io.channels",
+             "torquemod.dsp.phase", "torquemod.dsp.filters", "torquemod.dsp.resampling",
+             "torquemod.dsp.tonemodel", "torquemod.io.channels",
              "torquemod.ontrain.window", "torquemod.ontrain.quality",
              "torquemod.sweep.evaluate", "torquemod.processing.chain")
 
