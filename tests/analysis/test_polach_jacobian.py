@@ -52,8 +52,9 @@ def test_jacobian_matches_central_differences(theta, swing):
 
 
 def test_fit_with_closed_form_jacobian_matches_finite_differences(monkeypatch):
-    """The optimum does not depend on how the Jacobian is obtained: the same parameters and
-    profile interval as with scipy's finite differences, within the solver's tolerance."""
+    """The optimum does not depend on how the Jacobian is obtained nor on the profile's
+    solver: the same parameters and profile interval as with scipy's finite differences
+    and scipy's trf everywhere, within the solvers' tolerance."""
     rng = np.random.default_rng(7)
     theta = np.array([0.3, 80.0, 25.0])
     xi = np.array([5e-4, 1e-3, 2e-3, 3.5e-3, 5e-3, 8e-3, 1.2e-2])
@@ -61,6 +62,7 @@ def test_fit_with_closed_form_jacobian_matches_finite_differences(monkeypatch):
     coa = longitudinal_mean(xi, theta, swing) + rng.normal(0, 1e-3, xi.size)
     exact = fit_polach(xi, coa, creepage_swing=swing, lateral_coa=np.full(xi.size, 0.02))
     monkeypatch.setattr(fitmod, "longitudinal_mean_jacobian", None)  # any use would raise
+    monkeypatch.setattr(fitmod, "_lm_lower_bounded", lambda *a, **k: None)  # scipy's trf
 
     def numeric(fn):
         def wrapped(*a, **k):
@@ -75,3 +77,26 @@ def test_fit_with_closed_form_jacobian_matches_finite_differences(monkeypatch):
         assert (a is None) == (b is None)
         if a is not None:
             assert a == pytest.approx(b, rel=1e-6)
+
+
+@pytest.mark.parametrize("target", [(2.0, 3.0), (-1.0, 2.0), (-1.0, -2.0)])
+def test_lower_bounded_solver_matches_scipy(target):
+    """A bounded linear least-squares problem whose optimum is inside, on one bound, on
+    both: the same minimum as scipy's trf (to its tolerance)."""
+    from scipy.optimize import least_squares
+    A = np.array([[1.0, 0.2], [0.1, 2.0], [0.5, 0.5]])
+    b = A @ np.array(target) + np.array([0.01, -0.02, 0.005])
+
+    def resid(x, scale):
+        return scale * (A @ x - b)
+
+    def jac(x, scale):
+        return scale * A
+    got = fitmod._lm_lower_bounded(resid, jac, np.array([1.0, 1.0]), np.zeros(2), 3.0)
+    ref = least_squares(resid, np.array([1.0, 1.0]), jac=jac, args=(3.0,),
+                        bounds=(np.zeros(2), np.full(2, np.inf)), xtol=1e-14, ftol=1e-14,
+                        gtol=1e-14)
+    assert got is not None
+    np.testing.assert_allclose(got[0], ref.x, rtol=1e-7, atol=1e-9)
+    assert got[1] == pytest.approx(ref.cost, rel=1e-10)
+    assert np.all(got[0] >= 0.0)

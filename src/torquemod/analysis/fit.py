@@ -109,6 +109,58 @@ def _fmt_interval(interval) -> str:
     return f"{'open' if lo is None else f'{lo:.4g}'} .. {'open' if hi is None else f'{hi:.4g}'}"
 
 
+def _lm_lower_bounded(resid, jac, x0, lo, *args, max_iter: int = 100,
+                      rtol: float = 1e-12) -> tuple[np.ndarray, float] | None:
+    """Minimise ``0.5*|resid(x, *args)|^2`` subject to ``x >= lo`` by Levenberg-Marquardt
+    steps (Marquardt's diagonal scaling) on the parameters not held at their bound, a
+    parameter being released when the gradient points inside (a projected active-set
+    step). For the small profile problems of :func:`_profile_interval`, where scipy's
+    general solver spends most of its time on its own bookkeeping. Returns ``(x, cost)``
+    once the step's predicted decrease of the cost, or its actual one, is below ``rtol``
+    of the cost (or no damped step lowers it: the minimum to rounding), or None when that
+    does not happen within ``max_iter`` steps (the caller then uses scipy)."""
+    x = np.maximum(np.asarray(x0, float), lo)
+    r = resid(x, *args)
+    cost = 0.5 * float(r @ r)
+    lam = 1e-3
+    for _ in range(max_iter):
+        J = jac(x, *args)
+        g = J.T @ r
+        free = (x > lo) | (g < 0.0)
+        if not free.any():
+            return x, cost
+        Hf = (J.T @ J)[np.ix_(free, free)]
+        gf = g[free]
+        d = np.diag(Hf).copy()
+        d[d <= 0.0] = 1.0
+        for _retry in range(12):
+            try:
+                step = np.linalg.solve(Hf + lam * np.diag(d), -gf)
+            except np.linalg.LinAlgError:
+                step = None
+            if step is None or not np.all(np.isfinite(step)):
+                lam *= 10.0
+                continue
+            if -(gf @ step) - 0.5 * (step @ Hf @ step) <= rtol * cost:
+                return x, cost  # nothing left to gain (Gauss-Newton's prediction)
+            x_new = x.copy()
+            x_new[free] += step
+            x_new = np.maximum(x_new, lo)
+            r_new = resid(x_new, *args)
+            cost_new = 0.5 * float(r_new @ r_new)
+            if np.isfinite(cost_new) and cost_new < cost:
+                lam = max(lam / 3.0, 1e-12)
+                break
+            lam *= 4.0
+        else:  # no damped step lowers the cost: x is the minimum to rounding
+            return x, cost
+        gain = cost - cost_new
+        x, r, cost = x_new, r_new, cost_new
+        if gain <= rtol * cost:
+            return x, cost
+    return None
+
+
 def _profile_interval(resid_at, theta, lo, hi, *, chi2_min: float, threshold: float,
                       mu_bounds: tuple[float, float], max_nfev: int, step: float = 0.03,
                       span: float = 0.92, jac_at="2-point") -> dict:
@@ -130,11 +182,16 @@ def _profile_interval(resid_at, theta, lo, hi, *, chi2_min: float, threshold: fl
             if not mu_bounds[0] < mu_k < mu_bounds[1]:
                 break
             x0 = np.clip(rest, lo, np.where(np.isfinite(hi), hi, rest))
-            r = least_squares(resid_at, x0, jac=jac_at, args=(mu_k,), bounds=(lo, hi),
-                              x_scale="jac", method="trf", max_nfev=max_nfev)
-            rest = r.x
+            got = None
+            if callable(jac_at) and np.all(np.isinf(hi)):
+                got = _lm_lower_bounded(resid_at, jac_at, x0, np.asarray(lo, float), mu_k)
+            if got is None:  # not converged (or a bounded-above problem): scipy's trf
+                r = least_squares(resid_at, x0, jac=jac_at, args=(mu_k,), bounds=(lo, hi),
+                                  x_scale="jac", method="trf", max_nfev=max_nfev)
+                got = r.x, float(r.cost)
+            rest = got[0]
             grid.append(mu_k)
-            delta.append(max(2.0 * float(r.cost) - chi2_min, 0.0))
+            delta.append(max(2.0 * got[1] - chi2_min, 0.0))
     order = np.argsort(grid)
     g, d = np.asarray(grid)[order], np.asarray(delta)[order]
 
