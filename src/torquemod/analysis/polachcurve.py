@@ -211,8 +211,28 @@ def polach_coa_jacobian(xi, theta):
 
 def longitudinal_mean_jacobian(xi, theta, swing=None):
     """Derivatives of the constant-friction :func:`longitudinal_mean` with respect to
-    ``(mu, kA*s, kS*s)`` (:func:`polach_coa_jacobian`; over a swing, the period average of
-    the signed curve's derivatives, with the sign of the mean), shape ``(n, 3)``."""
+    ``(mu, kA*s, kS*s)``: :func:`polach_coa_jacobian`, or over a swing the period average
+    of the signed curve's derivatives (the same quadrature nodes) with the sign of the mean.
+
+    Parameters
+    ----------
+    xi : float or array_like
+        Mean creepage [-].
+    theta : sequence of float
+        ``(mu, kA*s, kS*s)`` [-].
+    swing : float or array_like, optional
+        Creepage swing amplitude a [-]; None for the static curve.
+
+    Returns
+    -------
+    ndarray
+        Shape ``xi.shape + (3,)`` [-].
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (3) and (8), differentiated.
+    """
     if swing is None:
         return polach_coa_jacobian(xi, theta)
     c = swing_nodes()
