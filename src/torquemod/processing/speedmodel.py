@@ -40,15 +40,36 @@ def _hann_fourier(n: int, bins: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray
 
 @dataclass(frozen=True)
 class SpeedModel:
-    """The joint least-squares model of one cycle (ours): for every channel
-    ``x = modulation + slow + orders + harmonics + residual`` with the modulation
-    ``c*cos + s*sin`` at ``modulation_hz``, the slow part in
-    :func:`~torquemod.dsp.filters.slow_basis`, the rotation orders in
-    :func:`~torquemod.dsp.filters.order_design` and the modulation's own harmonics (the
-    creep curve's bend distorts the wheel's answer; :func:`modulation_harmonics`). One
-    design serves every channel, so any linear functional of it (the step-8 mean) treats a
-    speed variation that wheel and platform share alike, and it cancels in the creepage of
-    Eq. (3)."""
+    """The joint least-squares model of one cycle's speeds and torque.
+
+    For every channel ``x = modulation + slow + orders + harmonics + residual`` with the
+    modulation ``c*cos + s*sin`` at ``modulation_hz``, the slow part in
+    :func:`~torquemod.dsp.basis.slow_basis`, the rotation orders in
+    :func:`~torquemod.dsp.basis.order_design` and the modulation's own harmonics (the creep
+    curve's bend distorts the wheel's answer; :func:`modulation_harmonics`). One design
+    serves every channel, so any linear functional of it (the step-8 mean) treats a speed
+    variation that wheel and platform share alike, and it cancels in the creepage of Eq. (3)
+    of the V-Track paper.
+
+    Attributes
+    ----------
+    modulation_hz : float
+        Modulation frequency [Hz].
+    fs_hz : float
+        Sample rate [Hz].
+    design : ndarray
+        (n, m) design matrix: modulation columns, slow basis, orders, harmonics.
+    n_slow : int
+        Columns of the slow basis.
+    coef : ndarray
+        (m, channels) fitted coefficients, in each channel's unit.
+    names : tuple of str
+        The channels, in the order of ``coef``'s columns.
+    factor : LstsqFactor or None
+        The design's factorisation, for further solves.
+    n_harmonic_columns : int
+        Columns of the modulation's harmonics (the last ones). Default 0.
+    """
 
     modulation_hz: float
     fs_hz: float
@@ -164,9 +185,27 @@ def _trace_of_inverse_2x2(a: np.ndarray) -> float:
 
 def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
                        harmonics: tuple[int, ...] = ()) -> np.ndarray:
-    """``cos`` and ``sin`` of ``2*pi*k*f*t`` for k = 1 and each of ``harmonics`` (in that
-    order), over ``n`` samples at ``fs_hz`` [Hz] with t [s] from the record's middle (so a
-    fitted phase is decoupled from a small error of the frequency)."""
+    """``cos`` and ``sin`` of ``2*pi*k*f*t`` for k = 1 and each of the harmonics.
+
+    t is taken from the record's middle, so a fitted phase is decoupled from a small error of
+    the frequency.
+
+    Parameters
+    ----------
+    n : int
+        Samples [-].
+    fs_hz : float
+        Sample rate [Hz].
+    modulation_hz : float
+        Modulation frequency f [Hz].
+    harmonics : tuple of int
+        Further harmonics k, in order. Default ().
+
+    Returns
+    -------
+    ndarray
+        (n, 2*(1 + len(harmonics))) columns [-].
+    """
     t = (np.arange(n) - (n - 1) / 2) / fs_hz
     w = 2 * np.pi * modulation_hz
     out = np.empty((n, 2 + 2 * len(harmonics)))
@@ -178,17 +217,42 @@ def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
 
 def modulation_harmonics(modulation_hz: float, fs_hz: float, n_samples: int,
                          highest: int, *, above_hz: float, avoid_hz=()) -> tuple[int, ...]:
-    """Harmonics k = 2..``highest`` of the modulation fitted beside it (ours): those below
-    0.45 x the sample rate, above the slow band (``above_hz``) and more than two frequency
-    resolutions away from every frequency in ``avoid_hz`` [Hz] (the fitted rotation orders,
-    which would alias them).
+    """Harmonics of the modulation fitted beside it.
 
-    The wheel's answer to the modulation is not a pure sinusoid: where the creep curve
-    bends, the creepage swing meets a changing slope and the wheel speed and the shaft torque
-    carry 2nd and 3rd harmonics (1-3 % of the fundamental at 1 Hz on the V-Track twin at 60-90
-    % utilisation). Over a record holding a fractional number of periods they are not
-    orthogonal to the slow basis, and, left out of the edge padding, they step at the
-    record's ends, where the narrow band-pass rings: together up to 0.3 deg at 1 Hz.
+    k = 2..``highest``: those below 0.45 x the sample rate, above the slow band and more than
+    two frequency resolutions away from every frequency in ``avoid_hz`` (the fitted rotation
+    orders, which would alias them). The wheel's answer to the modulation is not a pure
+    sinusoid: where the creep curve bends, the creepage swing meets a changing slope and the
+    wheel speed and the shaft torque carry 2nd and 3rd harmonics (1-3 % of the fundamental
+    at 1 Hz on the V-Track twin at 60-90 % utilisation). Over a record holding a fractional
+    number of periods they are not orthogonal to the slow basis, and, left out of the edge
+    padding, they step at the record's ends, where the narrow band-pass rings: together up to
+    0.3 deg at 1 Hz.
+
+    Parameters
+    ----------
+    modulation_hz : float
+        Modulation frequency [Hz].
+    fs_hz : float
+        Sample rate [Hz].
+    n_samples : int
+        Record length [-] (the resolution fs/n).
+    highest : int
+        Highest harmonic [-].
+    above_hz : float
+        Top of the slow band [Hz].
+    avoid_hz : sequence of float
+        Frequencies to keep clear of [Hz]. Default ().
+
+    Returns
+    -------
+    tuple of int
+        The harmonics k.
+
+    Examples
+    --------
+    >>> modulation_harmonics(2.0, 53.344, 320, 3, above_hz=1.2)
+    (2, 3)
     """
     resolution = fs_hz / n_samples
     return tuple(k for k in range(2, int(highest) + 1)
@@ -199,9 +263,31 @@ def modulation_harmonics(modulation_hz: float, fs_hz: float, n_samples: int,
 def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz: float,
                     slow: np.ndarray, orders: np.ndarray, harmonics: tuple[int, ...] = ()
                     ) -> SpeedModel:
-    """Least-squares fit of :class:`SpeedModel` to every channel at once (time referenced to
-    the record's middle so the modulation's phase is decoupled from its frequency), with
-    the modulation's ``harmonics`` (:func:`modulation_harmonics`) as its last columns."""
+    """Least-squares fit of :class:`SpeedModel` to every channel at once.
+
+    Time is referenced to the record's middle so the modulation's phase is decoupled from its
+    frequency; the modulation's harmonics are the last columns.
+
+    Parameters
+    ----------
+    channels : dict of str to ndarray
+        The channels (SI units), of equal length.
+    fs_hz : float
+        Sample rate [Hz].
+    modulation_hz : float
+        Modulation frequency [Hz].
+    slow : ndarray
+        The slow basis (:func:`~torquemod.dsp.basis.slow_basis`).
+    orders : ndarray
+        The rotation-order columns.
+    harmonics : tuple of int
+        The modulation's harmonics (:func:`modulation_harmonics`). Default ().
+
+    Returns
+    -------
+    SpeedModel
+        The fitted model.
+    """
     names = tuple(channels)
     n = slow.shape[0]
     mod = modulation_columns(n, fs_hz, modulation_hz, harmonics)

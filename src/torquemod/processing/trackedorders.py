@@ -15,10 +15,7 @@ from torquemod.io.config import ProcessingConfig
 def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
                    harmonics: tuple[int, ...], *, above_hz: float, avoid_hz: float,
                    modulation_hz: float | None = None) -> tuple[np.ndarray, float]:
-    """Columns of an encoder's eccentricity at the rotation orders ``harmonics`` that lie above
-    the slow band (``above_hz``), below 0.45 x the sample rate, clear of the modulation at
-    ``avoid_hz`` [Hz] and not already spanned by the slow basis (:func:`_separable_orders`);
-    and the mean rotation frequency [Hz].
+    """Columns of an encoder's eccentricity at rotation orders that follow the angle.
 
     An eccentric encoder reads ``w*(1 + e(theta))``: its error follows the angle and scales
     with the speed. The columns are ``(w_s/mean w_s)*cos(k*theta)``, ``... sin(k*theta)``
@@ -26,6 +23,31 @@ def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
     modulation at ``modulation_hz``, which then cannot leak into it) and ``theta`` its
     integral, so they follow a wobble or a ramp (order tracking) and do not carry the
     modulation's own phase wobble into the angle.
+
+    Parameters
+    ----------
+    speed_rad_s : ndarray
+        The encoder's angular speed [rad/s].
+    fs_hz : float
+        Sample rate [Hz].
+    slow : ndarray
+        The slow basis.
+    harmonics : tuple of int
+        The rotation orders k.
+    above_hz : float
+        Orders must lie above this (the slow band's top) [Hz].
+    avoid_hz : float
+        The modulation frequency to keep clear of [Hz].
+    modulation_hz : float or None
+        Modulation fitted jointly with the slow part [Hz]; None: none.
+
+    Returns
+    -------
+    columns : ndarray
+        The kept orders' columns [-] (above the slow band, below 0.45 x the sample rate, clear
+        of ``avoid_hz`` and not already spanned by the slow basis).
+    rotation_hz : float
+        The mean rotation frequency [Hz].
     """
     base = _order_base(speed_rad_s.size, fs_hz, slow, modulation_hz)
     return _tracked_orders(speed_rad_s, fs_hz, slow, harmonics, base, None,
