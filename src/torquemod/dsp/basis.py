@@ -12,7 +12,7 @@ import numba
 import numpy as np
 from scipy.special import fdtri
 
-from torquemod.dsp.lstsq import lstsq
+from torquemod.dsp.lstsq import LstsqFactor, lstsq
 
 
 @functools.lru_cache(maxsize=64)
@@ -258,14 +258,14 @@ def needs_wide_band(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float
     if platform is None:
         return True
     n = wheel.size
-    t = (np.arange(n) - (n - 1) / 2) / fs_hz
-    mod = np.column_stack([np.cos(2 * np.pi * modulation_hz * t),
-                           np.sin(2 * np.pi * modulation_hz * t)])
     y = np.column_stack([wheel, platform])
     fits = []
     for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
-        design = np.hstack([mod, slow_basis(n, fs_hz, band, extra=ext, degree=degree)])
-        coef, rank = lstsq(design, y)
+        # the design depends on the record's length and the configuration only: made and
+        # factored once for every cycle of that length (the same numbers as each time)
+        design, fac = _wide_band_design(int(n), float(fs_hz), float(modulation_hz),
+                                        float(band), int(ext), int(degree))
+        coef, rank = (fac.solve(y), design.shape[1]) if fac is not None else lstsq(design, y)
         resid = platform - design @ coef[:, 1]
         fits.append((float(resid @ resid), rank, coef[:2]))
     (rss_q, rank_q, coef_q), (rss_w, rank_w, coef_w) = fits
@@ -278,3 +278,20 @@ def needs_wide_band(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float
     risk = float(np.hypot(*(coef_q[:, 1] - coef_w[:, 1]))) / abs(p_mean) / wheel_rel
     return bool(f_stat > fdtri(dfn, dfd, 1.0 - WIDE_BAND_FALSE_ALARM)
                 and risk > WIDE_BAND_RISK_RAD)
+
+
+@functools.lru_cache(maxsize=32)
+def _wide_band_design(n: int, fs_hz: float, modulation_hz: float, band_hz: float, extra: int,
+                      degree: int) -> tuple[np.ndarray, LstsqFactor | None]:
+    """One design of :func:`needs_wide_band`, ``[cos, sin, slow_basis(band_hz)]`` with time
+    from the record's middle, and its least-squares factor (None: :func:`lstsq` falls back
+    to the SVD); cached, read-only."""
+    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    mod = np.column_stack([np.cos(2 * np.pi * modulation_hz * t),
+                           np.sin(2 * np.pi * modulation_hz * t)])
+    design = np.hstack([mod, slow_basis(n, fs_hz, band_hz, extra=extra, degree=degree)])
+    design.setflags(write=False)
+    fac = LstsqFactor.of(design)
+    if fac is not None:
+        fac.factor.setflags(write=False)
+    return design, fac

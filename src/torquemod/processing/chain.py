@@ -356,8 +356,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                                  "frequency.band_hz") from None
         f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
     if fp.refine:
-        for i, name in enumerate(("torque_nm", "wheel_speed_rad_s")):
-            peaks[name] = cleaner.refine(i, peaks[name], tol_hz=fp.tolerance_hz)
+        peaks["torque_nm"], peaks["wheel_speed_rad_s"] = cleaner.refine_many(
+            [0, 1], [peaks["torque_nm"], peaks["wheel_speed_rad_s"]], tol_hz=fp.tolerance_hz)
         f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
     if fp.common == "torque":
         f_mod = peaks["torque_nm"]
