@@ -202,12 +202,8 @@ import torquemod.twins.vtrack.rig.truth as _truth
 import torquemod.twins.vtrack.simulate as _simulate
 import torquemod.twins.vtrack.theory as _theory
 from torquemod.twins.vtrack.rig.batch import plan_run
-from torquemod.twins.vtrack.rig.dynamics import (
-    OUT_COLUMNS,
-    initial_state,
-    integrate,
-    pack_parameters,
-)
+from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS, initial_state, pack_parameters
+from torquemod.twins.vtrack.rig.lanes import integrate
 from torquemod.twins.vtrack.rig.sensors import measure
 from torquemod.twins.vtrack.rig.steps import integrate_step
 from torquemod.twins.vtrack.simulate import (
