@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -33,6 +34,7 @@ from torquemod.twins.vtrack.rig.steps import (
     integrate_step,
     integrate_steps,
     plan_steps,
+    steps_buffer_shape,
 )
 from torquemod.twins.vtrack.rig.truth import recorded_step_truth, step_truth, wobble_truth
 from torquemod.twins.vtrack.theory import creep_curve_peak
@@ -109,8 +111,11 @@ def plan_run(config: SimConfig, seed: int,
 
 
 #: torque steps integrated side by side in one compiled loop by :func:`simulate_batch`
-#: (:mod:`torquemod.twins.vtrack.rig.lanes`)
-DEFAULT_LANES = 4
+#: (:mod:`torquemod.twins.vtrack.rig.lanes`). Measured on 16 default points (2 shared cores):
+#: 1 and 2 lanes cost the same CPU to within the machine's noise, 4 lanes ~15 % more (one
+#: RK4 step is bound by its work, not by the latency of its chain of contact evaluations,
+#: so interleaving scalar steps gains nothing; see docs/performance.md)
+DEFAULT_LANES = 2
 
 
 def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 0,
@@ -147,9 +152,16 @@ def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 
                                        rp.wobble, rp.n_settle, large_signal)
         return entry, None, y_end
 
+    local = threading.local()  # each thread's sample buffer, reused from group to group
+
     def run_group(group):
-        results = integrate_steps([StepJob(pt[0], pt[2], pt[1].wobble, plan, pt[1].n_step,
-                                           None, pt[1].n_settle) for pt, plan in group])
+        jobs = [StepJob(pt[0], pt[2], pt[1].wobble, plan, pt[1].n_step, None, pt[1].n_settle)
+                for pt, plan in group]
+        shape = steps_buffer_shape(jobs)
+        buf = getattr(local, "buf", None)
+        if buf is None or buf.shape != shape:
+            local.buf = buf = np.empty(shape)
+        results = integrate_steps(jobs, buf)
         return [finish(pt, plan, res) for (pt, plan), res in zip(group, results, strict=True)]
 
     def run_chained(point, plan, before):

@@ -338,16 +338,19 @@ def _put(out, l, i, kt, ct, y0, y1, y2, y3, y4, y5, fx, fy, n, xi):
 
 
 @numba.njit(inline="always", **_FAST)
-def _hermite(th, h, y0, y1, y2, y3, y4, y5, y6, a0, a1, a2, a5, a6, z0, z1, z2, z3, z4, z5, z6,
-             e0, e1, e2, e5, e6):
-    """Cubic Hermite interpolant at ``th`` (fraction of the step ``h``) of the states ``y``
-    (slopes ``a``; ``th_w' = w_w``, ``th_p' = W_p``) at the step's start and ``z`` (slopes
-    ``e``) at its end."""
+def _hermite_weights(th, h):
+    """Weights of the cubic Hermite interpolant (:func:`_hermite`) at ``th`` (fraction of
+    the step ``h``): of the start value, start slope, end value and end slope."""
     r = 1.0 - th
-    w00 = (1.0 + 2.0 * th) * r * r
-    w10 = th * r * r * h
-    w01 = th * th * (3.0 - 2.0 * th)
-    w11 = -th * th * r * h
+    return (1.0 + 2.0 * th) * r * r, th * r * r * h, th * th * (3.0 - 2.0 * th), -th * th * r * h
+
+
+@numba.njit(inline="always", **_FAST)
+def _hermite(w00, w10, w01, w11, y0, y1, y2, y3, y4, y5, y6, a0, a1, a2, a5, a6, z0, z1, z2,
+             z3, z4, z5, z6, e0, e1, e2, e5, e6):
+    """Cubic Hermite interpolant with the weights of :func:`_hermite_weights` of the states
+    ``y`` (slopes ``a``; ``th_w' = w_w``, ``th_p' = W_p``) at the step's start and ``z``
+    (slopes ``e``) at its end."""
     return (w00 * y0 + w10 * a0 + w01 * z0 + w11 * e0,
             w00 * y1 + w10 * a1 + w01 * z1 + w11 * e1,
             w00 * y2 + w10 * a2 + w01 * z2 + w11 * e2,

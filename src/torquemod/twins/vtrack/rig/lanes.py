@@ -41,6 +41,7 @@ from torquemod.twins.vtrack.rig.dynamics import (
     _ctuple,
     _cubic_weights,
     _hermite,
+    _hermite_weights,
     _load_advance,
     _load_anchor,
     _load_near,
@@ -75,7 +76,7 @@ def _integrate_lanes(y, sf, si, p, wob, nw, out, res, wf, wi):
     ``nw[l]`` rows each; lane ``l`` writes its samples to ``out[l]`` from row
     ``si[l, I_OFF]``. ``res[l] = (n_written, slipped)``."""
     nl = y.shape[0]
-    cst, anc, anc_n, ws, wc, wrc, wrs, wsum, ya, f0, kb, kc, kd, ke, fe, z, v, pm = wf
+    cst, anc, anc_n, ws, wc, wrc, wrs, wsum, ya, f0, kb, kc, kd, ke, fe, z, v, pm, hw = wf
     have_pm, ib, jj, mbl, n_steps, act = wi
     n_act = nl
     for l in range(nl):
@@ -117,6 +118,13 @@ def _integrate_lanes(y, sf, si, p, wob, nw, out, res, wf, wi):
                     for j in range(nw[l]):
                         wrc[l, j] = math.cos(0.5 * wob[l, j, 1] * hb)
                         wrs[l, j] = math.sin(0.5 * wob[l, j, 1] * hb)
+                    # the weights of the samples inside a step, at th = q/mb
+                    for q in range(1, mb):
+                        th = q / mb
+                        w00, w10, w01, w11 = _hermite_weights(th, hb)
+                        l0, l1, l2, l3 = _cubic_weights(th)
+                        hw[l, q, 0], hw[l, q, 1], hw[l, q, 2], hw[l, q, 3] = w00, w10, w01, w11
+                        hw[l, q, 4], hw[l, q, 5], hw[l, q, 6], hw[l, q, 7] = l0, l1, l2, l3
                 v[l, V_HB] = hb
                 v[l, V_TB] = sf[l, S_T0] + ib[l] * dt
             mb, hb = mbl[l], v[l, V_HB]
@@ -238,7 +246,7 @@ def _integrate_lanes(y, sf, si, p, wob, nw, out, res, wf, wi):
             if not act[l]:
                 continue
             if not _inner_samples(l, y, ya, z, ke, f0, fe, v, pm, have_pm, anc, p, cst, si,
-                                  sf, mbl[l], jj[l], ib[l], out, res):
+                                  sf, mbl[l], jj[l], ib[l], out, res, hw):
                 act[l] = False
                 n_act -= 1
                 continue
@@ -260,7 +268,7 @@ def _integrate_lanes(y, sf, si, p, wob, nw, out, res, wf, wi):
 
 @numba.njit(inline="always", **_FAST)
 def _inner_samples(l, y, ya, z, ke, f0, fe, v, pm, have_pm, anc, p, cst, si, sf, mb, jj, i,
-                   out, res):
+                   out, res, hw):
     """Lane ``l``'s samples strictly inside its RK4 step: the states by cubic Hermite
     interpolation (:func:`~torquemod.twins.vtrack.rig.dynamics._hermite`). Whole blocks of
     an even number m >= 4 of samples per RK4 step evaluate the contact exactly at the middle
@@ -273,7 +281,6 @@ def _inner_samples(l, y, ya, z, ke, f0, fe, v, pm, have_pm, anc, p, cst, si, sf,
     c = _ctuple(cst, l)
     s_n, m, off = si[l, I_SUB], si[l, I_M], si[l, I_OFF]
     slip = sf[l, S_SLIP]
-    hb = v[l, V_HB]
     y0, y1, y2, y3, y4, y5, y6 = y[l, 0], y[l, 1], y[l, 2], y[l, 3], y[l, 4], y[l, 5], y[l, 6]
     a0, a1, a2, a5, a6 = ya[l, 0], ya[l, 1], ya[l, 2], ya[l, 3], ya[l, 4]
     z0, z1, z2, z3, z4, z5, z6 = z[l, 0], z[l, 1], z[l, 2], z[l, 3], z[l, 4], z[l, 5], z[l, 6]
@@ -288,9 +295,10 @@ def _inner_samples(l, y, ya, z, ke, f0, fe, v, pm, have_pm, anc, p, cst, si, sf,
     n_mid = xi_mid = fx_mid = fy_mid = 0.0
     if cub_step:
         mid = mb // 2
-        p0, p1, p2, p3, p4, p5, p6 = _hermite(0.5, hb, y0, y1, y2, y3, y4, y5, y6, a0, a1,
-                                              a2, a5, a6, z0, z1, z2, z3, z4, z5, z6, e0, e1,
-                                              e2, e5, e6)
+        p0, p1, p2, p3, p4, p5, p6 = _hermite(hw[l, mid, 0], hw[l, mid, 1], hw[l, mid, 2],
+                                              hw[l, mid, 3], y0, y1, y2, y3, y4, y5, y6, a0,
+                                              a1, a2, a5, a6, z0, z1, z2, z3, z4, z5, z6, e0,
+                                              e1, e2, e5, e6)
         n_mid = _load_near(p4, p, l, anc)
         vv = p5 * c[1]
         xi_mid = (p2 * c[0] - vv) / vv
@@ -313,14 +321,14 @@ def _inner_samples(l, y, ya, z, ke, f0, fe, v, pm, have_pm, anc, p, cst, si, sf,
                 q0, q1, q2, q3, q4, q5, q6 = p0, p1, p2, p3, p4, p5, p6
                 ni, xi, fx, fy = n_mid, xi_mid, fx_mid, fy_mid
             else:
-                th = q / mb
-                q0, q1, q2, q3, q4, q5, q6 = _hermite(th, hb, y0, y1, y2, y3, y4, y5, y6, a0,
-                                                      a1, a2, a5, a6, z0, z1, z2, z3, z4, z5,
-                                                      z6, e0, e1, e2, e5, e6)
+                q0, q1, q2, q3, q4, q5, q6 = _hermite(hw[l, q, 0], hw[l, q, 1], hw[l, q, 2],
+                                                      hw[l, q, 3], y0, y1, y2, y3, y4, y5, y6,
+                                                      a0, a1, a2, a5, a6, z0, z1, z2, z3, z4,
+                                                      z5, z6, e0, e1, e2, e5, e6)
                 vv = q5 * c[1]
                 xi = (q2 * c[0] - vv) / vv
                 if cub_step and use_cub:
-                    l0, l1, l2, l3 = _cubic_weights(th)
+                    l0, l1, l2, l3 = hw[l, q, 4], hw[l, q, 5], hw[l, q, 6], hw[l, q, 7]
                     fx = l0 * fx_pm + l1 * fx0 + l2 * fx_mid + l3 * fxn
                     fy = l0 * fy_pm + l1 * fy0 + l2 * fy_mid + l3 * fyn
                     ni = l0 * n_pm + l1 * n0 + l2 * n_mid + l3 * nn
@@ -381,7 +389,7 @@ def integrate_lanes(y, sf, si, p, wob, nw, out) -> np.ndarray:
               np.zeros((nl, nwm)), np.zeros((nl, 6)), np.empty((nl, 5)), np.empty((nl, 4)),
               np.empty((nl, 5)), np.empty((nl, 5)), np.empty((nl, 5)), np.empty((nl, 5)),
               np.empty((nl, 4)), np.empty((nl, N_STATES)), np.zeros((nl, N_V)),
-              np.zeros((nl, 4)))
+              np.zeros((nl, 4)), np.zeros((nl, max(1, int(si[:, I_M].max())), 8)))
         wi = (np.zeros(nl, dtype=np.bool_), np.zeros(nl, dtype=np.int64),
               np.zeros(nl, dtype=np.int64), np.zeros(nl, dtype=np.int64),
               np.zeros(nl, dtype=np.int64), np.ones(nl, dtype=np.bool_))

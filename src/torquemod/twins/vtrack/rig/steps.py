@@ -160,6 +160,11 @@ class StepJob:
     n_quiet: int = 0
 
 
+def steps_buffer_shape(jobs: list[StepJob]) -> tuple[int, int, int]:
+    """Shape of the samples of :func:`integrate_steps` for ``jobs``."""
+    return len(jobs), max((j.n_samples for j in jobs), default=0), len(OUT_COLUMNS)
+
+
 def _job_args(job: StepJob, phase: int) -> tuple:
     """Lane settings (:func:`~torquemod.twins.vtrack.rig.lanes.lane_settings`) of ``job``'s
     settling at the longest stable step (``phase`` 0; None when it has none) or of the rest
@@ -180,17 +185,25 @@ def _job_args(job: StepJob, phase: int) -> tuple:
                          proc.samples_per_step, i0), job.n_samples - i0, i0
 
 
-def integrate_steps(jobs: list[StepJob]) -> list[tuple[np.ndarray, int, bool, np.ndarray]]:
+def integrate_steps(jobs: list[StepJob], buffer: np.ndarray | None = None
+                    ) -> list[tuple[np.ndarray, int, bool, np.ndarray]]:
     """Integrate the steps ``jobs`` side by side, one lane each
     (:func:`~torquemod.twins.vtrack.rig.lanes.integrate_lanes`): per job what
     :func:`integrate_step` returns for it, number for number. The settling phases run
-    together, then the recorded phases of the steps that did not slip in theirs."""
+    together, then the recorded phases of the steps that did not slip in theirs.
+
+    The samples are written into ``buffer`` when it has the shape they need (``(jobs,
+    longest, columns)``, see :func:`steps_buffer`), else into a new array: a caller that
+    runs group after group reuses one array instead of mapping fresh memory for each (an
+    array that large is given back to the system when freed, and its pages are faulted in
+    anew)."""
     nl = len(jobs)
     y = np.array([j.plan.y0 if j.plan.y0 is not None else j.start for j in jobs],
                  dtype=np.float64).reshape(nl, N_STATES)
     params = np.array([j.params for j in jobs], dtype=np.float64)
     wob, nw = stack_wobbles([j.wobble for j in jobs])
-    out = np.empty((nl, max((j.n_samples for j in jobs), default=0), len(OUT_COLUMNS)))
+    shape = steps_buffer_shape(jobs)
+    out = buffer if buffer is not None and buffer.shape == shape else np.empty(shape)
     done = [None] * nl
     coarse = [(k, _job_args(j, 0)) for k, j in enumerate(jobs)]
     coarse = [(k, a) for k, a in coarse if a is not None]
