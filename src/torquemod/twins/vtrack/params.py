@@ -161,7 +161,7 @@ class ProcedureParams:
     settling time after each step change [s], ramp time of the DC change [s], the creepage
     above which the wheel counts as slipping [-], and the integrator's step: ``substeps``
     classical RK4 steps per ``samples_per_step`` output samples (samples inside a step are
-    interpolated, see :func:`torquemod.twins.vtrack.rig.dynamics.integrate`)."""
+    interpolated, see :func:`torquemod.twins.vtrack.rig.lanes.integrate`)."""
 
     dc_torques_nm: tuple[float, ...] = (0.23, 22.84, 44.47, 55.22, 60.45, 65.82, 72.0)
     cycles_per_step: int = 3

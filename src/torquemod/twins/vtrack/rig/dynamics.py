@@ -24,17 +24,19 @@ Equations (derived for this model; the contact force is quasi-static, Polach 200
 
 The motor torque is ``T_m = T_dc(t) + A*sin(2*pi*f*(t - t_gen) + phi)`` with a DC ramp.
 
-Integration (:func:`integrate`): classical RK4 at a fixed step of ``samples_per_step`` output
-samples (default 4, configured in ``[procedure]``); samples inside a step are the cubic
-Hermite interpolant of the step's end states and slopes, with the contact forces evaluated
-at that state -- exactly at the step's middle sample, and for the other inner samples of an
-even block of >= 4 by the cubic through the exact forces half a step before, at the ends and
-the middle (to ~1e-6 N; exact at rail joints and in fast transients; see :func:`_integrate`).
+Integration (:mod:`torquemod.twins.vtrack.rig.lanes`): classical RK4 at a fixed step of
+``samples_per_step`` output samples (default 8, configured in ``[procedure]``); samples inside
+a step are the cubic Hermite interpolant of the step's end states and slopes, with the contact
+forces evaluated at that state -- exactly at the step's middle sample, and for the other inner
+samples of an even block of >= 4 by the cubic through the exact forces half a step before, at
+the ends and the middle (to ~1e-6 N; exact at rail joints and in fast transients; see
+:func:`torquemod.twins.vtrack.rig.lanes.integrate`).
 The dynamics (and so the phase) never read these recorded forces. The work per step is trimmed
 without changing the equations: the modulation sine is rotated from step to step, the normal
 load's sines from a per-step anchor (above :func:`_load_near`), the speed reference's wobble
-from per-step phasors (:func:`_wob_step`), and the states are kept in registers
-(:func:`_rhs_s`).
+from per-step phasors (:func:`_wob_step`), and the right-hand side reads the states as
+scalars (:func:`_rhs_s`). The helpers below take a lane index ``l`` into arrays of lanes
+(one row per integration), as the integrator runs several side by side.
 """
 
 from __future__ import annotations
@@ -88,7 +90,8 @@ _creep_force_in = numba.njit(**_INLINE)(
 _cos_small = numba.njit(**_INLINE)(_renamed(cos_small.py_func, "cos_small_inline"))
 _sin_small = numba.njit(**_INLINE)(_renamed(sin_small.py_func, "sin_small_inline"))
 _exp_small = numba.njit(**_INLINE)(_renamed(exp_small.py_func, "exp_small_inline"))
-#: Columns of the per-sample output of :func:`integrate`.
+#: Columns of the per-sample output of the integrator
+#: (:func:`torquemod.twins.vtrack.rig.lanes.integrate`).
 OUT_COLUMNS = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", "fy_n",
                "fz_n", "wheel_angle_rad", "platform_angle_rad", "creepage")
 
@@ -272,7 +275,7 @@ def _rhs(y: np.ndarray, t_m: float, n: float, p: np.ndarray, dy: np.ndarray):
 @numba.njit(**_FAST)
 def _deriv(y: np.ndarray, t_m: float, p: np.ndarray, dy: np.ndarray, f: np.ndarray) -> None:
     """Right-hand side at state ``y`` and motor torque ``t_m`` into ``dy``, contact values
-    (Fx, Fy, N, xi_x) into ``f`` -- the plain form of what :func:`integrate` evaluates."""
+    (Fx, Fy, N, xi_x) into ``f`` -- the plain form of what the integrator evaluates."""
     n = normal_load(y[4], p)
     fx, fy, xi = _rhs(y, t_m, n, p, dy)
     f[0], f[1], f[2], f[3] = fx, fy, n, xi
