@@ -14,8 +14,8 @@ Run: ``python benchmarks/simulate.py [--repeat N] [--cores N] [--points N]``. Pr
 * the batch mode: ``--points`` (default 16) sweep points of the default experiment (mu0
   from 0.22 to 0.30, modulation at 2 and 3 Hz) as points per second and as recorded seconds
   per CPU-second (x real time per core): ``simulate_batch`` of all points at once (also
-  without the large-signal theory column, and with one lane -- each torque step in its own
-  compiled loop -- instead of the default steps side by side), the same one point at a
+  without the large-signal theory column, and with two torque steps side by side in each
+  compiled loop instead of the default one, rig/lanes.py), the same one point at a
   time, ``simulate_run``
   (recordings in memory, what a sweep point runs) and ``run_simulation`` (HDF5) one at a
   time, and the ratio batch / one at a time (``--batch-only``: this part alone);
@@ -297,8 +297,8 @@ def batch_throughput(configs, repeat: int) -> None:
     runs = {"simulate_batch (all points at once)": lambda: simulate_batch(configs, seed=0),
             "simulate_batch (all at once, large_signal=False)":
                 lambda: simulate_batch(configs, seed=0, large_signal=False),
-            "simulate_batch (all at once, one lane)":
-                lambda: simulate_batch(configs, seed=0, lanes=1),
+            "simulate_batch (all at once, two lanes)":
+                lambda: simulate_batch(configs, seed=0, lanes=2),
             "simulate_batch (one point at a time)":
                 lambda: [simulate_batch([c], seed=0)[0] for c in configs],
             "simulate_run, in memory (one point at a time)":  # each run dropped when done

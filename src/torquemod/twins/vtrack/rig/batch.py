@@ -5,9 +5,10 @@ and returns per point what ``truth.json`` records per step (the simulated phase 
 fitted out, means, CoA, theory; :mod:`torquemod.twins.vtrack.rig.truth`) -- what a sweep
 compares. Every torque step of every point is one piece of work (each step starts from the
 steady state of the torque before, :mod:`torquemod.twins.vtrack.rig.steps`); groups of
-steps, of one point or of several, are integrated side by side in one compiled loop over a
-structure of arrays (:mod:`torquemod.twins.vtrack.rig.lanes`), and the groups run on a pool of
-threads: the compiled integrator releases the GIL, so they advance together on all cores.
+``lanes`` steps, of one point or of several, are integrated side by side in one compiled loop
+over a structure of arrays (:mod:`torquemod.twins.vtrack.rig.lanes`), and the groups run on a
+pool of threads: the compiled integrator releases the GIL, so they advance together on all
+cores.
 
 For the same ``seed`` a point's steps are those of
 :func:`torquemod.twins.vtrack.simulate.run_simulation`
@@ -111,11 +112,11 @@ def plan_run(config: SimConfig, seed: int,
 
 
 #: torque steps integrated side by side in one compiled loop by :func:`simulate_batch`
-#: (:mod:`torquemod.twins.vtrack.rig.lanes`). Measured on 16 default points (2 shared cores):
-#: 1 and 2 lanes cost the same CPU to within the machine's noise, 4 lanes ~15 % more (one
-#: RK4 step is bound by its work, not by the latency of its chain of contact evaluations,
-#: so interleaving scalar steps gains nothing; see docs/performance.md)
-DEFAULT_LANES = 2
+#: (:mod:`torquemod.twins.vtrack.rig.lanes`). Measured on 16 default points (2 shared cores,
+#: alternated): 2 lanes cost 3-4 % more CPU than 1, 4 lanes ~15 % more -- one RK4 step is
+#: bound by its work, not by the latency of its chain of contact evaluations, so
+#: interleaving scalar steps gains nothing (docs/performance.md)
+DEFAULT_LANES = 1
 
 
 def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 0,
