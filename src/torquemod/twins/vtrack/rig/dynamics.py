@@ -103,7 +103,20 @@ N_PARAMS = 26
 
 
 def pack_parameters(rig: RigParams, dist: DisturbanceParams) -> np.ndarray:
-    """Flatten the rig and load-disturbance parameters into the vector the kernel reads."""
+    """Flatten the rig and load-disturbance parameters into the vector the kernel reads.
+
+    Parameters
+    ----------
+    rig : RigParams
+        The rig.
+    dist : DisturbanceParams
+        The disturbances.
+
+    Returns
+    -------
+    ndarray
+        The parameter vector (SI units).
+    """
     c = rig.contact
     on = dist.enabled
     p = np.zeros(N_PARAMS)
@@ -130,7 +143,20 @@ def pack_parameters(rig: RigParams, dist: DisturbanceParams) -> np.ndarray:
 @numba.njit(**_FAST)
 def normal_load(th_p: float, p: np.ndarray) -> float:
     """Normal load N [N] at platform angle ``th_p``: spring preload, sleeper passing
-    (``sleeper_count`` per revolution) and the decaying response after each rail joint."""
+    (``sleeper_count`` per revolution) and the decaying response after each rail joint.
+
+    Parameters
+    ----------
+    th_p : float
+        Platform angle [rad].
+    p : ndarray
+        The parameter vector (:func:`pack_parameters`).
+
+    Returns
+    -------
+    float
+        N [N].
+    """
     n = p[P_N0]
     if p[P_SLEEP_A] != 0.0:
         n += p[P_SLEEP_A] * math.sin(p[P_SLEEP_N] * th_p)
@@ -383,8 +409,24 @@ _RESYNC = 1024
 
 def initial_state(rig: RigParams, *, creepage: float, dc_torque_nm: float,
                   contact_fx_n: float) -> np.ndarray:
-    """State vector in steady rolling at ``creepage`` [-] under ``dc_torque_nm`` [N*m],
-    with the traction force ``contact_fx_n`` [N] acting on the platform."""
+    """State vector in steady rolling.
+
+    Parameters
+    ----------
+    rig : RigParams
+        The rig.
+    creepage : float
+        Creepage [-].
+    dc_torque_nm : float
+        DC torque [N*m].
+    contact_fx_n : float
+        Traction force acting on the platform [N].
+
+    Returns
+    -------
+    ndarray
+        The state.
+    """
     y = np.zeros(N_STATES)
     w = rig.speed_m_s * (1.0 + creepage) / rig.wheel_radius_m
     y[0] = dc_torque_nm / rig.shaft_stiffness_nm_rad

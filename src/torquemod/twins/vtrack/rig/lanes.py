@@ -353,8 +353,44 @@ _NO_WOBBLE = np.zeros((0, 4))
 
 def lane_settings(t0, n_samples, dt, substeps, dc_from, dc_to, t_step, ramp_s, amp, omega,
                   phase, t_gen, slip_creepage, samples_per_step=1, row0=0):
-    """One lane's rows of ``sf`` and ``si`` (:func:`integrate_lanes`), arguments as
-    :func:`integrate`'s; ``row0``: the lane's first output row."""
+    """One lane's rows of ``sf`` and ``si`` (:func:`integrate_lanes`).
+
+    Parameters
+    ----------
+    t0 : float
+        Start time [s].
+    n_samples : int
+        Output samples [-].
+    dt : float
+        Sample interval [s].
+    substeps : int
+        RK4 steps per ``samples_per_step`` samples [-].
+    dc_from, dc_to : float
+        DC torque before and after the ramp [N*m].
+    t_step, ramp_s : float
+        Start and duration of the ramp [s].
+    amp : float
+        Modulation amplitude [N*m].
+    omega : float
+        Modulation angular frequency [rad/s].
+    phase : float
+        Generator phase [rad].
+    t_gen : float
+        Generator time origin [s].
+    slip_creepage : float
+        Creepage at which the lane stops as slipped [-].
+    samples_per_step : int
+        Output samples per RK4 block [-]. Default 1.
+    row0 : int
+        The lane's first output row [-]. Default 0.
+
+    Returns
+    -------
+    sf : ndarray
+        The float settings (:data:`N_SF`).
+    si : ndarray
+        The integer settings (:data:`N_SI`).
+    """
     sf = np.array([t0, dt, dc_from, dc_to, t_step, ramp_s, amp, omega, phase, t_gen,
                    slip_creepage], dtype=np.float64)
     si = np.array([n_samples, substeps, samples_per_step, row0], dtype=np.int64)
@@ -362,8 +398,21 @@ def lane_settings(t0, n_samples, dt, substeps, dc_from, dc_to, t_step, ramp_s, a
 
 
 def stack_wobbles(wobbles) -> tuple[np.ndarray, np.ndarray]:
-    """The lanes' wobble tables (None or (rows, 4) each) as one (L, rows, 4) array, zero
-    padded, and the row counts."""
+    """The lanes' wobble tables as one array.
+
+    Parameters
+    ----------
+    wobbles : sequence of ndarray or None
+        Each lane's table (rows, 4) of
+        :func:`~torquemod.twins.vtrack.rig.wobble.wobble_table`; None: no wobble.
+
+    Returns
+    -------
+    wob : ndarray
+        The tables stacked (L, rows, 4), zero padded.
+    nw : ndarray
+        Each lane's row count.
+    """
     tabs = [_NO_WOBBLE if w is None else np.asarray(w, dtype=np.float64) for w in wobbles]
     nw = np.array([t.shape[0] for t in tabs], dtype=np.int64)
     wob = np.zeros((len(tabs), max(1, int(nw.max(initial=0))), 4))
@@ -373,13 +422,29 @@ def stack_wobbles(wobbles) -> tuple[np.ndarray, np.ndarray]:
 
 
 def integrate_lanes(y, sf, si, p, wob, nw, out) -> np.ndarray:
-    """Run ``L`` integrations side by side (module docstring): states ``y`` (L, 7) advanced
-    in place, settings ``sf`` (L, 11) and ``si`` (L, 4) from :func:`lane_settings`,
-    parameters ``p`` (L, 26) from
-    :func:`~torquemod.twins.vtrack.rig.dynamics.pack_parameters`, wobble tables and row
-    counts from :func:`stack_wobbles`, ``out`` (L, rows, :data:`OUT_COLUMNS`). Returns
-    ``(L, 2)`` integers: samples written and 1 where the lane stopped on wheel slip (as
-    :func:`integrate`)."""
+    """Run ``L`` integrations side by side (module docstring).
+
+    Parameters
+    ----------
+    y : ndarray
+        The lanes' states (L, 7), advanced in place.
+    sf, si : ndarray
+        The lanes' settings (L, :data:`N_SF`) and (L, :data:`N_SI`), rows of
+        :func:`lane_settings`.
+    p : ndarray
+        The lanes' parameter vectors (L, 26) of
+        :func:`~torquemod.twins.vtrack.rig.dynamics.pack_parameters`.
+    wob, nw : ndarray
+        The wobble tables and row counts of :func:`stack_wobbles`.
+    out : ndarray
+        The samples (L, rows, :data:`OUT_COLUMNS`), lane ``l`` from row ``si[l, I_OFF]``.
+
+    Returns
+    -------
+    ndarray
+        (L, 2) integers: the samples written and 1 where the lane stopped on wheel slip (as
+        :func:`integrate`).
+    """
     nl = y.shape[0]
     res = np.zeros((nl, 2), dtype=np.int64)
     if nl:
@@ -409,14 +474,57 @@ def integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s,
     cubic Hermite interpolant of the step's end states and derivatives (error O(h^4), as
     the method's), with the contact forces evaluated at that interpolated state.
     ``samples_per_step = substeps = 1`` is one RK4 step per sample. The motor torque is the
-    DC ramp ``dc_from`` -> ``dc_to`` [N*m] from ``t_step`` over ``ramp_s`` [s] plus
-    ``amp*sin(omega*(t - t_gen) + phase)``; ``wobble`` the speed reference's table
-    (:func:`~torquemod.twins.vtrack.rig.wobble.wobble_table`; None: a steady reference).
+    DC ramp ``dc_from`` -> ``dc_to`` from ``t_step`` over ``ramp_s`` plus
+    ``amp*sin(omega*(t - t_gen) + phase)``.
 
-    Returns ``(n_written, slipped)``: integration stops at the first sample whose creepage
-    reaches ``slip_creepage`` (or is not finite), which counts as wheel slip; ``y`` is then
-    the state of that sample.
-    """
+    Parameters
+    ----------
+    y : ndarray
+        The state at ``t0``.
+    t0 : float
+        Start time [s].
+    n_samples : int
+        Output samples [-].
+    dt : float
+        Sample interval [s].
+    substeps : int
+        RK4 steps per ``samples_per_step`` samples [-].
+    p : ndarray
+        The parameter vector (:func:`~torquemod.twins.vtrack.rig.dynamics.pack_parameters`).
+    dc_from : float
+        DC torque before the ramp [N*m].
+    dc_to : float
+        DC torque after the ramp [N*m].
+    t_step : float
+        Start of the ramp [s].
+    ramp_s : float
+        Ramp time [s].
+    amp : float
+        Modulation amplitude [N*m].
+    omega : float
+        Modulation angular frequency [rad/s].
+    phase : float
+        Generator phase [rad].
+    t_gen : float
+        Generator time origin [s].
+    slip_creepage : float
+        Creepage at which the integration stops as slipped [-].
+    out : ndarray
+        Output rows (:data:`~torquemod.twins.vtrack.rig.dynamics.OUT_COLUMNS`), written in place.
+    samples_per_step : int
+        Output samples per integration step [-]. Default 1.
+    wobble : ndarray or None
+        The speed reference's wobble rows
+        (:func:`~torquemod.twins.vtrack.rig.wobble.wobble_table`); None: a steady reference.
+
+    Returns
+    -------
+    n_written : int
+        Samples written; integration stops at the first sample whose creepage exceeds
+        ``slip_creepage``.
+    slipped : bool
+        Whether it stopped so (``y`` is then the state of that sample).
+        """
     sf, si = lane_settings(t0, n_samples, dt, substeps, dc_from, dc_to, t_step, ramp_s, amp,
                            omega, phase, t_gen, slip_creepage, samples_per_step)
     wob, nw = stack_wobbles([wobble])

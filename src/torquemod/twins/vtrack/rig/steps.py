@@ -47,7 +47,18 @@ def settle_samples_per_step(config: SimConfig) -> int:
     """Output samples per RK4 step while the step settles (its samples are not recorded):
     the largest whole number of samples whose step keeps ``lambda*h`` within
     :data:`MAX_LAMBDA_H` (:func:`stiffest_rate`), at least the recorded step's. Default rig:
-    8 samples (``lambda*h = 1.6``) against 4 recorded."""
+    8 samples (``lambda*h = 1.6``) against 4 recorded.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The twin's configuration.
+
+    Returns
+    -------
+    int
+        Samples per RK4 step [-].
+    """
     proc, fs = config.procedure, config.sensors.sample_rate_hz
     rec = max(1, proc.samples_per_step // proc.substeps)
     fit = int(MAX_LAMBDA_H * fs / stiffest_rate(config.rig))
@@ -83,9 +94,23 @@ def _reference_angle(t_ends, phi0, w0, ipi, wob):
 
 @dataclass(frozen=True)
 class StepPlan:
-    """One torque step: ``index`` (from 1), the DC ramp ``dc_from_nm`` -> ``dc_nm`` [N*m]
-    starting at ``t0_s`` [s], the modulation generator's phase ``phase_rad`` and the start
-    state ``y0`` (None: the end state of the step before)."""
+    """One torque step of a simulated run.
+
+    Attributes
+    ----------
+    index : int
+        The step, from 1.
+    dc_from_nm : float
+        DC torque before the ramp [N*m].
+    dc_nm : float
+        DC torque after it [N*m].
+    t0_s : float
+        Start of the ramp [s].
+    phase_rad : float
+        The modulation generator's phase [rad].
+    y0 : ndarray or None
+        The start state; None: the end state of the step before.
+    """
 
     index: int
     dc_from_nm: float
@@ -101,7 +126,26 @@ def plan_steps(config: SimConfig, wobble: np.ndarray, phases: list[float],
     """The steps of ``config``'s procedure, each ``n_step_samples`` long at the sample rate,
     with their start states (module docstring); ``phases`` [rad] per step. ``first`` is
     called with the first step's plan as soon as it is known (before the operating points
-    and the reference angle of the others), so that a caller can start integrating it."""
+    and the reference angle of the others), so that a caller can start integrating it.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The twin's configuration.
+    wobble : ndarray
+        The wobble rows.
+    phases : list of float
+        Generator phase per step [rad].
+    n_step_samples : int
+        Samples per step [-].
+    first : callable or None
+        Called with the first step's plan. Default None.
+
+    Returns
+    -------
+    list of StepPlan
+        The steps.
+    """
     rig, proc = config.rig, config.procedure
     dt = 1.0 / config.sensors.sample_rate_hz
     torques = proc.dc_torques_nm
@@ -147,9 +191,26 @@ def plan_steps(config: SimConfig, wobble: np.ndarray, phases: list[float],
 
 @dataclass(frozen=True)
 class StepJob:
-    """One step to integrate (:func:`integrate_steps`): the step ``plan`` of ``config`` with
-    its packed ``params`` and ``wobble`` table, ``n_samples`` samples, the start state
-    ``start`` when the plan has none, the first ``n_quiet`` samples never recorded."""
+    """One step to integrate (:func:`integrate_steps`).
+
+    Attributes
+    ----------
+    config : SimConfig
+        The twin's configuration.
+    params : ndarray
+        Its packed parameters
+        (:func:`~torquemod.twins.vtrack.rig.dynamics.pack_parameters`).
+    wobble : ndarray
+        The run's wobble table.
+    plan : StepPlan
+        The step.
+    n_samples : int
+        Samples to integrate [-].
+    start : ndarray or None
+        Start state when the plan has none. Default None.
+    n_quiet : int
+        Settling samples at the start, never recorded [-]. Default 0.
+    """
 
     config: SimConfig
     params: np.ndarray
@@ -161,7 +222,18 @@ class StepJob:
 
 
 def steps_buffer_shape(jobs: list[StepJob]) -> tuple[int, int, int]:
-    """Shape of the samples of :func:`integrate_steps` for ``jobs``."""
+    """Shape of the samples of :func:`integrate_steps` for ``jobs``.
+
+    Parameters
+    ----------
+    jobs : list of StepJob
+        The steps.
+
+    Returns
+    -------
+    tuple of int
+        (steps, samples of the longest, columns).
+    """
     return len(jobs), max((j.n_samples for j in jobs), default=0), len(OUT_COLUMNS)
 
 
@@ -196,7 +268,21 @@ def integrate_steps(jobs: list[StepJob], buffer: np.ndarray | None = None
     longest, columns)``, see :func:`steps_buffer`), else into a new array: a caller that
     runs group after group reuses one array instead of mapping fresh memory for each (an
     array that large is given back to the system when freed, and its pages are faulted in
-    anew)."""
+    anew).
+
+    Parameters
+    ----------
+    jobs : list of StepJob
+        The steps, one lane each.
+    buffer : ndarray or None
+        Where to write the samples, if of the shape :func:`steps_buffer_shape`. Default
+        None.
+
+    Returns
+    -------
+    list of tuple
+        Per job ``(out, n_written, slipped, end state)`` as :func:`integrate_step`.
+    """
     nl = len(jobs)
     y = np.array([j.plan.y0 if j.plan.y0 is not None else j.start for j in jobs],
                  dtype=np.float64).reshape(nl, N_STATES)
@@ -247,6 +333,35 @@ def integrate_step(config: SimConfig, params: np.ndarray, wobble: np.ndarray, pl
     longest stable step (:func:`settle_samples_per_step`, one RK4 step per coarse sample, no
     samples inside the steps): their rows of ``out`` are left unset except the last whole
     coarse block's remainder. A slip among them is reported at the coarse sample's index
-    (``n_written`` to within a coarse step). :func:`integrate_steps` with one step."""
+    (``n_written`` to within a coarse step). :func:`integrate_steps` with one step.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The twin's configuration.
+    params : ndarray
+        The parameter vector.
+    wobble : ndarray
+        The wobble rows.
+    plan : StepPlan
+        The step.
+    n_samples : int
+        Samples [-].
+    start : ndarray or None
+        Start state when the plan has none. Default None.
+    n_quiet : int
+        Settling samples at the start [-]. Default 0.
+
+    Returns
+    -------
+    out : ndarray
+        The samples.
+    n_written : int
+        Samples written.
+    slipped : bool
+        The wheel slipped.
+    end : ndarray
+        The end state.
+    """
     return integrate_steps([StepJob(config, params, wobble, plan, n_samples, start,
                                     n_quiet)])[0]
