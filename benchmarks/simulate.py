@@ -14,7 +14,9 @@ Run: ``python benchmarks/simulate.py [--repeat N] [--cores N] [--points N]``. Pr
 * the batch mode: ``--points`` (default 16) sweep points of the default experiment (mu0
   from 0.22 to 0.30, modulation at 2 and 3 Hz) as points per second and as recorded seconds
   per CPU-second (x real time per core): ``simulate_batch`` of all points at once (also
-  without the large-signal theory column), the same one point at a time, ``simulate_run``
+  without the large-signal theory column, and with two torque steps side by side in each
+  compiled loop instead of the default one, rig/lanes.py), the same one point at a
+  time, ``simulate_run``
   (recordings in memory, what a sweep point runs) and ``run_simulation`` (HDF5) one at a
   time, and the ratio batch / one at a time (``--batch-only``: this part alone);
 * the CPU split of one run (``run_simulation`` HDF5 on one worker thread): per phase of a
@@ -203,12 +205,8 @@ import torquemod.twins.vtrack.rig.truthphase as _truthphase
 import torquemod.twins.vtrack.simulate as _simulate
 import torquemod.twins.vtrack.theory as _theory
 from torquemod.twins.vtrack.rig.batch import plan_run
-from torquemod.twins.vtrack.rig.dynamics import (
-    OUT_COLUMNS,
-    initial_state,
-    integrate,
-    pack_parameters,
-)
+from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS, initial_state, pack_parameters
+from torquemod.twins.vtrack.rig.lanes import integrate
 from torquemod.twins.vtrack.rig.sensors import measure
 from torquemod.twins.vtrack.rig.steps import integrate_step
 from torquemod.twins.vtrack.simulate import (
@@ -300,6 +298,8 @@ def batch_throughput(configs, repeat: int) -> None:
     runs = {"simulate_batch (all points at once)": lambda: simulate_batch(configs, seed=0),
             "simulate_batch (all at once, large_signal=False)":
                 lambda: simulate_batch(configs, seed=0, large_signal=False),
+            "simulate_batch (all at once, two lanes)":
+                lambda: simulate_batch(configs, seed=0, lanes=2),
             "simulate_batch (one point at a time)":
                 lambda: [simulate_batch([c], seed=0)[0] for c in configs],
             "simulate_run, in memory (one point at a time)":  # each run dropped when done

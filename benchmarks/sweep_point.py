@@ -10,7 +10,9 @@ recordings
 * ``chain``: the processing chain on the recordings in memory, or with ``--through-files``
   ``torquemod.api.process`` (reading the files, the chain);
 * ``fits``: ``torquemod.api.analyze`` (Polach fit with its profile interval, mu from the
-  phase, the theory constant) and the sweep's own mu-from-phase fit (``_phase_mu``);
+  phase, the theory constant) and the sweep's own mu-from-phase fit (``_phase_mu``), with
+  the Polach fit (``fit_polach``) and the available-adhesion fit
+  (``fit_available_adhesion_from_phase``: analyze's and the sweep's) charged apart;
 * ``rest``: the point's set-up, theory columns and table.
 
 It prints each stage's CPU per point and its share, and the twin's CPU against the recorded
@@ -32,6 +34,7 @@ infinitely fast speeds the sweep up by at most 1/(1 - s) (Amdahl).
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import resource
 import statistics
@@ -90,6 +93,8 @@ def main() -> None:
         sweep_wall(args.sweep, srcs, args.repeat, args.workers)
         return
 
+    import torquemod.analysis.analyzer as analyzer
+    import torquemod.analysis.phasefit as phasefit
     import torquemod.api as api
     import torquemod.twins.vtrack.simulate as sim
     from torquemod.sweep import evaluate as ev
@@ -100,19 +105,21 @@ def main() -> None:
     todo = tasks(spec)[: args.points + 1]
     acc: dict[str, float] = {}
     recorded = [0.0]
-    depth = [0]
+    inner = [0.0]  # CPU of the charged calls inside the one running (innermost wins)
 
     def charge(mod, name, label):
         fn = getattr(mod, name)
 
+        @functools.wraps(fn)  # the analysis inspects fit_polach's signature
         def wrapped(*a, **k):
-            depth[0] += 1
+            outer, inner[0] = inner[0], 0.0
             c0 = time.process_time()
             try:
                 return fn(*a, **k)
             finally:
-                depth[0] -= 1
-                acc[label] = acc.get(label, 0.0) + time.process_time() - c0
+                spent = time.process_time() - c0
+                acc[label] = acc.get(label, 0.0) + spent - inner[0]
+                inner[0] = outer + spent
 
         setattr(mod, name, wrapped)
 
@@ -133,6 +140,10 @@ def main() -> None:
     charge(ev, "_process_in_memory", "chain")
     charge(api, "analyze", "fits")
     charge(ev, "_phase_mu", "fits (sweep)")
+    # inside the fits: the Polach fit and the available-adhesion fit (analyze's and the
+    # sweep's own, each then charged here instead of to its caller)
+    charge(analyzer, "fit_polach", "  Polach fit")
+    charge(phasefit, "fit_available_adhesion_from_phase", "  adhesion fit")
     with tempfile.TemporaryDirectory() as tmp:
         files = {"workdir": tmp, "through_files": args.through_files}
         ev.evaluate_point(todo[0], **files)  # warm-up: kernels, caches

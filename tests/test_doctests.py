@@ -24,7 +24,7 @@ MUST_HAVE = ("torquemod.analysis.contact.polach", "torquemod.analysis.contact.ka
              "torquemod.analysis.contact.hertz", "torquemod.analysis.creep",
              "torquemod.analysis.polachcurve", "torquemod.analysis.polachshape",
              "torquemod.dsp.phase", "torquemod.dsp.filters", "torquemod.dsp.resampling",
-             "torquemod.dsp.tonemodel", "torquemod.io.channels",
+             "torquemod.dsp.tonemodel", "torquemod.io.channels", "torquemod.io.units",
              "torquemod.ontrain.window", "torquemod.ontrain.quality",
              "torquemod.sweep.evaluate", "torquemod.processing.chain")
 

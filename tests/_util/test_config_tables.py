@@ -1,5 +1,5 @@
 """Every configuration table a user writes (processing, the rig and train twins, [onboard],
-sweep files, experiment.toml, run.toml) is read by one reader
+sweep files, experiment.toml and run.toml with their [channels] maps) is read by one reader
 (:func:`torquemod._util.tomlcheck.read_table`): for each, a misspelt key is refused with the
 nearest known key, a value of the wrong type and a value out of range are refused, and the
 message names the file and the dotted key."""
@@ -123,6 +123,18 @@ CASES = [  # (config, key, value, what the message says besides the file)
     ("run", "vehicle.speed_delay_s", 1.5, ["'vehicle.speed_delay_s'", "a time in seconds",
                                            "e.g. 0.002 for 2 ms"]),
     ("run", "recording.0.axle", 0, ["recording #1", "'axle'", "whole number >= 1"]),
+    ("manifest", "channels.torqe", "T", ["'channels.torqe'", "did you mean 'torque'"]),
+    ("manifest", "channels.torque.units", "kN*m",
+     ["'channels.torque.units'", "did you mean 'unit'"]),
+    ("manifest", "channels.torque", 3, ["'channels.torque'", "a channel name or a table"]),
+    ("manifest", "channels.wheel_speed.radius_m", "big",
+     ["'channels.wheel_speed.radius_m'", "finite number", "'big'"]),
+    ("manifest", "channels.sample_rate_hz", -1000.0,
+     ["'channels.sample_rate_hz'", "> 0", "-1000.0"]),
+    ("manifest", "channels.platform_speed.radius_m", 0.0,
+     ["'channels.platform_speed.radius_m'", "> 0"]),
+    ("run", "channels.fx.time.unit", 5, ["'channels.fx.time.unit'", "text in quotes"]),
+    ("run", "channels.t0_s", "now", ["'channels.t0_s'", "finite number"]),
 ]
 
 

@@ -11,17 +11,11 @@ import pytest
 
 from torquemod.errors import InputError, ManifestError, OutputError
 from torquemod.io import read_experiment, read_recording, write_manifest
-from torquemod.io.channels import (
-    QUANTITY,
-    UNITS,
-    canonical_unit,
-    convert_units,
-    default_channel_map,
-    resolve_channel_map,
-)
+from torquemod.io.channels import QUANTITY, default_channel_map, resolve_channel_map
 from torquemod.io.convert import convert_experiment, convert_file
 from torquemod.io.experiment import CHANNEL_UNITS, CHANNELS, Recording
 from torquemod.io.recording import read_entry, supported_suffixes
+from torquemod.io.units import UNITS, canonical_unit, convert_units
 
 FS_HZ = 2000.0
 T0_S = 0.25
@@ -252,10 +246,11 @@ def test_default_map_is_the_csv_layout():
 
 @pytest.mark.parametrize(("table", "pattern"), [
     ({"torque": {"name": "T", "unit": "N"}}, r"channel 'torque_nm'.*unit 'N'.*N\*m"),
-    ({"torq": "T"}, r"unknown key 'torq'.*torque, wheel_speed"),
+    ({"torq": "T"}, r"unknown key 'channels.torq'; did you mean 'torque'\?.*wheel_speed"),
     ({"torque": "T", "torque_nm": "U"}, r"maps 'torque_nm' twice"),
     ({"fx": "F", "fy": "F"}, r"'F' is mapped to both fx_n and fy_n"),
-    ({"torque": {"name": "T", "units": "N*m"}}, r"unknown key\(s\) units"),
+    ({"torque": {"name": "T", "units": "N*m"}},
+     r"unknown key 'channels.torque.units'; did you mean 'unit'\?"),
     ({"fx": {"name": "F", "radius_m": 0.1}}, r"radius_m only applies to the speed"),
     ({"sample_rate_hz": -5.0}, r"sample_rate_hz.*positive"),
     ({"sample_rate_hz": 100.0, "time": "t"}, r"both a sample rate.*and a time channel"),

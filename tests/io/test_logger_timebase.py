@@ -327,9 +327,10 @@ def test_per_channel_time_vectors(fmt, tmp_path, write_columns):
 
 
 @pytest.mark.parametrize(("entry", "pattern"), [
-    ({"name": "F", "time": 3}, r"'time' must be the name"),
+    ({"name": "F", "time": 3}, r"'channels\.fx\.time' must be the name"),
     ({"name": "F", "time": {"name": "t", "unit": "N"}}, r"unit 'N' is a force"),
-    ({"name": "F", "time": {"name": "t", "bogus": 1}}, r"'time' must be the name"),
+    ({"name": "F", "time": {"name": "t", "bogus": 1}},
+     r"unknown key 'channels\.fx\.time\.bogus'.*takes name, unit"),
 ])
 def test_bad_per_channel_time_entries(entry, pattern):
     from torquemod.io.channels import resolve_channel_map

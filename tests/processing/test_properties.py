@@ -28,9 +28,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from torquemod.dsp.phase import phase_crb_deg
-from torquemod.io.channels import UNITS
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Recording, Rig
+from torquemod.io.units import UNITS
 from torquemod.processing import chain
 from torquemod.processing.pipeline import process_experiment
 from torquemod.testing import SyntheticSpec, synthetic_recording, write_synthetic_experiment

@@ -15,12 +15,12 @@ from torquemod.twins.vtrack.rig.dynamics import (
     _wob_step,
     _wobble,
     initial_state,
-    integrate,
     normal_load,
     pack_parameters,
     wobble_reference,
     wobble_table,
 )
+from torquemod.twins.vtrack.rig.lanes import integrate
 from torquemod.twins.vtrack.rig.sensors import encoder_speed, measure
 from torquemod.twins.vtrack.simulate import load_config, stiffest_rate
 from torquemod.twins.vtrack.theory import operating_point
@@ -273,20 +273,21 @@ def test_wobble_phasors_match_the_exact_wobble(noisy, wobble):
     re-evaluations)."""
     h = 2.0 / FS
     band, rev = wobble[wobble[:, 3] == 0].copy(), wobble[wobble[:, 3] == 1].copy()
-    nw = wobble.shape[0]
-    ws, wc, s = np.zeros(nw), np.zeros(nw), np.zeros(6)
-    rc, rs = np.cos(0.5 * wobble[:, 1] * h), np.sin(0.5 * wobble[:, 1] * h)
+    nw = np.array([wobble.shape[0]])  # one lane
+    wob = wobble[None]
+    ws, wc, s = np.zeros((1, nw[0])), np.zeros((1, nw[0])), np.zeros((1, 6))
+    rc, rs = np.cos(0.5 * wob[:, :, 1] * h), np.sin(0.5 * wob[:, :, 1] * h)
     t, th, dth = 3.0, 0.4, 0.0
-    _wob_set(t, th, wobble, ws, wc)
+    _wob_set(t, th, wob, 0, nw, ws, wc)
     w0 = noisy.rig.platform_speed_rad_s
     err = 0.0
     for k in range(2000):
-        _wob_step(wobble, ws, wc, rc, rs, dth, s)
+        _wob_step(wob, 0, nw, ws, wc, rc, rs, dth, s)
         th += dth
-        err = max(err, abs(s[0] - _wobble(t + h / 2, 0.0, band)),
-                  abs(s[1] - _wobble(t + h, 0.0, band)))
+        err = max(err, abs(s[0, 0] - _wobble(t + h / 2, 0.0, band)),
+                  abs(s[0, 1] - _wobble(t + h, 0.0, band)))
         for x in (0.3 * h * w0, h * w0 * (1 + 1e-3)):
-            err = max(err, abs(_wob_rev(s, x) - _wobble(0.0, th + x, rev)))
+            err = max(err, abs(_wob_rev(s, 0, x) - _wobble(0.0, th + x, rev)))
         dth = h * w0 * (1.0 + 2e-3 * math.sin(k / 50))  # the platform's angle advances unevenly
         t += h
     assert err < 1e-14 * w0

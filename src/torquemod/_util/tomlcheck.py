@@ -1,13 +1,14 @@
 """One way to read a TOML table into a typed, frozen dataclass.
 
 Every configuration a user writes by hand (the ``[processing]`` table, experiment.toml and
-run.toml, the rig and train twins' configs, run.toml's ``[onboard]``, sweep files and their
-bases) is read through :func:`read_table`: the fields of the dataclass say which keys exist
-and of which type (a dataclass-typed field is a sub-table, a tuple of dataclasses a list of
-tables), the :class:`Check` in each field's metadata (:func:`checked`) says which values make
-sense, once for the file and for values built in code (:func:`check_fields`). Any mistake is
-one :class:`~torquemod.errors.InputError` that names the file and the dotted key, what was
-found and what is expected:
+run.toml with their ``[channels]`` maps, the rig and train twins' configs, run.toml's
+``[onboard]``, sweep files and their bases) is read through :func:`read_table`: the fields
+of the dataclass say which keys exist and of which type (a dataclass-typed field is a
+sub-table, a tuple of dataclasses a list of tables), the :class:`Check` in each field's
+metadata (:func:`checked`) says which values make sense, once for the file and for values
+built in code (:func:`check_fields`). Any mistake is one
+:class:`~torquemod.errors.InputError` that names the file and the dotted key, what was found
+and what is expected:
 
 * a key the dataclass does not have (with the nearest known key, :func:`unknown_keys`),
 * a value of the wrong type (a string or ``true`` where a number belongs, a fraction where a

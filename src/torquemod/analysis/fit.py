@@ -78,7 +78,12 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-from torquemod.analysis.polachcurve import _mean_slope, longitudinal_mean, polach_coa
+from torquemod.analysis.polachcurve import (
+    _mean_slope,
+    longitudinal_mean,
+    longitudinal_mean_jacobian,
+    polach_coa,
+)
 from torquemod.analysis.polachfitresult import PolachFit
 from torquemod.errors import InputError, ProcessingError
 
@@ -104,12 +109,65 @@ def _fmt_interval(interval) -> str:
     return f"{'open' if lo is None else f'{lo:.4g}'} .. {'open' if hi is None else f'{hi:.4g}'}"
 
 
+def _lm_lower_bounded(resid, jac, x0, lo, *args, max_iter: int = 100,
+                      rtol: float = 1e-12) -> tuple[np.ndarray, float] | None:
+    """Minimise ``0.5*|resid(x, *args)|^2`` subject to ``x >= lo`` by Levenberg-Marquardt
+    steps (Marquardt's diagonal scaling) on the parameters not held at their bound, a
+    parameter being released when the gradient points inside (a projected active-set
+    step). For the small profile problems of :func:`_profile_interval`, where scipy's
+    general solver spends most of its time on its own bookkeeping. Returns ``(x, cost)``
+    once the step's predicted decrease of the cost, or its actual one, is below ``rtol``
+    of the cost (or no damped step lowers it: the minimum to rounding), or None when that
+    does not happen within ``max_iter`` steps (the caller then uses scipy)."""
+    x = np.maximum(np.asarray(x0, float), lo)
+    r = resid(x, *args)
+    cost = 0.5 * float(r @ r)
+    lam = 1e-3
+    for _ in range(max_iter):
+        J = jac(x, *args)
+        g = J.T @ r
+        free = (x > lo) | (g < 0.0)
+        if not free.any():
+            return x, cost
+        Hf = (J.T @ J)[np.ix_(free, free)]
+        gf = g[free]
+        d = np.diag(Hf).copy()
+        d[d <= 0.0] = 1.0
+        for _retry in range(12):
+            try:
+                step = np.linalg.solve(Hf + lam * np.diag(d), -gf)
+            except np.linalg.LinAlgError:
+                step = None
+            if step is None or not np.all(np.isfinite(step)):
+                lam *= 10.0
+                continue
+            if -(gf @ step) - 0.5 * (step @ Hf @ step) <= rtol * cost:
+                return x, cost  # nothing left to gain (Gauss-Newton's prediction)
+            x_new = x.copy()
+            x_new[free] += step
+            x_new = np.maximum(x_new, lo)
+            r_new = resid(x_new, *args)
+            cost_new = 0.5 * float(r_new @ r_new)
+            if np.isfinite(cost_new) and cost_new < cost:
+                lam = max(lam / 3.0, 1e-12)
+                break
+            lam *= 4.0
+        else:  # no damped step lowers the cost: x is the minimum to rounding
+            return x, cost
+        gain = cost - cost_new
+        x, r, cost = x_new, r_new, cost_new
+        if gain <= rtol * cost:
+            return x, cost
+    return None
+
+
 def _profile_interval(resid_at, theta, lo, hi, *, chi2_min: float, threshold: float,
                       mu_bounds: tuple[float, float], max_nfev: int, step: float = 0.03,
-                      span: float = 0.92) -> dict:
+                      span: float = 0.92, jac_at="2-point") -> dict:
     """Profile likelihood of mu on a grid from exp(-span) to exp(span) times the optimum
     (0.4x to 2.5x), minimising chi2 over the other parameters at each grid value by
-    continuation outwards from the optimum. Returns the hulls of the sets where
+    continuation outwards from the optimum (``jac_at(rest, mu)``: the residuals' Jacobian
+    in the other parameters, or finite differences). Returns the hulls of the sets where
     ``chi2 - chi2_min <= threshold * q`` for q = 1 (68 %) and q = 3.84 (95 %), each end None
     when the set reaches the scanned range or the bound (open), and the profile itself.
     The chi2 valley of the Polach fit is curved and can hold separate basins (mu trading
@@ -124,11 +182,16 @@ def _profile_interval(resid_at, theta, lo, hi, *, chi2_min: float, threshold: fl
             if not mu_bounds[0] < mu_k < mu_bounds[1]:
                 break
             x0 = np.clip(rest, lo, np.where(np.isfinite(hi), hi, rest))
-            r = least_squares(resid_at, x0, args=(mu_k,), bounds=(lo, hi), x_scale="jac",
-                              method="trf", max_nfev=max_nfev)
-            rest = r.x
+            got = None
+            if callable(jac_at) and np.all(np.isinf(hi)):
+                got = _lm_lower_bounded(resid_at, jac_at, x0, np.asarray(lo, float), mu_k)
+            if got is None:  # not converged (or a bounded-above problem): scipy's trf
+                r = least_squares(resid_at, x0, jac=jac_at, args=(mu_k,), bounds=(lo, hi),
+                                  x_scale="jac", method="trf", max_nfev=max_nfev)
+                got = r.x, float(r.cost)
+            rest = got[0]
             grid.append(mu_k)
-            delta.append(max(2.0 * float(r.cost) - chi2_min, 0.0))
+            delta.append(max(2.0 * got[1] - chi2_min, 0.0))
     order = np.argsort(grid)
     g, d = np.asarray(grid)[order], np.asarray(delta)[order]
 
@@ -323,14 +386,27 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
     def model(th):
         return np.hypot(longitudinal_mean(xi, th, swing, spd), lateral)
 
+    def model_jac(th):
+        """d model/d theta (n, 3), constant friction: the closed form of Polach's curve
+        (:func:`torquemod.analysis.polachcurve.longitudinal_mean_jacobian`) through the
+        hypotenuse with the lateral CoA."""
+        f = longitudinal_mean(xi, th, swing, spd)
+        m = np.hypot(f, lateral)
+        ratio = np.divide(f, m, out=np.ones_like(f), where=m > 0)
+        return ratio[:, None] * longitudinal_mean_jacobian(xi, th, swing)
+
     def run(sig, starts):
         def resid(th):
             return (model(th) - coa) / sig
+
+        def jac(th):
+            return model_jac(th) / sig[:, None]
         results = []
         for x0 in starts:
             x0 = np.clip(x0, lo, np.where(np.isfinite(hi), hi, x0))
             try:
-                r = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", method="trf",
+                r = least_squares(resid, x0, jac="2-point" if velocity_dependent else jac,
+                                  bounds=(lo, hi), x_scale="jac", method="trf",
                                   max_nfev=max_nfev, xtol=1e-12, ftol=1e-12, gtol=1e-12)
             except (ValueError, FloatingPointError) as exc:  # pragma: no cover - defensive
                 results.append((np.inf, None, str(exc), x0))
@@ -385,9 +461,13 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
     # chi2_profile - chi2_min <= scale is the honest 68 % interval (Wilks)
     def resid_at(rest, mu_fixed):
         return (model(np.r_[mu_fixed, rest]) - coa) / sigma
+
+    def jac_at(rest, mu_fixed):
+        return model_jac(np.r_[mu_fixed, rest])[:, 1:] / sigma[:, None]
     profile = _profile_interval(resid_at, theta, lo[1:], hi[1:], chi2_min=chi2,
                                 threshold=scale if np.isfinite(scale) else 1.0,
-                                mu_bounds=MU_BOUNDS, max_nfev=max_nfev)
+                                mu_bounds=MU_BOUNDS, max_nfev=max_nfev,
+                                jac_at="2-point" if velocity_dependent else jac_at)
     interval, interval95 = tuple(profile["68"]), tuple(profile["95"])
     if None not in interval:
         mu_se = max(mu_se, 0.5 * (interval[1] - interval[0]))

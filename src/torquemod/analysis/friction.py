@@ -106,20 +106,15 @@ def _p_grid(c_max: float, p_span: float, dz: float = 0.015, z_fine: float = 0.02
 
 
 @njit(cache=True, nogil=True)
-def _swing_delta(sw_tab, swing_a, s, u, red):
-    """Bilinear lookup of the swing table of member s at utilisation u, reduced swing red."""
+def _swing_row(sw_u, swing_a, s, i, red):
+    """Linear lookup in the reduced swing ``red`` (at most the table's last) of member s's
+    swing rows already interpolated at point i's utilisation (``sw_u[s, i, :]``)."""
     n_a = swing_a.size
-    n_us = sw_tab.shape[1]
-    red = min(red, swing_a[n_a - 1])
     j = 0
     while j < n_a - 2 and swing_a[j + 1] < red:
         j += 1
     fa = (red - swing_a[j]) / (swing_a[j + 1] - swing_a[j])
-    pos = u * (n_us - 1)
-    k = min(int(pos), n_us - 2)
-    f = pos - k
-    return ((sw_tab[s, k, j] * (1 - f) + sw_tab[s, k + 1, j] * f) * (1 - fa)
-            + (sw_tab[s, k, j + 1] * (1 - f) + sw_tab[s, k + 1, j + 1] * f) * fa)
+    return sw_u[s, i, j] * (1 - fa) + sw_u[s, i, j + 1] * fa
 
 
 @njit(cache=True, nogil=True)
@@ -145,12 +140,30 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
     ga = np.empty(n)
     gb = np.empty(n)
     w = np.empty(n)
+    # the variance without the CoA term, the same for every pair and trial P
+    v0 = np.empty(n)
+    for i in range(n):
+        v0[i] = var0[i] + (y_rel * y[i]) ** 2
     has_swing = sw_tab.shape[0] > 0
+    n_a = swing_a.size
+    n_us = sw_tab.shape[1]
+    a_top = swing_a[n_a - 1]
+    # per trial P: each point's cell of the swing tables' utilisation grid, and every
+    # member's swing rows interpolated there (SW[s, i, :]); a pair's lookup is then linear
+    # in the swing alone (:func:`_swing_row`; the same arithmetic as one bilinear lookup)
+    ks = np.empty(n, np.int64)
+    fs = np.empty(n)
+    SW = np.empty((sw_tab.shape[0], n, n_a))
     c_max = coa.max()
     for m in range(n_m):
         p = p_grid[m]
         if c_max >= p:
             continue
+        for i in range(n):
+            pos = coa[i] / p * (n_us - 1)
+            k = min(int(pos), n_us - 2)
+            ks[i] = k
+            fs[i] = pos - k
         for s in range(n_s):
             valid[s] = True
             for i in range(n):
@@ -162,6 +175,13 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
                 if not (G[s, i] > 0.0):
                     valid[s] = False
                     break
+            if has_swing and valid[s]:
+                for i in range(n):
+                    if amp[i] > 0.0:
+                        k = ks[i]
+                        f = fs[i]
+                        for j in range(n_a):
+                            SW[s, i, j] = sw_tab[s, k, j] * (1 - f) + sw_tab[s, k + 1, j] * f
         for q in range(n_q):
             a = pairs[q, 0]
             b = pairs[q, 1]
@@ -171,20 +191,22 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
             be = 0.0
             for it in range(n_iter):
                 k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
+                swing_now = has_swing and it > 0
                 for i in range(n):
                     ga[i] = G[a, i]
                     gb[i] = G[b, i]
-                    if has_swing and it > 0 and amp[i] > 0.0:
-                        u = coa[i] / p
-                        ga[i] += _swing_delta(sw_tab, swing_a, a, u, amp[i] * k0 * f_peak[a] / p)
-                        gb[i] += _swing_delta(sw_tab, swing_a, b, u, amp[i] * k0 * f_peak[b] / p)
+                    if swing_now and amp[i] > 0.0:
+                        ga[i] += _swing_row(SW, swing_a, a, i, min(amp[i] * k0 * f_peak[a] / p,
+                                                                   a_top))
+                        gb[i] += _swing_row(SW, swing_a, b, i, min(amp[i] * k0 * f_peak[b] / p,
+                                                                   a_top))
                 saa = 0.0
                 sab = 0.0
                 sbb = 0.0
                 say = 0.0
                 sby = 0.0
                 for i in range(n):
-                    v = var0[i] + (y_rel * y[i]) ** 2
+                    v = v0[i]
                     if it > 0:
                         v += ((al * DG[a, i] + be * DG[b, i]) / p * coa_se[i]) ** 2
                     w[i] = 1.0 / v
@@ -529,8 +551,16 @@ def _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_
     evaluated grid indices (sorted) and chi2, amplitude, mixing fraction there (K, m)."""
     m = p_grid.size
     done = np.unique(np.r_[np.arange(0, m, every), m - 1])
-    outs = list(_chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[done], constant,
-                         model_rel, bmax_v))
+    first = _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[done], constant, model_rel,
+                     bmax_v)
+    # every trial P's columns, filled as they are evaluated (a cell is the same whichever
+    # call computes it); ``have`` marks the evaluated ones
+    full = [np.empty((o.shape[0], m), o.dtype) for o in first]
+    for f_, o in zip(full, first, strict=True):
+        f_[:, done] = o
+    have = np.zeros(m, bool)
+    have[done] = True
+    outs = list(first)
     dof = max(coa.size - 3, 1)
     for _ in range(rounds):
         prof = outs[0].min(axis=0)
@@ -549,11 +579,11 @@ def _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_
         new = np.concatenate([np.arange(done[g] + 1, done[g + 1]) for g in need])
         more = _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[new], constant, model_rel,
                         bmax_v)
-        cols = np.r_[done, new]
-        order = np.argsort(cols)
-        done = cols[order]
-        outs = [np.concatenate([o, n_], axis=1)[:, order] for o, n_ in zip(outs, more,
-                                                                             strict=True)]
+        for f_, o in zip(full, more, strict=True):
+            f_[:, new] = o
+        have[new] = True
+        done = np.flatnonzero(have)
+        outs = [f_[:, done] for f_ in full]
     return done, outs
 
 

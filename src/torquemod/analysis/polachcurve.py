@@ -13,10 +13,12 @@ from torquemod.analysis.contact.polach import (
     force_function_slope,
     friction_coefficient,
     swing_average,
+    swing_nodes,
 )
 from torquemod.errors import InputError
 
-__all__ = ["longitudinal_mean", "polach_coa", "polach_slope"]
+__all__ = ["longitudinal_mean", "longitudinal_mean_jacobian", "polach_coa", "polach_coa_jacobian",
+           "polach_slope"]
 
 
 def polach_coa(xi, theta, *, speed_m_s=None):
@@ -161,3 +163,81 @@ def _mean_slope(xi, theta, swing=None, speed_m_s=None):
     x_lo, x_hi = np.maximum(xi - h, 0.0), xi + h
     return ((longitudinal_mean(x_hi, theta, swing, speed_m_s)
              - longitudinal_mean(x_lo, theta, swing, speed_m_s)) / (x_hi - x_lo))
+
+
+def polach_coa_jacobian(xi, theta):
+    """Derivatives of the constant-friction :func:`polach_coa` with respect to its three
+    parameters ``(mu, kA*s, kS*s)`` at ``|xi|``, in closed form.
+
+    With ``e = |xi|/mu``, ``g(t) = t/(1 + t^2)`` and ``CoA = (2/pi)*mu*(g(A*e) +
+    arctan(S*e))`` (``A = kA*s``, ``S = kS*s``)::
+
+        dCoA/dmu = (2/pi)*(g(A*e) + arctan(S*e) - e*(A*g'(A*e) + S/(1 + (S*e)^2)))
+        dCoA/dA  = (2/pi)*|xi|*g'(A*e),      g'(t) = (1 - t^2)/(1 + t^2)^2
+        dCoA/dS  = (2/pi)*|xi|/(1 + (S*e)^2)
+
+    Parameters
+    ----------
+    xi : float or array_like
+        Creepage [-]; its magnitude is used.
+    theta : sequence of float
+        ``(mu, kA*s, kS*s)`` [-].
+
+    Returns
+    -------
+    ndarray
+        Shape ``xi.shape + (3,)``: d CoA/d mu, d CoA/d (kA*s), d CoA/d (kS*s).
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (3) and (8), differentiated.
+    """
+    x = np.abs(np.asarray(xi, dtype=float))
+    mu = max(float(theta[0]), 1e-12)
+    a, s = float(theta[1]), float(theta[2])
+    e = x / mu
+    t = a * e
+    u = s * e
+    with np.errstate(over="ignore"):  # far on the curve t^2 overflows: r -> 0, g' -> 0
+        r = 1.0 / (1.0 + t * t)
+        h1 = 1.0 / (1.0 + u * u)
+    g = t * r
+    g1 = r * (2.0 * r - 1.0)  # (1 - t^2)/(1 + t^2)^2
+    c = 2.0 / np.pi
+    return np.stack([c * (g + np.arctan(u) - e * (a * g1 + s * h1)),
+                     c * x * g1, c * x * h1], axis=-1)
+
+
+def longitudinal_mean_jacobian(xi, theta, swing=None):
+    """Derivatives of the constant-friction :func:`longitudinal_mean` with respect to
+    ``(mu, kA*s, kS*s)``: :func:`polach_coa_jacobian`, or over a swing the period average
+    of the signed curve's derivatives (the same quadrature nodes) with the sign of the mean.
+
+    Parameters
+    ----------
+    xi : float or array_like
+        Mean creepage [-].
+    theta : sequence of float
+        ``(mu, kA*s, kS*s)`` [-].
+    swing : float or array_like, optional
+        Creepage swing amplitude a [-]; None for the static curve.
+
+    Returns
+    -------
+    ndarray
+        Shape ``xi.shape + (3,)`` [-].
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (3) and (8), differentiated.
+    """
+    if swing is None:
+        return polach_coa_jacobian(xi, theta)
+    c = swing_nodes()
+    x = np.asarray(xi, dtype=float)[..., None] + np.abs(np.asarray(swing, float))[..., None] * c
+    sgn = np.sign(x)
+    mean = np.mean(sgn * polach_coa(np.abs(x), theta), axis=-1)
+    jac = np.mean(sgn[..., None] * polach_coa_jacobian(x, theta), axis=-2)
+    return np.sign(mean)[..., None] * jac

@@ -1,4 +1,4 @@
-"""Channel mapping and unit conversion shared by every recording reader.
+"""The channel map shared by every recording reader.
 
 The manifest's ``[channels]`` table says which channel of a file feeds which channel of the
 method, in which unit, and where the time base comes from (docs/format.md)::
@@ -9,25 +9,28 @@ method, in which unit, and where the time base comes from (docs/format.md)::
     platform_speed = "PlatformSpeed"          # name only: the method's unit (rad/s)
     time = { name = "t", unit = "ms" }        # or: sample_rate_hz = 1000.0
 
-Everything here is a pure function of its arguments: :func:`resolve_channel_map` checks the raw
-table once and returns a frozen :class:`ChannelMap`; :func:`convert_units` turns values in a
-named unit into the method's SI unit; :func:`torquemod.io.timebase.assemble_recording` builds
+Everything here is a pure function of its arguments: :func:`resolve_channel_map` reads the
+table once (each entry as a :class:`ChannelEntry`, by
+:func:`torquemod._util.tomlcheck.read_table`) and returns a frozen :class:`ChannelMap`;
+:func:`torquemod.io.units.convert_units` turns values in a named unit into the method's SI
+unit; :func:`torquemod.io.timebase.assemble_recording` builds
 a :class:`~torquemod.io.experiment.Recording` from whatever a format reader found in its file.
 """
 
 from __future__ import annotations
 
 import importlib
-import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, make_dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from torquemod._util.tomlcheck import Check, checked, read_table
 from torquemod.errors import InputError
 from torquemod.io.checks import positive_number
 from torquemod.io.experiment import CHANNEL_UNITS, CHANNELS
+from torquemod.io.units import convert_units, unit_factor
 
 TIME = "time_s"
 TORQUE = CHANNELS[0]  # the channel whose sample times are the recording's
@@ -57,226 +60,7 @@ QUANTITY: dict[str, str] = {
     "position_m": "length",
 }
 
-#: Accepted units per quantity: factor to the SI unit of the method (first entry of each).
-UNITS: dict[str, dict[str, float]] = {
-    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "min": 60.0, "h": 3600.0},
-    "torque": {"N*m": 1.0, "kN*m": 1e3, "N*cm": 1e-2, "N*mm": 1e-3,
-               "lbf*ft": 1.3558179483314004},
-    "angular_speed": {"rad/s": 1.0, "rpm": 2.0 * math.pi / 60.0, "deg/s": math.pi / 180.0,
-                      "rev/s": 2.0 * math.pi},
-    "force": {"N": 1.0, "kN": 1e3, "daN": 10.0, "lbf": 4.4482216152605},
-    "linear_speed": {"m/s": 1.0, "km/h": 1.0 / 3.6, "mm/s": 1e-3, "mph": 0.44704},
-    "length": {"m": 1.0, "km": 1e3, "mm": 1e-3, "cm": 1e-2, "mi": 1609.344},
-}
-#: Linear (surface) speeds [-> m/s] accepted for the angular speed channels when the entry
-#: gives the radius ``radius_m`` that turns them into an angular speed: omega = v / r.
-LINEAR_SPEED_UNITS: dict[str, float] = UNITS["linear_speed"]
-
-#: Other spellings of the units above (matched after removing spaces).
-UNIT_ALIASES: dict[str, str] = {
-    "sec": "s", "msec": "ms", "µs": "us", "μs": "us", "usec": "us",
-    "Nm": "N*m", "N.m": "N*m", "N-m": "N*m", "N·m": "N*m", "N⋅m": "N*m",
-    "kNm": "kN*m", "kN.m": "kN*m", "kN-m": "kN*m", "kN·m": "kN*m",
-    "Ncm": "N*cm", "N.cm": "N*cm", "Nmm": "N*mm", "N.mm": "N*mm",
-    "ft*lbf": "lbf*ft", "ftlbf": "lbf*ft", "lbfft": "lbf*ft", "ft-lbf": "lbf*ft",
-    "lbf-ft": "lbf*ft",
-    "rad/sec": "rad/s", "rad*s^-1": "rad/s", "1/min": "rpm", "r/min": "rpm", "rev/min": "rpm",
-    "U/min": "rpm", "min^-1": "rpm", "°/s": "deg/s", "deg/sec": "deg/s", "rps": "rev/s",
-    "r/s": "rev/s", "kph": "km/h", "kmh": "km/h", "km/hr": "km/h", "mps": "m/s",
-}
-_KNOWN_BY_LOWER: dict[str, tuple[str, str]] = {}
-for _q, _table in (*UNITS.items(), ("linear_speed", LINEAR_SPEED_UNITS)):
-    for _u in _table:
-        _KNOWN_BY_LOWER[_u.lower()] = (_q, _u)
-for _alias, _u in UNIT_ALIASES.items():
-    _q = next(q for q, t in (*UNITS.items(), ("linear_speed", LINEAR_SPEED_UNITS)) if _u in t)
-    _KNOWN_BY_LOWER.setdefault(_alias.lower(), (_q, _u))
-del _q, _table, _u, _alias
-
-_QUANTITY_WORDS = {"time": "a time", "torque": "a torque", "angular_speed": "an angular speed",
-                   "force": "a force", "linear_speed": "a linear speed",
-                   "length": "a length"}
-_ENTRY_KEYS = ("name", "unit", "radius_m", "time")
 _RATE_KEYS = ("sample_rate_hz", "t0_s")
-
-
-def canonical_unit(unit: str) -> tuple[str, str] | None:
-    """The quantity and canonical spelling of a unit string.
-
-    Spaces are ignored; the exact spelling is tried first, then the spelling in lower case
-    (no two accepted units differ by case only).
-
-    Parameters
-    ----------
-    unit : str
-        The unit as written, e.g. "kNm".
-
-    Returns
-    -------
-    tuple of str or None
-        ``(quantity, canonical unit)``, or None when the unit is not known.
-
-    Examples
-    --------
-    >>> canonical_unit("kNm")
-    ('torque', 'kN*m')
-    >>> canonical_unit("furlong") is None
-    True
-    """
-    text = "".join(str(unit).split())
-    for table_q, table in UNITS.items():
-        if text in table:
-            return table_q, text
-    if text in LINEAR_SPEED_UNITS:
-        return "linear_speed", text
-    if text in UNIT_ALIASES:
-        return canonical_unit(UNIT_ALIASES[text])
-    return _KNOWN_BY_LOWER.get(text.lower())
-
-
-def accepted_units(quantity: str) -> list[str]:
-    """Canonical units accepted for a quantity, the SI unit first.
-
-    Parameters
-    ----------
-    quantity : str
-        One of ``time``, ``torque``, ``angular_speed``, ``force``, ``linear_speed``,
-        ``length``.
-
-    Returns
-    -------
-    list of str
-        The units.
-
-    Examples
-    --------
-    >>> accepted_units("force")[0]
-    'N'
-    """
-    units = list(UNITS[quantity])
-    if quantity == "angular_speed":
-        units += [f"{u} (with radius_m)" for u in LINEAR_SPEED_UNITS]
-    return units
-
-
-def unit_factor(unit: str, quantity: str, *, radius_m: float | None = None,
-                path: object | None = None, channel: str | None = None) -> float:
-    """Factor that turns values in a unit into the SI unit of a quantity.
-
-    Parameters
-    ----------
-    unit : str
-        The unit.
-    quantity : str
-        One of ``time``, ``torque``, ``angular_speed``, ``force``, ``linear_speed``,
-        ``length``.
-    radius_m : float or None
-        Radius r [m]: with it a linear speed (m/s, km/h, mm/s) is accepted for
-        ``angular_speed`` (the angular speed is v/r). Default None.
-    path : object
-        The file, named in messages only.
-    channel : str or None
-        The channel, named in messages only.
-
-    Returns
-    -------
-    float
-        The factor: SI value = factor * value.
-
-    Raises
-    ------
-    InputError
-        The unit is unknown, or measures another quantity (a linear speed without
-        ``radius_m``); the message names the unit and lists the accepted ones.
-    ValueError
-        ``quantity`` is unknown (a programming error).
-
-    Examples
-    --------
-    >>> unit_factor("kN", "force")
-    1000.0
-    >>> unit_factor("km/h", "angular_speed", radius_m=0.5) * 3.6
-    2.0
-    """
-    if quantity not in UNITS:
-        raise ValueError(f"unknown quantity {quantity!r}; use one of {', '.join(UNITS)}")
-    found = canonical_unit(unit)
-    accepted = ", ".join(accepted_units(quantity))
-    if found is None:
-        raise InputError(f"unknown unit '{unit}' for {_QUANTITY_WORDS[quantity]}", path=path,
-                         channel=channel, hint=f"use one of {accepted}")
-    unit_q, canon = found
-    if unit_q == quantity:
-        return UNITS[quantity][canon]
-    if unit_q == "linear_speed" and quantity == "angular_speed":
-        if radius_m is None:
-            raise InputError(f"unit '{unit}' is a linear speed, the channel needs an angular "
-                             "speed", path=path, channel=channel,
-                             hint="add radius_m = <wheel or platform path radius> to the "
-                                  f"channel's entry, or use one of {accepted}")
-        return LINEAR_SPEED_UNITS[canon] / radius_m
-    raise InputError(f"unit '{unit}' is {_QUANTITY_WORDS[unit_q]}, the channel needs "
-                     f"{_QUANTITY_WORDS[quantity]}", path=path, channel=channel,
-                     hint=f"map the right channel or use one of {accepted}")
-
-
-def convert_units(values: object, unit: str | None, quantity: str, *,
-                  radius_m: float | None = None, path: object | None = None,
-                  channel: str | None = None) -> np.ndarray:
-    """Values in a unit as a float64 array in the SI unit of a quantity.
-
-    The input itself is returned when it is float64 in the SI unit already; it is never
-    modified. Times given as ``datetime64``/``timedelta64`` become seconds since the first
-    sample.
-
-    Parameters
-    ----------
-    values : array_like
-        The values.
-    unit : str or None
-        Their unit; None or empty: the SI unit already.
-    quantity : str
-        The quantity (:func:`unit_factor`).
-    radius_m : float or None
-        Radius [m] turning a linear speed into an angular one. Default None.
-    path : object
-        The file, named in messages only.
-    channel : str or None
-        The channel, named in messages only.
-
-    Returns
-    -------
-    ndarray
-        float64 values in the SI unit.
-
-    Raises
-    ------
-    InputError
-        Non-numeric values, a NaT time stamp, or a unit :func:`unit_factor` refuses.
-
-    Examples
-    --------
-    >>> convert_units([60.0], "rpm", "angular_speed").round(4).tolist()
-    [6.2832]
-    """
-    arr = np.asarray(values)
-    if quantity == "time" and arr.dtype.kind in "mM":
-        if arr.size == 0:
-            return np.zeros(0)
-        if arr.dtype.kind == "M" and np.isnat(arr).any():
-            raise InputError("time stamp is not a time (NaT)", path=path, channel=channel)
-        delta = (arr - arr.reshape(-1)[0]).astype("timedelta64[ns]")
-        return delta.astype(np.int64).astype(np.float64) * 1e-9
-    if arr.dtype.kind not in "biuf":
-        raise InputError(f"values are not numeric (type {arr.dtype})", path=path,
-                         channel=channel, hint="map a numeric channel")
-    # no copy when the values are float64 in the SI unit already (a reader's fresh array,
-    # so a recording never exists twice in memory); a scaled result is a new array
-    out = arr.astype(np.float64, copy=False)
-    if unit is None or not str(unit).strip():
-        return out
-    factor = unit_factor(unit, quantity, radius_m=radius_m, path=path, channel=channel)
-    return out * factor if factor != 1.0 else out
 
 
 @dataclass(frozen=True)
@@ -385,62 +169,103 @@ def _positive(value: object, key: str, path: object) -> float:
                            hint="give the value in SI units, e.g. sample_rate_hz = 1000.0")
 
 
-def _entry(channel: str, key: str, value: object, path: object) -> ChannelSpec:
-    if isinstance(value, str):
-        value = {"name": value}
-    if not isinstance(value, Mapping):
-        raise InputError(f"[channels] '{key}' must be a channel name or a table like "
-                         "{ name = \"Torque\", unit = \"N*m\" }", path=path, channel=channel)
-    unknown = [k for k in value if k not in _ENTRY_KEYS]
-    if unknown:
-        raise InputError(f"[channels] '{key}' has unknown key(s) {', '.join(unknown)}",
-                         path=path, channel=channel, hint=f"use {', '.join(_ENTRY_KEYS)}")
-    name = value.get("name", channel)
-    if not isinstance(name, str) or not name.strip():
-        raise InputError(f"[channels] '{key}': 'name' must be a non-empty string", path=path,
-                         channel=channel)
-    unit = value.get("unit")
-    if unit is not None and not isinstance(unit, str):
-        raise InputError(f"[channels] '{key}': 'unit' must be a string", path=path,
-                         channel=channel)
-    radius = value.get("radius_m")
-    if radius is not None:
-        if QUANTITY[channel] != "angular_speed":
-            raise InputError(f"[channels] '{key}': radius_m only applies to the speed channels",
-                             path=path, channel=channel)
-        radius = _positive(radius, f"{key}.radius_m", path)
-    if unit:
-        # check now, so a mistake shows when the manifest is read, not file by file
-        unit_factor(unit, QUANTITY[channel], radius_m=radius, path=path, channel=channel)
-    time_name, time_unit = _own_time_entry(channel, key, value.get("time"), path)
-    return ChannelSpec(channel, name.strip(), unit.strip() if unit else None, radius, True,
-                       time_name, time_unit)
+_NAME = Check(test=lambda s: bool(s.strip()), need="a non-empty channel name",
+              hint='write the name as the file has it, e.g. name = "Torque"')
 
 
-def _own_time_entry(channel: str, key: str, value: object, path: object
-                    ) -> tuple[str | None, str | None]:
-    """``(name, unit)`` of an entry's ``time`` key: the channel's own time vector."""
-    if value is None:
-        return None, None
-    if channel == TIME:
-        raise InputError(f"[channels] '{key}': 'time' only applies to the method channels",
-                         path=path, channel=channel)
-    if isinstance(value, str):
-        value = {"name": value}
-    if not isinstance(value, Mapping) or any(k not in ("name", "unit") for k in value):
-        raise InputError(f"[channels] '{key}': 'time' must be the name of the channel's own "
-                         "time vector or a table like { name = \"t_fx\", unit = \"ms\" }",
-                         path=path, channel=channel)
-    name, unit = value.get("name"), value.get("unit")
-    if not isinstance(name, str) or not name.strip():
-        raise InputError(f"[channels] '{key}': the time vector's 'name' must be a non-empty "
-                         "string", path=path, channel=channel)
-    if unit is not None:
-        if not isinstance(unit, str):
-            raise InputError(f"[channels] '{key}': the time vector's 'unit' must be a string",
-                             path=path, channel=channel)
-        unit_factor(unit, "time", path=path, channel=channel)
-    return name.strip(), unit.strip() if unit else None
+@dataclass(frozen=True)
+class TimeEntry:
+    """An entry's ``time`` key as written: the channel's own time vector in the file.
+
+    Attributes
+    ----------
+    name : str
+        The time vector's name in the file.
+    unit : str or None
+        Its unit; None: the unit the file declares, else s.
+    """
+
+    name: str = checked(check=_NAME)
+    unit: str | None = None
+
+
+@dataclass(frozen=True)
+class ChannelEntry:
+    """One entry of the ``[channels]`` table as written (a bare name is ``{ name = ... }``).
+
+    Attributes
+    ----------
+    name : str
+        The channel's name in the file.
+    unit : str or None
+        Its unit in the file; None: the unit the file declares, else the method's SI unit.
+    radius_m : float or None
+        Radius turning a linear speed into an angular one [m] (speed channels only).
+    time : TimeEntry or None
+        The channel's own time vector (method channels only).
+    """
+
+    name: str = checked(check=_NAME)
+    unit: str | None = None
+    radius_m: float | None = checked(None, Check(lo=0.0, lo_open=True, hint=(
+        "give the wheel or platform path radius in metres, e.g. radius_m = 0.0675")))
+    time: TimeEntry | None = None
+
+
+#: The ``[channels]`` table as written: one optional entry per method channel, by its short
+#: and its full name (time included), and the time base as a sample rate and start time.
+_ChannelsTable = make_dataclass("_ChannelsTable", [
+    *((key, ChannelEntry | None, None) for key in (*SHORT_NAMES, *QUANTITY)),
+    ("sample_rate_hz", float | None, checked(None, Check(lo=0.0, lo_open=True, hint=(
+        "give the value in SI units, e.g. sample_rate_hz = 1000.0")))),
+    ("t0_s", float | None, None)], frozen=True)
+
+
+def _as_tables(raw: Mapping, path: object) -> dict:
+    """``raw`` with every bare name written as the table ``{ name = ... }`` (an entry's and
+    its ``time`` key's) and an entry without a name given the method channel's, so that
+    :func:`read_table` reads one form."""
+    out = {}
+    for key, value in raw.items():
+        if key in _RATE_KEYS or (key not in QUANTITY and key not in SHORT_NAMES):
+            out[key] = value  # read_table checks the value or names the unknown key
+            continue
+        if isinstance(value, str):
+            value = {"name": value}
+        if not isinstance(value, Mapping):
+            raise InputError(f"'channels.{key}' must be a channel name or a table like "
+                             f"{{ name = \"Torque\", unit = \"N*m\" }}, got {value!r}",
+                             path=path, hint=f'write {key} = "<the name in the file>"')
+        value = {"name": SHORT_NAMES.get(key, key), **value}  # no name: the method's own
+        if isinstance(value.get("time"), str):
+            value["time"] = {"name": value["time"]}
+        elif "time" in value and not isinstance(value["time"], Mapping):
+            raise InputError(f"'channels.{key}.time' must be the name of the channel's own "
+                             "time vector or a table like { name = \"t_fx\", unit = \"ms\" }, "
+                             f"got {value['time']!r}", path=path)
+        out[key] = value
+    return out
+
+
+def _spec(channel: str, key: str, entry: ChannelEntry, path: object) -> ChannelSpec:
+    """The :class:`ChannelSpec` of a read entry, after the rules between its keys."""
+    if entry.radius_m is not None and QUANTITY[channel] != "angular_speed":
+        raise InputError(f"'channels.{key}.radius_m': radius_m only applies to the speed "
+                         "channels (wheel_speed, platform_speed)", path=path, channel=channel,
+                         hint="remove it")
+    if entry.unit:  # checked now, so a mistake shows when the manifest is read
+        unit_factor(entry.unit, QUANTITY[channel], radius_m=entry.radius_m, path=path,
+                    channel=channel)
+    time = entry.time
+    if time is not None:
+        if channel == TIME:
+            raise InputError(f"'channels.{key}.time': 'time' only applies to the method "
+                             "channels", path=path, channel=channel, hint="remove it")
+        if time.unit:
+            unit_factor(time.unit, "time", path=path, channel=channel)
+    return ChannelSpec(channel, entry.name.strip(), entry.unit.strip() if entry.unit else None,
+                       entry.radius_m, True, None if time is None else time.name.strip(),
+                       time.unit.strip() if time is not None and time.unit else None)
 
 
 def resolve_channel_map(raw: Mapping | ChannelMap | None, path: object = None) -> ChannelMap:
@@ -468,8 +293,20 @@ def resolve_channel_map(raw: Mapping | ChannelMap | None, path: object = None) -
     Raises
     ------
     InputError
-        Not a table, an unknown key, a channel mapped twice, a file channel mapped to two
-        channels, a bad unit, or a bad ``t0_s`` (or one without ``sample_rate_hz``).
+        Not a table, an unknown key (with the nearest known one), a value of the wrong type
+        or out of range, a channel mapped twice, a file channel mapped to two channels, a bad
+        unit, or ``t0_s`` without ``sample_rate_hz``.
+
+    Examples
+    --------
+    >>> cmap = resolve_channel_map({"torque": {"name": "T", "unit": "kN*m"}, "fx": "Fx"})
+    >>> cmap.spec("torque_nm").unit, cmap.spec("fx_n").name
+    ('kN*m', 'Fx')
+    >>> try:
+    ...     resolve_channel_map({"torqe": "T"}, "experiment.toml")
+    ... except InputError as exc:
+    ...     print(str(exc).split("?")[0] + "?")
+    experiment.toml: unknown key 'channels.torqe'; did you mean 'torque'?
     """
     if isinstance(raw, ChannelMap):
         return raw
@@ -477,21 +314,18 @@ def resolve_channel_map(raw: Mapping | ChannelMap | None, path: object = None) -
         raw = {}
     if not isinstance(raw, Mapping):
         raise InputError("[channels] must be a table", path=path)
+    table = read_table(_ChannelsTable, _as_tables(raw, path), section="channels", path=path)
     specs = dict(default_channel_map().specs)
     given: dict[str, str] = {}
-    for key, value in raw.items():
+    for key in raw:
         if key in _RATE_KEYS:
             continue
         channel = SHORT_NAMES.get(key, key)
-        if channel not in QUANTITY:
-            keys = ", ".join([*SHORT_NAMES, *_RATE_KEYS])
-            raise InputError(f"unknown key '{key}' in [channels]", path=path,
-                             hint=f"use {keys} (or the full names like torque_nm)")
         if channel in given:
             raise InputError(f"[channels] maps '{channel}' twice ('{given[channel]}' and "
                              f"'{key}')", path=path, channel=channel, hint="keep one")
         given[channel] = key
-        specs[channel] = _entry(channel, key, value, path)
+        specs[channel] = _spec(channel, key, getattr(table, key), path)
     by_name: dict[str, str] = {}
     for channel in CHANNELS:
         name = specs[channel].name
@@ -501,15 +335,11 @@ def resolve_channel_map(raw: Mapping | ChannelMap | None, path: object = None) -
                              hint="each method channel needs its own file channel")
         by_name[name] = channel
     cmap = ChannelMap(specs, raw=dict(raw))
-    if "t0_s" in raw:
-        t0 = raw["t0_s"]
-        if isinstance(t0, bool) or not isinstance(t0, int | float) or not math.isfinite(t0):
-            raise InputError(f"'t0_s' must be a finite number, got {t0!r}", path=path)
-        if "sample_rate_hz" not in raw:
-            raise InputError("'t0_s' in [channels] needs 'sample_rate_hz'", path=path)
-    if "sample_rate_hz" in raw:
-        cmap = cmap.with_sample_rate(raw["sample_rate_hz"], float(raw.get("t0_s", 0.0)),
-                                     path=path)
+    if table.t0_s is not None and table.sample_rate_hz is None:
+        raise InputError("'t0_s' in [channels] needs 'sample_rate_hz'", path=path,
+                         hint="give sample_rate_hz = <Hz> with it, or remove t0_s")
+    if table.sample_rate_hz is not None:
+        cmap = cmap.with_sample_rate(table.sample_rate_hz, table.t0_s or 0.0, path=path)
     return cmap
 
 

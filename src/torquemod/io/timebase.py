@@ -29,9 +29,9 @@ from torquemod.io.channels import (
     _converted,
     _missing,
     as_vector,
-    convert_units,
 )
 from torquemod.io.experiment import CHANNELS, OPTIONAL_CHANNELS, Recording
+from torquemod.io.units import convert_units
 from torquemod.io.validate import fit_time_grid
 
 #: A channel on its own time base must cover at least this share of the torque channel's

@@ -315,7 +315,7 @@ class ProcedureParams:
         Classical RK4 steps per ``samples_per_step`` output samples [-]. Default 1.
     samples_per_step : int
         Output samples per integration step (those inside a step are interpolated,
-        :func:`torquemod.twins.vtrack.rig.dynamics.integrate`) [-]. Default 8.
+        :func:`torquemod.twins.vtrack.rig.lanes.integrate`) [-]. Default 8.
     """
 
     dc_torques_nm: tuple[float, ...] = checked()

@@ -2,11 +2,13 @@
 
 :func:`simulate_batch` runs the procedure of every configuration without sensors or files
 and returns per point what ``truth.json`` records per step (the simulated phase with the wobble
-fitted out, means, CoA, theory; :mod:`torquemod.twins.vtrack.rig.truth`) -- what a sweep compares.
-Every
-torque step of every point is one piece of work (each step starts from the steady state of
-the torque before, :mod:`torquemod.twins.vtrack.rig.steps`), run by a pool of threads: the compiled
-integrator releases the GIL, so the points advance side by side on all cores.
+fitted out, means, CoA, theory; :mod:`torquemod.twins.vtrack.rig.truth`) -- what a sweep
+compares. Every torque step of every point is one piece of work (each step starts from the
+steady state of the torque before, :mod:`torquemod.twins.vtrack.rig.steps`); groups of
+``lanes`` steps, of one point or of several, are integrated side by side in one compiled loop
+over a structure of arrays (:mod:`torquemod.twins.vtrack.rig.lanes`), and the groups run on a
+pool of threads: the compiled integrator releases the GIL, so they advance together on all
+cores.
 
 For the same ``seed`` a point's steps are those of
 :func:`torquemod.twins.vtrack.simulate.run_simulation`
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -26,7 +29,14 @@ import numpy as np
 from torquemod.errors import InputError
 from torquemod.twins.vtrack.params import SimConfig
 from torquemod.twins.vtrack.rig.dynamics import pack_parameters, wobble_table
-from torquemod.twins.vtrack.rig.steps import StepPlan, integrate_step, plan_steps
+from torquemod.twins.vtrack.rig.steps import (
+    StepJob,
+    StepPlan,
+    integrate_step,
+    integrate_steps,
+    plan_steps,
+    steps_buffer_shape,
+)
 from torquemod.twins.vtrack.rig.truth import recorded_step_truth, step_truth, wobble_truth
 from torquemod.twins.vtrack.theory import creep_curve_peak
 
@@ -145,9 +155,17 @@ def plan_run(config: SimConfig, seed: int,
                    n_settle, n_settle + n_rec)
 
 
+#: torque steps integrated side by side in one compiled loop by :func:`simulate_batch`
+#: (:mod:`torquemod.twins.vtrack.rig.lanes`). Measured on 16 default points (2 shared cores,
+#: alternated): 2 lanes cost 3-4 % more CPU than 1, 4 lanes ~15 % more -- one RK4 step is
+#: bound by its work, not by the latency of its chain of contact evaluations, so
+#: interleaving scalar steps gains nothing (docs/performance.md)
+DEFAULT_LANES = 1
+
+
 def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 0,
-                   workers: int | None = None, large_signal: bool = True
-                   ) -> list[BatchPoint]:
+                   workers: int | None = None, large_signal: bool = True,
+                   lanes: int | None = None) -> list[BatchPoint]:
     """Simulate every configuration of ``configs``
     (:class:`~torquemod.twins.vtrack.params.SimConfig`,
     e.g. from :func:`torquemod.twins.vtrack.simulate.load_config` with a point's overrides) and
@@ -168,6 +186,10 @@ def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 
         Threads; None: the CPUs available.
     large_signal : bool
         Solve each step's large-signal theory phase. Default True.
+    lanes : int or None
+        Torque steps (of one point or of several) integrated together in one compiled
+        loop (:func:`~torquemod.twins.vtrack.rig.steps.integrate_steps`); None:
+        :data:`DEFAULT_LANES`. Every step's numbers are those of the step integrated alone.
 
     Returns
     -------
@@ -184,41 +206,69 @@ def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 
     if len(seeds) != len(configs):
         raise InputError(f"simulate_batch got {len(seeds)} seeds for {len(configs)} "
                          "configurations", hint="give one seed, or one per configuration")
+    n_lanes = max(1, int(lanes or DEFAULT_LANES))
     points = [(config, plan_run(config, s), pack_parameters(config.rig, config.disturbances))
               for config, s in zip(configs, seeds, strict=True)]
 
-    def run(point, plan, before):
-        config, rp, params = point
-        start = None if plan.y0 is not None else before.result()[2]
-        out, n_done, slipped, y_end = integrate_step(config, params, rp.wobble, plan,
-                                                     rp.n_step, start, rp.n_settle)
+    def finish(point, plan, result):
+        config, rp, _ = point
+        out, n_done, slipped, y_end = result
         if slipped:
             return None, plan.t0_s + n_done * (1.0 / config.sensors.sample_rate_hz), y_end
         entry, _ = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done, plan.t0_s,
                                        rp.wobble, rp.n_settle, large_signal)
         return entry, None, y_end
 
+    local = threading.local()  # each thread's sample buffer, reused from group to group
+
+    def run_group(group):
+        jobs = [StepJob(pt[0], pt[2], pt[1].wobble, plan, pt[1].n_step, None, pt[1].n_settle)
+                for pt, plan in group]
+        shape = steps_buffer_shape(jobs)
+        buf = getattr(local, "buf", None)
+        if buf is None or buf.shape != shape:
+            local.buf = buf = np.empty(shape)
+        results = integrate_steps(jobs, buf)
+        return [finish(pt, plan, res) for (pt, plan), res in zip(group, results, strict=True)]
+
+    def run_chained(point, plan, before):
+        config, rp, params = point
+        res = integrate_step(config, params, rp.wobble, plan, rp.n_step, before()[2],
+                             rp.n_settle)
+        return [finish(point, plan, res)]
+
     results = []
     with ThreadPoolExecutor(max_workers=workers or default_workers()) as pool:
-        # submitted in step order: a step waiting for the end of the one before never blocks
-        futures = []
-        for point in points:
-            futs = []
-            for plan in point[1].steps:
-                futs.append(pool.submit(run, point, plan, futs[-1] if futs else None))
-            futures.append(futs)
+        # every step with its own start state goes to a group of lanes, in point order (a
+        # point's steps have the same length); a step that starts where the one before
+        # ended is submitted after it, so that waiting for it never blocks
+        free = [(pt, plan) for pt in points for plan in pt[1].steps if plan.y0 is not None]
+        where = {}
+        for g in range(0, len(free), n_lanes):
+            group = free[g:g + n_lanes]
+            fut = pool.submit(run_group, group)
+            for q, (pt, plan) in enumerate(group):
+                where[id(pt), plan.index] = (fut, q)
+
+        def getter(key):
+            fut, q = where[key]
+            return lambda: fut.result()[q]
+
+        for pt in points:
+            for plan in pt[1].steps:
+                if plan.y0 is None:
+                    before = getter((id(pt), plan.index - 1))
+                    where[id(pt), plan.index] = (pool.submit(run_chained, pt, plan, before), 0)
         try:
-            for point, futs, s in zip(points, futures, seeds, strict=True):
+            for point, s in zip(points, seeds, strict=True):
                 config, wobble = point[0], point[1].wobble
                 steps, slip_step, slip_time = [], None, None
-                for plan, fut in zip(point[1].steps, futs, strict=True):
-                    entry, t_slip, _ = fut.result()
+                for plan in point[1].steps:
+                    entry, t_slip, _ = getter((id(point), plan.index))()
                     if entry is None:
                         slip_step, slip_time = plan.index, t_slip
-                        for later in futs[plan.index:]:
-                            later.cancel()
                         entry = step_truth(plan.index, plan.dc_nm, config, None, True,
-                                            large_signal=large_signal)
+                                           large_signal=large_signal)
                         entry["slip_time_s"] = t_slip
                         steps.append(entry)
                         break
@@ -232,7 +282,6 @@ def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 
                                       "coa": t_peak / (rig.wheel_radius_m
                                                        * rig.normal_load_n)}))
         finally:
-            for futs in futures:
-                for fut in futs:
-                    fut.cancel()
+            for fut, _ in where.values():
+                fut.cancel()
     return results

@@ -24,17 +24,19 @@ Equations (derived for this model; the contact force is quasi-static, Polach 200
 
 The motor torque is ``T_m = T_dc(t) + A*sin(2*pi*f*(t - t_gen) + phi)`` with a DC ramp.
 
-Integration (:func:`integrate`): classical RK4 at a fixed step of ``samples_per_step`` output
-samples (default 4, configured in ``[procedure]``); samples inside a step are the cubic
-Hermite interpolant of the step's end states and slopes, with the contact forces evaluated
-at that state -- exactly at the step's middle sample, and for the other inner samples of an
-even block of >= 4 by the cubic through the exact forces half a step before, at the ends and
-the middle (to ~1e-6 N; exact at rail joints and in fast transients; see :func:`_integrate`).
+Integration (:mod:`torquemod.twins.vtrack.rig.lanes`): classical RK4 at a fixed step of
+``samples_per_step`` output samples (default 8, configured in ``[procedure]``); samples inside
+a step are the cubic Hermite interpolant of the step's end states and slopes, with the contact
+forces evaluated at that state -- exactly at the step's middle sample, and for the other inner
+samples of an even block of >= 4 by the cubic through the exact forces half a step before, at
+the ends and the middle (to ~1e-6 N; exact at rail joints and in fast transients; see
+:func:`torquemod.twins.vtrack.rig.lanes.integrate`).
 The dynamics (and so the phase) never read these recorded forces. The work per step is trimmed
 without changing the equations: the modulation sine is rotated from step to step, the normal
 load's sines from a per-step anchor (above :func:`_load_near`), the speed reference's wobble
-from per-step phasors (:func:`_wob_step`), and the states are kept in registers
-(:func:`_rhs_s`).
+from per-step phasors (:func:`_wob_step`), and the right-hand side reads the states as
+scalars (:func:`_rhs_s`). The helpers below take a lane index ``l`` into arrays of lanes
+(one row per integration), as the integrator runs several side by side.
 """
 
 from __future__ import annotations
@@ -47,10 +49,7 @@ import numpy as np
 
 from torquemod.analysis.contact.polach import creep_force_scalar
 from torquemod.twins.vtrack.params import DisturbanceParams, RigParams
-from torquemod.twins.vtrack.rig.kernels import FLAGS
-from torquemod.twins.vtrack.rig.kernels import cos_small as _cos_small
-from torquemod.twins.vtrack.rig.kernels import exp_small as _exp_small
-from torquemod.twins.vtrack.rig.kernels import sin_small as _sin_small
+from torquemod.twins.vtrack.rig.kernels import FLAGS, cos_small, exp_small, sin_small
 from torquemod.twins.vtrack.rig.wobble import (  # noqa: F401 - the wobble's names, re-exported from their old home
     _wob_rev,
     _wob_set,
@@ -83,7 +82,16 @@ def _renamed(fn, name: str):
 _creep_force = numba.njit(cache=True, fastmath=_FLAGS)(
     _renamed(creep_force_scalar, "creep_force_scalar_fastmath"))
 _FAST = {"fastmath": _FLAGS, "cache": True}
-#: Columns of the per-sample output of :func:`integrate`.
+#: the same functions inlined into the integrator (numba's ``inline="always"``: compiled only
+#: as part of their callers, with the callers' flags; no cache entries of their own)
+_INLINE = {"fastmath": _FLAGS, "inline": "always"}
+_creep_force_in = numba.njit(**_INLINE)(
+    _renamed(creep_force_scalar, "creep_force_scalar_inline"))
+_cos_small = numba.njit(**_INLINE)(_renamed(cos_small.py_func, "cos_small_inline"))
+_sin_small = numba.njit(**_INLINE)(_renamed(sin_small.py_func, "sin_small_inline"))
+_exp_small = numba.njit(**_INLINE)(_renamed(exp_small.py_func, "exp_small_inline"))
+#: Columns of the per-sample output of the integrator
+#: (:func:`torquemod.twins.vtrack.rig.lanes.integrate`).
 OUT_COLUMNS = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", "fy_n",
                "fz_n", "wheel_angle_rad", "platform_angle_rad", "creepage")
 
@@ -176,90 +184,93 @@ A_TH, A_SS, A_SC, A_PHI, A_JE, A_JS, A_JC = range(7)
 N_ANCHOR = 7
 
 
-@numba.njit(**_FAST)
-def _load_anchor(th_p: float, p: np.ndarray, a: np.ndarray) -> float:
-    """Set the anchor ``a`` at ``th_p`` and return the normal load there (= normal_load)."""
-    a[A_TH] = th_p
-    n = p[P_N0]
-    if p[P_SLEEP_A] != 0.0:
-        u = p[P_SLEEP_N] * th_p
-        a[A_SS] = math.sin(u)
-        a[A_SC] = math.cos(u)
-        n += p[P_SLEEP_A] * a[A_SS]
-    if p[P_JOINT_A] != 0.0:
-        pitch = 2.0 * math.pi / p[P_JOINT_N]
+@numba.njit(inline="always", **_FAST)
+def _load_anchor(th_p: float, p: np.ndarray, l: int, a: np.ndarray) -> float:
+    """Set lane ``l``'s anchor ``a[l]`` at ``th_p`` and return the normal load there
+    (= :func:`normal_load` with the parameters ``p[l]``)."""
+    a[l, A_TH] = th_p
+    n = p[l, P_N0]
+    if p[l, P_SLEEP_A] != 0.0:
+        u = p[l, P_SLEEP_N] * th_p
+        a[l, A_SS] = math.sin(u)
+        a[l, A_SC] = math.cos(u)
+        n += p[l, P_SLEEP_A] * a[l, A_SS]
+    if p[l, P_JOINT_A] != 0.0:
+        pitch = 2.0 * math.pi / p[l, P_JOINT_N]
         phi = (th_p - 0.5 * pitch) % pitch
-        t = phi / p[P_WREF]
-        a[A_PHI] = phi
-        a[A_JE] = math.exp(-p[P_JOINT_Z] * t)
-        a[A_JS] = math.sin(p[P_JOINT_W] * t)
-        a[A_JC] = math.cos(p[P_JOINT_W] * t)
-        n += p[P_JOINT_A] * a[A_JE] * a[A_JS]
+        t = phi / p[l, P_WREF]
+        a[l, A_PHI] = phi
+        a[l, A_JE] = math.exp(-p[l, P_JOINT_Z] * t)
+        a[l, A_JS] = math.sin(p[l, P_JOINT_W] * t)
+        a[l, A_JC] = math.cos(p[l, P_JOINT_W] * t)
+        n += p[l, P_JOINT_A] * a[l, A_JE] * a[l, A_JS]
     return n
 
 
-@numba.njit(**_FAST)
-def _load_near(th_p: float, p: np.ndarray, a: np.ndarray) -> float:
-    """:func:`normal_load` at ``th_p`` from the anchor ``a`` set nearby (see above)."""
-    d = th_p - a[A_TH]
-    n = p[P_N0]
-    if p[P_SLEEP_A] != 0.0:
-        u = p[P_SLEEP_N] * d
+@numba.njit(inline="always", **_FAST)
+def _load_near(th_p: float, p: np.ndarray, l: int, a: np.ndarray) -> float:
+    """:func:`normal_load` at ``th_p`` from lane ``l``'s anchor ``a[l]`` set nearby (see
+    above; parameters ``p[l]``)."""
+    d = th_p - a[l, A_TH]
+    n = p[l, P_N0]
+    if p[l, P_SLEEP_A] != 0.0:
+        u = p[l, P_SLEEP_N] * d
         if abs(u) <= _SMALL:
-            n += p[P_SLEEP_A] * (a[A_SS] * _cos_small(u) + a[A_SC] * _sin_small(u))
+            n += p[l, P_SLEEP_A] * (a[l, A_SS] * _cos_small(u) + a[l, A_SC] * _sin_small(u))
         else:
-            n += p[P_SLEEP_A] * math.sin(p[P_SLEEP_N] * th_p)
-    if p[P_JOINT_A] != 0.0:
-        pitch = 2.0 * math.pi / p[P_JOINT_N]
-        phi = a[A_PHI] + d
-        tau = d / p[P_WREF]
-        x = p[P_JOINT_Z] * tau
-        u = p[P_JOINT_W] * tau
+            n += p[l, P_SLEEP_A] * math.sin(p[l, P_SLEEP_N] * th_p)
+    if p[l, P_JOINT_A] != 0.0:
+        pitch = 2.0 * math.pi / p[l, P_JOINT_N]
+        phi = a[l, A_PHI] + d
+        tau = d / p[l, P_WREF]
+        x = p[l, P_JOINT_Z] * tau
+        u = p[l, P_JOINT_W] * tau
         if 0.0 <= phi < pitch and abs(u) <= _SMALL and abs(x) <= _SMALL:
-            n += p[P_JOINT_A] * a[A_JE] * _exp_small(-x) * (
-                a[A_JS] * _cos_small(u) + a[A_JC] * _sin_small(u))
+            n += p[l, P_JOINT_A] * a[l, A_JE] * _exp_small(-x) * (
+                a[l, A_JS] * _cos_small(u) + a[l, A_JC] * _sin_small(u))
         else:
             phi = (th_p - 0.5 * pitch) % pitch
-            t = phi / p[P_WREF]
-            n += p[P_JOINT_A] * math.exp(-p[P_JOINT_Z] * t) * math.sin(p[P_JOINT_W] * t)
+            t = phi / p[l, P_WREF]
+            n += p[l, P_JOINT_A] * math.exp(-p[l, P_JOINT_Z] * t) * math.sin(p[l, P_JOINT_W] * t)
     return n
 
 
-@numba.njit(**_FAST)
-def _load_advance(th_p: float, p: np.ndarray, a: np.ndarray, b: np.ndarray, exact: bool
-                  ) -> float:
-    """Set the anchor ``b`` at ``th_p`` by advancing the anchor ``a`` set nearby (the sines
-    rotated, the decay multiplied, as in :func:`_load_near`), or exactly (:func:`_load_anchor`)
-    if ``exact``, across a rail joint or for a large increment; return the normal load."""
+@numba.njit(inline="always", **_FAST)
+def _load_advance(th_p: float, p: np.ndarray, l: int, a: np.ndarray, b: np.ndarray,
+                  exact: bool) -> float:
+    """Set lane ``l``'s anchor ``b[l]`` at ``th_p`` by advancing its anchor ``a[l]`` set
+    nearby (the sines rotated, the decay multiplied, as in :func:`_load_near`), or exactly
+    (:func:`_load_anchor`) if ``exact``, across a rail joint or for a large increment;
+    return the normal load."""
     if exact:
-        return _load_anchor(th_p, p, b)
-    d = th_p - a[A_TH]
-    sa = p[P_SLEEP_A] != 0.0
-    u = p[P_SLEEP_N] * d
+        return _load_anchor(th_p, p, l, b)
+    d = th_p - a[l, A_TH]
+    sa = p[l, P_SLEEP_A] != 0.0
+    u = p[l, P_SLEEP_N] * d
     if sa and not abs(u) <= _SMALL:
-        return _load_anchor(th_p, p, b)
-    ja = p[P_JOINT_A] != 0.0
-    phi = a[A_PHI] + d
-    tau = d / p[P_WREF]
-    x = p[P_JOINT_Z] * tau
-    v = p[P_JOINT_W] * tau
-    if ja and not (0.0 <= phi < 2.0 * math.pi / p[P_JOINT_N] and abs(v) <= _SMALL
+        return _load_anchor(th_p, p, l, b)
+    ja = p[l, P_JOINT_A] != 0.0
+    phi = a[l, A_PHI] + d
+    tau = d / p[l, P_WREF]
+    x = p[l, P_JOINT_Z] * tau
+    v = p[l, P_JOINT_W] * tau
+    if ja and not (0.0 <= phi < 2.0 * math.pi / p[l, P_JOINT_N] and abs(v) <= _SMALL
                    and abs(x) <= _SMALL):
-        return _load_anchor(th_p, p, b)
-    b[A_TH] = th_p
-    n = p[P_N0]
+        return _load_anchor(th_p, p, l, b)
+    b[l, A_TH] = th_p
+    n = p[l, P_N0]
     if sa:
         cu, su = _cos_small(u), _sin_small(u)
-        b[A_SS] = a[A_SS] * cu + a[A_SC] * su
-        b[A_SC] = a[A_SC] * cu - a[A_SS] * su
-        n += p[P_SLEEP_A] * b[A_SS]
+        b[l, A_SS] = a[l, A_SS] * cu + a[l, A_SC] * su
+        b[l, A_SC] = a[l, A_SC] * cu - a[l, A_SS] * su
+        n += p[l, P_SLEEP_A] * b[l, A_SS]
     if ja:
         cv, sv = _cos_small(v), _sin_small(v)
-        b[A_PHI] = phi
-        b[A_JE] = a[A_JE] * _exp_small(-x)
-        b[A_JS] = a[A_JS] * cv + a[A_JC] * sv
-        b[A_JC] = a[A_JC] * cv - a[A_JS] * sv
-        n += p[P_JOINT_A] * b[A_JE] * b[A_JS]
+        b[l, A_PHI] = phi
+        b[l, A_JE] = a[l, A_JE] * _exp_small(-x)
+        b[l, A_JS] = a[l, A_JS] * cv + a[l, A_JC] * sv
+        b[l, A_JC] = a[l, A_JC] * cv - a[l, A_JS] * sv
+        n += p[l, P_JOINT_A] * b[l, A_JE] * b[l, A_JS]
     return n
 
 
@@ -290,19 +301,19 @@ def _rhs(y: np.ndarray, t_m: float, n: float, p: np.ndarray, dy: np.ndarray):
 @numba.njit(**_FAST)
 def _deriv(y: np.ndarray, t_m: float, p: np.ndarray, dy: np.ndarray, f: np.ndarray) -> None:
     """Right-hand side at state ``y`` and motor torque ``t_m`` into ``dy``, contact values
-    (Fx, Fy, N, xi_x) into ``f`` -- the plain form of what :func:`integrate` evaluates."""
+    (Fx, Fy, N, xi_x) into ``f`` -- the plain form of what the integrator evaluates."""
     n = normal_load(y[4], p)
     fx, fy, xi = _rhs(y, t_m, n, p, dy)
     f[0], f[1], f[2], f[3] = fx, fy, n, xi
 
 
-@numba.njit(**_FAST)
+@numba.njit(inline="always", **_FAST)
 def _ramp(t, dc_from, dc_to, t_step, ramp_s):
     r = 1.0 if ramp_s <= 0.0 else min(max((t - t_step) / ramp_s, 0.0), 1.0)
     return dc_from + (dc_to - dc_from) * r
 
 
-@numba.njit(**_FAST)
+@numba.njit(inline="always", **_FAST)
 def _rhs_s(y0, y1, y2, y5, y6, t_m, n, c, dw=0.0):
     """:func:`_rhs` on scalars (the states the right-hand side reads; ``th_w' = w_w`` and
     ``th_p' = W_p`` need no evaluation) with the constants ``c`` of :func:`_constants` and the
@@ -311,44 +322,64 @@ def _rhs_s(y0, y1, y2, y5, y6, t_m, n, c, dw=0.0):
     rw, rp, wref, ijm, ijw, ijp, kt, ct, kp, ki, trr, xiy, sx, sy, mu0, a, b, ka, ks = c
     v = y5 * rp
     xi = (y2 * rw - v) / v
-    fx, fy = _creep_force(xi, xiy, n, v, sx, sy, mu0, a, b, ka, ks)
+    fx, fy = _creep_force_in(xi, xiy, n, v, sx, sy, mu0, a, b, ka, ks)
     t_sh = kt * y0 + ct * (y1 - y2)
     err = wref + dw - y5
     return (y1 - y2, (t_m - t_sh) * ijm, (t_sh - rw * fx) * ijw,
             (kp * err + ki * y6 + rp * fx - trr) * ijp, err, fx, fy, xi)
 
 
-@numba.njit(**_FAST)
-def _constants(p):
-    return (p[P_RW], p[P_RP], p[P_WREF], 1.0 / p[P_JM], 1.0 / p[P_JW], 1.0 / p[P_JP], p[P_KT],
-            p[P_CT], p[P_KP], p[P_KI], p[P_TRR], p[P_XIY], p[P_SX], p[P_SY], p[P_MU0], p[P_A],
-            p[P_B], p[P_KA], p[P_KS])
+@numba.njit(inline="always", **_FAST)
+def _constants(p, l, c):
+    """Lane ``l``'s constants of :func:`_rhs_s` (from the parameters ``p[l]``) into ``c[l]``."""
+    c[l, 0], c[l, 1], c[l, 2] = p[l, P_RW], p[l, P_RP], p[l, P_WREF]
+    c[l, 3], c[l, 4], c[l, 5] = 1.0 / p[l, P_JM], 1.0 / p[l, P_JW], 1.0 / p[l, P_JP]
+    c[l, 6], c[l, 7], c[l, 8], c[l, 9] = p[l, P_KT], p[l, P_CT], p[l, P_KP], p[l, P_KI]
+    c[l, 10], c[l, 11], c[l, 12], c[l, 13] = p[l, P_TRR], p[l, P_XIY], p[l, P_SX], p[l, P_SY]
+    c[l, 14], c[l, 15], c[l, 16] = p[l, P_MU0], p[l, P_A], p[l, P_B]
+    c[l, 17], c[l, 18] = p[l, P_KA], p[l, P_KS]
 
 
-@numba.njit(**_FAST)
-def _put(out, i, kt, ct, y0, y1, y2, y3, y4, y5, fx, fy, n, xi):
-    out[i, 0] = kt * y0 + ct * (y1 - y2)
-    out[i, 1] = y2
-    out[i, 2] = y5
-    out[i, 3] = fx
-    out[i, 4] = fy
-    out[i, 5] = n
-    out[i, 6] = y3
-    out[i, 7] = y4
-    out[i, 8] = xi
+#: number of constants of :func:`_constants`
+N_CONST = 19
 
 
-@numba.njit(**_FAST)
-def _hermite(th, h, y0, y1, y2, y3, y4, y5, y6, a0, a1, a2, a5, a6, z0, z1, z2, z3, z4, z5, z6,
-             e0, e1, e2, e5, e6):
-    """Cubic Hermite interpolant at ``th`` (fraction of the step ``h``) of the states ``y``
-    (slopes ``a``; ``th_w' = w_w``, ``th_p' = W_p``) at the step's start and ``z`` (slopes
-    ``e``) at its end."""
+@numba.njit(inline="always", **_FAST)
+def _ctuple(c, l):
+    """Lane ``l``'s constants (:func:`_constants`) as the tuple :func:`_rhs_s` reads."""
+    return (c[l, 0], c[l, 1], c[l, 2], c[l, 3], c[l, 4], c[l, 5], c[l, 6], c[l, 7], c[l, 8],
+            c[l, 9], c[l, 10], c[l, 11], c[l, 12], c[l, 13], c[l, 14], c[l, 15], c[l, 16],
+            c[l, 17], c[l, 18])
+
+
+@numba.njit(inline="always", **_FAST)
+def _put(out, l, i, kt, ct, y0, y1, y2, y3, y4, y5, fx, fy, n, xi):
+    """Lane ``l``'s sample ``i``: the columns of :data:`OUT_COLUMNS` into ``out[l, i]``."""
+    out[l, i, 0] = kt * y0 + ct * (y1 - y2)
+    out[l, i, 1] = y2
+    out[l, i, 2] = y5
+    out[l, i, 3] = fx
+    out[l, i, 4] = fy
+    out[l, i, 5] = n
+    out[l, i, 6] = y3
+    out[l, i, 7] = y4
+    out[l, i, 8] = xi
+
+
+@numba.njit(inline="always", **_FAST)
+def _hermite_weights(th, h):
+    """Weights of the cubic Hermite interpolant (:func:`_hermite`) at ``th`` (fraction of
+    the step ``h``): of the start value, start slope, end value and end slope."""
     r = 1.0 - th
-    w00 = (1.0 + 2.0 * th) * r * r
-    w10 = th * r * r * h
-    w01 = th * th * (3.0 - 2.0 * th)
-    w11 = -th * th * r * h
+    return (1.0 + 2.0 * th) * r * r, th * r * r * h, th * th * (3.0 - 2.0 * th), -th * th * r * h
+
+
+@numba.njit(inline="always", **_FAST)
+def _hermite(w00, w10, w01, w11, y0, y1, y2, y3, y4, y5, y6, a0, a1, a2, a5, a6, z0, z1, z2,
+             z3, z4, z5, z6, e0, e1, e2, e5, e6):
+    """Cubic Hermite interpolant with the weights of :func:`_hermite_weights` of the states
+    ``y`` (slopes ``a``; ``th_w' = w_w``, ``th_p' = W_p``) at the step's start and ``z``
+    (slopes ``e``) at its end."""
     return (w00 * y0 + w10 * a0 + w01 * z0 + w11 * e0,
             w00 * y1 + w10 * a1 + w01 * z1 + w11 * e1,
             w00 * y2 + w10 * a2 + w01 * z2 + w11 * e2,
@@ -365,7 +396,7 @@ def _hermite(th, h, y0, y1, y2, y3, y4, y5, y6, a0, a1, a2, a5, a6, z0, z1, z2, 
 _CUBIC_MISS = 2.5e-7
 
 
-@numba.njit(**_FAST)
+@numba.njit(inline="always", **_FAST)
 def _cubic_weights(th):
     """Lagrange weights at ``th`` of the nodes -1/2, 0, 1/2, 1 (fractions of a step)."""
     a, b, c, d = th + 0.5, th, th - 0.5, th - 1.0
@@ -374,261 +405,6 @@ def _cubic_weights(th):
 
 #: RK4 steps between exact re-evaluations of the modulation's sine (rotated in between)
 _RESYNC = 1024
-
-
-_NO_WOBBLE = np.zeros((0, 4))
-
-
-def integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s, amp, omega,
-              phase, t_gen, slip_creepage, out, samples_per_step=1, wobble=None):
-    """:func:`_integrate` (compiled) with the platform speed reference's ``wobble`` table of
-    :func:`wobble_table` (None: a steady reference).
-
-    Parameters
-    ----------
-    y : ndarray
-        The state at ``t0``.
-    t0 : float
-        Start time [s].
-    n_samples : int
-        Output samples [-].
-    dt : float
-        Sample interval [s].
-    substeps : int
-        RK4 steps per ``samples_per_step`` samples [-].
-    p : ndarray
-        The parameter vector (:func:`pack_parameters`).
-    dc_from : float
-        DC torque before the ramp [N*m].
-    dc_to : float
-        DC torque after the ramp [N*m].
-    t_step : float
-        Start of the ramp [s].
-    ramp_s : float
-        Ramp time [s].
-    amp : float
-        Modulation amplitude [N*m].
-    omega : float
-        Modulation angular frequency [rad/s].
-    phase : float
-        Generator phase [rad].
-    t_gen : float
-        Generator time origin [s].
-    slip_creepage : float
-        Creepage at which the integration stops as slipped [-].
-    out : ndarray
-        Output rows (:data:`OUT_COLUMNS`), written in place.
-    samples_per_step : int
-        Output samples per integration step [-]. Default 1.
-    wobble : ndarray or None
-        The wobble rows; None: a steady reference.
-
-    Returns
-    -------
-    n_written : int
-        Samples written; integration stops at the first sample whose creepage exceeds
-        ``slip_creepage``.
-    slipped : bool
-        Whether it stopped so.
-    """
-    wob = _NO_WOBBLE if wobble is None else np.ascontiguousarray(wobble, dtype=np.float64)
-    return _integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s, amp,
-                      omega, phase, t_gen, slip_creepage, out, samples_per_step, wob)
-
-
-# nogil: simulate's pipeline integrates the next step while a worker thread finishes the last
-@numba.njit(nogil=True, **_FAST)
-def _integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s, amp, omega,
-               phase, t_gen, slip_creepage, out, samples_per_step, wob):
-    """Advance state ``y`` (modified in place) by ``n_samples`` output samples of ``dt`` [s]
-    and write :data:`OUT_COLUMNS` to ``out`` (sample ``i`` is the state at ``t0 + i*dt``).
-
-    The time axis is cut into blocks of ``samples_per_step`` samples, each integrated by
-    ``substeps`` classical RK4 steps (step ``h = samples_per_step*dt/substeps``; a shorter
-    last block takes the remaining samples). A sample that falls inside an RK4 step is the
-    cubic Hermite interpolant of the step's end states and derivatives (error O(h^4), as
-    the method's), with the contact forces evaluated at that interpolated state.
-    ``samples_per_step = substeps = 1`` is one RK4 step per sample.
-
-    Returns ``(n_written, slipped)``: integration stops at the first sample whose creepage
-    exceeds ``slip_creepage`` (or is not finite), which counts as wheel slip; ``y`` is then
-    the state of that sample.
-    """
-    m = samples_per_step
-    s_n = substeps
-    c = _constants(p)
-    kt, ct = p[P_KT], p[P_CT]
-    anc = np.zeros(N_ANCHOR)
-    anc_n = np.zeros(N_ANCHOR)
-    # the modulation sin(omega*(t - t_gen) + phase) by rotation between exact re-evaluations
-    use_mod = amp != 0.0
-    ang0 = omega * (t0 - t_gen) + phase
-    ms, mc = math.sin(ang0), math.cos(ang0)
-    y0, y1, y2, y3, y4, y5, y6 = y[0], y[1], y[2], y[3], y[4], y[5], y[6]
-    # the speed reference's wobble: each row's phasor at the step start (rotated from step to
-    # step, exact every _RESYNC steps), a cubic in the step's time and angle increments
-    nw = wob.shape[0]
-    use_wob = nw > 0
-    ws, wc, wrc, wrs, wsum = np.zeros(nw), np.zeros(nw), np.ones(nw), np.zeros(nw), np.zeros(6)
-    _wob_set(t0, y4, wob, ws, wc)
-    dth = 0.0  # platform angle advanced in the last step [rad]
-    # derivative and contact at the first sample
-    n0 = _load_anchor(y4, p, anc)
-    tm = _ramp(t0, dc_from, dc_to, t_step, ramp_s) + amp * ms
-    a0, a1, a2, a5, a6, fx0, fy0, xi0 = _rhs_s(y0, y1, y2, y5, y6, tm, n0, c,
-                                               _wobble(t0, y4, wob))
-    i = 0
-    h_prev = -1.0
-    # the contact at the middle of the step before (the cubic of the inner samples)
-    have_pm = False
-    fx_pm = fy_pm = n_pm = th_pm = 0.0
-    joint_pitch = 2.0 * math.pi / p[P_JOINT_N]
-    rc = rs = 1.0
-    n_steps = 0
-    while i < n_samples:
-        mb = min(m, n_samples - i)  # samples in this block
-        hb = mb * dt / s_n
-        if hb != h_prev:  # rotation of the modulation phase by half a step
-            h_prev = hb
-            rc, rs = math.cos(0.5 * omega * hb), math.sin(0.5 * omega * hb)
-            for j in range(nw):
-                wrc[j], wrs[j] = math.cos(0.5 * wob[j, 1] * hb), math.sin(0.5 * wob[j, 1] * hb)
-        tb = t0 + i * dt
-        hh = 0.5 * hb
-        for jj in range(s_n):
-            ta = tb + jj * hb
-            # the sample at the start of this RK step, if any
-            if (jj * mb) % s_n == 0:
-                k = i + (jj * mb) // s_n
-                _put(out, k, kt, ct, y0, y1, y2, y3, y4, y5, fx0, fy0, n0, xi0)
-                if not (xi0 < slip_creepage) or not math.isfinite(xi0):
-                    y[0], y[1], y[2], y[3], y[4], y[5], y[6] = y0, y1, y2, y3, y4, y5, y6
-                    return k + 1, True
-            # modulation at ta + h/2 and ta + h
-            if use_mod:
-                hs = ms * rc + mc * rs
-                hc = mc * rc - ms * rs
-                es = hs * rc + hc * rs
-                ec = hc * rc - hs * rs
-                if n_steps % _RESYNC == 0:
-                    ang = omega * (ta + hb - t_gen) + phase
-                    es, ec = math.sin(ang), math.cos(ang)
-                else:
-                    g = 1.5 - 0.5 * (es * es + ec * ec)  # keep on the unit circle
-                    es *= g
-                    ec *= g
-            else:
-                hs = es = 0.0
-                ec = 1.0
-            # wobble: time part at ta + h/2 and ta + h, angle part per stage (below)
-            if use_wob:
-                if n_steps % _RESYNC == 0:
-                    _wob_set(ta, y4, wob, ws, wc)
-                    dth = 0.0
-                _wob_step(wob, ws, wc, wrc, wrs, dth, wsum)
-            wth, wt1 = wsum[0], wsum[1]
-            n_steps += 1
-            tmh = _ramp(ta + hh, dc_from, dc_to, t_step, ramp_s) + amp * hs
-            tm1 = _ramp(ta + hb, dc_from, dc_to, t_step, ramp_s) + amp * es
-            # classical RK4; k_i = (b0, b1, b2, w_w, W_p, b5, b6) of stage i
-            s2, s5 = y2 + hh * a2, y5 + hh * a5
-            s4 = y4 + hh * y5
-            dw = (wth + _wob_rev(wsum, hh * y5)) if use_wob else 0.0
-            b0, b1, b2, b5, b6, _, _, _ = _rhs_s(y0 + hh * a0, y1 + hh * a1, s2, s5,
-                                                 y6 + hh * a6, tmh, _load_near(s4, p, anc), c,
-                                                 dw)
-            u2, u5 = y2 + hh * b2, y5 + hh * b5
-            u4 = y4 + hh * s5
-            dw = (wth + _wob_rev(wsum, hh * s5)) if use_wob else 0.0
-            c0, c1, c2, c5, c6, _, _, _ = _rhs_s(y0 + hh * b0, y1 + hh * b1, u2, u5,
-                                                 y6 + hh * b6, tmh, _load_near(u4, p, anc), c,
-                                                 dw)
-            v2, v5 = y2 + hb * c2, y5 + hb * c5
-            v4 = y4 + hb * u5
-            dw = (wt1 + _wob_rev(wsum, hb * u5)) if use_wob else 0.0
-            d0, d1, d2, d5, d6, _, _, _ = _rhs_s(y0 + hb * c0, y1 + hb * c1, v2, v5,
-                                                 y6 + hb * c6, tm1, _load_near(v4, p, anc), c,
-                                                 dw)
-            h6 = hb / 6.0
-            z0 = y0 + h6 * (a0 + 2.0 * (b0 + c0) + d0)
-            z1 = y1 + h6 * (a1 + 2.0 * (b1 + c1) + d1)
-            z2 = y2 + h6 * (a2 + 2.0 * (b2 + c2) + d2)
-            z3 = y3 + h6 * (y2 + 2.0 * (s2 + u2) + v2)
-            z4 = y4 + h6 * (y5 + 2.0 * (s5 + u5) + v5)
-            z5 = y5 + h6 * (a5 + 2.0 * (b5 + c5) + d5)
-            z6 = y6 + h6 * (a6 + 2.0 * (b6 + c6) + d6)
-            # derivative at the step's end: the next step's k1 and the interpolation's slope
-            nn = _load_advance(z4, p, anc, anc_n, n_steps % _ANCHOR_EXACT == 0)
-            dth = z4 - y4
-            dw = (wt1 + _wob_rev(wsum, dth)) if use_wob else 0.0
-            e0, e1, e2, e5, e6, fxn, fyn, xin = _rhs_s(z0, z1, z2, z5, z6, tm1, nn, c, dw)
-            # samples strictly inside this step: the states by cubic Hermite interpolation
-            # (_hermite). Whole blocks of an even number m >= 4 of samples per RK4 step
-            # evaluate the contact exactly at the middle sample only; the others take Fx,
-            # Fy and N from the cubic through the exact values half a step before the
-            # step, at its ends and at its middle (_cubic_weights) unless a rail joint (a
-            # kink in N) lies in that span. Error ~ 2e-3*(w*h)^4 of a line at w: 3e-8 of
-            # the 40 Hz joint bounce at h = 4/16670 s (measured: 4e-8 N median, 1e-6 N
-            # at 99.9 %, up to 3e-6 N after a joint in the default experiment).
-            cub_step = s_n == 1 and mb == m and m >= 4 and m % 2 == 0
-            if cub_step:
-                mid = mb // 2
-                p0, p1, p2, p3, p4, p5, p6 = _hermite(0.5, hb, y0, y1, y2, y3, y4, y5, y6,
-                                                      a0, a1, a2, a5, a6, z0, z1, z2, z3,
-                                                      z4, z5, z6, e0, e1, e2, e5, e6)
-                n_mid = _load_near(p4, p, anc)
-                v = p5 * c[1]
-                xi_mid = (p2 * c[0] - v) / v
-                fx_mid, fy_mid = _creep_force(xi_mid, c[11], n_mid, v, c[12], c[13], c[14],
-                                              c[15], c[16], c[17], c[18])
-                # ... and while the force is smooth on the step's scale: the quadratic
-                # through the other three nodes misses the middle by ~h^3/16 times the third
-                # derivative of Fx, which a fast transient (the platform loop's 0.3 ms mode
-                # after a start off equilibrium) drives far above its steady ~1e-4 N
-                miss = fx_mid - (fx0 + (fxn - fx_pm) / 3.0)
-                use_cub = have_pm and abs(miss) <= _CUBIC_MISS * abs(n_mid)
-                if use_cub and p[P_JOINT_A] != 0.0:
-                    # no joint between half a step before and the step's end
-                    ph = anc[A_PHI]
-                    use_cub = ph - (y4 - th_pm) >= 0.0 and ph + (z4 - y4) < joint_pitch
-            for k in range(mb):
-                q = k * s_n - jj * mb
-                if 0 < q < mb:
-                    if cub_step and q == mid:
-                        q0, q1, q2, q3, q4, q5, q6 = p0, p1, p2, p3, p4, p5, p6
-                        ni, xi, fx, fy = n_mid, xi_mid, fx_mid, fy_mid
-                    else:
-                        th = q / mb
-                        q0, q1, q2, q3, q4, q5, q6 = _hermite(
-                            th, hb, y0, y1, y2, y3, y4, y5, y6, a0, a1, a2, a5, a6, z0, z1,
-                            z2, z3, z4, z5, z6, e0, e1, e2, e5, e6)
-                        v = q5 * c[1]
-                        xi = (q2 * c[0] - v) / v
-                        if cub_step and use_cub:
-                            l0, l1, l2, l3 = _cubic_weights(th)
-                            fx = l0 * fx_pm + l1 * fx0 + l2 * fx_mid + l3 * fxn
-                            fy = l0 * fy_pm + l1 * fy0 + l2 * fy_mid + l3 * fyn
-                            ni = l0 * n_pm + l1 * n0 + l2 * n_mid + l3 * nn
-                        else:
-                            ni = _load_near(q4, p, anc)
-                            fx, fy = _creep_force(xi, c[11], ni, v, c[12], c[13], c[14],
-                                                  c[15], c[16], c[17], c[18])
-                    _put(out, i + k, kt, ct, q0, q1, q2, q3, q4, q5, fx, fy, ni, xi)
-                    if not (xi < slip_creepage) or not math.isfinite(xi):
-                        y[0], y[1], y[2], y[3], y[4], y[5], y[6] = q0, q1, q2, q3, q4, q5, q6
-                        return i + k + 1, True
-            have_pm = cub_step
-            if cub_step:
-                fx_pm, fy_pm, n_pm, th_pm = fx_mid, fy_mid, n_mid, p4
-            y0, y1, y2, y3, y4, y5, y6 = z0, z1, z2, z3, z4, z5, z6
-            a0, a1, a2, a5, a6 = e0, e1, e2, e5, e6
-            for j in range(N_ANCHOR):
-                anc[j] = anc_n[j]
-            fx0, fy0, n0, xi0 = fxn, fyn, nn, xin
-            ms, mc = es, ec
-        i += mb
-    y[0], y[1], y[2], y[3], y[4], y[5], y[6] = y0, y1, y2, y3, y4, y5, y6
-    return n_samples, False
 
 
 def initial_state(rig: RigParams, *, creepage: float, dc_torque_nm: float,

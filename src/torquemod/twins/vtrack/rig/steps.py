@@ -38,7 +38,8 @@ import numba
 import numpy as np
 
 from torquemod.twins.vtrack.params import MAX_LAMBDA_H, SimConfig, stiffest_rate
-from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS, _wobble, initial_state, integrate
+from torquemod.twins.vtrack.rig.dynamics import N_STATES, OUT_COLUMNS, _wobble, initial_state
+from torquemod.twins.vtrack.rig.lanes import integrate_lanes, lane_settings, stack_wobbles
 from torquemod.twins.vtrack.theory import operating_point
 
 
@@ -188,21 +189,151 @@ def plan_steps(config: SimConfig, wobble: np.ndarray, phases: list[float],
     return plans
 
 
+@dataclass(frozen=True)
+class StepJob:
+    """One step to integrate (:func:`integrate_steps`).
+
+    Attributes
+    ----------
+    config : SimConfig
+        The twin's configuration.
+    params : ndarray
+        Its packed parameters
+        (:func:`~torquemod.twins.vtrack.rig.dynamics.pack_parameters`).
+    wobble : ndarray
+        The run's wobble table.
+    plan : StepPlan
+        The step.
+    n_samples : int
+        Samples to integrate [-].
+    start : ndarray or None
+        Start state when the plan has none. Default None.
+    n_quiet : int
+        Settling samples at the start, never recorded [-]. Default 0.
+    """
+
+    config: SimConfig
+    params: np.ndarray
+    wobble: np.ndarray
+    plan: StepPlan
+    n_samples: int
+    start: np.ndarray | None = None
+    n_quiet: int = 0
+
+
+def steps_buffer_shape(jobs: list[StepJob]) -> tuple[int, int, int]:
+    """Shape of the samples of :func:`integrate_steps` for ``jobs``.
+
+    Parameters
+    ----------
+    jobs : list of StepJob
+        The steps.
+
+    Returns
+    -------
+    tuple of int
+        (steps, samples of the longest, columns).
+    """
+    return len(jobs), max((j.n_samples for j in jobs), default=0), len(OUT_COLUMNS)
+
+
+def _job_args(job: StepJob, phase: int) -> tuple:
+    """Lane settings (:func:`~torquemod.twins.vtrack.rig.lanes.lane_settings`) of ``job``'s
+    settling at the longest stable step (``phase`` 0; None when it has none) or of the rest
+    (``phase`` 1), with that phase's sample count and first row."""
+    config, plan = job.config, job.plan
+    proc, mod = config.procedure, config.modulation
+    dt = 1.0 / config.sensors.sample_rate_hz
+    r = settle_samples_per_step(config)
+    n_c = (min(job.n_quiet, job.n_samples) // r
+           if r * proc.substeps > proc.samples_per_step else 0)
+    rest = (plan.dc_from_nm, plan.dc_nm, plan.t0_s, proc.ramp_s, mod.amplitude_nm,
+            2.0 * np.pi * mod.actual_frequency_hz, plan.phase_rad, plan.t0_s,
+            proc.slip_creepage)
+    if phase == 0:
+        return (lane_settings(plan.t0_s, n_c, r * dt, 1, *rest, 1), n_c, r) if n_c else None
+    i0 = n_c * r
+    return lane_settings(plan.t0_s + i0 * dt, job.n_samples - i0, dt, proc.substeps, *rest,
+                         proc.samples_per_step, i0), job.n_samples - i0, i0
+
+
+def integrate_steps(jobs: list[StepJob], buffer: np.ndarray | None = None
+                    ) -> list[tuple[np.ndarray, int, bool, np.ndarray]]:
+    """Integrate the steps ``jobs`` side by side, one lane each
+    (:func:`~torquemod.twins.vtrack.rig.lanes.integrate_lanes`): per job what
+    :func:`integrate_step` returns for it, number for number. The settling phases run
+    together, then the recorded phases of the steps that did not slip in theirs.
+
+    The samples are written into ``buffer`` when it has the shape they need (``(jobs,
+    longest, columns)``, see :func:`steps_buffer`), else into a new array: a caller that
+    runs group after group reuses one array instead of mapping fresh memory for each (an
+    array that large is given back to the system when freed, and its pages are faulted in
+    anew).
+
+    Parameters
+    ----------
+    jobs : list of StepJob
+        The steps, one lane each.
+    buffer : ndarray or None
+        Where to write the samples, if of the shape :func:`steps_buffer_shape`. Default
+        None.
+
+    Returns
+    -------
+    list of tuple
+        Per job ``(out, n_written, slipped, end state)`` as :func:`integrate_step`.
+    """
+    nl = len(jobs)
+    y = np.array([j.plan.y0 if j.plan.y0 is not None else j.start for j in jobs],
+                 dtype=np.float64).reshape(nl, N_STATES)
+    params = np.array([j.params for j in jobs], dtype=np.float64)
+    wob, nw = stack_wobbles([j.wobble for j in jobs])
+    shape = steps_buffer_shape(jobs)
+    out = buffer if buffer is not None and buffer.shape == shape else np.empty(shape)
+    done = [None] * nl
+    coarse = [(k, _job_args(j, 0)) for k, j in enumerate(jobs)]
+    coarse = [(k, a) for k, a in coarse if a is not None]
+    if coarse:
+        idx = [k for k, _ in coarse]
+        settings, n_c, r = zip(*(a for _, a in coarse), strict=True)
+        sf, si = (np.array(a) for a in zip(*settings, strict=True))
+        yc = y[idx]
+        scratch = np.empty((len(idx), max(n_c), len(OUT_COLUMNS)))
+        res = integrate_lanes(yc, sf, si, params[idx], wob[idx], nw[idx], scratch)
+        y[idx] = yc
+        for q, k in enumerate(idx):
+            if res[q, 1]:
+                done[k] = (out[k, :jobs[k].n_samples], int(res[q, 0] - 1) * r[q] + 1, True,
+                           y[k])
+    idx = [k for k in range(nl) if done[k] is None]
+    if idx:
+        fine = [_job_args(jobs[k], 1) for k in idx]
+        sf, si = (np.array(a) for a in zip(*(f[0] for f in fine), strict=True))
+        yf = y[idx]
+        sub = out if len(idx) == nl else np.empty((len(idx), out.shape[1], out.shape[2]))
+        res = integrate_lanes(yf, sf, si, params[idx], wob[idx], nw[idx], sub)
+        for q, k in enumerate(idx):
+            if sub is not out:
+                out[k] = sub[q]
+            done[k] = (out[k, :jobs[k].n_samples], fine[q][2] + int(res[q, 0]),
+                       bool(res[q, 1]), yf[q].copy())
+    return done
+
+
 def integrate_step(config: SimConfig, params: np.ndarray, wobble: np.ndarray, plan: StepPlan,
                    n_samples: int, start: np.ndarray | None = None, n_quiet: int = 0
                    ) -> tuple[np.ndarray, int, bool, np.ndarray]:
     """Integrate the step ``plan`` over ``n_samples`` samples from its start state (or from
     ``start`` when the plan has none): ``(out, n_written, slipped, end state)`` with ``out``
     the samples of :data:`~torquemod.twins.vtrack.rig.dynamics.OUT_COLUMNS`
-    (:func:`~torquemod.twins.vtrack.rig.
-    dynamics.integrate`; ``params`` from
+    (:func:`~torquemod.twins.vtrack.rig.lanes.integrate`; ``params`` from
     :func:`~torquemod.twins.vtrack.rig.dynamics.pack_parameters`).
 
     The first ``n_quiet`` samples (the settling, never recorded) are integrated at the
     longest stable step (:func:`settle_samples_per_step`, one RK4 step per coarse sample, no
     samples inside the steps): their rows of ``out`` are left unset except the last whole
     coarse block's remainder. A slip among them is reported at the coarse sample's index
-    (``n_written`` to within a coarse step).
+    (``n_written`` to within a coarse step). :func:`integrate_steps` with one step.
 
     Parameters
     ----------
@@ -232,21 +363,5 @@ def integrate_step(config: SimConfig, params: np.ndarray, wobble: np.ndarray, pl
     end : ndarray
         The end state.
     """
-    proc, mod = config.procedure, config.modulation
-    dt = 1.0 / config.sensors.sample_rate_hz
-    y = np.array(plan.y0 if plan.y0 is not None else start, dtype=np.float64)
-    out = np.empty((n_samples, len(OUT_COLUMNS)))
-    args = (params, plan.dc_from_nm, plan.dc_nm, plan.t0_s, proc.ramp_s, mod.amplitude_nm,
-            2.0 * np.pi * mod.actual_frequency_hz, plan.phase_rad, plan.t0_s,
-            proc.slip_creepage)
-    r = settle_samples_per_step(config)
-    n_c = min(n_quiet, n_samples) // r if r * proc.substeps > proc.samples_per_step else 0
-    i0 = n_c * r
-    if n_c:
-        coarse = np.empty((n_c, len(OUT_COLUMNS)))
-        n_done, slipped = integrate(y, plan.t0_s, n_c, r * dt, 1, *args, coarse, 1, wobble)
-        if slipped:
-            return out, (n_done - 1) * r + 1, True, y
-    n_done, slipped = integrate(y, plan.t0_s + i0 * dt, n_samples - i0, dt, proc.substeps,
-                                *args, out[i0:], proc.samples_per_step, wobble)
-    return out, i0 + n_done, slipped, y
+    return integrate_steps([StepJob(config, params, wobble, plan, n_samples, start,
+                                    n_quiet)])[0]

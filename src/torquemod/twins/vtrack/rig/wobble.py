@@ -29,8 +29,8 @@ def _wobble(t, th_p, wob):
     """Wobble of the platform's speed reference [rad/s] at time ``t`` [s] and platform angle
     ``th_p`` [rad]: ``sum amp*sin(rate*t + phase)`` over the rows of ``wob`` whose kind is 0
     (a speed loop's slow oscillation) and ``amp*sin(order*th_p + phase)`` over those of kind 1
-    (once- and twice-per-revolution terms). The plain form of what :func:`_integrate`
-    evaluates by :func:`_wob_step`."""
+    (once- and twice-per-revolution terms). The plain form of what the integrator
+    (:mod:`torquemod.twins.vtrack.rig.lanes`) evaluates by :func:`_wob_step`."""
     out = 0.0
     for j in range(wob.shape[0]):
         arg = wob[j, 1] * (th_p if wob[j, 3] > 0.5 else t) + wob[j, 2]
@@ -38,55 +38,58 @@ def _wobble(t, th_p, wob):
     return out
 
 
-@numba.njit(**_FAST)
-def _wob_set(t, th_p, wob, ws, wc):
-    """Each wobble row's argument at ``(t, th_p)`` into its phasor: ``ws`` sin, ``wc`` cos."""
-    for j in range(wob.shape[0]):
-        arg = wob[j, 1] * (th_p if wob[j, 3] > 0.5 else t) + wob[j, 2]
-        ws[j] = math.sin(arg)
-        wc[j] = math.cos(arg)
+@numba.njit(inline="always", **_FAST)
+def _wob_set(t, th_p, wob, l, nw, ws, wc):
+    """Lane ``l``'s wobble rows (``wob[l, :nw[l]]``, tables stacked (lanes, rows, 4)): each
+    row's argument at ``(t, th_p)`` into its phasor, ``ws[l]`` sin and ``wc[l]`` cos."""
+    for j in range(nw[l]):
+        arg = wob[l, j, 1] * (th_p if wob[l, j, 3] > 0.5 else t) + wob[l, j, 2]
+        ws[l, j] = math.sin(arg)
+        wc[l, j] = math.cos(arg)
 
 
-@numba.njit(**_FAST)
-def _wob_step(wob, ws, wc, rc, rs, dth, s):
-    """One RK4 step's wobble from the phasors ``ws``, ``wc`` (sin, cos of every row's argument
-    at the step's start, the revolution rows still at the previous start, ``dth`` [rad]
-    behind). Band rows are rotated by half a step (``rc``, ``rs``: cos, sin of ``rate*h/2``)
-    to the step's middle and end: ``s[0]``, ``s[1]`` their sum there [rad/s]; their phasors
-    are left at the end. Revolution rows are advanced by ``order*dth``, then ``s[2:6]`` are
-    the Taylor coefficients of their sum in the angle increment from the step's start
+@numba.njit(inline="always", **_FAST)
+def _wob_step(wob, l, nw, ws, wc, rc, rs, dth, s):
+    """One RK4 step's wobble of lane ``l`` (tables and phasors as in :func:`_wob_set`) from
+    the phasors ``ws[l]``, ``wc[l]`` (sin, cos of every row's argument at the step's start,
+    the revolution rows still at the previous start, ``dth`` [rad] behind). Band rows are
+    rotated by half a step (``rc[l]``, ``rs[l]``: cos, sin of ``rate*h/2``) to the step's
+    middle and end: ``s[l, 0]``, ``s[l, 1]`` their sum there [rad/s]; their phasors are left
+    at the end. Revolution rows are advanced by ``order*dth``, then ``s[l, 2:6]`` are the
+    Taylor coefficients of their sum in the angle increment from the step's start
     (:func:`_wob_rev`): within a step ``order*dth`` < 1e-3 rad, so the cubic's truncation
     (x^4/24) is below 1e-13 of the term, i.e. at rounding."""
-    for k in range(6):
-        s[k] = 0.0
-    for j in range(wob.shape[0]):
-        amp, sn, cs = wob[j, 0], ws[j], wc[j]
-        if wob[j, 3] > 0.5:
-            o = wob[j, 1]
+    s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+    for j in range(nw[l]):
+        amp, sn, cs = wob[l, j, 0], ws[l, j], wc[l, j]
+        if wob[l, j, 3] > 0.5:
+            o = wob[l, j, 1]
             u = o * dth
             if abs(u) <= _SMALL:
                 cu, su = _cos_small(u), _sin_small(u)
             else:
                 cu, su = math.cos(u), math.sin(u)
             sn, cs = sn * cu + cs * su, cs * cu - sn * su
-            ws[j], wc[j] = sn, cs
+            ws[l, j], wc[l, j] = sn, cs
             ao = amp * o
-            s[2] += amp * sn
-            s[3] += ao * cs
-            s[4] -= 0.5 * ao * o * sn
-            s[5] -= ao * o * o * cs / 6.0
+            s2 += amp * sn
+            s3 += ao * cs
+            s4 -= 0.5 * ao * o * sn
+            s5 -= ao * o * o * cs / 6.0
         else:
-            sm, cm = sn * rc[j] + cs * rs[j], cs * rc[j] - sn * rs[j]
-            se, ce = sm * rc[j] + cm * rs[j], cm * rc[j] - sm * rs[j]
-            s[0] += amp * sm
-            s[1] += amp * se
-            ws[j], wc[j] = se, ce
+            sm, cm = sn * rc[l, j] + cs * rs[l, j], cs * rc[l, j] - sn * rs[l, j]
+            se, ce = sm * rc[l, j] + cm * rs[l, j], cm * rc[l, j] - sm * rs[l, j]
+            s0 += amp * sm
+            s1 += amp * se
+            ws[l, j], wc[l, j] = se, ce
+    s[l, 0], s[l, 1], s[l, 2], s[l, 3], s[l, 4], s[l, 5] = s0, s1, s2, s3, s4, s5
 
 
-@numba.njit(**_FAST)
-def _wob_rev(s, x):
-    """The revolution rows' wobble at angle increment ``x`` [rad] (:func:`_wob_step`)."""
-    return s[2] + x * (s[3] + x * (s[4] + x * s[5]))
+@numba.njit(inline="always", **_FAST)
+def _wob_rev(s, l, x):
+    """Lane ``l``'s revolution rows' wobble at angle increment ``x`` [rad]
+    (:func:`_wob_step`)."""
+    return s[l, 2] + x * (s[l, 3] + x * (s[l, 4] + x * s[l, 5]))
 
 
 def wobble_table(dist: DisturbanceParams, platform_speed_rad_s: float,
