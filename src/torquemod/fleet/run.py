@@ -56,18 +56,26 @@ import pandas as pd
 
 from torquemod._util.daskutil import CONNECT_TIMEOUT_S, check_cluster
 from torquemod.errors import InputError
-from torquemod.fleet.discover import (
+from torquemod.fleet.discover import (  # noqa: F401  (the fleet's per-run API, here as before)
+    MANIFEST_NAME,
+    RUN_NAME,
     _as_list,
     _spellings,
+    find_manifests,
     manifest_kind,
+    partition_value,
     run_names,
 )
-from torquemod.fleet.plan import (
+from torquemod.fleet.plan import (  # noqa: F401  (the fleet's per-run API, here as before)
     SUMMARY_COLUMNS,
     TABLES,
     Plan,
+    Prepared,
+    fingerprint,
     finish_run,
     plan_run,
+    prepare,
+    process_run,
     work_item,
 )
 from torquemod.fleet.tasks import may_split, one_line, part_item, scan_item

@@ -70,6 +70,10 @@ from torquemod.twins.vtrack.rig.sensors import measure
 from torquemod.twins.vtrack.rig.simrun import SimulatedRun
 from torquemod.twins.vtrack.rig.steps import integrate_step
 from torquemod.twins.vtrack.rig.truth import recorded_step_truth, step_truth, wobble_truth
+from torquemod.twins.vtrack.rig.truthphase import (  # noqa: F401 - re-exported
+    sine_fit_phase_deg,
+    wobble_free_phase_deg,
+)
 from torquemod.twins.vtrack.simconfig import (  # noqa: F401 - re-exported
     config_from_dict,
     default_config_text,
