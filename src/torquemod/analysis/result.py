@@ -31,7 +31,10 @@ def phase_keys(pfit) -> dict:
     bound as the interval's low end when it is not determined. ``adhesion_available_from_
     phase*`` name the same quantity explicitly, with the interval when it is closed, the
     lower bound, the probe depth (utilisation) that would determine it, and ``mu0_from_phase``,
-    the law's friction coefficient, where the data identify it."""
+    the law's friction coefficient, where the data identify it. ``mu_from_phase_constant_source``
+    says where the rigid-wheel constant C came from: ``"rig inertia"``, ``"amplitudes"``
+    (measured from the torque and wheel-speed amplitudes, no inertia given), ``"given"`` or
+    ``"not given"``."""
     keys = ("adhesion_available_from_phase", "adhesion_available_from_phase_low",
             "adhesion_available_from_phase_high", "adhesion_available_from_phase_lower_bound",
             "mu0_from_phase", "mu0_from_phase_low", "mu0_from_phase_high",
@@ -39,7 +42,8 @@ def phase_keys(pfit) -> dict:
     if pfit is None:
         return {"mu_from_phase": None, "mu_from_phase_stderr": None,
                 "mu_from_phase_interval_95": [None, None], "mu_from_phase_determined": False,
-                **dict.fromkeys(keys), "adhesion_available_from_phase_determined": False}
+                **dict.fromkeys(keys), "adhesion_available_from_phase_determined": False,
+                "mu_from_phase_constant_source": None}
     lo, hi = pfit.mu_interval_95
     a = pfit.adhesion.to_dict()
     return {"mu_from_phase": pfit.mu if pfit.mu_determined else None,
@@ -55,7 +59,8 @@ def phase_keys(pfit) -> dict:
             "mu0_from_phase": a["mu0"], "mu0_from_phase_low": a["mu0_low"],
             "mu0_from_phase_high": a["mu0_high"],
             "probe_depth_needed_from_phase": a["probe_depth_needed"],
-            "phase_fit_best_law": a["best_law"]}
+            "phase_fit_best_law": a["best_law"],
+            "mu_from_phase_constant_source": getattr(pfit, "constant_source", "") or None}
 
 
 def curve_check(polach, creepage_limit: float, *, n: int = 2000) -> tuple[bool, str | None]:
