@@ -34,7 +34,7 @@ def phase_keys(pfit) -> dict:
     the law's friction coefficient, where the data identify it. ``mu_from_phase_constant_source``
     says where the rigid-wheel constant C came from: ``"rig inertia"``, ``"amplitudes"``
     (measured from the torque and wheel-speed amplitudes, no inertia given), ``"given"`` or
-    ``"not given"``."""
+    ``"not given"`` (absent when there is no fit from the phase)."""
     keys = ("adhesion_available_from_phase", "adhesion_available_from_phase_low",
             "adhesion_available_from_phase_high", "adhesion_available_from_phase_lower_bound",
             "mu0_from_phase", "mu0_from_phase_low", "mu0_from_phase_high",
@@ -42,8 +42,7 @@ def phase_keys(pfit) -> dict:
     if pfit is None:
         return {"mu_from_phase": None, "mu_from_phase_stderr": None,
                 "mu_from_phase_interval_95": [None, None], "mu_from_phase_determined": False,
-                **dict.fromkeys(keys), "adhesion_available_from_phase_determined": False,
-                "mu_from_phase_constant_source": None}
+                **dict.fromkeys(keys), "adhesion_available_from_phase_determined": False}
     lo, hi = pfit.mu_interval_95
     a = pfit.adhesion.to_dict()
     return {"mu_from_phase": pfit.mu if pfit.mu_determined else None,
