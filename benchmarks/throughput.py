@@ -8,7 +8,10 @@
    16 670 Hz, 7 columns), split into read time and compute time, against a plain script that
    reads with ``np.loadtxt`` and runs the same kind of scipy chain.
 
-    python benchmarks/throughput.py [--chain-only] [--workdir DIR]
+    python benchmarks/throughput.py [--chain-only | --ratio-only] [--workdir DIR]
+
+``--ratio-only`` prints only the chain against one pass of its decimator (medians of
+interleaved samples, one BLAS thread as ``process`` runs): the figure of docs/performance.md.
 
 Measured here (2 shared cores, CPU time, best of 7, one cycle: 107 733 samples x 6 channels
 at 16 670 Hz -> 53.344 Hz; "before" = commit 16f9904 run by this same script, interleaved
@@ -73,6 +76,13 @@ equations measured slower than BLAS here (126 us against 44 us for a factorisati
 Every change keeps the phase within 8e-11 deg and the creepage within 2.2e-16 of a2b9601 (the
 benchmark's cycle and four other synthetic cycles with both decimators and both phase
 methods, and the 18-cycle demo experiment); the standard error moves by up to 8.4e-7 deg.
+
+Fifth round, ``--ratio-only`` (medians of 21 interleaved samples, one BLAS thread as
+``process`` runs; "before" = c5a0493 by this script, interleaved twice, load 11.2-11.5):
+decimation 1.08-1.10 ms both; chain 6.44-6.55 -> 4.99-5.02 ms; chain / decimator pass
+5.95x -> 4.56-4.61x (load 5.8, two more pairs: 6.22-6.30 -> 4.64-4.69 ms, 6.02-6.14x ->
+4.95-5.04x). Step 1's search on an orthonormal basis in one compiled call per step
+(torquemod.dsp.projection), per-length designs cached; docs/performance.md has the rest.
 """
 
 from __future__ import annotations
@@ -197,6 +207,72 @@ def chain_throughput(repeat: int = 7) -> None:
     print(f"  sinefit phase, two_stage: {n / wall / 1e6:6.2f} | {n / cpu / 1e6:6.2f} M samples/s")
 
 
+def chain_vs_decimator(repeat: int = 21, per_sample: int = 5) -> dict[str, float]:
+    """The chain (steps 1-8 and the phase of one cycle) against one pass of its own
+    decimator over the same channels (``resample_rows``, what step 2 runs), both on one BLAS
+    thread as ``process`` runs them (``torquemod._util.blas.one_blas_thread``). CPU time
+    (``time.process_time``) of ``per_sample`` calls per sample, the two interleaved sample by
+    sample, ``repeat`` samples each: medians, and the ratio of the medians. Also the cost of
+    the slow-band decision (``needs_wide_band``) on the cycle's resampled speeds."""
+    from torquemod._util.blas import one_blas_thread
+    rig = Rig(0.0675, 2.0)
+    cfg = _with_resample(ProcessingConfig(), "two_stage")
+    rec = synthetic_recording(SyntheticSpec(seed=3))
+    names = [k for k in chain._RESAMPLED if k in rec.channels]
+    rows = [rec.channels[k] for k in names]
+    up, down = filters.resample_ratio(rec.fs_hz, cfg.resample.target_hz)
+
+    def decimate() -> None:
+        filters.resample_rows(rows, up, down, method="two_stage", padtype="constant")
+
+    def run() -> None:
+        sig = chain.process_cycle(rec, rig, cfg, where="bench")
+        chain.cycle_phase(sig, cfg, center_index=sig.torque_filtered.size / 2)
+
+    def cpu(fn) -> float:
+        c0 = time.process_time()
+        for _ in range(per_sample):
+            fn()
+        return (time.process_time() - c0) / per_sample
+
+    with one_blas_thread():
+        run()
+        decimate()
+        t_dec, t_chain = [], []
+        for _ in range(repeat):
+            t_dec.append(cpu(decimate))
+            t_chain.append(cpu(run))
+        sig = chain.process_cycle(rec, rig, cfg, where="bench")
+        wh, pl = sig.wheel_resampled, None
+        from torquemod.dsp.basis import needs_wide_band
+        pl_full = filters.resample_rows([rec.channels["platform_speed_rad_s"]], up, down,
+                                        method="two_stage", padtype="constant")[0]
+        edge = filters.resampler_edge_samples(up, down)
+        pl = pl_full[edge:-edge]
+        t_wide = [cpu(lambda: needs_wide_band(wh, pl, sig.fs_hz, 2.0, cfg.slow.quiet_max_hz,
+                                              cfg.slow.max_hz,
+                                              extra=cfg.slow.extra_sequences,
+                                              degree=cfg.slow.polynomial_degree))
+                  for _ in range(repeat)]
+    med = {"decimation_ms": 1e3 * float(np.median(t_dec)),
+           "chain_ms": 1e3 * float(np.median(t_chain)),
+           "needs_wide_band_ms": 1e3 * float(np.median(t_wide))}
+    med["ratio"] = med["chain_ms"] / med["decimation_ms"]
+    print(f"chain vs one decimator pass, one cycle ({rec.n_samples} samples x {len(names)} "
+          f"channels at {rec.fs_hz:.0f} Hz -> {sig.fs_hz:.3f} Hz), one BLAS thread, CPU time, "
+          f"median of {repeat} interleaved samples of {per_sample} calls:")
+    print(f"  decimation (resample_rows, two_stage) {med['decimation_ms']:7.3f} ms "
+          f"(min {1e3 * min(t_dec):.3f})")
+    print(f"  chain, steps 1-8 and the phase        {med['chain_ms']:7.3f} ms "
+          f"(min {1e3 * min(t_chain):.3f}); the rest after the decimation "
+          f"{med['chain_ms'] - med['decimation_ms']:.3f} ms")
+    print(f"  of which the slow-band decision (needs_wide_band) {med['needs_wide_band_ms']:.3f}"
+          f" ms")
+    print(f"  RATIO chain / decimator pass = {med['ratio']:.2f}x (target 1.5x); "
+          f"{rec.n_samples / med['chain_ms'] / 1e3:.1f} M samples/s per core")
+    return med
+
+
 BASELINE = r'''
 import sys, glob, numpy as np
 from scipy import signal
@@ -265,9 +341,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--workdir", default=None, help="keep the experiment here between runs")
     ap.add_argument("--chain-only", action="store_true", help="skip the end-to-end part")
+    ap.add_argument("--ratio-only", action="store_true",
+                    help="only the chain against one decimator pass (median, one BLAS thread)")
     args = ap.parse_args()
     print(f"cores visible: {os.cpu_count()}; load average {os.getloadavg()[0]:.1f}")
+    if args.ratio_only:
+        chain_vs_decimator()
+        print(f"load average at the end {os.getloadavg()[0]:.1f}")
+        return
     chain_throughput()
+    chain_vs_decimator()
     if args.chain_only:
         return
     if args.workdir:

@@ -250,8 +250,21 @@ def load_onboard(folder, axle: int | None = None):
 
 @dataclass
 class RunOutcome:
-    """What :func:`run` did: the result, its analysis (None with ``fit=False``), the results
-    folder, the report (None without one) and the wall time of each stage [s]."""
+    """What :func:`run` did.
+
+    Attributes
+    ----------
+    result : ProcessResult
+        The processing result.
+    analysis : Analysis or None
+        Its analysis; None with ``fit=False``.
+    folder : pathlib.Path
+        The results folder.
+    report : pathlib.Path or None
+        The report; None without one.
+    stage_s : dict of str to float
+        Wall time of each stage [s].
+    """
 
     result: ProcessResult
     analysis: Analysis | None

@@ -30,6 +30,19 @@ __all__ = ["build_parser", "main"]
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The ``torquemod`` command.
+
+    Parameters
+    ----------
+    argv : list of str or None
+        The arguments; None: ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        The exit status: 0, 2 for bad input (one line, no traceback), or the codes for a
+        broken pipe, an interrupt, a termination or an internal error.
+    """
     parser = build_parser()
     if "_ARGCOMPLETE" in os.environ:  # the shell asks for completions; exits when done
         import argcomplete

@@ -48,11 +48,43 @@ def synthetic_result(*, seed: int = 0,
                             duration_s: float = 6.5) -> ProcessResult:
     """A fabricated :class:`ProcessResult` (experiment "synthetic", no files behind it).
 
-    The steps' CoA are ``saturation_fractions * mu`` of :data:`SYNTHETIC_TRUTH`; creepages
-    follow from the Polach curve, phases from ``atan(C/k)``; per-cycle values get Gaussian
-    noise (``coa_noise`` [-], ``creepage_rel_noise`` [-], ``phase_noise_deg`` [deg]).
-    With ``include_inertia=False`` the rig lacks ``wheel_inertia_kg_m2`` (the truth, 4 kg m^2,
-    stands for the wheel plus the drive line referred to the wheel axis).
+    The steps' CoA are ``saturation_fractions*mu`` of :data:`SYNTHETIC_TRUTH`; creepages
+    follow from the Polach curve [1]_, phases from ``atan(C/k)`` [2]_; per-cycle values get
+    Gaussian noise.
+
+    Parameters
+    ----------
+    seed : int
+        Random seed. Default 0.
+    saturation_fractions : sequence of float
+        Each step's CoA as a share of mu [-].
+    n_cycles : int
+        Cycles per step [-]. Default 3.
+    coa_noise : float
+        Standard deviation of the CoA noise [-]. Default 0.001.
+    creepage_rel_noise : float
+        Relative standard deviation of the creepage noise [-]. Default 0.02.
+    phase_noise_deg : float
+        Standard deviation of the phase noise [deg]. Default 0.5.
+    include_inertia : bool
+        Give the rig's ``wheel_inertia_kg_m2`` (the truth, 4 kg m^2, stands for the wheel plus
+        the drive line referred to the wheel axis). Default True.
+    fs_raw_hz : float
+        Sample rate of the fabricated traces [Hz]. Default 400.
+    duration_s : float
+        Length of each cycle [s]. Default 6.5.
+
+    Returns
+    -------
+    ProcessResult
+        The result.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (3), (8).
+    .. [2] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
     """
     tr = SYNTHETIC_TRUTH
     rng = np.random.default_rng(seed)
@@ -134,8 +166,22 @@ def synthetic_result(*, seed: int = 0,
 
 
 def write_synthetic_results(out_dir, **kwargs) -> Path:
-    """Save :func:`synthetic_result` ``(**kwargs)`` as a results folder without an analysis
-    (as ``torquemod process --no-fit`` leaves it) and return its path."""
+    """Save :func:`synthetic_result` as a results folder without an analysis.
+
+    As ``torquemod process --no-fit`` leaves it.
+
+    Parameters
+    ----------
+    out_dir : str or pathlib.Path
+        The folder.
+    **kwargs
+        Passed to :func:`synthetic_result`.
+
+    Returns
+    -------
+    pathlib.Path
+        The folder.
+    """
     from torquemod.results.folder import save
     return save(synthetic_result(**kwargs), None, out_dir, report=False)
 
@@ -145,19 +191,39 @@ def run_demo(out_dir, *, config_path=None, seed: int = 0, force: bool = False,
              with_train: bool = False) -> dict:
     """Simulate an experiment, process it, fit the creep curve and write the report.
 
-    ``out_dir/experiment`` receives the simulated recordings and manifest,
-    ``out_dir/results`` the results folder with ``fit.json``, figures and ``report.html``.
-    The whole ``out_dir`` is assembled beside its place and appears in one rename, so an
-    interrupted demo leaves nothing behind that blocks the next run. ``quick`` shortens the
-    simulation (2 cycles per step, 1.5 s run-in; see :func:`_quick_config`); ``on_stage``
-    receives a line of text as each stage starts.
+    ``out_dir/experiment`` receives the simulated recordings and manifest, ``out_dir/results``
+    the results folder with ``fit.json``, figures and ``report.html``. The whole ``out_dir``
+    is assembled beside its place and appears in one rename, so an interrupted demo leaves
+    nothing behind that blocks the next run.
 
-    Returns paths (``experiment``, ``manifest``, ``results``, ``report``, ``fit_json``), the
-    :class:`Analysis` (``analysis``), its :meth:`~Analysis.summary` numbers (``mu``,
-    ``mu_stderr``, ``mu_determined``, ``saturation_torque_nm``, ``onset_step``,
-    ``theory_rms_deg``, ``steps``, ``warnings``, ...) and ``truth`` (the simulator's
-    creep-curve peak, slip step and theory phases). ``with_train`` adds the train part
-    (:func:`_train_demo`: ``out_dir/train-run``, ``out_dir/train-results``) as ``train``.
+    Parameters
+    ----------
+    out_dir : str or pathlib.Path
+        The demo's folder.
+    config_path : str or pathlib.Path or None
+        The twin's configuration; None: the packaged default.
+    seed : int
+        Random seed. Default 0.
+    force : bool
+        Replace an existing ``out_dir``. Default False.
+    progress : bool
+        Show progress. Default True.
+    quick : bool
+        Shorten the simulation (2 cycles per step, 1.5 s run-in). Default False.
+    on_stage : callable or None
+        Receives a line of text as each stage starts.
+    with_train : bool
+        Add the train part (``out_dir/train-run``, ``out_dir/train-results``) as ``train``.
+        Default False.
+
+    Returns
+    -------
+    dict
+        Paths (``experiment``, ``manifest``, ``results``, ``report``, ``fit_json``), the
+        :class:`Analysis` (``analysis``), its summary numbers (``mu``, ``mu_stderr``,
+        ``mu_determined``, ``saturation_torque_nm`` [N*m], ``onset_step``,
+        ``theory_rms_deg`` [deg], ``steps``, ``warnings``, ...) and ``truth`` (the
+        simulator's creep-curve peak, slip step and theory phases).
     """
     from torquemod._util.fsutil import atomic_dir
     from torquemod.api import analyze, process, save

@@ -27,9 +27,79 @@ from torquemod.io.experiment import Recording
 class SyntheticSpec:
     """Parameters of one synthetic recording (SI units).
 
-    ``phase_lag_deg`` is the lag of the wheel-speed modulation behind the torque modulation;
-    ``wheel_mod_amplitude_rad_s`` its amplitude. ``wheel_eccentricity`` and
-    ``platform_eccentricity`` are relative (1x, 2x per revolution) encoder errors.
+    Defaults are V-Track-like: 7 km/h, a 0.0675 m wheel on a 2 m ring, 4200 N, an 8 N*m
+    modulation at 2 Hz, 16 670 Hz sampling.
+
+    Attributes
+    ----------
+    fs_hz : float
+        Sample rate [Hz].
+    n_revolutions : float
+        Platform revolutions recorded [-].
+    speed_m_s : float
+        Nominal rolling speed V [m/s].
+    wheel_radius_m : float
+        Wheel radius [m].
+    platform_radius_m : float
+        Radius of the wheel path on the ring [m].
+    creepage : float
+        Longitudinal creepage [-], exact throughout (the wheel follows the platform
+        kinematically).
+    normal_load_n : float
+        Normal load Fz [N].
+    lateral_force_n : float
+        Lateral force Fy [N].
+    dc_torque_nm : float
+        DC torque [N*m].
+    modulation_hz : float
+        Modulation frequency [Hz].
+    modulation_amplitude_nm : float
+        Modulation amplitude [N*m].
+    modulation_phase_rad : float
+        Phase of the torque modulation at t = 0 [rad].
+    phase_lag_deg : float
+        Lag of the wheel-speed modulation behind the torque modulation [deg].
+    wheel_mod_amplitude_rad_s : float
+        Amplitude of the wheel-speed modulation [rad/s].
+    wheel_eccentricity : tuple of float
+        Relative encoder errors at once and twice per wheel revolution [-].
+    platform_eccentricity : tuple of float
+        The same for the platform encoder [-].
+    torque_noise_nm : float
+        White-noise standard deviation of the torque [N*m].
+    wheel_noise_rad_s : float
+        Of the wheel speed [rad/s].
+    platform_noise_rad_s : float
+        Of the platform speed [rad/s].
+    force_noise_n : float
+        Of the forces [N].
+    vibration_hz : tuple of float
+        Vibration tones on every channel [Hz].
+    torque_vibration_nm : float
+        Their amplitude on the torque [N*m].
+    wheel_vibration_rad_s : float
+        Their amplitude on the wheel speed [rad/s].
+    sleeper_force_n : float
+        Amplitude of the sleeper-passing tone on the forces [N].
+    force_mod_amplitude_n : float
+        The creep force's answer to the modulation, in phase [N]. Default 0.
+    speed_wobble : tuple of tuple of float
+        Slow speed variation: (relative amplitude [-], frequency [Hz], phase [rad]) per term;
+        the default is 0.2 % RMS in all (assumed, within the 0.1-0.3 % a rig's loop shows).
+    speed_wobble_rev : tuple of tuple of float
+        Terms at once and twice the platform revolution: (relative amplitude [-], phase
+        [rad]).
+    acceleration_m_s2 : float
+        Speed ramp through the nominal middle [m/s^2]. Default 0.
+    inertia_kg_m2 : float
+        Wheel-side inertia whose acceleration torque is in the torque [kg*m^2].
+    creepage_rate_per_s : float
+        Wheel slip: the creepage runs away at this rate through the nominal middle [1/s].
+        Default 0.
+    slip_force_drop : float
+        The creep force falls by this share over the record [-]. Default 0.
+    seed : int
+        Random seed of the noise.
     """
 
     fs_hz: float = 16_670.0
@@ -87,11 +157,27 @@ class SyntheticSpec:
 
 def speed_profile(spec: SyntheticSpec, t: np.ndarray) -> tuple[np.ndarray, np.ndarray,
                                                                   np.ndarray]:
-    """Relative rolling speed ``v(t)/V`` [-], its time derivative [1/s] and integral [s]
-    (from t = 0) of ``spec``'s wobble and ramp, analytic (no numerical integration).
+    """The relative rolling speed of a spec's wobble and ramp, its derivative and integral.
 
-    The revolution terms are taken at the nominal platform angle ``Omega*t`` (their
-    frequencies are once and twice the nominal revolution)."""
+    Analytic (no numerical integration). The revolution terms are taken at the nominal
+    platform angle ``Omega*t`` (their frequencies are once and twice the nominal revolution).
+
+    Parameters
+    ----------
+    spec : SyntheticSpec
+        The recording's parameters.
+    t : ndarray
+        Times [s].
+
+    Returns
+    -------
+    rel : ndarray
+        v(t)/V [-].
+    d_rel : ndarray
+        Its time derivative [1/s].
+    integral : ndarray
+        Its integral from t = 0 [s].
+    """
     t = np.asarray(t, dtype=np.float64)
     rel = np.ones_like(t)
     d_rel = np.zeros_like(t)
@@ -113,7 +199,18 @@ def speed_profile(spec: SyntheticSpec, t: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def synthetic_recording(spec: SyntheticSpec) -> Recording:
-    """A recording that follows ``spec`` exactly (see the module docstring)."""
+    """A recording that follows a spec exactly (module docstring).
+
+    Parameters
+    ----------
+    spec : SyntheticSpec
+        The parameters.
+
+    Returns
+    -------
+    Recording
+        The channels (SI units) at ``spec.fs_hz``.
+    """
     rng = np.random.default_rng(spec.seed)
     omega_p = spec.platform_speed_rad_s
     duration = spec.n_revolutions * 2 * np.pi / omega_p
@@ -168,12 +265,36 @@ def write_synthetic_experiment(folder, *, n_steps: int = 6, n_cycles: int = 3,
                                files_per_cycle: bool = True, fmt: str = "csv", seed: int = 0,
                                base: SyntheticSpec | None = None,
                                lags_deg: tuple[float, ...] | None = None) -> dict:
-    """Write an experiment folder of synthetic recordings; returns the truth per cycle.
+    """Write an experiment folder of synthetic recordings; return the truth per cycle.
 
-    The phase lag grows with the step (``lags_deg`` per step, default 8..38 deg) and every
-    recording has its own modulation phase and a small frequency offset, as a motor
-    controller's free-running clock would give. ``files_per_cycle=False`` writes one file per
-    step spanning ``n_cycles`` revolutions.
+    The phase lag grows with the step and every recording has its own modulation phase and a
+    small frequency offset, as a motor controller's free-running clock would give.
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        The folder.
+    n_steps : int
+        Torque steps [-]. Default 6.
+    n_cycles : int
+        Cycles per step [-]. Default 3.
+    files_per_cycle : bool
+        One file per cycle; False: one file per step spanning ``n_cycles`` revolutions.
+        Default True.
+    fmt : str
+        Recording format ("csv", "hdf5", "parquet", "mat"). Default "csv".
+    seed : int
+        Random seed. Default 0.
+    base : SyntheticSpec or None
+        The base parameters; None: the defaults.
+    lags_deg : tuple of float or None
+        Phase lag per step [deg]; None: 8..38 deg.
+
+    Returns
+    -------
+    dict
+        ``{"cycles": [...]}``: per cycle ``step``, ``cycle``, ``phase_deg`` [deg],
+        ``modulation_hz`` [Hz], ``creepage`` [-] and ``coa`` [-].
     """
     from pathlib import Path
 
@@ -226,19 +347,51 @@ def write_creep_experiment(folder, *, mu: float = 0.3, k_a: float = 1.0, k_s: fl
                            stiffness: float = 250.0,
                            saturation_fractions=(0.003, 0.3, 0.55, 0.7, 0.8, 0.9),
                            n_cycles: int = 2, seed: int = 0, fmt: str = "csv") -> dict:
-    """An experiment folder whose steps lie on one Polach creep curve (O. Polach, Wear 258
-    (2005), Eqs. 3 and 8, with ``mu``, ``k_a``, ``k_s`` and the contact stiffness ``stiffness``
-    [-]): step i runs at a mean ``CoA = saturation_fractions[i]*mu`` with the DC torque
-    ``CoA*N*R`` and the wheel-speed answer of the rigid wheel to the 8 N*m modulation,
-    ``dw = T/(j*Omega*J + R^2*N*k/V)`` (lag ``atan(C/k)``); k is the curve's
-    describing-function slope over the creepage swing ``|dw|*R/V`` and the mean creepage is
-    the one whose swing-averaged CoA is the step's (found together, self-consistently).
-    The manifest gives the wheel-side inertia, so the theory constant comes from the rig.
-    Returns the truth: ``mu``, per step ``creepage``, ``coa``, ``phase_deg``,
-    ``dc_torque_nm``.
+    """An experiment folder whose steps lie on one Polach creep curve.
 
-    This is the README's example: a fit a reader can believe (both estimates of mu
-    determined when the steps reach ~90 % of saturation)."""
+    Step i runs at a mean ``CoA = saturation_fractions[i]*mu`` with the DC torque
+    ``CoA*N*R`` and the wheel-speed answer of the rigid wheel to the 8 N*m modulation,
+    ``dw = T/(j*Omega*J + R^2*N*k/V)`` (lag ``atan(C/k)``, [2]_); k is the curve's
+    describing-function slope over the creepage swing ``|dw|*R/V`` and the mean creepage is
+    the one whose swing-averaged CoA is the step's (found together, self-consistently). The
+    manifest gives the wheel-side inertia, so the theory constant comes from the rig. This is
+    the README's example: both estimates of mu are determined when the steps reach ~90 % of
+    saturation.
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        The folder.
+    mu : float
+        Friction coefficient [-]. Default 0.3.
+    k_a : float
+        Reduction factor kA [-]. Default 1.
+    k_s : float
+        Reduction factor kS [-]. Default 0.4.
+    stiffness : float
+        Lumped contact stiffness s [-]. Default 250.
+    saturation_fractions : sequence of float
+        Each step's CoA as a share of mu [-].
+    n_cycles : int
+        Cycles per step [-]. Default 2.
+    seed : int
+        Random seed. Default 0.
+    fmt : str
+        Recording format. Default "csv".
+
+    Returns
+    -------
+    dict
+        The truth: ``mu`` [-], ``theory_constant`` [-] and per step ``creepage`` [-], ``coa``
+        [-], ``phase_deg`` [deg], ``dc_torque_nm`` [N*m].
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (3), (8).
+    .. [2] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+    """
     from torquemod.analysis.contact.polach import swing_average, swing_slope
     from torquemod.analysis.creep import phase_from_constant_deg, theory_constant
     from torquemod.analysis.polachcurve import polach_coa, polach_slope
@@ -309,12 +462,47 @@ VTRACK_STEP_FRACTIONS = (0.0035, 0.35, 0.68, 0.84, 0.92, 1.0)
 def synthetic_phase_progression(mu: float, ratio_ka_ks: float, k_scale: float, u_max: float,
                                 *, constant: float = 10.2, swing: bool = False,
                                 fractions=VTRACK_STEP_FRACTIONS):
-    """CoA [-], phase [deg] and creepage swing [-] (or None) of torque steps up to the
-    utilisation ``u_max`` on a Polach curve ``CoA = mu*h(k_scale*xi/mu; kA/kS)``
-    (:mod:`torquemod.analysis.phasefit`), by the rigid-wheel law ``tan(phi) = C/k``. With ``swing``
-    the creepage swing of V-Track's 8 N*m, 2 Hz modulation (J = 4 kg m^2, R = 0.0675 m,
-    N = 4200 N, V = 1.944 m/s: |dw| = T/|j*Omega*J + R^2*N*k/V|, swing = |dw|*R/V) is
-    found self-consistently and k is the describing-function slope over it."""
+    """CoA, phase and creepage swing of torque steps on a Polach curve.
+
+    ``CoA = mu*h(k_scale*xi/mu; kA/kS)`` [1]_ up to the utilisation ``u_max``, by the
+    rigid-wheel law ``tan(phi) = C/k`` [2]_. With ``swing`` the creepage swing of V-Track's
+    8 N*m, 2 Hz modulation (J = 4 kg m^2, R = 0.0675 m, N = 4200 N, V = 1.944 m/s:
+    ``|dw| = T/|j*Omega*J + R^2*N*k/V|``, swing = ``|dw|*R/V``) is found self-consistently and k
+    is the describing-function slope over it.
+
+    Parameters
+    ----------
+    mu : float
+        Friction coefficient [-].
+    ratio_ka_ks : float
+        kA/kS [-].
+    k_scale : float
+        Initial slope scale kS*s [-].
+    u_max : float
+        Highest utilisation [-].
+    constant : float
+        C = Omega*J*V/(R^2*N) [-]. Default 10.2 (V-Track's).
+    swing : bool
+        Model the creepage swing. Default False.
+    fractions : sequence of float
+        The steps' utilisations as shares of ``u_max`` [-]. Default V-Track's.
+
+    Returns
+    -------
+    coa : ndarray
+        [-].
+    phase_deg : ndarray
+        [deg].
+    swing : ndarray or None
+        Creepage swing amplitude [-]; None without ``swing``.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eq. (8).
+    .. [2] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+    """
     from torquemod.analysis.contact.polach import swing_average, swing_slope
     from torquemod.analysis.polachshape import invert_polach_h, polach_h, polach_h_slope
 
@@ -339,9 +527,24 @@ def synthetic_phase_progression(mu: float, ratio_ka_ks: float, k_scale: float, u
 
 
 def write_short_train_run(folder, *, length_m: float, seed: int) -> Path:
-    """The default train twin's run (``torquemod simulate --train``) cut to ``length_m`` [m]
-    of track, written into ``folder`` (run.toml + MDF4, run_h5.toml + HDF5, truth.parquet);
-    returns ``folder``."""
+    """The default train twin's run cut to a length of track, written into a folder.
+
+    As ``torquemod simulate --train``: run.toml + MDF4, run_h5.toml + HDF5, truth.parquet.
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        The folder.
+    length_m : float
+        Track length [m].
+    seed : int
+        Random seed.
+
+    Returns
+    -------
+    pathlib.Path
+        ``folder``.
+    """
     from dataclasses import replace
 
     from torquemod.twins.train import load_train_config, run_train_simulation

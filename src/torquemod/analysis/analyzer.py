@@ -53,9 +53,25 @@ ADDED_STEP_COLUMNS = ("torque_pct_saturation", "creep_coefficient", "phase_theor
 
 
 def per_step_means(result: ProcessResult, steps: np.ndarray) -> dict:
-    """Mean speed [m/s], normal load [N], modulation frequency [Hz] and lateral share of the
-    CoA |Fy|/Fz [-] per step, from the result's tables and per-cycle means; the load and
-    frequency fall back to the nominal test values where not measured."""
+    """Per-step means of speed, normal load, modulation frequency and lateral share of CoA.
+
+    From the result's tables and per-cycle means; the load and frequency fall back to the
+    nominal test values where not measured.
+
+    Parameters
+    ----------
+    result : ProcessResult
+        The processing result.
+    steps : ndarray of int
+        The steps wanted.
+
+    Returns
+    -------
+    dict of str to ndarray
+        One value per step: ``speed_m_s`` mean speed [m/s], ``fz_n`` normal load [N],
+        ``freq_hz`` modulation frequency [Hz] and ``lateral_coa`` |Fy|/Fz [-] (when
+        recorded).
+    """
     test = result.experiment.test
     idx = pd.Index(steps, name="step")
     details = pd.DataFrame(result.cycle_details)
@@ -221,10 +237,37 @@ def analyze(result: ProcessResult, options: FitOptions | dict | None = None, **f
 
 def saturation_torque(polach, phase_fit, *, normal_load_n: float, wheel_radius_m: float
                       ) -> tuple[float | None, float | None, str | None]:
-    """The saturation torque ``Ts = mu*N*Rw`` [N*m] (V-Track paper, Fig. 4's abscissa), its
-    standard error [N*m] and which mu gave it: the force fit's mu when it is determined
-    ("forces"), else mu from the phase when that is determined ("phase"), else
-    ``(None, None, None)``. Every place that shows Ts or % of Ts takes it from here."""
+    """The saturation torque ``Ts = mu*N*Rw``, its standard error and which mu gave it.
+
+    The force fit's mu when it is determined ("forces"), else mu from the phase when that is
+    determined ("phase"). Every place that shows Ts or % of Ts takes it from here (the
+    abscissa of Fig. 4 of [1]_).
+
+    Parameters
+    ----------
+    polach : PolachFit or None
+        The force fit.
+    phase_fit : PhaseMuFit or None
+        The fit from the phase.
+    normal_load_n : float
+        Normal load N [N].
+    wheel_radius_m : float
+        Wheel radius Rw [m].
+
+    Returns
+    -------
+    ts_nm : float or None
+        Ts [N*m].
+    ts_stderr_nm : float or None
+        Its standard error [N*m].
+    source : {"forces", "phase"} or None
+        Which mu; all three None when neither fit determines mu.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Fig. 4.
+    """
     n_r = float(normal_load_n) * float(wheel_radius_m)
     if polach is not None and polach.mu is not None:
         se = polach.mu_stderr
@@ -293,14 +336,43 @@ def _step_column(steps_df: pd.DataFrame, name: str) -> np.ndarray | None:
 
 def measured_constant(steps_df: pd.DataFrame, use: np.ndarray, *, wheel_radius_m: float,
                       normal_load_n: float, phase_se_deg=None):
-    """The theory constant C = Omega*J*V/(R^2*N) measured from the modulation itself
-    (:func:`torquemod.analysis.phasefit.constant_from_amplitudes`: the quadrature part of
-    the wheel's impedance T/w = j*Omega*J + R^2*N*k/V) over the steps in ``use``, from the
-    steps table's amplitudes [N*m], [rad/s], phases [deg] and speeds [m/s]; the modulation
-    frequency does not enter C. It holds where the torque is measured between the drive
-    and the wheel and the speed at the wheel (V-Track's torque shaft with its encoder).
-    A :class:`~torquemod.analysis.phasefit.ConstantEstimate` (its ``inertia_kg_m2`` NaN:
-    no frequency here), or None when a column is missing."""
+    """The theory constant C = Omega*J*V/(R^2*N) measured from the modulation itself.
+
+    Holds where the torque is measured between the drive and the wheel and the speed at the
+    wheel (V-Track's torque shaft with its encoder).
+
+    Parameters
+    ----------
+    steps_df : pandas.DataFrame
+        The steps table with the fitted modulation amplitudes (|T| [N*m], |w| [rad/s]), the
+        phase [deg] and the speed V [m/s].
+    use : ndarray of bool
+        The steps to use.
+    wheel_radius_m : float
+        R [m].
+    normal_load_n : float
+        N [N].
+    phase_se_deg : array_like or None
+        Standard errors of the phases per step [deg] (all steps; ``use`` selects); None: 0.
+
+    Returns
+    -------
+    ConstantEstimate or None
+        C [-] (the median over the steps), its relative standard error [-] and the number of
+        steps (:func:`torquemod.analysis.phasefit.constant_from_amplitudes`; the implied
+        inertia is NaN: the frequency does not enter here); None when a column is missing.
+
+    Notes
+    -----
+    The wheel's mechanical impedance ``T/w = j*Omega*J + R^2*N*k/V`` has the quadrature part
+    Omega*J, so at every step ``C_i = (|T_i|/|w_i|)*sin(phi_i)*V_i/(R^2*N)``; with Eq. (1) of
+    [1]_, ``tan(phi) = C/k``.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+    """
     from torquemod.analysis.phasefit import constant_from_amplitudes
     cols = [_step_column(steps_df, k) for k in ("torque_amplitude_nm", "wheel_amplitude_rad_s",
                                                "phase_deg", "speed_m_s")]

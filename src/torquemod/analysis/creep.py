@@ -40,9 +40,30 @@ ONSET_CRITERIA = ("tan_ratio", "phase", "creep_coefficient", "either", "both")
 class CreepPoints:
     """Creep-curve points, one per torque step, sorted by step.
 
-    ``creepage``/``coa`` are means over cycles [-]; ``*_std`` the standard deviation over
-    cycles; ``*_se`` the standard error ``std/sqrt(n_cycles)`` (NaN when unknown);
-    ``phase_deg``/``phase_std_deg`` the measured phase lag of the wheel speed [deg].
+    Attributes
+    ----------
+    step : ndarray of int
+        The torque step.
+    dc_torque_nm : ndarray
+        The step's DC torque [N*m].
+    creepage : ndarray
+        Mean longitudinal creepage over the step's cycles [-].
+    creepage_std : ndarray
+        Its standard deviation over cycles [-].
+    creepage_se : ndarray
+        Its standard error ``std/sqrt(n_cycles)`` [-] (NaN when unknown).
+    coa : ndarray
+        Mean coefficient of adhesion over cycles [-].
+    coa_std : ndarray
+        Its standard deviation over cycles [-].
+    coa_se : ndarray
+        Its standard error [-] (NaN when unknown).
+    phase_deg : ndarray
+        Mean phase lag of the wheel speed behind the torque [deg].
+    phase_std_deg : ndarray
+        Its standard deviation over cycles [deg].
+    n_cycles : ndarray of int
+        Cycles averaged.
     """
 
     step: np.ndarray
@@ -261,8 +282,35 @@ def fit_theory_constant(phase_deg, creep_coefficient) -> tuple[float, float, int
 
 @dataclass(frozen=True)
 class TheoryCheck:
-    """Measured against predicted phase per step [deg]. ``mode`` is ``"rig"`` (C from the rig
-    parameters) or ``"fitted"`` (one C fitted across the steps). ``constant`` holds C per step.
+    """Measured against predicted rigid-wheel phase per step.
+
+    Attributes
+    ----------
+    mode : {"rig", "fitted"}
+        C from the rig parameters, or one C fitted across the steps.
+    constant : ndarray
+        C = Omega*J*V/(R^2*N) per step [-].
+    constant_stderr : float
+        Standard error of a fitted C [-]; NaN in ``rig`` mode.
+    creep_coefficient : ndarray
+        k = dCoA/dxi per step [-].
+    phase_measured_deg : ndarray
+        Measured phase per step [deg].
+    phase_theory_deg : ndarray
+        ``atan(C/k)`` per step [deg].
+    difference_deg : ndarray
+        Measured minus theory [deg].
+    rms_difference_deg : float
+        RMS of the finite differences [deg].
+    max_abs_difference_deg : float
+        Largest |difference| [deg].
+    n_used : int
+        Steps compared (finite difference).
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
     """
 
     mode: str
@@ -330,7 +378,39 @@ def theory_check(phase_deg, creep_coefficient, *, constant=None) -> TheoryCheck:
 
 @dataclass(frozen=True)
 class OnsetResult:
-    """Saturation-onset indicator. ``step`` is None when no step meets the criterion."""
+    """Saturation-onset indicator (:func:`saturation_onset`).
+
+    Attributes
+    ----------
+    step : int or None
+        The first step meeting the criterion; None when none does.
+    index : int or None
+        Its index in the arrays given.
+    criterion : str
+        The criterion used (``tan_ratio``, ``phase``, ``creep_coefficient``, ``either``,
+        ``both``).
+    threshold_deg : float
+        The phase-rise threshold ``max(k_sigma*pooled std, min_jump_deg)`` [deg].
+    pooled_phase_std_deg : float
+        Pooled standard deviation of the phase over cycles [deg].
+    phase_jumps_deg : list of float or None
+        Phase rise from each step to the next (n - 1 values; None where not finite)
+        [deg].
+    creep_coefficient_ratios : list of float or None
+        Each step's k over the previous step's (n - 1 values) [-].
+    parameters : dict
+        The criterion's settings (``k_sigma`` [-], ``min_jump_deg`` [deg], ``rel_k_drop`` [-],
+        ``tan_ratio`` [-], ``baseline_steps``).
+    tan_ratios : list of float or None
+        tan(phase) over its low-torque value (the median over the first
+        ``baseline_steps``), per step [-]; by Eq. (1) of [1]_ the inverse ratio of creep
+        coefficients.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+    """
 
     step: int | None
     index: int | None

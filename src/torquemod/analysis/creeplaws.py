@@ -104,16 +104,36 @@ FAMILY = ("polach", "polach_falling", "burckhardt", "saturation", "knee")
 
 @dataclass(frozen=True)
 class Member:
-    """One curve of the family: its law and parameters (``polach``: (r,);
-    ``polach_falling``: (r, A, beta); ``burckhardt``: (d,); ``saturation``: (p, q);
-    ``knee``: (kappa,))."""
+    """One curve of the family of creep laws.
+
+    Attributes
+    ----------
+    law : str
+        One of :data:`FAMILY`.
+    params : tuple of float
+        ``polach``: (r,); ``polach_falling``: (r, A, beta); ``burckhardt``: (d,);
+        ``saturation``: (p, q); ``knee``: (kappa,); all dimensionless [-].
+    """
 
     law: str
     params: tuple
 
 
 def family() -> tuple[Member, ...]:
-    """Every member of the family, in the order of the tables' rows."""
+    """Every member of the family, in the order of the tables' rows.
+
+    Returns
+    -------
+    tuple of Member
+        The Polach [1]_ members (constant and falling friction), Burckhardt [2]_, the
+        saturating laws and the knee members, on the module's grids.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (8), (9).
+    .. [2] M. Burckhardt, "Fahrwerktechnik: Radschlupf-Regelsysteme", Vogel, Würzburg 1993.
+    """
     out = [Member("polach", (float(r),)) for r in R_GRID]
     out += [Member("polach_falling", (float(r), a, float(b)))
             for a in A_GRID for b in BETA_GRID for r in R_GRID_FALLING]
@@ -170,8 +190,30 @@ def _saturation_curve(p: float, q: float, x_max: float) -> tuple[np.ndarray, np.
 
 
 def member_curve(m: Member, x: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(x, F(x)) of a member in the normal form (module docstring) on a grid from 0 well past
-    its peak (or on the given ``x`` for the closed-form laws)."""
+    """A member's curve in the normal form ``CoA = mu0*F(x)``, ``F'(0) = 1``.
+
+    Parameters
+    ----------
+    m : Member
+        The member.
+    x : ndarray or None
+        Reduced creepage x = k0*xi/mu0 [-]; None: a grid from 0 well past the peak (the
+        given ``x`` is used only by the closed-form laws; the saturating laws use their own
+        grid up to its last value).
+
+    Returns
+    -------
+    x : ndarray
+        Reduced creepage [-].
+    f : ndarray
+        F(x) [-].
+
+    Examples
+    --------
+    >>> x, f = member_curve(Member("burckhardt", (0.0,)), np.array([0.0, 1.0]))
+    >>> [round(float(v), 6) for v in f]
+    [0.0, 0.632121]
+    """
     if x is None:
         x = np.concatenate([[0.0], np.geomspace(1e-5, 2e3, 6000)])
     if m.law == "polach":
@@ -203,14 +245,30 @@ def _rising(x: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, float
 
 @dataclass(frozen=True)
 class FamilyTables:
-    """The lookup tables of :func:`family_tables`: ``members``; ``f_peak`` (S,) = F_pk =
-    P/mu0; ``s`` and ``ds`` (S, N_U): s(u) and ds/du on ``u = linspace(0, 1, N_U)`` (NaN
-    at and beyond the peak); ``swing`` (S, N_U_SWING, len(SWING_A)) or None: the change of
-    the describing-function slope from s at the same mean utilisation (NaN where the
-    swing-averaged curve does not reach that utilisation); ``beta_h`` (S,): beta/h0 of the
-    falling-friction members (the friction falls as ``exp(-beta_h*x)`` in the reduced
-    creepage x), 0 for the others; ``falling`` (S,): the member's friction falls with the
-    slip velocity."""
+    """The lookup tables of :func:`family_tables`.
+
+    S members, utilisation ``u = linspace(0, 1, N_U)``.
+
+    Attributes
+    ----------
+    members : tuple of Member
+        The members, one per row.
+    f_peak : ndarray
+        (S,) F_pk = P/mu0 [-].
+    s : ndarray
+        (S, N_U) s(u) = k/k0 [-], NaN at and beyond the peak.
+    ds : ndarray
+        (S, N_U) ds/du [-].
+    swing : ndarray or None
+        (S, N_U_SWING, len(SWING_A)) change of the describing-function slope from s at the
+        same mean utilisation under a creepage swing [-] (NaN where the swing-averaged curve
+        does not reach that utilisation); None without swing tables.
+    beta_h : ndarray
+        (S,) beta/h0 of the falling-friction members [-] (the friction falls as
+        ``exp(-beta_h*x)`` in the reduced creepage x), 0 for the others.
+    falling : ndarray of bool
+        (S,) the member's friction falls with the slip velocity.
+    """
 
     members: tuple[Member, ...]
     f_peak: np.ndarray

@@ -29,10 +29,35 @@ def _curve_xi(polach, xi_max, speed):
 
 def creep_curve_figure(ana, *, ax=None, coa_multiplier: float = 20.0,
                        creepage_multiplier: float = 5.0):
-    """Paper Figure 3 of an :class:`~torquemod.analysis.result.Analysis`: CoA against
-    longitudinal creepage [%] with error bars of ``coa_multiplier`` x std(CoA) and
-    ``creepage_multiplier`` x std(creepage) over cycles (stated in the legend), and the
-    fitted Polach curve (dashed)."""
+    """Figure 3 of the V-Track paper [1]_: the measured creep curve and the fitted Polach curve.
+
+    CoA against longitudinal creepage [%] with error bars of ``coa_multiplier`` x std(CoA)
+    and ``creepage_multiplier`` x std(creepage) over cycles (stated in the legend), and the
+    fitted Polach curve [2]_ (dashed).
+
+    Parameters
+    ----------
+    ana : Analysis
+        The analysis.
+    ax : matplotlib.axes.Axes or None
+        Axes to draw in; None: a new figure's.
+    coa_multiplier : float
+        Length of the CoA error bars in standard deviations [-]. Default 20 (as the paper).
+    creepage_multiplier : float
+        Length of the creepage error bars in standard deviations [-]. Default 5.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes drawn in.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Fig. 3.
+    .. [2] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000.
+    """
     _fig, ax = figure_axes(ax)
     steps = ana.steps
     xi = np.asarray(steps["creepage"], dtype=float)
@@ -65,10 +90,30 @@ def creep_curve_figure(ana, *, ax=None, coa_multiplier: float = 20.0,
 
 
 def phase_figure(ana, *, ax=None):
-    """Paper Figure 4 of an :class:`~torquemod.analysis.result.Analysis`: measured phase
-    difference [deg] (bars: std over cycles) against the DC torque as % of the saturation
-    torque ``Ts = mu*N*Rw`` (N·m when mu is undetermined), with the rigid-wheel theory
-    ``atan(C/k)`` along the fitted curve and at each step; the onset step is marked."""
+    """Figure 4 of the V-Track paper [1]_: the phase against the DC torque.
+
+    Measured phase difference [deg] (bars: std over cycles) against the DC torque as % of
+    the saturation torque ``Ts = mu*N*Rw`` (N*m when mu is undetermined), with the
+    rigid-wheel theory ``atan(C/k)`` (Eq. 1) along the fitted curve and at each step; the
+    onset step is marked.
+
+    Parameters
+    ----------
+    ana : Analysis
+        The analysis.
+    ax : matplotlib.axes.Axes or None
+        Axes to draw in; None: a new figure's.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes drawn in.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1) and Fig. 4.
+    """
     _fig, ax = figure_axes(ax)
     steps = ana.steps
     ts = ana.saturation_torque_nm
@@ -122,11 +167,25 @@ def _ts_axis_label(ana) -> str:
 
 
 def phase_fit_figure(ana, *, ax=None):
-    """The phase progression against the utilised adhesion CoA [-] (mu from the phase, issue
-    8) of an :class:`~torquemod.analysis.result.Analysis`: measured phase per fitted step
-    (bars: 2 standard errors), the fitted ``tan phi = C/k(CoA)`` curve
-    (:func:`torquemod.analysis.phasefit.fit_mu_from_phase`), its mu with the 95 % interval (or lower
-    bound) and the force fit's mu; each step is labelled with its utilisation CoA/mu."""
+    """The phase progression against the utilised adhesion, with mu from the phase.
+
+    Measured phase per fitted step (bars: 2 standard errors), the fitted
+    ``tan(phi) = C/k(CoA)`` curve (:func:`torquemod.analysis.phasefit.fit_mu_from_phase`),
+    its mu with the 95 % interval (or lower bound) and the force fit's mu; each step is
+    labelled with its utilisation CoA/mu.
+
+    Parameters
+    ----------
+    ana : Analysis
+        The analysis.
+    ax : matplotlib.axes.Axes or None
+        Axes to draw in; None: a new figure's.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes drawn in (CoA [-] against phase [deg]).
+    """
     _fig, ax = figure_axes(ax)
     pts, use = ana.points, ana.used
     table = ana.steps.set_index("step").reindex(pts.step)

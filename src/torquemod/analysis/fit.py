@@ -190,46 +190,94 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
                min_saturation_fraction: float = 0.5, min_peak_fraction: float = 0.9,
                creepage_limit: float = 0.1, max_nfev: int = 2000,
                lateral_coa=None, creepage_swing=None) -> PolachFit:
-    """Fit Polach's model (P05 Eqs. 3, 8; Eq. 9 when velocity-dependent) to creep points.
+    """Fit Polach's creep-force model to creep-curve points.
+
+    Eqs. (3) and (8) of [1]_ (with Eq. (9) when velocity-dependent) in the lumped form of the
+    module docstring, by weighted least squares from several starting points
+    (``scipy.optimize.least_squares``, trust-region reflective); mu's 95 % interval from the
+    profile likelihood [2]_.
 
     Parameters
     ----------
-    xi, coa : array_like
-        Creepage [-] and coefficient of adhesion [-] per point (e.g. per torque step).
-    xi_std, coa_std : array_like, optional
-        Standard errors of each point (e.g. cycle standard deviation / sqrt(n_cycles)).
-        Without both, the fit is unweighted (sigma = 1).
+    xi : array_like
+        Creepage per point (e.g. per torque step) [-].
+    coa : array_like
+        Coefficient of adhesion per point [-].
+    xi_std : array_like or None
+        Standard errors of ``xi`` [-] (e.g. cycle standard deviation / sqrt(n_cycles)); with
+        them the effective-variance method weights the points. Default None.
+    coa_std : array_like or None
+        Standard errors of ``coa`` [-]; without them the fit is unweighted (sigma = 1).
+        Default None.
     velocity_dependent : bool
-        Off by default, as in the V-Track paper (low speed, low creepage). When on, fits
-        ``mu0, A, B`` of P05 Eq. (9) too and needs ``speeds_m_s`` [m/s] per point.
-    stiffness : float, optional
+        Also fit ``mu0, A, B`` of Eq. (9); needs ``speeds_m_s``. Default False, as in the
+        V-Track paper [3]_ (low speed, low creepage).
+    speeds_m_s : array_like or None
+        Rolling speed V per point [m/s] (slip velocity ``|xi|*V``); needed with
+        ``velocity_dependent``. Default None.
+    stiffness : float or None
         Lumped contact stiffness ``s = pi*G*a*b*c11/(4*Q)`` [-]; when given, ``k_a`` and
-        ``k_s`` are reported instead of the identifiable products.
-    n_starts, seed : int
-        Number of starting points (a fixed grid, then random ones from ``seed``).
-    lateral_coa : array_like, optional
-        Measured ``|Fy|/Fz`` [-] per point. ``coa`` is then taken as Eq. (4) of the V-Track
-        paper, ``sqrt(Fx^2 + Fy^2)/Fz``, and modelled as ``sqrt(f(xi)^2 + lateral^2)`` with f
-        the longitudinal Polach curve: at low torque the lateral force dominates the CoA and
-        would otherwise be read as a steep creep curve.
-    creepage_swing : array_like, optional
-        Amplitude [-] of the sinusoidal creepage swing the torque modulation causes at each
-        point (``steps.csv`` ``creepage_swing``). The model is then the static curve averaged
-        over the swing (:func:`torquemod.analysis.contact.polach.swing_average`), which is what the
-        mean (creepage, CoA) of a modulated step measures; NaN counts as no swing.
-    sigma_floor, max_rel_stderr, min_saturation_fraction, min_peak_fraction, creepage_limit
-        See the module docstring.
+        ``k_s`` are reported instead of the identifiable products. Default None.
+    n_starts : int
+        Starting points: a fixed grid, then random ones from ``seed`` [-]. Default 12.
+    seed : int
+        Seed of the random starting points. Default 0.
+    sigma_floor : float
+        Every sigma is floored at ``max(sigma_floor, 0.1*median(sigma))`` [-] so that one
+        lucky point with a tiny spread cannot dominate. Default 1e-4.
+    max_rel_stderr : float
+        mu is determined only when ``mu_stderr/mu`` is at most this [-]. Default 0.10.
+    min_saturation_fraction : float
+        ... and the largest measured CoA reaches this share of mu [-]. Default 0.5.
+    min_peak_fraction : float
+        ... and the fitted curve reaches this share of mu for creepages up to
+        ``creepage_limit`` [-]. Default 0.9.
+    creepage_limit : float
+        Creepage range of that check and of ``curve_peak_coa`` [-]. Default 0.1.
+    max_nfev : int
+        Largest number of function evaluations per start [-]. Default 2000.
+    lateral_coa : array_like or None
+        Measured ``|Fy|/Fz`` per point [-]. ``coa`` is then taken as Eq. (4) of [3]_,
+        ``sqrt(Fx^2 + Fy^2)/Fz``, and modelled as ``sqrt(f(xi)^2 + lateral^2)`` with f the
+        longitudinal Polach curve: at low torque the lateral force dominates the CoA and would
+        otherwise be read as a steep creep curve. Default None.
+    creepage_swing : array_like or None
+        Amplitude of the sinusoidal creepage swing the torque modulation causes at each point
+        [-] (``steps.csv`` ``creepage_swing``). The model is then the static curve averaged
+        over the swing (:func:`torquemod.analysis.contact.polach.swing_average`), which is what
+        the mean (creepage, CoA) of a modulated step measures; NaN counts as no swing.
+        Default None.
 
     Returns
     -------
     PolachFit
+        mu (None when not determined, with ``mu_lower_bound``), its standard error and 95 %
+        interval, the reduction factors or their products with s, the covariance, chi2 and
+        warnings.
 
     Raises
     ------
     InputError
-        Too few points, non-finite values, or missing speeds.
+        Too few points (4, or 6 velocity-dependent), non-finite values, arrays of different
+        lengths, missing speeds, a stiffness that is not positive, or all CoA zero.
     ProcessingError
         No start converged.
+
+    Notes
+    -----
+    ``CoA(xi) = mu*(2/pi)*[kA*eps/(1 + (kA*eps)^2) + arctan(kS*eps)]``, ``eps = s*|xi|/mu``
+    [1]_; only ``mu``, ``kA*s`` and ``kS*s`` are identifiable without s. The covariance is
+    ``(J^T J)^-1 * max(1, chi2_red)``.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (3), (8), (9).
+    .. [2] S.S. Wilks, "The large-sample distribution of the likelihood ratio for testing
+       composite hypotheses", Ann. Math. Statist. 9(1) (1938) 60-62.
+    .. [3] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (4) and step 9 of
+       Section 2.4.
     """
     xi = _clean("xi", xi)
     coa = _clean("coa", coa, xi.size)

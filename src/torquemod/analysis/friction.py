@@ -228,17 +228,68 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
 
 @dataclass(frozen=True)
 class AdhesionFit:
-    """The available adhesion from one progression (module docstring). All CoA-like values
-    [-]. ``estimate``: the best-fitting P (reported as the value only when ``determined``);
-    ``low``/``high``: its 95 % interval (``high`` NaN when open above; ``low`` then the lower
-    bound); ``lower_bound``: never below the largest CoA; ``closed``: one closed interval;
-    ``mu0``/``mu0_low``/``mu0_high``: the law's friction coefficient and its range over the
-    fits within the level (``mu0_identified`` when closed and as narrow as P's rule asks);
-    ``probe_depth``: the utilisation a further point must reach to determine P (NaN when
-    determined or when even 95 % would not); ``law``/``params``: the best member; ``k0``
-    the fitted initial creep coefficient in the units of the observations (``k0/C`` from
-    phases without C); ``chi2``, ``dof``, ``chi2_scale``; ``p_grid``/``profile``: the
-    profile ``min_theta chi2`` on the P grid and ``level`` its 95 % threshold."""
+    """The available adhesion from one progression of creep coefficients (or phases).
+
+    All CoA-like values are dimensionless.
+
+    Attributes
+    ----------
+    estimate : float
+        The best-fitting available adhesion P [-] (reported as the value only when
+        ``determined``).
+    low : float
+        Lower end of its 95 % interval [-] (the lower bound when the interval is open).
+    high : float
+        Upper end of its 95 % interval [-]; NaN when open above.
+    lower_bound : float
+        What is known for certain: the interval's lowest point, never below the largest CoA
+        [-] (adhesion cannot exceed what is available).
+    determined : bool
+        The interval is closed and its half width is at most ``max_rel_half_width`` of P.
+    closed : bool
+        The interval is one closed interval inside the grid.
+    mu0 : float
+        The best law's friction coefficient P/F_pk [-].
+    mu0_low, mu0_high : float
+        Its range over the fits within the level [-].
+    mu0_identified : bool
+        That range is closed and as narrow as P's rule asks.
+    probe_depth : float
+        Utilisation a further point must reach to determine P [-]; NaN when determined or
+        when even 95 % would not.
+    law : str
+        The best member's law (:data:`~torquemod.analysis.creeplaws.FAMILY`).
+    params : tuple of float
+        Its parameters [-] (:class:`~torquemod.analysis.creeplaws.Member`).
+    k0 : float
+        The fitted initial creep coefficient in the units of the observations [-] (``k0/C``
+        from phases without C).
+    chi2 : float
+        Chi-square of the best fit [-].
+    dof : int
+        Its degrees of freedom [-].
+    chi2_scale : float
+        ``max(1, chi2/dof)`` [-] when the interval is widened by the scatter, else 1.
+    max_rel_half_width : float
+        The rule of ``determined`` [-].
+    model_rel_error : float
+        The relative model error used [-].
+    c_max : float
+        The largest CoA of the points [-].
+    p_grid : ndarray
+        The trial values of P [-].
+    profile : ndarray
+        ``min_theta chi2(P, theta)`` on ``p_grid`` [-].
+    level : float
+        Its 95 % threshold ``chi2_min + 3.84*chi2_scale`` [-].
+    best_s : ndarray
+        The best member's s(u) = k/k0 on the tables' utilisation grid [-].
+
+    References
+    ----------
+    .. [1] S.S. Wilks, "The large-sample distribution of the likelihood ratio for testing
+       composite hypotheses", Ann. Math. Statist. 9(1) (1938) 60-62.
+    """
 
     estimate: float
     low: float
@@ -344,25 +395,86 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
                            other_laws: bool = True, speed_m_s: float | None = None,
                            knee: bool = False, constant_rel_se: float = 0.0
                            ) -> AdhesionFit | None:
-    """The available adhesion P from creep coefficients ``k`` [-] (or any fixed multiple of
-    them: the phase fit passes ``cot(phi) = k/C``) with standard errors ``k_se`` at utilised
-    adhesions ``coa`` [-] (module docstring). ``coa_se`` [-]: the CoA's standard errors;
-    ``swing`` [-]: the creepage swing amplitude per point; ``constant``: the factor C with
-    ``k = C*(observation)`` (1 for creep coefficients; None when unknown: k0 is then
-    profiled, used only to size a swing). ``max_rel_half_width``: the
-    widest half interval, relative to P, that counts as determined. ``probe``: also find the
-    probe depth that would determine P when it is not. ``ratio_bounds``: the range of
-    kA/kS of the Polach members; ``other_laws``: also the non-Polach members.
-    ``speed_m_s``: the rolling speed V [m/s]; with it (and k0 in absolute units: creep
-    coefficients, or phases with C given) a falling-friction member counts only where its
-    fall ``exp(-B*xi*V)`` needs B <= :data:`B_MAX_S_M` (at a rig's few km/h the slip
-    velocity stays far too small for friction to fall much). ``knee``: also the members
-    linear up to a knee (Dugoff's law; off by default: they cover Dugoff's law but leave
-    Burckhardt's on-board segments undetermined). ``constant_rel_se`` [-]: the relative
-    standard error of ``constant`` when it was measured rather than known (C from the
-    amplitudes): the bound on falling friction is then applied at C's lower 95 % end (a
-    smaller k0 asks a smaller B, so no member that a C within its uncertainty allows is left
-    out). None when fewer than ``min_points`` usable points remain."""
+    """The available adhesion P from creep coefficients measured at utilised adhesions.
+
+    The one estimator for the rig (phases, :func:`fit_available_adhesion_from_phase`), the
+    train and the sweep (module docstring).
+
+    Parameters
+    ----------
+    coa : array_like
+        Utilised adhesion CoA of each point [-].
+    k : array_like
+        Creep coefficient dCoA/dxi of each point [-], or any fixed multiple of it (the phase
+        fit passes ``cot(phi) = k/C``).
+    k_se : array_like
+        Standard errors of ``k`` [-].
+    swing : array_like or None
+        Creepage swing amplitude of the modulation per point [-]; None: small-signal slopes.
+    constant : float or None
+        The factor C with ``k = C*(observation)`` [-]: 1 for creep coefficients; None when
+        unknown (k0 is then profiled, used only to size a swing). Default 1.
+    coa_se : array_like or None
+        Standard errors of ``coa`` [-]; None: 0 (a relative floor ``model_rel_coa`` is added).
+    model_rel_error : float
+        Relative model error per point [-], calibrated by cross-fitting laws outside the
+        family (``benchmarks/friction_coverage.py``). Default :data:`MODEL_REL_ERROR`.
+    model_rel_coa : float
+        Relative error of each point's utilisation [-]. Default :data:`MODEL_REL_COA`.
+    max_rel_half_width : float
+        Widest half interval, relative to P, that counts as determined [-]. Default
+        :data:`MAX_REL_HALF_WIDTH`.
+    p_span : float
+        Largest P tried, as a multiple of the largest CoA [-]. Default 20.
+    scale_by_chi2 : bool
+        Widen the interval by ``chi2/dof`` when it exceeds 1. Default True.
+    probe : bool
+        Also find the probe depth that would determine P when it is not. Default True.
+    min_points : int
+        Fewest usable points [-]. Default 4.
+    ratio_bounds : tuple of float
+        Range of kA/kS of the Polach members [-]. Default (0.3, 7.0).
+    other_laws : bool
+        Also the non-Polach members (Burckhardt, saturating laws). Default True.
+    speed_m_s : float or None
+        Rolling speed V [m/s]; with it (and k0 in absolute units) a falling-friction member
+        counts only where its fall ``exp(-B*xi*V)`` needs B <= :data:`B_MAX_S_M` (at a rig's
+        few km/h the slip velocity stays far too small for friction to fall much).
+    knee : bool
+        Also the members linear up to a knee (Dugoff's law). Default False: they cover
+        Dugoff's law but leave Burckhardt's on-board segments undetermined.
+    constant_rel_se : float
+        Relative standard error of ``constant`` when it was measured rather than known (C
+        from the amplitudes) [-]: the bound on falling friction is then applied at C's lower
+        95 % end (a smaller k0 asks a smaller B, so no member that a C within its uncertainty
+        allows is left out). Default 0.
+
+    Returns
+    -------
+    AdhesionFit or None
+        The fit; None when fewer than ``min_points`` usable points remain.
+
+    Raises
+    ------
+    InputError
+        Arrays of different lengths.
+
+    Notes
+    -----
+    For every member theta and trial P, ``k(CoA) = k0*s(CoA/P; theta)`` with k0 in closed
+    form and ``chi2(P, theta) = sum((y_i - k0*s_i)^2/v_i)``,
+    ``v_i = se_i^2 + (model_rel*y_i)^2 + (k0*s'(u_i)/P*se_CoA_i)^2``. The 95 % interval is
+    the profile-likelihood set ``{P : min_theta chi2 <= chi2_min + 3.84*max(1, chi2_min/dof)}``
+    [1]_ over the whole family (Polach [2]_, Burckhardt [3]_, saturating laws).
+
+    References
+    ----------
+    .. [1] S.S. Wilks, "The large-sample distribution of the likelihood ratio for testing
+       composite hypotheses", Ann. Math. Statist. 9(1) (1938) 60-62.
+    .. [2] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (8), (9).
+    .. [3] M. Burckhardt, "Fahrwerktechnik: Radschlupf-Regelsysteme", Vogel, Würzburg 1993.
+    """
     coa = np.abs(_as_points("coa", coa, None))
     n = coa.size
     y = _as_points("k", k, n)
@@ -579,14 +691,62 @@ def fit_available_adhesion_from_phase(coa, phase_deg, phase_se_deg, *, constant=
                                       ratio_bounds: tuple = (0.3, 7.0),
                                       speed_m_s: float | None = None, knee: bool = False,
                                       constant_rel_se: float = 0.0) -> AdhesionFit | None:
-    """P from the phases of the wheel speed behind the torque, ``tan(phi) = C/k`` (V-Track
-    paper Eq. 1): :func:`fit_available_adhesion` on ``y = cot(phi) = k/C`` with standard
-    error ``se_phi/sin^2(phi)``. ``constant`` C [-] when known (needed only to size the
-    creepage swing and to bound falling friction; without it k0 is profiled), with
-    ``constant_rel_se`` [-] its relative standard error when measured (e.g. from the
-    amplitudes, :func:`torquemod.analysis.phasefit.constant_from_amplitudes`);
-    ``creepage_swing`` [-] per step; ``speed_m_s`` the rolling speed [m/s]. Steps with a
-    phase outside (0, 90) deg are left out."""
+    """P from the phases of the wheel speed behind the torque.
+
+    ``tan(phi) = C/k`` (V-Track paper Eq. 1): :func:`fit_available_adhesion` on
+    ``y = cot(phi) = k/C`` with standard error ``se_phi/sin^2(phi)``. Steps with a phase
+    outside (0, 90) deg are left out.
+
+    Parameters
+    ----------
+    coa : array_like
+        Utilised adhesion CoA per step [-].
+    phase_deg : array_like
+        Lag of the wheel speed behind the torque per step [deg].
+    phase_se_deg : array_like
+        Standard errors of ``phase_deg`` [deg].
+    constant : float or None
+        C = Omega*J*V/(R^2*N) [-] when known (needed only to size the creepage swing and to
+        bound falling friction; without it k0 is profiled). Default None.
+    creepage_swing : array_like or None
+        Creepage swing amplitude per step [-]. Default None.
+    coa_se : array_like or None
+        Standard errors of ``coa`` [-]; None: 0 (a relative floor ``model_rel_coa`` is added).
+    model_rel_error : float
+        Relative model error per point [-], calibrated by cross-fitting laws outside the
+        family (``benchmarks/friction_coverage.py``). Default :data:`MODEL_REL_ERROR`.
+    model_rel_coa : float
+        Relative error of each point's utilisation [-]. Default :data:`MODEL_REL_COA`.
+    max_rel_half_width : float
+        Widest half interval, relative to P, that counts as determined [-]. Default
+        :data:`MAX_REL_HALF_WIDTH`.
+    scale_by_chi2 : bool
+        Widen the interval by ``chi2/dof`` when it exceeds 1. Default True.
+    probe : bool
+        Also the probe depth that would determine P. Default True.
+    ratio_bounds : tuple of float
+        Range of kA/kS of the Polach members [-]. Default (0.3, 7.0).
+    speed_m_s : float or None
+        Rolling speed [m/s]. Default None.
+    knee : bool
+        Also the knee members. Default False.
+    constant_rel_se : float
+        Relative standard error of a measured C [-] (e.g. from the amplitudes,
+        :func:`torquemod.analysis.phasefit.constant_from_amplitudes`); the falling-friction
+        bound is applied at its lower 95 % end. Default 0.
+
+    Returns
+    -------
+    AdhesionFit or None
+        The fit (``k0`` is k0/C without C); None when fewer than four usable steps remain.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+    .. [2] S.S. Wilks, "The large-sample distribution of the likelihood ratio for testing
+       composite hypotheses", Ann. Math. Statist. 9(1) (1938) 60-62.
+    """
     ph = np.radians(np.asarray(phase_deg, dtype=float).ravel())
     se = np.radians(np.abs(np.asarray(phase_se_deg, dtype=float).ravel()))
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -39,10 +39,20 @@ MODEL_REL_CONSTANT = 0.02
 
 @dataclass(frozen=True)
 class ConstantEstimate:
-    """The rigid-wheel constant measured from the modulation (:func:`constant_from_amplitudes`):
-    ``constant`` C [-], its relative standard error ``rel_se`` [-] (the steps' scatter and
-    :data:`MODEL_REL_CONSTANT`), the implied wheel inertia ``inertia_kg_m2`` [kg m^2] and the
-    number of steps ``n`` it comes from."""
+    """The rigid-wheel constant measured from the modulation (:func:`constant_from_amplitudes`).
+
+    Attributes
+    ----------
+    constant : float
+        C = Omega*J*V/(R^2*N) [-], the median over the steps.
+    rel_se : float
+        Its relative standard error [-]: the steps' scatter or the phases' noise, and
+        :data:`MODEL_REL_CONSTANT`.
+    inertia_kg_m2 : float
+        The implied wheel inertia J [kg m^2] (NaN without the modulation frequency).
+    n : int
+        Number of steps it comes from.
+    """
 
     constant: float
     rel_se: float
@@ -129,23 +139,79 @@ def fit_mu_from_phase(coa, phase_deg, phase_se_deg, *, constant=None, creepage_s
                       model_rel_error: float = MODEL_REL_ERROR,
                       speed_m_s: float | None = None, constant_rel_se: float = 0.0,
                       constant_source: str | None = None) -> PhaseMuFit:
-    """The available adhesion from the phase progression (module docstring).
+    """The available adhesion from the phase progression of a rig's torque steps.
 
-    ``coa`` [-] utilised adhesion per step, ``phase_deg`` [deg] the lag of the wheel speed
-    behind the torque per step, ``phase_se_deg`` [deg] its standard error, ``constant`` C [-]
-    (``Omega*J*V/(R^2*N)``) when known, ``creepage_swing`` [-] the creepage swing amplitude
-    per step, ``coa_se`` [-] the CoA's standard error per step. ``max_rel_half_width``: the
-    adhesion counts as determined when its 95 % interval is closed and at most this fraction
-    of the estimate wide on either side; ``scale_by_chi2`` widens the interval by the
-    reduced chi2 when it exceeds 1. ``ratio_bounds``: the range of r = kA/kS of the family's
-    Polach members (a narrower range is a prior on the curve's shape). ``model_rel_error``:
-    the relative model error per step. ``speed_m_s`` [m/s]: the rolling speed, which with C
-    bounds how far the friction can fall with the slip velocity. ``constant_rel_se`` [-]:
-    the relative standard error of C when it was measured (:func:`constant_from_amplitudes`);
-    ``constant_source``: where C came from (``"rig inertia"``, ``"amplitudes"``, ...;
-    default ``"given"``, or ``"not given"`` without C). Steps with a non-finite
-    value, a phase outside
-    (0, 90) deg or a non-positive standard error are left out; at least four must remain.
+    Steps with a non-finite value, a phase outside (0, 90) deg or a non-positive standard
+    error are left out; at least four must remain. A thin layer over
+    :func:`torquemod.analysis.friction.fit_available_adhesion_from_phase`.
+
+    Parameters
+    ----------
+    coa : array_like
+        Utilised adhesion CoA per step [-].
+    phase_deg : array_like
+        Lag of the wheel speed behind the torque per step [deg].
+    phase_se_deg : array_like
+        Standard error of ``phase_deg`` [deg].
+    constant : float or None
+        C = Omega*J*V/(R^2*N) [-] when known; None: ``k0/C`` is fitted (the adhesion does not
+        need C).
+    creepage_swing : array_like or None
+        Creepage swing amplitude per step [-]; None: small-signal slopes.
+    coa_se : array_like or None
+        Standard error of ``coa`` [-]; None: 0.
+    max_rel_half_width : float
+        The adhesion counts as determined when its 95 % interval is closed and at most this
+        fraction of the estimate wide on either side [-]. Default 0.10.
+    scale_by_chi2 : bool
+        Widen the interval by the reduced chi2 when it exceeds 1. Default True.
+    ratio_bounds : tuple of float
+        Range of r = kA/kS of the family's Polach members [-] (a narrower range is a prior on
+        the curve's shape); within :data:`R_BOUNDS`. Default :data:`R_BOUNDS`.
+    model_rel_error : float
+        Relative model error per step [-]. Default
+        :data:`~torquemod.analysis.friction.MODEL_REL_ERROR`.
+    speed_m_s : float or None
+        Rolling speed V [m/s]; with C it bounds how far the friction can fall with the slip
+        velocity. Default None.
+    constant_rel_se : float
+        Relative standard error of C when it was measured [-]
+        (:func:`constant_from_amplitudes`). Default 0.
+    constant_source : str or None
+        Where C came from (``"rig inertia"``, ``"amplitudes"``, ...); default ``"given"``,
+        or ``"not given"`` without C.
+
+    Returns
+    -------
+    PhaseMuFit
+        ``mu`` (the available adhesion, the maximum of the adhesion-creepage curve [-]), its
+        95 % interval, whether it is determined, the lower bound, ``mu0`` where identified.
+
+    Raises
+    ------
+    InputError
+        Arrays of different lengths, C not positive, ``ratio_bounds`` outside
+        :data:`R_BOUNDS`, fewer than four usable steps, or no creep law of the family fits
+        (every step beyond the curves' peaks).
+
+    Notes
+    -----
+    The rigid-wheel relation ``tan(phi_i) = C/k_i`` [1]_ (Eq. 1) gives the creep coefficient
+    k up to the scale C at every step: ``y_i = cot(phi_i) = k_i/C`` with standard error
+    ``se_phi/sin^2(phi)``. The fall of k with CoA, ``k = k0*s(CoA/P; theta)``, fixes the
+    available adhesion P over a family of creep laws (Polach [2]_, Burckhardt [3]_ and
+    saturating laws); the 95 % interval is the profile-likelihood set
+    ``chi2(P) <= chi2_min + 3.84*max(1, chi2_min/dof)`` [4]_.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+    .. [2] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (3), (8), (9).
+    .. [3] M. Burckhardt, "Fahrwerktechnik: Radschlupf-Regelsysteme", Vogel, Würzburg 1993.
+    .. [4] S.S. Wilks, "The large-sample distribution of the likelihood ratio for testing
+       composite hypotheses", Ann. Math. Statist. 9(1) (1938) 60-62.
     """
     coa = np.abs(_clean("coa", coa))
     n = coa.size

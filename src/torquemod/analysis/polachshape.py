@@ -17,21 +17,87 @@ __all__ = ["inverse_polach_h", "invert_polach_h", "polach_branch", "polach_h",
 
 
 def polach_h(x, r):
-    """Normalised Polach force ``h(x; r) = (2/pi)*(r*x/(1+(r*x)^2) + arctan(x))`` (P05 Eq. 8
-    with ``x = kS*eps``, ``r = kA/kS``), odd in x: the library's
-    :func:`torquemod.analysis.contact.polach.force_function` with kA = r, kS = 1."""
+    """Normalised Polach force ``h(x; r) = (2/pi)*(r*x/(1 + (r*x)^2) + arctan(x))``.
+
+    Odd in x: :func:`torquemod.analysis.contact.polach.force_function` with kA = r, kS = 1
+    [1]_.
+
+    Parameters
+    ----------
+    x : float or array_like
+        Reduced creepage x = kS*eps [-].
+    r : float or array_like
+        r = kA/kS [-].
+
+    Returns
+    -------
+    float or ndarray
+        h [-].
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eq. (8).
+
+    Examples
+    --------
+    >>> float(polach_h(0.0, 3.0))
+    0.0
+    >>> round(float(polach_h(1e9, 3.0)), 6)
+    1.0
+    """
     return force_function(np.asarray(x, dtype=float), k_a=r, k_s=1.0)
 
 
 def polach_h_slope(x, r):
-    """``dh/dx`` of :func:`polach_h`: ``(2/pi)*(r*(1-(rx)^2)/(1+(rx)^2)^2 + 1/(1+x^2))``
-    (:func:`torquemod.analysis.contact.polach.force_function_slope`)."""
+    """``dh/dx`` of :func:`polach_h`: ``(2/pi)*(r*(1 - (r*x)^2)/(1 + (r*x)^2)^2 + 1/(1 + x^2))``.
+
+    Parameters
+    ----------
+    x : float or array_like
+        Reduced creepage x = kS*eps [-].
+    r : float or array_like
+        r = kA/kS [-].
+
+    Returns
+    -------
+    float or ndarray
+        dh/dx [-]; ``2*(r + 1)/pi`` at x = 0.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eq. (8).
+
+    Examples
+    --------
+    >>> import math
+    >>> math.isclose(float(polach_h_slope(0.0, 3.0)), 8 / math.pi)
+    True
+    """
     return force_function_slope(np.asarray(x, dtype=float), k_a=r, k_s=1.0)
 
 
 def polach_h_curvature(x, r):
-    """``d2h/dx2`` of :func:`polach_h`: ``(2/pi)*(2 r^2 y (y^2-3)/(1+y^2)^3 - 2x/(1+x^2)^2)``,
-    ``y = r*x``."""
+    """``d2h/dx2`` of :func:`polach_h`.
+
+    Parameters
+    ----------
+    x : float or array_like
+        Reduced creepage x = kS*eps [-].
+    r : float or array_like
+        r = kA/kS [-].
+
+    Returns
+    -------
+    float or ndarray
+        ``(2/pi)*(2*r^2*y*(y^2 - 3)/(1 + y^2)^3 - 2*x/(1 + x^2)^2)``, y = r*x [-].
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eq. (8).
+    """
     x = np.asarray(x, dtype=float)
     y = r * x
     return (2.0 / np.pi) * (2.0 * r * r * y * (y * y - 3.0) / (1.0 + y * y) ** 3
@@ -39,7 +105,20 @@ def polach_h_curvature(x, r):
 
 
 def polach_branch(r: float) -> tuple[np.ndarray, np.ndarray]:
-    """(x, h) on a dense grid of the rising branch of h (up to its first maximum)."""
+    """The rising branch of h on a dense grid, up to its first maximum.
+
+    Parameters
+    ----------
+    r : float
+        r = kA/kS [-].
+
+    Returns
+    -------
+    x : ndarray
+        Reduced creepage, 0 and 3000 log-spaced points from 1e-5 to 1e3 [-].
+    h : ndarray
+        :func:`polach_h` there [-].
+    """
     x = np.concatenate([[0.0], np.logspace(-5, 3, 3000)])
     h = polach_h(x, r)
     falling = np.flatnonzero(np.diff(h) <= 0)
@@ -48,7 +127,27 @@ def polach_branch(r: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def invert_polach_h(u, r: float) -> np.ndarray:
-    """x with h(x; r) = u on the rising branch, any scalar r (NaN beyond the branch's top)."""
+    """x with h(x; r) = u on the rising branch, for any scalar r.
+
+    Interpolation on :func:`polach_branch`, then three Newton steps.
+
+    Parameters
+    ----------
+    u : float or array_like
+        h value [-]; the sign is carried over to x.
+    r : float
+        r = kA/kS [-].
+
+    Returns
+    -------
+    ndarray
+        x [-]; NaN beyond the branch's top.
+
+    Examples
+    --------
+    >>> round(float(invert_polach_h(polach_h(0.5, 3.0), 3.0)), 9)
+    0.5
+    """
     xg, hg = polach_branch(r)
     u = np.asarray(u, dtype=float)
     x = np.interp(np.abs(u), hg, xg)
@@ -59,9 +158,27 @@ def invert_polach_h(u, r: float) -> np.ndarray:
 
 
 def inverse_polach_h(u, r) -> np.ndarray:
-    """x >= 0 with h(x; r) = |u| for r in 1..7.5 (h monotone there), broadcasting u and r:
-    bisection in s = x/(1 + x), then Newton. NaN where
-    |u| >= 1."""
+    """x >= 0 with h(x; r) = |u| for r in 1..7.5 (h monotone there), broadcasting u and r.
+
+    Bisection in s = x/(1 + x), then Newton.
+
+    Parameters
+    ----------
+    u : float or array_like
+        h value [-].
+    r : float or array_like
+        r = kA/kS [-], 1 to 7.5.
+
+    Returns
+    -------
+    ndarray
+        x [-]; NaN where |u| >= 1.
+
+    Examples
+    --------
+    >>> round(float(inverse_polach_h(polach_h(0.5, 3.0), 3.0)), 9)
+    0.5
+    """
     u, r = np.broadcast_arrays(np.abs(np.asarray(u, dtype=float)), np.asarray(r, float))
     lo = np.zeros(u.shape)
     hi = np.ones(u.shape)
@@ -78,7 +195,28 @@ def inverse_polach_h(u, r) -> np.ndarray:
 
 
 def slope_ratio_small(coa, mu, r):
-    """(x, h'(0)/h'(x)): the small-signal model's x = h^-1(CoA/mu; r) and the ratio of the
-    initial creep coefficient to the one at CoA (CoA, mu [-])."""
+    """The small-signal model's reduced creepage and creep-coefficient ratio at a CoA.
+
+    Parameters
+    ----------
+    coa : float or array_like
+        Utilised adhesion [-].
+    mu : float
+        Friction coefficient [-].
+    r : float or array_like
+        r = kA/kS [-], 1 to 7.5.
+
+    Returns
+    -------
+    x : ndarray
+        ``h^-1(CoA/mu; r)`` [-].
+    ratio : ndarray
+        ``h'(0)/h'(x)`` [-]: the initial creep coefficient over the one at CoA.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eq. (8).
+    """
     x = inverse_polach_h(coa / mu, r)
     return x, 2.0 * (r + 1.0) / np.pi / polach_h_slope(x, r)

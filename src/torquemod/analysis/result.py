@@ -26,15 +26,28 @@ __all__ = ["Analysis", "curve_check", "from_saved", "phase_keys", "saved_state"]
 
 
 def phase_keys(pfit) -> dict:
-    """The fit.json keys of the fit from the phase. ``mu_from_phase*`` (kept from earlier
-    versions): the available adhesion (the maximum of the adhesion-creepage curve), a lower
-    bound as the interval's low end when it is not determined. ``adhesion_available_from_
-    phase*`` name the same quantity explicitly, with the interval when it is closed, the
-    lower bound, the probe depth (utilisation) that would determine it, and ``mu0_from_phase``,
-    the law's friction coefficient, where the data identify it. ``mu_from_phase_constant_source``
-    says where the rigid-wheel constant C came from: ``"rig inertia"``, ``"amplitudes"``
-    (measured from the torque and wheel-speed amplitudes, no inertia given), ``"given"`` or
-    ``"not given"`` (absent when there is no fit from the phase)."""
+    """The fit.json keys of the fit from the phase.
+
+    ``mu_from_phase*`` (kept from earlier versions): the available adhesion (the maximum of
+    the adhesion-creepage curve), a lower bound as the interval's low end when it is not
+    determined. ``adhesion_available_from_phase*`` name the same quantity explicitly, with
+    the interval when it is closed, the lower bound, the probe depth (utilisation) that would
+    determine it, and ``mu0_from_phase``, the law's friction coefficient, where the data
+    identify it. ``mu_from_phase_constant_source`` says where the rigid-wheel constant C
+    came from: ``"rig inertia"``, ``"amplitudes"`` (measured from the torque and wheel-speed
+    amplitudes, no inertia given), ``"given"`` or ``"not given"`` (absent when there is no
+    fit from the phase).
+
+    Parameters
+    ----------
+    pfit : PhaseMuFit or None
+        The fit; None gives every key empty.
+
+    Returns
+    -------
+    dict
+        JSON-ready keys; adhesions and friction coefficients [-], probe depth [-].
+    """
     keys = ("adhesion_available_from_phase", "adhesion_available_from_phase_low",
             "adhesion_available_from_phase_high", "adhesion_available_from_phase_lower_bound",
             "mu0_from_phase", "mu0_from_phase_low", "mu0_from_phase_high",
@@ -63,9 +76,27 @@ def phase_keys(pfit) -> dict:
 
 
 def curve_check(polach, creepage_limit: float, *, n: int = 2000) -> tuple[bool, str | None]:
-    """Whether the fitted creep curve rises monotonically from zero creepage up to its
-    maximum on ``[0, creepage_limit]`` (a physical creep curve does; a dip before the peak
-    means the optimiser's answer is not a usable curve): (ok, what is wrong or None)."""
+    """Whether the fitted creep curve rises monotonically from zero creepage to its maximum.
+
+    A physical creep curve does; a dip before the peak means the optimiser's answer is not a
+    usable curve.
+
+    Parameters
+    ----------
+    polach : PolachFit
+        The force fit.
+    creepage_limit : float
+        Upper end of the creepage range checked [-].
+    n : int
+        Grid points over ``[0, creepage_limit]`` [-]. Default 2000.
+
+    Returns
+    -------
+    ok : bool
+        The curve is usable.
+    problem : str or None
+        What is wrong, or None.
+    """
     grid = np.linspace(0.0, float(creepage_limit), n)
     coa = np.asarray(polach.curve(grid), dtype=float)
     if not np.all(np.isfinite(coa)):
@@ -110,10 +141,15 @@ class Analysis:
         Which ``points`` entered the Polach fit (not slipping).
     polach : PolachFit or None
         The force fit (Polach 2005, Eqs. 3, 8 and 9); None with the reason in
-        ``polach_skipped`` (str or None).
+        ``polach_skipped``.
+    polach_skipped : str or None
+        Why there is no force fit (no forces recorded, too few points, ...); None when
+        there is one.
     phase_fit : PhaseMuFit or None
         The available adhesion from the phases; None with the reason in
-        ``phase_fit_skipped`` (str or None).
+        ``phase_fit_skipped``.
+    phase_fit_skipped : str or None
+        Why there is no fit from the phases; None when there is one.
     theory : TheoryCheck
         Measured against rigid-wheel phases ``atan(C/k)`` (the V-Track paper, Eq. 1).
     phase_theory_deg : ndarray
@@ -347,7 +383,18 @@ def _f(x, spec: str = ".4f") -> str:
 
 
 def headline_lines(ana: Analysis) -> list[str]:
-    """The few lines every summary shows (CLI, report(), notebooks)."""
+    """The few lines every summary shows (CLI, report(), notebooks).
+
+    Parameters
+    ----------
+    ana : Analysis
+        The analysis.
+
+    Returns
+    -------
+    list of str
+        The lines.
+    """
     out = []
     if ana.polach_skipped:
         out.append(f"Polach fit skipped: {ana.polach_skipped}")
@@ -382,8 +429,18 @@ def headline_lines(ana: Analysis) -> list[str]:
 
 # --- saving and reading back ----------------------------------------------------------------
 def saved_state(ana: Analysis) -> dict:
-    """What :func:`from_saved` needs besides the ``fit.json`` document (:meth:`Analysis.to_dict`)
-    and the steps table: the few values that document does not hold (JSON-ready)."""
+    """What :func:`from_saved` needs besides the ``fit.json`` document and the steps table.
+
+    Parameters
+    ----------
+    ana : Analysis
+        The analysis.
+
+    Returns
+    -------
+    dict
+        The few values ``fit.json`` (:meth:`Analysis.to_dict`) does not hold, JSON-ready.
+    """
     return to_jsonable({
         "polach_converged": None if ana.polach is None else bool(ana.polach.converged),
         "polach_mu_stderr_estimate": None if ana.polach is None
@@ -396,10 +453,32 @@ def saved_state(ana: Analysis) -> dict:
 
 def from_saved(doc: dict, state: dict, steps: pd.DataFrame, options: FitOptions, *,
                name: str = "") -> Analysis:
-    """The :class:`Analysis` back from its ``fit.json`` document ``doc``, the
-    :func:`saved_state` ``state`` and the analysed steps table, without fitting again.
+    """The :class:`Analysis` back from what :func:`torquemod.save` wrote, without fitting again.
 
-    Raises KeyError, TypeError or ValueError on a document that does not fit together."""
+    Parameters
+    ----------
+    doc : dict
+        The ``fit.json`` document.
+    state : dict
+        The :func:`saved_state` of the analysis.
+    steps : pandas.DataFrame
+        The analysed steps table (``steps.csv``).
+    options : FitOptions
+        The options the fit ran with.
+    name : str
+        The experiment's name. Default "".
+
+    Returns
+    -------
+    Analysis
+        Equal to the one saved.
+
+    Raises
+    ------
+    KeyError, TypeError, ValueError
+        The document, the state and the steps do not fit together (the loader turns these
+        into an InputError naming fit.json).
+    """
     from torquemod.analysis.creep import creep_points
     from torquemod.analysis.phasefitresult import PhaseMuFit
     from torquemod.analysis.polachfitresult import PolachFit

@@ -7,9 +7,32 @@ from scipy import signal
 
 
 def unbiased_xcorr(x: np.ndarray, y: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
-    """Unbiased cross-correlation ``r[k] = sum_n x[n+k]*y[n] / M(k)`` for |k| <= max_lag,
-    where M(k) is the number of overlapping samples at lag k (``N - |k|`` for equal lengths),
-    as MATLAB's ``xcorr(x, y, maxlag, 'unbiased')``. Returns (lags, r)."""
+    """Unbiased cross-correlation, as MATLAB's ``xcorr(x, y, maxlag, 'unbiased')``.
+
+    ``r[k] = sum_n x[n+k]*y[n] / M(k)`` for |k| <= max_lag, M(k) the number of overlapping
+    samples at lag k (``N - |k|`` for equal lengths).
+
+    Parameters
+    ----------
+    x, y : ndarray
+        The signals.
+    max_lag : int
+        Largest |lag| [samples].
+
+    Returns
+    -------
+    lags : ndarray of int
+        The lags [samples].
+    r : ndarray
+        The correlation, unit of x times unit of y.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> lags, r = unbiased_xcorr(np.array([1.0, 2.0, 3.0]), np.array([1.0, 2.0, 3.0]), 1)
+    >>> lags.tolist(), r.tolist()
+    ([-1, 0, 1], [4.0, 4.666666666666667, 4.0])
+    """
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
     full = signal.correlate(x, y, mode="full")
@@ -20,8 +43,31 @@ def unbiased_xcorr(x: np.ndarray, y: np.ndarray, max_lag: int) -> tuple[np.ndarr
 
 
 def alignment_lag(reference: np.ndarray, other: np.ndarray, max_lag: int) -> int:
-    """Lag k [samples] maximising the unbiased cross-correlation: ``other[n]`` best matches
-    ``reference[n - k]``, i.e. ``other`` shifted left by k (``other[n + k]``) aligns with
-    ``reference[n]``."""
+    """The lag that maximises the unbiased cross-correlation of two signals.
+
+    ``other[n]`` best matches ``reference[n - k]``, i.e. ``other`` shifted left by k
+    (``other[n + k]``) aligns with ``reference[n]``.
+
+    Parameters
+    ----------
+    reference : ndarray
+        The reference signal.
+    other : ndarray
+        The signal to align.
+    max_lag : int
+        Largest |lag| searched [samples].
+
+    Returns
+    -------
+    int
+        k [samples].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.sin(np.arange(200) / 7.0)
+    >>> alignment_lag(x[5:105], x[:100], 20)
+    5
+    """
     lags, r = unbiased_xcorr(other, reference, max_lag)
     return int(lags[np.argmax(r)])

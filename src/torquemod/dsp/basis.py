@@ -12,7 +12,7 @@ import numba
 import numpy as np
 from scipy.special import fdtri
 
-from torquemod.dsp.lstsq import lstsq
+from torquemod.dsp.lstsq import LstsqFactor, lstsq
 
 
 @functools.lru_cache(maxsize=64)
@@ -65,19 +65,44 @@ def _dpss(n: int, nw: float, k: int) -> np.ndarray:
 
 def slow_basis(n_samples: int, fs_hz: float, max_hz: float, *, extra: int = 2,
                degree: int = 5) -> np.ndarray:
-    """Basis ``(n_samples, m)`` of slowly varying signals: Legendre polynomials up to
-    ``degree`` and the first ``round(2*T*max_hz) + extra`` discrete prolate spheroidal
-    (Slepian) sequences of half-bandwidth ``max_hz`` [Hz] over the record's duration T [s].
+    """Basis of slowly varying signals: Legendre polynomials and Slepian sequences.
 
-    The Slepian sequences are the signals of length T most concentrated in ``|f| < max_hz``
-    (Slepian 1978), so any variation below ``max_hz`` is nearly in their span while they stay
-    nearly orthogonal to a modulation above it; they are small at the record's ends, where the
-    polynomials give the basis its freedom. Measured over a 6.05 s record at 53.3 Hz with
-    ``max_hz = 1.2``, ``extra = 2``, ``degree = 5``: a unit sinusoid anywhere in 0.2-1.0 Hz
-    leaks < 1e-5 into a jointly fitted 2 Hz modulation (2e-4 at 1.2 Hz), and the joint fit
-    costs the modulation 23 % of variance
-    (:meth:`torquemod.processing.speedmodel.SpeedModel.variance_factor`).
-    ``max_hz = 0`` gives the polynomials alone.
+    Legendre polynomials up to ``degree`` and the first ``round(2*T*max_hz) + extra``
+    discrete prolate spheroidal (Slepian) sequences of half-bandwidth ``max_hz`` over the
+    record's duration T. The Slepian sequences are the signals of length T most concentrated
+    in ``|f| < max_hz`` [1]_, so any variation below ``max_hz`` is nearly in their span while
+    they stay nearly orthogonal to a modulation above it; they are small at the record's
+    ends, where the polynomials give the basis its freedom.
+
+    Parameters
+    ----------
+    n_samples : int
+        Samples [-].
+    fs_hz : float
+        Sample rate [Hz].
+    max_hz : float
+        Half-bandwidth [Hz]; 0 gives the polynomials alone.
+    extra : int
+        Slepian sequences beyond ``round(2*T*max_hz)`` [-]. Default 2.
+    degree : int
+        Highest polynomial degree [-]. Default 5.
+
+    Returns
+    -------
+    ndarray
+        (n_samples, m) basis.
+
+    Notes
+    -----
+    Measured over a 6.05 s record at 53.3 Hz with ``max_hz = 1.2``, ``extra = 2``,
+    ``degree = 5``: a unit sinusoid anywhere in 0.2-1.0 Hz leaks < 1e-5 into a jointly
+    fitted 2 Hz modulation (2e-4 at 1.2 Hz), and the joint fit costs the modulation 23 % of
+    variance (:meth:`torquemod.processing.speedmodel.SpeedModel.variance_factor`).
+
+    References
+    ----------
+    .. [1] D. Slepian, "Prolate spheroidal wave functions, Fourier analysis, and
+       uncertainty - V: the discrete case", Bell Syst. Tech. J. 57(5) (1978) 1371-1430.
     """
     duration = n_samples / fs_hz
     nw = duration * max_hz
@@ -87,8 +112,28 @@ def slow_basis(n_samples: int, fs_hz: float, max_hz: float, *, extra: int = 2,
 
 
 def unwrapped_angle(speed_rad_s: np.ndarray, fs_hz: float) -> np.ndarray:
-    """Angle [rad] turned since the first sample: the trapezoidal integral of an angular speed
-    [rad/s] sampled at ``fs_hz`` (used to follow rotation orders whose frequency moves)."""
+    """Angle turned since the first sample: the trapezoidal integral of an angular speed.
+
+    Used to follow rotation orders whose frequency moves.
+
+    Parameters
+    ----------
+    speed_rad_s : ndarray
+        Angular speed [rad/s].
+    fs_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    ndarray
+        Angle [rad], 0 at the first sample.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> unwrapped_angle(np.full(3, 2.0), 10.0).tolist()
+    [0.0, 0.2, 0.4]
+    """
     w = np.asarray(speed_rad_s, dtype=np.float64)
     out = np.empty_like(w)
     out[0] = 0.0
@@ -97,10 +142,24 @@ def unwrapped_angle(speed_rad_s: np.ndarray, fs_hz: float) -> np.ndarray:
 
 
 def order_design(angle_rad: np.ndarray, orders) -> np.ndarray:
-    """Columns ``cos(k*theta), sin(k*theta)`` for each rotation order k at the angle
-    ``theta`` [rad]: an encoder's eccentricity error follows the angle, so when the speed moves
-    its tones move with it (order tracking); fixed-frequency tones would leave sidebands.
-    The orders above 1 are powers of ``exp(1j*theta)`` (:func:`_order_columns`)."""
+    """Columns ``cos(k*theta), sin(k*theta)`` for each rotation order k.
+
+    An encoder's eccentricity error follows the angle, so when the speed moves its tones move
+    with it (order tracking); fixed-frequency tones would leave sidebands. The orders above 1
+    are powers of ``exp(1j*theta)``.
+
+    Parameters
+    ----------
+    angle_rad : ndarray
+        The angle theta [rad] (:func:`unwrapped_angle`).
+    orders : sequence of int
+        The orders k.
+
+    Returns
+    -------
+    ndarray
+        (n, 2*len(orders)) design columns [-].
+    """
     theta = np.asarray(angle_rad, dtype=np.float64)
     orders = np.array([int(k) for k in orders], dtype=np.int64)
     if orders.size == 0:
@@ -147,38 +206,66 @@ WIDE_BAND_RISK_RAD = 1e-4
 def needs_wide_band(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float,
                     modulation_hz: float, quiet_hz: float, wide_hz: float, *, extra: int,
                     degree: int) -> bool:
-    """Whether the speed model needs its full slow band (``wide_hz`` [Hz], ``slow.max_hz``)
-    rather than the quiet one (``quiet_hz``, ``slow.quiet_max_hz``) for one cycle.
+    """Whether the speed model needs its full slow band for one cycle.
 
     Under a speed wobble at f_w the wheel's answer to the modulation at f moves with the
-    operating point and carries sidebands at f +- f_w and, near saturation, f +- 2 f_w. A slow
-    band reaching them takes part of the answer away and changes the phase (0.3-0.5 deg at
-    80-90 % of the peak under a 0.3 % wobble at 0.2-0.6 Hz with a 1.2 Hz band at 2 Hz;
+    operating point and carries sidebands at f +- f_w and, near saturation, f +- 2 f_w. A
+    slow band reaching them takes part of the answer away and changes the phase (0.3-0.5 deg
+    at 80-90 % of the peak under a 0.3 % wobble at 0.2-0.6 Hz with a 1.2 Hz band at 2 Hz;
     independent rig, benchmarks/chain_accuracy.py). The quiet band keeps them, but a speed
     variation above it (a speed loop wobbling at 0.8-1.2 Hz) then leaks into the modulation.
-    The platform speed [rad/s] carries the speed loop's variation and hardly any answer to
-    the modulation, so it decides: it is fitted with the modulation at ``modulation_hz``
-    beside the Slepian sequences of the quiet band (without extra sequences, whose reach
-    beyond the band would hide most of a line just above it) and beside the full slow basis
-    of the wide band (:func:`slow_basis`). The wide band is needed
-    when it explains significantly more (the F test of nested least-squares models,
-    :data:`WIDE_BAND_FALSE_ALARM`) and when the platform's modulation coefficients of the
-    two fits differ, relative to its mean speed, by more than :data:`WIDE_BAND_RISK_RAD`
-    times the wheel's relative modulation amplitude (the phase [rad] the variation would
-    cost the wheel, which follows the platform's relative speed). Without a platform
-    speed, always.
+    The platform speed carries the speed loop's variation and hardly any answer to the
+    modulation, so it decides.
+
+    Parameters
+    ----------
+    wheel : ndarray
+        Wheel speed of the cycle [rad/s].
+    platform : ndarray or None
+        Platform speed [rad/s]; None: the wide band is always needed.
+    fs_hz : float
+        Sample rate [Hz].
+    modulation_hz : float
+        Modulation frequency [Hz].
+    quiet_hz : float
+        The quiet band's half-width [Hz] (``slow.quiet_max_hz``).
+    wide_hz : float
+        The full band's half-width [Hz] (``slow.max_hz``).
+    extra : int
+        Slepian sequences beyond the band's count in the wide basis [-].
+    degree : int
+        Polynomial degree of the basis [-].
+
+    Returns
+    -------
+    bool
+        True when the wide band is needed.
+
+    Notes
+    -----
+    The platform speed is fitted with the modulation beside the Slepian sequences of the
+    quiet band (without extra sequences) and beside the full slow basis of the wide band
+    (:func:`slow_basis`). The wide band is needed when it explains significantly more (the F
+    test of nested least-squares models [1]_ at :data:`WIDE_BAND_FALSE_ALARM`) and when the
+    platform's modulation coefficients of the two fits differ, relative to its mean speed, by
+    more than :data:`WIDE_BAND_RISK_RAD` times the wheel's relative modulation amplitude.
+
+    References
+    ----------
+    .. [1] S. Weisberg, "Applied Linear Regression", 4th ed., Wiley 2014 (the F test of
+       nested models).
     """
     if platform is None:
         return True
     n = wheel.size
-    t = (np.arange(n) - (n - 1) / 2) / fs_hz
-    mod = np.column_stack([np.cos(2 * np.pi * modulation_hz * t),
-                           np.sin(2 * np.pi * modulation_hz * t)])
     y = np.column_stack([wheel, platform])
     fits = []
     for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
-        design = np.hstack([mod, slow_basis(n, fs_hz, band, extra=ext, degree=degree)])
-        coef, rank = lstsq(design, y)
+        # the design depends on the record's length and the configuration only: made and
+        # factored once for every cycle of that length (the same numbers as each time)
+        design, fac = _wide_band_design(int(n), float(fs_hz), float(modulation_hz),
+                                        float(band), int(ext), int(degree))
+        coef, rank = (fac.solve(y), design.shape[1]) if fac is not None else lstsq(design, y)
         resid = platform - design @ coef[:, 1]
         fits.append((float(resid @ resid), rank, coef[:2]))
     (rss_q, rank_q, coef_q), (rss_w, rank_w, coef_w) = fits
@@ -191,3 +278,20 @@ def needs_wide_band(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float
     risk = float(np.hypot(*(coef_q[:, 1] - coef_w[:, 1]))) / abs(p_mean) / wheel_rel
     return bool(f_stat > fdtri(dfn, dfd, 1.0 - WIDE_BAND_FALSE_ALARM)
                 and risk > WIDE_BAND_RISK_RAD)
+
+
+@functools.lru_cache(maxsize=32)
+def _wide_band_design(n: int, fs_hz: float, modulation_hz: float, band_hz: float, extra: int,
+                      degree: int) -> tuple[np.ndarray, LstsqFactor | None]:
+    """One design of :func:`needs_wide_band`, ``[cos, sin, slow_basis(band_hz)]`` with time
+    from the record's middle, and its least-squares factor (None: :func:`lstsq` falls back
+    to the SVD); cached, read-only."""
+    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    mod = np.column_stack([np.cos(2 * np.pi * modulation_hz * t),
+                           np.sin(2 * np.pi * modulation_hz * t)])
+    design = np.hstack([mod, slow_basis(n, fs_hz, band_hz, extra=extra, degree=degree)])
+    design.setflags(write=False)
+    fac = LstsqFactor.of(design)
+    if fac is not None:
+        fac.factor.setflags(write=False)
+    return design, fac

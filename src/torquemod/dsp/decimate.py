@@ -167,15 +167,40 @@ def _two_stage_rows(rows: list[np.ndarray], offsets: np.ndarray, up: int, down: 
 
 def decimate_two_stage(x: np.ndarray, up: int, down: int, *, kaiser_beta: float = 5.0,
                        line: bool = False) -> np.ndarray:
-    """Resample rows of ``x`` by ``up/down`` in two stages: :func:`stage1_fir` decimating by
-    the integer ``q1`` of :func:`two_stage_plan`, then ``resample_poly(up, down2)``'s
-    arithmetic with its own Kaiser design, both with zero padding and both in numba, row by
-    row (:func:`_two_stage_row`; the sums are those of ``resample_poly``'s ``upfirdn``, in
-    another order: rounding only, tests/dsp/test_decimate.py). Output ``m`` sits
-    at input sample ``m*down/up`` as with one-stage ``resample_poly``, and there are as many
-    (``ceil(n*up/down)``). ``line`` removes the line through the end samples before and
-    restores it at the output times after (a symmetric FIR of unit DC gain passes a line
-    unchanged), so a trend does not ring at the ends."""
+    """Resample rows by ``up/down`` in two stages, the same output samples as one stage.
+
+    :func:`stage1_fir` decimating by the integer ``q1`` of :func:`two_stage_plan`, then
+    ``resample_poly(up, down2)``'s arithmetic with its own Kaiser design, both with zero
+    padding and both in numba, row by row (the sums are those of ``resample_poly``'s
+    ``upfirdn``, in another order: rounding only). Output ``m`` sits at input sample
+    ``m*down/up`` as with one-stage ``resample_poly``, and there are as many
+    (``ceil(n*up/down)``).
+
+    Parameters
+    ----------
+    x : ndarray
+        Signal(s), any unit, along the last axis.
+    up : int
+        Upsampling factor [-].
+    down : int
+        Downsampling factor [-].
+    kaiser_beta : float
+        Kaiser beta of the designs [-]. Default 5.
+    line : bool
+        Remove the line through the end samples before and restore it at the output times
+        after (a symmetric FIR of unit DC gain passes a line unchanged), so a trend does not
+        ring at the ends. Default False.
+
+    Returns
+    -------
+    ndarray
+        The resampled signal(s), same unit.
+
+    Raises
+    ------
+    ValueError
+        ``down`` has no integer first stage.
+    """
     if two_stage_plan(up, down) is None:
         raise ValueError(f"no integer first stage for {up}/{down}")
     x = np.asarray(x, dtype=np.float64)

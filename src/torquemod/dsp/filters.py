@@ -42,9 +42,30 @@ from torquemod.dsp.lstsq import LstsqFactor, _cho_solve, lstsq  # noqa: F401  (r
 
 def resample_ratio(fs_in_hz: float, fs_target_hz: float, *, max_denominator: int = 1000
                    ) -> tuple[int, int]:
-    """Integers (up, down) with ``fs_in*up/down`` closest to ``fs_target`` (16 670 Hz to
-    53.344 Hz gives exactly 2/625). Cached: the same rates for every cycle of a run, and
-    ``Fraction.limit_denominator`` costs ~50 us."""
+    """Integers (up, down) with ``fs_in*up/down`` closest to ``fs_target``.
+
+    Cached: the same rates for every cycle of a run, and ``Fraction.limit_denominator``
+    costs ~50 us.
+
+    Parameters
+    ----------
+    fs_in_hz : float
+        Input rate [Hz].
+    fs_target_hz : float
+        Wanted rate [Hz].
+    max_denominator : int
+        Largest ``down`` [-]. Default 1000.
+
+    Returns
+    -------
+    tuple of int
+        (up, down).
+
+    Examples
+    --------
+    >>> resample_ratio(16670.0, 53.344)
+    (2, 625)
+    """
     return _resample_ratio(float(fs_in_hz), float(fs_target_hz), int(max_denominator))
 
 
@@ -62,21 +83,47 @@ RESAMPLE_METHODS = ("polyphase", "two_stage")
 
 def resample(x: np.ndarray, up: int, down: int, *, kaiser_beta: float = 5.0,
              method: str = "polyphase", padtype: str = "line") -> np.ndarray:
-    """Polyphase resampling by ``up/down`` along the last axis (MATLAB ``resample``
-    equivalent, Kaiser beta 5; the FIR is designed once per ratio and cached).
+    """Polyphase resampling by ``up/down`` along the last axis.
 
-    Each row's mean is removed before and restored after, and with ``padtype="line"`` the ends
-    are padded along a line, so a DC offset or slow trend does not ring at the edges
-    (Gustafsson 1996, IEEE Trans. Signal Process. 44(4)). ``padtype="constant"`` pads with zeros
-    (after the mean removal): it changes
-    only the :func:`resampler_edge_samples` outputs at each end, which the chain cuts off, and
-    saves the padding's cost (tests/dsp/test_decimate.py verifies both claims).
+    MATLAB ``resample`` equivalent, Kaiser beta 5; the FIR is designed once per ratio and
+    cached. Each row's mean is removed before and restored after, and with
+    ``padtype="line"`` the ends are padded along a line, so a DC offset or slow trend does
+    not ring at the edges [1]_. ``padtype="constant"`` changes only the
+    :func:`resampler_edge_samples` outputs at each end, which the chain cuts off, and saves
+    the padding's cost. ``method="two_stage"`` gives the same output samples at the same
+    times through a cheaper route (:func:`decimate_two_stage`: an integer decimation by a
+    long Kaiser FIR first, then ``resample_poly``'s arithmetic for the rest of the ratio); it
+    falls back to ``"polyphase"`` when ``down`` has no suitable integer factor.
 
-    ``method="two_stage"`` gives the same output samples at the same times through a cheaper
-    route (:func:`decimate_two_stage`): an integer decimation by a long Kaiser FIR first,
-    then ``resample_poly``'s arithmetic for the rest of the ratio, both in numba row by row
-    with each row's mean removed inside the kernel (no centred copy). It falls back to
-    ``"polyphase"`` when ``down`` has no suitable integer factor.
+    Parameters
+    ----------
+    x : ndarray
+        Signal(s), any unit, resampled along the last axis.
+    up : int
+        Upsampling factor [-].
+    down : int
+        Downsampling factor [-].
+    kaiser_beta : float
+        Kaiser window beta of the FIR [-]. Default 5 (MATLAB's ``resample``).
+    method : {"polyphase", "two_stage"}
+        The route; both give the same output samples. Default "polyphase".
+    padtype : {"line", "constant"}
+        Pad the ends along a line, or with zeros after the mean removal. Default "line".
+
+    Returns
+    -------
+    ndarray
+        The resampled signal(s), same unit.
+
+    Raises
+    ------
+    ValueError
+        An unknown ``method`` or ``padtype``.
+
+    References
+    ----------
+    .. [1] F. Gustafsson, "Determining the initial states in forward-backward filtering",
+       IEEE Trans. Signal Process. 44(4) (1996) 988-992.
     """
     if method not in RESAMPLE_METHODS:
         raise ValueError(f"unknown resampling method {method!r}; use one of {RESAMPLE_METHODS}")
@@ -94,11 +141,41 @@ def resample(x: np.ndarray, up: int, down: int, *, kaiser_beta: float = 5.0,
 def resample_rows(rows, up: int, down: int, *, kaiser_beta: float = 5.0,
                   method: str = "polyphase", padtype: str = "line", return_means: bool = False
                   ):
-    """:func:`resample` of ``np.vstack(rows)`` (records of equal length) without stacking
-    them first: each row's mean is removed while it is copied into the stacked array, which
-    saves one pass over the data. The means are the same numbers ``resample`` removes (numpy
-    sums each row the same way), so the output is bit-identical. With ``return_means`` also
-    the rows' means (``np.mean(row)`` of each, as float64), for a caller that needs them."""
+    """:func:`resample` of ``np.vstack(rows)`` without stacking them first.
+
+    Each row's mean is removed while it is copied into the stacked array, which saves one
+    pass over the data. The means are the same numbers ``resample`` removes (numpy sums each
+    row the same way), so the output is bit-identical.
+
+    Parameters
+    ----------
+    rows : sequence of ndarray
+        Records of equal length, any unit.
+    up : int
+        Upsampling factor [-].
+    down : int
+        Downsampling factor [-].
+    kaiser_beta : float
+        Kaiser window beta of the FIR [-]. Default 5 (MATLAB's ``resample``).
+    method : {"polyphase", "two_stage"}
+        The route; both give the same output samples. Default "polyphase".
+    padtype : {"line", "constant"}
+        Pad the ends along a line, or with zeros after the mean removal. Default "line".
+    return_means : bool
+        Also return the rows' means. Default False.
+
+    Returns
+    -------
+    y : ndarray
+        (n_rows, n_out) resampled rows.
+    means : ndarray
+        ``np.mean(row)`` of each row (float64), only with ``return_means``.
+
+    Raises
+    ------
+    ValueError
+        An unknown ``method`` or ``padtype``.
+    """
     if method not in RESAMPLE_METHODS:
         raise ValueError(f"unknown resampling method {method!r}; use one of {RESAMPLE_METHODS}")
     if padtype not in ("line", "constant"):
@@ -133,11 +210,43 @@ def _resample_centred(xc: np.ndarray, m: np.ndarray, up: int, down: int, kaiser_
 
 
 def design_notch(f0_hz: float, q: float, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Second-order IIR notch at ``f0_hz`` with quality factor ``q`` (bandwidth f0/q):
-    ``scipy.signal.iirnotch(f0_hz, q, fs=fs_hz)`` by its own arithmetic on Python floats
-    (Orfanidis, Introduction to Signal Processing, eqs. 11.3.4-11.3.7: ``beta = tan(bw/2)``,
-    ``gain = 1/(1 + beta)``), the same bits (tests/processing/test_chain_kernels.py) without its
-    per-call array handling."""
+    """Second-order IIR notch at ``f0_hz`` with quality factor ``q`` (bandwidth f0/q).
+
+    ``scipy.signal.iirnotch(f0_hz, q, fs=fs_hz)`` by its own arithmetic on Python floats [1]_,
+    the same bits without its per-call array handling.
+
+    Parameters
+    ----------
+    f0_hz : float
+        Notch frequency [Hz].
+    q : float
+        Quality factor f0/bandwidth [-].
+    fs_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    b, a : ndarray
+        Numerator and denominator coefficients.
+
+    Notes
+    -----
+    ``beta = tan(bw/2)`` with bw = 2*pi*(f0/q)/fs, ``gain = 1/(1 + beta)``,
+    ``b = gain*[1, -2*cos(w0), 1]``, ``a = [1, -2*gain*cos(w0), 2*gain - 1]``.
+
+    References
+    ----------
+    .. [1] S.J. Orfanidis, "Introduction to Signal Processing", Prentice Hall 1996,
+       Eqs. (11.3.4)-(11.3.7).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy import signal
+    >>> b, a = design_notch(50.0, 30.0, 1000.0)
+    >>> bool(np.allclose(b, signal.iirnotch(50.0, 30.0, fs=1000.0)[0], rtol=0, atol=1e-15))
+    True
+    """
     fs = float(fs_hz)
     w0 = 2 * float(f0_hz) / fs
     if w0 > 1.0 or w0 < 0.0 or not fs > 0:
@@ -152,9 +261,25 @@ def design_notch(f0_hz: float, q: float, fs_hz: float) -> tuple[np.ndarray, np.n
 
 @functools.lru_cache(maxsize=32)
 def design_highpass(cutoff_hz: float, order: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Butterworth high-pass of ``order`` (applied twice by :func:`zero_phase`). Its
-    parameters are configuration, not measurements, so the design is cached (read-only
-    arrays)."""
+    """Butterworth high-pass (applied twice by :func:`zero_phase`).
+
+    Its parameters are configuration, not measurements, so the design is cached (read-only
+    arrays).
+
+    Parameters
+    ----------
+    cutoff_hz : float
+        Cut-off frequency [Hz].
+    order : int
+        Filter order [-].
+    fs_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    b, a : ndarray
+        Coefficients (read-only).
+    """
     b, a = signal.butter(order, cutoff_hz, "highpass", fs=fs_hz)
     b.setflags(write=False)
     a.setflags(write=False)
@@ -163,8 +288,29 @@ def design_highpass(cutoff_hz: float, order: int, fs_hz: float) -> tuple[np.ndar
 
 def design_bandpass(center_hz: float, width_hz: float, order: int, fs_hz: float
                     ) -> tuple[np.ndarray, np.ndarray]:
-    """Butterworth band-pass from ``center-width/2`` to ``center+width/2`` [Hz]; ``order`` is
-    the prototype's, the band-pass has twice that (scipy's convention)."""
+    """Butterworth band-pass from ``center - width/2`` to ``center + width/2``.
+
+    Parameters
+    ----------
+    center_hz : float
+        Centre frequency [Hz].
+    width_hz : float
+        Band width [Hz].
+    order : int
+        The prototype's order [-]; the band-pass has twice that (scipy's convention).
+    fs_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    b, a : ndarray
+        Coefficients.
+
+    Raises
+    ------
+    ValueError
+        The band does not fit in 0..fs/2.
+    """
     lo, hi = center_hz - width_hz / 2, center_hz + width_hz / 2
     if lo <= 0 or hi >= fs_hz / 2:
         raise ValueError(f"band-pass {lo:.3f}-{hi:.3f} Hz does not fit in 0..{fs_hz / 2} Hz")
@@ -201,9 +347,28 @@ def _butter_bandpass(order: int, lo: float, hi: float) -> tuple[np.ndarray, np.n
 
 def zero_phase(ba: tuple[np.ndarray, np.ndarray], x: np.ndarray, *, method: str = "gust"
                ) -> np.ndarray:
-    """Apply a filter forward and backward: ``method="gust"`` uses Gustafsson's initial
-    conditions; ``"none"`` filters the record as it is, for records already padded (see
-    :func:`model_padded`)."""
+    """Apply a filter forward and backward (zero phase).
+
+    Parameters
+    ----------
+    ba : tuple of ndarray
+        (b, a) coefficients.
+    x : ndarray
+        The record, any unit.
+    method : {"gust", "none"}
+        ``"gust"``: Gustafsson's initial conditions [1]_; ``"none"``: filter the record as it
+        is, for records already padded (:func:`model_padded`). Default "gust".
+
+    Returns
+    -------
+    ndarray
+        The filtered record, same unit.
+
+    References
+    ----------
+    .. [1] F. Gustafsson, "Determining the initial states in forward-backward filtering",
+       IEEE Trans. Signal Process. 44(4) (1996) 988-992.
+    """
     b, a = ba
     if method == "none":
         return signal.filtfilt(b, a, x, padlen=0)
@@ -212,12 +377,25 @@ def zero_phase(ba: tuple[np.ndarray, np.ndarray], x: np.ndarray, *, method: str 
 
 def zero_phase_cascade(filters_ba: list[tuple[np.ndarray, np.ndarray]], x: np.ndarray
                        ) -> np.ndarray:
-    """Each filter of ``filters_ba`` in turn, forward and backward, along the last axis of
-    ``x`` (one record or several rows): the same arithmetic as
-    ``zero_phase(ba, x, method="none")`` applied in sequence to each row
-    (``filtfilt(b, a, x, padlen=0)``: initial state ``lfilter_zi`` times the first sample,
-    each way), so the results are bit-identical, but every row goes through one ``lfilter``
-    call per direction and the steady-state vector is computed once per filter."""
+    """Each filter in turn, forward and backward, along the last axis.
+
+    The same arithmetic as ``zero_phase(ba, x, method="none")`` applied in sequence to each
+    row (``filtfilt(b, a, x, padlen=0)``: initial state ``lfilter_zi`` times the first
+    sample, each way), so the results are bit-identical, but every row goes through one
+    ``lfilter`` call per direction and the steady-state vector is computed once per filter.
+
+    Parameters
+    ----------
+    filters_ba : list of tuple of ndarray
+        The (b, a) of each filter, in order.
+    x : ndarray
+        One record or several rows, any unit.
+
+    Returns
+    -------
+    ndarray
+        The filtered record(s), same unit.
+    """
     y = np.array(x, dtype=np.float64)  # a copy, filtered in place
     rows = y.reshape(-1, y.shape[-1])
     for b, a in filters_ba:
@@ -320,15 +498,51 @@ def _lfilter_zi(b_bytes: bytes, a_bytes: bytes) -> np.ndarray:
 
 def notch_frequencies(rotation_hz: float, harmonics: tuple[int, ...], fs_hz: float
                       ) -> list[float]:
-    """The harmonics of a rotation frequency that lie strictly below Nyquist."""
+    """The harmonics of a rotation frequency that lie strictly below Nyquist.
+
+    Parameters
+    ----------
+    rotation_hz : float
+        Rotation frequency [Hz].
+    harmonics : tuple of int
+        Harmonic numbers.
+    fs_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    list of float
+        The frequencies [Hz].
+
+    Examples
+    --------
+    >>> notch_frequencies(10.0, (1, 2, 3), 50.0)
+    [10.0, 20.0]
+    """
     return [h * rotation_hz for h in harmonics if 0 < h * rotation_hz < fs_hz / 2]
 
 
 def settling_samples(ba: tuple[np.ndarray, np.ndarray], *, tol: float = 1e-6,
                      max_samples: int = 1_000_000) -> int:
-    """Samples after which the filter's impulse response stays below ``tol`` times its peak
-    (derived from the design; used as the padding length). A cached (read-only) design, the
-    high-pass, has its answer cached too."""
+    """Samples after which a filter's impulse response stays below a share of its peak.
+
+    Derived from the design; used as the padding length. A cached (read-only) design, the
+    high-pass, has its answer cached too.
+
+    Parameters
+    ----------
+    ba : tuple of ndarray
+        (b, a) coefficients.
+    tol : float
+        Share of the peak [-]. Default 1e-6.
+    max_samples : int
+        Longest response searched [-]. Default 1 000 000.
+
+    Returns
+    -------
+    int
+        Samples.
+    """
     b, a = ba
     if all(isinstance(v, np.ndarray) and v.dtype == np.float64 and not v.flags.writeable
            for v in (b, a)):
@@ -406,15 +620,48 @@ def resampler_edge_samples(up: int, down: int) -> int:
     ``resample_poly`` uses ``10*max(up, down)`` taps either side of the centre at the
     upsampled rate; one output sample is ``down`` upsampled samples, so the FIR reaches
     ``ceil(10*max(up, down)/down)`` output samples into the padding (plus one of margin).
+
+    Parameters
+    ----------
+    up : int
+        Upsampling factor [-].
+    down : int
+        Downsampling factor [-].
+
+    Returns
+    -------
+    int
+        Samples at each end.
+
+    Examples
+    --------
+    >>> resampler_edge_samples(2, 625)
+    11
     """
     half_taps = 10 * max(up, down)
     return int(np.ceil(half_taps / down)) + 1
 
 
 def tone_design(t_s: np.ndarray, tones_hz, *, line: bool = False) -> np.ndarray:
-    """Least-squares design matrix ``[1, (t - mean t), cos(2 pi f_k t), sin(2 pi f_k t), ...]``
-    over sample times ``t_s`` [s] for the tones ``tones_hz`` [Hz] (the caller chooses which
-    tones to keep); the column of ones comes first, then the line when ``line``."""
+    """Least-squares design matrix of a constant, optionally a line, and tones.
+
+    ``[1, (t - mean t), cos(2*pi*f_k*t), sin(2*pi*f_k*t), ...]``; the caller chooses which
+    tones to keep.
+
+    Parameters
+    ----------
+    t_s : ndarray
+        Sample times [s].
+    tones_hz : sequence of float
+        Tone frequencies [Hz].
+    line : bool
+        Include the line column. Default False.
+
+    Returns
+    -------
+    ndarray
+        (n, 1 + line + 2*len(tones)) design matrix.
+    """
     t = np.asarray(t_s, dtype=np.float64)
     cols = [np.ones(t.size)] + ([t - t.mean()] if line else [])
     for f in tones_hz:
@@ -424,8 +671,24 @@ def tone_design(t_s: np.ndarray, tones_hz, *, line: bool = False) -> np.ndarray:
 
 def fit_line_and_tones(x: np.ndarray, fs_hz: float, tones_hz: list[float]
                        ) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares ``x ~ c0 + c1*t + sum(a_k cos + b_k sin)(2 pi f_k t)``; returns the
-    coefficients and the tone frequencies kept (those below Nyquist, one resolution apart)."""
+    """Least-squares ``x ~ c0 + c1*t + sum(a_k*cos + b_k*sin)(2*pi*f_k*t)``.
+
+    Parameters
+    ----------
+    x : ndarray
+        The record, any unit.
+    fs_hz : float
+        Sample rate [Hz].
+    tones_hz : list of float
+        Tone frequencies [Hz].
+
+    Returns
+    -------
+    coef : ndarray
+        c0, c1 [unit/s], then (a_k, b_k) per kept tone [unit of x].
+    kept : ndarray
+        The tone frequencies kept [Hz]: below Nyquist, one resolution apart.
+    """
     design, kept = _line_and_tones_design(x.size, fs_hz, tones_hz)
     coef, _ = lstsq(design, x)
     return coef, np.asarray(kept)
@@ -448,12 +711,30 @@ def _line_and_tones_design(n: int, fs_hz: float, tones_hz: list[float]
 
 def model_padded(x: np.ndarray, fs_hz: float, tones_hz: list[float], pad: int
                  ) -> tuple[np.ndarray, float, float]:
-    """``x`` less its least-squares line, extended by ``pad`` samples at each end with the
-    least-squares model of its stationary tones (:func:`fit_line_and_tones`).
+    """A record less its line, extended at each end by the model of its stationary tones.
 
     A zero-phase filter run over the padded record starts and ends its transients in the
-    padding, where the signal continues smoothly, instead of inside the data. Returns the
-    padded record, the line's mean value and slope [per s] (to restore it later).
+    padding, where the signal continues smoothly, instead of inside the data.
+
+    Parameters
+    ----------
+    x : ndarray
+        The record, any unit.
+    fs_hz : float
+        Sample rate [Hz].
+    tones_hz : list of float
+        The stationary tones [Hz] (:func:`fit_line_and_tones`).
+    pad : int
+        Samples added at each end [-].
+
+    Returns
+    -------
+    padded : ndarray
+        The padded record less the line.
+    mean : float
+        The line's mean value [unit of x].
+    slope : float
+        The line's slope [unit of x per s].
     """
     return model_padded_rows([x], fs_hz, tones_hz, pad)[0]
 
@@ -489,10 +770,27 @@ def _fill_cos_sin(out: np.ndarray, col0: int, omegas: np.ndarray, start: int) ->
 
 def model_padded_rows(rows, fs_hz: float, tones_hz: list[float], pad: int
                       ) -> list[tuple[np.ndarray, float, float]]:
-    """:func:`model_padded` of each record in ``rows`` (equal lengths; the same numbers): the
-    least-squares design factored once, the tones' cosines and sines over the padded times
-    evaluated once (:func:`_fill_cos_sin`), each padding their product with the record's
-    coefficients."""
+    """:func:`model_padded` of each record (equal lengths; the same numbers).
+
+    The least-squares design is factored once, the tones' cosines and sines over the padded
+    times evaluated once, each padding their product with the record's coefficients.
+
+    Parameters
+    ----------
+    rows : sequence of ndarray
+        Records of equal length, any unit.
+    fs_hz : float
+        Sample rate [Hz].
+    tones_hz : list of float
+        The stationary tones [Hz].
+    pad : int
+        Samples added at each end [-].
+
+    Returns
+    -------
+    list of tuple
+        (padded record, mean, slope [per s]) of each row.
+    """
     rows = [np.asarray(x, dtype=np.float64) for x in rows]
     n = rows[0].size
     design, kept = _line_and_tones_design(n, fs_hz, tones_hz)
@@ -510,13 +808,34 @@ def model_padded_rows(rows, fs_hz: float, tones_hz: list[float], pad: int
 
 
 def tone_free_mean(x: np.ndarray, fs_hz: float, tones_hz: list[float]) -> float:
-    """Mean of ``x`` with the given tones removed: the constant term of a least-squares fit
-    ``c0 + sum(a_k cos + b_k sin)(2 pi f_k t)``.
+    """Mean of a record with given tones removed.
 
-    This is the value a notch at each tone followed by averaging converges to, without a
-    notch's edge transients and also when the record is shorter than the tones' beat period
-    (a notch at the platform's 1st and 2nd rotation harmonics cannot separate them within one
+    The constant term of a least-squares fit ``c0 + sum(a_k*cos + b_k*sin)(2*pi*f_k*t)``:
+    the value a notch at each tone followed by averaging converges to, without a notch's edge
+    transients and also when the record is shorter than the tones' beat period (a notch at
+    the platform's 1st and 2nd rotation harmonics cannot separate them within one
     revolution). Over whole periods of every tone it equals the plain mean.
+
+    Parameters
+    ----------
+    x : ndarray
+        The record, any unit.
+    fs_hz : float
+        Sample rate [Hz].
+    tones_hz : list of float
+        The tones [Hz]; none: the plain mean.
+
+    Returns
+    -------
+    float
+        The mean, unit of x.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(150) / 100.0
+    >>> round(tone_free_mean(2.0 + np.sin(2 * np.pi * 1.0 * t), 100.0, [1.0]), 9)
+    2.0
     """
     x = np.asarray(x, dtype=np.float64)
     tones = [f for f in tones_hz if 0 < f < fs_hz / 2]

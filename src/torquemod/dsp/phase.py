@@ -56,8 +56,24 @@ def parabolic_vertex(y_m1: np.ndarray, y_0: np.ndarray, y_p1: np.ndarray) -> np.
 
 
 def extrema_times(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Times [s from the first sample] of the local maxima and minima of ``x``, refined by
-    parabolic interpolation (whole-sample peaks at 53 Hz are 13.5 deg apart at 2 Hz)."""
+    """Times of the local maxima and minima of a signal, refined by parabolic interpolation.
+
+    Whole-sample peaks at 53 Hz are 13.5 deg apart at 2 Hz, hence the refinement.
+
+    Parameters
+    ----------
+    x : ndarray
+        The signal, any unit.
+    fs_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    peaks : ndarray
+        Times of the maxima [s from the first sample].
+    valleys : ndarray
+        Times of the minima [s from the first sample].
+    """
     x = np.asarray(x, dtype=np.float64)
     if x.ndim == 1 and x.size >= 3:  # find_peaks's strict local extrema, compiled
         pk, vl, flat = _strict_extrema_times(x, float(fs_hz))
@@ -118,7 +134,19 @@ def _closest(times: np.ndarray, center_s: float, count: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class PeakValleyResult:
-    """Per-pair time differences [s] and phases [deg] and their mean phase [deg]."""
+    """The phase from peak and valley times (the V-Track paper's method).
+
+    Attributes
+    ----------
+    phase_deg : float
+        Mean phase lag of the wheel speed behind the torque [deg].
+    pair_phases_deg : ndarray
+        The phase of each matched extremum pair [deg].
+    torque_times_s : ndarray
+        The torque's extremum times [s].
+    wheel_times_s : ndarray
+        The wheel speed's matched extremum times [s].
+    """
 
     phase_deg: float
     pair_phases_deg: np.ndarray
@@ -185,7 +213,27 @@ def peak_valley_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod
 
 @dataclass(frozen=True)
 class SineFitResult:
-    """Phase lag [deg] with its standard error [deg]; amplitudes and phases of both fits."""
+    """The phase from a least-squares sine fit at the modulation frequency.
+
+    Attributes
+    ----------
+    phase_deg : float
+        Lag of the wheel speed behind the torque [deg].
+    phase_stderr_deg : float
+        Its standard error [deg] (Cramér-Rao bound with the local noise density).
+    torque_amplitude : float
+        Fitted torque amplitude [N*m] (unit of the torque signal).
+    wheel_amplitude : float
+        Fitted wheel-speed amplitude [rad/s] (unit of the speed signal).
+    torque_phase_rad : float
+        Phase of the torque's fitted cosine [rad].
+    wheel_phase_rad : float
+        Phase of the wheel speed's fitted cosine [rad].
+    n_samples : int
+        Samples fitted.
+    window_s : tuple of float
+        Start and end of the fitted window [s].
+    """
 
     phase_deg: float
     phase_stderr_deg: float
@@ -366,7 +414,8 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
         a2 = c * c + s * s
         if a2 == 0:
             raise ProcessingError("zero amplitude at the modulation frequency")
-        # var(phi_i) = S_i/(A_i^2 T) with S_i the one-sided noise density at f_mod (§5)
+        # var(phi_i) = S_i/(A_i^2 T) with S_i the one-sided noise density at f_mod
+        # (Rife and Boorstyn 1974)
         psd = local_noise_psd(resid[:, ch], fs_hz, f_mod_hz)
         var_phi += psd / (a2 * t_win)
         phases.append(float(np.arctan2(-s, c)))
@@ -385,9 +434,9 @@ def phase_crb_deg(amplitude_1: float, amplitude_2: float, noise_std_1: float, no
     Parameters
     ----------
     amplitude_1, amplitude_2 : float
-        Sinusoid amplitudes A_i (units of each signal).
+        Sinusoid amplitudes A_i [unit of each signal].
     noise_std_1, noise_std_2 : float
-        White-noise standard deviations sigma_i (same units as the amplitudes).
+        White-noise standard deviations sigma_i [same units as the amplitudes].
     n_samples : int
         Samples N.
 
@@ -422,10 +471,36 @@ def _hann_periodic(n: int) -> tuple[np.ndarray, float]:
 
 
 def periodogram_density(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """One-sided Hann-windowed periodogram [unit^2/Hz] of ``x`` (mean removed), the same
-    numbers as ``scipy.signal.periodogram(x - mean, fs, window='hann', detrend=False,
-    scaling='density')`` (tested) without its general cross-spectral machinery, which
-    dominates on the on-board estimator's one-second windows."""
+    """One-sided Hann-windowed periodogram of a record (mean removed).
+
+    The same numbers as ``scipy.signal.periodogram(x - mean, fs, window='hann',
+    detrend=False, scaling='density')`` without its general cross-spectral machinery, which
+    dominates on the on-board estimator's one-second windows.
+
+    Parameters
+    ----------
+    x : ndarray
+        The record, any unit.
+    fs_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    f : ndarray
+        Frequencies [Hz].
+    p : ndarray
+        Density [unit^2/Hz].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy import signal
+    >>> x = np.random.default_rng(1).normal(size=64)
+    >>> f, p = periodogram_density(x, 10.0)
+    >>> bool(np.allclose(p, signal.periodogram(x - x.mean(), 10.0, window="hann",
+    ...                                        detrend=False)[1]))
+    True
+    """
     x = np.asarray(x, dtype=np.float64)
     n = x.size
     w, ss = _hann_periodic(n)
@@ -437,10 +512,28 @@ def periodogram_density(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.nda
 
 def local_noise_psd(residual: np.ndarray, fs_hz: float, f_hz: float, *,
                     half_width_hz: float = 0.75) -> float:
-    """One-sided noise power spectral density [unit^2/Hz] of ``residual`` near ``f_hz``: the
-    mean of its Hann-windowed periodogram over ``f_hz +- half_width_hz``, leaving out the
-    two bins nearest ``f_hz`` (where a fitted line's remainder would sit); the mean over all
-    bins but DC when that band holds fewer than two bins (windows shorter than ~3 s)."""
+    """One-sided noise power spectral density of a residual near a frequency.
+
+    The mean of its Hann-windowed periodogram over ``f_hz +- half_width_hz``, leaving out
+    the two bins nearest ``f_hz`` (where a fitted line's remainder would sit); the mean over
+    all bins but DC when that band holds fewer than two bins (windows shorter than ~3 s).
+
+    Parameters
+    ----------
+    residual : ndarray
+        The fit's residual, any unit.
+    fs_hz : float
+        Sample rate [Hz].
+    f_hz : float
+        The frequency [Hz].
+    half_width_hz : float
+        Half-width of the band averaged [Hz]. Default 0.75.
+
+    Returns
+    -------
+    float
+        Density [unit^2/Hz].
+    """
     f, p = periodogram_density(residual, fs_hz)
     df = f[1] - f[0]
     sel = (np.abs(f - f_hz) <= half_width_hz) & (np.abs(f - f_hz) > 1.5 * df)

@@ -46,9 +46,20 @@ _KEPT = SUMMARY_COLUMNS[3:-2]
 
 
 def find_manifests(runs: Iterable[str | Path]) -> list[Path]:
-    """Run manifests from ``runs``: manifest files, folders (every ``experiment.toml`` and
-    ``run.toml`` below them), glob patterns, or list files (``.txt``/``.lst``: one of the
-    above a line, ``#`` comments). Sorted, without duplicates."""
+    """Run manifests from paths, folders, glob patterns or list files.
+
+    Parameters
+    ----------
+    runs : iterable of str or pathlib.Path
+        Manifest files, folders (every ``experiment.toml`` and ``run.toml`` below them), glob
+        patterns, or list files (``.txt``/``.lst``: one of the above a line, ``#``
+        comments).
+
+    Returns
+    -------
+    list of pathlib.Path
+        Sorted, without duplicates.
+    """
     return sorted(_spellings(runs))
 
 
@@ -89,10 +100,22 @@ def _found(runs: Iterable[str | Path]) -> list[Path]:
 
 
 def manifest_kind(path: Path) -> str:
-    """``"train"`` for a train run, ``"rig"`` for a rig experiment: by content (a
-    ``[vehicle]`` table without ``[rig]`` is a run, as the readers decide), else by the
-    file name (``run.toml``) when the file does not parse (its reader then names the
-    problem)."""
+    """Whether a manifest is a train run or a rig experiment.
+
+    By content (a ``[vehicle]`` table without ``[rig]`` is a run, as the readers decide), else
+    by the file name (``run.toml``) when the file does not parse (its reader then names the
+    problem).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The manifest.
+
+    Returns
+    -------
+    {"train", "rig"}
+        The kind.
+    """
     try:
         doc = tomllib.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
@@ -107,9 +130,21 @@ def _safe(text: str) -> str:
 
 
 def run_names(manifests: list[Path]) -> list[str]:
-    """A partition name per manifest: its folder's name (``folder-stem`` for a manifest not
-    named experiment.toml or run.toml), with a short hash of the full path when two
-    manifests share a name."""
+    """A partition name per manifest.
+
+    Its folder's name (``folder-stem`` for a manifest not named experiment.toml or run.toml),
+    with a short hash of the full path when two manifests share a name.
+
+    Parameters
+    ----------
+    manifests : list of pathlib.Path
+        The manifests.
+
+    Returns
+    -------
+    list of str
+        One name each, unique.
+    """
     base = [m.parent.name if m.name in (MANIFEST_NAME, RUN_NAME) or not m.parent.name
             else f"{m.parent.name}-{m.stem}" for m in manifests]
     out = []
@@ -122,9 +157,33 @@ def run_names(manifests: list[Path]) -> list[str]:
 
 
 def partition_value(value: object, *, day: bool = False) -> str:
-    """A hive partition value: ``unknown`` for nothing; with ``day`` the ISO day of a
-    date, a date-time or a text starting with an ISO date; characters other than letters,
-    digits and ``-_.`` replaced by ``_`` (no ``/`` or ``=`` can enter the path)."""
+    """A hive partition value.
+
+    Characters other than letters, digits and ``-_.`` are replaced by ``_`` (no ``/`` or
+    ``=`` can enter the path).
+
+    Parameters
+    ----------
+    value : object
+        The label (vehicle, date).
+    day : bool
+        Give the ISO day of a date, a date-time or a text starting with an ISO date.
+        Default False.
+
+    Returns
+    -------
+    str
+        The value; ``unknown`` for nothing.
+
+    Examples
+    --------
+    >>> partition_value("ICE 4/12")
+    'ICE_4_12'
+    >>> partition_value("2024-05-01T10:00", day=True)
+    '2024-05-01'
+    >>> partition_value(None)
+    'unknown'
+    """
     if value is None or (isinstance(value, str) and not value.strip()):
         return "unknown"
     if day:
@@ -152,9 +211,27 @@ def _file_digest(path: Path, known: dict) -> list:
 
 @dataclass(frozen=True)
 class Prepared:
-    """A parsed manifest and its fingerprint: ``kind`` rig or train, ``source`` the
-    Experiment or Run, ``settings`` the processing or ``[onboard]`` settings (an
-    OnboardConfig for a run), the partition labels ``vehicle`` and ``date``."""
+    """A parsed manifest and its fingerprint.
+
+    Attributes
+    ----------
+    kind : {"rig", "train"}
+        The manifest's kind.
+    source : Experiment or Run
+        The parsed manifest.
+    settings : ProcessingConfig or OnboardConfig
+        The processing (rig) or ``[onboard]`` (train) settings.
+    digest : str
+        The fingerprint (SHA-256, hex).
+    files : dict
+        Each file to ``[size [B], mtime_ns [ns], sha256]``.
+    vehicle : str
+        The vehicle partition label.
+    date : str
+        The date partition label (ISO day).
+    fresh : frozenset
+        The files hashed anew (not taken from ``known``).
+    """
 
     kind: str
     source: Experiment | Run
@@ -168,9 +245,33 @@ class Prepared:
 
 def prepare(manifest: Path, known: dict | None = None, *, kind: str | None = None,
             fit: bool = True) -> Prepared:
-    """Read the manifest and fingerprint it: SHA-256 over the manifest's and each
-    recording's SHA-256, the settings, the kind and the torquemod version; ``files`` maps
-    each file to ``[size, mtime_ns, sha256]`` (pass it back as ``known`` next time)."""
+    """Read a manifest and fingerprint it.
+
+    The fingerprint is SHA-256 over the manifest's and each recording's SHA-256, the
+    settings, the kind and the torquemod version.
+
+    Parameters
+    ----------
+    manifest : pathlib.Path
+        The manifest.
+    known : dict or None
+        ``files`` of an earlier call: a file whose size and mtime are unchanged is not hashed
+        again. Default None.
+    kind : {"rig", "train"} or None
+        The kind; None: :func:`manifest_kind`.
+    fit : bool
+        Whether the rig's creep curve is fitted (part of the settings). Default True.
+
+    Returns
+    -------
+    Prepared
+        The manifest, its settings and fingerprint.
+
+    Raises
+    ------
+    InputError
+        The manifest or its settings are bad.
+    """
     known = known or {}
     kind = kind or manifest_kind(manifest)
     if kind == "train":
@@ -203,17 +304,59 @@ def prepare(manifest: Path, known: dict | None = None, *, kind: str | None = Non
 
 
 def fingerprint(manifest: Path, known: dict | None = None) -> tuple[str, object, dict]:
-    """``(hex digest, experiment or run, files)`` of :func:`prepare`."""
+    """The fingerprint of a manifest (:func:`prepare`).
+
+    Parameters
+    ----------
+    manifest : pathlib.Path
+        The manifest.
+    known : dict or None
+        ``files`` of an earlier call. Default None.
+
+    Returns
+    -------
+    digest : str
+        SHA-256, hex.
+    source : Experiment or Run
+        The parsed manifest.
+    files : dict
+        Each file to ``[size, mtime_ns, sha256]``.
+    """
     p = prepare(Path(manifest), known)
     return p.digest, p.source, p.files
 
 
 @dataclass(frozen=True)
 class Plan:
-    """A run to (re)process, split into items: the run's recordings (rig: one task per
-    recording file, steps 1-5 and 8 of the chain; train: one task per axle), assembled by
-    :func:`finish_run` (rig: alignment, phases, steps and the fit, exactly as
-    ``process_experiment``; train: the axles' track tables)."""
+    """A run to (re)process, split into items.
+
+    The run's recordings (rig: one task per recording file, steps 1-5 and 8 of the chain;
+    train: one task per axle), assembled by :func:`finish_run` (rig: alignment, phases, steps
+    and the fit, exactly as ``process_experiment``; train: the axles' track tables).
+
+    Attributes
+    ----------
+    prep : Prepared
+        The manifest and its fingerprint.
+    manifest : str
+        The manifest's path.
+    out_dir : str
+        The fleet's output folder.
+    run : str
+        The run's partition name.
+    row : dict
+        The summary row so far.
+    old_parts : tuple of str
+        The partitions an earlier processing wrote (replaced).
+    fit : bool
+        Fit the rig's creep curve.
+    seconds : float
+        Time spent planning [s].
+    revolutions_per_task : int or None
+        Revolutions per task of a split rig recording.
+    axle_chunk_s : float or None
+        Length of the tasks of a split train axle [s].
+    """
 
     prep: Prepared
     manifest: str
@@ -247,10 +390,35 @@ def _failed(row: dict, exc: BaseException | str, out_dir: str, old_parts) -> dic
 def plan_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
              fit: bool = True, revolutions_per_task: int | None = None,
              axle_chunk_s: float | None = None) -> dict | Plan:
-    """Read and fingerprint one run manifest: a summary row when the run is done with
-    (``skipped``: unchanged; ``failed``: the manifest is bad), else its :class:`Plan`
-    (``revolutions_per_task``, ``axle_chunk_s``: see :func:`scan_item`). Never raises (a
-    Dask task)."""
+    """Read and fingerprint one run manifest: its plan, or its summary row when done with.
+
+    Never raises (a Dask task).
+
+    Parameters
+    ----------
+    manifest : str
+        The run manifest (experiment.toml or run.toml).
+    out_dir : str
+        The fleet's output folder.
+    run : str
+        The run's partition name (:func:`run_names`).
+    force : bool
+        Reprocess an unchanged run. Default False.
+    fit : bool
+        Fit the rig experiment's creep curve (mu in the summary). Default True.
+    revolutions_per_task : int or None
+        Revolutions per task of a split rig recording (:func:`~torquemod.fleet.tasks.scan_item`);
+        None: about a minute of recording. Default None.
+    axle_chunk_s : float or None
+        Length of the tasks of a split train axle [s]; None:
+        :data:`~torquemod.fleet.tasks.AXLE_TASK_S`. Default None.
+
+    Returns
+    -------
+    Plan or dict
+        The :class:`Plan`; or a summary row with ``status`` ``skipped`` (unchanged) or
+        ``failed`` (the manifest is bad, with its message).
+    """
     t0 = time.perf_counter()
     row = dict.fromkeys(SUMMARY_COLUMNS)
     row.update(run=run, manifest=str(manifest), kind=manifest_kind(Path(manifest)),
@@ -278,8 +446,20 @@ def plan_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
 
 @single_blas
 def work_item(plan: Plan, index: int) -> tuple:
-    """Recording ``index`` of the plan: ``("ok", result, seconds)`` or ``("error", one-line
-    message, seconds)``. Never raises (a Dask task)."""
+    """Process recording ``index`` of a plan. Never raises (a Dask task).
+
+    Parameters
+    ----------
+    plan : Plan
+        The run.
+    index : int
+        The recording, in manifest order.
+
+    Returns
+    -------
+    tuple
+        ``("ok", result, seconds [s])`` or ``("error", one-line message, seconds [s])``.
+    """
     t0 = time.perf_counter()
     prep = plan.prep
     entry = prep.source.recordings[index]
@@ -339,10 +519,26 @@ def _train_tables(prep: Prepared, tracks: list) -> tuple[dict, dict]:
 
 @single_blas
 def finish_run(plan: Plan, *items: tuple, layout: list | None = None) -> dict:
-    """Assemble the run from its items (in manifest order; ``layout``: the parts of split
-    recordings, :func:`_recording_items`), write its partitions and state: the summary
-    row. The first failed item, in manifest order, fails the run with its message (the one
-    the sequential command meets first). Never raises (a Dask task)."""
+    """Assemble a run from its items and write its partitions and state.
+
+    The first failed item, in manifest order, fails the run with its message (the one the
+    sequential command meets first). Never raises (a Dask task).
+
+    Parameters
+    ----------
+    plan : Plan
+        The run.
+    *items : tuple
+        The items' results (:func:`work_item`, :func:`~torquemod.fleet.tasks.part_item`), in
+        manifest order.
+    layout : list or None
+        The parts of split recordings. Default None.
+
+    Returns
+    -------
+    dict
+        The run's summary row (:data:`SUMMARY_COLUMNS`).
+    """
     t0 = time.perf_counter()
     row = dict(plan.row)
     seconds = plan.seconds
@@ -386,9 +582,34 @@ class _ItemError(Exception):
 def process_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
                 fit: bool = True, revolutions_per_task: int | None = None,
                 axle_chunk_s: float | None = None) -> dict:
-    """Process one run manifest (rig or train) into its partitions in this process: what
-    :func:`run_fleet` does with tasks, in sequence. Never raises: the outcome is a summary
-    row (``status`` processed, skipped or failed; :data:`SUMMARY_COLUMNS`)."""
+    """Process one run manifest (rig or train) into its partitions in this process.
+
+    What :func:`~torquemod.fleet.run.run_fleet` does with tasks, in sequence. Never raises.
+
+    Parameters
+    ----------
+    manifest : str
+        The run manifest (experiment.toml or run.toml).
+    out_dir : str
+        The fleet's output folder.
+    run : str
+        The run's partition name (:func:`run_names`).
+    force : bool
+        Reprocess an unchanged run. Default False.
+    fit : bool
+        Fit the rig experiment's creep curve (mu in the summary). Default True.
+    revolutions_per_task : int or None
+        Revolutions per task of a split rig recording (:func:`~torquemod.fleet.tasks.scan_item`);
+        None: about a minute of recording. Default None.
+    axle_chunk_s : float or None
+        Length of the tasks of a split train axle [s]; None:
+        :data:`~torquemod.fleet.tasks.AXLE_TASK_S`. Default None.
+
+    Returns
+    -------
+    dict
+        The summary row: ``status`` processed, skipped or failed (:data:`SUMMARY_COLUMNS`).
+    """
     plan = plan_run(manifest, out_dir, run, force, fit=fit,
                     revolutions_per_task=revolutions_per_task, axle_chunk_s=axle_chunk_s)
     if isinstance(plan, dict):

@@ -32,7 +32,20 @@ def _partition(out: Path, table_name: str, row) -> Path:
 
 
 def load_steps(out: Path, summary: pd.DataFrame) -> pd.DataFrame:
-    """The steps of the summary's good rig runs, with a ``run`` column (empty if none)."""
+    """The steps of the summary's good rig runs.
+
+    Parameters
+    ----------
+    out : pathlib.Path
+        The fleet's output folder.
+    summary : pandas.DataFrame
+        The fleet summary.
+
+    Returns
+    -------
+    pandas.DataFrame
+        steps rows with a ``run`` column; empty if none.
+    """
     parts = []
     for row in summary.itertuples():
         if row.kind == "rig" and row.status != "failed":
@@ -43,7 +56,20 @@ def load_steps(out: Path, summary: pd.DataFrame) -> pd.DataFrame:
 
 
 def load_tracks(out: Path, summary: pd.DataFrame) -> pd.DataFrame:
-    """The track rows of the summary's good train runs, with ``run`` and ``axle``."""
+    """The track rows of the summary's good train runs.
+
+    Parameters
+    ----------
+    out : pathlib.Path
+        The fleet's output folder.
+    summary : pandas.DataFrame
+        The fleet summary.
+
+    Returns
+    -------
+    pandas.DataFrame
+        track rows with ``run`` and ``axle`` columns; empty if none.
+    """
     parts = []
     for row in summary.itertuples():
         if row.kind == "train" and row.status != "failed":
@@ -66,7 +92,18 @@ def _figure(png: bytes, caption: str) -> str:
 
 
 def phase_coa_figure(steps: pd.DataFrame) -> bytes:
-    """Phase [deg] against CoA [-] of every rig step, one marker series per run."""
+    """Phase against CoA of every rig step, one marker series per run.
+
+    Parameters
+    ----------
+    steps : pandas.DataFrame
+        The steps (:func:`load_steps`).
+
+    Returns
+    -------
+    bytes
+        PNG of phase [deg] against CoA [-].
+    """
     from matplotlib.figure import Figure
     fig = Figure(figsize=(7, 4.2), layout="constrained")
     ax = fig.add_subplot()
@@ -85,9 +122,21 @@ _STRETCH_M = 250.0
 
 
 def mu_track_figure(tracks: pd.DataFrame) -> bytes:
-    """The lower bound of mu per :data:`_STRETCH_M` of track (steps; left out where the
-    stretch holds different rails: :func:`torquemod.ontrain.alongtrack.along_track`) and mu
-    where determined (dots) against position [m], per run and axle."""
+    """The lower bound of mu per stretch and mu where determined, against position.
+
+    Per :data:`_STRETCH_M` of track (steps; left out where the stretch holds different
+    rails: :func:`torquemod.ontrain.alongtrack.along_track`), per run and axle.
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        The track rows (:func:`load_tracks`).
+
+    Returns
+    -------
+    bytes
+        PNG of mu [-] against position [m].
+    """
     from matplotlib.figure import Figure
 
     from torquemod.ontrain.alongtrack import along_track
@@ -121,7 +170,24 @@ def _value(v):
 
 def render_fleet_report(summary: pd.DataFrame, failures: pd.DataFrame,
                         steps: pd.DataFrame, tracks: pd.DataFrame) -> str:
-    """The page as a string (a pure function of the tables)."""
+    """The fleet report page as a string (a pure function of the tables).
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        One row per run.
+    failures : pandas.DataFrame
+        The failed rows.
+    steps : pandas.DataFrame
+        The good rig runs' steps.
+    tracks : pandas.DataFrame
+        The good train runs' track rows.
+
+    Returns
+    -------
+    str
+        The HTML page.
+    """
     counts = summary["status"].value_counts().to_dict()
     head = (f"{len(summary)} runs: {counts.get('processed', 0)} processed, "
             f"{counts.get('skipped', 0)} unchanged (skipped), {counts.get('failed', 0)} "
@@ -171,7 +237,22 @@ def render_fleet_report(summary: pd.DataFrame, failures: pd.DataFrame,
 
 def write_fleet_report(out: str | Path, summary: pd.DataFrame,
                        failures: pd.DataFrame) -> Path:
-    """Write ``out/fleet_report.html`` (temporary file + rename); returns its path."""
+    """Write ``out/fleet_report.html`` (temporary file and rename).
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        The fleet's output folder.
+    summary : pandas.DataFrame
+        One row per run.
+    failures : pandas.DataFrame
+        The failed rows.
+
+    Returns
+    -------
+    pathlib.Path
+        The report.
+    """
     out = Path(out)
     page = render_fleet_report(summary, failures, load_steps(out, summary),
                                load_tracks(out, summary))

@@ -75,9 +75,17 @@ from torquemod.fleet.tasks import may_split, one_line, part_item, scan_item
 
 
 def prune_empty(out: Path) -> None:
-    """Tidy the datasets of ``out`` once no task writes: remove the hidden leftovers of a
-    partition write cut short (``.run=<run>.tmp``/``.old``, e.g. by a killed worker) and
-    empty partition folders (a run that moved to another vehicle or date, or failed)."""
+    """Tidy the fleet's datasets once no task writes.
+
+    Removes the hidden leftovers of a partition write cut short (``.run=<run>.tmp``/``.old``,
+    e.g. by a killed worker) and empty partition folders (a run that moved to another vehicle
+    or date, or failed).
+
+    Parameters
+    ----------
+    out : pathlib.Path
+        The fleet's output folder.
+    """
     for table in TABLES:
         root = out / table
         if not root.is_dir():
@@ -95,10 +103,25 @@ def prune_empty(out: Path) -> None:
 
 @dataclass(frozen=True)
 class FleetResult:
-    """What :func:`run_fleet` did: ``summary`` (one row per run, :data:`SUMMARY_COLUMNS`),
-    ``failures`` (its failed rows), the output folder, the dashboard address (None when
-    the cluster has none), the wall time [s] (``report_s`` of it spent writing the report)
-    and the report (None when not written)."""
+    """What :func:`run_fleet` did.
+
+    Attributes
+    ----------
+    out_dir : pathlib.Path
+        The output folder.
+    summary : pandas.DataFrame
+        One row per run (:data:`SUMMARY_COLUMNS`).
+    failures : pandas.DataFrame
+        Its failed rows.
+    dashboard : str or None
+        The Dask dashboard's address; None when the cluster has none.
+    wall_s : float
+        Wall time [s].
+    report : pathlib.Path or None
+        The report; None when not written.
+    report_s : float
+        Time of ``wall_s`` spent writing the report [s]. Default 0.
+    """
 
     out_dir: Path
     summary: pd.DataFrame
@@ -119,27 +142,54 @@ def run_fleet(manifests: Iterable[str | Path], out_dir: str | Path, *,
               revolutions_per_task: int | None = None,
               axle_chunk_s: float | None = None,
               connect_timeout_s: float = CONNECT_TIMEOUT_S) -> FleetResult:
-    """Process many run manifests (rig experiments and train runs) in parallel on Dask and
-    write the fleet's datasets, summary, failures and report.
+    """Process many run manifests in parallel on Dask and write the fleet's outputs.
 
-    ``manifests`` as :func:`find_manifests` takes them. ``scheduler`` is the address of an
-    existing Dask scheduler (``tcp://host:8786``); None starts a ``LocalCluster`` of
-    ``n_workers`` single-threaded worker processes (default: the CPU count) and stops it
-    at the end. ``force`` reprocesses unchanged runs; ``fit`` fits the rig experiments'
-    creep curves (mu in the summary); ``report`` writes ``fleet_report.html``.
-    ``on_dashboard(link)`` is called with the dashboard address when there is one;
-    ``progress`` shows a bar on stderr. A rig recording spanning many revolutions becomes
-    one task per ``revolutions_per_task`` revolutions (default: about
-    :data:`torquemod.processing.revtasks.TASK_SECONDS` of recording each, and only for files that
-    ``process`` streams, >= 256 MiB; :func:`scan_item`, :mod:`torquemod.processing.revtasks`).
-    ``axle_chunk_s`` [s]: a train axle recording with random row access (HDF5, MAT v7.3,
-    MDF4, TDMS) longer than that becomes one task per chunk of that length, measuring its
-    windows, and the run's assembly advances the estimator over them
-    (:mod:`torquemod.ontrain.chunks`; the track is ``onboard``'s); None: about
-    :data:`torquemod.fleet.tasks.AXLE_TASK_S` (10 min). A malformed ``scheduler`` address
-    or ``n_workers`` < 1 is refused before anything is read, a scheduler that does not
-    answer within ``connect_timeout_s`` [s] before anything is written
-    (:func:`torquemod._util.daskutil.dask_client`).
+    Rig experiments and train runs; the outputs are the datasets, the summary, the failures
+    and the report.
+
+    Parameters
+    ----------
+    manifests : iterable of str or pathlib.Path
+        As :func:`~torquemod.fleet.plan.find_manifests` takes them.
+    out_dir : str or pathlib.Path
+        The output folder (new, or one a fleet wrote).
+    scheduler : str or None
+        Address of an existing Dask scheduler (``tcp://host:8786``); None starts a
+        ``LocalCluster`` and stops it at the end.
+    n_workers : int or None
+        Single-threaded worker processes of the local cluster; None: the CPU count.
+    force : bool
+        Reprocess unchanged runs. Default False.
+    progress : bool
+        Show a progress bar on stderr. Default False.
+    fit : bool
+        Fit the rig experiments' creep curves (mu in the summary). Default True.
+    report : bool
+        Write ``fleet_report.html``. Default True.
+    on_dashboard : callable or None
+        Called with the dashboard address when there is one.
+    revolutions_per_task : int or None
+        A rig recording spanning many revolutions becomes one task per that many revolutions
+        (default: about :data:`torquemod.processing.revtasks.TASK_SECONDS` of recording each,
+        and only for files that ``process`` streams, >= 256 MiB).
+    axle_chunk_s : float or None
+        A train axle recording with random row access (HDF5, MAT v7.3, MDF4, TDMS) longer
+        than this [s] becomes one task per chunk (:mod:`torquemod.ontrain.chunks`; the track
+        is ``onboard``'s); None: about :data:`torquemod.fleet.tasks.AXLE_TASK_S` (10 min).
+    connect_timeout_s : float
+        Time a scheduler has to answer [s]. Default :data:`CONNECT_TIMEOUT_S`.
+
+    Returns
+    -------
+    FleetResult
+        What was done.
+
+    Raises
+    ------
+    InputError
+        No manifests found, ``out_dir`` not a folder, a malformed ``scheduler`` address or
+        ``n_workers`` < 1 (before anything is read), or a scheduler that does not answer
+        within ``connect_timeout_s`` (before anything is written).
     """
     scheduler = check_cluster(scheduler, n_workers, connect_timeout_s)
     manifests = _as_list(manifests)  # read twice below (a generator would be used up)
@@ -214,12 +264,42 @@ def _write_csv(df: pd.DataFrame, path: Path) -> None:
 def run_tasks(client, paths: list[Path], names: list[str], out: str, force: bool,
                fit: bool, progress: bool, revolutions_per_task: int | None = None,
                axle_chunk_s: float | None = None) -> list[dict]:
-    """The fleet's task graph, grown as results arrive: per run a :func:`plan_run` task; for
-    a run to process, per recording one :func:`work_item` task, or for a rig recording that
-    may be split a :func:`scan_item` task and then one :func:`part_item` task per group of
-    revolutions; once every recording of the run has its tasks, a :func:`finish_run` task on
-    their results. Returns the summary rows; a task lost with its worker (killed, out of
-    memory) becomes a failed row."""
+    """Run the fleet's task graph, grown as results arrive.
+
+    Per run a :func:`~torquemod.fleet.plan.plan_run` task; for a run to process, per
+    recording one :func:`~torquemod.fleet.plan.work_item` task, or for a rig recording that
+    may be split a :func:`~torquemod.fleet.tasks.scan_item` task and then one
+    :func:`~torquemod.fleet.tasks.part_item` task per group of revolutions; once every
+    recording of the run has its tasks, a :func:`~torquemod.fleet.plan.finish_run` task on
+    their results.
+
+    Parameters
+    ----------
+    client : distributed.Client
+        The Dask client.
+    paths : list of pathlib.Path
+        The manifests.
+    names : list of str
+        Their partition names.
+    out : str
+        The output folder.
+    force : bool
+        Reprocess unchanged runs.
+    fit : bool
+        Fit the rig experiments' creep curves.
+    progress : bool
+        Show a progress bar.
+    revolutions_per_task : int or None
+        As :func:`run_fleet`.
+    axle_chunk_s : float or None
+        As :func:`run_fleet` [s].
+
+    Returns
+    -------
+    list of dict
+        The summary rows; a task lost with its worker (killed, out of memory) becomes a
+        failed row.
+    """
     from dask.distributed import as_completed
     from tqdm import tqdm
 

@@ -27,7 +27,19 @@ def _fresh_sha256(plan, index: int) -> str | None:
 
 
 def one_line(exc: BaseException) -> str:
-    """The error as the command line prints it after ``torquemod: error:`` (one line)."""
+    """An error as the command line prints it after ``torquemod: error:`` (one line).
+
+    Parameters
+    ----------
+    exc : BaseException
+        The error.
+
+    Returns
+    -------
+    str
+        The message; ``internal error: <type>: <text>`` for an error that is not torquemod's
+        or the system's.
+    """
     from torquemod._util.fsutil import environment_error
     if not isinstance(exc, TorquemodError) and (env := environment_error(exc)) is not None:
         reason = env.strerror or " ".join(str(env).split())
@@ -46,10 +58,24 @@ def _axle_api():
 
 
 def may_split(plan, index: int) -> bool:
-    """Whether recording ``index`` may be cut into several tasks (a rig recording without
-    a manifest cycle, NaN policy ``raise``: groups of revolutions; a train axle: chunks of
-    ``axle_chunk_s``, default :data:`AXLE_TASK_S` and only files of
-    :data:`AXLE_SCAN_MIN_BYTES` or more): then :func:`scan_item` decides."""
+    """Whether a recording may be cut into several tasks (then :func:`scan_item` decides).
+
+    A rig recording without a manifest cycle and NaN policy ``raise`` (groups of
+    revolutions); a train axle file of :data:`AXLE_SCAN_MIN_BYTES` or more (chunks of
+    ``axle_chunk_s``, default :data:`AXLE_TASK_S`).
+
+    Parameters
+    ----------
+    plan : Plan
+        The run.
+    index : int
+        The recording, in manifest order.
+
+    Returns
+    -------
+    bool
+        True when it may be split.
+    """
     if plan.prep.kind == "train":
         if _axle_api() is None:
             return False
@@ -66,14 +92,27 @@ def may_split(plan, index: int) -> bool:
 
 @single_blas
 def scan_item(plan, index: int) -> tuple:
-    """Recording ``index`` of a plan, cheaply: ``("split", RevolutionPlan or None, groups,
-    seconds, first)`` when it becomes one task per group (rig: of revolutions,
-    ``plan.revolutions_per_task`` each, default about a minute of recording,
-    :mod:`torquemod.processing.revtasks`; ``first`` the first group's item when the scan computed
-    it,
-    else None; train: chunks of the axle), else ``("whole", None, None, seconds, None)``:
-    one :func:`work_item` (also when the scan meets an error: the one task then gives the
-    error ``process`` gives). Never raises (a Dask task)."""
+    """Decide cheaply whether a recording becomes one task per group. Never raises (a Dask task).
+
+    Rig: groups of ``plan.revolutions_per_task`` revolutions (default about a minute of
+    recording, :mod:`torquemod.processing.revtasks`); train: chunks of the axle. When the
+    scan meets an error the one :func:`~torquemod.fleet.plan.work_item` task then gives the
+    error ``process`` gives.
+
+    Parameters
+    ----------
+    plan : Plan
+        The run.
+    index : int
+        The recording, in manifest order.
+
+    Returns
+    -------
+    tuple
+        ``("split", RevolutionPlan or None, groups, seconds [s], first)`` (``first`` the first
+        group's item when the scan computed it, else None), or
+        ``("whole", None, None, seconds [s], None)``.
+    """
     t0 = time.perf_counter()
     prep = plan.prep
     if prep.kind == "train":  # a train axle: the on-board estimator's chunks
@@ -105,9 +144,27 @@ def scan_item(plan, index: int) -> tuple:
 
 @single_blas
 def part_item(plan, index: int, rplan, first: int, stop: int) -> tuple:
-    """Revolutions ``first:stop`` of recording ``index`` (:func:`scan_item`'s plan):
-    ``("ok", RevolutionPart, seconds)`` or ``("error", one-line message, seconds)``. Never
-    raises (a Dask task)."""
+    """Process revolutions ``first:stop`` of a recording. Never raises (a Dask task).
+
+    Parameters
+    ----------
+    plan : Plan
+        The run.
+    index : int
+        The recording, in manifest order.
+    rplan : RevolutionPlan
+        :func:`scan_item`'s plan of the recording (None for a train axle's chunk).
+    first : int
+        First revolution (train: first row).
+    stop : int
+        Revolution (row) after the last.
+
+    Returns
+    -------
+    tuple
+        ``("ok", RevolutionPart (train: AxlePart), seconds [s])`` or
+        ``("error", one-line message, seconds [s])``.
+    """
     t0 = time.perf_counter()
     prep = plan.prep
     try:

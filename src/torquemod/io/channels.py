@@ -101,10 +101,27 @@ _RATE_KEYS = ("sample_rate_hz", "t0_s")
 
 
 def canonical_unit(unit: str) -> tuple[str, str] | None:
-    """``(quantity, canonical unit)`` of a unit string, or None when it is not known.
+    """The quantity and canonical spelling of a unit string.
 
     Spaces are ignored; the exact spelling is tried first, then the spelling in lower case
-    (no two accepted units differ by case only). ``canonical_unit("kNm") == ("torque", "kN*m")``.
+    (no two accepted units differ by case only).
+
+    Parameters
+    ----------
+    unit : str
+        The unit as written, e.g. "kNm".
+
+    Returns
+    -------
+    tuple of str or None
+        ``(quantity, canonical unit)``, or None when the unit is not known.
+
+    Examples
+    --------
+    >>> canonical_unit("kNm")
+    ('torque', 'kN*m')
+    >>> canonical_unit("furlong") is None
+    True
     """
     text = "".join(str(unit).split())
     for table_q, table in UNITS.items():
@@ -118,7 +135,24 @@ def canonical_unit(unit: str) -> tuple[str, str] | None:
 
 
 def accepted_units(quantity: str) -> list[str]:
-    """Canonical units accepted for ``quantity``, the SI unit first."""
+    """Canonical units accepted for a quantity, the SI unit first.
+
+    Parameters
+    ----------
+    quantity : str
+        One of ``time``, ``torque``, ``angular_speed``, ``force``, ``linear_speed``,
+        ``length``.
+
+    Returns
+    -------
+    list of str
+        The units.
+
+    Examples
+    --------
+    >>> accepted_units("force")[0]
+    'N'
+    """
     units = list(UNITS[quantity])
     if quantity == "angular_speed":
         units += [f"{u} (with radius_m)" for u in LINEAR_SPEED_UNITS]
@@ -127,13 +161,42 @@ def accepted_units(quantity: str) -> list[str]:
 
 def unit_factor(unit: str, quantity: str, *, radius_m: float | None = None,
                 path: object | None = None, channel: str | None = None) -> float:
-    """Factor that turns values in ``unit`` into the SI unit of ``quantity``.
+    """Factor that turns values in a unit into the SI unit of a quantity.
 
-    ``quantity`` is one of ``time``, ``torque``, ``angular_speed``, ``force``,
-    ``linear_speed``, ``length``. A linear speed
-    (m/s, km/h, mm/s) is accepted for ``angular_speed`` when ``radius_m`` [m] is given (the
-    angular speed is v / r). Raises :class:`InputError` naming the unit and listing the
-    accepted ones when the unit is unknown or measures another quantity.
+    Parameters
+    ----------
+    unit : str
+        The unit.
+    quantity : str
+        One of ``time``, ``torque``, ``angular_speed``, ``force``, ``linear_speed``,
+        ``length``.
+    radius_m : float or None
+        Radius r [m]: with it a linear speed (m/s, km/h, mm/s) is accepted for
+        ``angular_speed`` (the angular speed is v/r). Default None.
+    path : object
+        The file, named in messages only.
+    channel : str or None
+        The channel, named in messages only.
+
+    Returns
+    -------
+    float
+        The factor: SI value = factor * value.
+
+    Raises
+    ------
+    InputError
+        The unit is unknown, or measures another quantity (a linear speed without
+        ``radius_m``); the message names the unit and lists the accepted ones.
+    ValueError
+        ``quantity`` is unknown (a programming error).
+
+    Examples
+    --------
+    >>> unit_factor("kN", "force")
+    1000.0
+    >>> unit_factor("km/h", "angular_speed", radius_m=0.5) * 3.6
+    2.0
     """
     if quantity not in UNITS:
         raise ValueError(f"unknown quantity {quantity!r}; use one of {', '.join(UNITS)}")
@@ -160,12 +223,41 @@ def unit_factor(unit: str, quantity: str, *, radius_m: float | None = None,
 def convert_units(values: object, unit: str | None, quantity: str, *,
                   radius_m: float | None = None, path: object | None = None,
                   channel: str | None = None) -> np.ndarray:
-    """``values`` given in ``unit`` as a float64 array in the SI unit of ``quantity`` (the
-    input itself when it is float64 in the SI unit already).
+    """Values in a unit as a float64 array in the SI unit of a quantity.
 
-    ``unit`` None or empty means the values are in the SI unit already. Times given as
-    ``datetime64``/``timedelta64`` become seconds since the first sample. The input is never
-    modified. ``convert_units([60.0], "rpm", "angular_speed")`` is ``[6.2831...]`` [rad/s].
+    The input itself is returned when it is float64 in the SI unit already; it is never
+    modified. Times given as ``datetime64``/``timedelta64`` become seconds since the first
+    sample.
+
+    Parameters
+    ----------
+    values : array_like
+        The values.
+    unit : str or None
+        Their unit; None or empty: the SI unit already.
+    quantity : str
+        The quantity (:func:`unit_factor`).
+    radius_m : float or None
+        Radius [m] turning a linear speed into an angular one. Default None.
+    path : object
+        The file, named in messages only.
+    channel : str or None
+        The channel, named in messages only.
+
+    Returns
+    -------
+    ndarray
+        float64 values in the SI unit.
+
+    Raises
+    ------
+    InputError
+        Non-numeric values, a NaT time stamp, or a unit :func:`unit_factor` refuses.
+
+    Examples
+    --------
+    >>> convert_units([60.0], "rpm", "angular_speed").round(4).tolist()
+    [6.2832]
     """
     arr = np.asarray(values)
     if quantity == "time" and arr.dtype.kind in "mM":
@@ -189,10 +281,25 @@ def convert_units(values: object, unit: str | None, quantity: str, *,
 
 @dataclass(frozen=True)
 class ChannelSpec:
-    """Where one method channel is found: ``name`` in the file, in ``unit`` (None: the unit
-    the file declares, else the method's SI unit), ``radius_m`` [m] for linear speeds;
-    ``time`` names the channel's own time vector in the file (in ``time_unit``; None: the
-    unit the file declares, else s) when it is not sampled with the torque."""
+    """Where one method channel is found in a file.
+
+    Attributes
+    ----------
+    channel : str
+        The method channel, e.g. ``torque_nm``.
+    name : str
+        Its name in the file.
+    unit : str or None
+        Its unit in the file; None: the unit the file declares, else the method's SI unit.
+    radius_m : float or None
+        Radius turning a linear speed into an angular one [m]. Default None.
+    explicit : bool
+        Named in the ``[channels]`` table (an optional channel named there must exist).
+    time : str or None
+        The channel's own time vector in the file when it is not sampled with the torque.
+    time_unit : str or None
+        That vector's unit; None: the unit the file declares, else s.
+    """
 
     channel: str
     name: str
@@ -211,8 +318,16 @@ class ChannelSpec:
 class ChannelMap:
     """A checked ``[channels]`` table: one :class:`ChannelSpec` per method channel and time.
 
-    ``sample_rate_hz`` [Hz] (with ``t0_s`` [s]) replaces any time column or time base of
-    the file when given.
+    Attributes
+    ----------
+    specs : Mapping of str to ChannelSpec
+        By method channel (and ``time_s``).
+    sample_rate_hz : float or None
+        Sample rate [Hz]; when given it replaces any time column or time base of the file.
+    t0_s : float
+        Time of the first sample with ``sample_rate_hz`` [s]. Default 0.
+    raw : Mapping
+        The table as written.
     """
 
     specs: Mapping[str, ChannelSpec]
@@ -255,7 +370,13 @@ class ChannelMap:
 
 
 def default_channel_map() -> ChannelMap:
-    """The map used without a ``[channels]`` table: the CSV names, SI units, ``time_s``."""
+    """The map used without a ``[channels]`` table: the CSV names, SI units, ``time_s``.
+
+    Returns
+    -------
+    ChannelMap
+        The default map.
+    """
     return ChannelMap({c: ChannelSpec(c, c) for c in (TIME, *CHANNELS)})
 
 
@@ -328,9 +449,27 @@ def resolve_channel_map(raw: Mapping | ChannelMap | None, path: object = None) -
     Keys are the method channels, short (``torque``, ``wheel_speed``, ``platform_speed``,
     ``fx``, ``fy``, ``fz``, ``time``) or full (``torque_nm``, ..., ``time_s``), each a file
     channel name or a table ``{ name, unit, radius_m, time }`` (``time``: the channel's own
-    time vector, a name or ``{ name, unit }``); plus ``sample_rate_hz`` [Hz] and
-    ``t0_s`` [s]. Channels left out keep their default (the CSV name, SI unit). ``path`` is
-    only used in messages. An empty or None table gives :func:`default_channel_map`.
+    time vector, a name or ``{ name, unit }``); plus ``sample_rate_hz`` [Hz] and ``t0_s``
+    [s]. Channels left out keep their default (the CSV name, SI unit).
+
+    Parameters
+    ----------
+    raw : Mapping or ChannelMap or None
+        The table; a ChannelMap is returned as it is; empty or None gives
+        :func:`default_channel_map`.
+    path : object
+        The manifest, named in messages only.
+
+    Returns
+    -------
+    ChannelMap
+        The checked map.
+
+    Raises
+    ------
+    InputError
+        Not a table, an unknown key, a channel mapped twice, a file channel mapped to two
+        channels, a bad unit, or a bad ``t0_s`` (or one without ``sample_rate_hz``).
     """
     if isinstance(raw, ChannelMap):
         return raw
@@ -376,9 +515,21 @@ def resolve_channel_map(raw: Mapping | ChannelMap | None, path: object = None) -
 
 @dataclass
 class RawChannel:
-    """A channel as a reader found it: ``values`` (any numeric array), the ``unit`` the file
-    declares (None if none), and the channel's own time base if the format has one: time
-    stamps ``time_s`` [s] or a sample rate ``fs_hz`` [Hz] with start ``t0_s`` [s]."""
+    """A channel as a reader found it, before units and time bases are applied.
+
+    Attributes
+    ----------
+    values : ndarray
+        The values, any numeric array.
+    unit : str or None
+        The unit the file declares; None if none.
+    time_s : ndarray or None
+        The channel's own time stamps [s], if the format has them.
+    fs_hz : float or None
+        The channel's own sample rate [Hz], if the format has one.
+    t0_s : float
+        Start of that time base [s]. Default 0.
+    """
 
     values: np.ndarray
     unit: str | None = None
@@ -388,7 +539,27 @@ class RawChannel:
 
 
 def as_vector(values: object, *, path: object, channel: str) -> np.ndarray:
-    """``values`` as a 1-D array; a row or column matrix (MATLAB's n-by-1) is flattened."""
+    """Values as a 1-D array; a row or column matrix (MATLAB's n-by-1) is flattened.
+
+    Parameters
+    ----------
+    values : array_like
+        The values.
+    path : object
+        The file, named in messages only.
+    channel : str
+        The channel, named in messages only.
+
+    Returns
+    -------
+    ndarray
+        1-D.
+
+    Raises
+    ------
+    InputError
+        The values are not a vector.
+    """
     arr = np.asarray(values)
     if arr.ndim == 1:
         return arr
@@ -444,7 +615,20 @@ def _available_text(available: Callable[[], list[str]] | None) -> str:
 
 
 def source_name(path: Path, group: str | None) -> str:
-    """The ``Recording.source`` text: the path, and ``:group`` when one was chosen."""
+    """The ``Recording.source`` text.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file.
+    group : str or None
+        The group chosen inside it.
+
+    Returns
+    -------
+    str
+        The path, and ``:group`` when one was chosen.
+    """
     return f"{path}" + (f":{group}" if group else "")
 
 
@@ -453,6 +637,22 @@ def library_error(exc: BaseException, *, path: object, what: str, hint: str) -> 
 
     Readers catch ``Exception`` around the library call only (never around their own code)
     and ``raise library_error(...) from None``.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The library's exception.
+    path : object
+        The file.
+    what : str
+        What failed, e.g. "cannot open as HDF5".
+    hint : str
+        What to do.
+
+    Returns
+    -------
+    InputError
+        The error to raise.
     """
     text = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else ""
     detail = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
@@ -460,8 +660,29 @@ def library_error(exc: BaseException, *, path: object, what: str, hint: str) -> 
 
 
 def import_optional(module: str, *, what: str, extra: str, path: object):
-    """Import the optional library ``module`` a reader needs, or raise :class:`InputError`
-    naming the extra that installs it (``pip install torquemod[extra]``)."""
+    """Import an optional library a reader needs.
+
+    Parameters
+    ----------
+    module : str
+        The module's name.
+    what : str
+        The file kind, for the message.
+    extra : str
+        The extra that installs it (``pip install torquemod[extra]``).
+    path : object
+        The file, named in the message.
+
+    Returns
+    -------
+    module
+        The imported module.
+
+    Raises
+    ------
+    InputError
+        The library is not installed; the message names the extra.
+    """
     try:
         return importlib.import_module(module)
     except ImportError:

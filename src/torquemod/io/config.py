@@ -22,7 +22,35 @@ FREQUENCY_RULE = ("band, band-pass width, high-pass cut-off, slow model's top x 
 
 @dataclass(frozen=True)
 class FrequencyParams:
-    """Step 1: spectral peak of torque and wheel speed in ``band_hz`` [Hz] (paper)."""
+    """Step 1: the spectral peak of torque and wheel speed in the search band.
+
+    Attributes
+    ----------
+    band_hz : tuple of float
+        Search band [Hz]. Default (1.5, 2.5), the V-Track paper's [1]_.
+    window : str
+        Window of the spectrum (:func:`scipy.signal.get_window` name). Default "hann" (ours:
+        Hann sidelobes fall 18 dB/octave, away from large tones).
+    detrend : {"linear", "constant"}
+        Trend removed before the spectrum. Default "linear".
+    zero_pad : int
+        Zero-padding factor of the coarse grid [-]. Default 8.
+    refine : bool
+        Refine each peak to the least-squares frequency of the speed model (ours). Default
+        True.
+    tolerance_hz : float
+        Tolerance of that refinement [Hz]. Default 1e-6.
+    common : {"torque", "mean"}
+        The common modulation frequency: the torque's peak (ours, the excitation's), or the
+        mean of the torque's and the wheel speed's peaks (the paper's Table 2). Where the
+        operating point moves, the wheel's answer drifts in phase and its peak moves with it
+        (docs/processing.md). Default "torque".
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.4.
+    """
 
     band_hz: tuple[float, float] = (1.5, 2.5)
     window: str = "hann"  # ours: Hann sidelobes fall 18 dB/octave, away from large tones
@@ -47,7 +75,22 @@ class FrequencyParams:
 
 @dataclass(frozen=True)
 class ResampleParams:
-    """Step 2: polyphase resampling to ``target_hz`` [Hz] (paper: 53.344 Hz = 16 670*2/625)."""
+    """Step 2: polyphase resampling to a common rate.
+
+    Attributes
+    ----------
+    target_hz : float
+        Target rate [Hz]. Default 53.344 (the V-Track paper's: 16 670*2/625).
+    kaiser_beta : float
+        Kaiser window beta of the FIR [-]. Default 5 (MATLAB ``resample``'s).
+    max_denominator : int
+        Largest ``down`` of the rational ratio [-]. Default 1000.
+    method : {"two_stage", "polyphase"}
+        "two_stage" (ours): an integer Kaiser-FIR decimation first, then ``resample_poly``
+        for the rest (the same samples to 1e-7 deg of phase at 2 Hz, 4x cheaper);
+        "polyphase": one ``resample_poly`` pass, as the paper's MATLAB ``resample``. Default
+        "two_stage".
+    """
 
     target_hz: float = 53.344
     kaiser_beta: float = 5.0  # MATLAB resample's default
@@ -65,15 +108,36 @@ class ResampleParams:
 
 @dataclass(frozen=True)
 class SlowParams:
-    """Ours: the rolling speed of every rig and train moves. Speed variation below
-    ``max_hz`` [Hz] (a speed loop's wobble, the platform's revolution harmonics, a ramp) is
-    modelled by Legendre polynomials up to ``polynomial_degree`` and Slepian sequences
-    (:func:`torquemod.dsp.filters.slow_basis`, ``extra_sequences`` beyond twice the
-    time-bandwidth product) and the encoders' eccentricity by rotation orders that
-    follow the integrated angle; both are fitted jointly with the modulation and removed
+    """The slow speed model (ours): the rolling speed of every rig and train moves.
+
+    Speed variation below ``max_hz`` (a speed loop's wobble, the platform's revolution
+    harmonics, a ramp) is modelled by Legendre polynomials and Slepian sequences
+    (:func:`torquemod.dsp.basis.slow_basis`) and the encoders' eccentricity by rotation orders
+    that follow the integrated angle; both are fitted jointly with the modulation and removed
     before steps 1 and 3-5, and step 8 takes every channel's mean through the same model, so a
-    speed variation that wheel and platform share cancels in the creepage. ``enabled = false``
-    gives the previous chain (a line and fixed-frequency tones)."""
+    speed variation that wheel and platform share cancels in the creepage.
+
+    Attributes
+    ----------
+    enabled : bool
+        Use the model; False gives the previous chain (a line and fixed-frequency tones).
+        Default True.
+    max_hz : float
+        The slow band's top where the speed varies above ``quiet_max_hz`` [Hz]. Default 1.2
+        (a speed loop's wobble up to 1.2 Hz is removed).
+    quiet_max_hz : float
+        The slow band's top when the platform speed does not vary above it [Hz]
+        (:func:`torquemod.dsp.basis.needs_wide_band`). Default 0.8 (0.4 x f at 2 Hz keeps the
+        sidebands of a moving operating point out of the slow model); equal to ``max_hz``:
+        always the full band.
+    extra_sequences : int
+        Slepian sequences beyond twice the time-bandwidth product [-]. Default 2.
+    polynomial_degree : int
+        Highest Legendre degree [-]. Default 5.
+    modulation_harmonics : int
+        The modulation's harmonics 2..this are fitted beside it and removed with the slow
+        part [-]; 1 fits none. Default 3.
+    """
 
     enabled: bool = True
     #: ours: the slow band's top [Hz] where the speed varies above ``quiet_max_hz``: a
@@ -94,7 +158,20 @@ class SlowParams:
 
 @dataclass(frozen=True)
 class NotchParams:
-    """Step 3: zero-phase notches at rotation harmonics (paper: 1st and 2nd)."""
+    """Step 3: zero-phase notches at rotation harmonics.
+
+    Attributes
+    ----------
+    q : float
+        Quality factor of each notch, f0/bandwidth [-]. Default 3 (ours: settles in
+        ~q/(pi*f0) = 0.2 s at 4.6 Hz).
+    wheel_harmonics : tuple of int
+        Harmonics of the wheel's rotation notched. Default (1, 2), the V-Track paper's.
+    platform_harmonics : tuple of int
+        Harmonics of the platform's rotation notched. Default (1, 2).
+    warn_within_hz : float
+        A note when a wheel notch lies this close to the modulation [Hz]. Default 0.3.
+    """
 
     q: float = 3.0  # ours: bandwidth f0/3, settles in ~q/(pi*f0) = 0.2 s at 4.6 Hz
     wheel_harmonics: tuple[int, ...] = (1, 2)
@@ -104,7 +181,15 @@ class NotchParams:
 
 @dataclass(frozen=True)
 class HighpassParams:
-    """Step 4: zero-phase Butterworth high-pass removing DC (values ours)."""
+    """Step 4: zero-phase Butterworth high-pass removing DC (values ours).
+
+    Attributes
+    ----------
+    cutoff_hz : float
+        Cut-off frequency [Hz]. Default 0.5.
+    order : int
+        Filter order [-], applied forward and backward. Default 2.
+    """
 
     cutoff_hz: float = 0.5
     order: int = 2
@@ -112,7 +197,15 @@ class HighpassParams:
 
 @dataclass(frozen=True)
 class BandpassParams:
-    """Step 5: zero-phase Butterworth band-pass ``width_hz`` wide at f_mod (paper: 0.36 Hz)."""
+    """Step 5: zero-phase Butterworth band-pass at the modulation frequency.
+
+    Attributes
+    ----------
+    width_hz : float
+        Band width [Hz]. Default 0.36, the V-Track paper's.
+    order : int
+        Prototype order [-] (ours: a 4th-order band-pass, applied twice). Default 2.
+    """
 
     width_hz: float = 0.36
     order: int = 2  # ours: prototype order 2, a 4th-order band-pass, applied twice
@@ -120,7 +213,15 @@ class BandpassParams:
 
 @dataclass(frozen=True)
 class AlignParams:
-    """Step 6: cycles 2..n aligned to cycle 1 by unbiased xcorr of the torque (paper)."""
+    """Step 6: cycles 2..n aligned to cycle 1 by unbiased cross-correlation of the torque.
+
+    Attributes
+    ----------
+    enabled : bool
+        Align the cycles. Default True.
+    max_lag_periods : float
+        Largest lag, in modulation periods [-]. Default 1, the V-Track paper's.
+    """
 
     enabled: bool = True
     max_lag_periods: float = 1.0
@@ -128,9 +229,30 @@ class AlignParams:
 
 @dataclass(frozen=True)
 class PhaseParams:
-    """Step 7: phase estimator. ``method`` "paper" (peaks/valleys over ``n_periods`` middle
-    periods) or "sinefit" (least squares over the cycle). ``edge_trim_periods``
-    modulation periods at each end of a cycle are not used by "paper" (filter transients)."""
+    """Step 7: the phase estimator.
+
+    Attributes
+    ----------
+    method : {"paper", "sinefit"}
+        "paper": peaks and valleys (the V-Track paper's); "sinefit": least squares over the
+        cycle. Default "paper".
+    n_periods : int
+        Modulation periods "paper" uses around the aligned middle [-]. Default 3, the
+        paper's.
+    edge_trim_periods : float
+        Modulation periods at each end of a cycle left out by "paper" (filter transients)
+        [-]. Default 1.
+    paper_window : {"cycle", "middle"}
+        Which peaks and valleys "paper" pairs: every whole period between the trimmed edges
+        (ours) or the ``n_periods`` nearest the aligned middle (the paper's). Where the
+        operating point moves within a cycle the phase of its middle is not the cycle's
+        (docs/processing.md). Default "cycle".
+    sinefit_input : {"bandpassed", "notched", "model"}
+        What "sinefit" fits: the band-passed signals over whole periods, the notched ones, or
+        the speed model's own least-squares modulation. Default "bandpassed".
+    sinefit_trend : bool
+        Fit a line beside the sine. Default True.
+    """
 
     method: str = "paper"
     n_periods: int = 3
@@ -152,22 +274,34 @@ class PhaseParams:
 
 @dataclass(frozen=True)
 class SlipParams:
-    """Slip detection per step (values ours; see :func:`torquemod.processing.pipeline.detect_slip`).
+    """Slip detection per step (values ours; :func:`torquemod.processing.pipeline.detect_slip`).
 
-    A step is flagged as slipping when one of its cycles shows
+    A step is flagged as slipping when one of its cycles shows a creepage jump above the
+    step's other cycles, a falling CoA while the creepage rises (the falling branch of the
+    creep curve), or a creepage drift within the cycle (near saturation a wheel's creepage
+    follows the speed loop's wobble by tens of per cent up and down, measured on the twin; a
+    runaway grows it far more). Flagged steps stay in ``steps.csv`` (column ``slip``) and are
+    left out of the Polach fit.
 
-    * a creepage jump: its creepage exceeds the median of the step's other cycles by more than
-      ``creepage_jump_abs`` [-] and by more than ``creepage_jump_k`` robust standard
-      deviations (1.4826 MAD) of those others;
-    * a falling CoA: from the previous cycle the CoA falls by more than ``coa_drop_abs`` [-]
-      while the creepage rises by more than ``creepage_rise_abs`` [-] (the falling branch of
-      the creep curve);
-    * a creepage drift within the cycle: the creepage's trend over the cycle rises by more
-      than ``within_cycle_abs`` [-] and by more than ``within_cycle_rel`` times the cycle's
-      creepage (near saturation a wheel's creepage follows the speed loop's wobble by tens of
-      per cent up and down, measured on the twin; a runaway grows it far more).
-
-    Flagged steps stay in ``steps.csv`` (column ``slip``) and are left out of the Polach fit.
+    Attributes
+    ----------
+    enabled : bool
+        Check for slip. Default True.
+    creepage_jump_abs : float
+        A jump needs a cycle's creepage above the median of the step's other cycles by more
+        than this [-]. Default 0.002.
+    creepage_jump_k : float
+        It also needs more than this many robust standard deviations (1.4826 MAD) of those
+        others [-]. Default 5.
+    coa_drop_abs : float
+        A falling CoA: by more than this from the previous cycle [-]. Default 0.005.
+    creepage_rise_abs : float
+        While the creepage rises by more than this [-]. Default 0.0005.
+    within_cycle_abs : float
+        A drift: the creepage's trend over a cycle rises by more than this [-]. Default
+        0.002.
+    within_cycle_rel : float
+        It also rises by more than this times the cycle's creepage [-]. Default 0.5.
     """
 
     enabled: bool = True
@@ -181,7 +315,45 @@ class SlipParams:
 
 @dataclass(frozen=True)
 class ProcessingConfig:
-    """All parameters of the chain; ``nan_policy`` is "raise", "interpolate" or "drop-cycle"."""
+    """All parameters of the processing chain, one frozen dataclass per step.
+
+    Defaults are the V-Track paper's [1]_ where it gives a value, ours (and said so) where it
+    gives none; :meth:`for_modulation` scales them to another modulation frequency and
+    :meth:`from_dict` reads a manifest's ``[processing]`` table.
+
+    Attributes
+    ----------
+    frequency : FrequencyParams
+        Step 1, the modulation frequency.
+    resample : ResampleParams
+        Step 2, resampling.
+    notch : NotchParams
+        Step 3, notches at the rotation harmonics.
+    highpass : HighpassParams
+        Step 4, high-pass.
+    bandpass : BandpassParams
+        Step 5, band-pass.
+    align : AlignParams
+        Step 6, alignment of the cycles.
+    phase : PhaseParams
+        Step 7, the phase estimator.
+    nan_policy : {"raise", "interpolate", "drop-cycle"}
+        What NaN/inf in a recording does. Default "raise".
+    slip : SlipParams
+        Slip detection.
+    slow : SlowParams
+        The slow speed model.
+
+    Raises
+    ------
+    InputError
+        A value out of its range or an unknown choice.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.4.
+    """
 
     frequency: FrequencyParams = field(default_factory=FrequencyParams)
     resample: ResampleParams = field(default_factory=ResampleParams)
@@ -361,8 +533,28 @@ def _range_problems(cfg: ProcessingConfig) -> list[str]:
 
 
 def coerce_options(cls, options, what: str):
-    """``options`` as an instance of the dataclass ``cls``: None gives the defaults, an
-    instance passes through, a mapping is checked for unknown keys (lists become tuples)."""
+    """Options as an instance of a dataclass.
+
+    Parameters
+    ----------
+    cls : type
+        The dataclass.
+    options : cls or Mapping or None
+        None gives the defaults, an instance passes through, a mapping is checked for unknown
+        keys (lists become tuples).
+    what : str
+        What the options are for, named in messages.
+
+    Returns
+    -------
+    cls
+        The options.
+
+    Raises
+    ------
+    InputError
+        Not an instance or a mapping, or an unknown key.
+    """
     if options is None:
         return cls()
     if isinstance(options, cls):
@@ -378,10 +570,24 @@ def coerce_options(cls, options, what: str):
 
 
 def check_option_types(instance, what: str) -> None:
-    """Raise :class:`~torquemod.errors.OptionError` naming the first field of the dataclass
-    ``instance`` whose value is not of its annotated type: ``bool`` takes only True/False
-    (not "no", not 0), ``int`` whole numbers (not bool), ``float`` real numbers, ``str``
-    text; ``X | None`` also None; tuples are checked as tuples (lists pass)."""
+    """Check each field of a dataclass instance against its annotated type.
+
+    ``bool`` takes only True/False (not "no", not 0), ``int`` whole numbers (not bool),
+    ``float`` real numbers, ``str`` text; ``X | None`` also None; tuples are checked as
+    tuples (lists pass).
+
+    Parameters
+    ----------
+    instance : object
+        The dataclass instance.
+    what : str
+        What the options are for, named in the message.
+
+    Raises
+    ------
+    OptionError
+        Naming the first field whose value is not of its type.
+    """
     import numbers
     import types
     import typing

@@ -40,15 +40,37 @@ def _attrs(source: Path, group: str | None) -> dict:
 def convert_file(input_path: str | Path, output_path: str | Path, *,
                  channel_map: ChannelMap | dict | None = None, group: str | None = None,
                  sample_rate_hz: float | None = None, force: bool = False) -> Path:
-    """Read one recording (any supported format) and write it in the project's HDF5 layout,
-    or as Parquet, ``.mat`` or CSV when the output is named so.
+    """Convert one recording (any supported format) to the project's layout.
 
-    ``channel_map`` is a manifest ``[channels]`` table (raw or resolved), ``group`` the group
-    inside the input, ``sample_rate_hz`` [Hz] overrides the input's time base (see
-    :func:`torquemod.io.recording.read_recording`). The output (``.h5``/``.hdf5``,
-    ``.parquet``, ``.mat``, ``.csv``) is written
-    whole or not at all (:func:`~torquemod._util.fsutil.atomic_file`); an existing output is
-    replaced only with ``force``, and never when it is the input. Returns the output path.
+    HDF5, or Parquet, ``.mat`` or CSV when the output is named so. The output is written
+    whole or not at all (:func:`~torquemod._util.fsutil.atomic_file`).
+
+    Parameters
+    ----------
+    input_path : str or pathlib.Path
+        The recording.
+    output_path : str or pathlib.Path
+        The output, ``.h5``/``.hdf5``, ``.parquet``, ``.mat`` or ``.csv``.
+    channel_map : ChannelMap or dict or None
+        A manifest ``[channels]`` table (raw or resolved). Default None.
+    group : str or None
+        The group inside the input. Default None.
+    sample_rate_hz : float or None
+        Sample rate [Hz] overriding the input's time base
+        (:func:`torquemod.io.recording.read_recording`). Default None.
+    force : bool
+        Replace an existing output (never the input). Default False.
+
+    Returns
+    -------
+    pathlib.Path
+        The output.
+
+    Raises
+    ------
+    InputError
+        An unknown output suffix, a missing or unreadable input, an existing output without
+        ``force``, or the output being the input.
     """
     src, out = Path(input_path), Path(output_path)
     fmt = _OUTPUT_FORMATS.get(out.suffix.lower())
@@ -70,10 +92,34 @@ def convert_file(input_path: str | Path, output_path: str | Path, *,
 
 def convert_listed_file(input_path: str | Path, manifest_path: str | Path,
                         output_path: str | Path, *, force: bool = False) -> Path:
-    """Convert one recording with an experiment's ``[channels]`` table: ``torquemod convert
-    INPUT --manifest experiment.toml --out OUT.h5`` (docs/format.md). When the manifest
-    lists ``input_path``, that entry's ``group`` and ``sample_rate_hz`` apply too; a logger
-    file that needs a map (names, units, its channels' own time vectors) converts this way."""
+    """Convert one recording with an experiment's ``[channels]`` table.
+
+    ``torquemod convert INPUT --manifest experiment.toml --out OUT.h5`` (docs/format.md).
+    When the manifest lists ``input_path``, that entry's ``group`` and ``sample_rate_hz``
+    apply too; a logger file that needs a map (names, units, its channels' own time vectors)
+    converts this way.
+
+    Parameters
+    ----------
+    input_path : str or pathlib.Path
+        The recording.
+    manifest_path : str or pathlib.Path
+        The experiment.toml.
+    output_path : str or pathlib.Path
+        The output.
+    force : bool
+        Replace an existing output. Default False.
+
+    Returns
+    -------
+    pathlib.Path
+        The output.
+
+    Raises
+    ------
+    InputError
+        As :func:`convert_file`, or a bad manifest.
+    """
     exp = read_experiment(manifest_path)
     src = Path(input_path)
     entry = next((e for e in exp.recordings if _same_file(e.path, src)), None)
@@ -101,14 +147,31 @@ def _file_name(stem: str, group: str | None, used: set[str]) -> str:
 
 def convert_experiment(manifest_path: str | Path, out_dir: str | Path, *,
                        force: bool = False) -> Path:
-    """Convert every recording of an experiment to HDF5 in ``out_dir``, with a rewritten
-    ``experiment.toml`` that lists them (same rig, test and recording keys; no
-    ``[channels]``, ``group`` or ``sample_rate_hz``, which the HDF5 files no longer need).
+    """Convert every recording of an experiment to HDF5, with a rewritten manifest.
 
+    The new ``experiment.toml`` keeps the rig, test and recording keys, without
+    ``[channels]``, ``group`` or ``sample_rate_hz`` (which the HDF5 files no longer need).
     ``out_dir`` is built in a temporary folder and renamed into place at the end, so it is
-    complete or absent (:func:`~torquemod._util.fsutil.atomic_dir`); an existing non-empty
-    ``out_dir`` is replaced only with ``force`` and only if torquemod wrote it; it never is
-    nor holds the experiment's manifest or recordings. Returns the path of the new manifest.
+    complete or absent (:func:`~torquemod._util.fsutil.atomic_dir`).
+
+    Parameters
+    ----------
+    manifest_path : str or pathlib.Path
+        The experiment.toml.
+    out_dir : str or pathlib.Path
+        The output folder; never is nor holds the experiment's manifest or recordings.
+    force : bool
+        Replace an existing non-empty ``out_dir``, only if torquemod wrote it. Default False.
+
+    Returns
+    -------
+    pathlib.Path
+        The new manifest.
+
+    Raises
+    ------
+    InputError
+        A bad manifest or recording, an occupied ``out_dir``, or one holding the inputs.
     """
     exp = read_experiment(manifest_path)
     out = Path(out_dir).absolute()

@@ -41,7 +41,32 @@ def _header(path: Path) -> list[str]:
 
 def read_csv(path: Path, *, group: str | None = None,
              channel_map: ChannelMap | dict | None = None) -> Recording:
-    """Read a CSV recording (docs/format.md). ``group`` is not used for CSV."""
+    """Read a CSV recording (docs/format.md).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The CSV file.
+    group : str or None
+        Not used for CSV.
+    channel_map : ChannelMap or dict or None
+        The manifest's ``[channels]`` table (raw or resolved,
+        :func:`~torquemod.io.channels.resolve_channel_map`); None reads the method's channel
+        names (:data:`~torquemod.io.experiment.CHANNELS`) in SI units.
+
+    Returns
+    -------
+    Recording
+        The channels in SI units on a uniform time base (NaN and inf are not checked here:
+        the NaN policy is the pipeline's).
+
+    Raises
+    ------
+    InputError
+        Duplicate or missing columns, fewer than two data rows, a non-numeric value, a file
+        separated otherwise than by commas, or a file the parser cannot read; the message
+        names the file and, where one is at fault, the channel.
+    """
     path = Path(path)
     cmap = resolve_channel_map(channel_map, path)
     header = _header(path)
@@ -117,9 +142,31 @@ def _round_significant(x: np.ndarray, digits: int) -> np.ndarray:
 
 
 def write_csv(path: Path, rec: Recording, *, significant_digits: int = 9) -> Path:
-    """Write ``rec`` as a CSV recording with a ``time_s`` column and the channels it has
-    (absent optional channels are left out), each column rounded to ``significant_digits``
-    (pyarrow prints the shortest decimal that reads back exactly)."""
+    """Write a CSV recording.
+
+    A ``time_s`` column [s] and the channels ``rec`` has (absent optional channels are left
+    out), each column rounded to ``significant_digits`` (pyarrow prints the shortest decimal
+    that reads back exactly).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file to write.
+    rec : Recording
+        The recording.
+    significant_digits : int
+        Significant digits per value [-]. Default 9.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        The file cannot be written.
+    """
     data = {TIME_COLUMN: rec.time_s()}
     data.update({k: rec.channels[k] for k in CHANNELS if k in rec.channels})
     table = pa.table({k: _round_significant(np.asarray(v, dtype=np.float64), significant_digits)

@@ -44,8 +44,23 @@ CHANNEL_UNITS: dict[str, str] = {
 
 @dataclass(frozen=True)
 class Rig:
-    """Rig geometry. ``wheel_radius_m`` [m] rolling radius; ``platform_radius_m`` [m] radius of
-    the wheel path on the ring, the R_p of Eq. (3) of the V-Track paper."""
+    """The rig's geometry: the manifest's ``[rig]`` table.
+
+    Attributes
+    ----------
+    wheel_radius_m : float
+        Rolling radius of the wheel R_w [m].
+    platform_radius_m : float
+        Radius of the wheel's path on the ring R_p [m], the R_p of Eq. (3) of [1]_ (creepage
+        from the wheel's and the platform's angular speeds).
+    extra : dict
+        Further keys of the table, kept as read.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (3).
+    """
 
     wheel_radius_m: float
     platform_radius_m: float
@@ -54,8 +69,19 @@ class Rig:
 
 @dataclass(frozen=True)
 class TestSetup:
-    """Nominal test settings: ``normal_load_n`` [N], ``modulation_frequency_hz`` [Hz] (nominal;
-    the actual frequency is measured), ``modulation_amplitude_nm`` [N*m]."""
+    """The test's nominal settings: the manifest's ``[test]`` table.
+
+    Attributes
+    ----------
+    normal_load_n : float
+        Normal load on the wheel N [N].
+    modulation_frequency_hz : float
+        Nominal modulation frequency [Hz] (the actual one is measured).
+    modulation_amplitude_nm : float
+        Nominal modulation amplitude [N*m].
+    extra : dict
+        Further keys of the table, kept as read.
+    """
 
     normal_load_n: float
     modulation_frequency_hz: float
@@ -65,10 +91,25 @@ class TestSetup:
 
 @dataclass(frozen=True)
 class RecordingEntry:
-    """One ``[[recording]]`` of the manifest. ``cycle`` is None when the file may span several
-    platform revolutions; ``group`` selects a group inside an HDF5 file (a TDMS group, a .mat
-    struct); ``sample_rate_hz`` [Hz], when given, is the recording's sample rate and replaces
-    the file's time base."""
+    """One ``[[recording]]`` of the manifest.
+
+    Attributes
+    ----------
+    step : int
+        The torque step the recording belongs to.
+    dc_torque_nm : float
+        The step's nominal DC torque [N*m].
+    path : pathlib.Path
+        The recording's file.
+    cycle : int or None
+        The platform revolution it holds; None when the file may span several.
+    group : str or None
+        A group inside the file (HDF5 group, TDMS group, .mat struct). Default None.
+    index : int
+        Position in the manifest, for messages. Default 0.
+    sample_rate_hz : float or None
+        The recording's sample rate [Hz]; when given it replaces the file's time base.
+    """
 
     step: int
     dc_torque_nm: float
@@ -81,7 +122,23 @@ class RecordingEntry:
 
 @dataclass(frozen=True)
 class Experiment:
-    """A parsed ``experiment.toml``: where it is, the rig, the test and its recordings."""
+    """A parsed ``experiment.toml``: where it is, the rig, the test and its recordings.
+
+    Attributes
+    ----------
+    manifest_path : pathlib.Path
+        The manifest.
+    rig : Rig
+        The ``[rig]`` table.
+    test : TestSetup
+        The ``[test]`` table.
+    recordings : tuple of RecordingEntry
+        The ``[[recording]]`` entries, in the manifest's order.
+    channel_map : dict
+        The ``[channels]`` table: the files' column names and units per channel.
+    extra : dict
+        Other top-level tables, e.g. ``[processing]``.
+    """
 
     manifest_path: Path
     rig: Rig
@@ -111,11 +168,21 @@ class Experiment:
 
 @dataclass
 class Recording:
-    """Sampled channels of one recording, SI units, uniformly sampled at ``fs_hz`` [Hz].
+    """Sampled channels of one recording, SI units, uniformly sampled.
 
-    ``channels`` maps the names of :data:`CHANNELS` (at least :data:`REQUIRED_CHANNELS`) to
-    1-D float64 arrays of equal length;
-    ``t0_s`` [s] is the time of the first sample.
+    Attributes
+    ----------
+    channels : dict of str to ndarray
+        The names of :data:`CHANNELS` (at least :data:`REQUIRED_CHANNELS`) to 1-D float64
+        arrays of equal length, in the units of :data:`CHANNEL_UNITS`.
+    fs_hz : float
+        Sampling rate [Hz].
+    t0_s : float
+        Time of the first sample [s]. Default 0.
+    source : str
+        Where it was read from. Default "".
+    notes : list of str
+        What the reader did (time bases), for the provenance.
     """
 
     channels: dict[str, np.ndarray]

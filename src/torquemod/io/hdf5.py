@@ -122,7 +122,32 @@ def _names(g: h5py.Group) -> list[str]:
 
 def read_hdf5(path: Path, *, group: str | None = None,
               channel_map: ChannelMap | dict | None = None) -> Recording:
-    """Read one recording group of the project's HDF5 layout (or a mapped foreign layout)."""
+    """Read one recording group of the project's HDF5 layout (or a mapped foreign layout).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The HDF5 file.
+    group : str or None
+        The group holding the recording; None: the root.
+    channel_map : ChannelMap or dict or None
+        The manifest's ``[channels]`` table (raw or resolved,
+        :func:`~torquemod.io.channels.resolve_channel_map`); None reads the method's channel
+        names (:data:`~torquemod.io.experiment.CHANNELS`) in SI units.
+
+    Returns
+    -------
+    Recording
+        The channels in SI units on a uniform time base (NaN and inf are not checked here:
+        the NaN policy is the pipeline's).
+
+    Raises
+    ------
+    InputError
+        The file cannot be opened as HDF5, the group is missing or is a dataset, or a
+        channel is missing or malformed; the message names the file and, where one is at
+        fault, the channel.
+    """
     path = Path(path)
     cmap = resolve_channel_map(channel_map, path)
     try:
@@ -151,16 +176,37 @@ def read_hdf5(path: Path, *, group: str | None = None,
 def write_hdf5(path: Path, rec: Recording, *, group: str | None = None,
                write_time: bool = False, compression: str | None = None,
                attrs: dict | None = None, data_after_close: bool = False) -> Path:
-    """Write ``rec`` into ``group`` (root by default) of ``path`` (appending to the file).
+    """Write a recording into a group of an HDF5 file (appending to the file).
 
     The channels ``rec`` has are written (absent optional channels are left out, and any
     left from an earlier write to the same group are removed). The sample rate goes into the
-    ``sample_rate_hz`` attribute; ``write_time`` also writes the ``time_s`` dataset;
-    ``rec.notes`` go into the ``torquemod_notes`` attribute. ``data_after_close`` (without
-    compression): the datasets' contiguous storage is allocated when they are created and
-    the values are copied into it by plain positional writes after HDF5 has closed the file
-    (the same float64 values and layout); those writes run without the GIL and outside
-    h5py's lock, so that threads writing files overlap (the twin).
+    ``sample_rate_hz`` attribute [Hz]; ``rec.notes`` into the ``torquemod_notes`` attribute.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file.
+    rec : Recording
+        The recording.
+    group : str or None
+        The group; None: the root.
+    write_time : bool
+        Also write the ``time_s`` dataset [s]. Default False.
+    compression : str or None
+        h5py compression filter, e.g. "gzip". Default None.
+    attrs : dict or None
+        Further attributes of the group. Default None.
+    data_after_close : bool
+        Without compression: the datasets' contiguous storage is allocated when they are
+        created and the values are copied into it by plain positional writes after HDF5 has
+        closed the file (the same float64 values and layout); those writes run without the GIL
+        and outside h5py's lock, so that threads writing files overlap (the twin).
+        Default False.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
     """
     names = (["time_s"] if write_time else []) + [c for c in CHANNELS if c in rec.channels]
     if (data_after_close and compression is None and group is None and not attrs

@@ -75,9 +75,31 @@ def _load_toml(path: Path, name: str = "experiment.toml") -> dict:
 
 def check_keys(table: dict, allowed, where: str, path: object, *,
                takes: str = "known keys:", error: type[InputError] = ManifestError) -> None:
-    """Raise ``error`` naming the first key of ``table`` not in ``allowed`` (a typo such as
-    'dc_torque' or 'stpe' must not pass unnoticed), with the nearest allowed key
-    (:func:`torquemod._util.tomlcheck.unknown_keys`; a manifest error by default)."""
+    """Refuse a key of a table that is not allowed, suggesting the nearest allowed one.
+
+    A typo such as 'dc_torque' or 'stpe' must not pass unnoticed
+    (:func:`torquemod._util.tomlcheck.unknown_keys`).
+
+    Parameters
+    ----------
+    table : dict
+        The table.
+    allowed : iterable of str
+        The allowed keys.
+    where : str
+        The table, named in the message (e.g. "[rig]").
+    path : object
+        The file, named in the message.
+    takes : str
+        Words before the list of allowed keys in the hint. Default "known keys:".
+    error : type
+        The :class:`InputError` subclass raised. Default :class:`ManifestError`.
+
+    Raises
+    ------
+    InputError
+        (``error``) naming the first unknown key and the nearest allowed one.
+    """
     unknown_keys(table, allowed, where, path, takes=takes, error=error)
 
 
@@ -108,8 +130,38 @@ def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEn
 
 def recording_file(rec: dict, where: str, folder: Path, path: Path, kind: str = "experiment"
                    ) -> tuple[Path, str | None, float | None]:
-    """The checked ``file`` (resolved inside ``folder``), ``group`` and ``sample_rate_hz``
-    of one ``[[recording]]`` table (shared by experiment.toml and run.toml)."""
+    """The checked file, group and sample rate of one ``[[recording]]`` table.
+
+    Shared by experiment.toml and run.toml.
+
+    Parameters
+    ----------
+    rec : dict
+        The table.
+    where : str
+        The entry, named in messages (e.g. "recording #2").
+    folder : pathlib.Path
+        The manifest's folder; ``file`` is resolved inside it.
+    path : pathlib.Path
+        The manifest, named in messages.
+    kind : str
+        "experiment" or "run", for messages. Default "experiment".
+
+    Returns
+    -------
+    file : pathlib.Path
+        The resolved file.
+    group : str or None
+        The group inside it.
+    sample_rate_hz : float or None
+        Its sample rate [Hz].
+
+    Raises
+    ------
+    ManifestError
+        ``file`` empty or pointing outside the folder, ``group`` not a string, or
+        ``sample_rate_hz`` not a positive number.
+    """
     file = rec["file"]
     if not isinstance(file, str) or not file.strip():
         raise ManifestError(f"{where}: 'file' must be a non-empty string", path=path)
@@ -129,8 +181,29 @@ def recording_file(rec: dict, where: str, folder: Path, path: Path, kind: str = 
 
 
 def checked_channel_map(channel_map: object, path: Path, rates=()) -> dict:
-    """The manifest's raw ``[channels]`` table after checking it (and each recording's
-    ``sample_rate_hz`` against it), mistakes raised as :class:`ManifestError`."""
+    """A manifest's raw ``[channels]`` table after checking it.
+
+    Each recording's ``sample_rate_hz`` is checked against it too.
+
+    Parameters
+    ----------
+    channel_map : object
+        The table as read (None or a dict).
+    path : pathlib.Path
+        The manifest, named in messages.
+    rates : sequence of float or None
+        The recordings' own ``sample_rate_hz`` [Hz], in manifest order. Default ().
+
+    Returns
+    -------
+    dict
+        The table, unchanged.
+
+    Raises
+    ------
+    ManifestError
+        Not a table, a bad key or unit, or a sample rate that cannot be used with it.
+    """
     if not isinstance(channel_map, dict):
         raise ManifestError("[channels] must be a table", path=path)
     try:  # checked here so a mistake in [channels] shows before any recording is read
@@ -151,7 +224,24 @@ def checked_channel_map(channel_map: object, path: Path, rates=()) -> dict:
 
 
 def read_experiment(path: str | Path) -> Experiment:
-    """Parse and validate an ``experiment.toml``; recordings are not opened here."""
+    """Parse and validate an ``experiment.toml``; the recordings are not opened.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The manifest.
+
+    Returns
+    -------
+    Experiment
+        The parsed experiment.
+
+    Raises
+    ------
+    ManifestError
+        An unreadable file, TOML syntax, or anything :func:`experiment_from_doc` refuses; the
+        message names the file and key.
+    """
     path = Path(path)
     if path.is_dir():
         path = path / "experiment.toml"
@@ -159,10 +249,29 @@ def read_experiment(path: str | Path) -> Experiment:
 
 
 def experiment_from_doc(doc: dict, path: str | Path) -> Experiment:
-    """Check the tables of an ``experiment.toml`` already parsed into ``doc`` (as
-    :func:`read_experiment` does after reading ``path``) and return the
-    :class:`Experiment`; ``path`` is where the manifest is (or would be): its folder holds
-    the recordings and messages name it. Nothing is read."""
+    """Check the tables of an already parsed ``experiment.toml`` and build the experiment.
+
+    Nothing is read.
+
+    Parameters
+    ----------
+    doc : dict
+        The parsed TOML.
+    path : str or pathlib.Path
+        Where the manifest is (or would be): its folder holds the recordings and messages
+        name it.
+
+    Returns
+    -------
+    Experiment
+        The experiment.
+
+    Raises
+    ------
+    ManifestError
+        A train run, no recordings, a missing section or key, an unknown key, a bad value, a
+        recording listed twice, or a step with two DC torques.
+    """
     path = Path(path)
     if "vehicle" in doc and "rig" not in doc:
         raise ManifestError("is a train run (it has [vehicle], no [rig])", path=path,
@@ -220,7 +329,24 @@ def write_manifest(path: str | Path, *, rig: dict, test: dict, recordings: list[
                    extra: dict | None = None) -> Path:
     """Write an ``experiment.toml`` from plain dicts (the inverse of :func:`read_experiment`).
 
-    ``recordings`` are dicts with ``step``, optional ``cycle``, ``dc_torque_nm``, ``file``.
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+    rig : dict
+        The ``[rig]`` table (``wheel_radius_m`` [m], ``platform_radius_m`` [m], ...).
+    test : dict
+        The ``[test]`` table (``normal_load_n`` [N], ``modulation_frequency_hz`` [Hz],
+        ``modulation_amplitude_nm`` [N*m], ...).
+    recordings : list of dict
+        With ``step``, optional ``cycle``, ``dc_torque_nm`` [N*m], ``file``.
+    extra : dict or None
+        Further top-level tables. Default None.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
     """
     path = Path(path)
     doc = {"rig": dict(rig), "test": dict(test)}

@@ -159,7 +159,20 @@ def _check_matrix(buf: bytes, start: int, nbytes: int, endian: str, depth: int) 
 
 
 def check_mat5_structure(buf: bytes) -> None:
-    """Raise ``_Damaged`` when the element tags of a MAT v5 file are inconsistent."""
+    """Check the element tags of a MAT v5 file.
+
+    Parameters
+    ----------
+    buf : bytes
+        The file's content.
+
+    Raises
+    ------
+    _Damaged
+        The header is short, a top-level element has an unexpected type, or a compressed
+        variable does not inflate to a matrix (the reader turns it into an InputError naming
+        the file).
+    """
     if len(buf) < 128:
         raise _Damaged("shorter than the 128-byte MAT header")
     endian = {b"IM": "<", b"MI": ">"}.get(buf[126:128])
@@ -312,7 +325,18 @@ def _read_v73(path: Path, group: str | None, cmap: ChannelMap) -> Recording:
 
 
 def is_mat73(path: Path) -> bool:
-    """Whether ``path`` is a MATLAB v7.3 file (HDF5 with a 512-byte MATLAB header)."""
+    """Whether a file is a MATLAB v7.3 file (HDF5 with a 512-byte MATLAB header).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file.
+
+    Returns
+    -------
+    bool
+        True for v7.3.
+    """
     try:
         return bool(h5py.is_hdf5(path))
     except Exception:  # unreadable: let the v5 reader report it
@@ -321,7 +345,32 @@ def is_mat73(path: Path) -> bool:
 
 def read_mat(path: Path, *, group: str | None = None,
              channel_map: ChannelMap | dict | None = None) -> Recording:
-    """Read a MATLAB .mat recording of any version; ``group`` names a struct variable."""
+    """Read a MATLAB .mat recording of any version (v5 and v7.3 included).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The MATLAB file.
+    group : str or None
+        A struct variable holding the channels; None: top-level variables.
+    channel_map : ChannelMap or dict or None
+        The manifest's ``[channels]`` table (raw or resolved,
+        :func:`~torquemod.io.channels.resolve_channel_map`); None reads the method's channel
+        names (:data:`~torquemod.io.experiment.CHANNELS`) in SI units.
+
+    Returns
+    -------
+    Recording
+        The channels in SI units on a uniform time base (NaN and inf are not checked here:
+        the NaN policy is the pipeline's).
+
+    Raises
+    ------
+    InputError
+        The file is damaged or not a MAT file, the struct or a channel is missing, or a
+        channel is not a numeric vector; the message names the file and, where one is at
+        fault, the channel.
+    """
     path = Path(path)
     cmap = resolve_channel_map(channel_map, path)
     if is_mat73(path):
@@ -330,9 +379,29 @@ def read_mat(path: Path, *, group: str | None = None,
 
 
 def write_mat(path: Path, rec: Recording) -> Path:
-    """Write ``rec`` as a MATLAB (v5) recording: one column vector per channel it has,
-    named as in the CSV format (SI units), and the scalars ``sample_rate_hz`` [Hz] and
-    ``t0_s`` [s], so it reads back exactly without a ``[channels]`` table."""
+    """Write a MATLAB (v5) recording.
+
+    One column vector per channel ``rec`` has, named as in the CSV format (SI units), and the
+    scalars ``sample_rate_hz`` [Hz] and ``t0_s`` [s], so it reads back exactly without a
+    ``[channels]`` table.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file to write.
+    rec : Recording
+        The recording.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        The file cannot be written.
+    """
     from torquemod.io.experiment import CHANNELS
     doc = {name: np.asarray(rec.channels[name], dtype=np.float64).reshape(-1, 1)
            for name in CHANNELS if name in rec.channels}

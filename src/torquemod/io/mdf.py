@@ -144,7 +144,31 @@ def _open(asammdf, path: Path):
 
 def read_mdf(path: Path, *, group: str | None = None,
              channel_map: ChannelMap | dict | None = None) -> Recording:
-    """Read an MDF recording; ``group`` is a channel-group index (as text) or None."""
+    """Read an MDF (ASAM MDF 3/4) recording.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The MDF file.
+    group : str or None
+        A channel-group index (as text); None: channels searched in every group.
+    channel_map : ChannelMap or dict or None
+        The manifest's ``[channels]`` table (raw or resolved,
+        :func:`~torquemod.io.channels.resolve_channel_map`); None reads the method's channel
+        names (:data:`~torquemod.io.experiment.CHANNELS`) in SI units.
+
+    Returns
+    -------
+    Recording
+        The channels in SI units on a uniform time base (NaN and inf are not checked here:
+        the NaN policy is the pipeline's).
+
+    Raises
+    ------
+    InputError
+        The file cannot be opened as MDF, or a channel is missing, ambiguous or on another
+        time base; the message names the file and, where one is at fault, the channel.
+    """
     path = Path(path)
     cmap = resolve_channel_map(channel_map, path)
     asammdf = _import_asammdf(path)

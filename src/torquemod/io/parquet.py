@@ -64,7 +64,31 @@ def _column_values(column: pa.ChunkedArray, path: Path, name: str) -> np.ndarray
 
 def read_parquet(path: Path, *, group: str | None = None,
                  channel_map: ChannelMap | dict | None = None) -> Recording:
-    """Read a Parquet recording. ``group`` is not used for Parquet (must be None)."""
+    """Read a Parquet recording.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The Parquet file.
+    group : str or None
+        Must be None (no groups in Parquet).
+    channel_map : ChannelMap or dict or None
+        The manifest's ``[channels]`` table (raw or resolved,
+        :func:`~torquemod.io.channels.resolve_channel_map`); None reads the method's channel
+        names (:data:`~torquemod.io.experiment.CHANNELS`) in SI units.
+
+    Returns
+    -------
+    Recording
+        The channels in SI units on a uniform time base (NaN and inf are not checked here:
+        the NaN policy is the pipeline's).
+
+    Raises
+    ------
+    InputError
+        A ``group`` given, the file cannot be opened or read as Parquet, or a column cannot
+        be converted; the message names the file and, where one is at fault, the channel.
+    """
     path = Path(path)
     cmap = resolve_channel_map(channel_map, path)
     if group is not None:
@@ -102,10 +126,29 @@ def read_parquet(path: Path, *, group: str | None = None,
 
 
 def write_parquet(path: Path, rec: Recording) -> Path:
-    """Write ``rec`` as a Parquet recording: one float64 column per channel it has (SI
-    units, each column's ``unit`` in its field metadata) and the sample rate ``sample_rate_hz``
-    [Hz] and ``t0_s`` [s] in the file's metadata, so it reads back exactly without a
-    ``[channels]`` table."""
+    """Write a Parquet recording.
+
+    One float64 column per channel ``rec`` has (SI units, each column's ``unit`` in its field
+    metadata) and ``sample_rate_hz`` [Hz] and ``t0_s`` [s] in the file's metadata, so it
+    reads back exactly without a ``[channels]`` table.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file to write.
+    rec : Recording
+        The recording.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        The file cannot be written.
+    """
     from torquemod.io.experiment import CHANNEL_UNITS, CHANNELS
     fields, arrays = [], []
     for name in CHANNELS:

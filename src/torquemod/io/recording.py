@@ -38,7 +38,13 @@ def _function(module: str, name: str):
 
 
 def supported_suffixes() -> list[str]:
-    """File suffixes :func:`read_recording` can read."""
+    """File suffixes :func:`read_recording` can read.
+
+    Returns
+    -------
+    list of str
+        Lower-case suffixes with the dot, e.g. ".csv".
+    """
     return sorted(_READERS)
 
 
@@ -47,12 +53,32 @@ def read_recording(path: str | Path, *, group: str | None = None,
                    sample_rate_hz: float | None = None) -> Recording:
     """Read one recording file; the format is chosen by the file's suffix.
 
-    ``channel_map`` is the manifest's ``[channels]`` table (raw or resolved); None reads the
-    method's channel names in SI units. ``sample_rate_hz`` [Hz] overrides the time base of
-    the file and of the map (the per-recording manifest key).
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+    group : str or None
+        A group inside the file (meaning per format: HDF5 group, TDMS group, .mat struct, MDF
+        channel-group index). Default None.
+    channel_map : ChannelMap or dict or None
+        The manifest's ``[channels]`` table (raw or resolved,
+        :func:`~torquemod.io.channels.resolve_channel_map`); None reads the method's channel
+        names (:data:`~torquemod.io.experiment.CHANNELS`) in SI units.
+    sample_rate_hz : float or None
+        Sample rate [Hz] that overrides the time base of the file and of the map (the
+        per-recording manifest key). Default None.
 
-    Raises :class:`~torquemod.errors.InputError` naming the file and channel on any problem.
-    Finite values are *not* checked here (the NaN policy is the pipeline's).
+    Returns
+    -------
+    Recording
+        The channels in SI units on a uniform time base (NaN and inf are not checked here:
+        the NaN policy is the pipeline's).
+
+    Raises
+    ------
+    InputError
+        The file is missing, a folder, of an unknown format or unreadable, or the format's
+        reader refuses it; the message names the file and channel.
     """
     path = Path(path)
     if not path.exists():
@@ -80,15 +106,53 @@ def read_recording(path: str | Path, *, group: str | None = None,
 
 
 def read_entry(experiment: Experiment, entry: RecordingEntry) -> Recording:
-    """Read one ``[[recording]]`` of ``experiment`` with its group, the experiment's
-    ``[channels]`` map and the entry's own ``sample_rate_hz``."""
+    """Read one ``[[recording]]`` of an experiment.
+
+    Parameters
+    ----------
+    experiment : Experiment
+        The experiment (its ``[channels]`` map).
+    entry : RecordingEntry
+        The entry (its file, group and own ``sample_rate_hz``).
+
+    Returns
+    -------
+    Recording
+        As :func:`read_recording` gives it.
+
+    Raises
+    ------
+    InputError
+        As :func:`read_recording`.
+    """
     return read_recording(entry.path, group=entry.group, channel_map=experiment.channel_map,
                           sample_rate_hz=entry.sample_rate_hz)
 
 
 def write_recording(path: str | Path, rec: Recording, *, fmt: str = "csv", **kwargs) -> Path:
-    """Write ``rec`` in the project's ``csv``, ``hdf5``, ``parquet`` or ``mat`` layout
-    (docs/format.md)."""
+    """Write a recording in one of the project's layouts (docs/format.md).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file to write.
+    rec : Recording
+        The recording.
+    fmt : {"csv", "hdf5", "parquet", "mat"}
+        The layout. Default "csv".
+    **kwargs
+        Passed to the layout's writer (e.g. ``group`` for HDF5).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        An unknown ``fmt``, or the file cannot be written.
+    """
     try:
         writer = _function(*_WRITERS[fmt])
     except KeyError:

@@ -54,19 +54,47 @@ _RECORDING_KEYS = ("file", "axle", "group", "sample_rate_hz", "date", "note", "c
 
 @dataclass(frozen=True)
 class Vehicle:
-    """``[vehicle]``: rolling radius [m], axle load [N] (both wheels), the inertia referred
-    to the axle [kg*m^2]; ``gear_ratio`` (motor turns per axle turn) when torque and speed
-    are recorded at the motor; the drive line (``motor_inertia_kg_m2`` of the total,
-    referred to the axle, and the coupling [N*m/rad], [N*m*s/rad]) when known. The
-    recorded signals' own dynamics when known [s]: ``torque_lag_s`` the time constant of a
-    first-order lag of the torque (a drive's torque estimated from motor current is
-    filtered), ``torque_delay_s`` and ``speed_delay_s`` pure delays (transmission, a speed
-    from counting encoder pulses over a gate is late by half the gate); the estimator
-    removes them from the measured torque-to-speed ratio (:meth:`sensor_response`).
-    ``vehicle_damping_n_s_m`` [N*s/m]: the force with which the vehicle resists a change of
-    its speed at the modulation frequency beyond its inertia (other axles holding the speed,
-    the running resistance's slope); 0 takes the vehicle as an inertia
-    (:func:`torquemod.ontrain.window.damping_from_ratio`)."""
+    """The vehicle of a train run: run.toml's ``[vehicle]`` table.
+
+    Attributes
+    ----------
+    wheel_radius_m : float
+        Rolling radius R [m].
+    normal_load_n : float
+        Axle load N (both wheels) [N].
+    inertia_kg_m2 : float
+        Rotating inertia referred to the axle J [kg*m^2] (the drive line's included).
+    gear_ratio : float or None
+        Motor turns per axle turn [-] when torque and speed are recorded at the motor, else
+        None.
+    motor_inertia_kg_m2 : float or None
+        The motor's share of ``inertia_kg_m2``, referred to the axle [kg*m^2], when the drive
+        line is known.
+    coupling_stiffness_nm_rad : float or None
+        Stiffness of the coupling between motor and axle, referred to the axle [N*m/rad].
+    coupling_damping_nm_s_rad : float
+        Damping of that coupling [N*m*s/rad]. Default 0.
+    name : str
+        The vehicle's name. Default "".
+    torque_lag_s : float
+        Time constant of a first-order lag of the recorded torque [s] (a drive's torque
+        estimated from motor current is filtered). Default 0.
+    torque_delay_s : float
+        Pure delay of the recorded torque [s]. Default 0.
+    speed_delay_s : float
+        Pure delay of the recorded speed [s] (a speed from counting encoder pulses over a
+        gate is late by half the gate). Default 0.
+    vehicle_damping_n_s_m : float
+        Force with which the vehicle resists a change of its speed at the modulation
+        frequency beyond its inertia [N*s/m] (other axles holding the speed, the running
+        resistance's slope); 0 takes the vehicle as an inertia
+        (:func:`torquemod.ontrain.window.damping_from_ratio`). Default 0.
+
+    Notes
+    -----
+    The estimator removes the declared signal dynamics from the measured torque-to-speed
+    ratio (:meth:`sensor_response`).
+    """
 
     wheel_radius_m: float
     normal_load_n: float
@@ -87,10 +115,30 @@ class Vehicle:
             self.coupling_stiffness_nm_rad is not None
 
     def sensor_response(self, frequency_hz: float) -> complex:
-        """H = (recorded torque / recorded speed) / (true torque / true speed) at
-        ``frequency_hz`` [Hz]: ``exp(-j*Omega*(tau_T - tau_w)) / (1 + j*Omega*tau_lag)``
-        for the declared delays tau_T, tau_w and the torque's first-order lag tau_lag
-        (1 when none is declared). Divide a measured ratio by it."""
+        """The recorded signals' own dynamics at a frequency.
+
+        Parameters
+        ----------
+        frequency_hz : float
+            Frequency f [Hz].
+
+        Returns
+        -------
+        complex
+            H = (recorded torque / recorded speed) / (true torque / true speed) [-]; 1 when none
+            is declared. Divide a measured ratio by it.
+
+        Notes
+        -----
+        ``H = exp(-j*Omega*(tau_T - tau_w)) / (1 + j*Omega*tau_lag)``, Omega = 2*pi*f, for the
+        declared delays tau_T (``torque_delay_s``), tau_w (``speed_delay_s``) and the torque's
+        first-order lag tau_lag (``torque_lag_s``).
+
+        Examples
+        --------
+        >>> Vehicle(0.46, 80e3, 100.0).sensor_response(4.0)
+        (1+0j)
+        """
         om = 2.0 * cmath.pi * frequency_hz
         net = self.torque_delay_s - self.speed_delay_s
         return cmath.exp(-1j * om * net) / (1.0 + 1j * om * self.torque_lag_s)
@@ -98,7 +146,23 @@ class Vehicle:
 
 @dataclass(frozen=True)
 class RunRecording:
-    """One ``[[recording]]`` of a run: the file, the axle (default 1), group, sample rate."""
+    """One ``[[recording]]`` of a run.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The recording's file.
+    axle : int
+        The axle it holds. Default 1.
+    group : str or None
+        A group inside the file. Default None.
+    sample_rate_hz : float or None
+        Its sample rate [Hz]; when given it replaces the file's time base.
+    date : str or None
+        When it was recorded, as written. Default None.
+    index : int
+        Position in the manifest, for messages. Default 0.
+    """
 
     path: Path
     axle: int = 1
@@ -110,7 +174,25 @@ class RunRecording:
 
 @dataclass(frozen=True)
 class Run:
-    """A parsed ``run.toml``."""
+    """A parsed ``run.toml``: a train run's vehicle, modulation and recordings.
+
+    Attributes
+    ----------
+    manifest_path : pathlib.Path
+        The manifest.
+    vehicle : Vehicle
+        The ``[vehicle]`` table.
+    modulation_frequency_hz : float
+        Declared modulation frequency [Hz] (``[test]``).
+    modulation_amplitude_nm : float
+        Declared modulation amplitude [N*m] (``[test]``).
+    recordings : tuple of RunRecording
+        One per axle recording, in the manifest's order.
+    channel_map : dict
+        The ``[channels]`` table.
+    extra : dict
+        Other tables: ``[onboard]``, ``[truth]``, ...
+    """
 
     manifest_path: Path
     vehicle: Vehicle
@@ -133,7 +215,24 @@ def _number(table: dict, key: str, section: str, path: Path) -> float:
 
 
 def read_run(path: str | Path) -> Run:
-    """Parse and check a ``run.toml`` (a folder means its run.toml); files are not opened."""
+    """Parse and check a ``run.toml``; the recordings are not opened.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The manifest, or a folder holding ``run.toml``.
+
+    Returns
+    -------
+    Run
+        The parsed run.
+
+    Raises
+    ------
+    InputError
+        (:class:`~torquemod.errors.ManifestError`) an unreadable file, a rig experiment, a
+        missing section or key, a value of the wrong type or range, naming the file and key.
+    """
     path = Path(path)
     if path.is_dir():
         path = path / "run.toml"

@@ -64,13 +64,29 @@ class _CannotStream(Exception):
 
 
 class RunStream:
-    """A run recording (``RUN_CHANNELS`` it holds) read by row ranges; a context manager.
+    """A run recording read by row ranges; a context manager.
 
-    ``fs_hz`` [Hz], ``t0_s`` [s] (row k at ``t0_s + k/fs_hz``), ``n_samples``,
-    ``channels`` and ``notes`` are those of :func:`~torquemod.io.read_recording` on the same
-    file; ``read(a, b)`` gives rows ``a..b-1`` of every channel (float64, SI), bit for bit
-    the whole-file values. ``streamed`` is False when the file was read whole (the first
-    note says why).
+    ``fs_hz`` [Hz], ``t0_s`` [s] (row k at ``t0_s + k/fs_hz``), ``n_samples``, ``channels``
+    and ``notes`` are those of :func:`~torquemod.io.read_recording` on the same file;
+    ``read(a, b)`` gives rows ``a..b-1`` of every channel (float64, SI), bit for bit the
+    whole-file values. ``streamed`` is False when the file was read whole (the first note
+    says why: a layout that cannot be read in parts).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+    group : str or None
+        A group inside the file. Default None.
+    channel_map : ChannelMap or dict or None
+        The run's ``[channels]`` table; None: the method's names in SI units.
+    sample_rate_hz : float or None
+        Sample rate [Hz] overriding the file's time base. Default None.
+
+    Raises
+    ------
+    InputError
+        When the file is read whole, whatever :func:`~torquemod.io.read_recording` raises.
     """
 
     def __init__(self, path: str | Path, *, group: str | None = None,

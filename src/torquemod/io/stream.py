@@ -56,8 +56,25 @@ _REFUSE_HINT = ("read the file whole (torquemod.io.read_recording) or convert it
 # ------------------------------------------------------------------------------ stream
 @dataclass(frozen=True)
 class StreamInfo:
-    """What a stream delivers: ``channels`` (method names, SI) on ``n_samples`` samples at
-    ``fs_hz`` [Hz] from ``t0_s`` [s] (sample k at ``t0_s + k/fs_hz``)."""
+    """What a stream delivers.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The file.
+    source : str
+        ``Recording.source`` of the same file.
+    fs_hz : float
+        Sample rate [Hz].
+    t0_s : float
+        Time of the first sample [s]; sample k at ``t0_s + k/fs_hz``.
+    n_samples : int
+        Samples per channel [-].
+    channels : tuple of str
+        The method channels present (SI units).
+    file_names : dict
+        The file's name of each method channel.
+    """
 
     path: Path
     source: str
@@ -69,7 +86,26 @@ class StreamInfo:
 
 
 class RecordingStream:
-    """An open recording read in chunks; use as a context manager (closes the file)."""
+    """An open recording read in chunks; use as a context manager (closes the file).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+    group : str or None
+        A group inside the file (per format, :func:`~torquemod.io.recording.read_recording`).
+    channel_map : ChannelMap or dict or None
+        The ``[channels]`` table (raw or resolved); None: the method's names in SI units.
+    sample_rate_hz : float or None
+        Sample rate [Hz] overriding the file's time base. Default None.
+
+    Raises
+    ------
+    InputError
+        The file is missing or unreadable, a channel is missing, the forces lack Fx or Fz,
+        the channels are on different time bases (streaming cannot align them: read the file
+        whole), or the time base is unusable.
+    """
 
     def __init__(self, path: str | Path, *, group: str | None = None,
                  channel_map: ChannelMap | dict | None = None,
@@ -351,8 +387,31 @@ def _take(pending: list[dict[str, np.ndarray]], rows: int, held: int
 def open_stream(entry_or_path: RecordingEntry | str | Path, *, experiment=None,
                 group: str | None = None, channel_map: ChannelMap | dict | None = None,
                 sample_rate_hz: float | None = None) -> RecordingStream:
-    """A :class:`RecordingStream` of a path, or of a manifest's ``[[recording]]`` entry (its
-    group and sample rate; the ``experiment``'s ``[channels]`` map when given)."""
+    """A :class:`RecordingStream` of a path or of a manifest's ``[[recording]]`` entry.
+
+    Parameters
+    ----------
+    entry_or_path : RecordingEntry or str or pathlib.Path
+        The entry (its file, group and sample rate) or a path.
+    experiment : Experiment or None
+        Whose ``[channels]`` map applies to an entry. Default None.
+    group : str or None
+        A group inside the file (per format, :func:`~torquemod.io.recording.read_recording`).
+    channel_map : ChannelMap or dict or None
+        The ``[channels]`` table (raw or resolved); None: the method's names in SI units.
+    sample_rate_hz : float or None
+        Sample rate [Hz] overriding the file's time base. Default None.
+
+    Returns
+    -------
+    RecordingStream
+        The open stream.
+
+    Raises
+    ------
+    InputError
+        As :class:`RecordingStream`.
+    """
     if isinstance(entry_or_path, RecordingEntry):
         entry = entry_or_path
         return RecordingStream(entry.path, group=entry.group,
@@ -368,8 +427,37 @@ def iter_chunks(entry_or_path: RecordingEntry | str | Path,
                 chunk_rows: int = DEFAULT_CHUNK_ROWS, *, experiment=None,
                 group: str | None = None, channel_map: ChannelMap | dict | None = None,
                 sample_rate_hz: float | None = None) -> Iterator[dict[str, np.ndarray]]:
-    """Chunks of ``chunk_rows`` rows of a recording (see :class:`RecordingStream`); the file
-    stays open while the iterator runs and is closed at its end."""
+    """Chunks of rows of a recording; the file stays open while the iterator runs.
+
+    Parameters
+    ----------
+    entry_or_path : RecordingEntry or str or pathlib.Path
+        The entry or a path.
+    channels : sequence of str or None
+        The method channels wanted; None: all present.
+    chunk_rows : int
+        Rows per chunk [-]. Default :data:`DEFAULT_CHUNK_ROWS`.
+    experiment : Experiment or None
+        Whose ``[channels]`` map applies to an entry. Default None.
+    group : str or None
+        A group inside the file (per format, :func:`~torquemod.io.recording.read_recording`).
+    channel_map : ChannelMap or dict or None
+        The ``[channels]`` table (raw or resolved); None: the method's names in SI units.
+    sample_rate_hz : float or None
+        Sample rate [Hz] overriding the file's time base. Default None.
+
+    Yields
+    ------
+    dict of str to ndarray
+        Each channel's rows, float64 in SI units.
+
+    Raises
+    ------
+    InputError
+        As :class:`RecordingStream`, or a channel asked for is not in the recording.
+    ValueError
+        ``chunk_rows`` is not positive.
+    """
     with open_stream(entry_or_path, experiment=experiment, group=group,
                      channel_map=channel_map, sample_rate_hz=sample_rate_hz) as stream:
         yield from stream.chunks(channels, chunk_rows)
@@ -380,8 +468,22 @@ _HASH_POOL: ThreadPoolExecutor | None = None
 
 
 def hash_file_async(path: str | Path, *, block: int = 1 << 22) -> Future:
-    """Start hashing a file (SHA-256, hex) in a background thread; ``.result()`` gives the
-    digest. hashlib releases the GIL while it hashes, so reading and processing go on."""
+    """Start hashing a file (SHA-256) in a background thread.
+
+    hashlib releases the GIL while it hashes, so reading and processing go on.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+    block : int
+        Bytes read at a time [B]. Default 4 MiB.
+
+    Returns
+    -------
+    concurrent.futures.Future
+        ``.result()`` gives the hex digest.
+    """
     global _HASH_POOL
     if _HASH_POOL is None:
         _HASH_POOL = ThreadPoolExecutor(max_workers=2, thread_name_prefix="torquemod-sha256")

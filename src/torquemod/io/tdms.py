@@ -101,7 +101,31 @@ class _Index:
 
 def read_tdms(path: Path, *, group: str | None = None,
               channel_map: ChannelMap | dict | None = None) -> Recording:
-    """Read a TDMS recording; ``group`` is the TDMS group searched for bare channel names."""
+    """Read a NI TDMS recording.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The TDMS file.
+    group : str or None
+        The TDMS group searched for bare channel names; None: every group.
+    channel_map : ChannelMap or dict or None
+        The manifest's ``[channels]`` table (raw or resolved,
+        :func:`~torquemod.io.channels.resolve_channel_map`); None reads the method's channel
+        names (:data:`~torquemod.io.experiment.CHANNELS`) in SI units.
+
+    Returns
+    -------
+    Recording
+        The channels in SI units on a uniform time base (NaN and inf are not checked here:
+        the NaN policy is the pipeline's).
+
+    Raises
+    ------
+    InputError
+        The file cannot be opened or parsed as TDMS, or a channel is missing or ambiguous;
+        the message names the file and, where one is at fault, the channel.
+    """
     path = Path(path)
     cmap = resolve_channel_map(channel_map, path)
     nptdms = _import_nptdms(path)

@@ -278,9 +278,30 @@ def _align(channels: dict[str, np.ndarray], grids: dict[str, _Grid | None], ref:
 
 def shared_span(plans: dict[str, _Plan], ref: _Grid, n: int, path: object
                 ) -> tuple[int, int] | None:
-    """First and last of the torque's ``n`` samples that every planned channel covers
-    (within :data:`SAME_INSTANT_SAMPLES`); None when every channel lies on the torque's
-    samples already. Raises the coverage error below :data:`MIN_COVERAGE`."""
+    """First and last of the torque's samples that every planned channel covers.
+
+    Parameters
+    ----------
+    plans : dict of str to _Plan
+        How each channel on its own time base is put on the torque's times.
+    ref : _Grid
+        The torque's time grid.
+    n : int
+        The torque's sample count.
+    path : object
+        The file, named in messages.
+
+    Returns
+    -------
+    tuple of int or None
+        ``(first, last)`` sample indices (within :data:`SAME_INSTANT_SAMPLES`); None when
+        every channel lies on the torque's samples already.
+
+    Raises
+    ------
+    InputError
+        A channel covers less than :data:`MIN_COVERAGE` of the torque's span.
+    """
     if all(p.shift == 0 and p.m == n for p in plans.values()):
         return None
     eps = SAME_INSTANT_SAMPLES
@@ -297,8 +318,28 @@ def shared_span(plans: dict[str, _Plan], ref: _Grid, n: int, path: object
 
 def prepared(name: str, x: np.ndarray, plan: _Plan, ref: _Grid, notes: list[str]
              ) -> np.ndarray:
-    """Channel ``x`` ready to be put on the torque's times by ``plan`` (low-passed when it is
-    sampled faster and holds no NaN/inf), with the note saying what is done to it."""
+    """A channel ready to be put on the torque's times.
+
+    Low-passed when it is sampled faster than the torque and holds no NaN/inf.
+
+    Parameters
+    ----------
+    name : str
+        The method channel.
+    x : ndarray
+        Its values (SI units).
+    plan : _Plan
+        How it is put on the torque's times.
+    ref : _Grid
+        The torque's time grid.
+    notes : list of str
+        The recording's notes; the note saying what is done is appended.
+
+    Returns
+    -------
+    ndarray
+        The channel, filtered when needed.
+    """
     offset_ms = plan.start / ref.fs_hz * 1e3
     if plan.shift is not None:
         if plan.shift:
@@ -328,7 +369,19 @@ def prepared(name: str, x: np.ndarray, plan: _Plan, ref: _Grid, notes: list[str]
 
 
 def note_cut(lo: int, hi: int, n: int, notes: list[str]) -> None:
-    """The note of a cut to the shared span (none when nothing was cut)."""
+    """Add the note of a cut to the shared span (none when nothing was cut).
+
+    Parameters
+    ----------
+    lo : int
+        First sample kept.
+    hi : int
+        Last sample kept.
+    n : int
+        Samples before the cut.
+    notes : list of str
+        The notes, appended to.
+    """
     if lo > 0 or hi < n - 1:
         notes.append(f"cut to the span all channels share: {lo} samples of {TORQUE} dropped "
                      f"at the start and {n - 1 - hi} at the end ({hi + 1 - lo} of {n} kept)")
@@ -359,19 +412,51 @@ def assemble_recording(cmap: ChannelMap, lookup: Callable[[str], RawChannel | No
                        native_rate: tuple[float, float] | None = None,
                        available: Callable[[], list[str]] | None = None,
                        notes: list[str] | None = None) -> Recording:
-    """Build a :class:`Recording` from a reader's ``lookup(name) -> RawChannel | None``.
+    """Build a :class:`Recording` from a reader's channel lookup.
 
     Every method channel is looked up by its mapped name and converted to SI; the optional
-    ones (:data:`~torquemod.io.experiment.OPTIONAL_CHANNELS`) may be absent unless the map names
-    them
-    explicitly; forces come as Fx with Fz (Fy optional). The time base comes from (in order)
-    the map's ``sample_rate_hz``, the time channel (``time_s`` unless mapped), the torque's
-    own time base (``RawChannel.time_s``/``fs_hz``), then ``native_rate = (fs_hz, t0_s)`` of
-    the file. Channels on their own time base (their ``RawChannel`` time, or a time vector
-    the map names) are put on the torque's sample times and all channels are cut to the span
-    they share (:data:`MIN_COVERAGE`); what was done goes into ``Recording.notes`` after the
-    reader's own ``notes``. ``available()`` lists the file's channel names for the message
-    when a channel is missing.
+    ones (:data:`~torquemod.io.experiment.OPTIONAL_CHANNELS`) may be absent unless the map
+    names them explicitly; forces come as Fx with Fz (Fy optional). Channels on their own
+    time base are put on the torque's sample times and all channels are cut to the span they
+    share (:data:`MIN_COVERAGE`); what was done goes into ``Recording.notes`` after the
+    reader's own ``notes``.
+
+    Parameters
+    ----------
+    cmap : ChannelMap
+        The checked ``[channels]`` map.
+    lookup : callable
+        ``lookup(name) -> RawChannel | None`` for a file channel name.
+    path : object
+        The file, named in messages.
+    source : str
+        ``Recording.source``.
+    native_rate : tuple of float or None
+        ``(fs_hz [Hz], t0_s [s])`` of the file's own time base, the last resort. Default
+        None.
+    available : callable or None
+        ``available()`` lists the file's channel names for the message when a channel is
+        missing. Default None.
+    notes : list of str or None
+        The reader's own notes. Default None.
+
+    Returns
+    -------
+    Recording
+        The channels in SI units on the torque's uniform time base.
+
+    Raises
+    ------
+    InputError
+        A channel missing (or a force without its partner), fewer than two samples, a bad
+        sample rate or start time, a time base that is not uniform, or channels that share
+        too little time.
+
+    Notes
+    -----
+    The time base comes from, in order: the map's ``sample_rate_hz``, the time channel
+    (``time_s`` unless mapped), the torque's own time base (``RawChannel.time_s``/``fs_hz``),
+    then ``native_rate``.
     """
     found: dict[str, RawChannel] = {}
     padding: list[str] = []  # slow channels' empty rows cut off (notes)

@@ -11,8 +11,18 @@ import numpy as np
 
 
 def load_truth(run):
-    """The simulated truth named by ``[truth] file`` in the run.toml of ``run`` (a
-    :class:`~torquemod.io.run.Run`), a pandas DataFrame; None when absent or unreadable."""
+    """The simulated truth named by ``[truth] file`` in a run's run.toml.
+
+    Parameters
+    ----------
+    run : torquemod.io.run.Run
+        The run.
+
+    Returns
+    -------
+    pandas.DataFrame or None
+        The truth table; None when absent or unreadable.
+    """
     import pandas as pd
     t = run.extra.get("truth")
     if not isinstance(t, dict) or "file" not in t:
@@ -25,16 +35,47 @@ def load_truth(run):
 
 
 def adhesion_utilisation(coa, available_adhesion):
-    """The utilisation of the adhesion: the utilised adhesion CoA [-] over the available
-    adhesion [-] (the maximum of the adhesion-creepage curve at the operating point), 1 at
-    saturation. The one definition of the truth's utilisation: the truth table's
-    ``utilisation`` column, ``simulate --train``'s "max utilisation" and the on-board
-    report's truth line."""
+    """The utilisation of the adhesion: CoA over the available adhesion; 1 at saturation.
+
+    The one definition of the truth's utilisation: the truth table's ``utilisation`` column,
+    ``simulate --train``'s "max utilisation" and the on-board report's truth line.
+
+    Parameters
+    ----------
+    coa : float or array_like
+        Utilised adhesion CoA [-].
+    available_adhesion : float or array_like
+        Available adhesion [-]: the maximum of the adhesion-creepage curve at the operating
+        point.
+
+    Returns
+    -------
+    float or ndarray
+        CoA / available adhesion [-].
+
+    Examples
+    --------
+    >>> float(adhesion_utilisation(0.1, 0.4))
+    0.25
+    """
     return np.asarray(coa, dtype=float) / np.asarray(available_adhesion, dtype=float)
 
 
 def segment_summary(truth) -> list[dict]:
-    """Per friction segment of the truth: its span, friction and peak adhesion (means)."""
+    """Per friction segment of the truth: its span, friction and peak adhesion (means).
+
+    Parameters
+    ----------
+    truth : pandas.DataFrame
+        The truth table.
+
+    Returns
+    -------
+    list of dict
+        One per segment, in track order: ``condition``, ``start_m`` and ``end_m`` [m],
+        mean ``mu`` [-] and ``adhesion_peak`` [-], and ``max_utilisation`` [-]
+        (:func:`adhesion_utilisation`).
+    """
     out = []
     cond = truth["condition"].to_numpy()
     edges = np.flatnonzero(cond[1:] != cond[:-1]) + 1

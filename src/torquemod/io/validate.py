@@ -20,19 +20,50 @@ TIME_FIT_BLOCK = 1 << 16
 
 def fit_time_grid(time_s: np.ndarray, *, path: object, channel: str = "time_s"
                   ) -> tuple[float, float, float]:
-    """The uniform grid of a column of time stamps [s]: ``(fs_hz, anchor_s, rel_s)``, sample
-    ``k`` at ``anchor_s + rel_s + k / fs_hz``.
+    """The uniform grid of a column of time stamps.
 
-    ``anchor_s`` is the first stamp as stored and ``rel_s`` the fitted start relative to it,
-    so two grids' start difference ``(a1 - a2) + (r1 - r2)`` stays exact for absolute
-    (epoch, ~1.7e9 s) stamps, whose float64 spacing is 2.4e-7 s. The rate is the
-    least-squares slope of time against sample index (fitted on the stamps less the first),
-    which is insensitive to rounding and jitter of the stamps. Raises :class:`InputError`
-    naming ``channel`` when the stamps are not finite, not strictly increasing or not
-    uniform (gaps, jumps, jitter above :data:`IRREGULAR_TIME_TOLERANCE` of a period).
+    Sample ``k`` lies at ``anchor_s + rel_s + k/fs_hz``. ``anchor_s`` is the first stamp as
+    stored and ``rel_s`` the fitted start relative to it, so two grids' start difference
+    ``(a1 - a2) + (r1 - r2)`` stays exact for absolute (epoch, ~1.7e9 s) stamps, whose
+    float64 spacing is 2.4e-7 s.
 
-    Computed in blocks of :data:`TIME_FIT_BLOCK` samples (two passes, no full-length
-    temporary): see :func:`fit_time_grid_blocks`, which also serves streamed columns.
+    Parameters
+    ----------
+    time_s : ndarray
+        The time stamps [s].
+    path : object
+        The file, named in messages.
+    channel : str
+        The time channel, named in messages. Default "time_s".
+
+    Returns
+    -------
+    fs_hz : float
+        Sample rate [Hz].
+    anchor_s : float
+        The first stamp [s].
+    rel_s : float
+        The fitted start relative to ``anchor_s`` [s].
+
+    Raises
+    ------
+    InputError
+        Fewer than two samples, stamps not finite, not strictly increasing, or not uniform
+        (gaps, jumps, jitter above :data:`IRREGULAR_TIME_TOLERANCE` of a period), naming
+        ``channel`` and the row.
+
+    Notes
+    -----
+    The rate is the least-squares slope of time against sample index (fitted on the stamps
+    less the first), insensitive to rounding and jitter of the stamps. Computed in blocks of
+    :data:`TIME_FIT_BLOCK` samples (:func:`fit_time_grid_blocks`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fs, anchor, rel = fit_time_grid(np.arange(100) / 50.0 + 3.0, path="x.csv")
+    >>> round(fs, 9), anchor, abs(rel) < 1e-12
+    (50.0, 3.0, True)
     """
     t = np.asarray(time_s, dtype=np.float64).reshape(-1)
     step = TIME_FIT_BLOCK
@@ -42,13 +73,38 @@ def fit_time_grid(time_s: np.ndarray, *, path: object, channel: str = "time_s"
 
 def fit_time_grid_blocks(blocks, *, path: object, channel: str = "time_s"
                          ) -> tuple[float, float, float]:
-    """:func:`fit_time_grid` of a column given as consecutive blocks: ``blocks()`` returns a
-    new iterator of 1-D float64 arrays each time it is called (it is called twice).
+    """:func:`fit_time_grid` of a column given as consecutive blocks.
 
-    Pass 1 checks finiteness and order and sums ``r_k = t_k - t_0`` and ``k r_k`` per block
+    Parameters
+    ----------
+    blocks : callable
+        ``blocks()`` returns a new iterator of 1-D float64 arrays [s] each time it is called
+        (it is called twice).
+    path : object
+        The file, named in messages.
+    channel : str
+        The time channel, named in messages. Default "time_s".
+
+    Returns
+    -------
+    fs_hz : float
+        Sample rate [Hz].
+    anchor_s : float
+        The first stamp [s].
+    rel_s : float
+        The fitted start relative to ``anchor_s`` [s].
+
+    Raises
+    ------
+    InputError
+        As :func:`fit_time_grid`.
+
+    Notes
+    -----
+    Pass 1 checks finiteness and order and sums ``r_k = t_k - t_0`` and ``k*r_k`` per block
     (numpy's pairwise sums, blocks added by ``math.fsum``); the least-squares slope is
-    ``sum((k - kbar) r_k) / sum((k - kbar)^2)`` with the denominator in closed form
-    ``n (n^2 - 1) / 12``. Pass 2 takes the largest residual from the fitted line.
+    ``sum((k - kbar)*r_k)/sum((k - kbar)^2)`` with the denominator in closed form
+    ``n*(n^2 - 1)/12``. Pass 2 takes the largest residual from the fitted line.
     """
     n = 0
     anchor = math.nan
@@ -115,17 +171,49 @@ def fit_time_grid_blocks(blocks, *, path: object, channel: str = "time_s"
 
 def sample_rate_from_time(time_s: np.ndarray, *, path: object, channel: str = "time_s"
                           ) -> tuple[float, float]:
-    """Sample rate [Hz] and start time [s] of a uniformly sampled time column.
+    """Sample rate and start time of a uniformly sampled time column.
 
-    See :func:`fit_time_grid` (same checks); the start is ``anchor_s + rel_s``, good to the
-    float64 spacing of the stamps (2.4e-7 s at epoch times of 1.7e9 s).
+    Parameters
+    ----------
+    time_s : ndarray
+        The time stamps [s].
+    path : object
+        The file, named in messages.
+    channel : str
+        The time channel, named in messages. Default "time_s".
+
+    Returns
+    -------
+    fs_hz : float
+        Sample rate [Hz].
+    t0_s : float
+        Start ``anchor_s + rel_s`` [s] (:func:`fit_time_grid`), good to the float64 spacing of
+        the stamps (2.4e-7 s at epoch times of 1.7e9 s).
+
+    Raises
+    ------
+    InputError
+        As :func:`fit_time_grid`.
     """
     fs, anchor, rel = fit_time_grid(time_s, path=path, channel=channel)
     return fs, anchor + rel
 
 
 def check_finite(rec: Recording, *, path: object) -> None:
-    """Raise :class:`InputError` on the first NaN or inf in any channel."""
+    """Refuse NaN or inf in any channel.
+
+    Parameters
+    ----------
+    rec : Recording
+        The recording.
+    path : object
+        The file, named in the message.
+
+    Raises
+    ------
+    InputError
+        On the first channel holding NaN or inf: how many, and the first sample.
+    """
     for name, x in rec.channels.items():
         finite = np.isfinite(x)
         if not finite.all():
@@ -136,8 +224,22 @@ def check_finite(rec: Recording, *, path: object) -> None:
 
 
 def check_channels(rec: Recording, *, path: object) -> None:
-    """The required channels present (optional ones may be absent), each 1-D, numeric and of
-    one common length."""
+    """Check the channels: the required ones present, each 1-D, numeric and of one length.
+
+    Optional channels may be absent.
+
+    Parameters
+    ----------
+    rec : Recording
+        The recording.
+    path : object
+        The file, named in the message.
+
+    Raises
+    ------
+    InputError
+        A required channel missing, a channel not 1-D, or of another length.
+    """
     n = None
     for name in CHANNELS:
         if name not in rec.channels:
@@ -168,11 +270,30 @@ def _longest_run(mask: np.ndarray) -> int:
 
 def clipping_notes(rec: Recording, *, path: object, min_run_s: float = 0.005,
                    min_fraction: float = 1e-3) -> list[str]:
-    """Warnings for channels that look clipped: a run of at least ``min_run_s`` [s] of
-    consecutive samples, and at least ``min_fraction`` of all samples, sitting exactly at the
-    channel's maximum or minimum (a saturated sensor or a logger range set too small). A
-    live, noisy signal reaches its extreme once, not for a run of samples; the phase and the
-    means of a clipped channel are biased, so the user must know."""
+    """Warnings for channels that look clipped.
+
+    A run of at least ``min_run_s`` of consecutive samples, and at least ``min_fraction`` of
+    all samples, sitting exactly at the channel's maximum or minimum (a saturated sensor or a
+    logger range set too small). A live, noisy signal reaches its extreme once, not for a run
+    of samples; the phase and the means of a clipped channel are biased, so the user must
+    know.
+
+    Parameters
+    ----------
+    rec : Recording
+        The recording.
+    path : object
+        The file, named in the warnings.
+    min_run_s : float
+        Shortest run at an extreme [s]. Default 0.005.
+    min_fraction : float
+        Smallest share of all samples at the extremes [-]. Default 1e-3.
+
+    Returns
+    -------
+    list of str
+        One warning per clipped channel.
+    """
     out = []
     n = rec.n_samples
     need = max(int(np.ceil(min_run_s * rec.fs_hz)), int(np.ceil(min_fraction * n)), 3)

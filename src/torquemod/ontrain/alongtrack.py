@@ -68,10 +68,41 @@ def _class_of(level: float) -> int:
 
 
 def guess_condition(lower: float | None, upper: float | None) -> str:
-    """The service classes (:data:`CONDITIONS`) the available adhesion may lie in, given a
-    lower bound ``lower`` and an upper bound ``upper`` [-] (None or NaN: unknown; an unknown
-    lower bound is 0, an unknown upper one unbounded). ``"not probed"`` when every class
-    is possible."""
+    """The service classes the available adhesion may lie in, given bounds on it.
+
+    Parameters
+    ----------
+    lower : float or None
+        Lower bound of the available adhesion [-]; None or NaN: unknown (0).
+    upper : float or None
+        Upper bound [-]; None or NaN: unknown (unbounded).
+
+    Returns
+    -------
+    str
+        One class of :data:`CONDITIONS` or several joined by " or "; ``"mixed"`` when
+        ``lower > upper`` (the stretch spans different rails); ``"not probed"`` when every
+        class is possible.
+
+    Notes
+    -----
+    Class limits lie midway between published service ranges of rail adhesion (dry
+    0.3-0.4 and more, wet 0.15-0.22, leaf layers below 0.05-0.10) [1]_.
+
+    References
+    ----------
+    .. [1] R. Lewis et al., review of rail adhesion in service, Tribology International 185
+       (2023) 108529.
+
+    Examples
+    --------
+    >>> guess_condition(0.30, 0.40)
+    'dry'
+    >>> guess_condition(0.15, 0.30)
+    'wet or dry'
+    >>> guess_condition(None, None)
+    'not probed'
+    """
     lo = 0.0 if lower is None or not math.isfinite(lower) else max(0.0, float(lower))
     hi = math.inf if upper is None or not math.isfinite(upper) else float(upper)
     if lo > hi:
@@ -84,8 +115,27 @@ def guess_condition(lower: float | None, upper: float | None) -> str:
 
 
 def stretch_bounds(start_m: float, end_m: float, changes_m=()) -> list[tuple[float, float]]:
-    """The stretches ``[a, b)`` between ``start_m`` and ``end_m`` [m] cut at the friction
-    changes ``changes_m`` [m] inside (the last stretch includes ``end_m``)."""
+    """The stretches between two positions cut at the friction changes inside.
+
+    Parameters
+    ----------
+    start_m : float
+        Start [m].
+    end_m : float
+        End [m].
+    changes_m : sequence of float
+        Positions of detected friction changes [m]; those outside (start, end) are ignored.
+
+    Returns
+    -------
+    list of tuple of float
+        ``(a, b)`` pairs [m], half-open ``[a, b)`` but for the last, which includes ``end_m``.
+
+    Examples
+    --------
+    >>> stretch_bounds(0.0, 100.0, [40.0, 150.0])
+    [(0.0, 40.0), (40.0, 100.0)]
+    """
     cuts = sorted(float(c) for c in changes_m if start_m < float(c) < end_m)
     edges = [float(start_m), *cuts, float(end_m)]
     return list(itertools.pairwise(edges))
@@ -97,7 +147,22 @@ def _median(x: pd.Series) -> float:
 
 
 def summarise(part: pd.DataFrame) -> dict:
-    """One stretch's summary (module docstring) of its windows ``part`` (track rows)."""
+    """One stretch's summary from its windows (the rules of the module docstring).
+
+    Parameters
+    ----------
+    part : pandas.DataFrame
+        The stretch's track rows (``mu``, ``mu_low_95``, ``mu_high_95``, ``coa``,
+        ``low_adhesion``, ``slip``).
+
+    Returns
+    -------
+    dict
+        ``windows``; ``condition`` (:func:`guess_condition`); ``mu``, ``mu_low_95``,
+        ``mu_high_95`` and ``mu_lower_bound`` [-]; ``mu_given_share``,
+        ``low_adhesion_share`` and ``slip_share`` [-]; ``coa_reached`` (95th percentile of
+        CoA) [-]; ``probe_depth`` = coa_reached/mu [-] (NaN without mu or when ``mixed``).
+    """
     given = part["mu"].notna()
     mu = _median(part.loc[given, "mu"])
     lows = part.loc[~given, "mu_low_95"].dropna()
@@ -121,11 +186,31 @@ def summarise(part: pd.DataFrame) -> dict:
 
 def along_track(track: pd.DataFrame, *, changes_m=(), by: str = "segment",
                 length_m: float = 1000.0) -> pd.DataFrame:
-    """The along-track table (:data:`STRETCH_COLUMNS`) of a track (``track.parquet``
-    columns): one row per segment between the friction changes ``changes_m`` [m] the
-    estimator detected (``by="segment"``), or per ``length_m`` [m] of track counted from 0
-    (``by="km"``). ``start_m``/``end_m`` are the stretch's limits [m]; a stretch without
-    windows is left out."""
+    """The along-track table of a track: one row per segment or per kilometre.
+
+    Parameters
+    ----------
+    track : pandas.DataFrame
+        A track (``track.parquet`` columns).
+    changes_m : sequence of float
+        Positions of the friction changes the estimator detected [m].
+    by : {"segment", "km"}
+        One row per segment between the changes, or per ``length_m`` of track counted from
+        0. Default "segment".
+    length_m : float
+        Length of the ``by="km"`` stretches [m]. Default 1000.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns :data:`STRETCH_COLUMNS`; ``start_m``/``end_m`` the stretch's limits [m]; a
+        stretch without windows is left out.
+
+    Raises
+    ------
+    ValueError
+        ``by`` is neither "segment" nor "km".
+    """
     if by not in ("segment", "km"):
         raise ValueError(f"by must be 'segment' or 'km', got {by!r}")
     if not len(track):
@@ -152,13 +237,24 @@ def along_track(track: pd.DataFrame, *, changes_m=(), by: str = "segment",
 def run_mu_summary(track: pd.DataFrame) -> tuple[float | None, float | None]:
     """A train run's ``mu`` and ``mu_lower_bound`` summary fields from its windows.
 
-    ``mu`` is the median of μ over the windows where it is determined (None when nowhere).
-    ``mu_lower_bound`` summarises the same windows where μ is determined: the median of
-    their 95 % intervals' lower ends, so it never exceeds ``mu`` (each window's lower end
-    is at most its μ); where μ is determined nowhere, the lower bound of the whole run, the
-    95th percentile of the windows' bounds (module docstring: the maximum is
-    reached by single windows straddling a friction change). A row mixing
-    friction levels would otherwise set a μ from one stretch beside a bound from another.
+    ``mu`` is the median of mu over the windows where it is determined. ``mu_lower_bound``
+    summarises the same windows: the median of their 95 % intervals' lower ends, so it never
+    exceeds ``mu``; where mu is determined nowhere, the lower bound of the whole run, the 95th
+    percentile of the windows' bounds (the maximum is reached by single windows straddling a
+    friction change). A row mixing friction levels would otherwise set a mu from one stretch
+    beside a bound from another.
+
+    Parameters
+    ----------
+    track : pandas.DataFrame
+        The run's track (``track.parquet`` columns).
+
+    Returns
+    -------
+    mu : float or None
+        [-]; None when mu is determined nowhere.
+    mu_lower_bound : float or None
+        [-]; None when unknown.
     """
     if not len(track):
         return None, None

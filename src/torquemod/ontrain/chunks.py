@@ -47,9 +47,20 @@ CHUNK_S = 30.0
 
 @dataclass
 class AxlePart:
-    """The windows starting in rows ``[first_row, stop_row)`` of an axle: their first rows
-    and measurements (``position_m`` NaN until :func:`assemble_axle`; windows that could
-    not be measured are absent, as they have no row)."""
+    """The windows of an axle starting in rows ``[first_row, stop_row)``.
+
+    Attributes
+    ----------
+    first_row : int
+        First row of the range [-].
+    stop_row : int
+        Row after the range [-].
+    starts : list of int
+        First row of each measured window.
+    windows : list of WindowResult
+        Their measurements (``position_m`` NaN until :func:`assemble_axle`; windows that
+        could not be measured are absent, as they have no row).
+    """
 
     first_row: int
     stop_row: int
@@ -125,21 +136,72 @@ class _AxleSignals:
 
 
 def axle_config(run: Run, config: OnboardConfig | None) -> OnboardConfig:
-    """``config``, or the run's ``[onboard]`` table."""
+    """The settings an axle is estimated with.
+
+    Parameters
+    ----------
+    run : torquemod.io.run.Run
+        The run.
+    config : OnboardConfig or None
+        Given settings.
+
+    Returns
+    -------
+    OnboardConfig
+        ``config``, or the run's ``[onboard]`` table read (the defaults without one).
+
+    Raises
+    ------
+    InputError
+        A bad ``[onboard]`` table, naming run.toml and the key.
+    """
     return config or OnboardConfig.from_dict(run.extra.get("onboard"),
                                              source=str(run.manifest_path))
 
 
 def axle_stream(run: Run, entry: RunRecording) -> RunStream:
-    """The axle's recording, read by row ranges."""
+    """The axle's recording, read by row ranges.
+
+    Parameters
+    ----------
+    run : torquemod.io.run.Run
+        The run.
+    entry : torquemod.io.run.RunRecording
+        The axle's recording.
+
+    Returns
+    -------
+    torquemod.io.runstream.RunStream
+        The open stream (a context manager).
+    """
     return RunStream(entry.path, group=entry.group, channel_map=run.channel_map,
                      sample_rate_hz=entry.sample_rate_hz)
 
 
 def axle_estimator(run: Run, stream: RunStream, config: OnboardConfig
                    ) -> OnboardEstimator:
-    """A fresh estimator on the stream's sample times (a modulation the recording's sample
-    rate cannot carry, or too few samples a window, refused naming the file)."""
+    """A fresh estimator on the stream's sample times.
+
+    Parameters
+    ----------
+    run : torquemod.io.run.Run
+        The run.
+    stream : torquemod.io.runstream.RunStream
+        The axle's stream (sample rate, first sample time).
+    config : OnboardConfig
+        The settings.
+
+    Returns
+    -------
+    OnboardEstimator
+        The estimator.
+
+    Raises
+    ------
+    InputError
+        A modulation frequency the recording's sample rate cannot carry, or too few samples a
+        window, naming the file.
+    """
     below_nyquist(run.modulation_frequency_hz, stream.fs_hz, "test.modulation_frequency_hz",
                   "the recording's sample rate", run.manifest_path)
     try:
@@ -159,8 +221,24 @@ def _n_windows(est: OnboardEstimator, n_samples: int) -> int:
 
 def plan_axle_chunks(run: Run, entry: RunRecording, config: OnboardConfig | None = None, *,
                      chunk_s: float) -> list[tuple[int, int]]:
-    """Row ranges ``(first, stop)`` of the window starts, ``chunk_s`` [s] of them each (whole
-    hops); empty when the recording cannot be read by row ranges."""
+    """Row ranges of the window starts, ``chunk_s`` of them each (whole hops).
+
+    Parameters
+    ----------
+    run : torquemod.io.run.Run
+        The run.
+    entry : torquemod.io.run.RunRecording
+        The axle's recording.
+    config : OnboardConfig or None
+        The settings; None: the run's ``[onboard]`` table, else the defaults.
+    chunk_s : float
+        Time of window starts per range [s].
+
+    Returns
+    -------
+    list of tuple of int
+        ``(first, stop)`` row ranges; empty when the recording cannot be read by row ranges.
+    """
     config = axle_config(run, config)
     with axle_stream(run, entry) as stream:
         if not stream.streamed or not stream.random_access:
@@ -174,8 +252,31 @@ def plan_axle_chunks(run: Run, entry: RunRecording, config: OnboardConfig | None
 
 def measure_axle_chunk(run: Run, entry: RunRecording, config: OnboardConfig | None,
                        first: int, stop: int) -> AxlePart:
-    """Measure the windows starting in rows ``[first, stop)`` (a range of
-    :func:`plan_axle_chunks`); raises the batch path's InputError on NaN/inf."""
+    """Measure the windows starting in rows ``[first, stop)``.
+
+    Parameters
+    ----------
+    run : torquemod.io.run.Run
+        The run.
+    entry : torquemod.io.run.RunRecording
+        The axle's recording.
+    config : OnboardConfig or None
+        The settings; None: the run's ``[onboard]`` table, else the defaults.
+    first : int
+        First row of the range (from :func:`plan_axle_chunks`).
+    stop : int
+        Row after the range.
+
+    Returns
+    -------
+    AxlePart
+        The windows' measurements, positions left out.
+
+    Raises
+    ------
+    InputError
+        NaN or inf in the rows read, as the batch path raises it.
+    """
     config = axle_config(run, config)
     part = AxlePart(first, stop)
     with axle_stream(run, entry) as stream:
@@ -227,8 +328,28 @@ def _window_positions(stream: RunStream, signals, starts: list[int], n_win: int
 
 def assemble_axle(run: Run, entry: RunRecording, config: OnboardConfig | None,
                   parts: list[AxlePart]):
-    """The axle's :class:`~torquemod.ontrain.run.OnboardResult` from its parts (in row
-    order): positions, then the estimator's state over every window."""
+    """The axle's result from its parts.
+
+    Integrates the position over the run as :func:`~torquemod.ontrain.run.estimate_axle`
+    does, gives each window its mean position and runs the estimator's ``update`` over the
+    windows in order.
+
+    Parameters
+    ----------
+    run : torquemod.io.run.Run
+        The run.
+    entry : torquemod.io.run.RunRecording
+        The axle's recording.
+    config : OnboardConfig or None
+        The settings; None: the run's ``[onboard]`` table, else the defaults.
+    parts : list of AxlePart
+        The parts, in row order.
+
+    Returns
+    -------
+    OnboardResult
+        Identical to :func:`~torquemod.ontrain.run.estimate_axle`'s.
+    """
     import pandas as pd
 
     from torquemod.io.truth import load_truth

@@ -35,9 +35,20 @@ from torquemod.ontrain.window import load_impedance
 
 @dataclass(frozen=True)
 class DelayEstimate:
-    """``delay_s`` [s] the net delay of the torque behind the speed beyond what the manifest
-    declares (0 while not ``trusted``), ``se_s`` [s] its standard error (NaN when no
-    crossing), ``windows`` used, ``trusted``."""
+    """The net delay of the torque signal behind the speed's, measured from a run.
+
+    Attributes
+    ----------
+    delay_s : float
+        Net delay of the torque behind the speed beyond what the manifest declares [s]; 0
+        while not ``trusted``.
+    se_s : float
+        Its standard error [s]; NaN when the slope did not cross zero once.
+    windows : int
+        Steady windows the estimate used [-].
+    trusted : bool
+        The standard error is at most the calibrator's ``max_se_s``.
+    """
 
     delay_s: float
     se_s: float
@@ -46,9 +57,35 @@ class DelayEstimate:
 
 
 class DelayCalibrator:
-    """Running estimate of the net torque-speed delay (module docstring). ``grid_s``: the
-    candidate delays [s] (ascending); ``min_windows`` before an estimate; ``max_se_s`` [s]:
-    trusted below this standard error."""
+    """Running estimate of the net torque-to-speed delay from a run's steady windows.
+
+    For every candidate delay the weighted least-squares sums of ``Im(1/G)`` on ``Re(1/G)``
+    are kept (constant memory); the estimate is the delay where that slope crosses zero
+    (module docstring).
+
+    Parameters
+    ----------
+    vehicle : torquemod.io.run.Vehicle
+        The vehicle (for G, :func:`~torquemod.ontrain.window.load_impedance`).
+    frequency_hz : float
+        Modulation frequency [Hz].
+    grid_s : ndarray
+        Candidate delays, ascending [s] (:func:`delay_grid`).
+    min_windows : int
+        Fewest windows before an estimate [-]. Default 40 (``OnboardConfig.delay_min_windows``).
+    max_se_s : float
+        The estimate is trusted below this standard error [s]. Default 5e-4
+        (``OnboardConfig.delay_max_se_s``).
+
+    Notes
+    -----
+    A net delay tau rotates the ratio T/w by ``exp(-j*Omega*tau)``. The contact damping D
+    (real, different at each operating point) is in series with the vehicle's impedance Z_v
+    (the same for all), ``1/G = 1/D + 1/Z_v``, so at the right delay ``Im(1/G_i) = Im(1/Z_v)``
+    for every window; a delay error ``dtau`` adds ``Omega*dtau*Re(1/G_i)``, a line whose slope
+    is the error. Derived for this model; the slope's standard error is scaled by the
+    residual's chi^2 per degree of freedom (at least 1).
+    """
 
     def __init__(self, vehicle: Vehicle, frequency_hz: float, grid_s: np.ndarray, *,
                  min_windows: int = 40, max_se_s: float = 5e-4):
@@ -108,11 +145,32 @@ class DelayCalibrator:
 
 
 def delay_grid(delay_max_s: float, frequency_hz: float, step_s: float = 2.5e-4) -> np.ndarray:
-    """The candidate delays [s] of :class:`DelayCalibrator`: ``-tau_max .. tau_max`` in steps
-    of ``step_s``, with ``tau_max = min(delay_max_s, 1/(6*f))``. Both signs: a filtered torque
-    lags the speed, a speed counted over a gate lags the torque. At most a sixth of the
-    period (60 degrees of rotation at the modulation frequency ``f`` [Hz]), so that the
-    slope of Im(1/G) on Re(1/G) crosses zero once on the grid."""
+    """The candidate delays of :class:`DelayCalibrator`.
+
+    ``-tau_max .. tau_max`` in steps of ``step_s``, with ``tau_max = min(delay_max_s,
+    1/(6*f))``. Both signs: a filtered torque lags the speed, a speed counted over a gate lags
+    the torque. At most a sixth of the period (60 degrees at the modulation frequency), so
+    that the slope of Im(1/G) on Re(1/G) crosses zero once on the grid.
+
+    Parameters
+    ----------
+    delay_max_s : float
+        Largest delay searched [s] (``OnboardConfig.delay_max_s``).
+    frequency_hz : float
+        Modulation frequency f [Hz].
+    step_s : float
+        Grid step [s]. Default 2.5e-4.
+
+    Returns
+    -------
+    ndarray
+        The delays [s], ascending, symmetric about 0.
+
+    Examples
+    --------
+    >>> delay_grid(0.001, 4.0).tolist()
+    [-0.001, -0.00075, -0.0005, -0.00025, 0.0, 0.00025, 0.0005, 0.00075, 0.001]
+    """
     tau = min(float(delay_max_s), 1.0 / (6.0 * float(frequency_hz)))
     n = max(1, math.floor(tau / step_s + 1e-9))
     return step_s * np.arange(-n, n + 1, dtype=float)

@@ -104,7 +104,87 @@ TRACK_COLUMNS = ("time_s", "position_m", "speed_m_s", "coa", "phase_deg", "phase
 
 @dataclass(frozen=True)
 class OnboardConfig:
-    """Settings of the estimator (``[onboard]`` in run.toml; defaults here)."""
+    """Settings of the on-board estimator (``[onboard]`` in run.toml).
+
+    The defaults are the field defaults here (chosen on the twin's and the independent
+    generator's train runs; :mod:`torquemod.ontrain.estimator` explains each mechanism).
+    :meth:`from_dict` reads and checks a run.toml table.
+
+    Attributes
+    ----------
+    window_periods : int
+        Modulation periods per window [-]. Default 5.
+    hop_s : float
+        Time between the starts of consecutive windows [s]. Default 0.25.
+    memory_m : float
+        Longest stretch of track whose windows the mu fit holds [m]. Default 1500.
+    bound_m : float
+        Stretch over which the lower bound ``mu_low_95`` is taken [m]. Default 1 (the current
+        window alone).
+    refit_m : float
+        Distance between refits of the creep progression [m]. Default 100.
+    change_drift : float
+        Drift (allowance) of the CUSUM friction-change detector per window, in standard
+        deviations of the log creep coefficient [-]. Default 1.
+    change_threshold : float
+        Alarm threshold of the CUSUM sums [-] (same unit). Default 10.
+    max_rel_half_width : float
+        Largest relative half-width of mu's 95 % profile interval for mu to be reported [-].
+        Default 0.25.
+    model_rel_error : float
+        Relative systematic error of each grouped point's creep coefficient [-]. Default 0.02:
+        on the independent train runs the median measured/true creep coefficient differs
+        between the staircase's levels by up to 0.04 (benchmarks/onboard_independent.py).
+    max_dc_step_ratio : float
+        Largest DC torque step within a window, over the modulation amplitude, for the window
+        to count as steady [-]. Default 0.25.
+    info_utilisation : float
+        Share of mu a steady window must have worked at within ``info_m`` for mu to be
+        reported [-]. Default 0.5.
+    info_m : float
+        Distance over which that evidence counts [m]. Default 30.
+    n_bins : int
+        Largest number of CoA groups the windows are pooled into for the fit [-]. Default 12.
+    min_windows : int
+        Fewest steady windows before a fit is tried [-]. Default 12.
+    min_coa_ratio : float
+        Smallest ratio of the highest to the lowest group CoA for a fit [-]. Default 2.
+    ratio_bounds : tuple of float
+        Bounds of the fitted ratio of mu to the largest measured CoA [-]. Default
+        :data:`torquemod.analysis.phasefit.R_BOUNDS`.
+    power_shapes : int
+        1: include the saturating power-law shapes in the family of creep laws; 0: leave them
+        out. Default 1.
+    model_swing : int
+        1: fit the windows' slopes as the describing function of the curve over the
+        modulation's creepage swing; 0: as small-signal slopes. Default 1.
+    baseline_m : float
+        Stretch whose low-CoA windows give the reference creep coefficient of the
+        ``low_adhesion`` flag [m]. Default 600.
+    low_adhesion_ratio : float
+        ``low_adhesion`` when k falls below this share of the reference [-]. Default 0.25.
+    slip_creepage : float
+        ``slip`` when the creepage exceeds this [-]. Default 0.03.
+    slip_accel_m_s2 : float
+        ``slip`` when the axle accelerates faster than the vehicle by this [m/s^2].
+        Default 0.8.
+    calibrate_delay : int
+        1: estimate the net torque-to-speed delay from the run
+        (:class:`~torquemod.ontrain.delay.DelayCalibrator`); 0: do not. Default 1.
+    delay_max_s : float
+        Largest delay searched, either sign [s]. Default 0.02.
+    delay_max_se_s : float
+        Standard error below which a delay estimate is used [s]. Default 5e-4.
+    delay_min_windows : int
+        Fewest steady windows before a delay is estimated [-]. Default 40.
+    min_speed_m_s : float
+        Reference speed below which the train counts as standing [m/s]. Default 1 (twice the
+        0.5 m/s floor of the creepage's reference speed).
+    min_modulation_ratio : float
+        Share of the declared modulation amplitude the torque's line must reach [-].
+        Default 0.25 (windows of the twin's and the independent runs reach > 0.3 even across
+        a DC step).
+    """
 
     window_periods: int = 5
     hop_s: float = 0.25
@@ -147,9 +227,27 @@ class OnboardConfig:
 
     @classmethod
     def from_dict(cls, table: dict | None, *, source: str = "[onboard]") -> OnboardConfig:
-        """The settings from run.toml's ``[onboard]`` table (None: the defaults); every key
-        and value checked (:func:`torquemod._util.tomlcheck.read_table`), an :class:`InputError`
-        naming ``source`` and the key otherwise."""
+        """The settings from run.toml's ``[onboard]`` table.
+
+        Parameters
+        ----------
+        table : dict or None
+            The table; None gives the defaults.
+        source : str
+            What to name in error messages (the file). Default ``"[onboard]"``.
+
+        Returns
+        -------
+        OnboardConfig
+            The checked settings.
+
+        Raises
+        ------
+        InputError
+            An unknown key (with the nearest known one), a value of the wrong type or out of its
+            range (:func:`torquemod._util.tomlcheck.read_table`), or ``ratio_bounds`` not
+            ``[low, high]`` with low < high; the message names ``source`` and the key.
+        """
         cfg = read_table(cls, table, section="onboard", path=source, checks=_CHECKS)
         lo, hi = cfg.ratio_bounds
         if not lo < hi:
@@ -185,11 +283,34 @@ _CHECKS = default_checks(OnboardConfig, {
 
 
 class ChangeDetector:
-    """Two-sided CUSUM (Page 1954) on the log residual of each window's creep coefficient
-    against the current fitted curve, ``z = ln(k/k_fit(CoA))/s`` with
-    ``s^2 = (k_se/k)^2 + model_rel^2``; a window above the fitted mu counts as ``+z_cap``.
-    An alarm when either sum exceeds ``threshold`` returns the position where that sum last
-    left zero: where the friction changed."""
+    """Two-sided CUSUM detector of friction changes along the track.
+
+    The statistic is each window's log creep coefficient against the current fitted curve,
+    ``z = ln(k/k_fit(CoA))/s`` with ``s^2 = (k_se/k)^2 + model_rel^2``; a window above the
+    fitted mu counts as ``+z_cap``. An alarm when either sum exceeds ``threshold`` returns the
+    position where that sum last left zero: where the friction changed.
+
+    Parameters
+    ----------
+    drift : float
+        Allowance subtracted from |z| at each window [-] (standard deviations).
+    threshold : float
+        Alarm level of either cumulative sum [-].
+    model_rel : float
+        Relative model error added to each window's relative standard error [-].
+        Default 0.25.
+    z_cap : float
+        Largest |z| one window contributes [-]. Default 6.
+
+    Notes
+    -----
+    Upper sum ``S+ = max(0, S+ + z - drift)``, lower sum ``S- = max(0, S- - z - drift)``;
+    alarm when ``max(S+, S-) > threshold`` [1]_.
+
+    References
+    ----------
+    .. [1] E.S. Page, "Continuous inspection schemes", Biometrika 41(1/2) (1954) 100-115.
+    """
 
     def __init__(self, drift: float, threshold: float, model_rel: float = 0.25,
                  z_cap: float = 6.0):
@@ -240,8 +361,28 @@ class ChangeDetector:
 
 
 class MuTracker:
-    """mu from the windows since the last friction change (at most ``memory_m`` metres;
-    module docstring)."""
+    """mu from the windows since the last friction change.
+
+    Holds at most ``config.memory_m`` metres of steady windows, refits the creep progression
+    (:func:`~torquemod.ontrain.mufit.fit_creep_progression`) every ``config.refit_m`` metres
+    and cuts the memory at a detected change (:class:`ChangeDetector`); see the module
+    docstring for when mu is reported.
+
+    Parameters
+    ----------
+    vehicle : torquemod.io.run.Vehicle
+        The vehicle.
+    frequency_hz : float
+        Modulation frequency [Hz].
+    config : OnboardConfig
+        The estimator's settings.
+    overlap : float
+        How many windows overlap each sample (window length over hop) [-]; at least 1. Widens
+        the grouped points' standard errors.
+    window_s : float
+        One window's duration [s]: windows this close to a change are left out of the
+        segments' fits. Default 0.
+    """
 
     def __init__(self, vehicle: Vehicle, frequency_hz: float, config: OnboardConfig,
                  overlap: float, window_s: float = 0.0):
@@ -380,13 +521,34 @@ class MuTracker:
 
 
 class OnboardEstimator:
-    """Sliding-window estimator over one axle; feed chunks of samples as they arrive.
+    """Sliding-window estimator of the friction over one axle; feed chunks as they arrive.
 
     ``feed(torque_nm, wheel_speed_rad_s, vehicle_speed_m_s, position_m)`` (equal-length
-    arrays at ``fs_hz``, the run's sample times from ``t0_s``) returns the rows of the
-    windows completed by that chunk, as dicts with :data:`TRACK_COLUMNS` (and a few more).
-    Windows start every ``hop`` samples from the first sample, so how the run is cut into
-    chunks does not change any row.
+    arrays at ``fs_hz``, the run's sample times from ``t0_s``) returns the rows of the windows
+    completed by that chunk, as dicts with :data:`TRACK_COLUMNS` (and a few more). Windows
+    start every ``hop`` samples from the first sample, so how the run is cut into chunks does
+    not change any row.
+
+    Parameters
+    ----------
+    vehicle : torquemod.io.run.Vehicle
+        The vehicle (radius, load, inertia, drive line, sensor dynamics).
+    frequency_hz : float
+        Modulation frequency [Hz].
+    fs_hz : float
+        Sampling rate of the chunks [Hz].
+    config : OnboardConfig or None
+        The settings; None: :class:`OnboardConfig` defaults.
+    t0_s : float
+        Time of the first sample [s]. Default 0.
+    amplitude_nm : float or None
+        Declared modulation amplitude [N*m]; when given, each window's line is checked against
+        it (``min_modulation_ratio``). Default None.
+
+    Raises
+    ------
+    InputError
+        A window of ``window_periods`` periods holds fewer than 8 samples at ``fs_hz``.
     """
 
     def __init__(self, vehicle: Vehicle, frequency_hz: float, fs_hz: float, *,

@@ -35,8 +35,22 @@ META = "onboard.json"
 
 
 def track_name(results: list, r, stem: str = "track") -> str:
-    """The file stem of axle ``r``'s table ``stem``: ``stem`` for the first axle,
-    ``stem_axle<N>`` for the others."""
+    """The file stem of an axle's table.
+
+    Parameters
+    ----------
+    results : list of OnboardResult
+        The axles of the run.
+    r : OnboardResult
+        One of them.
+    stem : str
+        The table's stem. Default "track".
+
+    Returns
+    -------
+    str
+        ``stem`` for the first axle, ``stem_axle<N>`` for the others.
+    """
     return stem if r is results[0] else f"{stem}_axle{r.axle}"
 
 
@@ -64,8 +78,21 @@ def _meta(results: list, command: list[str] | None) -> dict:
 
 def write_onboard(folder: Path, results: list, *,
                   command: list[str] | None = None, export=()) -> None:
-    """Write the folder's files into ``folder`` (an existing, empty folder: the atomic
-    publishing is :func:`save_onboard`'s)."""
+    """Write the on-board results folder's files into an existing, empty folder.
+
+    The atomic publishing is :func:`save_onboard`'s.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+        The folder.
+    results : list of OnboardResult
+        The axles of one run.
+    command : list of str or None
+        The command line, for the provenance. Default None.
+    export : sequence of str
+        Further table formats (:func:`torquemod.results.export.check_formats`).
+    """
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -95,17 +122,53 @@ def write_onboard(folder: Path, results: list, *,
 
 
 def check_onboard_out(run: Run, out_dir, *, force: bool = False) -> None:
-    """Refuse, before any work, an ``out_dir`` that is occupied (without ``force``) or is
-    or holds one of the run's inputs (:func:`torquemod._util.fsutil.check_output_dir`)."""
+    """Refuse, before any work, an unusable results folder.
+
+    Parameters
+    ----------
+    run : torquemod.io.run.Run
+        The run (its inputs).
+    out_dir : str or pathlib.Path
+        The results folder.
+    force : bool
+        An occupied folder may be replaced. Default False.
+
+    Raises
+    ------
+    InputError
+        ``out_dir`` is occupied (without ``force``) or is or holds one of the run's inputs.
+    """
     inputs = [run.manifest_path, *(e.path for e in run.recordings)]
     check_output_dir(out_dir, force=force, inputs=inputs)
 
 
 def save_onboard(results: list, out_dir, *, force: bool = False,
                  command: list[str] | None = None, export=()) -> Path:
-    """Write the results folder ``out_dir`` of ``results`` (the axles of one run, the first
-    one's figures and report) atomically: it appears whole or not at all. Returns its
-    path."""
+    """Write the results folder of a run's axles atomically: whole or not at all.
+
+    Parameters
+    ----------
+    results : list of OnboardResult
+        The axles of one run (the first one's figures and report).
+    out_dir : str or pathlib.Path
+        The results folder.
+    force : bool
+        Replace an existing folder. Default False.
+    command : list of str or None
+        The command line, for the provenance. Default None.
+    export : sequence of str
+        Further table formats (:func:`torquemod.results.export.check_formats`).
+
+    Returns
+    -------
+    pathlib.Path
+        The folder written.
+
+    Raises
+    ------
+    InputError
+        No results, a bad export format, or an unusable ``out_dir``.
+    """
     if not results:
         raise InputError("no axle results to save")
     check_formats(export)

@@ -32,10 +32,27 @@ def _run_from(meta: dict, where: Path) -> Run:
 
 
 def load_onboard(folder, axle: int | None = None) -> OnboardResult:
-    """Read the :class:`OnboardResult` of ``axle`` (None: the first) back from a folder
-    :func:`save_onboard` (or ``torquemod onboard``) wrote: the track as written, the run,
-    the settings, the notes and the friction changes; the simulated truth when the run's
-    ``[truth] file`` is still where it was."""
+    """Read an on-board result back from the folder :func:`save_onboard` wrote.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        The results folder (``torquemod onboard --out``).
+    axle : int or None
+        The axle to read; None: the first listed. Default None.
+
+    Returns
+    -------
+    OnboardResult
+        The track as written, the run, the settings, the notes, the segments and the friction
+        changes; the simulated truth when the run's ``[truth] file`` is still where it was.
+
+    Raises
+    ------
+    InputError
+        No ``onboard.json`` in ``folder``, it or the track table is unreadable or damaged, it
+        lists no axles, or not ``axle``.
+    """
     import pandas as pd
 
     from torquemod.io.truth import load_truth

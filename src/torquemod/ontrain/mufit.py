@@ -24,12 +24,32 @@ __all__ = ["SEGMENT_COLUMNS", "CreepFit", "SegmentFit", "fit_creep_progression",
 
 @dataclass(frozen=True)
 class CreepFit:
-    """One fit of the creep-coefficient progression. ``mu`` [-]: the available adhesion
-    (best fit); ``mu_low``/``mu_high``: its 95 % interval (``mu_low`` the lower bound and
-    ``mu_high`` NaN when the interval is open); ``determined``: closed and narrow enough;
-    ``mu0``: the best law's friction coefficient (meaningful only when
-    ``adhesion.mu0_identified``); ``k0`` the initial creep coefficient; ``law`` the best
-    member; ``adhesion`` the full :class:`torquemod.analysis.friction.AdhesionFit`."""
+    """One fit of the creep-coefficient progression of a stretch of track.
+
+    Attributes
+    ----------
+    mu : float
+        The available adhesion P, best fit [-] (the maximum of the adhesion-creepage curve).
+    mu_low : float
+        Lower end of its 95 % interval [-]; the lower bound when the interval is open.
+    mu_high : float
+        Upper end of its 95 % interval [-]; NaN when the interval is open.
+    determined : bool
+        The interval is closed and narrow enough (``max_rel_half_width``).
+    mu0 : float
+        The best law's friction coefficient [-]; meaningful only when
+        ``adhesion.mu0_identified``.
+    k0 : float
+        The fitted initial creep coefficient (slope at zero creepage) [-].
+    chi2 : float
+        Chi-square of the best fit [-].
+    dof : int
+        Its degrees of freedom [-].
+    law : str
+        Name of the best member of the family (:mod:`torquemod.analysis.creeplaws`).
+    adhesion : torquemod.analysis.friction.AdhesionFit
+        The full fit.
+    """
 
     mu: float
     mu_low: float
@@ -52,16 +72,56 @@ def fit_creep_progression(coa, k, k_se, *, coa_now: float | None = None,
                           mu_span: float = 6.0, max_rel_half_width: float = 0.10,
                           power: bool = True, probe: bool = False,
                           speed_m_s: float | None = None, swing=None) -> CreepFit | None:
-    """Fit creep coefficients ``k`` [-] with standard errors ``k_se`` at utilised adhesions
-    ``coa`` [-] (module docstring). ``ratio_bounds``: kA/kS of the Polach members;
-    ``power``: also the non-Polach laws; ``mu_span``: the largest P tried, as a multiple of
-    the largest CoA; ``probe``: also the probe depth that would determine P; ``speed_m_s``
-    [m/s]: the rolling speed (bounds the friction's fall with the slip velocity). ``coa_now`` is
-    accepted for compatibility (the available adhesion does not depend on the operating
-    point). ``swing`` [-]: the creepage swing amplitude of the modulation per point (None:
-    small-signal slopes; near the peak a swing of a few tenths of ``mu/k0`` changes the
-    measured slope, the describing function of the curve over the swing). None when fewer
-    than four usable points remain."""
+    """Fit the available adhesion to creep coefficients measured at utilised adhesions.
+
+    The on-board use of :func:`torquemod.analysis.friction.fit_available_adhesion`: the
+    observations are creep coefficients (``constant`` 1).
+
+    Parameters
+    ----------
+    coa : array_like
+        Utilised adhesion (CoA) of each point [-].
+    k : array_like
+        Creep coefficient dCoA/dxi of each point [-].
+    k_se : array_like
+        Standard errors of ``k`` [-].
+    coa_now : float or None
+        Accepted for compatibility and ignored [-] (the available adhesion does not depend on
+        the operating point).
+    ratio_bounds : tuple of float
+        Range of kA/kS of the Polach members [-]. Default (0.3, 7.0).
+    mu_span : float
+        Largest P tried, as a multiple of the largest CoA [-]. Default 6.
+    max_rel_half_width : float
+        Widest relative half interval that counts as determined [-]. Default 0.10.
+    power : bool
+        Also the non-Polach members (Burckhardt, saturating laws). Default True.
+    probe : bool
+        Also the probe depth that would determine P. Default False.
+    speed_m_s : float or None
+        Rolling speed V [m/s]: bounds the friction's fall with slip velocity. Default None.
+    swing : array_like or None
+        Creepage swing amplitude of the modulation per point [-]; None: small-signal slopes
+        (near the peak a swing of a few tenths of ``mu/k0`` changes the measured slope: the
+        describing function of the curve over the swing).
+
+    Returns
+    -------
+    CreepFit or None
+        The fit; None when fewer than four usable points remain.
+
+    Notes
+    -----
+    ``k(CoA) = k0*s(CoA/P; theta)`` over the family of creep laws, with the 95 % profile
+    likelihood interval of P [1]_ over the whole family; the Polach members follow [2]_.
+
+    References
+    ----------
+    .. [1] S.S. Wilks, "The large-sample distribution of the likelihood ratio for testing
+       composite hypotheses", Ann. Math. Statist. 9(1) (1938) 60-62.
+    .. [2] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000.
+    """
     del coa_now
     fit = fit_available_adhesion(coa, k, k_se, max_rel_half_width=max_rel_half_width,
                                  p_span=mu_span, probe=probe, ratio_bounds=ratio_bounds,
@@ -77,21 +137,54 @@ def fit_creep_progression(coa, k, k_se, *, coa_now: float | None = None,
 def group_points(coa, k, k_se, *, overlap: float = 1.0, n_bins: int = 12,
                  model_rel_error: float = 0.0, min_points: int = 4,
                  swing=None) -> np.ndarray | None:
-    """The windows' creep coefficients ``k`` [-] (standard errors ``k_se``) at utilised
-    adhesions ``coa`` [-] reduced to at most ``n_bins`` points, (n, 3) rows of (CoA, k, se).
+    """Reduce windows' creep coefficients to at most ``n_bins`` points.
 
     A probe holds the torque at a few levels, so the windows fall in clusters of CoA; each
     cluster (consecutive sorted CoA values less than 5 % apart) gives one point, so that no
-    point mixes two levels (a mixed point sits between them with a standard error
-    inflated by their difference). A cluster wider than 10 % of its mean CoA (a driver's
-    varying demand) is cut into groups of equal count (``ceil(n/n_bins)``, at least 4
-    windows each); when that gives more than ``n_bins`` groups, all windows are cut so.
-    Each point: the inverse-variance mean of k; its standard error the larger of the
-    windows' own (widened by ``overlap``, the windows each sample falls in) and the
-    group's scatter, combined with ``model_rel_error`` times k (the windows' systematic
-    error; a single window's group has no scatter). With ``swing`` (the windows' creepage
-    swing amplitudes [-]) a fourth column: the group's mean swing. None when fewer than
-    ``min_points`` points remain."""
+    point mixes two levels (a mixed point sits between them with a standard error inflated
+    by their difference). A cluster wider than 10 % of its mean CoA (a driver's varying
+    demand) is cut into groups of equal count (``ceil(n/n_bins)``, at least 4 windows each);
+    when that gives more than ``n_bins`` groups, all windows are cut so.
+
+    Parameters
+    ----------
+    coa : array_like
+        Utilised adhesion of each window [-].
+    k : array_like
+        Creep coefficient of each window [-].
+    k_se : array_like
+        Standard errors of ``k`` [-].
+    overlap : float
+        How many windows each sample falls in [-]; widens the windows' own errors.
+        Default 1.
+    n_bins : int
+        Largest number of points [-]. Default 12.
+    model_rel_error : float
+        Relative systematic error of each window's k [-], added in quadrature. Default 0.
+    min_points : int
+        Fewest points for a result [-]. Default 4.
+    swing : array_like or None
+        Creepage swing amplitude of each window [-]; when given, a fourth column.
+
+    Returns
+    -------
+    ndarray or None
+        (n, 3) rows of (CoA [-], k [-], se [-]), or (n, 4) with the group's mean swing [-];
+        None when fewer than ``min_points`` points remain.
+
+    Notes
+    -----
+    Each point: the inverse-variance mean ``k_b = sum(w*k)/sum(w)``, ``w = 1/k_se^2``; its
+    standard error ``hypot(max(sqrt(overlap/sum(w)), scatter), model_rel_error*k_b)`` with
+    ``scatter = std(k)/sqrt(n/overlap)`` (a single window's group has no scatter).
+
+    Examples
+    --------
+    >>> pts = group_points([0.05, 0.05, 0.10, 0.10, 0.15, 0.15, 0.20, 0.20],
+    ...                    [100.0, 100.0, 90.0, 90.0, 70.0, 70.0, 40.0, 40.0], [5.0] * 8)
+    >>> pts[:, :2].tolist()
+    [[0.05, 100.0], [0.1, 90.0], [0.15, 70.0], [0.2, 40.0]]
+    """
     coa, k, k_se = (np.asarray(a, dtype=float) for a in (coa, k, k_se))
     if coa.size == 0:
         return None
@@ -130,10 +223,24 @@ SEGMENT_COLUMNS = ("segment", "start_m", "end_m", "windows", "coa_reached",
 
 @dataclass(frozen=True)
 class SegmentFit:
-    """The available adhesion of one stretch between detected friction changes, fitted
-    once the stretch has ended from all its steady windows (not only those a live row
-    had). Positions [m]; ``windows``: the windows fitted; ``coa_reached`` [-]: their
-    largest CoA; ``fit``: the :class:`CreepFit` (None when too few points)."""
+    """The available adhesion of one stretch between detected friction changes.
+
+    Fitted once the stretch has ended, from all its steady windows (not only those a live
+    row had).
+
+    Attributes
+    ----------
+    start_m : float
+        Start of the stretch along the track [m].
+    end_m : float
+        End of the stretch [m].
+    windows : int
+        Steady windows fitted [-].
+    coa_reached : float
+        Their largest CoA [-].
+    fit : CreepFit or None
+        The fit; None when too few windows or points.
+    """
 
     start_m: float
     end_m: float
@@ -167,11 +274,50 @@ def fit_segment(coa, k, k_se, start_m: float, end_m: float, *, swing=None,
                 min_coa_ratio: float = 2.0, ratio_bounds: tuple[float, float] = (0.3, 7.0),
                 power: bool = True, max_rel_half_width: float = 0.10,
                 speed_m_s: float | None = None) -> SegmentFit:
-    """The :class:`SegmentFit` of a stretch ``[start_m, end_m]`` [m] from its steady
-    windows' CoA, k and k's standard error [-] and creepage swing [-] (None: not
-    modelled) (:func:`group_points`, then
-    :func:`fit_creep_progression` with the probe depth); no fit when fewer than
-    ``min_windows`` windows or a CoA range below ``min_coa_ratio``."""
+    """The :class:`SegmentFit` of a stretch from its steady windows.
+
+    The windows are grouped (:func:`group_points`) and fitted
+    (:func:`fit_creep_progression`, with the probe depth).
+
+    Parameters
+    ----------
+    coa : array_like
+        Utilised adhesion of each window [-].
+    k : array_like
+        Creep coefficient of each window [-].
+    k_se : array_like
+        Standard errors of ``k`` [-].
+    start_m : float
+        Start of the stretch [m].
+    end_m : float
+        End of the stretch [m].
+    swing : array_like or None
+        Creepage swing amplitude of each window [-]; None: not modelled.
+    overlap : float
+        How many windows each sample falls in [-]. Default 1.
+    n_bins : int
+        Largest number of grouped points [-]. Default 12.
+    model_rel_error : float
+        Relative systematic error of each window's k [-]. Default 0.
+    min_windows : int
+        Fewest usable windows for a fit [-]. Default 12.
+    min_coa_ratio : float
+        Smallest ratio of the largest to the smallest CoA for a fit [-]. Default 2.
+    ratio_bounds : tuple of float
+        Range of kA/kS of the Polach members [-]. Default (0.3, 7.0).
+    power : bool
+        Also the non-Polach members. Default True.
+    max_rel_half_width : float
+        Widest relative half interval that counts as determined [-]. Default 0.10.
+    speed_m_s : float or None
+        Rolling speed [m/s]. Default None.
+
+    Returns
+    -------
+    SegmentFit
+        With ``fit`` None when fewer than ``min_windows`` usable windows, a CoA range below
+        ``min_coa_ratio`` or too few grouped points.
+    """
     coa, k, k_se = (np.asarray(a, dtype=float) for a in (coa, k, k_se))
     ok = (coa > 0) & np.isfinite(k) & (k > 0) & np.isfinite(k_se) & (k_se > 0)
     coa, k, k_se = coa[ok], k[ok], k_se[ok]

@@ -36,9 +36,29 @@ REASONS = {"no_modulation": "no modulation line at the declared frequency in the
 
 
 def stepping(dc_step_nm, amplitude_nm: float | None, max_step_ratio: float):
-    """True where the mean torque changes inside the window by more than ``max_step_ratio``
-    of the declared modulation amplitude ``amplitude_nm`` [N*m] (``dc_step_nm`` [N*m]: from
-    its first to its last modulation period): such a window's line cannot be judged alone."""
+    """Whether the mean torque steps inside windows by more than a share of the modulation.
+
+    Such a window's modulation line cannot be judged alone (a step leaks into the sine fit).
+
+    Parameters
+    ----------
+    dc_step_nm : float or array_like
+        Change of the mean torque from a window's first to its last modulation period [N*m].
+    amplitude_nm : float or None
+        Declared modulation amplitude [N*m]; None or 0: nothing steps.
+    max_step_ratio : float
+        Largest step, as a share of ``amplitude_nm``, that does not count [-].
+
+    Returns
+    -------
+    bool or ndarray of bool
+        True where ``dc_step_nm > max_step_ratio*amplitude_nm``.
+
+    Examples
+    --------
+    >>> stepping([10.0, 300.0], 1000.0, 0.25).tolist()
+    [False, True]
+    """
     return (np.asarray(dc_step_nm, dtype=float) > max_step_ratio * amplitude_nm
             if amplitude_nm else np.zeros(np.shape(dc_step_nm), dtype=bool))
 
@@ -49,11 +69,45 @@ def window_quality(speed_m_s: float, wheel_speed_rad_s: float, torque_amplitude_
                    max_step_ratio: float = math.inf) -> str:
     """The window's quality flag: :data:`QUALITY_OK` or a key of :data:`REASONS`.
 
-    ``speed_m_s`` [m/s] the mean reference speed, ``wheel_speed_rad_s`` [rad/s] the axle's,
-    ``torque_amplitude_nm`` [N*m] the torque's amplitude at the modulation frequency,
-    ``amplitude_nm`` [N*m] the declared modulation amplitude (None: not checked). A window
-    whose torque steps (:func:`stepping`) is not judged by its line here (a step leaks
-    into the sine fit either way; :func:`without_line_nearby` judges it by its neighbours).
+    A window whose torque steps (:func:`stepping`) is not judged by its line here (a step
+    leaks into the sine fit either way; :func:`without_line_nearby` judges it by its
+    neighbours).
+
+    Parameters
+    ----------
+    speed_m_s : float
+        Mean reference speed [m/s].
+    wheel_speed_rad_s : float
+        Mean axle angular speed [rad/s].
+    torque_amplitude_nm : float
+        The torque's amplitude at the modulation frequency [N*m].
+    amplitude_nm : float or None
+        Declared modulation amplitude [N*m]; None: the line is not checked.
+    min_speed_m_s : float
+        Speed below which the train stands [m/s] (``OnboardConfig.min_speed_m_s``).
+    min_modulation_ratio : float
+        Share of ``amplitude_nm`` the line must reach [-]
+        (``OnboardConfig.min_modulation_ratio``).
+    dc_step_nm : float
+        DC torque step inside the window [N*m]. Default 0.
+    max_step_ratio : float
+        Largest step, as a share of ``amplitude_nm``, for the line to be judged [-].
+        Default inf.
+
+    Returns
+    -------
+    str
+        ``"reverse"`` (either speed negative), ``"standstill"``, ``"no_modulation"`` or
+        ``"ok"``, checked in that order.
+
+    Examples
+    --------
+    >>> window_quality(20.0, 43.0, 900.0, amplitude_nm=1000.0, min_speed_m_s=1.0,
+    ...                min_modulation_ratio=0.25)
+    'ok'
+    >>> window_quality(0.2, 0.4, 900.0, amplitude_nm=1000.0, min_speed_m_s=1.0,
+    ...                min_modulation_ratio=0.25)
+    'standstill'
     """
     if speed_m_s < 0 or wheel_speed_rad_s < 0:
         return "reverse"
@@ -66,10 +120,26 @@ def window_quality(speed_m_s: float, wheel_speed_rad_s: float, torque_amplitude_
 
 
 def without_line_nearby(quality, steady, *, half_width: int = 10) -> np.ndarray:
-    """``quality`` with the torque-stepping windows (``steady`` False, :func:`stepping`) flagged
-    ``no_modulation`` where most of the windows around them (``half_width`` each side) that
-    can tell lack the line: a DC step inside a window leaks into the sine fit and can fake
-    a line's amplitude, so such a window is judged by its neighbours. The others unchanged."""
+    """Judge the torque-stepping windows by their neighbours.
+
+    A DC step inside a window leaks into the sine fit and can fake a line's amplitude, so a
+    stepping window is flagged ``no_modulation`` where most of the windows around it that can
+    tell lack the line.
+
+    Parameters
+    ----------
+    quality : array_like of str
+        Each window's flag (:func:`window_quality`).
+    steady : array_like of bool
+        False for the windows whose torque steps (:func:`stepping`).
+    half_width : int
+        Windows looked at on each side [-]. Default 10.
+
+    Returns
+    -------
+    ndarray of object
+        ``quality`` with those windows flagged; the others unchanged.
+    """
     q = np.asarray(quality, dtype=object).copy()
     st = np.asarray(steady, dtype=bool)
     missing = (q == "no_modulation").astype(int)
@@ -84,8 +154,25 @@ def without_line_nearby(quality, steady, *, half_width: int = 10) -> np.ndarray:
 
 
 def stretches(position_m, quality) -> list[tuple[str, float, float, int]]:
-    """Consecutive windows of one flag other than :data:`QUALITY_OK` along the track:
-    ``(flag, first position [m], last position [m], windows)``."""
+    """Runs of consecutive windows with one flag other than :data:`QUALITY_OK`.
+
+    Parameters
+    ----------
+    position_m : array_like
+        Position of each window [m].
+    quality : array_like of str
+        Each window's flag.
+
+    Returns
+    -------
+    list of tuple
+        ``(flag, first position [m], last position [m], windows)`` in track order.
+
+    Examples
+    --------
+    >>> stretches([0.0, 10.0, 20.0, 30.0], ["ok", "standstill", "standstill", "ok"])
+    [('standstill', 10.0, 20.0, 2)]
+    """
     pos = np.asarray(position_m, dtype=float)
     q = np.asarray(quality, dtype=object)
     out: list[tuple[str, float, float, int]] = []
@@ -102,8 +189,26 @@ def stretches(position_m, quality) -> list[tuple[str, float, float, int]]:
 
 def quality_warnings(position_m, quality, *, axle: int, frequency_hz: float,
                      max_listed: int = 3) -> list[str]:
-    """One warning per flag: the stretches of track without the premise (the longest
-    ``max_listed`` of them by position range) and the share of the windows."""
+    """One warning per flag: the stretches of track without the method's premise.
+
+    Parameters
+    ----------
+    position_m : array_like
+        Position of each window [m].
+    quality : array_like of str
+        Each window's flag.
+    axle : int
+        The axle, named in the warning.
+    frequency_hz : float
+        Declared modulation frequency [Hz], named in the warning.
+    max_listed : int
+        Longest stretches listed per flag [-]. Default 3.
+
+    Returns
+    -------
+    list of str
+        The warnings, with the share of the windows affected.
+    """
     q = np.asarray(quality, dtype=object)
     out = []
     for flag, text in REASONS.items():
@@ -123,11 +228,30 @@ def quality_warnings(position_m, quality, *, axle: int, frequency_hz: float,
 
 
 def reference_rate_hz(speed_m_s: np.ndarray, fs_hz: float) -> float:
-    """How often [Hz] the reference speed is really updated: the samples where it changes
-    or where its slope changes, whichever are fewer, per second (a speed held between
-    updates changes once per update, one interpolated linearly between them bends once; a
-    speed sampled at ``fs_hz`` does both at nearly every sample). 0 for a speed that
-    neither changes nor bends (constant, or a constant ramp)."""
+    """How often the reference speed is really updated.
+
+    The samples where the speed changes or where its slope changes, whichever are fewer, per
+    second: a speed held between updates changes once per update, one interpolated linearly
+    between them bends once; a speed sampled at ``fs_hz`` does both at nearly every sample.
+
+    Parameters
+    ----------
+    speed_m_s : ndarray
+        Reference speed [m/s].
+    fs_hz : float
+        Its sampling rate [Hz].
+
+    Returns
+    -------
+    float
+        Update rate [Hz]; 0 for a speed that neither changes nor bends (constant, or a
+        constant ramp).
+
+    Examples
+    --------
+    >>> reference_rate_hz([1.0, 1.0, 2.0, 2.0, 3.0, 3.0, 4.0, 4.0], 100.0)
+    37.5
+    """
     v = np.asarray(speed_m_s, dtype=float)
     if v.size < 3:
         return 0.0
@@ -139,11 +263,34 @@ def reference_rate_hz(speed_m_s: np.ndarray, fs_hz: float) -> float:
 
 def modulation_line_hz(torque_nm: np.ndarray, fs_hz: float, declared_hz: float,
                        min_amplitude_nm: float = 0.0) -> float | None:
-    """The frequency [Hz] of the torque's strongest line within 0.7-1.4 times the declared
-    one when the declared frequency holds no line but another one stands out (10x the band's
-    median power, an amplitude of at least ``min_amplitude_nm`` [N*m], the declared bin
-    below a tenth of its power); else None. Periodogram of the linearly detrended torque
-    with a Hann window, zero-padded 4x (resolution fs/n)."""
+    """The frequency of the torque's strongest line near a declared one that holds none.
+
+    The strongest line within 0.7-1.4 times the declared frequency, when the declared
+    frequency holds no line but another one stands out (10x the band's median power, an
+    amplitude of at least ``min_amplitude_nm``, the declared bin below a tenth of its power).
+
+    Parameters
+    ----------
+    torque_nm : ndarray
+        A stretch of the axle torque [N*m].
+    fs_hz : float
+        Its sampling rate [Hz].
+    declared_hz : float
+        Declared modulation frequency [Hz].
+    min_amplitude_nm : float
+        Smallest amplitude of the line [N*m]. Default 0.
+
+    Returns
+    -------
+    float or None
+        The line's frequency [Hz]; None when the declared frequency holds the line or no other
+        line stands out.
+
+    Notes
+    -----
+    Periodogram of the linearly detrended torque with a Hann window, zero-padded 4x; the
+    amplitude of a bin is ``2*|X|/sum(w)``.
+    """
     x = np.asarray(torque_nm, dtype=float)
     n = x.size
     if n < 16 or not math.isfinite(declared_hz) or declared_hz <= 0:
@@ -167,15 +314,43 @@ def modulation_line_hz(torque_nm: np.ndarray, fs_hz: float, declared_hz: float,
 
 
 def premise_warnings(run, entry, track, config, torque_nm=None, fs_hz: float | None = None):
-    """``(track, warnings)`` of one axle (``entry``, a :class:`~torquemod.io.run.RunRecording`
-    of the :class:`~torquemod.io.run.Run` ``run``, estimated with the
-    :class:`~torquemod.ontrain.estimator.OnboardConfig` ``config``): the axle's track with
-    the torque-stepping windows judged by their neighbours (:func:`without_line_nearby`),
-    and the warnings about the method's premise (:mod:`torquemod.ontrain.quality`): the stretches
-    without it, and a run with fewer measurable windows than the friction fit needs. No
-    measurable window at all raises :class:`InputError` (as ``process`` refuses a recording
-    without a modulation line), naming the line the torque has instead when ``torque_nm``
-    (a stretch of the axle's torque at ``fs_hz`` [Hz]) shows one."""
+    """One axle's track with the premise judged, and the warnings about it.
+
+    Torque-stepping windows are judged by their neighbours (:func:`without_line_nearby`;
+    those that lose the premise have their numbers emptied), and the warnings name the
+    stretches without the premise and a run with fewer measurable windows than the friction
+    fit needs.
+
+    Parameters
+    ----------
+    run : torquemod.io.run.Run
+        The run (declared modulation frequency and amplitude).
+    entry : torquemod.io.run.RunRecording
+        The axle's recording.
+    track : pandas.DataFrame
+        The axle's track (track.parquet columns plus ``dc_step_nm``).
+    config : torquemod.ontrain.estimator.OnboardConfig
+        The settings it was estimated with.
+    torque_nm : ndarray or None
+        A stretch of the axle's torque [N*m]. Accepted and not used: the line the torque
+        has instead of the declared one is named before the estimate
+        (:func:`torquemod.ontrain.run.check_modulation_line`). Default None.
+    fs_hz : float or None
+        Sampling rate of ``torque_nm`` [Hz]; not used. Default None.
+
+    Returns
+    -------
+    track : pandas.DataFrame
+        The track, judged.
+    warnings : list of str
+        The warnings.
+
+    Raises
+    ------
+    InputError
+        No window of the axle can be measured (as ``process`` refuses a recording without a
+        modulation line), naming the recording, the commonest reason and what to do.
+    """
     f = run.modulation_frequency_hz
     q = without_line_nearby(track["quality"].to_numpy(object), ~stepping(
         track["dc_step_nm"], run.modulation_amplitude_nm, config.max_dc_step_ratio))

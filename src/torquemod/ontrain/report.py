@@ -46,10 +46,24 @@ def _changes(ax, result):
 
 
 def plot_mu(result, *, ax=None):
-    """μ along the track where the estimator determined it (points with their 95 %
-    interval), the lower bound of each segment between detected friction changes (step
-    line), the utilised adhesion CoA of each window; the simulated truth when the run has
-    one. Returns the Axes."""
+    """Plot mu along the track.
+
+    mu where the estimator determined it (points with their 95 % interval), the lower bound
+    of each segment between detected friction changes (step line), the utilised adhesion CoA
+    of each window; the simulated truth when the run has one.
+
+    Parameters
+    ----------
+    result : OnboardResult
+        One axle's result.
+    ax : matplotlib.axes.Axes or None
+        Axes to draw in; None: a new figure's.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes drawn in (position [m] against adhesion [-]).
+    """
     ax = _axes(ax)
     t = result.track
     seg = result.along_track()
@@ -81,8 +95,25 @@ def plot_mu(result, *, ax=None):
 
 
 def phase_limits(phase_deg, *, margin: float = 0.15) -> tuple[float, float]:
-    """The axis limits [deg] holding the body of the phases: their 1st to 99th percentile
-    widened by ``margin`` of that range on each side."""
+    """The axis limits holding the body of the phases.
+
+    Parameters
+    ----------
+    phase_deg : array_like
+        Phases [deg]; NaN ignored.
+    margin : float
+        Widening on each side, as a share of the 1st-99th percentile range [-]. Default 0.15.
+
+    Returns
+    -------
+    tuple of float
+        (low, high) [deg]; (-1, 1) without finite phases.
+
+    Examples
+    --------
+    >>> phase_limits([10.0, 20.0], margin=0.0)
+    (10.1, 19.9)
+    """
     p = np.asarray(phase_deg, dtype=float)
     p = p[np.isfinite(p)]
     if not p.size:
@@ -93,9 +124,21 @@ def phase_limits(phase_deg, *, margin: float = 0.15) -> tuple[float, float]:
 
 
 def clipped_phases(result) -> tuple[int, int]:
-    """(windows whose phase lies beyond :func:`phase_limits`, how many of them had a
-    torque step inside (the estimator's ``dc_step_ratio`` above its limit; 0 when the
-    track does not carry that diagnostic))."""
+    """How many windows' phases lie beyond :func:`phase_limits`, and how many of those stepped.
+
+    Parameters
+    ----------
+    result : OnboardResult
+        One axle's result.
+
+    Returns
+    -------
+    clipped : int
+        Windows whose phase lies beyond the limits.
+    stepped : int
+        How many of them had a torque step inside (``dc_step_ratio`` above the estimator's
+        limit; 0 when the track does not carry that diagnostic).
+    """
     t = result.track
     lo, hi = phase_limits(t["phase_deg"])
     out = ((t["phase_deg"] < lo) | (t["phase_deg"] > hi)).to_numpy()
@@ -107,9 +150,23 @@ def clipped_phases(result) -> tuple[int, int]:
 
 
 def plot_phase(result, *, ax=None):
-    """The lag of the axle speed behind the torque per window with +-2 standard errors,
-    the axis scaled to the body of the data (:func:`phase_limits`); windows beyond it are
-    marked at its edge. Returns the Axes."""
+    """Plot the lag of the axle speed behind the torque per window, with +-2 standard errors.
+
+    The axis is scaled to the body of the data (:func:`phase_limits`); windows beyond it are
+    marked at its edge.
+
+    Parameters
+    ----------
+    result : OnboardResult
+        One axle's result.
+    ax : matplotlib.axes.Axes or None
+        Axes to draw in; None: a new figure's.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes drawn in (position [m] against phase [deg]).
+    """
     ax = _axes(ax)
     t = result.track
     x = t["position_m"].to_numpy(dtype=float)
@@ -136,11 +193,25 @@ def plot_phase(result, *, ax=None):
 
 
 def plot_utilisation(result, *, ax=None):
-    """How much of the adhesion the axle used along the track: CoA/μ where μ is
-    determined, else CoA over the lower bound of its segment (an upper limit of the
-    utilisation, as the adhesion is at least that bound); the simulated truth, CoA over the
-    available adhesion (:func:`torquemod.io.truth.adhesion_utilisation`); the
-    ``low_adhesion`` and ``slip`` flags. Returns the Axes."""
+    """Plot how much of the adhesion the axle used along the track.
+
+    CoA/mu where mu is determined, else CoA over the lower bound of its segment (an upper
+    limit of the utilisation, as the adhesion is at least that bound); the simulated truth,
+    CoA over the available adhesion (:func:`torquemod.io.truth.adhesion_utilisation`); the
+    ``low_adhesion`` and ``slip`` flags.
+
+    Parameters
+    ----------
+    result : OnboardResult
+        One axle's result.
+    ax : matplotlib.axes.Axes or None
+        Axes to draw in; None: a new figure's.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes drawn in (position [m] against utilisation [-]).
+    """
     ax = _axes(ax)
     t = result.track
     x = t["position_m"].to_numpy(dtype=float)
@@ -198,8 +269,20 @@ FIGURES = (
 
 
 def write_figures(folder: Path, result) -> list[dict]:
-    """Save :data:`FIGURES` as PNG in ``folder``; return them for the report (``png``
-    bytes, ``alt``, ``caption``)."""
+    """Save the report's figures (:data:`FIGURES`) as PNG in a folder.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+        Where the PNG files go.
+    result : OnboardResult
+        One axle's result.
+
+    Returns
+    -------
+    list of dict
+        One per figure, for the report: ``png`` (bytes), ``alt`` and ``caption``.
+    """
     import io
     out = []
     for name, fn, alt, caption in FIGURES:
@@ -224,11 +307,25 @@ def write_figures(folder: Path, result) -> list[dict]:
 
 
 def segment_estimates(track, segments: list[dict]) -> list[dict]:
-    """Each truth segment (:func:`torquemod.io.truth.segment_summary`) with the
-    estimate over the track's rows inside it (the along-track rules of
-    :mod:`torquemod.ontrain.alongtrack`): ``mu_estimate`` (median where μ is determined,
-    else None), ``mu_lower_bound`` (95th percentile of the bounds where it is not; None
-    when μ is determined everywhere) and ``mu_given_share``."""
+    """Each truth segment with the estimate over the track's rows inside it.
+
+    Uses the along-track rules of :mod:`torquemod.ontrain.alongtrack`.
+
+    Parameters
+    ----------
+    track : pandas.DataFrame
+        The track (``track.parquet`` columns).
+    segments : list of dict
+        The truth's segments (:func:`torquemod.io.truth.segment_summary`), with ``start_m``
+        and ``end_m`` [m].
+
+    Returns
+    -------
+    list of dict
+        Each segment with ``mu_estimate`` [-] (median where mu is determined, else None),
+        ``mu_lower_bound`` [-] (95th percentile of the bounds where it is not; None when mu is
+        determined everywhere) and ``mu_given_share`` [-].
+    """
     from torquemod.ontrain.alongtrack import summarise
     out = []
     for seg in segments:
@@ -242,7 +339,18 @@ def segment_estimates(track, segments: list[dict]) -> list[dict]:
 
 
 def headline(result) -> list[str]:
-    """The run and its summary in a few lines of text."""
+    """The run and its summary in a few lines of text.
+
+    Parameters
+    ----------
+    result : OnboardResult
+        One axle's result.
+
+    Returns
+    -------
+    list of str
+        The lines.
+    """
     s = result.summary()
     v = result.run.vehicle
     lines = [f"Run {result.run.manifest_path}, axle {result.axle}: wheel radius "
@@ -268,7 +376,20 @@ _STRETCH_HEADERS = (("start_m", "from [m]"), ("end_m", "to [m]"), ("windows", "w
 
 
 def along_track_html(seg, caption: str | None = None) -> str:
-    """The along-track table (:func:`torquemod.ontrain.alongtrack.along_track`) as HTML."""
+    """The along-track table (:func:`torquemod.ontrain.alongtrack.along_track`) as HTML.
+
+    Parameters
+    ----------
+    seg : pandas.DataFrame
+        The table.
+    caption : str or None
+        The table's caption. Default None.
+
+    Returns
+    -------
+    str
+        An HTML ``<table>``.
+    """
     rows = []
     for _, s in seg.iterrows():
         row = []
@@ -308,9 +429,21 @@ def _segments_table(result) -> str:
 
 
 def segment_fits_html(result) -> str:
-    """The per-segment fit (:meth:`~torquemod.ontrain.OnboardResult.segment_table`,
-    ``segments.csv``) as HTML: the available adhesion where determined, else the best fit,
-    its 95 % interval and the lower bound."""
+    """The per-segment fit (``segments.csv``) as HTML.
+
+    The available adhesion where determined, else the best fit, its 95 % interval and the
+    lower bound (:meth:`~torquemod.ontrain.OnboardResult.segment_table`).
+
+    Parameters
+    ----------
+    result : OnboardResult
+        One axle's result.
+
+    Returns
+    -------
+    str
+        An HTML table; empty when there are no segments.
+    """
     segs = result.segment_table()
     if not len(segs):
         return ""
@@ -375,8 +508,22 @@ def _rules() -> str:
 
 
 def write_report(path: Path, result, meta: dict, figures: list[dict]) -> None:
-    """The HTML report: the run, the summary, the friction along the track per segment and
-    per kilometre, the figures, the notes and the settings."""
+    """Write the HTML report of one axle.
+
+    The run, the summary, the friction along the track per segment and per kilometre, the
+    figures, the notes and the settings.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The HTML file to write.
+    result : OnboardResult
+        One axle's result.
+    meta : dict
+        The provenance (``onboard.json``'s content) shown in the report.
+    figures : list of dict
+        The figures (:func:`write_figures`).
+    """
     s = result.summary()
     notes = "".join(f"<li>{escape(n)}</li>" for n in result.notes) or "<li>none</li>"
     warns = "".join(f'<p class="warn">{escape(w)}</p>' for w in result.warnings)

@@ -29,8 +29,56 @@ from torquemod.processing.trackedorders import _slow_and_orders
 
 @dataclass
 class CycleSignals:
-    """One cycle after steps 1-5 and 8: resampled/notched/filtered signals on a uniform grid
-    at ``fs_hz`` [Hz], the peak frequencies [Hz] and the creep-curve point."""
+    """One cycle after steps 1-5 and 8 of the V-Track paper's processing [1]_.
+
+    Attributes
+    ----------
+    fs_hz : float
+        Sample rate of the resampled signals [Hz].
+    t0_s : float
+        Time of their first sample [s].
+    torque_peak_hz : float
+        Spectral peak of the torque in the modulation band [Hz] (step 1).
+    wheel_peak_hz : float
+        Spectral peak of the wheel speed [Hz].
+    modulation_hz : float
+        The modulation frequency used for the cycle [Hz].
+    wheel_rotation_hz : float
+        Wheel rotation frequency [Hz].
+    platform_rotation_hz : float
+        Platform rotation frequency [Hz].
+    torque_resampled : ndarray
+        Torque after resampling [N*m] (step 2).
+    wheel_resampled : ndarray
+        Wheel speed after resampling [rad/s].
+    torque_notched : ndarray
+        Torque after the notch filters [N*m] (step 3).
+    wheel_notched : ndarray
+        Wheel speed after the notch filters [rad/s].
+    torque_filtered : ndarray
+        Torque after the high- and band-pass filters [N*m] (steps 4-5).
+    wheel_filtered : ndarray
+        Wheel speed after those filters [rad/s].
+    creepage : float
+        Longitudinal creepage of Eq. (3) [-] (step 8; NaN without the platform speed).
+    coa : float
+        Coefficient of adhesion of Eq. (4) [-] (or the torque-based one without forces).
+    means : dict
+        Mean of each channel over the cycle (SI units).
+    notches_hz : dict
+        The notch frequencies used, by rotation ("wheel", "platform") [Hz].
+    notes : list of str
+        What was done that the user should know.
+    creepage_drift : float
+        Change of the creepage over the cycle [-] (:func:`creepage_and_drift`). Default NaN.
+    extra : dict
+        Further results, e.g. the joint ``speed_model`` of the cycle.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.4.
+    """
 
     fs_hz: float
     t0_s: float  # time of the first resampled sample after the cycle start [s]
@@ -60,8 +108,40 @@ class CycleSignals:
 def creepage_coa(wheel_speed_rad_s: float, platform_speed_rad_s: float, fx_n: float, fy_n: float,
                  fz_n: float, *, wheel_radius_m: float, platform_radius_m: float
                  ) -> tuple[float, float]:
-    """Eq. (3) and (4) of the V-Track paper from mean values:
-    ``xi = (w*Rw - W*Rp)/(W*Rp)``, ``CoA = sqrt(Fx^2 + Fy^2)/Fz``."""
+    """Creepage and CoA of Eqs. (3) and (4) of the V-Track paper [1]_ from mean values.
+
+    Parameters
+    ----------
+    wheel_speed_rad_s : float
+        Mean wheel speed w [rad/s].
+    platform_speed_rad_s : float
+        Mean platform speed W [rad/s].
+    fx_n, fy_n, fz_n : float
+        Mean contact forces [N].
+    wheel_radius_m : float
+        Wheel radius Rw [m].
+    platform_radius_m : float
+        Radius of the wheel path on the platform Rp [m].
+
+    Returns
+    -------
+    creepage : float
+        ``xi = (w*Rw - W*Rp)/(W*Rp)`` [-].
+    coa : float
+        ``CoA = sqrt(Fx^2 + Fy^2)/Fz`` [-].
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eqs. (3) and (4).
+
+    Examples
+    --------
+    >>> xi, coa = creepage_coa(10.1, 1.0, 300.0, 400.0, 5000.0, wheel_radius_m=0.1,
+    ...                        platform_radius_m=1.0)
+    >>> round(xi, 12), round(coa, 12)
+    (0.01, 0.1)
+    """
     v_platform = platform_speed_rad_s * platform_radius_m
     xi = (wheel_speed_rad_s * wheel_radius_m - v_platform) / v_platform
     coa = np.hypot(fx_n, fy_n) / fz_n
@@ -70,7 +150,26 @@ def creepage_coa(wheel_speed_rad_s: float, platform_speed_rad_s: float, fx_n: fl
 
 def check_cycle_length(n_samples: int, fs_hz: float, f_nominal_hz: float,
                        cfg: ProcessingConfig, *, where: str) -> None:
-    """A cycle must hold the phase window plus the trimmed edges."""
+    """Refuse a cycle too short for the phase window plus the trimmed edges.
+
+    Parameters
+    ----------
+    n_samples : int
+        Samples in the cycle [-].
+    fs_hz : float
+        Its sample rate [Hz].
+    f_nominal_hz : float
+        Nominal modulation frequency [Hz].
+    cfg : ProcessingConfig
+        The chain's settings (periods in the phase window, trim).
+    where : str
+        The recording, named in the message.
+
+    Raises
+    ------
+    InputError
+        The cycle is too short, with what it would need.
+    """
     need = (cfg.phase.n_periods + 2 * cfg.phase.edge_trim_periods) / f_nominal_hz
     have = n_samples / fs_hz
     if have < need:
@@ -82,10 +181,26 @@ def check_cycle_length(n_samples: int, fs_hz: float, f_nominal_hz: float,
 
 def check_operating_point(means: dict[str, float], platform_std_rad_s: float, *,
                           where: str) -> None:
-    """Refuse a cycle whose means make Eq. (3) and (4) meaningless: a platform that does not
-    turn (its mean speed [rad/s] within its own scatter), wheel and platform turning in
-    opposite directions, or a normal force [N] that is not positive. Absent optional channels
-    (platform speed, forces) are not checked."""
+    """Refuse a cycle whose means make Eqs. (3) and (4) meaningless.
+
+    A platform that does not turn (its mean speed within its own scatter), wheel and platform
+    turning in opposite directions, a wheel that does not turn, or a normal force that is not
+    positive. Absent optional channels (platform speed, forces) are not checked.
+
+    Parameters
+    ----------
+    means : dict of str to float
+        Mean of each channel (SI units: rad/s, N).
+    platform_std_rad_s : float
+        Standard deviation of the platform speed over the cycle [rad/s].
+    where : str
+        The recording, named in the message.
+
+    Raises
+    ------
+    InputError
+        One of the cases above, naming the channel.
+    """
     w_w = means["wheel_speed_rad_s"]
     if "platform_speed_rad_s" in means:
         w_p = means["platform_speed_rad_s"]
@@ -141,12 +256,42 @@ SLOW_GAP_RESOLUTIONS = 4.0
 def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str,
                   nominal_hz: float | None = None, normal_load_n: float | None = None
                   ) -> CycleSignals:
-    """Steps 1-5 and 8 on one cycle of a recording.
+    """Steps 1-5 and 8 of the V-Track paper's processing [1]_ on one cycle of a recording.
 
-    ``nominal_hz`` [Hz] is the manifest's modulation frequency (a starting value for step 1;
-    default the middle of the search band); ``normal_load_n`` [N] the nominal load for the
-    torque-based CoA. Optional channels (platform speed, forces) may be absent: without the
-    platform speed no creepage is measured, without forces the CoA is the torque-based one.
+    Optional channels (platform speed, forces) may be absent: without the platform speed no
+    creepage is measured, without forces the CoA is the torque-based one.
+
+    Parameters
+    ----------
+    rec : Recording
+        The cycle's samples.
+    rig : Rig
+        The rig geometry.
+    cfg : ProcessingConfig
+        The chain's settings.
+    where : str
+        The recording, named in messages.
+    nominal_hz : float or None
+        The manifest's modulation frequency [Hz], a starting value for step 1; None: the
+        middle of the search band.
+    normal_load_n : float or None
+        Nominal load for the torque-based CoA [N]. Default None.
+
+    Returns
+    -------
+    CycleSignals
+        The cycle's signals and creep-curve point.
+
+    Raises
+    ------
+    InputError
+        A sample rate below the chain's resampling rate, too few samples, no modulation line
+        found, or a meaningless operating point (:func:`check_operating_point`).
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.4.
     """
     fs = rec.fs_hz
     up, down = filters.resample_ratio(fs, cfg.resample.target_hz,
@@ -211,8 +356,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                                  "frequency.band_hz") from None
         f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
     if fp.refine:
-        for i, name in enumerate(("torque_nm", "wheel_speed_rad_s")):
-            peaks[name] = cleaner.refine(i, peaks[name], tol_hz=fp.tolerance_hz)
+        peaks["torque_nm"], peaks["wheel_speed_rad_s"] = cleaner.refine_many(
+            [0, 1], [peaks["torque_nm"], peaks["wheel_speed_rad_s"]], tol_hz=fp.tolerance_hz)
         f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
     if fp.common == "torque":
         f_mod = peaks["torque_nm"]
@@ -285,16 +430,39 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
 def creepage_and_drift(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
                        platform_radius_m: float, platform_harmonics: tuple[int, ...]
                        ) -> tuple[float, float]:
-    """Creepage of Eq. (3) [-] and its change over the record [-], from the slow parts of the
-    wheel and platform speeds (:class:`SpeedModel`).
+    """Creepage of Eq. (3) [1]_ and its change over the record, from the slow speeds.
 
-    The ratio ``q(t) = W(t)*Rp/(w(t)*Rw) = (1 + e(theta_p))/(1 + xi(t))`` is free of any speed
-    variation that wheel and platform share; the platform encoder's eccentricity ``e`` (at its
-    revolution harmonics, inside the slow band, inseparable from a real once-per-revolution
-    wobble in the platform channel alone) enters it linearly. A least-squares fit
-    ``q ~ c0 + c1*(t - mean t) + sum(a_k cos + b_k sin)(k*theta_p)`` gives
-    ``xi = 1/c0 - 1`` and the drift ``-c1*T/c0^2``: a wheel that follows a moving platform
-    keeps its creepage; a wheel that starts to slip shows a creepage rising within the cycle.
+    The ratio ``q(t) = W(t)*Rp/(w(t)*Rw) = (1 + e(theta_p))/(1 + xi(t))`` is free of any
+    speed variation that wheel and platform share; the platform encoder's eccentricity ``e``
+    (at its revolution harmonics) enters it linearly. A least-squares fit
+    ``q ~ c0 + c1*(t - mean t) + sum(a_k*cos + b_k*sin)(k*theta_p)`` gives ``xi = 1/c0 - 1``
+    and the drift ``-c1*T/c0^2``: a wheel that follows a moving platform keeps its creepage;
+    a wheel that starts to slip shows a creepage rising within the cycle.
+
+    Parameters
+    ----------
+    model : SpeedModel
+        The joint speed model of the cycle.
+    fs_hz : float
+        Sample rate [Hz].
+    wheel_radius_m : float
+        Rw [m].
+    platform_radius_m : float
+        Rp [m].
+    platform_harmonics : tuple of int
+        The platform's revolution harmonics fitted.
+
+    Returns
+    -------
+    creepage : float
+        xi [-]; NaN when the model has no platform speed.
+    drift : float
+        Its change over the record [-].
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (3).
     """
     w = model.part("wheel_speed_rad_s", "slow")
     p = model.part("platform_speed_rad_s", "slow")
@@ -319,7 +487,20 @@ def creepage_and_drift(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float
 
 
 def align_lags(cycles: list[CycleSignals], cfg: ProcessingConfig) -> list[int]:
-    """Step 6: lag [samples] of each cycle's band-passed torque against the first cycle's."""
+    """Step 6: lag of each cycle's band-passed torque against the first cycle's.
+
+    Parameters
+    ----------
+    cycles : list of CycleSignals
+        The step's cycles.
+    cfg : ProcessingConfig
+        The chain's settings (alignment on or off, largest lag).
+
+    Returns
+    -------
+    list of int
+        Lags [samples]; all 0 when alignment is off.
+    """
     if not cfg.align.enabled or len(cycles) < 2:
         return [0] * len(cycles)
     ref = cycles[0]
@@ -330,9 +511,33 @@ def align_lags(cycles: list[CycleSignals], cfg: ProcessingConfig) -> list[int]:
 
 def model_phase(model: SpeedModel, torque: np.ndarray, wheel: np.ndarray, fs_hz: float
                 ) -> SineFitResult:
-    """The sine fit as the joint speed model itself (the least-squares estimate of the
-    modulation beside the slow part and the orders): lag ``phi_T - phi_W`` [deg] with the
-    standard error of :func:`~torquemod.dsp.phase.sinefit_phase` from the model's residual."""
+    """The phase from the joint speed model itself.
+
+    The least-squares estimate of the modulation beside the slow part and the orders: lag
+    ``phi_T - phi_W`` with the standard error of :func:`~torquemod.dsp.phase.sinefit_phase`
+    from the model's residual (Cramér-Rao bound [1]_).
+
+    Parameters
+    ----------
+    model : SpeedModel
+        The joint model of the wheel speed.
+    torque : ndarray
+        The torque [N*m].
+    wheel : ndarray
+        The wheel speed [rad/s].
+    fs_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    SineFitResult
+        Phase [deg], standard error [deg], amplitudes and phases.
+
+    References
+    ----------
+    .. [1] D.C. Rife and R.R. Boorstyn, "Single-tone parameter estimation from discrete-time
+       observations", IEEE Trans. Inf. Theory 20(5) (1974) 591-598.
+    """
     n = model.design.shape[0]
     phases, amps, var = [], [], 0.0
     for name, x in (("torque_nm", torque), ("wheel_speed_rad_s", wheel)):
@@ -357,9 +562,25 @@ PAPER_SE_FACTOR = 1.3
 
 def cycle_phase(c: CycleSignals, cfg: ProcessingConfig, *, center_index: float
                 ) -> tuple[float, float, tuple[float, float]]:
-    """Step 7: (phase [deg], standard error [deg], window [s]) of one cycle.
+    """Step 7: the phase of one cycle, its standard error and the window used.
 
-    ``center_index`` is where the phase window is centred (the aligned middle).
+    Parameters
+    ----------
+    c : CycleSignals
+        The cycle.
+    cfg : ProcessingConfig
+        The chain's settings (phase method, periods).
+    center_index : float
+        Where the phase window is centred (the aligned middle) [samples].
+
+    Returns
+    -------
+    phase_deg : float
+        Lag of the wheel speed behind the torque [deg].
+    stderr_deg : float
+        Its standard error [deg].
+    window_s : tuple of float
+        Start and end of the window [s].
     """
     n = c.torque_filtered.size
     period_n = c.fs_hz / c.modulation_hz

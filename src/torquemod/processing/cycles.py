@@ -9,11 +9,29 @@ from scipy import integrate
 
 
 def revolution_bounds(platform_speed_rad_s: np.ndarray, fs_hz: float) -> list[tuple[int, int]]:
-    """Index ranges [start, stop) of whole platform revolutions.
+    """Index ranges of whole platform revolutions.
 
-    The platform angle is the cumulative trapezoidal integral of the angular velocity
-    [rad/s]; revolution k ends at the sample boundary nearest to where the angle reaches
-    ``2*pi*k``. A trailing part shorter than a revolution is not returned.
+    The platform angle is the cumulative trapezoidal integral of the angular velocity;
+    revolution k ends at the sample boundary nearest to where the angle reaches ``2*pi*k``.
+    A trailing part shorter than a revolution is not returned.
+
+    Parameters
+    ----------
+    platform_speed_rad_s : ndarray
+        Platform angular speed [rad/s].
+    fs_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    list of tuple of int
+        [start, stop) sample ranges.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> revolution_bounds(np.full(25, 2 * np.pi), 10.0)
+    [(0, 10), (10, 20)]
     """
     omega = np.asarray(platform_speed_rad_s, dtype=np.float64)
     # angle at the sample instants, plus the end of the last sample's interval: a record of

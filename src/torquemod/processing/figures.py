@@ -14,12 +14,39 @@ __all__ = ["signals_figure"]
 
 
 def signals_figure(traces: dict, *, step: int = 3, cycle: int = 1, ax=None):
-    """Paper Figure 2 of one cycle from its named arrays (``ProcessResult.traces[(step,
-    cycle)]``): (a) applied torque [N m], (b) wheel angular velocity [rad/s], raw and after
-    the band-pass (the filtered signal drawn about the mean of the resampled one so both share
-    an axis); the phase window is shaded. ``ax``: a pair of Axes (panels (a) and (b)), or one
-    Axes (one panel: the wheel speed on its twin y axis, one title); a new two-panel Figure
-    when None. Returns ``ax`` as given, or the new Figure's two Axes (an array)."""
+    """Figure 2 of the V-Track paper [1]_ for one cycle: torque and wheel speed, raw and filtered.
+
+    (a) Applied torque [N*m], (b) wheel angular velocity [rad/s], raw and after the
+    band-pass (the filtered signal drawn about the mean of the resampled one so both share an
+    axis); the phase window is shaded.
+
+    Parameters
+    ----------
+    traces : dict
+        The cycle's named arrays (``ProcessResult.traces[(step, cycle)]``).
+    step : int
+        The step, for the title. Default 3.
+    cycle : int
+        The cycle, for the title. Default 1.
+    ax : matplotlib.axes.Axes or array of two Axes or None
+        A pair of Axes (panels (a) and (b)), or one Axes (one panel: the wheel speed on its
+        twin y axis, one title); None: a new two-panel figure.
+
+    Returns
+    -------
+    matplotlib.axes.Axes or ndarray of Axes
+        ``ax`` as given, or the new figure's two Axes.
+
+    Raises
+    ------
+    InputError
+        No traces for that step and cycle.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Fig. 2.
+    """
     if "t_raw_s" not in traces:
         raise InputError(f"no traces for step {step} cycle {cycle}")
 

@@ -147,10 +147,29 @@ class ProcessResult:
 def resolve_config(experiment: Experiment, config: ProcessingConfig | None = None, *,
                    phase_method: str | None = None, nan_policy: str | None = None
                    ) -> ProcessingConfig:
-    """The processing parameters of a run: ``config`` when given, else the manifest's
-    ``[processing]`` table (:attr:`Experiment.processing`), with the flat overrides
-    ``phase_method`` ("paper", "sinefit") and ``nan_policy`` ("raise", "interpolate",
-    "drop-cycle") applied on top when not None."""
+    """The processing parameters of a run.
+
+    Parameters
+    ----------
+    experiment : Experiment
+        The experiment (its ``[processing]`` table, :attr:`Experiment.processing`).
+    config : ProcessingConfig or None
+        Given parameters; None: the manifest's table.
+    phase_method : {"paper", "sinefit"} or None
+        Flat override of the phase method. Default None.
+    nan_policy : {"raise", "interpolate", "drop-cycle"} or None
+        Flat override of the NaN policy. Default None.
+
+    Returns
+    -------
+    ProcessingConfig
+        The parameters.
+
+    Raises
+    ------
+    InputError
+        A bad ``[processing]`` table or override value.
+    """
     cfg = config if config is not None else experiment.processing
     cfg = cfg.with_phase_method(phase_method)
     if nan_policy is not None:
@@ -297,13 +316,36 @@ def _streamed_cycles(stream, where: str, notes: list[str]):
 def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig,
                       reduce=None, recording: Recording | None = None
                       ) -> tuple[float, float, str, list[str], list[str], list]:
-    """Read one recording, apply the NaN policy, split it into cycles and run steps 1-5 and 8
-    on each. Runs in a worker thread, so it reports by return value, not by warnings:
-    (read s, compute s, sha256, NaN actions, notes, cycles). ``reduce`` (optional) maps each
-    cycle's item to what is kept of it, as soon as the cycle is done, so that a long file's
-    cycles are not all held at once. ``recording``: the entry's samples already in memory,
-    as :func:`~torquemod.io.read_entry` would return them (nothing is read; the digest is
-    empty)."""
+    """Steps 1-5 and 8 of the chain on one recording.
+
+    Reads the recording, applies the NaN policy, splits it into cycles and runs the steps on
+    each. Runs in a worker thread, so it reports by return value, not by warnings.
+
+    Parameters
+    ----------
+    entry : RecordingEntry
+        The recording.
+    exp : Experiment
+        Its experiment.
+    cfg : ProcessingConfig
+        The parameters.
+    reduce : callable or None
+        Maps each cycle's item to what is kept of it, as soon as the cycle is done, so that a
+        long file's cycles are not all held at once. Default None.
+    recording : Recording or None
+        The entry's samples already in memory, as :func:`~torquemod.io.read_entry` would
+        return them (nothing is read; the digest is empty). Default None.
+
+    Returns
+    -------
+    tuple
+        (read [s], compute [s], sha256, NaN actions, notes, cycles).
+
+    Raises
+    ------
+    InputError
+        What reading the file or a cycle's steps raise.
+    """
     where = str(entry.path) + (f":{entry.group}" if entry.group else "")
     t0 = time.perf_counter()
     # the input's SHA-256 (provenance) in a background thread while the file is read and
@@ -423,13 +465,39 @@ def process_experiment(experiment: Experiment | str | Path, *,
                        workers: int | None = None, loaded=None) -> ProcessResult:
     """Run the whole chain on an experiment (a parsed manifest or its path).
 
-    ``config`` None uses the manifest's ``[processing]`` table (see :func:`resolve_config`).
+    Recordings are read and put through steps 1-5 and 8 by ``workers`` threads (numpy, scipy
+    and pyarrow release the GIL), then each step's cycles are aligned and their phases
+    measured in order (steps 6-7 of the V-Track paper's processing [1]_).
 
-    Recordings are read and put through steps 1-5 and 8 by ``workers`` threads (default:
-    the number of CPUs, at most 4; numpy, scipy and pyarrow release the GIL), then each
-    step's cycles are aligned and their phases measured in order. ``loaded``: pairs (entry,
-    result of :func:`load_and_process`) in manifest order, computed elsewhere (the fleet's
-    one task per recording); None reads the recordings here.
+    Parameters
+    ----------
+    experiment : Experiment or str or pathlib.Path
+        The experiment.
+    config : ProcessingConfig or None
+        The parameters; None: the manifest's ``[processing]`` table (:func:`resolve_config`).
+    progress : bool
+        Show progress on stderr. Default False.
+    workers : int or None
+        Reader threads; None: the number of CPUs, at most 4.
+    loaded : list or None
+        Pairs (entry, result of :func:`load_and_process`) in manifest order, computed
+        elsewhere (the fleet's one task per recording); None reads the recordings here.
+
+    Returns
+    -------
+    ProcessResult
+        Cycles, steps, details, traces, notes and timing.
+
+    Raises
+    ------
+    InputError
+        A bad manifest or recording, no cycle that could be processed, a step emptied by the
+        NaN policy, or cycle numbers given twice in a step.
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.4.
     """
     workers = workers if workers is not None else min(4, os.cpu_count() or 1)
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
@@ -534,12 +602,29 @@ def process_experiment(experiment: Experiment | str | Path, *,
 
 
 def detect_slip(creepage, coa, drift, params: SlipParams) -> list[str | None]:
-    """Slip check of one step's cycles (in time order): for each cycle the reason it looks
-    like wheel slip, or None. The rules and thresholds are those of
-    :class:`~torquemod.io.config.SlipParams`: a creepage jump above the step's other cycles
-    (beyond an absolute threshold and k robust standard deviations of the others), a CoA
-    falling from the previous cycle while the creepage rises, a creepage rising within the
-    cycle."""
+    """Slip check of one step's cycles, in time order.
+
+    The rules and thresholds are those of :class:`~torquemod.io.config.SlipParams`: a
+    creepage jump above the step's other cycles (beyond an absolute threshold and k robust
+    standard deviations of the others), a CoA falling from the previous cycle while the
+    creepage rises, a creepage rising within the cycle.
+
+    Parameters
+    ----------
+    creepage : array_like
+        Creepage of each cycle [-].
+    coa : array_like
+        CoA of each cycle [-].
+    drift : array_like
+        Creepage change within each cycle [-].
+    params : SlipParams
+        The thresholds.
+
+    Returns
+    -------
+    list of str or None
+        For each cycle the reason it looks like wheel slip, or None.
+    """
     xi = np.asarray(creepage, dtype=float)
     c = np.asarray(coa, dtype=float)
     d = np.asarray(drift, dtype=float)
@@ -569,8 +654,23 @@ def detect_slip(creepage, coa, drift, params: SlipParams) -> list[str | None]:
 
 def aggregate_steps(cycles: pd.DataFrame, dc_torque_nm: dict[int, float],
                     slip: dict[int, bool] | None = None) -> pd.DataFrame:
-    """Mean and sample standard deviation (ddof = 1, NaN for a single cycle) per step;
-    ``slip`` (step -> flagged) fills the ``slip`` column (False when not given)."""
+    """Mean and sample standard deviation per step of the cycle table.
+
+    Parameters
+    ----------
+    cycles : pandas.DataFrame
+        The cycle table.
+    dc_torque_nm : dict of int to float
+        Each step's DC torque [N*m].
+    slip : dict of int to bool or None
+        Step -> flagged, for the ``slip`` column (False when not given).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The steps table (:data:`STEP_COLUMNS`); standard deviations with ddof = 1, NaN for a
+        single cycle.
+    """
     g = cycles.groupby("step", sort=True)
     n = g.size().to_numpy()
     # standard error of the step's mean phase: from the cycles' own standard errors when the

@@ -29,7 +29,13 @@ def _digest(path) -> str | None:
 
 
 def software_versions() -> dict:
-    """Versions of torquemod, Python and the numerical libraries used."""
+    """Versions of torquemod, Python and the numerical libraries used.
+
+    Returns
+    -------
+    dict of str to str
+        By package.
+    """
     import numpy
     import pandas
     import scipy
@@ -39,7 +45,22 @@ def software_versions() -> dict:
 
 
 def provenance(result: ProcessResult, *, command: list[str] | None = None) -> dict:
-    """The provenance record of a processing run."""
+    """The provenance record of a processing run.
+
+    Parameters
+    ----------
+    result : ProcessResult
+        The run.
+    command : list of str or None
+        The command line. Default None.
+
+    Returns
+    -------
+    dict
+        JSON-ready: version, time, command, software, the experiment (manifest and inputs
+        with their SHA-256, rig, test, channels), the parameters, warnings, NaN actions,
+        cycles and timing [s].
+    """
     exp = result.experiment
     inputs, hashed = [], {}
     for e in exp.recordings:

@@ -56,17 +56,31 @@ from torquemod.io.stream import hash_file_async, open_stream
 from torquemod.io.validate import check_finite, clipping_notes
 
 #: Seconds of recording a group of revolutions aims at when ``revolutions_per_task`` is not
-#: given (the issue: tasks of about a minute, never an hour).
+#: given: tasks of about a minute, never an hour (a lost task costs little to redo).
 TASK_SECONDS = 60.0
 
 
 @dataclass(frozen=True)
 class RevolutionPlan:
-    """How one recording is cut: ``mode`` "stream" or "whole" (which split of
-    ``load_and_process`` is reproduced), ``bounds`` the revolutions' row ranges [start,
-    stop), ``fs_hz`` [Hz], ``head_notes``/``tail_notes`` what ``load_and_process`` notes
-    before/after the cycles' own notes, ``channel_order`` the whole-file reader's channel
-    order (whole mode), ``read_s`` [s] the plan's reading time."""
+    """How one recording is cut into groups of revolutions.
+
+    Attributes
+    ----------
+    mode : {"stream", "whole"}
+        Which split of ``load_and_process`` is reproduced.
+    bounds : tuple of tuple of int
+        The revolutions' row ranges [start, stop).
+    fs_hz : float
+        Sample rate [Hz].
+    head_notes : tuple of str
+        What ``load_and_process`` notes before the cycles' own notes.
+    tail_notes : tuple of str
+        What it notes after them.
+    channel_order : tuple of str
+        The whole-file reader's channel order (whole mode).
+    read_s : float
+        The plan's reading time [s].
+    """
 
     mode: str
     bounds: tuple[tuple[int, int], ...]
@@ -103,10 +117,30 @@ def _tail_note(where: str, tail: int, revs: list[int], fs_hz: float) -> list[str
 
 def plan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig, *,
                      revolutions_per_task: int | None = None) -> RevolutionPlan | None:
-    """The :class:`RevolutionPlan` of a recording to cut into groups of revolutions, or
-    None when it stays one task (see the module's docstring; also when it would make one
-    group only). Raises what reading the file raises; the caller then processes the
-    recording as one task, which meets the same error as ``load_and_process``."""
+    """The plan of a recording to cut into groups of revolutions.
+
+    Parameters
+    ----------
+    entry : RecordingEntry
+        The recording.
+    exp : Experiment
+        Its experiment.
+    cfg : ProcessingConfig
+        The parameters.
+    revolutions_per_task : int or None
+        Revolutions per group; None: about :data:`TASK_SECONDS` of recording.
+
+    Returns
+    -------
+    RevolutionPlan or None
+        None when it stays one task (also when it would make one group only).
+
+    Raises
+    ------
+    InputError
+        What reading the file raises; the caller then processes the recording as one task,
+        which meets the same error as ``load_and_process``.
+    """
     got = scan_revolutions(entry, exp, cfg, revolutions_per_task=revolutions_per_task,
                            first_group=False)
     return None if got is None else got[0]
@@ -116,11 +150,33 @@ def scan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
                      revolutions_per_task: int | None = None, first_group: bool = True,
                      sha256: str | None = None
                      ) -> tuple[RevolutionPlan, RevolutionPart | None] | None:
-    """:func:`plan_revolutions` and, with ``first_group`` in whole mode, the first group's
-    :class:`RevolutionPart` computed from the record the plan has read anyway (the other
-    groups then read their rows; a file read whole is read about once, not twice). In
-    stream mode (or without ``first_group``) the part is None. ``sha256``: the file's
-    digest when the caller has just computed it (else the file is hashed)."""
+    """:func:`plan_revolutions` and, in whole mode, the first group computed on the way.
+
+    The first group's :class:`RevolutionPart` is computed from the record the plan has read
+    anyway (the other groups then read their rows; a file read whole is read about once, not
+    twice).
+
+    Parameters
+    ----------
+    entry : RecordingEntry
+        The recording.
+    exp : Experiment
+        Its experiment.
+    cfg : ProcessingConfig
+        The parameters.
+    revolutions_per_task : int or None
+        Revolutions per group; None: about :data:`TASK_SECONDS` of recording.
+    first_group : bool
+        Compute the first group in whole mode. Default True.
+    sha256 : str or None
+        The file's digest when the caller has just computed it (else the file is hashed).
+
+    Returns
+    -------
+    tuple or None
+        (plan, first part or None: in stream mode or without ``first_group``); None when the
+        recording stays one task.
+    """
     from torquemod.processing.pipeline import (
         STREAM_MIN_BYTES,
         _cycle_item,
@@ -184,10 +240,22 @@ def scan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
 
 @dataclass(frozen=True)
 class RevolutionPart:
-    """What :func:`process_revolutions` gives for one group: reading and compute time [s],
-    the notes in order (``(clipping key or None, text)``; the key lets
-    :func:`merge_revolutions` keep a channel's clipping note once), the cycles as
-    ``load_and_process`` lists them, and the file's SHA-256 (the first group's only)."""
+    """What :func:`process_revolutions` gives for one group of revolutions.
+
+    Attributes
+    ----------
+    read_s : float
+        Reading time [s].
+    compute_s : float
+        Compute time [s].
+    notes : tuple of tuple
+        The notes in order, ``(clipping key or None, text)``; the key lets
+        :func:`merge_revolutions` keep a channel's clipping note once.
+    cycles : list
+        The cycles as ``load_and_process`` lists them.
+    sha256 : str or None
+        The file's SHA-256 (the first group's only).
+    """
 
     read_s: float
     compute_s: float
@@ -199,13 +267,39 @@ class RevolutionPart:
 def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig,
                         plan: RevolutionPlan, first: int, stop: int, *,
                         sha256: str | None = None) -> RevolutionPart:
-    """Revolutions ``first:stop`` (indices into ``plan.bounds``; cycle numbers ``first+1``
-    ...) of a recording: each read by its rows alone, checked as ``load_and_process``
-    checks it in the plan's mode, and put through steps 1-5 and 8. The first group
-    (``first == 0``) also hashes the file, in a background thread while it computes (as
-    ``load_and_process`` does), unless the caller gives the digest it has just computed
-    (``sha256``). Raises the error ``load_and_process`` meets on these
-    revolutions."""
+    """Steps 1-5 and 8 on revolutions ``first:stop`` of a recording.
+
+    Each revolution is read by its rows alone and checked as ``load_and_process`` checks it
+    in the plan's mode. The first group (``first == 0``) also hashes the file, in a
+    background thread while it computes, unless the caller gives the digest.
+
+    Parameters
+    ----------
+    entry : RecordingEntry
+        The recording.
+    exp : Experiment
+        Its experiment.
+    cfg : ProcessingConfig
+        The parameters.
+    plan : RevolutionPlan
+        The recording's plan.
+    first : int
+        First revolution (index into ``plan.bounds``; cycle number ``first + 1``).
+    stop : int
+        Revolution after the last.
+    sha256 : str or None
+        The file's digest when the caller has just computed it. Default None.
+
+    Returns
+    -------
+    RevolutionPart
+        The group's cycles and notes.
+
+    Raises
+    ------
+    InputError
+        The error ``load_and_process`` meets on these revolutions.
+    """
     from torquemod.processing.pipeline import _cycle_item
     where = _where(entry)
     digest = hash_file_async(entry.path) if first == 0 and sha256 is None else None
@@ -235,9 +329,25 @@ def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingC
 
 
 def merge_revolutions(plan: RevolutionPlan, parts: list[RevolutionPart]) -> tuple:
-    """The groups of a recording, in order, as
-    :func:`torquemod.processing.pipeline.load_and_process`
-    returns the recording: (read s, compute s, sha256, NaN actions, notes, cycles)."""
+    """The groups of a recording, in order, as ``load_and_process`` returns the recording.
+
+    Parameters
+    ----------
+    plan : RevolutionPlan
+        The recording's plan.
+    parts : list of RevolutionPart
+        Its groups, in order.
+
+    Returns
+    -------
+    tuple
+        (read [s], compute [s], sha256, NaN actions, notes, cycles).
+
+    Raises
+    ------
+    ValueError
+        The first group is missing, or the cycles do not match the plan's revolutions.
+    """
     notes = list(plan.head_notes)
     seen: set[str] = set()
     for part in parts:

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import get_window
 
-from torquemod.dsp import filters
+from torquemod.dsp import filters, projection
 
 
 @functools.lru_cache(maxsize=16)
@@ -40,15 +40,36 @@ def _hann_fourier(n: int, bins: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray
 
 @dataclass(frozen=True)
 class SpeedModel:
-    """The joint least-squares model of one cycle (ours): for every channel
-    ``x = modulation + slow + orders + harmonics + residual`` with the modulation
-    ``c*cos + s*sin`` at ``modulation_hz``, the slow part in
-    :func:`~torquemod.dsp.filters.slow_basis`, the rotation orders in
-    :func:`~torquemod.dsp.filters.order_design` and the modulation's own harmonics (the
-    creep curve's bend distorts the wheel's answer; :func:`modulation_harmonics`). One
-    design serves every channel, so any linear functional of it (the step-8 mean) treats a
-    speed variation that wheel and platform share alike, and it cancels in the creepage of
-    Eq. (3)."""
+    """The joint least-squares model of one cycle's speeds and torque.
+
+    For every channel ``x = modulation + slow + orders + harmonics + residual`` with the
+    modulation ``c*cos + s*sin`` at ``modulation_hz``, the slow part in
+    :func:`~torquemod.dsp.basis.slow_basis`, the rotation orders in
+    :func:`~torquemod.dsp.basis.order_design` and the modulation's own harmonics (the creep
+    curve's bend distorts the wheel's answer; :func:`modulation_harmonics`). One design
+    serves every channel, so any linear functional of it (the step-8 mean) treats a speed
+    variation that wheel and platform share alike, and it cancels in the creepage of Eq. (3)
+    of the V-Track paper.
+
+    Attributes
+    ----------
+    modulation_hz : float
+        Modulation frequency [Hz].
+    fs_hz : float
+        Sample rate [Hz].
+    design : ndarray
+        (n, m) design matrix: modulation columns, slow basis, orders, harmonics.
+    n_slow : int
+        Columns of the slow basis.
+    coef : ndarray
+        (m, channels) fitted coefficients, in each channel's unit.
+    names : tuple of str
+        The channels, in the order of ``coef``'s columns.
+    factor : LstsqFactor or None
+        The design's factorisation, for further solves.
+    n_harmonic_columns : int
+        Columns of the modulation's harmonics (the last ones). Default 0.
+    """
 
     modulation_hz: float
     fs_hz: float
@@ -118,31 +139,22 @@ class SpeedModel:
         sel = k[(off <= half_width_hz) & (off > 1.5 * df)]
         if sel.size < 2:
             return 1.0
-        fac = self.factor
-        if fac is not None and fac.gram is not None:  # the fit's own numbers
-            dn, gram = fac.dn, fac.gram
-        else:
-            dn = d / np.sqrt(np.einsum("ij,ij->j", d, d))
-            gram = dn.T @ dn
         v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
-        try:
-            chol = np.linalg.cholesky(gram)
-        except np.linalg.LinAlgError:
+        fac = self.factor if self.factor is not None else filters.LstsqFactor.of(d)
+        qt = projection.orthonormal_basis_t(fac) if fac is not None else None
+        if qt is None:
             # a design rank deficient to rounding (the fit fell back to the SVD): Q from
             # the SVD, over its numerical rank
-            u, sv, _ = np.linalg.svd(dn, full_matrices=False)
-            qv = u[:, sv > sv[0] * 1e-10].T @ v
-            kept = 1.0 - (qv * qv).sum(axis=0).reshape(2, -1).sum(axis=0) / v_power
-            return float(np.clip(np.mean(kept), 0.05, 1.0))
-        # Q = D L^-T has orthonormal columns spanning D, and Q^H v = L^-1 (D^T v): a solve with
-        # the small factor instead of forming Q (the fraction kept agrees with forming Q to
-        # ~4e-12 relative, measured; it scales only the standard error). Both routes go
-        # through the normal equations, which square the design's condition number: against
-        # an SVD of the design the fraction is off by ~1.5e-5 relative (measured on
-        # tests/processing/test_chain_speed_equivalence.py's design), and rounding-level changes of
-        # the inputs move it by up to that much (the fit's own upper factor, transposed,
-        # moved it by 1e-6: not used here).
-        qv = np.linalg.solve(chol, dn.T @ v)  # v: the real parts, then the imaginary parts
+            u, sv, _ = np.linalg.svd(d / np.sqrt(np.einsum("ij,ij->j", d, d)),
+                                     full_matrices=False)
+            qt = u[:, sv > sv[0] * 1e-10].T
+        # Q orthonormal to rounding (CholeskyQR2 from the fit's own factor,
+        # dsp.projection): the fraction agrees with an SVD of the design to ~1e-12 relative
+        # and moves by about as little when the inputs move by rounding
+        # (tests/processing/test_chain_floor.py). Q = D L^-T from the normal equations alone
+        # (the condition number, ~1e6 here, squared) was off by 2-6e-5 relative and moved
+        # by as much with any rounding-level change of the design.
+        qv = qt @ v  # v: the real parts, then the imaginary parts
         kept = 1.0 - (qv * qv).sum(axis=0).reshape(2, -1).sum(axis=0) / v_power
         return float(np.clip(np.mean(kept), 0.05, 1.0))
 
@@ -164,9 +176,27 @@ def _trace_of_inverse_2x2(a: np.ndarray) -> float:
 
 def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
                        harmonics: tuple[int, ...] = ()) -> np.ndarray:
-    """``cos`` and ``sin`` of ``2*pi*k*f*t`` for k = 1 and each of ``harmonics`` (in that
-    order), over ``n`` samples at ``fs_hz`` [Hz] with t [s] from the record's middle (so a
-    fitted phase is decoupled from a small error of the frequency)."""
+    """``cos`` and ``sin`` of ``2*pi*k*f*t`` for k = 1 and each of the harmonics.
+
+    t is taken from the record's middle, so a fitted phase is decoupled from a small error of
+    the frequency.
+
+    Parameters
+    ----------
+    n : int
+        Samples [-].
+    fs_hz : float
+        Sample rate [Hz].
+    modulation_hz : float
+        Modulation frequency f [Hz].
+    harmonics : tuple of int
+        Further harmonics k, in order. Default ().
+
+    Returns
+    -------
+    ndarray
+        (n, 2*(1 + len(harmonics))) columns [-].
+    """
     t = (np.arange(n) - (n - 1) / 2) / fs_hz
     w = 2 * np.pi * modulation_hz
     out = np.empty((n, 2 + 2 * len(harmonics)))
@@ -176,19 +206,60 @@ def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
     return out
 
 
+def _modulation_columns_many(n: int, fs_hz: float, frequencies_hz, harmonics: tuple[int, ...] = ()
+                            ) -> np.ndarray:
+    """:func:`modulation_columns` at each of ``frequencies_hz`` [Hz], side by side (the same
+    numbers: each element is the same product and the same ``cos`` or ``sin``), in one
+    vectorised evaluation."""
+    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    ks = (1, *harmonics)
+    # k*w per (frequency, order) as modulation_columns forms it: (k*w)*t, w = 2*pi*f
+    kw = np.array([k * (2 * np.pi * f) for f in frequencies_hz for k in ks])
+    arg = t[:, None] * kw[None, :]
+    out = np.empty((n, 2 * kw.size))
+    out[:, 0::2] = np.cos(arg)
+    out[:, 1::2] = np.sin(arg)
+    return out
+
+
 def modulation_harmonics(modulation_hz: float, fs_hz: float, n_samples: int,
                          highest: int, *, above_hz: float, avoid_hz=()) -> tuple[int, ...]:
-    """Harmonics k = 2..``highest`` of the modulation fitted beside it (ours): those below
-    0.45 x the sample rate, above the slow band (``above_hz``) and more than two frequency
-    resolutions away from every frequency in ``avoid_hz`` [Hz] (the fitted rotation orders,
-    which would alias them).
+    """Harmonics of the modulation fitted beside it.
 
-    The wheel's answer to the modulation is not a pure sinusoid: where the creep curve
-    bends, the creepage swing meets a changing slope and the wheel speed and the shaft torque
-    carry 2nd and 3rd harmonics (1-3 % of the fundamental at 1 Hz on the V-Track twin at 60-90
-    % utilisation). Over a record holding a fractional number of periods they are not
-    orthogonal to the slow basis, and, left out of the edge padding, they step at the
-    record's ends, where the narrow band-pass rings: together up to 0.3 deg at 1 Hz.
+    k = 2..``highest``: those below 0.45 x the sample rate, above the slow band and more than
+    two frequency resolutions away from every frequency in ``avoid_hz`` (the fitted rotation
+    orders, which would alias them). The wheel's answer to the modulation is not a pure
+    sinusoid: where the creep curve bends, the creepage swing meets a changing slope and the
+    wheel speed and the shaft torque carry 2nd and 3rd harmonics (1-3 % of the fundamental
+    at 1 Hz on the V-Track twin at 60-90 % utilisation). Over a record holding a fractional
+    number of periods they are not orthogonal to the slow basis, and, left out of the edge
+    padding, they step at the record's ends, where the narrow band-pass rings: together up to
+    0.3 deg at 1 Hz.
+
+    Parameters
+    ----------
+    modulation_hz : float
+        Modulation frequency [Hz].
+    fs_hz : float
+        Sample rate [Hz].
+    n_samples : int
+        Record length [-] (the resolution fs/n).
+    highest : int
+        Highest harmonic [-].
+    above_hz : float
+        Top of the slow band [Hz].
+    avoid_hz : sequence of float
+        Frequencies to keep clear of [Hz]. Default ().
+
+    Returns
+    -------
+    tuple of int
+        The harmonics k.
+
+    Examples
+    --------
+    >>> modulation_harmonics(2.0, 53.344, 320, 3, above_hz=1.2)
+    (2, 3)
     """
     resolution = fs_hz / n_samples
     return tuple(k for k in range(2, int(highest) + 1)
@@ -199,9 +270,31 @@ def modulation_harmonics(modulation_hz: float, fs_hz: float, n_samples: int,
 def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz: float,
                     slow: np.ndarray, orders: np.ndarray, harmonics: tuple[int, ...] = ()
                     ) -> SpeedModel:
-    """Least-squares fit of :class:`SpeedModel` to every channel at once (time referenced to
-    the record's middle so the modulation's phase is decoupled from its frequency), with
-    the modulation's ``harmonics`` (:func:`modulation_harmonics`) as its last columns."""
+    """Least-squares fit of :class:`SpeedModel` to every channel at once.
+
+    Time is referenced to the record's middle so the modulation's phase is decoupled from its
+    frequency; the modulation's harmonics are the last columns.
+
+    Parameters
+    ----------
+    channels : dict of str to ndarray
+        The channels (SI units), of equal length.
+    fs_hz : float
+        Sample rate [Hz].
+    modulation_hz : float
+        Modulation frequency [Hz].
+    slow : ndarray
+        The slow basis (:func:`~torquemod.dsp.basis.slow_basis`).
+    orders : ndarray
+        The rotation-order columns.
+    harmonics : tuple of int
+        The modulation's harmonics (:func:`modulation_harmonics`). Default ().
+
+    Returns
+    -------
+    SpeedModel
+        The fitted model.
+    """
     names = tuple(channels)
     n = slow.shape[0]
     mod = modulation_columns(n, fs_hz, modulation_hz, harmonics)
@@ -226,10 +319,11 @@ class _SlowOrdersRemoval:
     at f and at its ``harmonics`` (time from the record's middle; the harmonics stay in the
     result). By Frisch-Waugh-Lovell, with ``r(z)`` the
     residual of z fitted on B alone, ``c_M = (r(M)'r(M))^-1 r(M)'r(y)`` and
-    ``y - B c_B = r(y) + (M - r(M)) c_M``: B is factored and ``r(y)`` computed once for every
-    f, and each f costs the fit of M's two columns on B (instead of a new factorisation of
-    the whole design). The same numbers as :func:`fit_speed_model`'s parts to rounding
-    (tests/processing/test_chain_kernels.py)."""
+    ``y - B c_B = r(y) + (M - r(M)) c_M``: B is factored, an orthonormal basis Q of it formed
+    (:func:`torquemod.dsp.projection.orthonormal_basis_t`) and ``r(y)`` computed once for
+    every f, and each f costs the product ``Q'M`` (``r(M) = M - Q Q'M``) instead of a new
+    factorisation of the whole design. The same numbers as :func:`fit_speed_model`'s parts
+    to rounding (tests/processing/test_chain_kernels.py)."""
 
     def __init__(self, y: np.ndarray, slow: np.ndarray, orders: np.ndarray, fs_hz: float,
                  harmonics: tuple[int, ...] = ()):
@@ -237,8 +331,16 @@ class _SlowOrdersRemoval:
         self.slow, self.orders = slow, orders
         self.b = np.hstack([slow, orders])
         self.fac = filters.LstsqFactor.of(self.b)
+        self.qt = None
         if self.fac is not None:
-            self.r_y = y - self.b @ self.fac.solve(y)
+            # an orthonormal basis Q of B (dsp.projection): the residual is y - Q Q'y, and
+            # each trial frequency costs one product with Q instead of a solve on B
+            self.qt = projection.orthonormal_basis_t(self.fac)
+            if self.qt is not None:
+                self.r_y = y - self.qt.T @ (self.qt @ y)
+                self.qy = self.qt @ self.r_y  # ~0: kept for the rounding's sake
+            else:
+                self.r_y = y - self.b @ self.fac.solve(y)
 
     def at(self, modulation_hz: float) -> np.ndarray:
         """``y`` less its slow part and orders with the modulation at ``modulation_hz``."""
@@ -249,6 +351,10 @@ class _SlowOrdersRemoval:
             fit = model.design[:, 2:end] @ model.coef[2:end]
             return self.y - fit
         m = modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
+        if self.qt is not None:  # y - B c_B = r_y + Q Q'M c_M, r_M'r_M = M'M - (Q'M)'(Q'M)
+            c = self.qt @ m
+            c_m = np.linalg.solve(m.T @ m - c.T @ c, m.T @ self.r_y - c.T @ self.qy)
+            return self.r_y + self.qt.T @ (c @ c_m)
         r_m = m - self.b @ self.fac.solve(m)
         c_m = np.linalg.solve(r_m.T @ r_m, r_m.T @ self.r_y)
         return self.r_y + (m - r_m) @ c_m
@@ -257,10 +363,26 @@ class _SlowOrdersRemoval:
         """Power of record ``column`` that the modulation (and its harmonics) at
         ``modulation_hz`` [Hz] explains beyond the slow part and the orders:
         ``r_y' r_M (r_M' r_M)^-1 r_M' r_y`` (Frisch-Waugh-Lovell, as :meth:`at`)."""
-        m = modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
-        r_m = m - self.b @ self.fac.solve(m)
-        b = r_m.T @ self.r_y[:, column]
-        return float(b @ np.linalg.solve(r_m.T @ r_m, b))
+        return self.explained_many([column], [modulation_hz])[0]
+
+    def explained_many(self, columns, frequencies_hz) -> list[float]:
+        """:meth:`explained` of record ``columns[i]`` at ``frequencies_hz[i]`` [Hz] for every
+        i, in one compiled call on the orthonormal basis of B
+        (:func:`torquemod.dsp.projection.explained_power`); without that basis, with one
+        least-squares solve on B for all the frequencies' columns together."""
+        freqs = [float(f) for f in frequencies_hz]
+        if self.qt is not None:  # one compiled call (dsp.projection)
+            return [float(v) for v in projection.explained_power(
+                self.qt, self.r_y, self.qy, self.fs_hz, freqs, columns, (1, *self.harmonics))]
+        m = _modulation_columns_many(self.y.shape[0], self.fs_hz, freqs, self.harmonics)
+        r_all = m - self.b @ self.fac.solve(m)
+        k = m.shape[1] // len(freqs)
+        out = []
+        for i, col in enumerate(columns):
+            r_m = np.ascontiguousarray(r_all[:, i * k:(i + 1) * k])
+            b = r_m.T @ self.r_y[:, col]
+            out.append(float(b @ np.linalg.solve(r_m.T @ r_m, b)))
+        return out
 
     def refine(self, column: int, peak_hz: float, *, tol_hz: float = 1e-6) -> float:
         """The frequency [Hz] near ``peak_hz`` at which the model explains most of record
@@ -279,17 +401,34 @@ class _SlowOrdersRemoval:
         spacing and 0.03 % at the next. A smooth function of the record (unlike a bracketing
         search, whose stopping point moves within its tolerance with rounding-level changes
         of the input). ``peak_hz`` itself when the design is (nearly) rank deficient."""
+        return self.refine_many([column], [peak_hz], tol_hz=tol_hz)[0]
+
+    def refine_many(self, columns, peaks_hz, *, tol_hz: float = 1e-6) -> list[float]:
+        """:meth:`refine` of record ``columns[i]`` from ``peaks_hz[i]`` [Hz] for every i,
+        the searches advancing in step so that each step's explained powers of all records
+        come from one :meth:`explained_many` call (the same numbers as one :meth:`refine`
+        per record)."""
+        peaks = [float(p) for p in peaks_hz]
         if self.fac is None:
-            return peak_hz
+            return peaks
         duration = self.y.shape[0] / self.fs_hz
-        f = float(peak_hz)
+        f = list(peaks)
+        active = list(range(len(peaks)))
         for h in (0.05 / duration, 0.005 / duration, 0.0005 / duration):
-            e_lo, e_0, e_hi = (self.explained(column, f + k * h) for k in (-1.0, 0.0, 1.0))
-            curvature = e_lo - 2.0 * e_0 + e_hi
-            if not curvature < 0:  # not near a maximum: keep the spectral peak's value
-                return float(peak_hz)
-            step = float(np.clip(0.5 * h * (e_lo - e_hi) / curvature, -2.0 * h, 2.0 * h))
-            f += step
-            if abs(step) < tol_hz:
+            if not active:
                 break
+            e = self.explained_many([columns[i] for i in active for _ in range(3)],
+                                    [f[i] + k * h for i in active for k in (-1.0, 0.0, 1.0)])
+            still = []
+            for j, i in enumerate(active):
+                e_lo, e_0, e_hi = e[3 * j:3 * j + 3]
+                curvature = e_lo - 2.0 * e_0 + e_hi
+                if not curvature < 0:  # not near a maximum: keep the spectral peak's value
+                    f[i] = peaks[i]
+                    continue
+                step = float(np.clip(0.5 * h * (e_lo - e_hi) / curvature, -2.0 * h, 2.0 * h))
+                f[i] += step
+                if not abs(step) < tol_hz:
+                    still.append(i)
+            active = still
         return f

@@ -22,8 +22,39 @@ __all__ = ["InOrderStep", "in_order_steps", "phase_parts"]
 
 def phase_parts(step: int, cyc: int, sig: chain.CycleSignals, info: dict, lag: int,
                  n_ref: int, cfg: ProcessingConfig) -> tuple[dict, dict, dict]:
-    """Step 7 of one aligned cycle: its row of the cycle table, its details (``slip`` None
-    until the step's slip check) and its resampled/filtered traces."""
+    """Step 7 of one aligned cycle: its table row, details and traces.
+
+    Parameters
+    ----------
+    step : int
+        The step.
+    cyc : int
+        The cycle.
+    sig : CycleSignals
+        The cycle after steps 1-5 and 8.
+    info : dict
+        The cycle's source and sampling.
+    lag : int
+        Its alignment lag [samples] (step 6).
+    n_ref : int
+        Samples of the alignment reference.
+    cfg : ProcessingConfig
+        The parameters.
+
+    Returns
+    -------
+    row : dict
+        The cycle table's row (phase [deg], creepage [-], CoA [-], ...).
+    detail : dict
+        Its details (``slip`` None until the step's slip check).
+    trace : dict
+        Its resampled and filtered traces.
+
+    Raises
+    ------
+    InputError
+        The phase cannot be measured.
+    """
     try:
         phase, stderr, window = chain.cycle_phase(sig, cfg, center_index=n_ref / 2 + lag)
     except ProcessingError as exc:
@@ -77,12 +108,25 @@ class _Measured:
 
 
 class InOrderStep:
-    """Steps 6 and 7 of a step whose cycles arrive in cycle order (the step is one recording
-    split into revolutions), applied to each cycle as it is done: the first is the alignment
-    reference (:func:`torquemod.processing.chain.align_lags`), only it is held, and a cycle keeps
-    its
-    row, details and, for the first ``trace_cycles``, its traces. The numbers are those
-    of aligning the whole step at the end (tests)."""
+    """Steps 6 and 7 of a step whose cycles arrive in cycle order.
+
+    The step is one recording split into revolutions, and each cycle is aligned and measured
+    as it is done: the first is the alignment reference
+    (:func:`torquemod.processing.chain.align_lags`), only it is held, and a cycle keeps its
+    row, details and, for the first ``trace_cycles``, its traces. The numbers are those of
+    aligning the whole step at the end.
+
+    Parameters
+    ----------
+    step : int
+        The step.
+    cfg : ProcessingConfig
+        The parameters.
+    trace_cycles : int
+        Cycles whose traces are kept [-].
+    columns : list of str
+        The cycle table's columns.
+    """
 
     def __init__(self, step: int, cfg: ProcessingConfig, trace_cycles: int,
                  columns: list[str]):
@@ -115,8 +159,20 @@ class InOrderStep:
 
 
 def in_order_steps(exp: Experiment) -> set[int]:
-    """The steps that are one recording without a manifest cycle: their cycles are that
-    file's revolutions, numbered and done in order."""
+    """The steps that are one recording without a manifest cycle.
+
+    Their cycles are that file's revolutions, numbered and done in order.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The experiment.
+
+    Returns
+    -------
+    set of int
+        The steps.
+    """
     entries: dict[int, list[RecordingEntry]] = {}
     for e in exp.recordings:
         entries.setdefault(e.step, []).append(e)

@@ -6,6 +6,8 @@ cycle (:func:`_slow_and_orders`).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from torquemod.dsp import filters
@@ -15,10 +17,7 @@ from torquemod.io.config import ProcessingConfig
 def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
                    harmonics: tuple[int, ...], *, above_hz: float, avoid_hz: float,
                    modulation_hz: float | None = None) -> tuple[np.ndarray, float]:
-    """Columns of an encoder's eccentricity at the rotation orders ``harmonics`` that lie above
-    the slow band (``above_hz``), below 0.45 x the sample rate, clear of the modulation at
-    ``avoid_hz`` [Hz] and not already spanned by the slow basis (:func:`_separable_orders`);
-    and the mean rotation frequency [Hz].
+    """Columns of an encoder's eccentricity at rotation orders that follow the angle.
 
     An eccentric encoder reads ``w*(1 + e(theta))``: its error follows the angle and scales
     with the speed. The columns are ``(w_s/mean w_s)*cos(k*theta)``, ``... sin(k*theta)``
@@ -26,6 +25,31 @@ def tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
     modulation at ``modulation_hz``, which then cannot leak into it) and ``theta`` its
     integral, so they follow a wobble or a ramp (order tracking) and do not carry the
     modulation's own phase wobble into the angle.
+
+    Parameters
+    ----------
+    speed_rad_s : ndarray
+        The encoder's angular speed [rad/s].
+    fs_hz : float
+        Sample rate [Hz].
+    slow : ndarray
+        The slow basis.
+    harmonics : tuple of int
+        The rotation orders k.
+    above_hz : float
+        Orders must lie above this (the slow band's top) [Hz].
+    avoid_hz : float
+        The modulation frequency to keep clear of [Hz].
+    modulation_hz : float or None
+        Modulation fitted jointly with the slow part [Hz]; None: none.
+
+    Returns
+    -------
+    columns : ndarray
+        The kept orders' columns [-] (above the slow band, below 0.45 x the sample rate, clear
+        of ``avoid_hz`` and not already spanned by the slow basis).
+    rotation_hz : float
+        The mean rotation frequency [Hz].
     """
     base = _order_base(speed_rad_s.size, fs_hz, slow, modulation_hz)
     return _tracked_orders(speed_rad_s, fs_hz, slow, harmonics, base, None,
@@ -110,11 +134,12 @@ def _slow_and_orders(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: floa
     """The speed model's slow basis up to ``max_hz`` [Hz], the tracked rotation orders of
     both speeds above it and their frequencies [Hz] (:func:`tracked_orders`)."""
     n, nq = wheel.size, cfg.notch
-    slow = filters.slow_basis(n, fs_hz, max(max_hz, 0.0), extra=cfg.slow.extra_sequences,
-                              degree=cfg.slow.polynomial_degree)
+    # the same first design for both speeds, and for every cycle of this length: made and
+    # factored once (the same numbers as each time)
+    slow, base, base_factor = _slow_and_base(int(n), float(fs_hz), float(max(max_hz, 0.0)),
+                                             float(f_start_hz), int(cfg.slow.extra_sequences),
+                                             int(cfg.slow.polynomial_degree))
     cols, rotation_hz = [], []
-    base = _order_base(n, fs_hz, slow, f_start_hz)  # the same first design for both speeds
-    base_factor = filters.LstsqFactor.of(base)
     for speed, harmonics in ((wheel, nq.wheel_harmonics), (platform, nq.platform_harmonics)):
         if speed is not None:
             c, f_rot = _tracked_orders(speed, fs_hz, slow, harmonics, base, base_factor,
@@ -122,3 +147,18 @@ def _slow_and_orders(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: floa
             cols.append(c)
             rotation_hz += [h * f_rot for h in harmonics]
     return slow, np.column_stack(cols), rotation_hz
+
+
+@functools.lru_cache(maxsize=32)
+def _slow_and_base(n: int, fs_hz: float, max_hz: float, f_start_hz: float, extra: int,
+                   degree: int) -> tuple[np.ndarray, np.ndarray, filters.LstsqFactor | None]:
+    """The slow basis (:func:`~torquemod.dsp.filters.slow_basis`), the first design of
+    :func:`tracked_orders` with the modulation at ``f_start_hz`` (:func:`_order_base`) and its
+    least-squares factor, for an ``n``-sample record; cached, read-only."""
+    slow = filters.slow_basis(n, fs_hz, max_hz, extra=extra, degree=degree)
+    base = _order_base(n, fs_hz, slow, f_start_hz)
+    base.setflags(write=False)
+    fac = filters.LstsqFactor.of(base)
+    if fac is not None:
+        fac.factor.setflags(write=False)
+    return slow, base, fac

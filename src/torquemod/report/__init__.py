@@ -47,12 +47,30 @@ __all__ = ["ReportOptions", "creep_curve_figure", "phase_figure", "phase_fit_fig
 
 @dataclass(frozen=True)
 class ReportOptions:
-    """Report options. ``step``/``cycle`` choose Figure 1 (paper: step 3, cycle 1; the first
-    available cycle is used, with a warning, if absent); ``coa_multiplier`` and
-    ``creepage_multiplier`` scale the error bars of Figure 2 (paper: 20 and 5);
-    ``formats`` of the saved figures; ``title`` of the page (default: the experiment's
-    name); ``pdf`` the engine of :func:`torquemod.report.pdf.html_to_pdf` to write
-    ``report.pdf`` too (None: no PDF, and a stale one from an earlier report is removed)."""
+    """Options of the report.
+
+    Attributes
+    ----------
+    step : int
+        The step of the signals figure (the V-Track paper's Fig. 2: step 3). Default 3; the
+        first available cycle is used, with a warning, if absent.
+    cycle : int
+        Its cycle. Default 1.
+    coa_multiplier : float
+        Length of the CoA error bars of the creep-curve figure (the paper's Fig. 3) in
+        standard deviations [-]. Default 20 (the paper's).
+    creepage_multiplier : float
+        Length of its creepage error bars in standard deviations [-]. Default 5.
+    formats : tuple of str
+        Formats of the saved figures. Default ("png", "svg").
+    dpi : int
+        Resolution of the raster figures [dots per inch]. Default 150.
+    title : str or None
+        Title of the page; None: the experiment's name.
+    pdf : str or None
+        Engine of :func:`torquemod.report.pdf.html_to_pdf` to write ``report.pdf`` too;
+        None: no PDF, and a stale one from an earlier report is removed.
+    """
 
     step: int = 3
     cycle: int = 1
@@ -82,9 +100,28 @@ def _png_bytes(fig, dpi: int) -> bytes:
 
 def write_report(folder, result: ProcessResult, analysis: Analysis, *, options=None,
                  provenance_doc: dict | None = None) -> Path:
-    """Write the figures and ``report.html`` of ``result`` and ``analysis`` into ``folder``
-    (non-atomically: :mod:`torquemod.results.folder` passes the folder it is assembling); returns
-    the report's path."""
+    """Write the figures and ``report.html`` of a result and its analysis into a folder.
+
+    Not atomic: :mod:`torquemod.results.folder` passes the folder it is assembling.
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        The folder.
+    result : ProcessResult
+        The processing result.
+    analysis : Analysis
+        Its analysis.
+    options : ReportOptions or dict or None
+        The options; None: the defaults.
+    provenance_doc : dict or None
+        The provenance shown in the report; None: built from ``result``.
+
+    Returns
+    -------
+    pathlib.Path
+        The report.
+    """
     opts = ReportOptions.coerce(options)
     folder = Path(folder)
     prov = provenance_doc if provenance_doc is not None else provenance(result)

@@ -52,7 +52,25 @@ details>summary::after{content:" (folded in the HTML report; not printed)"}
 
 
 def fmt(value, digits: int = 4) -> str:
-    """Number to text with ``digits`` significant figures; None/NaN as an em dash."""
+    """A number as text with a given number of significant figures.
+
+    Parameters
+    ----------
+    value : object
+        The value: a number, a bool, None or anything else (as ``str``).
+    digits : int
+        Significant figures [-]. Default 4.
+
+    Returns
+    -------
+    str
+        The text; None and NaN as an em dash, bools as yes/no.
+
+    Examples
+    --------
+    >>> fmt(0.123456), fmt(None), fmt(True)
+    ('0.1235', '—', 'yes')
+    """
     if value is None:
         return "—"
     if isinstance(value, bool):
@@ -65,7 +83,24 @@ def fmt(value, digits: int = 4) -> str:
 
 
 def table(headers, rows, *, caption: str | None = None, left: int = 0) -> str:
-    """An escaped HTML table; the first ``left`` columns are left-aligned."""
+    """An escaped HTML table.
+
+    Parameters
+    ----------
+    headers : sequence of str
+        The column headers.
+    rows : iterable of sequence
+        The rows (values formatted by :func:`fmt`).
+    caption : str or None
+        The caption. Default None.
+    left : int
+        The first ``left`` columns are left-aligned. Default 0.
+
+    Returns
+    -------
+    str
+        The ``<table>``.
+    """
     out = ['<div class="scroll"><table>']
     if caption:
         out.append(f"<caption>{escape(caption)}</caption>")
@@ -87,12 +122,40 @@ def _breakable(text: str) -> str:
 
 
 def figure_html(png: bytes, alt: str, caption: str) -> str:
+    """A PNG image embedded as an HTML figure with its caption.
+
+    Parameters
+    ----------
+    png : bytes
+        The image.
+    alt : str
+        Its alternative text.
+    caption : str
+        Its caption.
+
+    Returns
+    -------
+    str
+        A ``<figure>`` with the image as a data URI.
+    """
     data = base64.b64encode(png).decode("ascii")
     return (f'<figure><img alt="{escape(alt)}" src="data:image/png;base64,{data}">'
             f"<figcaption>{escape(caption)}</figcaption></figure>")
 
 
 def definition_list(pairs) -> str:
+    """Key-value pairs as an HTML definition list.
+
+    Parameters
+    ----------
+    pairs : iterable of tuple
+        (key, value); values other than text are formatted by :func:`fmt`.
+
+    Returns
+    -------
+    str
+        A ``<dl>``.
+    """
     return '<dl class="kv">' + "".join(
         f"<dt>{escape(str(k))}</dt><dd>{escape(v if isinstance(v, str) else fmt(v))}</dd>"
         for k, v in pairs) + "</dl>"
@@ -110,9 +173,27 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
                   figures: list[dict], warnings: list[str]) -> str:
     """HTML text of the report.
 
-    ``fit`` is fit.json, ``steps``/``cycles`` DataFrames of the extended steps.csv and
-    cycles.csv (``cycles`` may be None), ``figures`` dicts with ``png`` (bytes), ``alt`` and
-    ``caption``; ``warnings`` plain strings.
+    Parameters
+    ----------
+    title : str
+        The page's title.
+    fit : dict
+        The fit.json document.
+    steps : pandas.DataFrame
+        The extended steps.csv.
+    cycles : pandas.DataFrame or None
+        The cycles.csv.
+    provenance : dict
+        The provenance record.
+    figures : list of dict
+        With ``png`` (bytes), ``alt`` and ``caption``.
+    warnings : list of str
+        Plain strings.
+
+    Returns
+    -------
+    str
+        The page.
     """
     exp = provenance.get("experiment", {})
     theory = fit.get("theory") or {}

@@ -42,6 +42,26 @@ MAX_CELL = 34  # [characters]: longer cells wrap within their column
 
 @dataclass
 class Block:
+    """One block of a report page as the PDF writer lays it out.
+
+    Attributes
+    ----------
+    kind : str
+        What the block is: h1, h2, h3, p, warn, kv, table, figure, pre or note.
+    text : str
+        Its text.
+    pairs : list
+        Key-value pairs of a definition list.
+    header : list
+        A table's header.
+    rows : list
+        A table's rows.
+    left : list
+        Which columns are left-aligned.
+    png : bytes or None
+        A figure's image.
+    """
+
     kind: str  # h1 h2 h3 p warn kv table figure pre note
     text: str = ""
     pairs: list = field(default_factory=list)
@@ -166,7 +186,20 @@ class _ReportParser(HTMLParser):
 
 
 def parse_report(html_text: str) -> tuple[str, list[Block]]:
-    """(page title, blocks) of a report's HTML."""
+    """The page title and blocks of a report's HTML.
+
+    Parameters
+    ----------
+    html_text : str
+        The report.
+
+    Returns
+    -------
+    title : str
+        The page's title.
+    blocks : list of Block
+        Its blocks, in order.
+    """
     p = _ReportParser()
     p.feed(html_text)
     p.close()
@@ -402,7 +435,13 @@ def _render_matplotlib(html_text: str, out: Path) -> int:
 
 
 def find_chromium() -> str | None:
-    """The first Chromium or Chrome on the PATH (``TORQUEMOD_CHROMIUM`` names one)."""
+    """The first Chromium or Chrome on the PATH.
+
+    Returns
+    -------
+    str or None
+        Its path (``TORQUEMOD_CHROMIUM`` names one to prefer); None when there is none.
+    """
     names = [os.environ.get("TORQUEMOD_CHROMIUM") or "", "chromium", "chromium-browser",
              "google-chrome", "google-chrome-stable"]
     return next((shutil.which(n) for n in names if n and shutil.which(n)), None)
@@ -425,10 +464,30 @@ def _render_chromium(html_path: Path, out: Path) -> None:
 
 
 def html_to_pdf(html_path, pdf_path=None, *, engine: str = "matplotlib") -> Path:
-    """Write the report ``html_path`` as a PDF (default: beside it, ``.pdf``) and return its
-    path. The file appears whole or not at all (written beside its place, then renamed).
-    ``engine`` "matplotlib" (always available) or "chromium" (a headless Chromium on the
-    PATH prints the page with its print stylesheet)."""
+    """Write a report as a PDF; the file appears whole or not at all.
+
+    Parameters
+    ----------
+    html_path : str or pathlib.Path
+        The report.
+    pdf_path : str or pathlib.Path or None
+        The PDF; None: beside the report, ``.pdf``.
+    engine : {"matplotlib", "chromium"}
+        "matplotlib" (always available) or "chromium" (a headless Chromium on the PATH prints
+        the page with its print stylesheet). Default "matplotlib".
+
+    Returns
+    -------
+    pathlib.Path
+        The PDF.
+
+    Raises
+    ------
+    InputError
+        An unknown engine, an unreadable report, or no Chromium for that engine.
+    OutputError
+        Chromium could not print the report.
+    """
     if engine not in PDF_ENGINES:
         raise InputError(f"unknown PDF engine {engine!r}; choose one of {PDF_ENGINES}")
     html_path = Path(html_path)

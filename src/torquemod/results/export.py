@@ -26,9 +26,28 @@ EXPORT_FORMATS = {"csv": ".csv", "mat": ".mat", "parquet": ".parquet"}
 
 
 def check_formats(formats) -> tuple[str, ...]:
-    """``formats`` (a comma-separated string or a sequence of names) as a tuple of known
-    format names (:data:`EXPORT_FORMATS`), in order, without repeats; raises
-    :class:`InputError` naming an unknown one."""
+    """Export format names checked.
+
+    Parameters
+    ----------
+    formats : str or sequence of str or None
+        A comma-separated string or a sequence of names; None or empty: none.
+
+    Returns
+    -------
+    tuple of str
+        Known format names (:data:`EXPORT_FORMATS`), in order, without repeats.
+
+    Raises
+    ------
+    InputError
+        An unknown name, listing the known ones.
+
+    Examples
+    --------
+    >>> check_formats("csv, csv")
+    ('csv',)
+    """
     if formats is None:
         return ()
     if isinstance(formats, str):
@@ -47,8 +66,23 @@ def check_formats(formats) -> tuple[str, ...]:
 
 
 def mat_name(name: str) -> str:
-    """``name`` as a MATLAB identifier (letters, digits, ``_``; starting with a letter;
-    at most 63 characters)."""
+    """A name as a MATLAB identifier.
+
+    Parameters
+    ----------
+    name : str
+        The name.
+
+    Returns
+    -------
+    str
+        Letters, digits and ``_``; starting with a letter; at most 63 characters.
+
+    Examples
+    --------
+    >>> mat_name("phase_deg (mean)")
+    'phase_deg__mean_'
+    """
     s = re.sub(r"\W", "_", str(name), flags=re.ASCII)
     if not s or not s[0].isalpha():
         s = "x" + s
@@ -69,8 +103,29 @@ def _mat_column(values) -> np.ndarray:
 
 
 def write_table(frame, base: Path, fmt: str, *, name: str | None = None) -> Path:
-    """Write the DataFrame ``frame`` as ``base`` + the format's suffix; ``name``: the
-    struct's name in a ``.mat`` file (default: the file's stem). Returns the path."""
+    """Write a table in an export format.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        The table (SI units, as in the Parquet/CSV tables).
+    base : pathlib.Path
+        The file without suffix; the format's suffix is added.
+    fmt : str
+        One of :data:`EXPORT_FORMATS`.
+    name : str or None
+        The struct's name in a ``.mat`` file; None: the file's stem.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+
+    Raises
+    ------
+    InputError
+        Two columns become the same MATLAB name.
+    """
     fmt = check_formats([fmt])[0]
     path = Path(str(base) + EXPORT_FORMATS[fmt])
     if fmt == "csv":

@@ -114,9 +114,31 @@ def save(result: ProcessResult, analysis: Analysis | None, folder, *, force: boo
 def update(folder, result: ProcessResult, analysis: Analysis | None, *,
            command: list[str] | None = None, report: bool = True, report_options=None
            ) -> Path:
-    """Rewrite an existing results folder with a new analysis or report, atomically: readers
-    see the old folder or the new one, never a mix. provenance.json keeps the processing
-    command (``result.command``) unless ``command`` is given."""
+    """Rewrite an existing results folder with a new analysis or report, atomically.
+
+    Readers see the old folder or the new one, never a mix.
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        The results folder (:func:`torquemod.save`).
+    result : ProcessResult
+        The processing result it holds.
+    analysis : Analysis or None
+        The new analysis; None: none.
+    command : list of str or None
+        The command for provenance.json; None keeps the processing command
+        (``result.command``).
+    report : bool
+        Write the report. Default True.
+    report_options : dict or None
+        Options of the report. Default None.
+
+    Returns
+    -------
+    pathlib.Path
+        The folder.
+    """
     from torquemod.results.export import EXPORT_FORMATS
     folder = Path(folder)
     # the exported copies of the tables the folder holds are rewritten with them

@@ -38,13 +38,47 @@ _UNITS = {"rig.speed_km_h": " km/h", "rig.normal_load_n": " N",
 
 
 def short_name(key: str) -> str:
-    """The short name of a swept key in labels (``contact.k_a`` -> ``kA``; unknown keys:
-    their last part)."""
+    """The short name of a swept key in labels.
+
+    Parameters
+    ----------
+    key : str
+        A swept key, e.g. ``contact.k_a``.
+
+    Returns
+    -------
+    str
+        ``mu0``, ``A``, ``B``, ``kA``, ``kS`` (Polach 2005, Eqs. 8-9), ``V``, ``N``, ...;
+        unknown keys: their last part.
+
+    Examples
+    --------
+    >>> short_name("contact.k_a")
+    'kA'
+    >>> short_name("sensors.torque_noise_nm")
+    'torque_noise_nm'
+    """
     return _SHORT.get(key, key.rsplit(".", 1)[-1])
 
 
 def condition_keys(swept) -> list[str]:
-    """The swept keys that make a condition: all but the modulation setting."""
+    """The swept keys that make a condition: all but the modulation setting.
+
+    Parameters
+    ----------
+    swept : iterable of str
+        The swept keys.
+
+    Returns
+    -------
+    list of str
+        Those other than ``modulation.frequency_hz`` and ``modulation.amplitude_nm``.
+
+    Examples
+    --------
+    >>> condition_keys(["modulation.frequency_hz", "contact.mu0"])
+    ['contact.mu0']
+    """
     return [k for k in swept if k not in SETTING_KEYS]
 
 
@@ -63,12 +97,23 @@ def _text(value) -> str:
 
 
 def condition_labels(table: pd.DataFrame, swept) -> pd.Series:
-    """Per row of ``table`` the label of its condition (same index); ``""`` for every row
-    when the sweep has a single condition.
+    """Per row of a table the label of its condition.
 
     The label joins ``name=value`` for each condition key whose value differs between the
-    conditions (a named condition by its name alone); a key a point does not set is left
-    out of that point's label. Labels are unique per condition (a ``#n`` suffix otherwise).
+    conditions (a named condition by its name alone); a key a point does not set is left out
+    of that point's label. Labels are unique per condition (a ``#n`` suffix otherwise).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        Rows with the swept keys as columns.
+    swept : iterable of str
+        The swept keys.
+
+    Returns
+    -------
+    pandas.Series of str
+        Same index; ``""`` for every row when the sweep has a single condition.
     """
     keys = [k for k in condition_keys(swept) if k in table]
     if not keys or table.empty:
@@ -101,10 +146,17 @@ def condition_labels(table: pd.DataFrame, swept) -> pd.Series:
 
 
 def conditions() -> dict[str, PolachParameters]:
-    """Named friction conditions a sweep can set with ``contact.condition``: the rig's
-    presets (:data:`~torquemod.analysis.contact.presets.POLACH_PRESETS`: vtrack, dry, wet) and the
-    train twin's track conditions (``torquemod.twins.train.params.CONDITIONS``: leaves,
-    friction_modifier), each with its source."""
+    """Named friction conditions a sweep can set with ``contact.condition``.
+
+    The rig's presets (:data:`~torquemod.analysis.contact.presets.POLACH_PRESETS`: vtrack,
+    dry, wet) and the train twin's track conditions (leaves, friction_modifier), each with
+    its source.
+
+    Returns
+    -------
+    dict of str to PolachParameters
+        By name.
+    """
     out = dict(POLACH_PRESETS)
     try:
         from torquemod.twins.train.params import CONDITIONS

@@ -54,7 +54,36 @@ CHAIN_RULE = "band, band-pass, high-pass, slow model x f/2; resampling rate x ma
 
 @dataclass(frozen=True)
 class PointTask:
-    """What a worker needs to evaluate one point (picklable, small)."""
+    """What a worker needs to evaluate one sweep point (picklable, small).
+
+    Attributes
+    ----------
+    point_id : str
+        The point's identifier (a hash of its parameters and seed).
+    index : int
+        Its position in the sweep.
+    params : dict
+        Its swept parameters, by key.
+    overrides : dict
+        The twin configuration's overrides they make.
+    seed : int
+        The twin's random seed.
+    mode : {"theory", "full"}
+        Theory only, or twin -> chain -> fits.
+    base : str or None
+        The base configuration file; None: the packaged default.
+    fractions_of_peak : tuple of float or None
+        The DC torques as fractions of the creep-curve peak torque [-]; None: the base's.
+    max_utilisation : float
+        Utilisation limit of the recommendation [-] (``[recommend]``).
+    processing : dict
+        The chain's ``[processing]`` table (full mode).
+    kind : {"rig", "train"}
+        A rig point, or a train point (:mod:`torquemod.sweep.trainpoint`). Default "rig".
+    max_mu_error : float
+        Train sweeps: a mu row counts when its relative error is within this [-].
+        Default 0.10.
+    """
 
     point_id: str
     index: int
@@ -71,7 +100,18 @@ class PointTask:
 
 
 def tasks(spec) -> list[PointTask]:
-    """One :class:`PointTask` per point of ``spec`` (a :class:`~torquemod.sweep.spec.SweepSpec`)."""
+    """One :class:`PointTask` per point of a sweep.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep's specification.
+
+    Returns
+    -------
+    list of PointTask
+        In the sweep's order.
+    """
     base = None if spec.base is None else str(spec.base.resolve())
     return [PointTask(point_id=p.point_id, index=p.index, params=p.params,
                       overrides=p.overrides(), seed=p.seed, mode=spec.mode, base=base,
@@ -83,8 +123,21 @@ def tasks(spec) -> list[PointTask]:
 
 
 def point_config(task: PointTask):
-    """``(SimConfig, T_peak [N*m])``: the base config with the point's overrides, its DC
-    torques set to ``fractions_of_peak`` of the creep-curve peak torque when given."""
+    """The twin's configuration of a point and its creep-curve peak torque.
+
+    Parameters
+    ----------
+    task : PointTask
+        The point.
+
+    Returns
+    -------
+    config : SimConfig
+        The base configuration with the point's overrides, its DC torques set to
+        ``fractions_of_peak`` of the peak torque when given.
+    t_peak_nm : float
+        The peak torque T_peak = mu_true*R_w*N [N*m].
+    """
     from torquemod.twins.vtrack.simulate import load_config
     from torquemod.twins.vtrack.theory import creep_curve_peak
     config = load_config(task.base, overrides=task.overrides)
@@ -98,10 +151,49 @@ def point_config(task: PointTask):
 
 def phase_crlb_deg(torque_amplitude_nm, speed_amplitude_rad_s, *, torque_noise_nm: float,
                    speed_noise_rad_s: float, sample_rate_hz: float, duration_s: float):
-    """Cramér-Rao bound [deg] of the phase difference of two sinusoids of amplitudes A1, A2
-    in white noise sigma1, sigma2 over ``duration_s`` at ``sample_rate_hz``:
-    ``var = (2*s1^2/A1^2 + 2*s2^2/A2^2)/(fs*T)`` [rad^2] (Rife and Boorstyn 1974, one-sided PSD
-    ``2*sigma^2/fs``). A lower bound: the chain also sees the rig's disturbances."""
+    """Cramér-Rao bound of the phase difference of two sinusoids in white noise.
+
+    A lower bound: the chain also sees the rig's disturbances.
+
+    Parameters
+    ----------
+    torque_amplitude_nm : float or array_like
+        Torque amplitude A1 [N*m].
+    speed_amplitude_rad_s : float or array_like
+        Wheel-speed amplitude A2 [rad/s].
+    torque_noise_nm : float
+        Torque noise standard deviation sigma1 [N*m].
+    speed_noise_rad_s : float
+        Speed noise standard deviation sigma2 [rad/s].
+    sample_rate_hz : float
+        Sample rate fs [Hz].
+    duration_s : float
+        Record length T [s].
+
+    Returns
+    -------
+    float or ndarray
+        Standard deviation of the phase difference [deg].
+
+    Notes
+    -----
+    ``var = (2*s1^2/A1^2 + 2*s2^2/A2^2)/(fs*T)`` [rad^2]: each phase's bound
+    ``2*sigma^2/(A^2*N)`` for N = fs*T samples of a tone of known frequency [1]_, [2]_, the two
+    independent.
+
+    References
+    ----------
+    .. [1] D.C. Rife and R.R. Boorstyn, "Single-tone parameter estimation from discrete-time
+       observations", IEEE Trans. Inf. Theory 20(5) (1974) 591-598.
+    .. [2] S.M. Kay, "Fundamentals of Statistical Signal Processing: Estimation Theory",
+       Prentice Hall 1993, §3.
+
+    Examples
+    --------
+    >>> round(float(phase_crlb_deg(1.0, 1.0, torque_noise_nm=0.01, speed_noise_rad_s=0.01,
+    ...                            sample_rate_hz=1000.0, duration_s=2.0)), 6)
+    0.025623
+    """
     n = sample_rate_hz * duration_s
     var = (2.0 * torque_noise_nm**2 / np.asarray(torque_amplitude_nm, float) ** 2
            + 2.0 * speed_noise_rad_s**2 / np.asarray(speed_amplitude_rad_s, float) ** 2) / n
@@ -109,10 +201,23 @@ def phase_crlb_deg(torque_amplitude_nm, speed_amplitude_rad_s, *, torque_noise_n
 
 
 def creep_time_constant_s(config, creep_coefficient) -> np.ndarray:
-    """Time constant [s] of the wheel's speed relative to the platform at an operating point
-    of creep coefficient k = dCoA/dxi [-] (:func:`torquemod.analysis.creep.time_constant_s`): the
-    drive line turns as one body below its torsional mode, so its inertia is the wheel's
-    and the motor side's, ``J_w + J_m``."""
+    """Time constant of the wheel's speed relative to the platform at an operating point.
+
+    The drive line turns as one body below its torsional mode, so its inertia is the wheel's
+    and the motor side's, ``J_w + J_m`` (:func:`torquemod.analysis.creep.time_constant_s`).
+
+    Parameters
+    ----------
+    config : SimConfig
+        The twin's configuration (rig geometry, inertias, speed, load).
+    creep_coefficient : float or array_like
+        Creep coefficient k = dCoA/dxi at the operating point [-].
+
+    Returns
+    -------
+    ndarray
+        The time constant [s].
+    """
     rig = config.rig
     return time_constant_s(inertia_kg_m2=rig.wheel_inertia_kg_m2 + rig.drive_inertia_kg_m2,
                            speed_m_s=rig.speed_m_s, wheel_radius_m=rig.wheel_radius_m,
@@ -121,16 +226,28 @@ def creep_time_constant_s(config, creep_coefficient) -> np.ndarray:
 
 
 def settle_time_s(config, rows: list[dict]) -> float:
-    """Run-in [s] of every step in full mode: the configured ``procedure.settle_s``, or
-    :data:`SETTLE_TIME_CONSTANTS` time constants (:func:`creep_time_constant_s`) of the
-    slowest step the twin records (below the peak and below ``procedure.slip_creepage``),
-    whichever is longer.
+    """Run-in of every step in full mode.
 
-    A step starts from the previous step's steady state and ramps its DC torque; near the
-    creep curve's peak that transient decays slowly (tau ~ 1 s at 90 % utilisation on
-    leaves) and, not settled, it biases the recorded phase: measured (audit) twin
-    minus large-signal theory -0.24 deg on leaves at 90 %, 2 Hz, after the 3 s the example
-    gave, and 3e-5 deg after 10 s. exp(-8) leaves ~0.002 deg there."""
+    The configured ``procedure.settle_s``, or :data:`SETTLE_TIME_CONSTANTS` time constants
+    (:func:`creep_time_constant_s`) of the slowest step the twin records (below the peak and
+    below ``procedure.slip_creepage``), whichever is longer. A step starts from the previous
+    step's steady state and ramps its DC torque; near the creep curve's peak that transient
+    decays slowly (tau ~ 1 s at 90 % utilisation on leaves) and, not settled, it biases the
+    recorded phase: measured twin minus large-signal theory -0.24 deg on leaves at 90 %,
+    2 Hz, after 3 s, and 3e-5 deg after 10 s. exp(-8) leaves ~0.002 deg there.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The twin's configuration.
+    rows : list of dict
+        The point's steps with their theory operating points (creep coefficient, creepage).
+
+    Returns
+    -------
+    float
+        The run-in [s].
+    """
     # the steps the twin records: below the creep curve's peak and below the creepage at
     # which it counts the wheel as slipping (procedure.slip_creepage; it stops there)
     slip = config.procedure.slip_creepage
@@ -248,15 +365,33 @@ def _f(x) -> float:
 
 
 def chain_config(frequency_hz: float, processing: dict | None = None):
-    """The processing chain's parameters for a modulation at ``frequency_hz`` [Hz]
-    (:meth:`torquemod.io.config.ProcessingConfig.for_modulation`: the defaults, tuned for the
-    paper's 2 Hz, with every frequency-bound setting scaled by ``frequency_hz/2``; above
-    2 Hz also the resampling rate, so that a period keeps its 26.7 samples: the paper's
+    """The processing chain's parameters for a modulation frequency.
+
+    :meth:`torquemod.io.config.ProcessingConfig.for_modulation`: the defaults, tuned for the
+    V-Track paper's 2 Hz, with every frequency-bound setting scaled by ``frequency_hz/2``;
+    above 2 Hz also the resampling rate, so that a period keeps its 26.7 samples (the paper's
     peak/valley phase interpolates each peak by a parabola, whose bias grows as the samples
-    per period fall (audit: noise-free twin at 8 Hz, 6.7 samples a period, the
-    chain's phase 0.025 deg (median) to 0.074 deg off the theory with a standard error of
-    1e-4 deg; with the rate scaled, 0.0012 deg). Then the keys the sweep's ``processing``
-    table gives (nested as a manifest's ``[processing]``)."""
+    per period fall: noise-free twin at 8 Hz, 6.7 samples a period, the chain's phase 0.025
+    deg (median) to 0.074 deg off the theory; with the rate scaled, 0.0012 deg). Then the keys
+    the sweep's ``processing`` table gives.
+
+    Parameters
+    ----------
+    frequency_hz : float
+        Modulation frequency [Hz].
+    processing : dict or None
+        The sweep's ``processing`` table, nested as a manifest's ``[processing]``.
+
+    Returns
+    -------
+    ProcessingConfig
+        The chain's parameters.
+
+    Raises
+    ------
+    InputError
+        A bad ``processing`` key or value, naming ``sweep [processing]``.
+    """
     from torquemod.io.config import ProcessingConfig
     return ProcessingConfig.for_modulation(frequency_hz, processing or {},
                                            source="sweep [processing]")
@@ -347,14 +482,33 @@ def _friction_at_top(df: pd.DataFrame, use: pd.Series, rig) -> float:
 
 def evaluate_point(task: PointTask, *, workdir: str | Path | None = None,
                    through_files: bool = False) -> pd.DataFrame:
-    """The rows of one point (raises :class:`~torquemod.errors.TorquemodError` when the
-    point cannot be evaluated: a bad parameter, a wheel that slips at the first step).
+    """The rows of one sweep point, one per torque step.
 
     A rig point in full mode runs the twin, the chain and the fits in memory; with
     ``through_files`` the twin's experiment is written as HDF5 into a temporary folder in
     ``workdir`` (removed after) and read back by the chain, which gives the same rows. A
-    train point (:func:`torquemod.sweep.trainpoint.evaluate_train_point`) uses
-    ``workdir`` for its run."""
+    train point (:func:`torquemod.sweep.trainpoint.evaluate_train_point`) uses ``workdir``
+    for its run.
+
+    Parameters
+    ----------
+    task : PointTask
+        The point.
+    workdir : str or pathlib.Path or None
+        Folder for temporary files. Default None (the system's).
+    through_files : bool
+        Go through files instead of memory (rig, full mode). Default False.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The point's rows of the sweep table.
+
+    Raises
+    ------
+    TorquemodError
+        The point cannot be evaluated: a bad parameter, a wheel that slips at the first step.
+    """
     if task.kind == "train":
         from torquemod.sweep.trainpoint import evaluate_train_point
         return evaluate_train_point(task, workdir=workdir)

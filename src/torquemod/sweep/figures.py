@@ -54,9 +54,26 @@ def _cmap_colour(i: int, n: int):
 
 
 def small_signal_deg(df: pd.DataFrame) -> np.ndarray:
-    """Phase [deg] of the rigid-wheel small-signal model, the paper's Eq. (1),
-    ``tan(phi) = Omega*J*V/(R^2*N*k)``, at each row's creep coefficient ``k`` (its constant
-    ``Omega*J*V/(R^2*N)`` is the table's ``theory_constant``)."""
+    """Phase of the rigid-wheel small-signal model at each row's creep coefficient.
+
+    Eq. (1) of [1]_, ``tan(phi) = Omega*J*V/(R^2*N*k)`` (its constant
+    ``Omega*J*V/(R^2*N)`` is the table's ``theory_constant``).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        Rows with ``theory_constant`` [-] and ``creep_coefficient`` [-].
+
+    Returns
+    -------
+    ndarray
+        Phase [deg].
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
+    """
     return phase_from_constant_deg(df["theory_constant"].to_numpy(float),
                                    df["creep_coefficient"].to_numpy(float))
 
@@ -142,10 +159,29 @@ def _style_handles(table: pd.DataFrame) -> list:
 
 def phase_panels_figure(table: pd.DataFrame, *, panel: str = CONDITION_COLUMN,
                         curve: str = FREQ, panels=None, title: str = "", ax=None):
-    """The phase against utilisation, one panel per value of ``panel`` (default: the
-    condition; ``panels`` selects and orders them) and one colour per value of ``curve``
-    (default: the modulation frequency). ``table`` holds the rows to draw (one modulation
-    amplitude and seed: the caller's selection) and a ``condition`` column."""
+    """The phase against utilisation, one panel per value of a column.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The rows to draw (one modulation amplitude and seed: the caller's selection), with a
+        ``condition`` column.
+    panel : str
+        The column with one panel per value. Default the condition.
+    curve : str
+        The column with one colour per value. Default the modulation frequency.
+    panels : sequence or None
+        Selects and orders the panels. Default None (all).
+    title : str
+        The figure's title. Default "".
+    ax : matplotlib.axes.Axes or None
+        Axes to draw in; None: a new figure.
+
+    Returns
+    -------
+    matplotlib.axes.Axes or ndarray of Axes
+        ``ax`` as given, else the new figure's Axes (an array when it holds several panels).
+    """
     values = list(dict.fromkeys(table[panel])) if panels is None else list(panels)
     curves = list(dict.fromkeys(table[curve]))
     fig, axes = _panel_grid(len(values), ax, **({"cols_max": 3, "width": 4.4}
@@ -172,12 +208,32 @@ def phase_panels_figure(table: pd.DataFrame, *, panel: str = CONDITION_COLUMN,
 
 
 def creep_curves_figure(curves: dict, table: pd.DataFrame, *, ax=None):
-    """Per condition (one panel each) the longitudinal adhesion-creepage curve ``F_x/N``
-    at the operating speed (Polach 2005), its peak -- the available adhesion, the true mu
-    of the sweep -- and the steady operating points of the steps (``T_dc/(R*N)``); in full
-    mode also the chain's measured points, coloured by modulation frequency.
+    """Per condition the adhesion-creepage curve, its peak and the steps' operating points.
 
-    ``curves``: condition label -> ``(creepage [-], F_x/N [-], peak creepage, peak)``."""
+    The longitudinal curve ``F_x/N`` at the operating speed [1]_, its peak -- the available
+    adhesion, the true mu of the sweep -- and the steady operating points of the steps
+    (``T_dc/(R*N)``); in full mode also the chain's measured points, coloured by modulation
+    frequency.
+
+    Parameters
+    ----------
+    curves : dict
+        Condition label -> ``(creepage [-], F_x/N [-], peak creepage [-], peak [-])``.
+    table : pandas.DataFrame
+        The sweep table with a ``condition`` column.
+    ax : matplotlib.axes.Axes or None
+        Axes to draw in; None: a new figure.
+
+    Returns
+    -------
+    matplotlib.axes.Axes or ndarray of Axes
+        ``ax`` as given, else the new figure's Axes (an array when it holds several panels).
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000.
+    """
     labels = list(curves)
     fig, axes = _panel_grid(len(labels), ax, height=3.2, cols_max=3, width=4.2)
     freqs = list(dict.fromkeys(table[FREQ])) if FREQ in table else []
@@ -231,10 +287,24 @@ def _wrap(label: str, width: int = 22) -> str:
 
 
 def sensitivity_figure(summary: pd.DataFrame, *, ax=None):
-    """The slope dphi/du of the phase over the 50-80 % utilisation band [deg per %]:
-    against the modulation frequency, one colour per condition and one line style per
+    """The slope dphi/du of the phase over the 50-80 % utilisation band [deg per %].
+
+    Against the modulation frequency, one colour per condition and one line style per
     amplitude (large-signal theory: lines; chain: markers). With a single frequency the
-    conditions are the x axis (categories: markers only)."""
+    conditions are the x axis (categories: markers only).
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        The point summary (:func:`torquemod.sweep.summary.point_summary`).
+    ax : matplotlib.axes.Axes or None
+        Axes to draw in; None: a new figure.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes drawn in.
+    """
     _fig, ax = figure_axes(ax, figsize=(7.5, 4.6))
     conds = list(dict.fromkeys(summary[CONDITION_COLUMN]))
     amps = list(dict.fromkeys(summary[AMP]))
@@ -277,10 +347,23 @@ def sensitivity_figure(summary: pd.DataFrame, *, ax=None):
 
 
 def mu_error_figure(summary: pd.DataFrame, *, ax=None):
-    """mu from the phase relative to the true mu (the available adhesion) [%], grouped per
-    condition, the modulation settings side by side (colour: frequency, marker: amplitude):
-    filled with the 95 % interval where mu is determined, open at the lower bound where it
-    is not. Markers only: the conditions are categories."""
+    """mu from the phase relative to the true mu (the available adhesion) [%], per condition.
+
+    The modulation settings side by side (colour: frequency, marker: amplitude): filled with
+    the 95 % interval where mu is determined, open at the lower bound where it is not.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        The point summary.
+    ax : matplotlib.axes.Axes or None
+        Axes to draw in; None: a new figure.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes drawn in.
+    """
     conds = list(dict.fromkeys(summary[CONDITION_COLUMN]))
     _fig, ax = figure_axes(ax, figsize=(max(7.5, 1.3 * len(conds) + 3.0), 4.8))
     freqs = sorted(dict.fromkeys(summary[FREQ]))
@@ -327,8 +410,28 @@ def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None,
                        ripple_label: str = "torque ripple [% of Ts]",
                        title: str = "disturbance added by the modulation (largest below the "
                                     "utilisation limit; dashed: limits)"):
-    """Per modulation setting the largest creepage swing amplitude and torque ripple [% of
-    the saturation torque] below the utilisation limit, with the limits dashed."""
+    """Per modulation setting the largest creepage swing and torque ripple, with the limits.
+
+    Below the utilisation limit; the limits dashed.
+
+    Parameters
+    ----------
+    settings : pandas.DataFrame
+        One row per setting (:func:`torquemod.sweep.summary.setting_table`).
+    limits : dict
+        The ``[recommend]`` limits.
+    ax : matplotlib.axes.Axes or None
+        Axes to draw in; None: a new figure.
+    ripple_label : str
+        Label of the ripple axis. Default "torque ripple [% of Ts]".
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    matplotlib.axes.Axes or ndarray of Axes
+        ``ax`` as given, else the new figure's Axes (an array when it holds several panels).
+    """
     _fig, axes = figure_axes(ax, 2, figsize=(7.0, 5.5))
     label = [f"{f:.3g} Hz\n{a:.3g} N*m" for f, a in zip(
         settings["modulation_frequency_nominal_hz"], settings["modulation_amplitude_nm"],

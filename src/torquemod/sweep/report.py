@@ -44,8 +44,22 @@ def _png(fig) -> bytes:
 
 
 def save_png(png: bytes, path: Path) -> Path:
-    """Write the PNG bytes ``png`` to ``path`` (beside it first, then renamed into place):
-    each figure is drawn once, for the page and the file alike."""
+    """Write PNG bytes to a file (beside it first, then renamed into place).
+
+    Each figure is drawn once, for the page and the file alike.
+
+    Parameters
+    ----------
+    png : bytes
+        The image.
+    path : pathlib.Path
+        The file.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
@@ -66,11 +80,29 @@ def _frequencies(values, at_most: int = 6) -> list:
 
 
 def creep_curves(tab: pd.DataFrame, spec: SweepSpec) -> dict:
-    """Per condition of ``tab`` (its ``condition`` column) the twin's longitudinal
-    adhesion-creepage curve at the operating speed, ``F_x/N`` (Polach 2005, Eqs. 1-9):
-    ``name -> (creepage [-], F_x/N [-], creepage at the peak, peak F_x/N, labels)``.
-    Conditions whose curves are the same (they differ only in noise, say) share one entry,
-    named after the first and listing all their ``labels``."""
+    """Per condition the twin's longitudinal adhesion-creepage curve at the operating speed.
+
+    ``F_x/N`` of the Polach model [1]_. Conditions whose curves are the same (they differ
+    only in noise, say) share one entry, named after the first and listing all their labels.
+
+    Parameters
+    ----------
+    tab : pandas.DataFrame
+        The sweep table (``sweep.parquet``) with its ``condition`` labels.
+    spec : SweepSpec
+        The sweep's specification.
+
+    Returns
+    -------
+    dict
+        ``name -> (creepage [-], F_x/N [-], creepage at the peak [-], peak F_x/N [-],
+        labels)``.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (1)-(9).
+    """
     from torquemod.analysis.contact.polach import creep_force
     from torquemod.sweep.evaluate import point_config, tasks
     from torquemod.twins.vtrack.theory import creep_curve_peak
@@ -102,7 +134,22 @@ def creep_curves(tab: pd.DataFrame, spec: SweepSpec) -> dict:
 
 
 def make_figures(tab: pd.DataFrame, spec: SweepSpec, rec: dict) -> list[tuple[str, object, str]]:
-    """``(file stem, Figure, caption)`` of every figure of the sweep."""
+    """Every figure of the sweep.
+
+    Parameters
+    ----------
+    tab : pandas.DataFrame
+        The sweep table (``sweep.parquet``) with its ``condition`` labels.
+    spec : SweepSpec
+        The sweep's specification.
+    rec : dict
+        The recommendation (:func:`torquemod.sweep.summary.recommend`).
+
+    Returns
+    -------
+    list of tuple
+        ``(file stem, matplotlib Figure, caption)``.
+    """
     summary = point_summary(tab, spec)
     tab = tab.assign(**{CONDITION_COLUMN: condition_labels(tab, spec.swept)})
     conds = list(dict.fromkeys(tab[CONDITION_COLUMN]))
@@ -165,8 +212,25 @@ def make_figures(tab: pd.DataFrame, spec: SweepSpec, rec: dict) -> list[tuple[st
 
 
 def reasoning_html(text: str, cls: str = "") -> str:
-    """The recommendation's reasoning as a paragraph, its answer (a first sentence
-    ``Recommended: ...``) in bold."""
+    """The recommendation's reasoning as an HTML paragraph, its answer in bold.
+
+    Parameters
+    ----------
+    text : str
+        The reasoning; its first sentence ``Recommended: ...`` is the answer.
+    cls : str
+        The paragraph's CSS class. Default "".
+
+    Returns
+    -------
+    str
+        A ``<p>`` element, text escaped.
+
+    Examples
+    --------
+    >>> reasoning_html("Recommended: 2 Hz. Because.")
+    "<p class=''><b>Recommended: 2 Hz.</b> Because.</p>"
+    """
     head, sep, rest = text.partition(". ")
     if head.startswith("Recommended:") and sep:
         return f"<p class='{cls}'><b>{escape(head)}.</b> {escape(rest)}</p>"
@@ -211,7 +275,31 @@ def _points_html(summary: pd.DataFrame, spec: SweepSpec) -> str:
 
 def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
            failures=None, wall_s: float | None = None) -> str:
-    """The report page as a string."""
+    """The sweep's report page as a string.
+
+    Parameters
+    ----------
+    tab : pandas.DataFrame
+        The sweep table (``sweep.parquet``) with its ``condition`` labels.
+    spec : SweepSpec
+        The sweep's specification.
+    rec : dict
+        The recommendation (:func:`torquemod.sweep.summary.recommend`).
+    figs : list of tuple
+        ``(file stem, PNG bytes, caption)`` of each figure.
+    status : object
+        Accepted for the callers' convenience; not shown. Default None.
+    failures : pandas.DataFrame or None
+        The points that failed (``point_index``, ``params``, ``seed``, ``message``).
+        Default None.
+    wall_s : float or None
+        Wall time of the sweep [s]. Default None.
+
+    Returns
+    -------
+    str
+        The HTML page.
+    """
     summary = point_summary(tab, spec)
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>"
              f"{escape(spec.name)} — torquemod sweep</title><style>{CSS}</style></head><body>",
@@ -272,8 +360,31 @@ def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
 
 def write_report(out: str | Path, tab: pd.DataFrame, spec: SweepSpec, rec: dict, *,
                  status=None, failures=None, wall_s: float | None = None) -> Path:
-    """Draw the figures into ``out/figures`` and write ``out/report.html`` (atomically);
-    return the report's path."""
+    """Draw the figures into ``out/figures`` and write ``out/report.html`` atomically.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        The sweep's results folder.
+    tab : pandas.DataFrame
+        The sweep table (``sweep.parquet``) with its ``condition`` labels.
+    spec : SweepSpec
+        The sweep's specification.
+    rec : dict
+        The recommendation (:func:`torquemod.sweep.summary.recommend`).
+    status : object
+        Accepted for the callers' convenience; not shown. Default None.
+    failures : pandas.DataFrame or None
+        The points that failed (``point_index``, ``params``, ``seed``, ``message``).
+        Default None.
+    wall_s : float or None
+        Wall time of the sweep [s]. Default None.
+
+    Returns
+    -------
+    pathlib.Path
+        The report.
+    """
     out = Path(out)
     figs = []
     for stem, fig, caption in make_figures(tab, spec, rec):

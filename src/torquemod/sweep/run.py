@@ -49,10 +49,23 @@ FAILURE_COLUMNS = ["point_id", "point_index", "seed", "params", "message"]
 
 
 def fingerprint(task: PointTask) -> str:
-    """SHA-256 over what a point's rows depend on: its parameters and seed, the mode, the
-    torque fractions, the utilisation limit of the phase fit, the base config's text (the
-    default config's when none), the torquemod version and, in full mode, the run-in rule
-    and the chain's frequency scaling (a changed rule reruns the points)."""
+    """SHA-256 over what a point's rows depend on.
+
+    Its parameters and seed, the mode, the torque fractions, the utilisation limit of the
+    phase fit, the base config's text (the default config's when none), the torquemod
+    version and, in full mode, the run-in rule and the chain's frequency scaling (a changed
+    rule reruns the points).
+
+    Parameters
+    ----------
+    task : PointTask
+        The point.
+
+    Returns
+    -------
+    str
+        Hex digest.
+    """
     from torquemod.twins.train.params import default_train_config_text
     from torquemod.twins.vtrack.simulate import default_config_text
     default = default_train_config_text if task.kind == "train" else default_config_text
@@ -120,8 +133,23 @@ def _one_line(exc: BaseException) -> str:
 
 
 def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
-    """Evaluate one point into its partition (a Dask task; also usable alone). Never
-    raises: returns a status row (``done``, ``skipped`` or ``failed`` with the message)."""
+    """Evaluate one point into its partition (a Dask task; also usable alone). Never raises.
+
+    Parameters
+    ----------
+    task : PointTask
+        The point.
+    out_dir : str
+        The sweep's output folder.
+    force : bool
+        Rerun a point whose fingerprint is unchanged. Default False.
+
+    Returns
+    -------
+    dict
+        Status row: ``done``, ``skipped`` or ``failed`` with the message; rows written,
+        seconds [s].
+    """
     t0 = time.perf_counter()
     out = Path(out_dir)
     row = {"point_id": task.point_id, "point_index": task.index, "seed": task.seed,
@@ -161,10 +189,27 @@ def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
 
 @dataclass(frozen=True)
 class SweepResult:
-    """What :func:`run_sweep` did: the table (one row per point and step; a train sweep:
-    per point and friction segment), the status of
-    each point, the failures, the recommendation (a dict, see
-    :func:`torquemod.sweep.report.recommend`), paths, dashboard link and wall time [s]."""
+    """What :func:`run_sweep` did.
+
+    Attributes
+    ----------
+    out_dir : pathlib.Path
+        The output folder.
+    table : pandas.DataFrame
+        One row per point and step (a train sweep: per point and friction segment).
+    status : pandas.DataFrame
+        The status of each point.
+    failures : pandas.DataFrame
+        The failed points.
+    recommendation : dict
+        The recommendation (:func:`torquemod.sweep.summary.recommend`).
+    report : pathlib.Path or None
+        The report; None when not written.
+    dashboard : str or None
+        The Dask dashboard's address.
+    wall_s : float
+        Wall time [s].
+    """
 
     out_dir: Path
     table: pd.DataFrame
@@ -228,18 +273,49 @@ BATCHES_PER_SLOT = 3
 
 def point_batches(todo: list[PointTask], slots: int,
                   per_slot: int = BATCHES_PER_SLOT) -> list[list[PointTask]]:
-    """The points cut into ``slots * per_slot`` batches (fewer when there are fewer
-    points), one Dask task each. Points are dealt round-robin, so that neighbours in the
-    grid (often alike in cost: the same frequency, the same condition) spread over the
-    batches."""
+    """The points cut into batches, one Dask task each.
+
+    Points are dealt round-robin, so that neighbours in the grid (often alike in cost: the
+    same frequency, the same condition) spread over the batches.
+
+    Parameters
+    ----------
+    todo : list of PointTask
+        The points to run.
+    slots : int
+        Worker slots [-].
+    per_slot : int
+        Batches per slot [-]. Default :data:`BATCHES_PER_SLOT`.
+
+    Returns
+    -------
+    list of list of PointTask
+        ``slots*per_slot`` batches (fewer when there are fewer points).
+    """
     n = max(1, min(len(todo), slots * per_slot))
     return [b for b in (todo[k::n] for k in range(n)) if b]
 
 
 def run_points(batch: list[PointTask], out_dir: str, force: bool = False) -> list[dict]:
-    """:func:`run_point` for each point of ``batch``, one after another in this process (a
-    Dask task): each point's partition and state are written as soon as it is done, so an
-    interrupted batch resumes point by point."""
+    """:func:`run_point` for each point of a batch, one after another (a Dask task).
+
+    Each point's partition and state are written as soon as it is done, so an interrupted
+    batch resumes point by point.
+
+    Parameters
+    ----------
+    batch : list of PointTask
+        The points.
+    out_dir : str
+        The sweep's output folder.
+    force : bool
+        Rerun unchanged points. Default False.
+
+    Returns
+    -------
+    list of dict
+        Their status rows.
+    """
     return [run_point(t, out_dir, force) for t in batch]
 
 
@@ -276,8 +352,24 @@ POINT_SECONDS = {("rig", "theory"): 0.5, ("rig", "full"): 5.0, ("train", "full")
 
 def plan_line(spec: SweepSpec, out: str | Path, *, n_workers: int | None = None,
               scheduler: str | None = None) -> str:
-    """What the sweep is about to do, said before it starts: the points (and how many are
-    done already in ``out``) and a rough time on the workers."""
+    """What the sweep is about to do, said before it starts.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep.
+    out : str or pathlib.Path
+        The output folder (points already done there are counted).
+    n_workers : int or None
+        Local workers; None: the CPU count.
+    scheduler : str or None
+        A scheduler's address, when the points run there.
+
+    Returns
+    -------
+    str
+        The points (to run, finished) and a rough time on the workers.
+    """
     out = Path(out)
     done, seconds = 0, []
     for p in spec.points:
@@ -313,9 +405,21 @@ STUDY_FILE = "study.json"
 
 
 def study_key(spec: SweepSpec) -> str:
-    """SHA-256 of what makes every point's rows comparable: mode, kind, the base config's
-    text, the torque fractions and the ``[processing]`` table (the points themselves are
-    compared by their ids)."""
+    """SHA-256 of what makes every point's rows comparable.
+
+    Mode, kind, the base config's text, the torque fractions and the ``[processing]`` table
+    (the points themselves are compared by their ids).
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep.
+
+    Returns
+    -------
+    str
+        Hex digest.
+    """
     base = Path(spec.base).read_text(encoding="utf-8") if spec.base else spec.kind
     blob = json.dumps({"mode": spec.mode, "kind": spec.kind,
                        "base": hashlib.sha256(base.encode()).hexdigest(),
@@ -369,8 +473,24 @@ def _one_study(out: Path, spec: SweepSpec, todo: list[PointTask], force: bool):
 
 
 def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
-    """The sweep table from the partitions of the points that are done (this spec's points
-    only; stale partitions of an earlier spec are left alone), sorted by point and step."""
+    """The sweep table from the partitions of the points that are done.
+
+    This spec's points only; stale partitions of an earlier spec are left alone.
+
+    Parameters
+    ----------
+    out : pathlib.Path
+        The output folder.
+    spec : SweepSpec
+        The sweep.
+    status : pandas.DataFrame
+        The points' status.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Sorted by point and step (train: segment); empty when no point is done.
+    """
     order = {p.point_id: p.index for p in spec.points}
     ok = status.loc[status["status"].isin(["done", "skipped"]), "point_id"]
     frames = [pd.read_parquet(_part(out, pid)) for pid in ok]
@@ -387,22 +507,52 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
               n_workers: int | None = None, force: bool = False, progress: bool = False,
               report: bool = True, on_dashboard=None,
               connect_timeout_s: float = CONNECT_TIMEOUT_S, on_start=None) -> SweepResult:
-    """Run a sweep (a :class:`SweepSpec` or the path of ``SWEEP.toml``) into ``out_dir``.
+    """Run a sweep into a results folder.
 
-    Points run as Dask tasks: on the scheduler at ``scheduler`` (``tcp://host:8786``), else on
-    a local cluster of ``n_workers`` single-threaded worker processes (default: the CPU
-    count); ``in_process`` runs them one after another here instead (tests, small sweeps).
-    Finished points with an unchanged fingerprint are skipped unless ``force``. ``report``
-    writes the figures and report.html. ``on_dashboard(link)`` receives the dashboard
-    address; ``progress`` shows a bar on stderr; ``on_start()`` is called once the inputs
-    and the output folder are checked, before the cluster starts (:func:`plan_line` says
-    what is about to run).
+    Points run as Dask tasks: on the scheduler at ``scheduler``, else on a local cluster of
+    single-threaded worker processes; ``in_process`` runs them one after another here instead
+    (tests, small sweeps). Finished points with an unchanged fingerprint are skipped unless
+    ``force``.
 
-    Refused before any work (:class:`InputError`): an ``out_dir`` that holds the sweep file
-    or its base; an ``out_dir`` that holds the points of another study (a changed grid,
-    ``[fixed]`` value, mode, base, ``[steps]`` or ``[processing]``) unless ``force``, which
-    removes them; a malformed scheduler address, ``n_workers`` < 1; a scheduler that does
-    not answer within ``connect_timeout_s`` [s].
+    Parameters
+    ----------
+    sweep : SweepSpec or str or pathlib.Path
+        The sweep, or the path of ``SWEEP.toml``.
+    out_dir : str or pathlib.Path
+        The results folder.
+    in_process : bool
+        Run the points here, in sequence. Default False.
+    scheduler : str or None
+        Address of a Dask scheduler (``tcp://host:8786``). Default None.
+    n_workers : int or None
+        Local workers; None: the CPU count.
+    force : bool
+        Rerun unchanged points, and replace the points of another study. Default False.
+    progress : bool
+        Show a bar on stderr. Default False.
+    report : bool
+        Write the figures and report.html. Default True.
+    on_dashboard : callable or None
+        ``on_dashboard(link)`` receives the dashboard address.
+    connect_timeout_s : float
+        Time a scheduler has to answer [s]. Default :data:`CONNECT_TIMEOUT_S`.
+    on_start : callable or None
+        Called once the inputs and the output folder are checked, before the cluster starts
+        (:func:`plan_line` says what is about to run).
+
+    Returns
+    -------
+    SweepResult
+        The table, the points' status, failures, recommendation and report.
+
+    Raises
+    ------
+    InputError
+        Before any work: no points, ``out_dir`` not a folder or holding the sweep file or its
+        base; an ``out_dir`` holding the points of another study (a changed grid, ``[fixed]``
+        value, mode, base, ``[steps]`` or ``[processing]``) unless ``force``; a malformed
+        scheduler address, ``n_workers`` < 1; a scheduler that does not answer within
+        ``connect_timeout_s``.
     """
     t0 = time.perf_counter()
     scheduler = None if in_process else check_cluster(scheduler, n_workers, connect_timeout_s)

@@ -40,7 +40,13 @@ _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 
 
 def twin_keys() -> dict[str, object]:
-    """Every dotted key of the rig twin's configuration with its default value."""
+    """Every dotted key of the rig twin's configuration with its default value.
+
+    Returns
+    -------
+    dict of str to object
+        ``section.key`` -> default.
+    """
     from torquemod.twins.vtrack.simulate import default_config_text
     doc = tomllib.loads(default_config_text())
     return {f"{s}.{k}": v for s, table in doc.items() for k, v in table.items()}
@@ -48,11 +54,27 @@ def twin_keys() -> dict[str, object]:
 
 @dataclass(frozen=True)
 class RecommendOptions:
-    """Limits of the recommendation (``[recommend]``): the disturbance the modulation may
-    add below ``max_utilisation`` -- the creepage swing amplitude ``max_creepage_swing``
-    [-] and the torque ripple ``max_torque_ripple_pct`` (modulation amplitude of the
-    measured torque, % of the saturation torque) -- and ``max_utilisation`` [-], the
-    highest utilisation whose steps the mu-from-phase fit may use."""
+    """Limits of the recommendation (``[recommend]``).
+
+    Attributes
+    ----------
+    max_utilisation : float
+        Highest utilisation whose steps the mu-from-phase fit may use, and below which the
+        disturbance is judged [-]. Default 0.8.
+    max_creepage_swing : float
+        Largest creepage swing amplitude the modulation may add [-]. Default 0.002.
+    max_torque_ripple_pct : float
+        Largest torque ripple: modulation amplitude of the measured torque [% of the
+        saturation torque]. Default 15.
+    max_mu_error : float
+        Train sweeps: a mu row counts when its relative error is within this [-].
+        Default 0.1.
+    min_coverage : float
+        Train sweeps: a setting qualifies when its 95 % intervals hold the truth in this
+        share of the rows with mu [-]. Default 0.9.
+    max_torque_ripple_dc_pct : float
+        Train sweeps: largest median torque ripple [% of the DC torque]. Default 25.
+    """
 
     max_utilisation: float = 0.8
     max_creepage_swing: float = 2.0e-3
@@ -68,9 +90,22 @@ class RecommendOptions:
 
 @dataclass(frozen=True)
 class SweepPoint:
-    """One point of the sweep: ``params`` (dotted twin key -> value, the fixed ones
-    included), its ``seed`` and ``index`` (order in the file); ``point_id`` a digest of
-    the parameters and the seed (stable when the grid is reordered or extended)."""
+    """One point of the sweep.
+
+    Attributes
+    ----------
+    index : int
+        Its order in the file.
+    params : dict
+        Dotted twin key -> value, the fixed ones included.
+    seed : int
+        The twin's random seed.
+
+    Notes
+    -----
+    ``point_id`` is a digest of the parameters and the seed (stable when the grid is
+    reordered or extended).
+    """
 
     index: int
     params: dict
@@ -99,10 +134,40 @@ class SweepPoint:
 
 @dataclass(frozen=True)
 class SweepSpec:
-    """A parsed sweep: where it came from (``path``, ``text``), the ``base`` config (None:
-    the V-Track default), ``mode``, the ``points``, the swept keys in file order
-    (``swept``), ``fractions_of_peak`` (DC torques as fractions of each point's creep-curve
-    peak torque, or None: the base procedure's torques) and the recommendation limits."""
+    """A parsed sweep file.
+
+    Attributes
+    ----------
+    path : pathlib.Path or None
+        Where it came from.
+    text : str
+        Its text.
+    name : str
+        The sweep's name.
+    description : str
+        Its description.
+    base : pathlib.Path or None
+        The base configuration; None: the packaged default.
+    mode : {"theory", "full"}
+        Theory only, or twin -> chain -> fits.
+    seeds : tuple of int
+        The seeds each grid point runs with.
+    points : tuple of SweepPoint
+        The points.
+    swept : tuple of str
+        The swept keys, in file order.
+    fixed : dict
+        The ``[fixed]`` values.
+    fractions_of_peak : tuple of float or None
+        DC torques as fractions of each point's creep-curve peak torque [-]; None: the base
+        procedure's torques.
+    recommend : RecommendOptions
+        The recommendation's limits.
+    processing : dict
+        The chain's ``[processing]`` table (full mode).
+    kind : {"rig", "train"}
+        The twin. Default "rig".
+    """
 
     path: Path | None
     text: str
@@ -296,9 +361,28 @@ def _count(grid: dict, rows: list, seeds: tuple) -> int:
 
 def parse_sweep(text: str, *, path: str | Path | None = None,
                 max_points: int | None = None) -> SweepSpec:
-    """Parse and check the sweep file's ``text`` (``path`` names it in errors and anchors a
-    relative ``base``). A sweep of more than ``max_points`` points (None: no limit) is
-    refused before its points are built."""
+    """Parse and check a sweep file's text.
+
+    Parameters
+    ----------
+    text : str
+        The TOML text.
+    path : str or pathlib.Path or None
+        Names the file in errors and anchors a relative ``base``. Default None.
+    max_points : int or None
+        A sweep of more points is refused before its points are built; None: no limit.
+
+    Returns
+    -------
+    SweepSpec
+        The sweep.
+
+    Raises
+    ------
+    InputError
+        TOML syntax, an unknown mode or key, a bad value, a grid that is not a list, too many
+        points, or the DC torques given twice; the message names the file and key.
+    """
     where = path if path is not None else "<sweep>"
     try:
         doc = tomllib.loads(text)
@@ -374,7 +458,25 @@ def parse_sweep(text: str, *, path: str | Path | None = None,
 
 
 def load_sweep(path: str | Path, *, max_points: int | None = None) -> SweepSpec:
-    """Read and check ``SWEEP.toml`` (``max_points``: see :func:`parse_sweep`)."""
+    """Read and check ``SWEEP.toml``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The sweep file.
+    max_points : int or None
+        See :func:`parse_sweep`.
+
+    Returns
+    -------
+    SweepSpec
+        The sweep.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, or :func:`parse_sweep` refuses it.
+    """
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")

@@ -42,9 +42,22 @@ def _slope(u: np.ndarray, phi: np.ndarray) -> float:
 
 
 def agreement(table: pd.DataFrame) -> dict:
-    """How the twin and the chain agree with the large-signal theory over every step that
-    did not slip: the largest and median |twin - theory| phase [deg] (full mode), and the
-    chain's |phase - theory| / standard error (median, largest)."""
+    """How the twin and the chain agree with the large-signal theory.
+
+    Over every step that did not slip (:func:`slipped_mask`).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The sweep table (``sweep.parquet``: one row per point and step).
+
+    Returns
+    -------
+    dict
+        ``n_steps``; ``twin_minus_theory_max_deg`` and ``twin_minus_theory_median_deg``, the
+        largest and median |twin - theory| phase [deg] (full mode; None otherwise); the
+        chain's |phase - theory| / standard error ``chain_z_median`` and ``chain_z_max`` [-].
+    """
     live = table[~slipped_mask(table)]
     d = live["phase_twin_minus_theory_deg"].abs().dropna()
     z = ((live["phase_deg"] - live["phase_theory_deg"]) / live["phase_se_deg"]).abs().dropna()
@@ -56,8 +69,20 @@ def agreement(table: pd.DataFrame) -> dict:
 
 
 def slipped_mask(g: pd.DataFrame) -> pd.Series:
-    """Steps where the wheel slipped: in the theory (no periodic state under the
-    modulation) or, in full mode, in the twin."""
+    """Steps where the wheel slipped.
+
+    In the theory (no periodic state under the modulation) or, in full mode, in the twin.
+
+    Parameters
+    ----------
+    g : pandas.DataFrame
+        Rows of the sweep table.
+
+    Returns
+    -------
+    pandas.Series of bool
+        True where the step slipped (same index).
+    """
     out = g["slipped"].eq(True)
     if "slipped_twin" in g:
         out |= g["slipped_twin"].eq(True)
@@ -65,7 +90,31 @@ def slipped_mask(g: pd.DataFrame) -> pd.Series:
 
 
 def effective_error(mu_phase, lo, mu_true, determined) -> float:
-    """|mu/mu_true - 1| when determined, else that of the lower bound, else 1 (100 %)."""
+    """The error of mu from the phase as the method tells it to the user.
+
+    Parameters
+    ----------
+    mu_phase : float
+        mu from the phase [-] (NaN when the fit gave nothing).
+    lo : float
+        The lower bound the fit gives [-].
+    mu_true : float
+        The available adhesion of the twin [-].
+    determined : bool
+        mu is determined.
+
+    Returns
+    -------
+    float
+        |mu/mu_true - 1| [-] when determined, else that of the lower bound, else 1 (100 %).
+
+    Examples
+    --------
+    >>> round(effective_error(0.33, 0.3, 0.30, True), 12)
+    0.1
+    >>> effective_error(float("nan"), float("nan"), 0.30, False)
+    1.0
+    """
     value = mu_phase if determined else lo
     if value is None or not np.isfinite(value):
         return 1.0
@@ -73,8 +122,32 @@ def effective_error(mu_phase, lo, mu_true, determined) -> float:
 
 
 def point_summary(table: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
-    """One row per point: its swept parameters, seed, setting, sensitivities, mu errors,
-    disturbances and the twin-vs-theory difference."""
+    """One row per point: its figures of merit.
+
+    Its swept parameters, seed, setting, the sensitivity dphi/du (slope of a straight line
+    through the phase against the utilisation over the steps in the band 50-80 %), the error
+    of mu from the phase against the available adhesion (the peak of the twin's
+    adhesion-creepage curve at the operating speed [1]_), the disturbances below the
+    utilisation limit (largest creepage swing amplitude, largest torque ripple in % of the
+    saturation torque) and the twin-vs-theory phase difference.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The sweep table (``sweep.parquet``: one row per point and step).
+    spec : SweepSpec
+        The sweep's specification (swept keys, ``[recommend]`` limits).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Sorted by ``point_index``.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (1)-(9).
+    """
     lim = spec.recommend.max_utilisation
     labels = condition_labels(table, spec.swept)
     rows = []
@@ -129,10 +202,22 @@ def point_summary(table: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
 
 
 def setting_table(summary: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
-    """One row per modulation setting (frequency x amplitude): points, mu-from-phase
-    determined, RMS and largest effective error [%], mean sensitivity [deg/%], largest
-    creepage swing and torque ripple below the utilisation limit, and whether those stay
-    within the limits."""
+    """One row per modulation setting (frequency x amplitude).
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        The point summary (:func:`point_summary`).
+    spec : SweepSpec
+        The sweep's specification (swept keys, ``[recommend]`` limits).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Points, mu-from-phase determined, RMS and largest effective error [%], mean
+        sensitivity [deg/%], largest creepage swing [-] and torque ripple [%] below the
+        utilisation limit, and whether those stay within the limits.
+    """
     opts = spec.recommend
     rows = []
     for (f, a), g in summary.groupby(list(SETTING), sort=True):
@@ -163,17 +248,44 @@ def _name(row) -> str:
 
 
 def noise_keys(spec: SweepSpec) -> list[str]:
-    """The swept keys that set the noise level (``sensors.*``, ``disturbances.*``)."""
+    """The swept keys that set the noise level (``sensors.*``, ``disturbances.*``).
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep's specification (swept keys, ``[recommend]`` limits).
+
+    Returns
+    -------
+    list of str
+        The keys, in the sweep's order.
+    """
     return [k for k in spec.swept if k.startswith(("sensors.", "disturbances."))]
 
 
 def recommend(table: pd.DataFrame, spec: SweepSpec) -> dict:
-    """The modulation setting that gives the most accurate mu from the phase below the
-    utilisation limit with the disturbance within the limits, and why (a JSON-ready dict:
-    ``setting``, ``reasoning`` text, ``settings`` table, ``limits``). When the sweep varies
-    the noise (:func:`noise_keys`), one recommendation per noise level in ``by_noise``
-    (``noise``, ``setting``, ``reasoning``, ``settings``); the top level then holds the
-    first level's, and the reasoning all of them."""
+    """The modulation setting that gives the most accurate mu from the phase, and why.
+
+    Among the settings whose disturbance stays within the limits of ``[recommend]``, the one
+    with the smallest RMS effective error (:func:`effective_error`) over the other swept
+    parameters, below the utilisation limit. Computed from the sweep, never stated in
+    advance.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The sweep table (``sweep.parquet``: one row per point and step).
+    spec : SweepSpec
+        The sweep's specification (swept keys, ``[recommend]`` limits).
+
+    Returns
+    -------
+    dict
+        JSON-ready: ``setting``, ``reasoning`` text, ``settings`` table, ``limits``. When the
+        sweep varies the noise (:func:`noise_keys`), one recommendation per noise level in
+        ``by_noise`` (``noise``, ``setting``, ``reasoning``, ``settings``); the top level then
+        holds the first level's, and the reasoning all of them.
+    """
     summary = point_summary(table, spec)
     keys = noise_keys(spec)
     if not keys:

@@ -56,12 +56,44 @@ LOW_ADHESION_UTILISATION = 0.5
 
 
 def band_name(band: tuple[float, float]) -> str:
-    """``(0.3, 0.5)`` -> ``"u30_50"`` (the suffix of the band columns)."""
+    """The suffix of a utilisation band's columns.
+
+    Parameters
+    ----------
+    band : tuple of float
+        (low, high) utilisation [-].
+
+    Returns
+    -------
+    str
+        e.g. ``"u30_50"``.
+
+    Examples
+    --------
+    >>> band_name((0.3, 0.5))
+    'u30_50'
+    """
     return f"u{round(100 * band[0])}_{round(100 * band[1])}"
 
 
 def base_doc(base: str | Path | None) -> dict:
-    """The base train configuration as a TOML document (None: the packaged default)."""
+    """The base train configuration as a TOML document.
+
+    Parameters
+    ----------
+    base : str or pathlib.Path or None
+        The configuration file; None: the packaged default.
+
+    Returns
+    -------
+    dict
+        The parsed TOML.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read.
+    """
     from torquemod.twins.train.params import default_train_config_text
     if base is None:
         return tomllib.loads(default_train_config_text())
@@ -72,7 +104,18 @@ def base_doc(base: str | Path | None) -> dict:
 
 
 def train_keys(base: str | Path | None = None) -> tuple[str, ...]:
-    """Every dotted key a train sweep takes over the base config ``base``."""
+    """Every dotted key a train sweep takes over a base configuration.
+
+    Parameters
+    ----------
+    base : str or pathlib.Path or None
+        The base configuration; None: the packaged default.
+
+    Returns
+    -------
+    tuple of str
+        The keys.
+    """
     from torquemod.ontrain.estimator import OnboardConfig
     from torquemod.twins.train.params import (
         ControllerParams,
@@ -95,8 +138,26 @@ def train_keys(base: str | Path | None = None) -> tuple[str, ...]:
 
 
 def check_train_value(key: str, value, where: str, path) -> None:
-    """Values the config reader would not see until a worker runs the point: a condition
-    must be known, probe levels a list of fractions in (0, 1)."""
+    """Check values the config reader would not see until a worker runs the point.
+
+    A condition must be known, probe levels a list of fractions in (0, 1).
+
+    Parameters
+    ----------
+    key : str
+        The dotted key.
+    value : object
+        Its value.
+    where : str
+        The point, named in the message.
+    path : object
+        The sweep file, named in the message.
+
+    Raises
+    ------
+    InputError
+        An unknown friction condition, or probe levels or depth not fractions in (0, 1).
+    """
     from torquemod.sweep.conditions import conditions
     if key.endswith(".condition"):
         if value not in conditions():
@@ -119,8 +180,30 @@ def _polach_with(pol, values: dict):
 
 
 def train_config(base: str | Path | None, params: dict):
-    """``(TrainConfig, OnboardConfig)`` of a point: the base document with the plain keys
-    set (so the train reader checks them), then the sweep-only segment and probe keys."""
+    """The train twin's and the estimator's configuration of a point.
+
+    The base document with the plain keys set (so the train reader checks them), then the
+    sweep-only segment and probe keys.
+
+    Parameters
+    ----------
+    base : str or pathlib.Path or None
+        The base configuration; None: the packaged default.
+    params : dict
+        The point's parameters (dotted keys).
+
+    Returns
+    -------
+    config : TrainConfig
+        The twin's configuration.
+    onboard : OnboardConfig
+        The estimator's settings.
+
+    Raises
+    ------
+    InputError
+        A bad key or value.
+    """
     from torquemod.ontrain.estimator import OnboardConfig
     from torquemod.sweep.conditions import conditions
     from torquemod.twins.train.params import config_from_dict
@@ -177,15 +260,30 @@ def _median(x) -> float:
 
 
 def disturbance(raw: np.ndarray, raw0: np.ndarray, cfg) -> pd.DataFrame:
-    """What the modulation adds, per modulation period of the twin's true signals
-    (:data:`torquemod.twins.train.dynamics.OUT`): ``raw`` the run, ``raw0`` the same run (seed,
-    irregularity) without the modulation, so that the track irregularity's own creepage
-    variation cancels. Periods where the driver's demand changed or the anti-slip control
-    acted in either run, and the first :data:`STARTUP_S`, are left out. Columns: position
-    [m], segment index (0-based), the creepage swing (half the peak-to-peak of the
-    creepage difference) [-], the motor torque's modulation amplitude (half the
-    peak-to-peak of the torque difference) [N*m], the mean torque (DC) [N*m] and the torque
-    ripple, amplitude / |DC| [%]."""
+    """What the modulation adds, per modulation period of the twin's true signals.
+
+    ``raw`` and ``raw0`` are the same run (seed, irregularity) with and without the
+    modulation, so that the track irregularity's own creepage variation cancels. Periods
+    where the driver's demand changed or the anti-slip control acted in either run, and the
+    first :data:`STARTUP_S`, are left out.
+
+    Parameters
+    ----------
+    raw : ndarray
+        The run's true signals (:data:`torquemod.twins.train.dynamics.OUT` columns).
+    raw0 : ndarray
+        The same run without the modulation.
+    cfg : TrainConfig
+        The twin's configuration.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Per period: position [m], segment index (0-based), the creepage swing (half the
+        peak-to-peak of the creepage difference) [-], the motor torque's modulation amplitude
+        (half the peak-to-peak of the torque difference) [N*m], the mean torque (DC) [N*m]
+        and the torque ripple, amplitude/|DC| [%].
+    """
     fs = cfg.sensors.sample_rate_hz
     m = max(2, round(fs / cfg.modulation_frequency_hz))
     nb = min(raw.shape[0], raw0.shape[0]) // m
@@ -210,8 +308,17 @@ def disturbance(raw: np.ndarray, raw0: np.ndarray, cfg) -> pd.DataFrame:
 
 @dataclass(frozen=True)
 class TrackStats:
-    """The windows of one run beside the truth at their positions: the segment index
-    (0-based) of each window and the truth's mu and utilisation there."""
+    """The windows of one run beside the truth at their positions.
+
+    Attributes
+    ----------
+    segment : ndarray of int
+        The friction segment of each window (0-based).
+    mu_true : ndarray
+        The truth's available adhesion there [-].
+    utilisation : ndarray
+        The truth's utilisation there [-].
+    """
 
     segment: np.ndarray
     mu_true: np.ndarray
@@ -219,10 +326,24 @@ class TrackStats:
 
 
 def truth_at_windows(track: pd.DataFrame, truth: pd.DataFrame, starts) -> TrackStats:
-    """The truth interpolated to each window's position (the window's centre); ``mu_true``
-    is the available adhesion (the creep curve's peak, ``adhesion_peak``), which the
-    estimator's ``mu`` estimates (the friction at the slip velocity, ``mu``, for truth
-    tables without it)."""
+    """The truth interpolated to each window's centre.
+
+    Parameters
+    ----------
+    track : pandas.DataFrame
+        The estimator's track (``position_m``).
+    truth : pandas.DataFrame
+        The truth table.
+    starts : array_like
+        The windows' first rows.
+
+    Returns
+    -------
+    TrackStats
+        ``mu_true`` is the available adhesion (the creep curve's peak, ``adhesion_peak``),
+        which the estimator's ``mu`` estimates (the friction at the slip velocity, ``mu``,
+        for truth tables without it).
+    """
     x = track["position_m"].to_numpy(float)
     tx = truth["position_m"].to_numpy(float)
     seg = np.clip(np.searchsorted(np.asarray(starts, float), x, side="right") - 1, 0,
@@ -234,8 +355,28 @@ def truth_at_windows(track: pd.DataFrame, truth: pd.DataFrame, starts) -> TrackS
 
 def segment_rows(track: pd.DataFrame, truth: pd.DataFrame, cfg, onboard_cfg,
                  dist: pd.DataFrame | None = None, *, max_error: float = 0.10) -> list[dict]:
-    """One dict per friction segment the run reached: the estimator's windows against the
-    truth (module docstring, docs/sweep.md for the columns)."""
+    """One row per friction segment the run reached: the estimator's windows against the truth.
+
+    Parameters
+    ----------
+    track : pandas.DataFrame
+        The estimator's track.
+    truth : pandas.DataFrame
+        The truth table.
+    cfg : TrainConfig
+        The twin's configuration.
+    onboard_cfg : OnboardConfig
+        The estimator's settings.
+    dist : pandas.DataFrame or None
+        The modulation's disturbance per period (:func:`disturbance`). Default None.
+    max_error : float
+        A mu row counts when its relative error is within this [-]. Default 0.10.
+
+    Returns
+    -------
+    list of dict
+        The rows (docs/sweep.md for the columns).
+    """
     segs = cfg.track.segments
     starts = [s.start_m for s in segs]
     ts = truth_at_windows(track, truth, starts)
@@ -299,7 +440,20 @@ def segment_rows(track: pd.DataFrame, truth: pd.DataFrame, cfg, onboard_cfg,
 
 
 def point_info(cfg) -> dict:
-    """The point's setting and vehicle, repeated on each of its rows."""
+    """The point's setting and vehicle, repeated on each of its rows.
+
+    Parameters
+    ----------
+    cfg : TrainConfig
+        The twin's configuration.
+
+    Returns
+    -------
+    dict
+        Modulation frequency [Hz] (actual and nominal), amplitude [N*m], probe depth [-]
+        and step [m], speed [m/s], normal load [N], wheel radius [m], inertia [kg*m^2] and
+        track length [m].
+    """
     probe = [leg for leg in cfg.controller.legs if leg.mode == "probe"]
     levels = [v for leg in probe for v in leg.levels]
     return {"modulation_frequency_hz": cfg.modulation_frequency_hz,
@@ -313,8 +467,25 @@ def point_info(cfg) -> dict:
 
 
 def evaluate_train_point(task, *, workdir: str | Path | None = None) -> pd.DataFrame:
-    """The rows of one train point (:class:`~torquemod.sweep.evaluate.PointTask` with
-    ``kind = "train"``): twin -> run folder -> on-board estimator -> per-segment rows."""
+    """The rows of one train point: twin -> run folder -> on-board estimator -> segment rows.
+
+    Parameters
+    ----------
+    task : PointTask
+        The point (``kind = "train"``).
+    workdir : str or pathlib.Path or None
+        Where the run's temporary folder is made; None: the system's temporary folder.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per friction segment reached.
+
+    Raises
+    ------
+    InputError
+        A bad parameter, or the train twin failed.
+    """
     from torquemod.io.run import read_run
     from torquemod.ontrain.run import estimate_axle
     from torquemod.twins.train import integrate_run, run_train_simulation

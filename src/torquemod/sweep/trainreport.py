@@ -66,7 +66,21 @@ def _pool(g: pd.DataFrame) -> dict:
 
 
 def setting_summary(table: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
-    """One row per modulation setting: :func:`_pool` and whether it qualifies."""
+    """One row per modulation setting: the pooled figures and whether it qualifies.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The train sweep table (one row per point and friction segment).
+    spec : SweepSpec
+        The sweep's specification.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Points, windows, rows with mu, shares within ``max_mu_error`` [-], coverage [-],
+        creepage swing [-] and torque ripple [%], and ``qualifies``.
+    """
     opts = spec.recommend
     rows = []
     for (f, a), g in table.groupby(list(SETTING), sort=True):
@@ -83,7 +97,20 @@ def setting_summary(table: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
 
 
 def condition_table(table: pd.DataFrame, by: list[str]) -> pd.DataFrame:
-    """Pooled figures per value of the columns ``by`` (e.g. a swept key and the condition)."""
+    """Pooled figures per value of some columns.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The train sweep table (one row per point and friction segment).
+    by : list of str
+        The columns grouped by (e.g. a swept key and the condition).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per group with its pooled figures.
+    """
     rows = []
     for key, g in table.groupby(by, sort=True):
         key = key if isinstance(key, tuple) else (key,)
@@ -101,16 +128,39 @@ def _pct(x) -> str:
 
 
 def noise_keys(spec: SweepSpec) -> list[str]:
-    """The swept keys that set the train's noise level (``sensors.*``)."""
+    """The swept keys that set the train's noise level (``sensors.*``).
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep's specification.
+
+    Returns
+    -------
+    list of str
+        The keys, in the sweep's order.
+    """
     return [k for k in spec.swept if k.startswith("sensors.")]
 
 
 def recommend_train(table: pd.DataFrame, spec: SweepSpec) -> dict:
-    """The modulation setting for the train (module docstring) and the reasoning: a
-    JSON-ready dict with ``setting``, ``reasoning``, ``settings``, ``limits``. When the
-    sweep varies the sensors' noise (:func:`noise_keys`), one recommendation per noise level
-    in ``by_noise`` (``noise``, ``setting``, ``reasoning``, ``settings``); the top level then
-    holds the first level's, and the reasoning all of them."""
+    """The modulation setting for the train, and the reasoning (module docstring).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The train sweep table (one row per point and friction segment).
+    spec : SweepSpec
+        The sweep's specification.
+
+    Returns
+    -------
+    dict
+        JSON-ready: ``setting``, ``reasoning``, ``settings``, ``limits``. When the sweep
+        varies the sensors' noise (:func:`noise_keys`), one recommendation per noise level in
+        ``by_noise`` (``noise``, ``setting``, ``reasoning``, ``settings``); the top level then
+        holds the first level's, and the reasoning all of them.
+    """
     keys = noise_keys(spec)
     if not keys or table.empty:
         return _recommend_one(table, spec)
@@ -210,9 +260,24 @@ def _hashable(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def mu_figure(table: pd.DataFrame, x: str) -> Figure:
-    """Share of windows with mu, the mean of the segments' median |mu/mu_true - 1| and the
-    coverage of the 95 % interval against ``x``, one line per friction condition, pooled
-    over every other parameter and seed."""
+    """mu's availability, error and coverage against a swept key.
+
+    Share of windows with mu, the mean of the segments' median |mu/mu_true - 1| and the
+    coverage of the 95 % interval against ``x``, one line per friction condition, pooled over
+    every other parameter and seed.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The train sweep table (one row per point and friction segment).
+    x : str
+        The column on the x axis.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
+    """
     agg = condition_table(table, [x, "condition"])
     fig = Figure(figsize=(6.5, 7.0), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
@@ -240,9 +305,23 @@ def mu_figure(table: pd.DataFrame, x: str) -> Figure:
 
 
 def band_figure(table: pd.DataFrame, curve: str | None) -> Figure:
-    """Per friction condition: the median phase (top) and creep coefficient (bottom,
-    markers; the twin's truth dashed) in each utilisation band, one colour per value of
-    ``curve`` (pooled over the rest)."""
+    """Per friction condition the median phase and creep coefficient in each utilisation band.
+
+    Phase (top) and creep coefficient (bottom, markers; the twin's truth dashed), one colour
+    per value of ``curve`` (pooled over the rest).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The train sweep table (one row per point and friction segment).
+    curve : str or None
+        The column whose values get one colour each; None: one curve.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
+    """
     conds = list(dict.fromkeys(table["condition"]))
     fig = Figure(figsize=(3.2 * len(conds) + 1, 6.0), layout="constrained")
     axes = np.asarray(fig.subplots(2, len(conds), squeeze=False))
@@ -276,7 +355,22 @@ def band_figure(table: pd.DataFrame, curve: str | None) -> Figure:
 
 
 def make_train_figures(table: pd.DataFrame, spec: SweepSpec, rec: dict):
-    """``(file stem, Figure, caption)`` of every figure of a train sweep."""
+    """Every figure of a train sweep.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The train sweep table (one row per point and friction segment).
+    spec : SweepSpec
+        The sweep's specification.
+    rec : dict
+        The recommendation (:func:`recommend_train`).
+
+    Returns
+    -------
+    list of tuple
+        ``(file stem, matplotlib Figure, caption)``.
+    """
     from torquemod.sweep.figures import disturbance_figure
     tab = _hashable(table)
     out = []
@@ -343,7 +437,28 @@ def _settings_html(rec: dict) -> str:
 
 def render_train(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, failures=None,
                  wall_s: float | None = None) -> str:
-    """The train sweep's report page as a string."""
+    """The train sweep's report page as a string.
+
+    Parameters
+    ----------
+    tab : pandas.DataFrame
+        The train sweep table.
+    spec : SweepSpec
+        The sweep's specification.
+    rec : dict
+        The recommendation (:func:`recommend_train`).
+    figs : list of tuple
+        ``(file stem, PNG bytes, caption)`` of each figure.
+    failures : pandas.DataFrame or None
+        The points that failed. Default None.
+    wall_s : float or None
+        Wall time of the sweep [s]. Default None.
+
+    Returns
+    -------
+    str
+        The HTML page.
+    """
     n_fail = 0 if failures is None else len(failures)
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{escape(spec.name)}"
              f" — torquemod sweep</title><style>{CSS}</style></head><body>",
@@ -385,7 +500,30 @@ def render_train(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, failure
 
 def write_train_report(out: str | Path, tab: pd.DataFrame, spec: SweepSpec, rec: dict, *,
                        status=None, failures=None, wall_s: float | None = None) -> Path:
-    """Draw the figures into ``out/figures`` and write ``out/report.html``."""
+    """Draw the figures into ``out/figures`` and write ``out/report.html``.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        The sweep's results folder.
+    tab : pandas.DataFrame
+        The train sweep table.
+    spec : SweepSpec
+        The sweep's specification.
+    rec : dict
+        The recommendation (:func:`recommend_train`).
+    status : object
+        Accepted for the callers' convenience; not shown. Default None.
+    failures : pandas.DataFrame or None
+        The points that failed. Default None.
+    wall_s : float or None
+        Wall time of the sweep [s]. Default None.
+
+    Returns
+    -------
+    pathlib.Path
+        The report.
+    """
     out = Path(out)
     figs = []
     for stem, fig, caption in make_train_figures(tab, spec, rec):

@@ -24,8 +24,17 @@ from torquemod.errors import InputError
 
 @dataclass(frozen=True)
 class ContactEllipse:
-    """Hertz contact ellipse: semi-axes ``a_m`` (rolling direction) and ``b_m`` (lateral) [m],
-    maximum pressure ``p0_pa`` [Pa]."""
+    """Hertz contact ellipse.
+
+    Attributes
+    ----------
+    a_m : float
+        Semi-axis in the rolling direction [m].
+    b_m : float
+        Lateral semi-axis [m].
+    p0_pa : float
+        Maximum contact pressure [Pa].
+    """
 
     a_m: float
     b_m: float

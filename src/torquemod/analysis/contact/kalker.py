@@ -63,7 +63,17 @@ C23_TABLE = np.array([
 
 @dataclass(frozen=True)
 class KalkerCoefficients:
-    """Kalker's creepage coefficients [-]: longitudinal ``c11``, lateral ``c22``, spin ``c23``."""
+    """Kalker's creepage coefficients (Kalker 1990, Table E.3).
+
+    Attributes
+    ----------
+    c11 : float
+        Longitudinal [-].
+    c22 : float
+        Lateral [-].
+    c23 : float
+        Spin [-].
+    """
 
     c11: float
     c22: float

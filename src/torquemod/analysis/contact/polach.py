@@ -322,12 +322,44 @@ def adhesion_slope(xi, *, mu: float, k_a: float, k_s: float, stiffness: float):
 def creep_force_scalar(xi_x: float, xi_y: float, normal_load_n: float, speed_m_s: float,
                        stiffness_x_n: float, stiffness_y_n: float, mu0: float, a_ratio: float,
                        b_s_m: float, k_a: float, k_s: float) -> tuple[float, float]:
-    """Scalar (Fx, Fy) [N] of :func:`creep_force`, written for ``numba.njit``.
+    """Scalar (Fx, Fy) of :func:`creep_force`, written for ``numba.njit``.
 
-    Same model (P05 Eqs. 1-9), with the contact geometry lumped into
-    ``stiffness_x_n = pi*G*a*b*c11/4`` and ``stiffness_y_n = pi*G*a*b*c22/4`` [N] so that
-    ``eps = sqrt((stiffness_x*xi_x)^2 + (stiffness_y*xi_y)^2)/(Q*mu)`` (P05 Eqs. 3-5).
     Plain Python floats in and out; use :data:`creep_force_kernel` for the compiled version.
+
+    Parameters
+    ----------
+    xi_x, xi_y : float
+        Longitudinal and lateral creepage [-].
+    normal_load_n : float
+        Normal load Q [N].
+    speed_m_s : float
+        Rolling speed V [m/s] (slip velocity w = xi*V).
+    stiffness_x_n, stiffness_y_n : float
+        Lumped contact stiffnesses ``pi*G*a*b*c11/4`` and ``pi*G*a*b*c22/4`` [N].
+    mu0 : float
+        Friction coefficient at zero slip velocity [-].
+    a_ratio : float
+        A = mu_inf/mu0 [-].
+    b_s_m : float
+        B [s/m].
+    k_a, k_s : float
+        Reduction factors kA, kS [-].
+
+    Returns
+    -------
+    fx, fy : float
+        Creep forces [N]; (0, 0) at zero creepage.
+
+    Notes
+    -----
+    ``eps = sqrt((stiffness_x*xi_x)^2 + (stiffness_y*xi_y)^2)/(Q*mu)`` (Eqs. 3-5 of [1]_),
+    ``F = 2*Q*mu/pi*(kA*eps/(1 + (kA*eps)^2) + arctan(kS*eps))`` (Eq. 8) with
+    ``mu = mu0*((1 - A)*exp(-B*w) + A)`` (Eq. 9).
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (1)-(9).
     """
     xi = math.sqrt(xi_x * xi_x + xi_y * xi_y)
     if xi <= 0.0 or normal_load_n <= 0.0:
@@ -350,10 +382,26 @@ creep_force_kernel = numba.njit(cache=True, fastmath=False)(creep_force_scalar)
 # --------------------------------------------------------------------------------------------
 
 def swing_nodes(n_nodes: int = 32) -> np.ndarray:
-    """``cos(theta_k)`` at ``n_nodes`` equally spaced phases ``theta_k = 2*pi*(k + 1/2)/n``.
+    """``cos(theta_k)`` at equally spaced phases ``theta_k = 2*pi*(k + 1/2)/n``.
 
     The mean of a smooth periodic function over these nodes is its average over one period
-    (the trapezoidal rule, exact for trigonometric polynomials of degree < n_nodes)."""
+    (the trapezoidal rule, exact for trigonometric polynomials of degree < n_nodes).
+
+    Parameters
+    ----------
+    n_nodes : int
+        Nodes n [-]. Default 32.
+
+    Returns
+    -------
+    ndarray
+        The n cosines [-].
+
+    Examples
+    --------
+    >>> abs(float(swing_nodes(8).mean())) < 1e-15
+    True
+    """
     return np.cos(2.0 * np.pi * (np.arange(n_nodes) + 0.5) / n_nodes)
 
 

@@ -13,8 +13,28 @@ from torquemod.errors import InputError
 
 @dataclass(frozen=True)
 class PolachParameters:
-    """Polach (2005) friction and reduction parameters: ``mu0`` [-], ``a_ratio`` A =
-    mu_inf/mu0 [-], ``b_s_m`` B [s/m] (Eq. 9), ``k_a``, ``k_s`` [-] (Eq. 8), and ``source``."""
+    """Polach's friction and reduction parameters of one rail condition.
+
+    Attributes
+    ----------
+    mu0 : float
+        Friction coefficient at zero slip velocity [-].
+    a_ratio : float
+        A = mu_inf/mu0 [-] (Eq. 9 of [1]_).
+    b_s_m : float
+        B, the exponential decay rate of friction with slip velocity [s/m] (Eq. 9).
+    k_a : float
+        Reduction factor in the area of adhesion kA [-] (Eq. 8).
+    k_s : float
+        Reduction factor in the area of slip kS [-] (Eq. 8).
+    source : str
+        Where the values come from.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000.
+    """
 
     mu0: float
     a_ratio: float
@@ -50,7 +70,23 @@ POLACH_PRESETS: dict[str, PolachParameters] = {
 
 
 def polach_preset(name: str) -> PolachParameters:
-    """Look up a preset by name; unknown names raise InputError listing the known ones."""
+    """A preset of Polach parameters by name.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`POLACH_PRESETS` (vtrack, dry, wet).
+
+    Returns
+    -------
+    PolachParameters
+        The preset.
+
+    Raises
+    ------
+    InputError
+        An unknown name, listing the known ones.
+    """
     try:
         return POLACH_PRESETS[name]
     except KeyError:

@@ -62,8 +62,19 @@ _LAWS = {"tanh": TANH, "burckhardt": BURCKHARDT, "polach": POLACH}
 
 @dataclass(frozen=True)
 class FrictionSegment:
-    """One stretch of rail from ``start_m`` [m]: its available adhesion ``mu`` [-] and the
-    initial slope of its creep curve ``k0`` [-] (dCoA/dxi at zero creepage)."""
+    """One stretch of rail.
+
+    Attributes
+    ----------
+    name : str
+        Its name (the truth's condition).
+    start_m : float
+        Where it starts [m].
+    mu : float
+        Its available adhesion [-].
+    k0 : float
+        Initial slope of its creep curve, dCoA/dxi at zero creepage [-].
+    """
 
     name: str
     start_m: float
@@ -79,7 +90,99 @@ DEFAULT_SEGMENTS = (FrictionSegment("dry", 0.0, 0.35, 110.0),
 
 @dataclass(frozen=True)
 class IndependentRunSpec:
-    """Everything of one independent run (SI units; see the module docstring)."""
+    """Everything of one independent run (SI units; module docstring).
+
+    Attributes
+    ----------
+    segments : tuple of FrictionSegment
+        The friction map.
+    length_m : float
+        Track length [m].
+    transition_m : float
+        Linear transitions between segments [m].
+    law : {"tanh", "burckhardt", "polach"}
+        The creep law.
+    burckhardt_d_over_mu : float
+        Fall beyond the peak of the Burckhardt law, d/mu [-].
+    polach_ratio : float
+        r = kA/kS of the Polach control law [-].
+    wheel_radius_m : float
+        Wheel radius [m].
+    normal_load_n : float
+        Axle load [N].
+    inertia_kg_m2 : float
+        Wheelset, gears and rotor referred to the axle [kg*m^2].
+    mass_kg : float
+        The vehicle mass this axle moves [kg].
+    gear_ratio : float
+        Motor turns per axle turn [-].
+    motor_time_constant_s : float
+        The motor torque follows its command with this lag [s].
+    coupling_stiffness_nm_rad : float or None
+        A compliant coupling between motor and wheelset [N*m/rad]; None: a rigid drive line.
+    coupling_damping_nm_s_rad : float
+        Its damping [N*m*s/rad].
+    motor_inertia_kg_m2 : float
+        The motor's part of ``inertia_kg_m2``, referred to the axle [kg*m^2].
+    declare_drive_line : bool
+        Write the drive line into run.toml (a hidden run may well not).
+    speed_m_s : float
+        Speed held [m/s].
+    speed_gain_n_s_m : float
+        The other axles' weak speed holding [N*s/m].
+    load_variation : tuple of tuple of float
+        (wavelength [m], relative amplitude [-]) of the axle load's variation.
+    modulation_frequency_hz : float
+        Modulation frequency [Hz].
+    modulation_amplitude_nm : float
+        Modulation amplitude at the axle [N*m].
+    levels : tuple of float
+        The probe's DC torque levels, shares of the available adhesion [-].
+    step_m : float
+        Length of each level [m].
+    constant_torque_nm : float or None
+        Instead of the staircase, a driver's constant demand [N*m].
+    torque_rate_nm_s : float
+        DC torque rate limit at the axle [N*m/s].
+    look_behind_m : float
+        The probe sizes its levels by the smallest mu this far behind the axle [m]...
+    look_ahead_m : float
+        ... and this far ahead [m].
+    sample_rate_hz : float
+        Logger rate [Hz].
+    substeps : int
+        RK4 steps per logger sample [-].
+    t0_s : float
+        Logger time of the first sample [s].
+    torque_lag_s : float
+        First-order lag of the recorded torque [s].
+    torque_gain : float
+        Gain of the recorded torque (1: no error) [-].
+    torque_noise_nm : float
+        White noise of the recorded torque, at the motor, per sample [N*m].
+    encoder_eccentricity : float
+        Once per motor revolution, relative [-].
+    axle_ripple : float
+        Once per axle revolution, relative [-].
+    encoder_gate_samples : int
+        The speed is the angle change over this many samples [-].
+    declare_sensor_dynamics : bool
+        Write ``torque_lag_s`` and ``speed_delay_s`` (half the counting gate) into run.toml.
+    speed_quantum_rpm : float
+        Quantization of the recorded motor speed [rpm].
+    radar_rate_hz : float
+        Radar rate [Hz].
+    radar_offset_s : float
+        The radar's first sample relative to the logger's first [s].
+    radar_scale : float
+        Radar scale factor [-].
+    radar_noise_m_s : float
+        Radar noise [m/s].
+    seed : int
+        Random seed.
+    extra_toml : dict
+        Further run.toml tables (e.g. ``onboard``).
+    """
 
     segments: tuple[FrictionSegment, ...] = DEFAULT_SEGMENTS
     length_m: float = 2600.0
@@ -146,8 +249,24 @@ class IndependentRunSpec:
 
 
 def friction_map(spec: IndependentRunSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Breakpoints (position [m], mu, k0) of the piecewise-linear map: constant in each
-    segment, linear over ``transition_m`` centred on each segment start."""
+    """Breakpoints of the piecewise-linear friction map.
+
+    Constant in each segment, linear over ``transition_m`` centred on each segment start.
+
+    Parameters
+    ----------
+    spec : IndependentRunSpec
+        The run.
+
+    Returns
+    -------
+    x : ndarray
+        Positions [m].
+    mu : ndarray
+        Available adhesion [-].
+    k0 : ndarray
+        Initial slopes [-].
+    """
     xs, mus, ks = [], [], []
     segs = sorted(spec.segments, key=lambda s: s.start_m)
     half = spec.transition_m / 2
@@ -169,7 +288,20 @@ def friction_map(spec: IndependentRunSpec) -> tuple[np.ndarray, np.ndarray, np.n
 
 
 def segment_names(spec: IndependentRunSpec, position_m: np.ndarray) -> np.ndarray:
-    """The name of the segment at each position [m] (by segment start)."""
+    """The name of the segment at each position (by segment start).
+
+    Parameters
+    ----------
+    spec : IndependentRunSpec
+        The run.
+    position_m : ndarray
+        Positions [m].
+
+    Returns
+    -------
+    ndarray of str
+        The names.
+    """
     segs = sorted(spec.segments, key=lambda s: s.start_m)
     starts = np.array([s.start_m for s in segs])
     idx = np.clip(np.searchsorted(starts, position_m, side="right") - 1, 0, len(segs) - 1)
@@ -177,8 +309,38 @@ def segment_names(spec: IndependentRunSpec, position_m: np.ndarray) -> np.ndarra
 
 
 def creep_law(xi, mu, k0, law: str = "tanh", d_over_mu: float = 3.0):
-    """CoA [-] at creepage ``xi`` [-] (module docstring), numpy version for the truth;
-    ``d_over_mu`` is the law's shape parameter (:attr:`IndependentRunSpec.shape`)."""
+    """CoA at a creepage under the run's creep law (module docstring); numpy version.
+
+    Parameters
+    ----------
+    xi : float or array_like
+        Creepage [-].
+    mu : float or array_like
+        Available adhesion (the curve's maximum) [-].
+    k0 : float or array_like
+        Initial slope dCoA/dxi [-].
+    law : {"tanh", "burckhardt", "polach"}
+        The creep law. Default "tanh".
+    d_over_mu : float
+        Shape parameter of the Burckhardt law, d/mu [-]
+        (:attr:`IndependentRunSpec.burckhardt_d_over_mu`). Default 3.
+
+    Returns
+    -------
+    ndarray
+        CoA [-], odd in xi.
+
+    References
+    ----------
+    .. [1] M. Burckhardt, "Fahrwerktechnik: Radschlupf-Regelsysteme", Vogel, Würzburg 1993.
+    .. [2] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eq. (8).
+
+    Examples
+    --------
+    >>> round(float(creep_law(1.0, 0.3, 100.0)), 6)
+    0.3
+    """
     xi, mu, k0 = (np.asarray(a, dtype=float) for a in (xi, mu, k0))
     if law == "tanh":
         return mu * np.tanh(k0 * xi / mu)
@@ -194,7 +356,32 @@ def creep_law(xi, mu, k0, law: str = "tanh", d_over_mu: float = 3.0):
 
 
 def creep_slope(xi, mu, k0, law: str = "tanh", d_over_mu: float = 3.0):
-    """dCoA/dxi [-] of :func:`creep_law` (analytic)."""
+    """dCoA/dxi of :func:`creep_law` (analytic).
+
+    Parameters
+    ----------
+    xi : float or array_like
+        Creepage [-].
+    mu : float or array_like
+        Available adhesion (the curve's maximum) [-].
+    k0 : float or array_like
+        Initial slope dCoA/dxi [-].
+    law : {"tanh", "burckhardt", "polach"}
+        The creep law. Default "tanh".
+    d_over_mu : float
+        Shape parameter of the Burckhardt law, d/mu [-]
+        (:attr:`IndependentRunSpec.burckhardt_d_over_mu`). Default 3.
+
+    Returns
+    -------
+    ndarray
+        The slope [-].
+
+    Examples
+    --------
+    >>> float(creep_slope(0.0, 0.3, 100.0))
+    100.0
+    """
     xi, mu, k0 = (np.asarray(a, dtype=float) for a in (xi, mu, k0))
     if law == "tanh":
         return k0 / np.cosh(k0 * xi / mu) ** 2
@@ -336,9 +523,41 @@ def _simulate(n, fs, sub, p, xs, mus, ks, lam, lamp, lama, lvl, step_m, mu_ahead
 
 @dataclass(frozen=True)
 class IndependentRun:
-    """A simulated run: the true signals at the logger's samples (``t_s`` on the logger's
-    clock [s]; axle torque [N*m], axle speed [rad/s], vehicle speed [m/s], position [m],
-    CoA, mu, k0 [-], axle load [N], DC torque [N*m]) and what the sensors recorded."""
+    """A simulated independent run: the true signals and what the sensors recorded.
+
+    Attributes
+    ----------
+    spec : IndependentRunSpec
+        The run's specification.
+    t_s : ndarray
+        Logger clock [s].
+    torque_nm : ndarray
+        True axle torque [N*m].
+    wheel_speed_rad_s : ndarray
+        True axle speed [rad/s].
+    speed_m_s : ndarray
+        Vehicle speed [m/s].
+    position_m : ndarray
+        Position [m].
+    coa : ndarray
+        CoA [-].
+    mu : ndarray
+        Available adhesion [-].
+    k0 : ndarray
+        Initial slope of the creep curve [-].
+    normal_load_n : ndarray
+        Axle load [N].
+    dc_torque_nm : ndarray
+        DC torque demand [N*m].
+    motor_torque_nm : ndarray
+        Recorded torque, at the motor [N*m].
+    motor_speed_rpm : ndarray
+        Recorded speed, at the motor [rpm].
+    radar_t_s : ndarray
+        Radar sample times, logger clock [s].
+    radar_km_h : ndarray
+        Radar speed [km/h].
+    """
 
     spec: IndependentRunSpec
     t_s: np.ndarray
@@ -374,7 +593,18 @@ def _mu_around(spec: IndependentRunSpec, xs, mus) -> np.ndarray:
 
 
 def simulate_independent(spec: IndependentRunSpec) -> IndependentRun:
-    """Integrate the run and apply the sensors (module docstring)."""
+    """Integrate the run and apply the sensors (module docstring).
+
+    Parameters
+    ----------
+    spec : IndependentRunSpec
+        The run.
+
+    Returns
+    -------
+    IndependentRun
+        True signals and recordings.
+    """
     rng = np.random.default_rng(spec.seed)
     xs, mus, ks = friction_map(spec)
     fs = spec.sample_rate_hz
@@ -428,7 +658,19 @@ def truth_table(run: IndependentRun):
     """One row per modulation period: ``time_s`` (centre, logger clock), ``position_m``,
     ``speed_m_s``, ``condition``, ``mu`` (available adhesion), ``coa`` (period mean),
     ``utilisation`` (coa/mu), ``creepage`` and ``creep_coefficient`` (slope of the law at the
-    period's mean creepage), ``normal_load_n``, ``dc_torque_nm``."""
+    period's mean creepage), ``normal_load_n``, ``dc_torque_nm``.
+
+    Parameters
+    ----------
+    run : IndependentRun
+        The run.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per modulation period (SI units; mu, coa, utilisation, creepage and creep
+        coefficient dimensionless).
+    """
     import pandas as pd
     s = run.spec
     per = round(s.sample_rate_hz / s.modulation_frequency_hz)
@@ -490,7 +732,29 @@ def write_independent_run(spec: IndependentRunSpec, folder: str | Path, *, fmt: 
     ``folder``. ``fmt="mdf4"``: ``run.mf4``, channel group 0 EM1_Trq [Nm] and EM1_Spd [rpm]
     at ``sample_rate_hz``, group 1 Radar_v [km/h] at ``radar_rate_hz`` (each group with its
     own master); ``fmt="hdf5"``: ``run.h5`` as :func:`_write_hdf5` (times in ms, the radar's
-    own time vector named in ``[channels]``). Returns (run.toml path, the run)."""
+    own time vector named in ``[channels]``). Returns (run.toml path, the run).
+
+    Parameters
+    ----------
+    spec : IndependentRunSpec
+        The run.
+    folder : str or pathlib.Path
+        The folder.
+    fmt : {"mdf4", "hdf5"}
+        Recording format. Default "mdf4".
+
+    Returns
+    -------
+    path : pathlib.Path
+        The run.toml.
+    run : IndependentRun
+        The run.
+
+    Raises
+    ------
+    ValueError
+        An unknown ``fmt``.
+    """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     run = simulate_independent(spec)

@@ -76,14 +76,48 @@ def _blend(x, starts, table, trans, q):
 
 def friction_params(x, starts, table, trans):
     """(mu0, A, B, kA, kS) [array of 5] and the segment index at position ``x`` [m]: each
-    parameter blended linearly across ``trans`` [m] centred on a segment start."""
+    parameter blended linearly across ``trans`` [m] centred on a segment start.
+
+    Parameters
+    ----------
+    x : float
+        Position [m].
+    starts : ndarray
+        Segment starts [m].
+    table : ndarray
+        (segments, 5) Polach parameters (mu0 [-], A [-], B [s/m], kA [-], kS [-]).
+    trans : float
+        Transition length [m].
+
+    Returns
+    -------
+    params : ndarray
+        The five parameters at ``x``.
+    segment : int
+        The segment index.
+    """
     return (np.array([_blend(x, starts, table, trans, q) for q in range(5)]),
             _segment(x, starts))
 
 
 @numba.njit(cache=True)
 def normal_load(x, p, irr):
-    """Axle load [N] at ``x`` [m]: ``irr`` rows (amplitude [-], wavenumber [rad/m], phase)."""
+    """Axle load [N] at ``x`` [m]: ``irr`` rows (amplitude [-], wavenumber [rad/m], phase).
+
+    Parameters
+    ----------
+    x : float
+        Position [m].
+    p : ndarray
+        The parameter vector.
+    irr : ndarray
+        Irregularity rows.
+
+    Returns
+    -------
+    float
+        Axle load [N].
+    """
     s = 0.0
     for k in range(irr.shape[0]):
         s += irr[k, 0] * math.sin(irr[k, 1] * x + irr[k, 2])
@@ -139,7 +173,42 @@ def _control(y, p, leg_until, leg_mode, leg_val, leg_others, leg_step, levels, n
 def integrate(y, n_samples, dt, substeps, p, starts, table, irr, leg_until, leg_mode,
               leg_val, leg_others, leg_step, levels, n_levels, seg_peak, out, t0=0.0):
     """Advance ``y`` (in place) by ``n_samples`` samples of ``dt`` [s], ``substeps`` RK4
-    steps each, writing :data:`OUT` per sample (the state at the sample's start)."""
+    steps each, writing :data:`OUT` per sample (the state at the sample's start).
+
+    Parameters
+    ----------
+    y : ndarray
+        The state, advanced in place.
+    n_samples : int
+        Samples [-].
+    dt : float
+        Sample interval [s].
+    substeps : int
+        RK4 steps per sample [-].
+    p : ndarray
+        The parameter vector.
+    starts, table : ndarray
+        The friction map (:func:`friction_params`).
+    irr : ndarray
+        Irregularity rows.
+    leg_until, leg_mode, leg_val, leg_others, leg_step : ndarray
+        The driver's legs: end [m], mode, value, the other axles' force [N], probe step [m].
+    levels : ndarray
+        Probe levels [-].
+    n_levels : ndarray
+        Levels per leg.
+    seg_peak : ndarray
+        Available adhesion per segment [-].
+    out : ndarray
+        Output rows (:data:`OUT`).
+    t0 : float
+        Time of the first sample [s]. Default 0.
+
+    Returns
+    -------
+    int
+        Samples written (fewer when the integration stopped).
+    """
     dy = np.zeros(6)
     k1 = np.zeros(6)
     k2 = np.zeros(6)
@@ -190,7 +259,37 @@ def integrate(y, n_samples, dt, substeps, p, starts, table, irr, leg_until, leg_
 def static_coa(xi, speed_m_s, normal_load_n, stiffness_x_n, mu0, a_ratio, b_s_m, k_a, k_s):
     """CoA [-] of the Polach curve (Polach 2005 Eqs. 1-9, longitudinal creepage only; the
     vectorised twin of :func:`~torquemod.analysis.contact.polach.creep_force_scalar`),
-    broadcasting."""
+    broadcasting.
+
+    Parameters
+    ----------
+    xi : float or array_like
+        Longitudinal creepage [-].
+    speed_m_s : float or array_like
+        Rolling speed [m/s].
+    normal_load_n : float or array_like
+        Normal load Q [N].
+    stiffness_x_n : float or array_like
+        Lumped contact stiffness ``pi*G*a*b*c11/4`` [N].
+    mu0 : float or array_like
+        Friction at zero slip velocity [-].
+    a_ratio : float or array_like
+        A [-].
+    b_s_m : float or array_like
+        B [s/m].
+    k_a, k_s : float or array_like
+        Reduction factors [-].
+
+    Returns
+    -------
+    ndarray
+        CoA [-].
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eqs. (1)-(9).
+    """
     xi = np.asarray(xi, dtype=float)
     mu = mu0 * ((1.0 - a_ratio) * np.exp(-b_s_m * np.abs(xi) * speed_m_s) + a_ratio)
     eps = stiffness_x_n * np.abs(xi) / (normal_load_n * mu)
@@ -202,7 +301,34 @@ def adhesion_peak(speed_m_s, normal_load_n, stiffness_x_n, mu0, a_ratio, b_s_m, 
                   *, n_grid: int = 400):
     """Peak CoA [-] of :func:`static_coa` over the creepage and the creepage at the peak,
     per element of the broadcast arguments (log grid 1e-5..0.3, parabolic refinement in
-    log creepage: relative error < 1e-5 of the peak)."""
+    log creepage: relative error < 1e-5 of the peak).
+
+    Parameters
+    ----------
+    speed_m_s : float or array_like
+        Rolling speed [m/s].
+    normal_load_n : float or array_like
+        Normal load [N].
+    stiffness_x_n : float or array_like
+        Lumped contact stiffness [N].
+    mu0 : float or array_like
+        Friction at zero slip velocity [-].
+    a_ratio : float or array_like
+        A [-].
+    b_s_m : float or array_like
+        B [s/m].
+    k_a, k_s : float or array_like
+        Reduction factors [-].
+    n_grid : int
+        Grid points [-]. Default 400.
+
+    Returns
+    -------
+    peak : ndarray
+        Peak CoA [-].
+    xi_peak : ndarray
+        Creepage at the peak [-].
+    """
     args = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
                                  (speed_m_s, normal_load_n, stiffness_x_n, mu0, a_ratio,
                                   b_s_m, k_a, k_s)))

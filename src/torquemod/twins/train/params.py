@@ -50,12 +50,45 @@ CONDITIONS: dict[str, PolachParameters] = {
 class VehicleParams:
     """One powered axle and its share of the vehicle.
 
-    Rotations are referred to the axle: ``motor_inertia_kg_m2`` is the rotor (and pinion)
-    inertia times the gear ratio squared; the compliant coupling (``coupling_*``) joins it
-    to the wheelset (``wheelset_inertia_kg_m2``, with the gear wheel). ``normal_load_n`` [N]
-    is the axle's (both wheels). ``mass_share_kg`` [kg] is the vehicle mass this axle moves
-    alone; ``davis_*`` the running resistance ``a + b*V + c*V^2`` [N] of that share.
-    ``motor_time_constant_s`` [s]: the motor torque follows its command with this lag.
+    Rotations are referred to the axle: the motor's inertia is the rotor (and pinion) inertia
+    times the gear ratio squared; the compliant coupling joins it to the wheelset.
+
+    Attributes
+    ----------
+    wheel_radius_m : float
+        Rolling radius [m].
+    normal_load_n : float
+        Axle load, both wheels [N].
+    wheelset_inertia_kg_m2 : float
+        Wheelset with the gear wheel [kg*m^2].
+    motor_inertia_kg_m2 : float
+        Motor referred to the axle [kg*m^2].
+    coupling_stiffness_nm_rad : float
+        Coupling stiffness [N*m/rad].
+    coupling_damping_nm_s_rad : float
+        Coupling damping [N*m*s/rad].
+    gear_ratio : float
+        Motor turns per axle turn [-].
+    mass_share_kg : float
+        The vehicle mass this axle moves alone [kg].
+    davis_a_n : float
+        Running resistance ``a + b*V + c*V^2`` of that share: a [N].
+    davis_b_n_s_m : float
+        b [N*s/m].
+    davis_c_n_s2_m2 : float
+        c [N*s^2/m^2].
+    motor_time_constant_s : float
+        The motor torque follows its command with this lag [s].
+    wheel_profile_radius_m : float
+        Transverse radius of the wheel profile [m] (Hertz contact).
+    rail_head_radius_m : float
+        Transverse radius of the rail head [m].
+    youngs_modulus_pa : float
+        Young's modulus [Pa].
+    poisson_ratio : float
+        Poisson's ratio [-].
+    shear_modulus_pa : float
+        Shear modulus [Pa].
     """
 
     wheel_radius_m: float = 0.46
@@ -95,7 +128,22 @@ class VehicleParams:
 
 @dataclass(frozen=True)
 class Segment:
-    """Friction from ``start_m`` [m] on: a named condition or explicit Polach parameters."""
+    """Friction from a position on: a named condition or explicit Polach parameters.
+
+    Attributes
+    ----------
+    start_m : float
+        Where the segment starts [m].
+    condition : str
+        Its name.
+    polach : PolachParameters
+        Its Polach parameters [1]_.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000.
+    """
 
     start_m: float
     condition: str
@@ -104,9 +152,21 @@ class Segment:
 
 @dataclass(frozen=True)
 class TrackParams:
-    """The friction map (segments, linear transitions of ``transition_m`` [m]) and the
-    vertical irregularity that makes the axle load vary: sines of the wavelengths
-    ``irregularity_wavelengths_m`` [m] with a total relative RMS ``load_variation_rms``."""
+    """The friction map and the vertical irregularity that makes the axle load vary.
+
+    Attributes
+    ----------
+    segments : tuple of Segment
+        The friction segments, in order.
+    length_m : float
+        Track length [m].
+    transition_m : float
+        Length of the linear transitions between segments [m]. Default 20.
+    load_variation_rms : float
+        Total relative RMS of the load variation [-]. Default 0.03.
+    irregularity_wavelengths_m : tuple of float
+        Wavelengths of the irregularity's sines [m].
+    """
 
     segments: tuple[Segment, ...]
     length_m: float
@@ -117,11 +177,27 @@ class TrackParams:
 
 @dataclass(frozen=True)
 class Leg:
-    """One part of the driver's demand up to ``until_m`` [m]: ``mode`` ``torque`` (this
-    axle's DC torque ``torque_nm`` [N*m], negative brakes), ``speed`` (hold ``speed_m_s``
-    with this axle), ``coast`` or ``probe`` (DC torque steps to ``levels`` of the available
-    adhesion, each for ``step_m`` [m], while the other axles hold the speed: the tractive
-    effort is unchanged). ``others_force_n`` [N]: the other axles' force outside probes."""
+    """One part of the driver's demand.
+
+    Attributes
+    ----------
+    until_m : float
+        Where the leg ends [m].
+    mode : {"torque", "speed", "coast", "probe"}
+        ``torque``: this axle's DC torque; ``speed``: hold the speed with this axle;
+        ``coast``; ``probe``: DC torque steps to ``levels`` of the available adhesion while
+        the other axles hold the speed (the tractive effort is unchanged).
+    torque_nm : float
+        DC torque of a ``torque`` leg [N*m], negative brakes. Default 0.
+    speed_m_s : float
+        Speed of a ``speed`` leg [m/s]. Default 0.
+    levels : tuple of float
+        The probe's levels, shares of the available adhesion [-].
+    step_m : float
+        Length of each probe level [m]. Default 100.
+    others_force_n : float
+        The other axles' force outside probes [N]. Default 0.
+    """
 
     until_m: float
     mode: str
@@ -134,9 +210,23 @@ class Leg:
 
 @dataclass(frozen=True)
 class ControllerParams:
-    """Traction control: speed-holding gains, the anti-slip control that cuts the torque
-    when the creepage exceeds ``antislip_creepage`` [-] (at ``antislip_cut_per_s`` [1/s],
-    down to ``antislip_floor``, restored at ``antislip_restore_per_s`` below half of it)."""
+    """Traction control: the driver's legs, speed holding and anti-slip control.
+
+    Attributes
+    ----------
+    legs : tuple of Leg
+        The driver's demand, in order.
+    speed_gain_n_s_m : float
+        Speed-holding gain [N*s/m].
+    antislip_creepage : float
+        The anti-slip control cuts the torque above this creepage [-].
+    antislip_cut_per_s : float
+        At this rate [1/s].
+    antislip_floor : float
+        Down to this share of the demand [-].
+    antislip_restore_per_s : float
+        Restored at this rate below half the threshold [1/s].
+    """
 
     legs: tuple[Leg, ...]
     speed_gain_n_s_m: float = 40_000.0
@@ -148,12 +238,36 @@ class ControllerParams:
 
 @dataclass(frozen=True)
 class TrainSensorParams:
-    """What the logger records. Torque: estimated from the motor current with a gain error,
-    a bias [N*m], white noise [N*m RMS] and a first-order lag [s]. Wheel speed: an axle
-    encoder with tooth spacing errors (RMS share of a pitch, as revolution harmonics 2-8),
-    once-per-revolution eccentricity (share of the speed), white noise [rad/s RMS] and
-    quantization [rad/s]. Reference speed (radar): its own rate [Hz], noise [m/s RMS] and
-    scale error. Position: the reference speed integrated."""
+    """What the logger records.
+
+    Attributes
+    ----------
+    sample_rate_hz : float
+        Logger rate [Hz].
+    torque_gain_error : float
+        Gain error of the torque estimated from the motor current [-].
+    torque_bias_nm : float
+        Its bias [N*m].
+    torque_noise_nm : float
+        Its white noise [N*m RMS].
+    torque_lag_s : float
+        Its first-order lag [s].
+    tooth_error_rms : float
+        The axle encoder's tooth spacing errors, RMS share of a pitch (revolution harmonics
+        2-8) [-].
+    eccentricity : float
+        Once-per-revolution eccentricity, share of the speed [-].
+    speed_noise_rad_s : float
+        White noise of the wheel speed [rad/s RMS].
+    speed_quantum_rad_s : float
+        Quantization of the wheel speed [rad/s].
+    reference_rate_hz : float
+        Rate of the reference speed (radar) [Hz].
+    reference_noise_m_s : float
+        Its noise [m/s RMS].
+    reference_scale_error : float
+        Its scale error [-].
+    """
 
     sample_rate_hz: float = 1000.0
     torque_gain_error: float = 0.01
@@ -171,7 +285,29 @@ class TrainSensorParams:
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """Everything the train twin needs (see :func:`load_train_config`)."""
+    """Everything the train twin needs (:func:`load_train_config`).
+
+    Attributes
+    ----------
+    vehicle : VehicleParams
+        The axle and its share of the vehicle.
+    track : TrackParams
+        Friction map and irregularity.
+    controller : ControllerParams
+        Driver and traction control.
+    sensors : TrainSensorParams
+        The logger.
+    modulation_frequency_hz : float
+        Modulation frequency [Hz]. Default 5.
+    modulation_amplitude_nm : float
+        Modulation amplitude [N*m]. Default 2000.
+    initial_speed_m_s : float
+        Speed at the start [m/s]. Default 20.
+    substeps : int
+        RK4 steps per logger sample [-]. Default 8.
+    raw : dict
+        The configuration document as read.
+    """
 
     vehicle: VehicleParams
     track: TrackParams
@@ -185,7 +321,13 @@ class TrainConfig:
 
 
 def default_train_config_text() -> str:
-    """The default train configuration (TOML) as shipped with the package."""
+    """The default train configuration (TOML) as shipped with the package.
+
+    Returns
+    -------
+    str
+        ``torquemod/data/train_default.toml``.
+    """
     return (resources.files("torquemod") / "data" / "train_default.toml").read_text("utf-8")
 
 
@@ -278,7 +420,26 @@ def config_from_dict(doc: dict, *, where: str = "<train config>") -> TrainConfig
     value is checked (:func:`torquemod._util.tomlcheck.read_table`): unknown keys (with the nearest
     known one), types, finiteness, signs and ranges, the modulation and the reference rate
     below the sample rate's Nyquist frequency; an :class:`InputError` names ``where`` and the
-    key."""
+    key.
+
+    Parameters
+    ----------
+    doc : dict
+        The parsed TOML document.
+    where : str
+        The source, named in messages. Default "<train config>".
+
+    Returns
+    -------
+    TrainConfig
+        The configuration.
+
+    Raises
+    ------
+    InputError
+        An unknown key, a bad type or value, no track segment or driver leg, a missing track
+        length, rates above Nyquist, or a run too long to hold.
+    """
     unknown_keys(doc, _TOP, "train configuration", where)
     veh = read_table(VehicleParams, _table(doc, "vehicle", where), section="vehicle",
                      path=where, checks=default_checks(VehicleParams, _VEHICLE))
@@ -345,12 +506,39 @@ def config_from_dict(doc: dict, *, where: str = "<train config>") -> TrainConfig
 
 
 def is_train_config(doc: dict) -> bool:
-    """True when a simulation configuration describes a train run (``kind = "train"``)."""
+    """True when a simulation configuration describes a train run (``kind = "train"``).
+
+    Parameters
+    ----------
+    doc : dict
+        The parsed TOML document.
+
+    Returns
+    -------
+    bool
+        Whether it is a train configuration.
+    """
     return doc.get("kind") == "train"
 
 
 def load_train_config(path: str | Path | None = None) -> TrainConfig:
-    """Read a train configuration (TOML); None: the packaged default."""
+    """Read a train configuration (TOML).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path or None
+        The file; None: the packaged default.
+
+    Returns
+    -------
+    TrainConfig
+        The configuration.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, or :func:`config_from_dict` refuses it.
+    """
     if path is None:
         return config_from_dict(tomllib.loads(default_train_config_text()),
                                 where="train_default.toml")

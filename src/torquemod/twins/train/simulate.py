@@ -79,7 +79,27 @@ def _arrays(cfg: TrainConfig, rng: np.random.Generator) -> dict:
 
 def integrate_run(cfg: TrainConfig, *, seed: int = 0, block_s: float = 20.0) -> np.ndarray:
     """The true signals of a run (columns :data:`dynamics.OUT`) at the logger's rate, from
-    the start until the train has run ``track.length_m``."""
+    the start until the train has run ``track.length_m``.
+
+    Parameters
+    ----------
+    cfg : TrainConfig
+        The train twin's configuration.
+    seed : int
+        Random seed (irregularity phases). Default 0.
+    block_s : float
+        Time integrated per block [s]. Default 20.
+
+    Returns
+    -------
+    ndarray
+        The true signals (:data:`dynamics.OUT` columns).
+
+    Raises
+    ------
+    ProcessingError
+        The integration diverged, or the train stopped before the end of the track.
+    """
     rng = np.random.default_rng([seed, 10])
     a = _arrays(cfg, rng)
     v0 = cfg.initial_speed_m_s
@@ -111,7 +131,22 @@ def integrate_run(cfg: TrainConfig, *, seed: int = 0, block_s: float = 20.0) -> 
 def measure(raw: np.ndarray, cfg: TrainConfig, *, seed: int = 0) -> dict:
     """Logger channels from the true signals: ``torque_nm``, ``wheel_speed_rad_s`` at the
     logger rate, ``reference_time_s``, ``vehicle_speed_m_s``, ``position_m`` at the
-    reference's rate (module docstring)."""
+    reference's rate (module docstring).
+
+    Parameters
+    ----------
+    raw : ndarray
+        The true signals.
+    cfg : TrainConfig
+        The train twin's configuration.
+    seed : int
+        Random seed of the sensor errors. Default 0.
+
+    Returns
+    -------
+    dict of str to ndarray
+        The channels (SI units).
+    """
     s = cfg.sensors
     rng = np.random.default_rng([seed, 20])
     fs = s.sample_rate_hz
@@ -144,7 +179,21 @@ def measure(raw: np.ndarray, cfg: TrainConfig, *, seed: int = 0) -> dict:
 
 def truth_table(raw: np.ndarray, cfg: TrainConfig):
     """The truth along the run, one row per modulation period (means of the true signals
-    over it, so the modulation averages out), a pandas DataFrame (docs/format.md)."""
+    over it, so the modulation averages out), a pandas DataFrame (docs/format.md).
+
+    Parameters
+    ----------
+    raw : ndarray
+        The true signals.
+    cfg : TrainConfig
+        The train twin's configuration.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Time [s], position [m], speed [m/s], condition, mu [-], available adhesion [-], CoA
+        [-], utilisation [-], ...
+    """
     import pandas as pd
     fs = cfg.sensors.sample_rate_hz
     m = max(1, round(fs / cfg.modulation_frequency_hz))
@@ -185,7 +234,18 @@ def vehicle_damping_n_s_m(cfg: TrainConfig) -> float | None:
     speed with ``speed_gain_n_s_m`` and cancel the running resistance
     (:func:`~torquemod.twins.train.dynamics._control`), elsewhere the vehicle meets the running
     resistance's slope ``B + 2*C*v`` at the starting speed; None when probes and other legs
-    mix (no single value; the estimator then takes the vehicle as an inertia)."""
+    mix (no single value; the estimator then takes the vehicle as an inertia).
+
+    Parameters
+    ----------
+    cfg : TrainConfig
+        The train twin's configuration.
+
+    Returns
+    -------
+    float or None
+        [N*s/m].
+    """
     modes = {leg.mode for leg in cfg.controller.legs}
     if modes == {"probe"}:
         return float(cfg.controller.speed_gain_n_s_m)
@@ -197,7 +257,22 @@ def vehicle_damping_n_s_m(cfg: TrainConfig) -> float | None:
 
 def run_manifest(cfg: TrainConfig, file: str, fmt: str) -> dict:
     """The ``run.toml`` document of a simulated run (drive line, the torque signal's lag and
-    the vehicle's damping included: the twin knows them)."""
+    the vehicle's damping included: the twin knows them).
+
+    Parameters
+    ----------
+    cfg : TrainConfig
+        The train twin's configuration.
+    file : str
+        The recording's file name.
+    fmt : str
+        Its format.
+
+    Returns
+    -------
+    dict
+        The run.toml document.
+    """
     v = cfg.vehicle
     vehicle = {"vehicle": "torquemod train twin", "wheel_radius_m": v.wheel_radius_m,
                "normal_load_n": v.normal_load_n, "inertia_kg_m2": v.inertia_kg_m2,
@@ -249,7 +324,31 @@ def run_train_simulation(cfg: TrainConfig, out_dir: str | Path, *, seed: int = 0
                          force: bool = False) -> dict:
     """Simulate ``cfg`` and write the run folder ``out_dir`` (atomically): ``run.toml`` with
     ``run.mf4``, ``run_h5.toml`` with ``run.h5``, ``truth.parquet`` and ``simulation.json``.
-    Returns a summary dict (per-segment truth)."""
+    Returns a summary dict (per-segment truth).
+
+    Parameters
+    ----------
+    cfg : TrainConfig
+        The train twin's configuration.
+    out_dir : str or pathlib.Path
+        The run folder.
+    seed : int
+        Random seed. Default 0.
+    force : bool
+        Replace an existing folder. Default False.
+
+    Returns
+    -------
+    dict
+        Summary (per-segment truth).
+
+    Raises
+    ------
+    InputError
+        An occupied ``out_dir`` without ``force``.
+    ProcessingError
+        The integration diverged or the train stopped.
+    """
     import tomli_w
     check_output_dir(out_dir, force=force)  # an occupied --out: before the simulation
     raw = integrate_run(cfg, seed=seed)

@@ -14,10 +14,37 @@ from dataclasses import dataclass, field
 class ContactParams:
     """Polach creep-force parameters and contact geometry of the measuring wheel.
 
-    ``mu0`` [-], ``a_ratio`` A [-], ``b_s_m`` B [s/m], ``k_a``, ``k_s`` [-] as in Polach (2005)
-    Eqs. (8)-(9); ``shear_modulus_pa`` G [Pa]; ``a_m``, ``b_m`` contact semi-axes (rolling,
-    lateral) [m]; ``c11``, ``c22`` Kalker coefficients [-]; ``lateral_creepage`` the constant
-    lateral creepage from running on the ring [-]; ``preset`` the name it started from.
+    Attributes
+    ----------
+    mu0 : float
+        Friction coefficient at zero slip velocity [-] (Eq. 9 of [1]_).
+    a_ratio : float
+        A = mu_inf/mu0 [-] (Eq. 9).
+    b_s_m : float
+        B, decay rate of friction with slip velocity [s/m] (Eq. 9).
+    k_a : float
+        Reduction factor in the area of adhesion [-] (Eq. 8).
+    k_s : float
+        Reduction factor in the area of slip [-] (Eq. 8).
+    shear_modulus_pa : float
+        Shear modulus G [Pa].
+    a_m : float
+        Contact semi-axis in the rolling direction [m].
+    b_m : float
+        Lateral contact semi-axis [m].
+    c11 : float
+        Kalker's longitudinal coefficient [-].
+    c22 : float
+        Kalker's lateral coefficient [-].
+    lateral_creepage : float
+        Constant lateral creepage from running on the ring [-]. Default 0.
+    preset : str
+        The preset it started from. Default "".
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000.
     """
 
     mu0: float
@@ -54,13 +81,39 @@ class ContactParams:
 class RigParams:
     """Mechanics of the rig, every rotation referred to the measuring wheel's axle.
 
-    Drive line: motor and both gearboxes (``drive_inertia_kg_m2``) -- torque shaft with
-    ``shaft_stiffness_nm_rad`` and ``shaft_damping_nm_s_rad`` -- torque sensor with its
-    encoder -- wheel (``wheel_inertia_kg_m2``: everything rigidly attached downstream of the
-    sensor). Platform: ``platform_inertia_kg_m2`` (frame plus reflected drive), PI speed
-    controller ``platform_kp_nm_s_rad``, ``platform_ki_nm_rad`` against
-    ``rolling_resistance_nm``; it carries the wheel at ``platform_radius_m`` and feels the
-    traction force's reaction ``Fx*Rp``.
+    Drive line: motor and both gearboxes -- torque shaft -- torque sensor with its encoder --
+    wheel (everything rigidly attached downstream of the sensor). Platform: frame plus
+    reflected drive under a PI speed controller against the rolling resistance; it carries
+    the wheel at ``platform_radius_m`` and feels the traction force's reaction ``Fx*Rp``.
+
+    Attributes
+    ----------
+    wheel_radius_m : float
+        Wheel radius Rw [m].
+    platform_radius_m : float
+        Radius of the wheel path on the ring Rp [m].
+    speed_m_s : float
+        Set rolling speed V [m/s].
+    normal_load_n : float
+        Normal load N [N].
+    wheel_inertia_kg_m2 : float
+        Inertia downstream of the torque sensor Jw [kg*m^2].
+    drive_inertia_kg_m2 : float
+        Motor and gearboxes Jm [kg*m^2].
+    shaft_stiffness_nm_rad : float
+        Torque shaft stiffness [N*m/rad].
+    shaft_damping_nm_s_rad : float
+        Torque shaft damping [N*m*s/rad].
+    platform_inertia_kg_m2 : float
+        Platform inertia Jp [kg*m^2].
+    platform_kp_nm_s_rad : float
+        Speed controller's proportional gain [N*m*s/rad].
+    platform_ki_nm_rad : float
+        Its integral gain [N*m/rad].
+    rolling_resistance_nm : float
+        Rolling resistance torque on the platform [N*m].
+    contact : ContactParams
+        The contact.
     """
 
     wheel_radius_m: float
@@ -90,9 +143,22 @@ class RigParams:
 
 @dataclass(frozen=True)
 class ModulationParams:
-    """Motor controller: DC torque plus ``amplitude_nm`` [N*m] at ``frequency_hz`` [Hz]
-    (nominal) generated on the controller's own clock, which runs ``frequency_offset``
-    (relative, e.g. 1e-3) fast; ``random_phase`` draws the generator phase per recording."""
+    """The motor controller's torque modulation.
+
+    The DC torque plus ``amplitude_nm`` at ``frequency_hz``, generated on the controller's own
+    clock.
+
+    Attributes
+    ----------
+    amplitude_nm : float
+        Modulation amplitude [N*m]. Default 8 (the V-Track paper's).
+    frequency_hz : float
+        Nominal modulation frequency [Hz]. Default 2.
+    frequency_offset : float
+        How fast the controller's clock runs, relative (e.g. 1e-3) [-]. Default 0.
+    random_phase : bool
+        Draw the generator phase per recording. Default True.
+    """
 
     amplitude_nm: float = 8.0
     frequency_hz: float = 2.0
@@ -106,19 +172,50 @@ class ModulationParams:
 
 @dataclass(frozen=True)
 class DisturbanceParams:
-    """Rig disturbances; ``enabled = False`` switches all of them and the sensor noise off.
+    """Rig disturbances.
 
-    Encoder eccentricity as angle errors ``e1*sin(theta+phi1) + e2*sin(2*theta+phi2)`` [rad];
-    normal-load variation from ``sleeper_count`` sleepers per revolution
-    (``sleeper_load_n`` amplitude [N]) and ``joint_count`` rail joints (a decaying
-    oscillation of ``joint_load_n`` [N] at ``joint_frequency_hz`` with ``joint_damping_ratio``).
-    The platform's speed loop wobbles (``speed_wobble_enabled``, and only with ``enabled``):
-    its reference ``W_ref = W0*(1 + w(t, theta_p))`` carries ``speed_wobble_components`` sines
-    of equal amplitude at random frequencies in ``speed_wobble_band_hz`` [Hz], together
-    ``speed_wobble_rms`` (relative) RMS, and once- and twice-per-revolution terms
-    ``speed_wobble_rev1``/``rev2`` (relative amplitudes, functions of the platform angle);
-    frequencies and phases are drawn once per run from the seed. The wheel follows through
-    the contact (:func:`torquemod.twins.vtrack.rig.dynamics.wobble_table`).
+    Encoder eccentricity as angle errors ``e1*sin(theta + phi1) + e2*sin(2*theta + phi2)``;
+    normal-load variation from sleepers and rail joints (a decaying oscillation per joint);
+    the platform's speed loop wobbles: its reference ``W_ref = W0*(1 + w(t, theta_p))``
+    carries ``speed_wobble_components`` sines of equal amplitude at random frequencies in
+    ``speed_wobble_band_hz``, together ``speed_wobble_rms`` RMS, and once- and
+    twice-per-revolution terms; frequencies and phases are drawn once per run from the seed.
+    The wheel follows through the contact (:func:`torquemod.twins.vtrack.rig.wobble.wobble_table`).
+
+    Attributes
+    ----------
+    enabled : bool
+        False switches all disturbances and the sensor noise off. Default True.
+    wheel_encoder_ecc1_rad, wheel_encoder_ecc2_rad : float
+        The wheel encoder's once- and twice-per-revolution angle errors e1, e2 [rad].
+    wheel_encoder_phase1_rad, wheel_encoder_phase2_rad : float
+        Their phases phi1, phi2 [rad].
+    platform_encoder_ecc1_rad, platform_encoder_ecc2_rad : float
+        The platform encoder's angle errors [rad].
+    platform_encoder_phase1_rad, platform_encoder_phase2_rad : float
+        Their phases [rad].
+    sleeper_count : int
+        Sleepers per revolution [-]. Default 100.
+    sleeper_load_n : float
+        Amplitude of the sleeper-passing load variation [N].
+    joint_count : int
+        Rail joints per revolution [-]. Default 4.
+    joint_load_n : float
+        Amplitude of a joint's load oscillation [N].
+    joint_frequency_hz : float
+        Its frequency [Hz]. Default 40.
+    joint_damping_ratio : float
+        Its damping ratio [-]. Default 0.1.
+    speed_wobble_enabled : bool
+        The speed loop wobbles (only with ``enabled``). Default True.
+    speed_wobble_rms : float
+        RMS of the random sines, relative [-].
+    speed_wobble_band_hz : tuple of float
+        Band of their frequencies [Hz]. Default (0.2, 0.6).
+    speed_wobble_components : int
+        How many sines [-]. Default 3.
+    speed_wobble_rev1, speed_wobble_rev2 : float
+        Relative amplitudes of the once- and twice-per-revolution terms [-].
     """
 
     enabled: bool = True
@@ -146,7 +243,21 @@ class DisturbanceParams:
 
 @dataclass(frozen=True)
 class SensorParams:
-    """Sampling rate [Hz] and white-noise standard deviations of each sensor."""
+    """Sampling rate and white-noise standard deviation of each sensor.
+
+    Attributes
+    ----------
+    sample_rate_hz : float
+        Sample rate [Hz]. Default 16 670 (the V-Track paper's).
+    torque_noise_nm : float
+        Torque noise [N*m].
+    wheel_speed_noise_rad_s : float
+        Wheel speed noise [rad/s].
+    platform_speed_noise_rad_s : float
+        Platform speed noise [rad/s].
+    force_noise_n : float
+        Force noise [N].
+    """
 
     sample_rate_hz: float = 16670.0
     torque_noise_nm: float = 0.0
@@ -157,11 +268,27 @@ class SensorParams:
 
 @dataclass(frozen=True)
 class ProcedureParams:
-    """Test procedure: DC torque steps [N*m], platform revolutions recorded per step,
-    settling time after each step change [s], ramp time of the DC change [s], the creepage
-    above which the wheel counts as slipping [-], and the integrator's step: ``substeps``
-    classical RK4 steps per ``samples_per_step`` output samples (samples inside a step are
-    interpolated, see :func:`torquemod.twins.vtrack.rig.dynamics.integrate`)."""
+    """The test procedure and the integrator's step.
+
+    Attributes
+    ----------
+    dc_torques_nm : tuple of float
+        DC torque steps [N*m]. Default the V-Track paper's Table 1 plus one step above the
+        creep-curve peak.
+    cycles_per_step : int
+        Platform revolutions recorded per step [-]. Default 3.
+    settle_s : float
+        Settling time after each step change [s]. Default 4.
+    ramp_s : float
+        Ramp time of the DC change [s]. Default 0.5.
+    slip_creepage : float
+        Creepage above which the wheel counts as slipping [-]. Default 0.05.
+    substeps : int
+        Classical RK4 steps per ``samples_per_step`` output samples [-]. Default 1.
+    samples_per_step : int
+        Output samples per integration step (those inside a step are interpolated,
+        :func:`torquemod.twins.vtrack.rig.dynamics.integrate`) [-]. Default 8.
+    """
 
     dc_torques_nm: tuple[float, ...] = (0.23, 22.84, 44.47, 55.22, 60.45, 65.82, 72.0)
     cycles_per_step: int = 3
@@ -174,7 +301,21 @@ class ProcedureParams:
 
 @dataclass(frozen=True)
 class SimConfig:
-    """Everything one simulated experiment needs."""
+    """Everything one simulated experiment needs.
+
+    Attributes
+    ----------
+    rig : RigParams
+        The rig and its contact.
+    modulation : ModulationParams
+        The torque modulation.
+    disturbances : DisturbanceParams
+        The rig's disturbances.
+    sensors : SensorParams
+        Sampling and noise.
+    procedure : ProcedureParams
+        The test procedure.
+    """
 
     rig: RigParams
     modulation: ModulationParams = field(default_factory=ModulationParams)
@@ -188,9 +329,27 @@ MAX_LAMBDA_H = 2.0
 
 
 def stiffest_rate(rig: RigParams) -> float:
-    """Estimate [1/s] of the fastest eigenvalue of the twin's equations: the platform's PI
-    loop ``Kp/Jp``, the torsional mode ``sqrt(k/J) + c/J`` (``1/J = 1/Jm + 1/Jw``) or the
-    creep-force damping ``(Rw^2/Jw + Rp^2/Jp)*dFx/dxi/V`` at zero creepage."""
+    """Estimate of the fastest eigenvalue of the twin's equations.
+
+    The platform's PI loop ``Kp/Jp``, the torsional mode ``sqrt(k/J) + c/J``
+    (``1/J = 1/Jm + 1/Jw``) or the creep-force damping ``(Rw^2/Jw + Rp^2/Jp)*dFx/dxi/V`` at
+    zero creepage (dFx/dxi from Eq. (8) of [1]_), whichever is largest.
+
+    Parameters
+    ----------
+    rig : RigParams
+        The rig.
+
+    Returns
+    -------
+    float
+        The rate [1/s].
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eq. (8).
+    """
     c = rig.contact
     inv_j = 1.0 / rig.drive_inertia_kg_m2 + 1.0 / rig.wheel_inertia_kg_m2
     torsion = math.sqrt(rig.shaft_stiffness_nm_rad * inv_j) + rig.shaft_damping_nm_s_rad * inv_j

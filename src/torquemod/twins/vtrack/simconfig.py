@@ -38,7 +38,13 @@ _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 
 
 def default_config_text() -> str:
-    """The default configuration (V-Track) as commented TOML text."""
+    """The default configuration (V-Track) as commented TOML text.
+
+    Returns
+    -------
+    str
+        ``torquemod/data/vtrack_default.toml``.
+    """
     return (resources.files("torquemod") / "data" / "vtrack_default.toml").read_text("utf-8")
 
 
@@ -121,7 +127,26 @@ def _contact(doc: dict, rig: dict, where: str) -> ContactParams:
 
 
 def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
-    """Build a :class:`SimConfig` from a complete (merged) configuration dict."""
+    """Build a :class:`SimConfig` from a complete (merged) configuration dict.
+
+    Parameters
+    ----------
+    doc : dict
+        The configuration, every section and key.
+    where : str
+        The source, named in messages. Default "<config>".
+
+    Returns
+    -------
+    SimConfig
+        The configuration.
+
+    Raises
+    ------
+    InputError
+        A bad value: the wobble band, negative wobble amplitudes, no DC torques, or
+        step counts below 1.
+    """
     r = doc["rig"]
     for key in r:
         _positive(doc, "rig", key, where)
@@ -209,6 +234,23 @@ def load_config(path: str | Path | None = None, *, overrides: dict | None = None
 
     Unknown sections or keys and TOML syntax errors raise :class:`InputError` naming the key
     or the line.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path or None
+        A TOML file with any subset of the keys; None: the defaults alone.
+    overrides : dict or None
+        Further values, in the same layout. Default None.
+
+    Returns
+    -------
+    SimConfig
+        The configuration.
+
+    Raises
+    ------
+    InputError
+        An unreadable file, TOML syntax, an unknown section or key, or a bad value.
     """
     default = _parse(default_config_text(), "vtrack_default.toml")
     merged = default

@@ -47,12 +47,36 @@ from torquemod.twins.vtrack.theory_kernels import (
 
 def rigid_wheel_phase_deg(creep_coefficient, *, inertia_kg_m2: float, speed_m_s: float,
                           wheel_radius_m: float, normal_load_n: float, frequency_hz: float):
-    """Phase lag [deg] of wheel speed behind torque for a rigid wheel (the V-Track paper, Eq. 1):
-    ``phi = arctan(Omega*J*V / (R^2*N*k))``, ``Omega = 2*pi*f``; 90 deg at k = 0. The
+    """Phase lag of the wheel speed behind the torque for a rigid wheel (V-Track paper, Eq. 1).
+
+    ``phi = arctan(Omega*J*V/(R^2*N*k))``, ``Omega = 2*pi*f``; 90 deg at k = 0. The
     measurement's own formula (:func:`torquemod.analysis.creep.theory_constant`,
     :func:`torquemod.analysis.creep.phase_from_constant_deg`) in the rig's terms.
 
-    ``creep_coefficient`` k = dCoA/dxi_x [-] (scalar or array, k >= 0).
+    Parameters
+    ----------
+    creep_coefficient : float or array_like
+        k = dCoA/dxi_x [-], k >= 0.
+    inertia_kg_m2 : float
+        Wheel inertia J [kg*m^2].
+    speed_m_s : float
+        Rolling speed V [m/s].
+    wheel_radius_m : float
+        Wheel radius R [m].
+    normal_load_n : float
+        Normal load N [N].
+    frequency_hz : float
+        Modulation frequency f [Hz].
+
+    Returns
+    -------
+    float or ndarray
+        phi [deg].
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
     """
     c = theory_constant(inertia_kg_m2=inertia_kg_m2, speed_m_s=speed_m_s,
                         wheel_radius_m=wheel_radius_m, normal_load_n=normal_load_n,
@@ -63,8 +87,33 @@ def rigid_wheel_phase_deg(creep_coefficient, *, inertia_kg_m2: float, speed_m_s:
 def creep_coefficient_from_phase(phase_deg, *, inertia_kg_m2: float, speed_m_s: float,
                                  wheel_radius_m: float, normal_load_n: float,
                                  frequency_hz: float):
-    """Inverse of :func:`rigid_wheel_phase_deg`:
-    ``k = Omega*J*V / (R^2*N*tan(phi))`` [-]; phases outside (0, 90] deg raise InputError."""
+    """Inverse of :func:`rigid_wheel_phase_deg`: ``k = Omega*J*V/(R^2*N*tan(phi))``.
+
+    Parameters
+    ----------
+    phase_deg : float or array_like
+        phi [deg], in (0, 90].
+    inertia_kg_m2 : float
+        Wheel inertia J [kg*m^2].
+    speed_m_s : float
+        Rolling speed V [m/s].
+    wheel_radius_m : float
+        Wheel radius R [m].
+    normal_load_n : float
+        Normal load N [N].
+    frequency_hz : float
+        Modulation frequency f [Hz].
+
+    Returns
+    -------
+    float or ndarray
+        k [-].
+
+    Raises
+    ------
+    InputError
+        A phase outside (0, 90] deg.
+    """
     phi = np.asarray(phase_deg, dtype=float)
     if np.any(~np.isfinite(phi)) or np.any(phi <= 0.0) or np.any(phi > 90.0):
         raise InputError(f"phase {phase_deg} deg is outside (0, 90] deg",
@@ -89,6 +138,24 @@ def drive_line_response(creep_coefficient, params: RigParams, frequency_hz, *,
     Returns ``(h_torque, h_speed)``: complex [N*m/N*m] and [rad/s per N*m], broadcast over
     ``creep_coefficient`` k [-] and ``frequency_hz`` [Hz]. ``creepage`` xi0 is the operating
     creepage (its effect is of order xi0 and usually negligible).
+
+    Parameters
+    ----------
+    creep_coefficient : float or array_like
+        k [-].
+    params : RigParams
+        The rig.
+    frequency_hz : float or array_like
+        f [Hz].
+    creepage : float
+        Operating creepage xi0 [-]. Default 0.
+
+    Returns
+    -------
+    h_torque : complex or ndarray
+        Measured shaft torque per motor torque [N*m/N*m].
+    h_speed : complex or ndarray
+        Wheel speed per motor torque [rad/s per N*m].
     """
     k = np.asarray(creep_coefficient, dtype=float)
     f = np.asarray(frequency_hz, dtype=float)
@@ -120,14 +187,51 @@ def predicted_phase_deg(creep_coefficient, params: RigParams, frequency_hz, *,
                         creepage: float = 0.0):
     """Phase [deg] of the measured wheel speed behind the measured shaft torque predicted by
     :func:`drive_line_response` (positive = lag). Reduces to :func:`rigid_wheel_phase_deg`
-    with ``J = wheel_inertia_kg_m2`` for an infinitely stiff platform drive."""
+    with ``J = wheel_inertia_kg_m2`` for an infinitely stiff platform drive.
+
+    Parameters
+    ----------
+    creep_coefficient : float or array_like
+        k [-].
+    params : RigParams
+        The rig.
+    frequency_hz : float or array_like
+        f [Hz].
+    creepage : float
+        Operating creepage [-]. Default 0.
+
+    Returns
+    -------
+    float or ndarray
+        Phase [deg], positive = lag.
+    """
     h_t, h_w = drive_line_response(creep_coefficient, params, frequency_hz, creepage=creepage)
     return np.degrees(np.angle(h_t / h_w))
 
 
 def creep_coefficient_from_predicted_phase(phase_deg: float, params: RigParams,
                                            frequency_hz: float) -> float:
-    """Inverse of :func:`predicted_phase_deg` (scalar), by bracketing in log(k)."""
+    """Inverse of :func:`predicted_phase_deg` (scalar), by bracketing in log(k).
+
+    Parameters
+    ----------
+    phase_deg : float
+        Phase [deg].
+    params : RigParams
+        The rig.
+    frequency_hz : float
+        f [Hz].
+
+    Returns
+    -------
+    float
+        k [-].
+
+    Raises
+    ------
+    InputError
+        The phase is not reachable by this rig model.
+    """
     def g(logk):
         return float(predicted_phase_deg(np.exp(logk), params, frequency_hz)) - phase_deg
     lo, hi = np.log(1e-6), np.log(1e5)
@@ -142,10 +246,28 @@ def creep_coefficient_from_predicted_phase(phase_deg: float, params: RigParams,
 
 @dataclass(frozen=True)
 class OperatingPoint:
-    """Steady rolling under a DC torque. ``creepage`` xi_x [-]; ``coa`` sqrt(Fx²+Fy²)/Fz [-];
-    ``creep_coefficient`` d(Fx/Fz)/dxi_x [-] (what the phase responds to; equals dCoA/dxi_x
-    without lateral creepage); ``dcoa_dxi`` dCoA/dxi_x [-]; forces [N]; ``slipped`` True when
-    the torque exceeds what the creep curve can carry (then the other fields are NaN)."""
+    """Steady rolling under a DC torque.
+
+    Attributes
+    ----------
+    dc_torque_nm : float
+        The DC torque [N*m].
+    creepage : float
+        Longitudinal creepage xi_x [-].
+    coa : float
+        sqrt(Fx^2 + Fy^2)/Fz [-].
+    creep_coefficient : float
+        d(Fx/Fz)/dxi_x [-] (what the phase responds to; equals dCoA/dxi_x without lateral
+        creepage).
+    dcoa_dxi : float
+        dCoA/dxi_x [-].
+    fx_n : float
+        Longitudinal force [N].
+    fy_n : float
+        Lateral force [N].
+    slipped : bool
+        The torque exceeds what the creep curve can carry (the other fields are then NaN).
+    """
 
     dc_torque_nm: float
     creepage: float
@@ -164,10 +286,26 @@ def _fx(xi_x, params: RigParams):
 
 
 def creep_curve_peak(params: RigParams, *, max_creepage: float = 0.5) -> tuple[float, float]:
-    """``(creepage, torque_nm)`` at the maximum of ``R_w*F_x(xi_x)``: the largest DC torque
-    the wheel can carry in steady rolling (beyond it the wheel slips). Remembered per
-    parameter set when ``params`` is a (frozen) :class:`RigParams`: every
-    :func:`operating_point` needs it (~1 ms); other objects are computed every time."""
+    """The largest DC torque the wheel can carry in steady rolling, and its creepage.
+
+    The maximum of ``R_w*F_x(xi_x)`` (beyond it the wheel slips). Remembered per parameter set
+    when ``params`` is a (frozen) :class:`RigParams`: every :func:`operating_point` needs it
+    (~1 ms); other objects are computed every time.
+
+    Parameters
+    ----------
+    params : RigParams
+        The rig.
+    max_creepage : float
+        Upper end of the creepage searched [-]. Default 0.5.
+
+    Returns
+    -------
+    creepage : float
+        At the peak [-].
+    torque_nm : float
+        The peak torque [N*m].
+    """
     if type(params) is RigParams:
         return _creep_curve_peak_memo(params, float(max_creepage))
     return _creep_curve_peak(params, max_creepage)
@@ -192,7 +330,20 @@ def operating_point(dc_torque_nm: float, params: RigParams) -> OperatingPoint:
     return the steady-state creepage, CoA and creep coefficients (central differences).
     Remembered per (DC torque, parameter set) when ``params`` is a (frozen)
     :class:`RigParams`: a twin run asks for each step's point three times (its plan, the
-    step's truth and the large-signal theory), ~0.7 ms each with the GIL held."""
+    step's truth and the large-signal theory), ~0.7 ms each with the GIL held.
+
+    Parameters
+    ----------
+    dc_torque_nm : float
+        The DC torque [N*m].
+    params : RigParams
+        The rig.
+
+    Returns
+    -------
+    OperatingPoint
+        ``slipped`` when the torque exceeds the creep curve's peak.
+    """
     if type(params) is RigParams:
         return _operating_point_memo(float(dc_torque_nm), params)
     return _operating_point(dc_torque_nm, params)
@@ -228,20 +379,42 @@ _operating_point_memo = functools.lru_cache(maxsize=4096)(_operating_point)
 
 @dataclass(frozen=True)
 class LargeSignalResult:
-    """Periodic steady state of the wheel + contact (+ platform) under ``T_dc + A*sin``.
+    """Periodic steady state of the wheel and contact (and platform) under ``T_dc + A*sin``.
 
-    ``phase_deg`` first-harmonic phase of the wheel speed behind the measured (shaft) torque
-    [deg] (positive = lag); ``speed_amplitude_rad_s`` amplitude of the wheel speed's first
-    harmonic [rad/s]; ``torque_amplitude_nm`` amplitude of the measured torque's first
-    harmonic [N*m] (= ``amplitude_nm`` when driven by the shaft torque); ``mean_creepage``
-    time average of xi_x over a period [-]; ``creepage_min``/``creepage_max`` its extremes;
-    ``mean_creep_coefficient`` period mean of d(F_x/N)/dxi_x along the orbit [-] (the
-    wheel's mean damping: the orbit is unstable when it is not positive);
-    ``steady_creepage`` xi_x under the DC torque alone [-]; ``small_signal_phase_deg``
-    :func:`predicted_phase_deg` at the DC operating point [deg]; ``iterations`` Newton
-    iterations taken; ``n_samples`` collocation points per period used; ``slipped`` True
-    when the DC torque exceeds the creep-curve peak or no periodic solution was found (the
-    wheel runs away; the other fields are then NaN).
+    Attributes
+    ----------
+    dc_torque_nm : float
+        T_dc [N*m].
+    amplitude_nm : float
+        A [N*m].
+    frequency_hz : float
+        Modulation frequency [Hz].
+    phase_deg : float
+        First-harmonic phase of the wheel speed behind the measured (shaft) torque [deg]
+        (positive = lag).
+    speed_amplitude_rad_s : float
+        Amplitude of the wheel speed's first harmonic [rad/s].
+    torque_amplitude_nm : float
+        Amplitude of the measured torque's first harmonic [N*m] (= ``amplitude_nm`` when
+        driven by the shaft torque).
+    mean_creepage : float
+        Time average of xi_x over a period [-].
+    creepage_min, creepage_max : float
+        Its extremes [-].
+    mean_creep_coefficient : float
+        Period mean of d(F_x/N)/dxi_x along the orbit [-] (the wheel's mean damping: the orbit
+        is unstable when it is not positive).
+    steady_creepage : float
+        xi_x under the DC torque alone [-].
+    small_signal_phase_deg : float
+        :func:`predicted_phase_deg` at the DC operating point [deg].
+    iterations : int
+        Newton iterations taken.
+    n_samples : int
+        Collocation points per period used.
+    slipped : bool
+        The DC torque exceeds the creep-curve peak or no periodic solution was found (the
+        wheel runs away; the other fields are then NaN).
     """
 
     dc_torque_nm: float
@@ -398,6 +571,48 @@ def large_signal_phase_deg(dc_torque_nm: float, params: RigParams, frequency_hz:
     mean creep coefficient is not positive (unstable) is returned with ``slipped = True``.
     Near the peak the periodic state is reached slowly (the wheel's time constant is
     ``J_w*V/(R_w^2*N*k_mean)``): a simulation must settle for several of those.
+
+    Parameters
+    ----------
+    dc_torque_nm : float
+        T_dc [N*m].
+    params : RigParams
+        The rig.
+    frequency_hz : float
+        Modulation frequency [Hz].
+    amplitude_nm : float
+        A [N*m].
+    drive : {"shaft", "motor"}
+        What A drives. Default "shaft".
+    platform : bool
+        Include the platform's speed loop. Default True.
+    n_samples : int
+        Collocation points per period, even and >= 16 [-]. Default 64.
+    rtol : float
+        Convergence tolerance, relative to the speed swing [-]. Default 1e-10.
+    max_iter : int
+        Largest number of Newton iterations [-]. Default 50.
+
+    Returns
+    -------
+    LargeSignalResult
+        The periodic state.
+
+    Raises
+    ------
+    InputError
+        An unknown ``drive``, ``frequency_hz <= 0``, ``amplitude_nm <= 0`` or an odd/too
+        small ``n_samples``.
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000.
+    .. [2] M. Urabe, "Galerkin's procedure for nonlinear periodic systems", Arch. Ration. Mech.
+       Anal. 20 (1965) 120-152.
+    .. [3] T.M. Cameron and J.H. Griffin, "An alternating frequency/time domain method for
+       calculating the steady-state response of nonlinear dynamic systems", J. Appl. Mech.
+       56 (1989) 149-154.
     """
     if drive not in ("shaft", "motor"):
         raise InputError(f"drive must be 'shaft' or 'motor', got {drive!r}")

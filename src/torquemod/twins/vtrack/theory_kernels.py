@@ -121,9 +121,32 @@ N_CONST = 17
 
 def pack_constants(rw: float, rp: float, n0: float, wref: float, v0: float, xi0: float,
                    xiy: float, polach: dict) -> np.ndarray:
-    """The constants of :func:`newton_periodic`: radii [m], normal load [N], the platform's
-    set speed [rad/s], the rolling speed [m/s], the steady creepage and the lateral creepage
-    [-], and the Polach parameters (``ContactParams.polach_kwargs()``)."""
+    """The constants of :func:`newton_periodic`.
+
+    Parameters
+    ----------
+    rw : float
+        Wheel radius [m].
+    rp : float
+        Platform radius [m].
+    n0 : float
+        Normal load [N].
+    wref : float
+        The platform's set speed [rad/s].
+    v0 : float
+        Rolling speed [m/s].
+    xi0 : float
+        Steady creepage [-].
+    xiy : float
+        Lateral creepage [-].
+    polach : dict
+        The Polach parameters (``ContactParams.polach_kwargs()``).
+
+    Returns
+    -------
+    ndarray
+        The packed constants.
+    """
     c = np.empty(N_CONST)
     c[:7] = rw, rp, n0, wref, v0, xi0, xiy
     c[7:] = (polach["a_m"], polach["b_m"], polach["c11"], polach["c22"],

@@ -33,10 +33,23 @@ from torquemod.twins.vtrack.theory import creep_curve_peak
 
 @dataclass(frozen=True)
 class BatchPoint:
-    """The truth of one configuration of a batch: ``steps`` as ``truth.json``'s (one dict per
-    step up to and including the first that slips), ``slip_step`` (None: none slipped),
-    ``slip_time_s`` [s] (None without slip), the run's ``speed_wobble`` record and the creep
-    curve's peak (``creepage``, ``torque_nm``, ``coa``), ``seed`` the point's seed."""
+    """The truth of one configuration of a batch.
+
+    Attributes
+    ----------
+    seed : int
+        The point's seed.
+    steps : list of dict
+        As ``truth.json``'s: one dict per step up to and including the first that slips.
+    slip_step : int or None
+        The step that slipped; None: none.
+    slip_time_s : float or None
+        When it slipped [s]; None without slip.
+    speed_wobble : dict
+        The run's speed-wobble record (:func:`~torquemod.twins.vtrack.rig.truth.wobble_truth`).
+    creep_curve_peak : dict
+        The creep curve's peak: ``creepage`` [-], ``torque_nm`` [N*m], ``coa`` [-].
+    """
 
     seed: int
     steps: list[dict]
@@ -51,7 +64,13 @@ class BatchPoint:
 
 
 def default_workers() -> int:
-    """Threads for the batch: the CPUs this process may use."""
+    """Threads for the batch: the CPUs this process may use.
+
+    Returns
+    -------
+    int
+        At least 1.
+    """
     if hasattr(os, "sched_getaffinity"):
         return max(1, len(os.sched_getaffinity(0)))
     return max(1, os.cpu_count() or 1)
@@ -59,11 +78,21 @@ def default_workers() -> int:
 
 @dataclass(frozen=True)
 class RunPlan:
-    """What one run of a configuration draws from its seed and plans before integrating: the
-    speed loop's ``wobble`` (:func:`~torquemod.twins.vtrack.rig.dynamics.wobble_table`), the
-    sensor-noise
-    seeds (one per step), the ``steps`` (:func:`~torquemod.twins.vtrack.rig.steps.plan_steps`), the
-    settling samples ``n_settle`` and the samples integrated per step ``n_step``."""
+    """What one run of a configuration draws from its seed and plans before integrating.
+
+    Attributes
+    ----------
+    wobble : ndarray
+        The speed loop's wobble rows (:func:`~torquemod.twins.vtrack.rig.wobble.wobble_table`).
+    noise_seeds : list of numpy.random.SeedSequence
+        The sensor-noise seeds, one per step.
+    steps : list of StepPlan
+        The steps (:func:`~torquemod.twins.vtrack.rig.steps.plan_steps`).
+    n_settle : int
+        Settling samples per step [-].
+    n_step : int
+        Samples integrated per step [-].
+    """
 
     wobble: np.ndarray
     noise_seeds: list[np.random.SeedSequence]
@@ -81,7 +110,22 @@ def plan_run(config: SimConfig, seed: int,
     ``first`` is called with the plan so far (no steps yet) and the first step's plan as
     soon as they are known (:func:`~torquemod.twins.vtrack.rig.steps.plan_steps`), so that the
     caller can
-    start integrating step 1 while the other steps are planned."""
+    start integrating step 1 while the other steps are planned.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The twin's configuration.
+    seed : int
+        The run's seed.
+    first : callable or None
+        ``first(plan_so_far, first_step)``. Default None.
+
+    Returns
+    -------
+    RunPlan
+        The plan.
+    """
     proc, fs = config.procedure, config.sensors.sample_rate_hz
     rng = np.random.default_rng(seed)
     wobble = wobble_table(config.disturbances, config.rig.platform_speed_rad_s, rng)
@@ -113,6 +157,27 @@ def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 
     ``workers``: threads (default: the CPUs available). ``large_signal = False`` leaves
     each step's ``phase_large_signal_deg`` out (None) for a caller that solves the theory
     itself (a sweep's theory columns): ~7 ms less per step (the twin's step costs ~55 ms).
+
+    Parameters
+    ----------
+    configs : sequence of SimConfig
+        The configurations.
+    seed : int or sequence of int
+        One seed for all points or one per point. Default 0.
+    workers : int or None
+        Threads; None: the CPUs available.
+    large_signal : bool
+        Solve each step's large-signal theory phase. Default True.
+
+    Returns
+    -------
+    list of BatchPoint
+        In the order of ``configs``.
+
+    Raises
+    ------
+    InputError
+        A seed list of another length than ``configs``.
     """
     configs = list(configs)
     seeds = [int(seed)] * len(configs) if np.ndim(seed) == 0 else [int(s) for s in seed]

@@ -95,7 +95,20 @@ N_PARAMS = 26
 
 
 def pack_parameters(rig: RigParams, dist: DisturbanceParams) -> np.ndarray:
-    """Flatten the rig and load-disturbance parameters into the vector the kernel reads."""
+    """Flatten the rig and load-disturbance parameters into the vector the kernel reads.
+
+    Parameters
+    ----------
+    rig : RigParams
+        The rig.
+    dist : DisturbanceParams
+        The disturbances.
+
+    Returns
+    -------
+    ndarray
+        The parameter vector (SI units).
+    """
     c = rig.contact
     on = dist.enabled
     p = np.zeros(N_PARAMS)
@@ -122,7 +135,20 @@ def pack_parameters(rig: RigParams, dist: DisturbanceParams) -> np.ndarray:
 @numba.njit(**_FAST)
 def normal_load(th_p: float, p: np.ndarray) -> float:
     """Normal load N [N] at platform angle ``th_p``: spring preload, sleeper passing
-    (``sleeper_count`` per revolution) and the decaying response after each rail joint."""
+    (``sleeper_count`` per revolution) and the decaying response after each rail joint.
+
+    Parameters
+    ----------
+    th_p : float
+        Platform angle [rad].
+    p : ndarray
+        The parameter vector (:func:`pack_parameters`).
+
+    Returns
+    -------
+    float
+        N [N].
+    """
     n = p[P_N0]
     if p[P_SLEEP_A] != 0.0:
         n += p[P_SLEEP_A] * math.sin(p[P_SLEEP_N] * th_p)
@@ -356,7 +382,55 @@ _NO_WOBBLE = np.zeros((0, 4))
 def integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s, amp, omega,
               phase, t_gen, slip_creepage, out, samples_per_step=1, wobble=None):
     """:func:`_integrate` (compiled) with the platform speed reference's ``wobble`` table of
-    :func:`wobble_table` (None: a steady reference)."""
+    :func:`wobble_table` (None: a steady reference).
+
+    Parameters
+    ----------
+    y : ndarray
+        The state at ``t0``.
+    t0 : float
+        Start time [s].
+    n_samples : int
+        Output samples [-].
+    dt : float
+        Sample interval [s].
+    substeps : int
+        RK4 steps per ``samples_per_step`` samples [-].
+    p : ndarray
+        The parameter vector (:func:`pack_parameters`).
+    dc_from : float
+        DC torque before the ramp [N*m].
+    dc_to : float
+        DC torque after the ramp [N*m].
+    t_step : float
+        Start of the ramp [s].
+    ramp_s : float
+        Ramp time [s].
+    amp : float
+        Modulation amplitude [N*m].
+    omega : float
+        Modulation angular frequency [rad/s].
+    phase : float
+        Generator phase [rad].
+    t_gen : float
+        Generator time origin [s].
+    slip_creepage : float
+        Creepage at which the integration stops as slipped [-].
+    out : ndarray
+        Output rows (:data:`OUT_COLUMNS`), written in place.
+    samples_per_step : int
+        Output samples per integration step [-]. Default 1.
+    wobble : ndarray or None
+        The wobble rows; None: a steady reference.
+
+    Returns
+    -------
+    n_written : int
+        Samples written; integration stops at the first sample whose creepage exceeds
+        ``slip_creepage``.
+    slipped : bool
+        Whether it stopped so.
+    """
     wob = _NO_WOBBLE if wobble is None else np.ascontiguousarray(wobble, dtype=np.float64)
     return _integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s, amp,
                       omega, phase, t_gen, slip_creepage, out, samples_per_step, wob)
@@ -559,8 +633,24 @@ def _integrate(y, t0, n_samples, dt, substeps, p, dc_from, dc_to, t_step, ramp_s
 
 def initial_state(rig: RigParams, *, creepage: float, dc_torque_nm: float,
                   contact_fx_n: float) -> np.ndarray:
-    """State vector in steady rolling at ``creepage`` [-] under ``dc_torque_nm`` [N*m],
-    with the traction force ``contact_fx_n`` [N] acting on the platform."""
+    """State vector in steady rolling.
+
+    Parameters
+    ----------
+    rig : RigParams
+        The rig.
+    creepage : float
+        Creepage [-].
+    dc_torque_nm : float
+        DC torque [N*m].
+    contact_fx_n : float
+        Traction force acting on the platform [N].
+
+    Returns
+    -------
+    ndarray
+        The state.
+    """
     y = np.zeros(N_STATES)
     w = rig.speed_m_s * (1.0 + creepage) / rig.wheel_radius_m
     y[0] = dc_torque_nm / rig.shaft_stiffness_nm_rad

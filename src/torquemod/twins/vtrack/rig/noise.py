@@ -44,7 +44,22 @@ def ziggurat_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ``x_1 = R`` and ``x_{i+1} = f^-1(f(x_i) + V/x_i)``, ``x_256 = 0``, ``f(x) =
     exp(-x^2/2)``. ``k[i] = floor(2^52*x_{i+1}/x_i)`` (an abscissa ``m*2^-52*x_i`` with
     ``m < k[i]`` lies under the curve), ``w[i] = x_i*2^-52`` and ``f[i] = f(x_i)``
-    (257 entries)."""
+    (257 entries).
+
+    Returns
+    -------
+    k : ndarray of uint64
+        Acceptance thresholds.
+    w : ndarray
+        Layer widths scaled by 2^-52.
+    f : ndarray
+        exp(-x_i^2/2), 257 entries.
+
+    References
+    ----------
+    .. [1] G. Marsaglia and W.W. Tsang, "The ziggurat method for generating random
+       variables", J. Stat. Softw. 5(8) (2000) 1-7.
+    """
     n = ZIG_LAYERS
     x = np.empty(n + 1)
     x[0] = ZIG_V / math.exp(-0.5 * ZIG_R * ZIG_R)
@@ -120,14 +135,49 @@ def _add_normal(src, sd, state, zk, zw, zf, out):
 def add_normal(src: np.ndarray, sd: float, state: int, out: np.ndarray) -> int:
     """``out[k] = src[k] + sd*z_k`` with ``z_k`` standard normal from the splitmix64 stream
     at ``state`` (a 64-bit integer); ``src`` may be strided or ``out`` itself. Returns the
-    stream's state after the last number."""
+    stream's state after the last number.
+
+    Parameters
+    ----------
+    src : ndarray
+        The values, any unit.
+    sd : float
+        Standard deviation [unit of src].
+    state : int
+        The stream's 64-bit state.
+    out : ndarray
+        The output, same shape as ``src``.
+
+    Returns
+    -------
+    int
+        The stream's state after the last number.
+
+    Raises
+    ------
+    ValueError
+        ``src`` and ``out`` differ in shape.
+    """
     if src.shape != out.shape:
         raise ValueError("add_normal: src and out differ in shape")
     return int(_add_normal(src, float(sd), np.uint64(state), _ZK, _ZW, _ZF, out))
 
 
 def standard_normal(n: int, state: int) -> np.ndarray:
-    """``n`` standard normal numbers from the splitmix64 stream at ``state`` (for tests)."""
+    """``n`` standard normal numbers from the splitmix64 stream at ``state`` (for tests).
+
+    Parameters
+    ----------
+    n : int
+        How many [-].
+    state : int
+        The stream's 64-bit state.
+
+    Returns
+    -------
+    ndarray
+        The numbers [-].
+    """
     out = np.zeros(n)
     add_normal(out, 1.0, state, out)
     return out

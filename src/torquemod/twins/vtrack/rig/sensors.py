@@ -29,7 +29,24 @@ _ENCODER = {"wheel_speed_rad_s": "wheel_angle_rad", "platform_speed_rad_s": "pla
 def encoder_speed(speed_rad_s: np.ndarray, angle_rad: np.ndarray, *, ecc1_rad: float,
                   ecc2_rad: float, phase1_rad: float, phase2_rad: float) -> np.ndarray:
     """Speed [rad/s] seen by an eccentric encoder (derivative of the angle error above).
-    :func:`measure` evaluates the same formula sample by sample (``_encoder_kernel``)."""
+    :func:`measure` evaluates the same formula sample by sample (``_encoder_kernel``).
+
+    Parameters
+    ----------
+    speed_rad_s : ndarray
+        True angular speed [rad/s].
+    angle_rad : ndarray
+        True angle [rad].
+    ecc1_rad, ecc2_rad : float
+        Once- and twice-per-revolution angle errors [rad].
+    phase1_rad, phase2_rad : float
+        Their phases [rad].
+
+    Returns
+    -------
+    ndarray
+        Measured speed [rad/s].
+    """
     err = ecc1_rad * np.cos(angle_rad + phase1_rad) + 2.0 * ecc2_rad * np.cos(
         2.0 * angle_rad + phase2_rad)
     return speed_rad_s * (1.0 + err)
@@ -70,7 +87,24 @@ def measure(raw: np.ndarray, *, disturbances: DisturbanceParams, sensors: Sensor
     (:mod:`torquemod.twins.vtrack.rig.noise`), whose 64-bit start states are drawn from ``rng`` in
     the
     order of :data:`_NOISY` (one word per channel, drawn whether or not it has noise), and is
-    added in the same pass that copies the channel out of ``raw``."""
+    added in the same pass that copies the channel out of ``raw``.
+
+    Parameters
+    ----------
+    raw : ndarray
+        The true signals.
+    disturbances : DisturbanceParams
+        Encoder eccentricities.
+    sensors : SensorParams
+        Noise levels.
+    rng : numpy.random.Generator
+        Draws the noise streams' start states.
+
+    Returns
+    -------
+    dict of str to ndarray
+        The channels (SI units).
+    """
     d, s = disturbances, sensors
     n = raw.shape[0]
     block = np.empty((len(_NOISY), n))

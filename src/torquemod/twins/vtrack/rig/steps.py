@@ -46,7 +46,18 @@ def settle_samples_per_step(config: SimConfig) -> int:
     """Output samples per RK4 step while the step settles (its samples are not recorded):
     the largest whole number of samples whose step keeps ``lambda*h`` within
     :data:`MAX_LAMBDA_H` (:func:`stiffest_rate`), at least the recorded step's. Default rig:
-    8 samples (``lambda*h = 1.6``) against 4 recorded."""
+    8 samples (``lambda*h = 1.6``) against 4 recorded.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The twin's configuration.
+
+    Returns
+    -------
+    int
+        Samples per RK4 step [-].
+    """
     proc, fs = config.procedure, config.sensors.sample_rate_hz
     rec = max(1, proc.samples_per_step // proc.substeps)
     fit = int(MAX_LAMBDA_H * fs / stiffest_rate(config.rig))
@@ -82,9 +93,23 @@ def _reference_angle(t_ends, phi0, w0, ipi, wob):
 
 @dataclass(frozen=True)
 class StepPlan:
-    """One torque step: ``index`` (from 1), the DC ramp ``dc_from_nm`` -> ``dc_nm`` [N*m]
-    starting at ``t0_s`` [s], the modulation generator's phase ``phase_rad`` and the start
-    state ``y0`` (None: the end state of the step before)."""
+    """One torque step of a simulated run.
+
+    Attributes
+    ----------
+    index : int
+        The step, from 1.
+    dc_from_nm : float
+        DC torque before the ramp [N*m].
+    dc_nm : float
+        DC torque after it [N*m].
+    t0_s : float
+        Start of the ramp [s].
+    phase_rad : float
+        The modulation generator's phase [rad].
+    y0 : ndarray or None
+        The start state; None: the end state of the step before.
+    """
 
     index: int
     dc_from_nm: float
@@ -100,7 +125,26 @@ def plan_steps(config: SimConfig, wobble: np.ndarray, phases: list[float],
     """The steps of ``config``'s procedure, each ``n_step_samples`` long at the sample rate,
     with their start states (module docstring); ``phases`` [rad] per step. ``first`` is
     called with the first step's plan as soon as it is known (before the operating points
-    and the reference angle of the others), so that a caller can start integrating it."""
+    and the reference angle of the others), so that a caller can start integrating it.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The twin's configuration.
+    wobble : ndarray
+        The wobble rows.
+    phases : list of float
+        Generator phase per step [rad].
+    n_step_samples : int
+        Samples per step [-].
+    first : callable or None
+        Called with the first step's plan. Default None.
+
+    Returns
+    -------
+    list of StepPlan
+        The steps.
+    """
     rig, proc = config.rig, config.procedure
     dt = 1.0 / config.sensors.sample_rate_hz
     torques = proc.dc_torques_nm
@@ -158,7 +202,36 @@ def integrate_step(config: SimConfig, params: np.ndarray, wobble: np.ndarray, pl
     longest stable step (:func:`settle_samples_per_step`, one RK4 step per coarse sample, no
     samples inside the steps): their rows of ``out`` are left unset except the last whole
     coarse block's remainder. A slip among them is reported at the coarse sample's index
-    (``n_written`` to within a coarse step)."""
+    (``n_written`` to within a coarse step).
+
+    Parameters
+    ----------
+    config : SimConfig
+        The twin's configuration.
+    params : ndarray
+        The parameter vector.
+    wobble : ndarray
+        The wobble rows.
+    plan : StepPlan
+        The step.
+    n_samples : int
+        Samples [-].
+    start : ndarray or None
+        Start state when the plan has none. Default None.
+    n_quiet : int
+        Settling samples at the start [-]. Default 0.
+
+    Returns
+    -------
+    out : ndarray
+        The samples.
+    n_written : int
+        Samples written.
+    slipped : bool
+        The wheel slipped.
+    end : ndarray
+        The end state.
+    """
     proc, mod = config.procedure, config.modulation
     dt = 1.0 / config.sensors.sample_rate_hz
     y = np.array(plan.y0 if plan.y0 is not None else start, dtype=np.float64)

@@ -76,10 +76,37 @@ def _sine_fit_sums(x, y, n, dw, gram, rhs):
 
 def sine_fit_phase_deg(torque: np.ndarray, speed: np.ndarray, fs_hz: float,
                        frequency_hz: float) -> float:
-    """Phase [deg] of ``speed`` behind ``torque`` at ``frequency_hz`` by a least-squares fit
-    of cos, sin and DC to each signal over the largest whole number of periods (IEEE Std 1057
-    three-parameter fit, IEEE Std 1057; solved by its 3x3 normal equations). Positive when the
-    speed lags."""
+    """Phase of a speed behind a torque by three-parameter sine fits.
+
+    A least-squares fit of cos, sin and DC at ``frequency_hz`` to each signal over the
+    largest whole number of periods [1]_, solved by its 3x3 normal equations.
+
+    Parameters
+    ----------
+    torque : ndarray
+        Torque [N*m].
+    speed : ndarray
+        Speed [rad/s].
+    fs_hz : float
+        Sample rate [Hz].
+    frequency_hz : float
+        Frequency [Hz].
+
+    Returns
+    -------
+    float
+        Phase [deg] in [-180, 180), positive when the speed lags.
+
+    Raises
+    ------
+    ValueError
+        Less than one whole period.
+
+    References
+    ----------
+    .. [1] IEEE Std 1057-2017, "IEEE Standard for Digitizing Waveform Recorders"
+       (three-parameter sine fit).
+    """
     n = int(np.floor(torque.size / fs_hz * frequency_hz) * fs_hz / frequency_hz)
     if n < 3 or speed.size < n:
         raise ValueError("sine fit needs one whole period of both signals")
@@ -117,7 +144,30 @@ def wobble_free_phase_deg(torque: np.ndarray, speed: np.ndarray, theta_rad: np.n
     that the wobble's leakage into the modulation line (up to 0.5 deg over three revolutions at
     the default 0.2 % RMS, measured) stays out of the truth. Linear least squares on every
     ``_WOBBLE_FIT_STRIDE``-th sample of the same whole modulation periods; without wobble rows
-    it is :func:`sine_fit_phase_deg`."""
+    it is :func:`sine_fit_phase_deg`.
+
+    Parameters
+    ----------
+    torque : ndarray
+        Torque [N*m].
+    speed : ndarray
+        Speed [rad/s].
+    theta_rad : ndarray
+        Platform angle [rad].
+    fs_hz : float
+        Sample rate [Hz].
+    frequency_hz : float
+        Modulation frequency [Hz].
+    wobble : ndarray
+        The wobble rows.
+    t0_s : float
+        Time of the first sample [s]. Default 0.
+
+    Returns
+    -------
+    float
+        Phase [deg], positive when the speed lags.
+    """
     if wobble.shape[0] == 0:
         return sine_fit_phase_deg(torque, speed, fs_hz, frequency_hz)
     n = int(np.floor(torque.size / fs_hz * frequency_hz) * fs_hz / frequency_hz)
@@ -132,7 +182,20 @@ def wobble_free_phase_deg(torque: np.ndarray, speed: np.ndarray, theta_rad: np.n
 def wobble_truth(config: SimConfig, wobble: np.ndarray) -> dict:
     """truth.json's record of the wobble drawn for this run: configuration and realised
     terms; ``reference_rms_pct`` is the RMS of the realised reference over a long run
-    (``sqrt(sum amp^2/2)/W0``) [%]."""
+    (``sqrt(sum amp^2/2)/W0``) [%].
+
+    Parameters
+    ----------
+    config : SimConfig
+        The twin's configuration.
+    wobble : ndarray
+        The wobble rows.
+
+    Returns
+    -------
+    dict
+        The record.
+    """
     d, w0 = config.disturbances, config.rig.platform_speed_rad_s
     f_rev = w0 / (2.0 * np.pi)
     terms = []
@@ -497,7 +560,34 @@ def step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None
     per platform revolution (``bounds``, indices into the step's output, ``raw`` starting
     at ``bounds[0]``); see :func:`_spans_truth`. ``large_signal = False`` leaves the
     large-signal theory phase out (None; its periodic-state solve is most of the theory's
-    cost)."""
+    cost).
+
+    Parameters
+    ----------
+    i_step : int
+        The step.
+    dc : float
+        DC torque [N*m].
+    config : SimConfig
+        The twin's configuration.
+    raw : ndarray or None
+        The recorded true samples.
+    slipped : bool
+        The step slipped.
+    t0_s : float
+        Time of ``raw``'s first sample [s]. Default 0.
+    wobble : ndarray or None
+        The wobble rows.
+    bounds : list of int
+        Revolution bounds (indices into the step's output).
+    large_signal : bool
+        Include the large-signal phase. Default True.
+
+    Returns
+    -------
+    dict
+        The step's truth entry.
+    """
     rig, f = config.rig, config.modulation.actual_frequency_hz
     op = operating_point(dc, rig)
     k = op.creep_coefficient
@@ -533,7 +623,36 @@ def recorded_step_truth(i_step: int, dc: float, config: SimConfig, out: np.ndarr
                         large_signal: bool = True) -> tuple[dict, list[int]]:
     """Truth entry (:func:`step_truth`) of a step that did not slip, integrated into ``out``
     (``n_done`` samples from ``t_step`` [s]) and recorded from sample ``n_settle`` over the
-    procedure's platform revolutions; also the revolutions' sample bounds in ``out``."""
+    procedure's platform revolutions; also the revolutions' sample bounds in ``out``.
+
+    Parameters
+    ----------
+    i_step : int
+        The step.
+    dc : float
+        DC torque [N*m].
+    config : SimConfig
+        The twin's configuration.
+    out : ndarray
+        The step's output.
+    n_done : int
+        Samples integrated [-].
+    t_step : float
+        Start time [s].
+    wobble : ndarray
+        The wobble rows.
+    n_settle : int
+        First recorded sample [-].
+    large_signal : bool
+        Include the large-signal phase. Default True.
+
+    Returns
+    -------
+    entry : dict
+        The truth entry.
+    bounds : list of int
+        The revolutions' sample bounds in ``out``.
+    """
     bounds = _cycle_bounds(out[:n_done, _COL["platform_angle_rad"]], n_settle,
                            config.procedure.cycles_per_step)
     raw = out[bounds[0]:bounds[-1]]

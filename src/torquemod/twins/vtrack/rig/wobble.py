@@ -103,7 +103,22 @@ def wobble_table(dist: DisturbanceParams, platform_speed_rad_s: float,
     slow disturbance torque almost entirely, while a real loop's slow wobble (tachometer or
     encoder ripple, set-point and drive-gain drift, runout) shows in its speed as if its
     reference wobbled. The equivalent disturbance torque on the platform is
-    ``Kp*dW + Ki*integral(dW dt)``, ``dW = W_ref - W0``."""
+    ``Kp*dW + Ki*integral(dW dt)``, ``dW = W_ref - W0``.
+
+    Parameters
+    ----------
+    dist : DisturbanceParams
+        The disturbances.
+    platform_speed_rad_s : float
+        The set speed W0 [rad/s].
+    rng : numpy.random.Generator
+        Draws frequencies and phases.
+
+    Returns
+    -------
+    ndarray
+        (n, 4) rows.
+    """
     rows = []
     if not (dist.enabled and dist.speed_wobble_enabled):
         return np.zeros((0, 4))
@@ -121,7 +136,22 @@ def wobble_table(dist: DisturbanceParams, platform_speed_rad_s: float,
 
 def wobble_reference(wobble: np.ndarray, t_s: np.ndarray, theta_rad: np.ndarray) -> np.ndarray:
     """The speed reference's wobble [rad/s] (rows of :func:`wobble_table`) at times ``t_s``
-    [s] and platform angles ``theta_rad`` [rad]: :func:`_wobble` on arrays."""
+    [s] and platform angles ``theta_rad`` [rad]: :func:`_wobble` on arrays.
+
+    Parameters
+    ----------
+    wobble : ndarray
+        The rows.
+    t_s : ndarray
+        Times [s].
+    theta_rad : ndarray
+        Platform angles [rad].
+
+    Returns
+    -------
+    ndarray
+        The wobble [rad/s].
+    """
     out = np.zeros(np.shape(t_s))
     for amp, rate, ph, kind in wobble:
         out += amp * np.sin(rate * (theta_rad if kind > 0.5 else t_s) + ph)
@@ -130,7 +160,22 @@ def wobble_reference(wobble: np.ndarray, t_s: np.ndarray, theta_rad: np.ndarray)
 
 def wobble_basis(wobble: np.ndarray, t_s: np.ndarray, theta_rad: np.ndarray) -> np.ndarray:
     """Columns cos and sin of every wobble row's argument without its phase (``rate*t_s`` or
-    ``order*theta_rad``): the lines a linear fit needs to take the wobble out of a signal."""
+    ``order*theta_rad``): the lines a linear fit needs to take the wobble out of a signal.
+
+    Parameters
+    ----------
+    wobble : ndarray
+        The rows.
+    t_s : ndarray
+        Times [s].
+    theta_rad : ndarray
+        Platform angles [rad].
+
+    Returns
+    -------
+    ndarray
+        (n, 2*rows) columns [-].
+    """
     cols = []
     for _amp, rate, _ph, kind in wobble:
         arg = rate * (theta_rad if kind > 0.5 else t_s)
