@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from torquemod.ontrain.run import run_onboard
+from torquemod.twins.independent.compare import match_segments
 from torquemod.twins.independent.train import (
     FrictionSegment,
     IndependentRunSpec,
@@ -79,22 +80,10 @@ def evaluate(spec: IndependentRunSpec, track, truth) -> dict[str, dict]:
 def segment_rows(spec: IndependentRunSpec, res, truth, run: str) -> list[dict]:
     """The estimator's per-segment table (``segments.csv``) against the truth: for each true
     friction segment, the estimated segment overlapping it most (positions mapped to the
-    truth's through the rows' times), its best fit, interval, whether determined, and the
-    error of the best fit."""
-    t = res.track
-    x_true = np.interp(t["time_s"], truth["time_s"], truth["position_m"])
-    x_est = t["position_m"].to_numpy()
-    segs = res.segment_table()
-    starts = [s.start_m for s in spec.segments] + [spec.length_m]
+    truth's through the rows' times; :func:`torquemod.twins.independent.compare.match_segments`),
+    its best fit, interval, whether determined, and the error of the best fit."""
     out = []
-    for i, s in enumerate(spec.segments):
-        a, b = starts[i], starts[i + 1]
-        best, best_ov = None, 0.0
-        for _, r in segs.iterrows():
-            ra, rb = np.interp([r["start_m"], r["end_m"]], x_est, x_true)
-            ov = min(b, rb) - max(a, ra)
-            if ov > best_ov:
-                best, best_ov = r, ov
+    for s, best in match_segments(spec, res.track, res.segment_table(), truth):
         row = {"run": run, "segment": s.name, "truth": s.mu, "estimate": np.nan,
                "low": np.nan, "high": np.nan, "lower_bound": np.nan, "determined": False,
                "error": np.nan, "law": "-", "coa_reached": np.nan}

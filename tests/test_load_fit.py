@@ -25,6 +25,11 @@ def _same(a, b, where: str) -> None:
             _same(getattr(a, f.name), getattr(b, f.name), f"{where}.{f.name}")
     elif isinstance(a, pd.DataFrame):
         pd.testing.assert_frame_equal(a, b, obj=where)
+    elif isinstance(a, np.ndarray) and where.endswith(".adhesion.best_s"):
+        # the phase fit's curve is rebuilt from its law and parameters, not stored: equal
+        # within results.folder.CURVE_RTOL (the mixing fraction comes back a few ulp apart)
+        np.testing.assert_allclose(np.asarray(b), a, rtol=results_folder.CURVE_RTOL, atol=0,
+                                   equal_nan=True, err_msg=where)
     elif isinstance(a, np.ndarray):
         np.testing.assert_array_equal(a, np.asarray(b), err_msg=where)
     elif isinstance(a, dict):
@@ -94,3 +99,37 @@ def test_a_damaged_fit_document_is_named(tmp_path):
     path.write_text(json.dumps(doc), encoding="utf-8")
     with pytest.raises(tm.InputError, match=r"fit\.json"):
         tm.load(tmp_path / "r")
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_the_phase_fit_curve_is_rebuilt_not_stored(case, tmp_path):
+    """result.json leaves out the phase fit's 2001-point curve, derivable from its law and
+    parameters (analysis.creeplaws.mixture_curve); the loaded curve equals the fitted one
+    within 1e-12 relative, NaN where it is NaN."""
+    make, options = CASES[case]
+    res = synthetic_result(**make)
+    ana = tm.analyze(res, **options)
+    tm.save(res, ana, tmp_path / "r", report=False)
+    saved = json.loads((tmp_path / "r" / "result.json").read_text())["analysis"]["saved"]
+    if ana.phase_fit is None:
+        assert saved["phase_fit"] is None
+        return
+    assert "best_s" not in saved["phase_fit"]["adhesion"]
+    assert saved["phase_fit"]["adhesion"]["best_s_rebuilt"] is True
+    fitted = ana.phase_fit.adhesion.best_s
+    loaded = tm.load(tmp_path / "r")[1].phase_fit.adhesion.best_s
+    assert loaded.shape == fitted.shape
+    np.testing.assert_array_equal(np.isnan(loaded), np.isnan(fitted))
+    ok = np.isfinite(fitted)
+    assert np.max(np.abs(loaded[ok] / fitted[ok] - 1.0)) <= 1e-12
+
+
+def test_a_curve_that_cannot_be_rebuilt_is_stored(tmp_path, monkeypatch):
+    res = synthetic_result(seed=3)
+    ana = tm.analyze(res)
+    monkeypatch.setattr(results_folder, "mixture_curve", lambda law, params: None)
+    tm.save(res, ana, tmp_path / "r", report=False)
+    saved = json.loads((tmp_path / "r" / "result.json").read_text())["analysis"]["saved"]
+    assert len(saved["phase_fit"]["adhesion"]["best_s"]) == ana.phase_fit.adhesion.best_s.size
+    loaded = tm.load(tmp_path / "r")[1].phase_fit.adhesion.best_s
+    np.testing.assert_array_equal(loaded, ana.phase_fit.adhesion.best_s)  # bit for bit

@@ -16,6 +16,7 @@ import pytest
 pytest.importorskip("asammdf")
 
 from torquemod.ontrain.run import run_onboard
+from torquemod.twins.independent.compare import match_segments
 from torquemod.twins.independent.train import (
     FrictionSegment,
     IndependentRunSpec,
@@ -212,19 +213,11 @@ def test_other_logger_formats_read_like_the_mdf4(processed, tmp_path, fmt):
 
 
 def _segment_against_truth(res, truth, spec):
-    """For each true segment, the estimator's segment (segments.csv) overlapping it most
-    (positions mapped to the truth's through the rows' times)."""
-    t = res.track
-    x_true = np.interp(t["time_s"], truth["time_s"], truth["position_m"])
-    x_est = t["position_m"].to_numpy()
-    segs = res.segment_table()
-    starts = [s.start_m for s in spec.segments] + [spec.length_m]
-    out = []
-    for i, s in enumerate(spec.segments):
-        ov = [min(starts[i + 1], b) - max(starts[i], a) for a, b in
-              (np.interp([r.start_m, r.end_m], x_est, x_true) for r in segs.itertuples())]
-        out.append((s.mu, segs.iloc[int(np.argmax(ov))]))
-    return out
+    """For each true segment, its mu and the estimator's segment (segments.csv) overlapping
+    it most (:func:`~torquemod.twins.independent.compare.match_segments`); there must be one."""
+    matched = match_segments(spec, res.track, res.segment_table(), truth)
+    assert all(seg is not None for _, seg in matched), "a true segment without estimate"
+    return [(s.mu, seg) for s, seg in matched]
 
 
 def test_segments_tanh_interval_honest(processed, tmp_path):

@@ -1,10 +1,13 @@
 """One way to read a TOML table into a typed, frozen dataclass.
 
-Every configuration a user writes by hand (the rig twin's config, the train twin's config,
-run.toml's ``[onboard]``, sweep files and their bases) is read through :func:`read_table`:
-the fields of the dataclass say which keys exist and of which type, a :class:`Check` per field
-says which values make sense. Any mistake is one :class:`~torquemod.errors.InputError` that
-names the file and the dotted key, what was found and what is expected:
+Every configuration a user writes by hand (the ``[processing]`` table, experiment.toml and
+run.toml, the rig and train twins' configs, run.toml's ``[onboard]``, sweep files and their
+bases) is read through :func:`read_table`: the fields of the dataclass say which keys exist
+and of which type (a dataclass-typed field is a sub-table, a tuple of dataclasses a list of
+tables), the :class:`Check` in each field's metadata (:func:`checked`) says which values make
+sense, once for the file and for values built in code (:func:`check_fields`). Any mistake is
+one :class:`~torquemod.errors.InputError` that names the file and the dotted key, what was
+found and what is expected:
 
 * a key the dataclass does not have (with the nearest known key, :func:`unknown_keys`),
 * a value of the wrong type (a string or ``true`` where a number belongs, a fraction where a
@@ -30,22 +33,27 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import inspect
 import math
 import types
 import typing
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 from torquemod.errors import InputError
 
-__all__ = ["NON_NEGATIVE", "POSITIVE", "Check", "below_nyquist", "between", "checked_value",
-           "default_checks", "one_of", "read_table", "unknown_keys"]
+__all__ = ["NON_NEGATIVE", "POSITIVE", "Check", "below_nyquist", "between", "check_fields",
+           "check_key", "checked", "checked_value", "default_checks", "defaults_from", "one_of",
+           "prefixed", "read_table", "unknown_keys"]
 
 
 @dataclass(frozen=True)
 class Check:
     """What a value must satisfy beyond its type: ``lo <= v <= hi`` (``lo_open``/``hi_open``
-    make a bound strict; None: unbounded) or one of ``choices``; for a list, each item."""
+    make a bound strict; None: unbounded) or one of ``choices``; for a list, each item.
+    ``test`` is a last condition on the whole value (a list: the whole list), said as
+    ``need`` when it fails (without a test, ``need`` replaces the text of the range);
+    ``hint`` says what to do."""
 
     lo: float | None = None
     hi: float | None = None
@@ -54,25 +62,38 @@ class Check:
     choices: tuple = ()
     #: a list must have exactly this many items (None: any number, at least one)
     length: int | None = None
+    #: a list may be empty
+    allow_empty: bool = False
+    test: Callable[[object], bool] | None = None
+    need: str = ""
+    hint: str | None = None
 
     def ok(self, v: object) -> bool:
+        """Whether the item ``v`` is in range (or one of the choices); ``test`` aside."""
         if self.choices:
             return v in self.choices
-        if self.lo is not None and (v <= self.lo if self.lo_open else v < self.lo):
+        try:
+            if self.lo is not None and (v <= self.lo if self.lo_open else v < self.lo):
+                return False
+            return not (self.hi is not None and (v >= self.hi if self.hi_open else v > self.hi))
+        except TypeError:  # a value of another type built in code
             return False
-        return not (self.hi is not None and (v >= self.hi if self.hi_open else v > self.hi))
 
     def text(self) -> str:
         """What the check asks for, as the error says it."""
         if self.choices:
             return "one of " + ", ".join(repr(c) for c in self.choices)
+        if self.need and self.test is None:
+            return self.need
+        if self.lo is None and self.hi is None:
+            return self.need or "a valid value"
         if self.lo == 0 and self.hi is None:
-            return "> 0" if self.lo_open else ">= 0"
+            return "a positive number (> 0)" if self.lo_open else "a number >= 0"
         if self.hi is None:
-            return f"{'>' if self.lo_open else '>='} {self.lo:g}"
+            return f"a number {'>' if self.lo_open else '>='} {self.lo:g}"
         if self.lo is None:
-            return f"{'<' if self.hi_open else '<='} {self.hi:g}"
-        return (f"in {'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}"
+            return f"a number {'<' if self.hi_open else '<='} {self.hi:g}"
+        return (f"a number in {'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}"
                 f"{')' if self.hi_open else ']'}")
 
 
@@ -121,8 +142,8 @@ def _is_number(v: object) -> bool:
 
 
 def _kind(tp) -> tuple[type, int | None] | type:
-    """``float``, ``int``, ``bool``, ``str`` or ``(tuple, item type, length or None)`` of an
-    annotation (``X | None`` is ``X``: TOML has no null)."""
+    """``float``, ``int``, ``bool``, ``str``, a dataclass (a sub-table) or ``(tuple, item
+    type, length or None)`` of an annotation (``X | None`` is ``X``: TOML has no null)."""
     origin = typing.get_origin(tp)
     if origin in (typing.Union, types.UnionType):
         args = [a for a in typing.get_args(tp) if a is not type(None)]
@@ -141,15 +162,23 @@ def checked_value(value: object, kind, key: str, path: object, check: Check | No
     checked by ``check``; else ``error`` naming ``key`` [e.g. 'vehicle.mass_share_kg'], the
     value and ``path``."""
     def bad(need: str) -> InputError:
-        return error(f"'{key}' must be {need}, got {value!r}", path=path)
+        return error(f"'{key}' must be {need}, got {value!r}", path=path,
+                     hint=None if check is None else check.hint)
     if isinstance(kind, tuple):
         _, item, length = kind
-        if not isinstance(value, list | tuple) or not value or (
+        empty_ok = check is not None and check.allow_empty and length is None
+        if not isinstance(value, list | tuple) or (not value and not empty_ok) or (
                 length is not None and len(value) != length):
-            many = f"a list of {length}" if length else "a non-empty list of"
+            many = (f"a list of {length}" if length else "a list of" if empty_ok
+                    else "a non-empty list of")
             raise bad(f"{many} {_name(item)}s")
-        return tuple(checked_value(v, item, f"{key}[{i}]", path, check, error=error)
-                     for i, v in enumerate(value))
+        item_check = None if check is None else dataclasses.replace(
+            check, test=None, need="" if check.test else check.need)
+        out = tuple(checked_value(v, item, f"{key}[{i}]", path, item_check, error=error)
+                    for i, v in enumerate(value))
+        if check is not None and check.test is not None and not check.test(out):
+            raise bad(check.need)
+        return out
     if kind is bool:
         if not isinstance(value, bool):
             raise bad("true or false")
@@ -168,9 +197,12 @@ def checked_value(value: object, kind, key: str, path: object, check: Check | No
         out = value
     else:
         out = value
-    if check is not None and not check.ok(out):
-        need = check.text()
-        raise bad(need if check.choices else f"a number {need}")
+    if check is not None:
+        if not check.ok(out):
+            need = check.text()
+            raise bad(need.replace(" number", " whole number", 1) if kind is int else need)
+        if check.test is not None and not check.test(out):
+            raise bad(check.need)
     return out
 
 
@@ -179,35 +211,149 @@ def _name(kind) -> str:
         kind, getattr(kind, "__name__", str(kind)))
 
 
+def checked(default: object = dataclasses.MISSING, check: Check | None = None, *,
+            factory: Callable[[], object] | None = None) -> dataclasses.Field:
+    """A dataclass field with its ``default`` (or ``factory``) and the :class:`Check` its
+    value must pass (:func:`read_table`, :func:`check_fields`), declared in one place."""
+    meta = {"check": check} if check is not None else {}
+    if factory is not None:
+        return dataclasses.field(default_factory=factory, metadata=meta)
+    return dataclasses.field(default=default, metadata=meta)
+
+
+def defaults_from(table: Mapping):
+    """Class decorator (under ``@dataclass``): every annotated field takes its default from
+    ``table`` (lists become tuples), so that a TOML file is the one source of the defaults;
+    a field missing from ``table`` is an error when the module loads."""
+    def deco(cls):
+        for name in inspect.get_annotations(cls):
+            value = table[name]
+            value = tuple(value) if isinstance(value, list) else value
+            current = cls.__dict__.get(name)
+            if isinstance(current, dataclasses.Field):
+                current.default = value
+            else:
+                setattr(cls, name, value)
+        return cls
+    return deco
+
+
+def prefixed(where: str, error: type[InputError] = InputError):
+    """An ``error`` maker (for the ``error`` arguments here) whose messages start with
+    ``where``, e.g. ``"recording #2"``."""
+    def make(message: str, **kwargs) -> InputError:
+        return error(f"{where}: {message}", **kwargs)
+    return make
+
+
+def _section_text(section: str) -> tuple[str, str]:
+    """The key prefix and the 'takes' text of the table ``section`` ("" for the file)."""
+    if not section:
+        return "", "the file takes"
+    return f"{section}.", f"[{section}] takes"
+
+
 def read_table(cls, table: object, *, section: str, path: object,
                checks: Mapping[str, Check] | None = None, skip: Iterable[str] = (),
-               given: Mapping | None = None, error: type[InputError] = InputError):
+               given: Mapping | None = None, error: type[InputError] = InputError,
+               base: object = None, extra: str | None = None, key_prefix: str | None = None):
     """An instance of the frozen dataclass ``cls`` from the TOML ``table`` ``[section]`` of
-    the file ``path``: unknown keys refused (with the nearest known one), every value
-    converted to its field's type and checked by ``checks[field]`` (or the field's
-    ``metadata["check"]``); keys in ``skip`` may be in the table but are not read (sub-tables
-    the caller reads itself) and ``given`` supplies fields the caller built (not keys of
-    the table). Missing keys keep
-    their defaults."""
+    the file ``path`` ("" for the whole file).
+
+    Unknown keys are refused (with the nearest known one); every value is converted to its
+    field's type and checked by ``checks[field]`` (or the field's ``metadata["check"]``).
+    A field whose type is a dataclass is a sub-table (``[section.key]``, read the same way),
+    a ``tuple[SomeDataclass, ...]`` a list of tables (``[[section.key]]``). Keys in ``skip``
+    may be in the table but are not read (sub-tables the caller reads itself); ``given``
+    supplies fields the caller built (not keys of the table); ``extra`` names a dict field
+    that keeps the keys the dataclass does not have instead of refusing them; ``key_prefix``
+    replaces ``"section."`` before the keys in messages. Missing keys keep the values of
+    ``base`` (an instance of ``cls``) or the defaults; a field with neither is a missing key
+    (with the given key it may be misspelt as)."""
     if table is None:
         table = {}
+    prefix, takes = _section_text(section)
+    prefix = prefix if key_prefix is None else key_prefix
     if not isinstance(table, Mapping):
-        raise error(f"[{section}] must be a table, got {table!r}", path=path)
+        raise error(f"[{section}] must be a table, got {table!r}", path=path,
+                    hint=f"write [{section}] with its keys")
     skip, given = tuple(skip), dict(given or {})
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
-    unknown_keys(table, [*(n for n in fields if n not in given and n != "raw"), *skip],
-                 "", path, error=error, prefix=f"{section}.", takes=f"[{section}] takes")
+    known = [*(n for n in fields if n not in given and n not in ("raw", extra)), *skip]
+    if extra is None:
+        unknown_keys(table, known, "", path, error=error, prefix=prefix, takes=takes)
     hints = typing.get_type_hints(cls)
     checks = dict(checks or {})
     kwargs = dict(given)
     for key, value in table.items():
-        if key in skip:
+        if key in skip or key not in known:
             continue
         f = fields[key]
-        check = checks.get(key, f.metadata.get("check"))
-        kwargs[key] = checked_value(value, _kind(hints[key]), f"{section}.{key}", path, check,
-                                    error=error)
+        kind = _kind(hints[key])
+        sub = None if base is None else getattr(base, key)
+        if dataclasses.is_dataclass(kind):
+            if not isinstance(value, Mapping):
+                raise error(f"'{prefix}{key}' must be a table, got {value!r}", path=path,
+                            hint=f"write [{prefix}{key}] with its keys")
+            kwargs[key] = read_table(kind, value, section=f"{prefix}{key}", path=path,
+                                     error=error, base=sub)
+        elif isinstance(kind, tuple) and dataclasses.is_dataclass(kind[1]):
+            if not isinstance(value, list) or not all(isinstance(v, Mapping) for v in value):
+                raise error(f"'{prefix}{key}' must be tables [[{prefix}{key}]], got {value!r}",
+                            path=path)
+            kwargs[key] = tuple(read_table(kind[1], v, section=f"{prefix}{key}[{i + 1}]",
+                                           path=path, error=error)
+                                for i, v in enumerate(value))
+        else:
+            check = checks.get(key, f.metadata.get("check"))
+            kwargs[key] = checked_value(value, kind, f"{prefix}{key}", path, check, error=error)
+    if extra is not None:
+        kwargs[extra] = {k: v for k, v in table.items() if k not in known}
+    if base is not None:
+        return dataclasses.replace(base, **kwargs)
+    for name, f in fields.items():
+        if (name not in kwargs and f.default is dataclasses.MISSING
+                and f.default_factory is dataclasses.MISSING):
+            near = difflib.get_close_matches(name, [str(k) for k in table], n=1)
+            raise error(f"missing key '{prefix}{name}'", path=path, hint=(
+                f"is '{near[0]}' meant to be '{name}'? " if near else "")
+                + (f"add '{name} = <value>' under [{section}]" if section
+                   else f"add '{name} = <value>'"))
     return cls(**kwargs)
+
+
+def check_key(cls, name: str, value: object, key: str, path: object, *,
+              error: type[InputError] = InputError):
+    """``value`` checked as :func:`read_table` checks the field ``name`` of the dataclass
+    ``cls`` (its type and its ``metadata["check"]``), an error naming ``key``; converted."""
+    f = {f.name: f for f in dataclasses.fields(cls)}[name]
+    kind = _kind(typing.get_type_hints(cls)[name])
+    return checked_value(value, kind, key, path, f.metadata.get("check"), error=error)
+
+
+def check_fields(instance, section: str, *, path: object = None,
+                 error: type[InputError] = InputError) -> None:
+    """Check the values of a dataclass built in code against the :class:`Check` of each
+    field (``metadata["check"]``), as :func:`read_table` checks a file's: ``error`` naming
+    ``section.field`` and the value. Types are not checked (code may give an int for a
+    float)."""
+    for f in dataclasses.fields(instance):
+        check = f.metadata.get("check")
+        if check is None:
+            continue
+        value = getattr(instance, f.name)
+        if isinstance(value, list | tuple):
+            in_range = (bool(value) or check.allow_empty) and all(check.ok(v) for v in value)
+        else:
+            in_range = check.ok(value)
+        if not in_range:
+            need = check.text()
+        elif check.test is not None and not check.test(value):
+            need = check.need
+        else:
+            continue
+        raise error(f"'{section}.{f.name}' must be {need}, got {value!r}", path=path,
+                    hint=check.hint)
 
 
 def below_nyquist(frequency_hz: float, sample_rate_hz: float, key: str, rate_key: str,

@@ -79,7 +79,7 @@ from numba import njit
 from torquemod.analysis.polachshape import polach_h
 
 __all__ = ["FAMILY", "N_U", "SWING_A", "FamilyTables", "Member", "family", "family_tables",
-           "member_curve", "neighbour_pairs"]
+           "member_curve", "mixture_curve", "neighbour_pairs"]
 
 #: points of the uniform utilisation grid of the small-signal tables
 N_U = 2001
@@ -353,3 +353,47 @@ def family_tables(swing: bool = False) -> FamilyTables:
                        if m.law == "polach_falling" else 0.0 for m in members])
     falling = np.array([m.law == "polach_falling" for m in members])
     return FamilyTables(members, f_peak, s, ds, sw, beta_h, falling)
+
+
+def mixture_curve(law: str, params) -> np.ndarray | None:
+    """The normalised creep-coefficient curve ``s(u)`` of a member or of a neighbour mixture.
+
+    A member of the family with ``law`` and ``params``, or the mixture
+    ``(1 - f)*s_a + f*s_b`` of two neighbouring members (:func:`neighbour_pairs`) whose
+    parameters mix with the same ``f`` to ``params`` (the one parameter the pair differs in
+    gives ``f``): the curves the friction estimator fits. Only the members it needs are
+    tabulated (milliseconds, not the whole family's second).
+
+    Parameters
+    ----------
+    law : str
+        One of :data:`FAMILY`.
+    params : sequence of float
+        The law's parameters (dimensionless, as in :class:`Member`).
+
+    Returns
+    -------
+    numpy.ndarray or None
+        ``s`` on the uniform utilisation grid of :data:`N_U` points from 0 to 1 (NaN at the
+        peak, as in :func:`family_tables`); None when ``params`` are neither a member's nor
+        a neighbour mixture's.
+    """
+    p = np.asarray(params, dtype=float)
+    members = family()
+    same = [i for i, m in enumerate(members)
+            if m.law == law and np.array_equal(np.asarray(m.params, float), p)]
+    if same:
+        return _small_signal(members[same[0]])[3]
+    for ia, ib in neighbour_pairs():
+        ma, mb = members[ia], members[ib]
+        if ma.law != law or len(ma.params) != p.size:
+            continue
+        pa, pb = np.asarray(ma.params, float), np.asarray(mb.params, float)
+        varies = pa != pb
+        if varies.sum() != 1 or np.any(p[~varies] != pa[~varies]):
+            continue
+        k = int(np.flatnonzero(varies)[0])
+        f = (p[k] - pa[k]) / (pb[k] - pa[k])
+        if 0.0 < f < 1.0:
+            return (1.0 - f) * _small_signal(ma)[3] + f * _small_signal(mb)[3]
+    return None

@@ -11,7 +11,6 @@ import datetime as _dt
 import glob
 import hashlib
 import json
-import os
 import shutil
 import time
 import tomllib
@@ -27,6 +26,8 @@ from torquemod._util.fsutil import sha256_file
 from torquemod._version import __version__
 from torquemod.errors import InputError
 from torquemod.fleet.tasks import _recording_items, may_split, one_line, part_item, scan_item
+from torquemod.results import resume
+from torquemod.results.writer import write_folder
 
 if TYPE_CHECKING:
     from torquemod.io.config import ProcessingConfig
@@ -241,6 +242,10 @@ class Prepared:
     vehicle: str
     date: str
     fresh: frozenset = frozenset()  # files hashed now (not digests kept from the last run)
+    parameters_digest: str | None = None
+    """SHA-256 of the settings (the resume record says from it what changed on a redo)."""
+    inputs_digest: str | None = None
+    """SHA-256 over the files' SHA-256."""
 
 
 def prepare(manifest: Path, known: dict | None = None, *, kind: str | None = None,
@@ -300,7 +305,9 @@ def prepare(manifest: Path, known: dict | None = None, *, kind: str | None = Non
     h.update(__version__.encode())
     fresh = frozenset(p for p, d in files.items() if known.get(p) != d)
     return Prepared(kind, src, settings, h.hexdigest(), files,
-                    partition_value(vehicle), partition_value(date, day=True), fresh)
+                    partition_value(vehicle), partition_value(date, day=True), fresh,
+                    parameters_digest=resume.digest(params),
+                    inputs_digest=resume.digest({p: d[2] for p, d in files.items()}))
 
 
 def fingerprint(manifest: Path, known: dict | None = None) -> tuple[str, object, dict]:
@@ -374,16 +381,12 @@ class Plan:
         return len(self.prep.source.recordings)
 
 
-def _state_path(out_dir: str, run: str) -> Path:
-    return Path(out_dir) / "_state" / f"{run}.json"
-
-
 def _failed(row: dict, exc: BaseException | str, out_dir: str, old_parts) -> dict:
     """The failure row; an earlier good run's partitions and state are removed (no stale
     results)."""
     row.update(status="failed", message=exc if isinstance(exc, str) else one_line(exc))
     _remove(Path(out_dir), old_parts)
-    _state_path(out_dir, row["run"]).unlink(missing_ok=True)
+    resume.drop_record(out_dir, row["run"])
     return row
 
 
@@ -424,22 +427,24 @@ def plan_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
     row.update(run=run, manifest=str(manifest), kind=manifest_kind(Path(manifest)),
                vehicle="unknown", date="unknown", n_steps=0, n_cycles=0, n_rows=0,
                message="")
-    state = _state_path(out_dir, run)
+    old = resume.read_record(out_dir, run)
+    old_extra = old.extra if old is not None else {}
+    old_parts = (old.outputs if old is not None else ()) + tuple(f"{t}/run={run}"
+                                                                   for t in TABLES)
     try:
-        old = json.loads(state.read_text()) if state.is_file() else {}
-    except (OSError, ValueError):
-        old = {}
-    old_parts = tuple(old.get("partitions", [])) + tuple(f"{t}/run={run}" for t in TABLES)
-    try:
-        prep = prepare(Path(manifest), old.get("files"), kind=row["kind"], fit=fit)
+        prep = prepare(Path(manifest), old_extra.get("files"), kind=row["kind"], fit=fit)
     except Exception as exc:
         return dict(_failed(row, exc, out_dir, old_parts), seconds=time.perf_counter() - t0)
     row.update(vehicle=prep.vehicle, date=prep.date)
     out = Path(out_dir)
-    if (not force and old.get("fingerprint") == prep.digest and old.get("partitions")
-            and all((out / p).is_dir() for p in old["partitions"])):
-        return {**row, **{k: old.get("row", {}).get(k) for k in _KEPT}, "status": "skipped",
-                "seconds": time.perf_counter() - t0}
+    decision = resume.decide(
+        old, prep.digest, force=force, parameters_digest=prep.parameters_digest,
+        inputs_digest=prep.inputs_digest,
+        outputs_ok=bool(old and old.outputs) and all((out / p).is_dir() for p in old.outputs))
+    if not decision.redo:
+        return {**row, **{k: (old_extra.get("row") or {}).get(k) for k in _KEPT},
+                "status": "skipped", "seconds": time.perf_counter() - t0}
+    row["message"] = decision.message  # a redo says what changed
     return Plan(prep, str(manifest), out_dir, run, row, old_parts, fit,
                 time.perf_counter() - t0, revolutions_per_task, axle_chunk_s)
 
@@ -560,13 +565,11 @@ def finish_run(plan: Plan, *items: tuple, layout: list | None = None) -> dict:
             _write_partition(files, out / table / where)
         _remove(out, [p for p in plan.old_parts if p not in parts])
         row.update(info, status="processed")
-        state = _state_path(plan.out_dir, plan.run)
-        state.parent.mkdir(parents=True, exist_ok=True)
-        tmp = state.with_name(state.name + ".tmp")
-        tmp.write_text(json.dumps({"fingerprint": prep.digest, "manifest": plan.manifest,
-                                   "partitions": parts, "files": prep.files,
-                                   "row": {k: row[k] for k in _KEPT}}, default=str))
-        os.replace(tmp, state)
+        resume.write_record(plan.out_dir, resume.ResumeRecord(
+            name=plan.run, fingerprint=prep.digest, outputs=tuple(parts),
+            parameters_digest=prep.parameters_digest, inputs_digest=prep.inputs_digest,
+            extra={"manifest": plan.manifest, "partitions": parts, "files": prep.files,
+                   "row": {k: row[k] for k in _KEPT}}))
     except _ItemError as exc:
         _failed(row, str(exc), plan.out_dir, plan.old_parts)
     except Exception as exc:  # a bad run (or a bug) is reported; the fleet goes on
@@ -630,21 +633,13 @@ def process_run(manifest: str, out_dir: str, run: str, force: bool = False, *,
 
 
 def _write_partition(files: dict, folder: Path) -> None:
-    """``files`` ({relative path: DataFrame}) as the folder ``folder``, replacing it at once
-    (written beside it under a hidden name, which dataset readers skip, then renamed), so a
-    reader never sees half a partition."""
-    tmp = folder.with_name("." + folder.name + ".tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    for rel, df in files.items():
-        (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-        df.to_parquet(tmp / rel, index=False)
-    old = folder.with_name("." + folder.name + ".old")
-    if folder.exists():
-        shutil.rmtree(old, ignore_errors=True)
-        folder.rename(old)
-    tmp.rename(folder)
-    shutil.rmtree(old, ignore_errors=True)
+    """``files`` ({relative path: DataFrame}) as the folder ``folder``, replacing it whole
+    through the results writer (mode ``"replace"``: written beside it under a hidden name,
+    which dataset readers skip, then renamed), so a reader never sees half a partition."""
+    with write_folder(folder, mode="replace") as w:
+        for rel, df in files.items():
+            (w.path / rel).parent.mkdir(parents=True, exist_ok=True)
+            df.to_parquet(w.path / rel, index=False)
 
 
 def _remove(out: Path, rels: Iterable[str]) -> None:

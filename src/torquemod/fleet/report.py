@@ -4,8 +4,8 @@ One self-contained page (inline CSS, figures as base64 PNG, every text escaped; 
 :mod:`torquemod.report.html`): the runs (status, kind, vehicle, date, recorded duration, rows,
 key results), the failures with their one-line messages, the rig experiments' steps (phase
 and CoA per DC torque step) and two figures: phase against CoA of every rig step, and the
-lower bound of mu (with mu where determined) along the track of every train run. Written to a
-hidden temporary file and renamed, so the page is never seen half-written.
+lower bound of mu (with mu where determined) along the track of every train run. Written with
+the fleet's summary by the results writer, so the page is never seen half-written.
 """
 
 from __future__ import annotations
@@ -13,13 +13,13 @@ from __future__ import annotations
 import base64
 import datetime as _dt
 import io
-import os
 from html import escape
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from torquemod._util.fsutil import write_atomic
 from torquemod._version import __version__
 from torquemod.report.html import CSS, table
 
@@ -235,18 +235,21 @@ def render_fleet_report(summary: pd.DataFrame, failures: pd.DataFrame,
             + "\n".join(parts) + "</body></html>")
 
 
-def write_fleet_report(out: str | Path, summary: pd.DataFrame,
-                       failures: pd.DataFrame) -> Path:
-    """Write ``out/fleet_report.html`` (temporary file and rename).
+def write_fleet_report(out: str | Path, summary: pd.DataFrame, failures: pd.DataFrame,
+                       dest: str | Path | None = None) -> Path:
+    """Write ``fleet_report.html`` (temporary file and rename).
 
     Parameters
     ----------
     out : str or pathlib.Path
-        The fleet's output folder.
+        The fleet's output folder (its partitions are read).
     summary : pandas.DataFrame
         One row per run.
     failures : pandas.DataFrame
         The failed rows.
+    dest : str or pathlib.Path or None
+        The folder to write the page into. Default None: ``out`` (the results writer
+        passes its staging folder).
 
     Returns
     -------
@@ -256,8 +259,4 @@ def write_fleet_report(out: str | Path, summary: pd.DataFrame,
     out = Path(out)
     page = render_fleet_report(summary, failures, load_steps(out, summary),
                                load_tracks(out, summary))
-    path = out / "fleet_report.html"
-    tmp = out / ".fleet_report.html.tmp"
-    tmp.write_text(page, encoding="utf-8")
-    os.replace(tmp, path)
-    return path
+    return write_atomic(Path(dest or out) / "fleet_report.html", lambda fh: fh.write(page))

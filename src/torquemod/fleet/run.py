@@ -20,7 +20,12 @@ datasets::
     OUT/fleet_summary.csv     one row per run (:data:`SUMMARY_COLUMNS`)
     OUT/failures.csv          one row per failed run: the one-line message
     OUT/fleet_report.html     the summary, the failures and figures (torquemod.fleet.report)
-    OUT/_state/<run>.json     fingerprint of what produced the partitions
+    OUT/provenance.json       the provenance block: settings, manifests with SHA-256
+    OUT/_state/<run>.json     the run's resume record (torquemod.results.resume)
+
+The summary files are written together through :func:`torquemod.results.writer.write_folder`
+(staged in OUT, moved in when all are written); each run's partitions replace the old ones
+whole.
 
 The ``track`` files hold exactly the 14 columns of ``torquemod onboard``'s ``track.parquet``;
 the partition keys (hive layout) add ``vehicle``, ``date``, ``run`` (and ``axle``) when pandas,
@@ -72,6 +77,8 @@ from torquemod.fleet.plan import (  # noqa: F401  (the fleet's per-run API, here
     work_item,
 )
 from torquemod.fleet.tasks import may_split, one_line, part_item, scan_item
+from torquemod.processing.provenance import provenance_block
+from torquemod.results.writer import write_folder
 
 
 def prune_empty(out: Path) -> None:
@@ -91,8 +98,9 @@ def prune_empty(out: Path) -> None:
         if not root.is_dir():
             continue
         for folder, dirs, _files in os.walk(root, topdown=False):
-            for d in dirs:
-                if d.startswith(".") and d.endswith((".tmp", ".old")):
+            for d in dirs:  # .run=<run>.tmp-XXXXXXXX (the writer's), .tmp/.old (earlier)
+                if d.startswith(".") and (d.endswith((".tmp", ".old"))
+                                          or ".tmp-" in d or ".old-" in d):
                     shutil.rmtree(Path(folder) / d, ignore_errors=True)
             if Path(folder) != root:
                 try:
@@ -245,20 +253,45 @@ def _run_locked(paths: list[Path], spelled: dict, out: Path, *, scheduler, n_wor
     summary[counts] = summary[counts].astype("Int64")  # integers with gaps, not floats
     failures = summary.loc[summary["status"] == "failed",
                            ["run", "kind", "manifest", "message"]].reset_index(drop=True)
-    _write_csv(summary, out / "fleet_summary.csv")
-    _write_csv(failures, out / "failures.csv")
     page, t_report = None, time.perf_counter()
-    if report:
-        from torquemod.fleet.report import write_fleet_report
-        page = write_fleet_report(out, summary, failures)
+    with write_folder(out, mode="into", provenance=fleet_provenance(
+            paths, names, fit=fit, force=force, revolutions_per_task=revolutions_per_task,
+            axle_chunk_s=axle_chunk_s)) as w:
+        _write_csv(summary, w.path / "fleet_summary.csv")
+        _write_csv(failures, w.path / "failures.csv")
+        if report:
+            from torquemod.fleet.report import write_fleet_report
+            write_fleet_report(out, summary, failures, dest=w.path)
+            page = out / "fleet_report.html"
     return FleetResult(out, summary, failures, links[0] if links else None,
                        time.perf_counter() - t0, page, time.perf_counter() - t_report)
 
 
+def fleet_provenance(paths: list[Path], names: list[str], **parameters) -> dict:
+    """The provenance block of a fleet's folder (kind ``"fleet"``).
+
+    Parameters
+    ----------
+    paths : list of pathlib.Path
+        The run manifests.
+    names : list of str
+        Their run names.
+    **parameters
+        The fleet's settings.
+
+    Returns
+    -------
+    dict
+        :func:`~torquemod.processing.provenance.provenance_block` of the settings and every
+        manifest with its SHA-256 and run name (each run's recordings, with their SHA-256,
+        are in its resume record ``_state/<run>.json``).
+    """
+    return provenance_block("fleet", parameters,
+                            [{"file": p, "run": n} for p, n in zip(paths, names, strict=True)])
+
+
 def _write_csv(df: pd.DataFrame, path: Path) -> None:
-    tmp = path.with_name("." + path.name + ".tmp")
-    df.to_csv(tmp, index=False)
-    os.replace(tmp, path)
+    df.to_csv(path, index=False)
 
 
 def run_tasks(client, paths: list[Path], names: list[str], out: str, force: bool,

@@ -8,25 +8,56 @@ from __future__ import annotations
 
 import math
 import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 
 import tomli_w
 
-from torquemod._util.tomlcheck import unknown_keys
+from torquemod._util.tomlcheck import (
+    POSITIVE,
+    Check,
+    between,
+    check_key,
+    checked,
+    default_checks,
+    prefixed,
+    read_table,
+)
 from torquemod.errors import InputError, ManifestError
 from torquemod.io.channels import resolve_channel_map
-from torquemod.io.checks import positive_number
 from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
 
-_RIG_KEYS = ("wheel_radius_m", "platform_radius_m")
-_TEST_KEYS = ("normal_load_n", "modulation_frequency_hz", "modulation_amplitude_nm")
 
+@dataclass(frozen=True)
+class RecordingTable:
+    """One ``[[recording]]`` table as written, each key's check declared on its field.
 
-def _positive_float(table: dict, key: str, section: str, path: Path) -> float:
-    if key not in table:
-        raise ManifestError(f"missing key '{section}.{key}'", path=path,
-                            hint=f"add '{key} = <value>' under [{section}]")
-    return positive_number(table[key], f"{section}.{key}", path=path, error=ManifestError)
+    Attributes
+    ----------
+    step : int
+        The torque step, from 1.
+    dc_torque_nm : float
+        Its DC torque [N*m].
+    file : str
+        The recording, relative to the manifest's folder.
+    cycle : int or None
+        The platform revolution, from 1 (None: the file may span several).
+    group : str or None
+        The group inside the file.
+    sample_rate_hz : float or None
+        The recording's sample rate [Hz], replacing the file's time base.
+    note, comment : object
+        Free text.
+    """
+
+    step: int = checked(check=between(1, None))
+    dc_torque_nm: float = checked()
+    file: str = checked(check=Check(test=lambda f: bool(f.strip()), need="a non-empty string"))
+    cycle: int | None = checked(None, between(1, None))
+    group: str | None = None
+    sample_rate_hz: float | None = checked(None, POSITIVE)
+    note: object = None
+    comment: object = None
 
 
 #: file suffixes of recordings (a recording given where the manifest belongs gets a clear
@@ -34,11 +65,6 @@ def _positive_float(table: dict, key: str, section: str, path: Path) -> float:
 _RECORDING_SUFFIXES = {".csv": "CSV", ".h5": "HDF5", ".hdf5": "HDF5",
                        ".tdms": "TDMS", ".mf4": "MDF4", ".mdf": "MDF", ".mat": "MATLAB",
                        ".parquet": "Parquet", ".pq": "Parquet"}
-
-
-#: the keys a [[recording]] table may hold ("note" and "comment" are free text)
-_RECORDING_KEYS = ("step", "cycle", "dc_torque_nm", "file", "group", "sample_rate_hz", "note",
-                   "comment")
 
 
 def _load_toml(path: Path, name: str = "experiment.toml") -> dict:
@@ -73,66 +99,21 @@ def _load_toml(path: Path, name: str = "experiment.toml") -> dict:
         raise ManifestError(f"TOML syntax error: {text}", path=path, hint=hint) from None
 
 
-def check_keys(table: dict, allowed, where: str, path: object, *,
-               takes: str = "known keys:", error: type[InputError] = ManifestError) -> None:
-    """Refuse a key of a table that is not allowed, suggesting the nearest allowed one.
-
-    A typo such as 'dc_torque' or 'stpe' must not pass unnoticed
-    (:func:`torquemod._util.tomlcheck.unknown_keys`).
-
-    Parameters
-    ----------
-    table : dict
-        The table.
-    allowed : iterable of str
-        The allowed keys.
-    where : str
-        The table, named in the message (e.g. "[rig]").
-    path : object
-        The file, named in the message.
-    takes : str
-        Words before the list of allowed keys in the hint. Default "known keys:".
-    error : type
-        The :class:`InputError` subclass raised. Default :class:`ManifestError`.
-
-    Raises
-    ------
-    InputError
-        (``error``) naming the first unknown key and the nearest allowed one.
-    """
-    unknown_keys(table, allowed, where, path, takes=takes, error=error)
-
-
 def _recording_entry(i: int, rec: dict, folder: Path, path: Path) -> RecordingEntry:
     where = f"recording #{i + 1}"
-    if not isinstance(rec, dict):
-        raise ManifestError(f"{where} is not a table", path=path)
-    check_keys(rec, _RECORDING_KEYS, where, path, takes="a [[recording]] takes")
-    for key in ("step", "dc_torque_nm", "file"):
-        if key not in rec:
-            raise ManifestError(f"{where} has no '{key}'", path=path,
-                                hint="each [[recording]] needs step, dc_torque_nm and file")
-    step, cycle = rec["step"], rec.get("cycle")
-    if isinstance(step, bool) or not isinstance(step, int) or step < 1:
-        raise ManifestError(f"{where}: 'step' must be a positive integer, got {step!r}", path=path)
-    if cycle is not None and (isinstance(cycle, bool) or not isinstance(cycle, int) or cycle < 1):
-        raise ManifestError(f"{where}: 'cycle' must be a positive integer, got {cycle!r}",
-                            path=path)
-    dc = rec["dc_torque_nm"]
-    if isinstance(dc, bool) or not isinstance(dc, int | float) or not math.isfinite(dc):
-        raise ManifestError(f"{where}: 'dc_torque_nm' must be a finite number, got {dc!r}",
-                            path=path)
+    r = read_table(RecordingTable, rec, section="recording", path=path, key_prefix="",
+                   error=prefixed(where, ManifestError))
     resolved, group, fs = recording_file(rec, where, folder, path)
-    return RecordingEntry(step=step, cycle=cycle, dc_torque_nm=float(dc), path=resolved,
-                          group=group, index=i,
-                          sample_rate_hz=None if fs is None else float(fs))
+    return RecordingEntry(step=r.step, cycle=r.cycle, dc_torque_nm=r.dc_torque_nm,
+                          path=resolved, group=group, index=i, sample_rate_hz=fs)
 
 
 def recording_file(rec: dict, where: str, folder: Path, path: Path, kind: str = "experiment"
                    ) -> tuple[Path, str | None, float | None]:
     """The checked file, group and sample rate of one ``[[recording]]`` table.
 
-    Shared by experiment.toml and run.toml.
+    Shared by experiment.toml and run.toml; each value is checked as
+    :class:`RecordingTable` declares it.
 
     Parameters
     ----------
@@ -162,22 +143,17 @@ def recording_file(rec: dict, where: str, folder: Path, path: Path, kind: str = 
         ``file`` empty or pointing outside the folder, ``group`` not a string, or
         ``sample_rate_hz`` not a positive number.
     """
-    file = rec["file"]
-    if not isinstance(file, str) or not file.strip():
-        raise ManifestError(f"{where}: 'file' must be a non-empty string", path=path)
+    error = prefixed(where, ManifestError)
+
+    def value(key: str):
+        v = rec.get(key)
+        return v if v is None else check_key(RecordingTable, key, v, key, path, error=error)
+    file = value("file")
     resolved = (folder / file).resolve()
     if not resolved.is_relative_to(folder.resolve()):
         raise ManifestError(f"{where}: file '{file}' points outside the {kind} folder",
                             path=path, hint=f"copy the recording into the {kind} folder")
-    group = rec.get("group")
-    if group is not None and not isinstance(group, str):
-        raise ManifestError(f"{where}: 'group' must be a string", path=path)
-    fs = rec.get("sample_rate_hz")
-    if fs is not None and (isinstance(fs, bool) or not isinstance(fs, int | float)
-                           or not math.isfinite(fs) or fs <= 0):
-        raise ManifestError(f"{where}: 'sample_rate_hz' must be a positive number, got {fs!r}",
-                            path=path, hint="give the recording's sample rate in Hz")
-    return resolved, group, None if fs is None else float(fs)
+    return resolved, value("group"), value("sample_rate_hz")
 
 
 def checked_channel_map(channel_map: object, path: Path, rates=()) -> dict:
@@ -280,11 +256,10 @@ def experiment_from_doc(doc: dict, path: str | Path) -> Experiment:
         if not isinstance(doc.get(section), dict):
             raise ManifestError(f"missing section [{section}]", path=path,
                                 hint="see docs/format.md for the manifest layout")
-    rig_t, test_t = doc["rig"], doc["test"]
-    rig = Rig(**{k: _positive_float(rig_t, k, "rig", path) for k in _RIG_KEYS},
-              extra={k: v for k, v in rig_t.items() if k not in _RIG_KEYS})
-    test = TestSetup(**{k: _positive_float(test_t, k, "test", path) for k in _TEST_KEYS},
-                     extra={k: v for k, v in test_t.items() if k not in _TEST_KEYS})
+    positive = {"checks": default_checks(Rig, {}) | default_checks(TestSetup, {}),
+                "path": path, "error": ManifestError, "extra": "extra"}
+    rig = read_table(Rig, doc["rig"], section="rig", **positive)
+    test = read_table(TestSetup, doc["test"], section="test", **positive)
     recs = doc.get("recording", [])
     if not isinstance(recs, list) or not recs:
         raise ManifestError("the experiment lists no [[recording]]", path=path,

@@ -25,31 +25,70 @@ tables and ``[channels]`` map (read by the same readers), with ``[vehicle]`` in 
 from __future__ import annotations
 
 import cmath
-import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
-from torquemod.errors import ManifestError
-from torquemod.io.checks import positive_number
-from torquemod.io.manifest import _load_toml, check_keys, checked_channel_map, recording_file
-
-_VEHICLE_REQUIRED = ("wheel_radius_m", "normal_load_n", "inertia_kg_m2")
-_VEHICLE_OPTIONAL = ("gear_ratio", "motor_inertia_kg_m2", "coupling_stiffness_nm_rad",
-                     "coupling_damping_nm_s_rad", "vehicle", "mass_kg", "torque_lag_s",
-                     "torque_delay_s", "speed_delay_s", "vehicle_damping_n_s_m")
-#: the sensors' dynamics: time constants and delays [s], each >= 0
-_SENSOR_DELAYS = ("torque_lag_s", "torque_delay_s", "speed_delay_s")
-#: optional [vehicle] numbers that may be 0: (key, upper bound (excluded), what the error
-#: says it must be, hint)
-_NON_NEGATIVE = (
-    ("coupling_damping_nm_s_rad", math.inf, ">= 0", None),
-    ("vehicle_damping_n_s_m", 1e9, "a damping in N*s/m, >= 0",
-     "leave it out when unknown (the vehicle is then taken as an inertia)"),
-    *((key, 1.0, "a time in seconds, >= 0 and < 1",
-       "e.g. 0.002 for 2 ms; leave it out when unknown") for key in _SENSOR_DELAYS),
+from torquemod._util.tomlcheck import (
+    NON_NEGATIVE,
+    POSITIVE,
+    Check,
+    between,
+    checked,
+    prefixed,
+    read_table,
 )
-_TEST_REQUIRED = ("modulation_frequency_hz", "modulation_amplitude_nm")
-_RECORDING_KEYS = ("file", "axle", "group", "sample_rate_hz", "date", "note", "comment")
+from torquemod.errors import ManifestError
+from torquemod.io.manifest import _load_toml, checked_channel_map, recording_file
+
+#: the sensors' dynamics: a time constant or delay [s]
+_SENSOR_TIME = Check(lo=0.0, hi=1.0, hi_open=True, need="a time in seconds, >= 0 and < 1",
+                     hint="e.g. 0.002 for 2 ms; leave it out when unknown")
+
+
+@dataclass(frozen=True)
+class _VehicleTable:
+    """``[vehicle]`` as written (:class:`Vehicle` is built from it; ``vehicle`` its name,
+    ``mass_kg`` taken and not used)."""
+
+    wheel_radius_m: float = checked(check=POSITIVE)
+    normal_load_n: float = checked(check=POSITIVE)
+    inertia_kg_m2: float = checked(check=POSITIVE)
+    gear_ratio: float | None = checked(None, POSITIVE)
+    motor_inertia_kg_m2: float | None = checked(None, POSITIVE)
+    coupling_stiffness_nm_rad: float | None = checked(None, POSITIVE)
+    coupling_damping_nm_s_rad: float = checked(0.0, NON_NEGATIVE)
+    vehicle: object = ""
+    mass_kg: object = None
+    torque_lag_s: float = checked(0.0, _SENSOR_TIME)
+    torque_delay_s: float = checked(0.0, _SENSOR_TIME)
+    speed_delay_s: float = checked(0.0, _SENSOR_TIME)
+    vehicle_damping_n_s_m: float = checked(0.0, Check(
+        lo=0.0, hi=1e9, hi_open=True, need="a damping in N*s/m, >= 0",
+        hint="leave it out when unknown (the vehicle is then taken as an inertia)"))
+
+
+@dataclass(frozen=True)
+class _TestTable:
+    """``[test]``: the modulation [Hz], [N*m]; other keys are kept, not used."""
+
+    modulation_frequency_hz: float = checked(check=POSITIVE)
+    modulation_amplitude_nm: float = checked(check=POSITIVE)
+    extra: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class _RecordingTable:
+    """One ``[[recording]]`` of a run: ``file``, ``axle`` (from 1); ``group`` and
+    ``sample_rate_hz`` are checked as the experiment manifest's; free ``date``, ``note``,
+    ``comment``."""
+
+    file: object = checked()
+    axle: int = checked(1, between(1, None))
+    group: object = None
+    sample_rate_hz: object = None
+    date: object = None
+    note: object = None
+    comment: object = None
 
 
 @dataclass(frozen=True)
@@ -207,13 +246,6 @@ class Run:
         return self.manifest_path.parent
 
 
-def _number(table: dict, key: str, section: str, path: Path) -> float:
-    if key not in table:
-        raise ManifestError(f"missing key '{section}.{key}'", path=path,
-                            hint=f"add '{key} = <value>' under [{section}] (docs/format.md)")
-    return positive_number(table[key], f"{section}.{key}", path=path, error=ManifestError)
-
-
 def read_run(path: str | Path) -> Run:
     """Parse and check a ``run.toml``; the recordings are not opened.
 
@@ -244,22 +276,16 @@ def read_run(path: str | Path) -> Run:
         if not isinstance(doc.get(section), dict):
             raise ManifestError(f"missing section [{section}]", path=path,
                                 hint="see docs/format.md for the run manifest")
-    vt, tt = doc["vehicle"], doc["test"]
-    check_keys(vt, _VEHICLE_REQUIRED + _VEHICLE_OPTIONAL, "[vehicle]", path)
-    opt = {k: _number(vt, k, "vehicle", path) for k in _VEHICLE_OPTIONAL[:3] if k in vt}
-    for key, below, what, hint in _NON_NEGATIVE:
-        if key in vt:
-            d = vt[key]
-            if isinstance(d, bool) or not isinstance(d, int | float) or not 0 <= d < below:
-                raise ManifestError(f"vehicle.{key} must be {what}, got {d!r}", path=path,
-                                    hint=hint)
-            opt[key] = float(d)
-    if ("motor_inertia_kg_m2" in opt) != ("coupling_stiffness_nm_rad" in opt):
+    vt = read_table(_VehicleTable, doc["vehicle"], section="vehicle", path=path,
+                    error=ManifestError)
+    test = read_table(_TestTable, doc["test"], section="test", path=path, error=ManifestError,
+                      extra="extra")
+    if (vt.motor_inertia_kg_m2 is None) != (vt.coupling_stiffness_nm_rad is None):
         raise ManifestError("the drive line needs motor_inertia_kg_m2 and "
                             "coupling_stiffness_nm_rad together", path=path,
                             hint="give both, or neither (a rigid drive line)")
-    vehicle = Vehicle(**{k: _number(vt, k, "vehicle", path) for k in _VEHICLE_REQUIRED}, **opt,
-                      name=str(vt.get("vehicle", "")))
+    vehicle = Vehicle(**{f.name: getattr(vt, f.name) for f in fields(Vehicle)
+                         if f.name != "name"}, name=str(vt.vehicle))
     if vehicle.has_drive_line and vehicle.motor_inertia_kg_m2 >= vehicle.inertia_kg_m2:
         raise ManifestError("vehicle.motor_inertia_kg_m2 must be a part of inertia_kg_m2",
                             path=path, hint="inertia_kg_m2 is the total referred to the axle")
@@ -270,15 +296,10 @@ def read_run(path: str | Path) -> Run:
     entries = []
     for i, rec in enumerate(recs):
         where = f"recording #{i + 1}"
-        if not isinstance(rec, dict) or "file" not in rec:
-            raise ManifestError(f"{where} has no 'file'", path=path)
-        check_keys(rec, _RECORDING_KEYS, where, path)
-        axle = rec.get("axle", 1)
-        if isinstance(axle, bool) or not isinstance(axle, int) or axle < 1:
-            raise ManifestError(f"{where}: 'axle' must be a positive integer, got {axle!r}",
-                                path=path)
+        r = read_table(_RecordingTable, rec, section="recording", path=path, key_prefix="",
+                       error=prefixed(where, ManifestError))
         file, group, fs = recording_file(rec, where, path.parent, path, "run")
-        entries.append(RunRecording(file, axle, group, fs, rec.get("date"), i))
+        entries.append(RunRecording(file, r.axle, group, fs, r.date, i))
     axles = [e.axle for e in entries]
     if len(set(axles)) != len(axles):
         raise ManifestError("an axle is listed twice", path=path,
@@ -286,6 +307,5 @@ def read_run(path: str | Path) -> Run:
     cmap = checked_channel_map(doc.get("channels", {}), path, [e.sample_rate_hz for e in entries])
     extra = {k: v for k, v in doc.items() if k not in ("vehicle", "test", "recording",
                                                         "channels")}
-    return Run(path.resolve(), vehicle, _number(tt, "modulation_frequency_hz", "test", path),
-               _number(tt, "modulation_amplitude_nm", "test", path), tuple(entries), cmap,
-               extra)
+    return Run(path.resolve(), vehicle, test.modulation_frequency_hz,
+               test.modulation_amplitude_nm, tuple(entries), cmap, extra)

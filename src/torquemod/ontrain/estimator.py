@@ -81,7 +81,14 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from torquemod._util.tomlcheck import NON_NEGATIVE, between, default_checks, one_of, read_table
+from torquemod._util.tomlcheck import (
+    NON_NEGATIVE,
+    Check,
+    between,
+    default_checks,
+    one_of,
+    read_table,
+)
 from torquemod.analysis.phasefit import R_BOUNDS
 from torquemod.errors import InputError, ProcessingError
 from torquemod.io.run import Vehicle
@@ -244,16 +251,11 @@ class OnboardConfig:
         Raises
         ------
         InputError
-            An unknown key (with the nearest known one), a value of the wrong type or out of its
-            range (:func:`torquemod._util.tomlcheck.read_table`), or ``ratio_bounds`` not
-            ``[low, high]`` with low < high; the message names ``source`` and the key.
+            An unknown key (with the nearest known one), a value of the wrong type or out of
+            its range (:func:`torquemod._util.tomlcheck.read_table`; ``ratio_bounds``
+            ``[low, high]`` with 0 < low < high); the message names ``source`` and the key.
         """
-        cfg = read_table(cls, table, section="onboard", path=source, checks=_CHECKS)
-        lo, hi = cfg.ratio_bounds
-        if not lo < hi:
-            raise InputError(f"'onboard.ratio_bounds' must be [low, high] with low < high, got "
-                             f"{list(cfg.ratio_bounds)}", path=source)
-        return cfg
+        return read_table(cls, table, section="onboard", path=source, checks=_CHECKS)
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -279,7 +281,9 @@ _CHECKS = default_checks(OnboardConfig, {
     "info_utilisation": between(0.0, 1.0, lo_open=True),
     "min_modulation_ratio": between(0.0, 1.0),
     "low_adhesion_ratio": between(0.0, 1.0, lo_open=True),
-    "change_drift": NON_NEGATIVE, "delay_max_s": NON_NEGATIVE})
+    "change_drift": NON_NEGATIVE, "delay_max_s": NON_NEGATIVE,
+    "ratio_bounds": Check(lo=0.0, lo_open=True, test=lambda b: b[0] < b[1],
+                          need="[low, high] with 0 < low < high")})
 
 
 class ChangeDetector:

@@ -8,6 +8,7 @@
                                all the segment's windows (segments_axle<N>.csv: the others)
     along_track_km.csv         ... and per kilometre (along_track_axle<N>*.csv: the others)
     onboard.json               provenance, settings and each axle's summary
+    provenance.json            the provenance block every torquemod folder carries
     *.png, report.html         the figures and the report of the first axle
     track.csv, track.mat       with ``export`` ("csv", "mat"): the tracks in those formats
 
@@ -18,18 +19,17 @@ The ``results`` arguments are lists of
 from __future__ import annotations
 
 import json
-from datetime import UTC, datetime
 from pathlib import Path
 
-from torquemod._util.fsutil import atomic_dir, check_output_dir, sha256_file
+from torquemod._util.fsutil import check_output_dir
 from torquemod._util.jsonutil import dump_json
-from torquemod._version import __version__
 from torquemod.errors import InputError
 from torquemod.io.run import Run
-from torquemod.processing.provenance import software_versions
+from torquemod.processing.provenance import provenance_block
 from torquemod.results.export import check_formats, write_table
+from torquemod.results.writer import write_folder
 
-__all__ = ["check_onboard_out", "save_onboard", "track_name"]
+__all__ = ["check_onboard_out", "onboard_provenance", "save_onboard", "track_name"]
 
 META = "onboard.json"
 
@@ -54,13 +54,40 @@ def track_name(results: list, r, stem: str = "track") -> str:
     return stem if r is results[0] else f"{stem}_axle{r.axle}"
 
 
-def _meta(results: list, command: list[str] | None) -> dict:
+def onboard_provenance(results: list, command: list[str] | None = None) -> dict:
+    """The provenance block of an on-board folder.
+
+    Parameters
+    ----------
+    results : list of OnboardResult
+        The axles of one run.
+    command : list of str or None
+        The command line. Default None.
+
+    Returns
+    -------
+    dict
+        :func:`~torquemod.processing.provenance.provenance_block` (kind ``"onboard"``) of
+        the ``[onboard]`` settings, run.toml and every axle's recording with their SHA-256.
+    """
     run = results[0].run
-    return {"torquemod_version": __version__,
-            "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
-            "command": command, "software": software_versions(),
+    return provenance_block(
+        "onboard", results[0].config.to_dict(),
+        [{"file": run.manifest_path, "role": "manifest"},
+         *({"file": e.path, "role": "recording", "axle": e.axle} for e in run.recordings)],
+        command=command)
+
+
+def _meta(results: list, prov: dict) -> dict:
+    """``onboard.json``: the provenance block's software, time and command, the run (with
+    the block's SHA-256 of each file), the settings and each axle's summary."""
+    run = results[0].run
+    sha = {e["file"]: e["sha256"] for e in prov["inputs"]}
+    return {"torquemod_version": prov["torquemod_version"],
+            "created_utc": prov["created_utc"],
+            "command": prov["command"], "software": prov["software"],
             "run": {"manifest": str(run.manifest_path),
-                    "manifest_sha256": sha256_file(run.manifest_path),
+                    "manifest_sha256": sha[str(run.manifest_path)],
                     "vehicle": {k: getattr(run.vehicle, k) for k in
                                 run.vehicle.__dataclass_fields__},
                     "modulation_frequency_hz": run.modulation_frequency_hz,
@@ -69,7 +96,7 @@ def _meta(results: list, command: list[str] | None) -> dict:
                     "extra": dict(run.extra),
                     "recordings": [{"file": str(e.path), "axle": e.axle, "group": e.group,
                                     "sample_rate_hz": e.sample_rate_hz,
-                                    "sha256": sha256_file(e.path)} for e in run.recordings]},
+                                    "sha256": sha[str(e.path)]} for e in run.recordings]},
             "onboard": results[0].config.to_dict(),
             "axles": [dict(r.summary(), notes=list(r.notes), warnings=list(r.warnings),
                            track_file=track_name(results, r) + ".parquet")
@@ -77,8 +104,10 @@ def _meta(results: list, command: list[str] | None) -> dict:
 
 
 def write_onboard(folder: Path, results: list, *,
-                  command: list[str] | None = None, export=()) -> None:
-    """Write the on-board results folder's files into an existing, empty folder.
+                  command: list[str] | None = None, export=(),
+                  provenance: dict | None = None) -> None:
+    """Write the on-board results folder's files, all but ``provenance.json`` (the results
+    writer's), into an existing, empty folder.
 
     The atomic publishing is :func:`save_onboard`'s.
 
@@ -92,13 +121,16 @@ def write_onboard(folder: Path, results: list, *,
         The command line, for the provenance. Default None.
     export : sequence of str
         Further table formats (:func:`torquemod.results.export.check_formats`).
+    provenance : dict or None
+        The provenance block (default: :func:`onboard_provenance`), whose time, versions and
+        SHA-256 ``onboard.json`` repeats.
     """
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     from torquemod.ontrain.report import write_figures, write_report
     formats = check_formats(export)
-    meta = _meta(results, command)
+    meta = _meta(results, provenance or onboard_provenance(results, command))
     stamp = json.dumps({k: meta[k] for k in ("torquemod_version", "created_utc",
                                              "onboard")}).encode()
     for r in results:
@@ -174,6 +206,8 @@ def save_onboard(results: list, out_dir, *, force: bool = False,
     check_formats(export)
     run = results[0].run
     inputs = [run.manifest_path, *(e.path for e in run.recordings)]
-    with atomic_dir(Path(out_dir), force=force, inputs=inputs, kind="onboard") as tmp:
-        write_onboard(tmp, results, command=command, export=export)
+    prov = onboard_provenance(results, command)
+    with write_folder(Path(out_dir), kind="onboard", provenance=prov, force=force,
+                      refuse=inputs) as w:
+        write_onboard(w.path, results, command=command, export=export, provenance=prov)
     return Path(out_dir)

@@ -15,31 +15,31 @@
 checks them, and rebuilds the :class:`~torquemod.processing.pipeline.ProcessResult`; the
 :class:`~torquemod.analysis.result.Analysis` is read back from ``fit.json``, the analysed
 steps table and the values ``result.json`` keeps beside them
-(:func:`~torquemod.analysis.result.saved_state`), without fitting again. When ``fit.json``
-is missing, was written by another version or with other fit options, the analysis is
-recomputed with the stored fit options (deterministic), with a warning. ``provenance.json`` and the
-report are outputs only. A missing or damaged file raises :class:`InputError` naming it.
+(:func:`~torquemod.analysis.result.saved_state`; the phase fit's tabulated curve is left out
+and rebuilt from its law and parameters, :func:`_without_curve`), without fitting again.
+When ``fit.json`` is missing, was written by another version or with other fit options, the
+analysis is recomputed with the stored fit options (deterministic), with a warning.
+``provenance.json`` and the report are outputs only. A missing or damaged file raises
+:class:`InputError` naming it.
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import re
 import warnings
 import zipfile
-from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
-from torquemod._util import fsutil
 from torquemod._util.jsonutil import dump_json, write_json
 from torquemod._version import __version__
 from torquemod.analysis.analyzer import ADDED_STEP_COLUMNS, FitOptions, analyze
+from torquemod.analysis.creeplaws import mixture_curve
 from torquemod.analysis.result import from_saved, saved_state
 from torquemod.errors import InputError, OptionError, OutputError, TorquemodError
 from torquemod.io.config import ProcessingConfig
@@ -47,6 +47,7 @@ from torquemod.io.experiment import Experiment, RecordingEntry, Rig, TestSetup
 from torquemod.processing.pipeline import CYCLE_COLUMNS, STEP_COLUMNS, ProcessResult
 from torquemod.processing.provenance import provenance
 from torquemod.report import write_report
+from torquemod.results.writer import Writing, write_folder
 
 if TYPE_CHECKING:
     from torquemod.analysis.result import Analysis
@@ -105,9 +106,11 @@ def save(result: ProcessResult, analysis: Analysis | None, folder, *, force: boo
     export = check_formats(export)
     if command is not None:
         result = dataclasses.replace(result, command=list(command))
-    with _new_dir(folder, force=force, inputs=inputs) as tmp:
-        _write_all(tmp, Path(folder), result, analysis, command=None, report=report,
-                   report_options=report_options, export=export)
+    prov = provenance(result, command=result.command)
+    with write_folder(folder, kind="results", provenance=prov, force=force,
+                      refuse=inputs or ()) as w:
+        _write_all(w, result, analysis, report=report, report_options=report_options,
+                   export=export)
     return Path(folder)
 
 
@@ -144,32 +147,20 @@ def update(folder, result: ProcessResult, analysis: Analysis | None, *,
     # the exported copies of the tables the folder holds are rewritten with them
     export = [f for f, suffix in EXPORT_FORMATS.items()
               if f != "csv" and (folder / f"steps{suffix}").exists()]
-    with _update_dir(folder) as tmp:
-        _write_all(tmp, folder, result, analysis, command=command, report=report,
-                   report_options=report_options, export=export)
+    prov = provenance(result, command=command or result.command)
+    with write_folder(folder, mode="update", provenance=prov) as w:
+        _write_all(w, result, analysis, report=report, report_options=report_options,
+                   export=export)
     return folder
 
 
-@contextlib.contextmanager
-def _new_dir(folder, *, force: bool, inputs) -> Iterator[Path]:
-    """fsutil's atomic folder, refusing an ``--out`` that is or holds an input."""
-    with fsutil.atomic_dir(folder, force=force, inputs=list(inputs or ())) as tmp:
-        yield tmp
-
-
-@contextlib.contextmanager
-def _update_dir(folder: Path) -> Iterator[Path]:
-    """An atomic in-place update of a results folder (:func:`torquemod._util.fsutil.update_dir`)."""
-    with fsutil.update_dir(folder) as tmp:
-        yield tmp
-
-
-def _write_all(tmp: Path, final: Path, result: ProcessResult, analysis: Analysis | None, *,
-               command, report: bool, report_options, export=()) -> None:
-    """Every file of the layout into the folder being assembled; a full disk or an
-    unwritable target ends as one OutputError naming the folder."""
+def _write_all(w: Writing, result: ProcessResult, analysis: Analysis | None, *,
+               report: bool, report_options, export=()) -> None:
+    """Every file of the layout but provenance.json (the writer's) into the folder being
+    assembled; a full disk or an unwritable target ends as one OutputError naming the
+    folder."""
+    tmp, final = w.path, w.target
     try:
-        prov = provenance(result, command=command or result.command)
         steps = analysis.steps if analysis is not None else result.steps
         result.cycles.to_csv(tmp / "cycles.csv", index=False, lineterminator="\n")
         steps.to_csv(tmp / "steps.csv", index=False, lineterminator="\n")
@@ -179,7 +170,6 @@ def _write_all(tmp: Path, final: Path, result: ProcessResult, analysis: Analysis
                 if fmt != "csv":  # written above
                     write_table(result.cycles, tmp / "cycles", fmt)
                     write_table(steps, tmp / "steps", fmt)
-        write_json(tmp / "provenance.json", prov)
         write_json(tmp / STATE_FILE, _state(result, analysis))
         np.savez(tmp / "traces.npz", **{f"s{s}c{c}__{name}": x
                                         for (s, c), arrays in sorted(result.traces.items())
@@ -189,7 +179,7 @@ def _write_all(tmp: Path, final: Path, result: ProcessResult, analysis: Analysis
             (tmp / "fit.json").write_text(dump_json(doc) + "\n", encoding="utf-8")
             if report:
                 write_report(tmp, result, analysis, options=report_options,
-                             provenance_doc=prov)
+                             provenance_doc=w.provenance)
     except TorquemodError:
         raise
     except OSError as exc:
@@ -216,8 +206,46 @@ def _state(result: ProcessResult, analysis: Analysis | None) -> dict:
         "analysis": None if analysis is None else {
             "options": dataclasses.asdict(analysis.options),
             "created_utc": analysis.created_utc,
-            "saved_with": __version__, "saved": saved_state(analysis)},
+            "saved_with": __version__, "saved": _without_curve(saved_state(analysis))},
     }
+
+
+#: the relative tolerance within which the phase fit's curve rebuilt from its law and
+#: parameters must equal the fitted one for result.json to leave it out (the rebuild mixes
+#: the same two tabulated members with a mixing fraction recovered from the parameters:
+#: a few ulp apart, ~4e-16 relative on the demo's fits)
+CURVE_RTOL = 1e-12
+
+
+def _without_curve(saved: dict) -> dict:
+    """The saved state without the phase fit's tabulated curve ``best_s`` (2001 numbers)
+    when :func:`~torquemod.analysis.creeplaws.mixture_curve` rebuilds it from the stored law
+    and parameters within :data:`CURVE_RTOL` (``best_s_rebuilt`` says so); else as it is."""
+    adhesion = (saved.get("phase_fit") or {}).get("adhesion")
+    if not adhesion or "best_s" not in adhesion:
+        return saved
+    fitted = np.array([float(v) for v in adhesion["best_s"]])
+    rebuilt = mixture_curve(adhesion["law"], adhesion["params"])
+    if rebuilt is None or not np.allclose(rebuilt, fitted, rtol=CURVE_RTOL, atol=0.0,
+                                          equal_nan=True):
+        return saved
+    adhesion = {k: v for k, v in adhesion.items() if k != "best_s"}
+    adhesion["best_s_rebuilt"] = True
+    return {**saved, "phase_fit": {**saved["phase_fit"], "adhesion": adhesion}}
+
+
+def _with_curve(saved: dict) -> dict:
+    """The saved state with the phase fit's curve rebuilt where :func:`_without_curve` left
+    it out."""
+    adhesion = (saved.get("phase_fit") or {}).get("adhesion")
+    if not adhesion or not adhesion.get("best_s_rebuilt"):
+        return saved
+    curve = mixture_curve(adhesion["law"], adhesion["params"])
+    if curve is None:
+        raise ValueError("the phase fit's curve cannot be rebuilt from its law and parameters")
+    adhesion = {k: v for k, v in adhesion.items() if k != "best_s_rebuilt"}
+    adhesion["best_s"] = curve.tolist()
+    return {**saved, "phase_fit": {**saved["phase_fit"], "adhesion": adhesion}}
 
 
 # --------------------------------------------------------------------------- reading
@@ -281,8 +309,8 @@ def load(folder) -> tuple[ProcessResult, Analysis | None]:
         return result, None
     if doc is not None:
         try:
-            return result, from_saved(doc, fit_state["saved"], analysed_steps, options,
-                                      name=result.name)
+            return result, from_saved(doc, _with_curve(fit_state["saved"]), analysed_steps,
+                                      options, name=result.name)
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise InputError(f"damaged fit document ({type(exc).__name__}: {exc})",
                              path=folder / "fit.json",

@@ -3,23 +3,26 @@ evaluated and written on its own inside its batch), or the points in this proces
 resumable point by point, every output written atomically::
 
     OUT/points/point=<id>/part-0.parquet   the rows of one finished point
-    OUT/_state/<id>.json                   its fingerprint (parameters, seed, mode, base
+    OUT/_state/<id>.json                   its resume record (torquemod.results.resume):
+                                           fingerprint (parameters, seed, mode, base
                                            config, torquemod version), status, seconds
+    OUT/provenance.json                    the provenance block: spec, inputs with SHA-256
     OUT/sweep.parquet                      every point's rows (metadata: version, sweep file)
     OUT/failures.csv                       one row per failed point: its one-line message
     OUT/sweep.json                         version, sweep spec, seeds, counts, wall time,
                                            the recommendation
     OUT/figures/*.png, OUT/report.html     (:mod:`torquemod.sweep.report`)
 
-A rerun skips a point whose partition is in place and whose fingerprint is unchanged;
-``force`` reruns every point. A point that fails (bad parameter value, wheel slipping at the
-first step, ...) becomes a row of failures.csv and the sweep goes on.
+A rerun skips a point whose partition is in place and whose fingerprint is unchanged
+(:func:`torquemod.results.resume.decide`; a redone point's message says what changed);
+``force`` reruns every point. Each point's folder and the summary files are published by
+:func:`torquemod.results.writer.write_folder`. A point that fails (bad parameter value,
+wheel slipping at the first step, ...) becomes a row of failures.csv and the sweep goes on.
 """
 
 from __future__ import annotations
 
 import csv
-import hashlib
 import json
 import os
 import shutil
@@ -34,13 +37,21 @@ from torquemod._util.fsutil import (
     environment_error,
     output_lock,
     removed_if_left_empty,
-    write_atomic,
 )
 from torquemod._util.jsonutil import dump_json
 from torquemod._version import __version__
 from torquemod.errors import InputError, OutputError, TorquemodError
+from torquemod.results import resume
+from torquemod.results.writer import write_folder
 from torquemod.sweep.evaluate import PointTask, evaluate_point, tasks
 from torquemod.sweep.spec import SweepSpec, load_sweep
+from torquemod.sweep.state import (  # noqa: F401  (fingerprint: the sweep's API, here as before)
+    digests,
+    fingerprint,
+    one_study,
+    study_key,
+    sweep_provenance,
+)
 
 __all__ = ["SweepResult", "fingerprint", "plan_line", "point_batches", "run_point",
            "run_points", "run_sweep", "tasks"]
@@ -48,62 +59,22 @@ __all__ = ["SweepResult", "fingerprint", "plan_line", "point_batches", "run_poin
 FAILURE_COLUMNS = ["point_id", "point_index", "seed", "params", "message"]
 
 
-def fingerprint(task: PointTask) -> str:
-    """SHA-256 over what a point's rows depend on.
-
-    Its parameters and seed, the mode, the torque fractions, the utilisation limit of the
-    phase fit, the base config's text (the default config's when none), the torquemod
-    version and, in full mode, the run-in rule and the chain's frequency scaling (a changed
-    rule reruns the points).
-
-    Parameters
-    ----------
-    task : PointTask
-        The point.
-
-    Returns
-    -------
-    str
-        Hex digest.
-    """
-    from torquemod.twins.train.params import default_train_config_text
-    from torquemod.twins.vtrack.simulate import default_config_text
-    default = default_train_config_text if task.kind == "train" else default_config_text
-    base_text = (Path(task.base).read_text(encoding="utf-8") if task.base else default())
-    extra = {"kind": task.kind, "max_mu_error": task.max_mu_error} if task.kind != "rig" else {}
-    if task.kind == "rig" and task.mode == "full":  # the run-in rule (evaluate.settle_time_s)
-        from torquemod.sweep.evaluate import CHAIN_RULE, SETTLE_RULE, SETTLE_TIME_CONSTANTS
-        extra["rules"] = [SETTLE_RULE, SETTLE_TIME_CONSTANTS, CHAIN_RULE]
-    blob = json.dumps({**extra, "params": task.params, "seed": task.seed, "mode": task.mode,
-                       "fractions": task.fractions_of_peak,
-                       "max_utilisation": task.max_utilisation, "version": __version__,
-                       "processing": task.processing,
-                       "base": hashlib.sha256(base_text.encode()).hexdigest()},
-                      sort_keys=True, default=str)
-    return hashlib.sha256(blob.encode()).hexdigest()
-
-
 def _part(out: Path, point_id: str) -> Path:
     return out / "points" / f"point={point_id}" / "part-0.parquet"
 
 
 def _write_parquet(df: pd.DataFrame, path: Path, metadata: dict | None = None) -> None:
-    """``df`` as Parquet at ``path``: written beside it and renamed into place (readers see
-    the old file or the new one, never half of one)."""
+    """``df`` as Parquet at ``path`` (a file of a folder the results writer publishes),
+    with ``metadata`` in the schema's key-value metadata."""
     import pyarrow as pa
     import pyarrow.parquet as pq
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     table = pa.Table.from_pandas(df, preserve_index=False)
     if metadata:
         table = table.replace_schema_metadata({**(table.schema.metadata or {}),
                                                **{k.encode(): v.encode()
                                                   for k, v in metadata.items()}})
-    try:
-        pq.write_table(table, tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    pq.write_table(table, path)
 
 
 def _hashable_params(table: pd.DataFrame, keys) -> pd.DataFrame:
@@ -154,35 +125,36 @@ def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
     out = Path(out_dir)
     row = {"point_id": task.point_id, "point_index": task.index, "seed": task.seed,
            "status": "failed", "n_rows": 0, "message": ""}
-    state = out / "_state" / f"{task.point_id}.json"
     part = _part(out, task.point_id)
     try:
-        digest = fingerprint(task)
-        try:
-            old = json.loads(state.read_text()) if state.is_file() else {}
-        except (OSError, ValueError):
-            old = {}
-        if not force and part.is_file() and old.get("fingerprint") == digest:
-            return {**row, "status": "skipped", "n_rows": old.get("n_rows", 0),
+        digest, params_digest, inputs_digest = digests(task)
+        old = resume.read_record(out, task.point_id)
+        decision = resume.decide(old, digest, outputs_ok=part.is_file(), force=force,
+                                 parameters_digest=params_digest, inputs_digest=inputs_digest)
+        if not decision.redo:
+            return {**row, "status": "skipped", "n_rows": old.extra.get("n_rows", 0),
                     "seconds": time.perf_counter() - t0}
         work = None
         if task.kind == "train":  # its run goes through a folder
             work = out / "_work"
             work.mkdir(parents=True, exist_ok=True)
         df = evaluate_point(task, workdir=work)
-        _write_parquet(df, part)
-        state.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(state, lambda fh: fh.write(json.dumps(
-            {"fingerprint": digest, "point_id": task.point_id, "params": task.params,
-             "seed": task.seed, "n_rows": len(df), "version": __version__,
-             "seconds": time.perf_counter() - t0}, default=str)))
-        row.update(status="done", n_rows=len(df))
+        with write_folder(part.parent, mode="replace") as w:
+            _write_parquet(df, w.path / part.name)
+        resume.write_record(out, resume.ResumeRecord(
+            name=task.point_id, fingerprint=digest, parameters_digest=params_digest,
+            inputs_digest=inputs_digest,
+            outputs=(str(part.parent.relative_to(out)),),
+            extra={"point_id": task.point_id, "params": task.params, "seed": task.seed,
+                   "n_rows": len(df), "seconds": time.perf_counter() - t0}))
+        row.update(status="done", n_rows=len(df), message=decision.message)
     except Exception as exc:  # a bad point never stops the sweep: it becomes a failure row
         row["message"] = _one_line(exc)
-        if not isinstance(exc, TorquemodError) and environment_error(exc) is not None:
+        if isinstance(exc, OutputError) or (not isinstance(exc, TorquemodError)
+                                            and environment_error(exc) is not None):
             row["system"] = True  # the sweep stops (the next points would fail alike)
-        part.unlink(missing_ok=True)  # no stale rows of an earlier good run
-        state.unlink(missing_ok=True)
+        shutil.rmtree(part.parent, ignore_errors=True)  # no stale rows of an earlier run
+        resume.drop_record(out, task.point_id)
     row["seconds"] = time.perf_counter() - t0
     return row
 
@@ -330,16 +302,17 @@ def _lost(batch: list[PointTask], out: Path, why: str, since: float = 0.0,
         row = {"point_id": t.point_id, "point_index": t.index, "seed": t.seed,
                "status": "failed", "n_rows": 0, "seconds": float("nan"),
                "message": f"worker lost: {why}"}
-        state = out / "_state" / f"{t.point_id}.json"
+        rec = resume.read_record(out, t.point_id)
         try:
-            st, written = json.loads(state.read_text("utf-8")), state.stat().st_mtime
-        except (OSError, ValueError):
-            st, written = {}, 0.0
-        if _part(out, t.point_id).is_file() and st.get("fingerprint") == fingerprint(t):
+            written = resume.record_path(out, t.point_id).stat().st_mtime
+        except OSError:
+            written = 0.0
+        if _part(out, t.point_id).is_file() and rec is not None \
+                and rec.fingerprint == fingerprint(t):
             status = "done" if written >= since else None if force else "skipped"
             if status is not None:
-                row.update(status=status, n_rows=int(st.get("n_rows", 0)), message="",
-                           seconds=float(st.get("seconds", float("nan"))))
+                row.update(status=status, n_rows=int(rec.extra.get("n_rows", 0)), message="",
+                           seconds=float(rec.extra.get("seconds", float("nan"))))
         rows.append(row)
     return rows
 
@@ -373,13 +346,12 @@ def plan_line(spec: SweepSpec, out: str | Path, *, n_workers: int | None = None,
     out = Path(out)
     done, seconds = 0, []
     for p in spec.points:
-        try:
-            st = json.loads((out / "_state" / f"{p.point_id}.json").read_text("utf-8"))
-        except (OSError, ValueError):
+        rec = resume.read_record(out, p.point_id)
+        if rec is None:
             continue
         done += _part(out, p.point_id).is_file()
-        if isinstance(st.get("seconds"), int | float):
-            seconds.append(float(st["seconds"]))
+        if isinstance(rec.extra.get("seconds"), int | float):
+            seconds.append(float(rec.extra["seconds"]))
     per = (sorted(seconds)[len(seconds) // 2] if seconds
            else POINT_SECONDS.get((spec.kind, spec.mode), 60.0))
     workers = n_workers or (None if scheduler else os.cpu_count() or 1)
@@ -398,78 +370,6 @@ def _duration(seconds: float) -> str:
     if seconds < 7200:
         return f"{seconds / 60:.0f} min"
     return f"{seconds / 3600:.1f} h"
-
-
-#: the file in ``_state`` that names the study whose points the folder holds
-STUDY_FILE = "study.json"
-
-
-def study_key(spec: SweepSpec) -> str:
-    """SHA-256 of what makes every point's rows comparable.
-
-    Mode, kind, the base config's text, the torque fractions and the ``[processing]`` table
-    (the points themselves are compared by their ids).
-
-    Parameters
-    ----------
-    spec : SweepSpec
-        The sweep.
-
-    Returns
-    -------
-    str
-        Hex digest.
-    """
-    base = Path(spec.base).read_text(encoding="utf-8") if spec.base else spec.kind
-    blob = json.dumps({"mode": spec.mode, "kind": spec.kind,
-                       "base": hashlib.sha256(base.encode()).hexdigest(),
-                       "fractions": spec.fractions_of_peak, "processing": spec.processing},
-                      sort_keys=True, default=str)
-    return hashlib.sha256(blob.encode()).hexdigest()
-
-
-def _held_points(out: Path) -> set[str]:
-    """Ids of the points whose partition or state the folder holds."""
-    ids = {p.name.split("=", 1)[1] for p in (out / "points").glob("point=*")}
-    ids |= {p.stem for p in (out / "_state").glob("*.json") if p.name != STUDY_FILE}
-    return ids
-
-
-def _one_study(out: Path, spec: SweepSpec, todo: list[PointTask], force: bool):
-    """Make sure ``out`` holds one study: points of a sweep file whose grid, ``[fixed]``
-    values, mode, base, torque fractions or ``[processing]`` differ from ``spec``'s are
-    never left beside its points. A folder holding such points is refused at once, or with
-    ``force`` they are removed (a new study) by the function returned, which creates ``out``
-    and records the study (called once the cluster answers); a grown grid (every held point
-    still in the sweep) resumes."""
-    key = study_key(spec)
-    state = out / "_state" / STUDY_FILE
-    try:
-        old_key = json.loads(state.read_text(encoding="utf-8")).get("key")
-    except (OSError, ValueError, AttributeError):
-        old_key = None
-    ids = {t.point_id for t in todo}
-    stale = sorted(_held_points(out) - ids) if out.is_dir() else []
-    changed = old_key is not None and old_key != key
-    if stale or changed:
-        why = (f"{len(stale)} of its points are not in this sweep (grid or [fixed] changed)"
-               if stale else "mode, base, [steps] or [processing] changed")
-        if not force:
-            raise InputError(f"the folder holds the results of another study ({why})",
-                             path=out, hint="choose another --out, or pass --force to start "
-                                            "a new study there (the old points are removed)")
-
-    def begin() -> None:
-        if stale or changed:
-            for pid in stale if not changed else sorted(_held_points(out)):
-                shutil.rmtree(out / "points" / f"point={pid}", ignore_errors=True)
-                (out / "_state" / f"{pid}.json").unlink(missing_ok=True)
-            for name in ("sweep.parquet", "sweep.json", "failures.csv"):
-                (out / name).unlink(missing_ok=True)
-        state.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(state, lambda fh: fh.write(json.dumps(
-            {"key": key, "sweep": str(spec.path), "n_points": len(ids)})))
-    return begin
 
 
 def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
@@ -581,7 +481,7 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
                 force, progress, report, on_dashboard, connect_timeout_s,
                 on_start) -> SweepResult:
     todo = tasks(spec)
-    begin = _one_study(out, spec, todo, force)
+    begin = one_study(out, spec, todo, force)
     if on_start is not None:
         on_start()
     with removed_if_left_empty(out):
@@ -605,14 +505,8 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
                              "point_index": failed["point_index"], "seed": failed["seed"],
                              "params": failed["point_id"].map(params),
                              "message": failed["message"]}, columns=FAILURE_COLUMNS)
-    write_atomic(out / "failures.csv", lambda fh: failures.to_csv(
-        fh, index=False, quoting=csv.QUOTE_MINIMAL, lineterminator="\n"))
     meta = {"torquemod_version": __version__, "sweep_toml": spec.text,
             "sweep_spec": json.dumps(spec.to_dict(), default=str)}
-    if not table.empty:
-        _write_parquet(table, out / "sweep.parquet", metadata=meta)
-    else:
-        (out / "sweep.parquet").unlink(missing_ok=True)
     from torquemod.sweep.report import recommend, write_report
     from torquemod.sweep.summary import agreement
     # the summaries group by the swept values: a list-valued one (procedure.dc_torques_nm)
@@ -626,18 +520,26 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
             return None
     rec = recommend(table_view, spec) if not table.empty else {"setting": None,
                                                           "reasoning": "no point finished"}
-    wall = time.perf_counter() - t0
-    doc = {"generator": "torquemod sweep", "version": __version__, "spec": spec.to_dict(),
-           "sweep_toml": spec.text, "seeds": list(spec.seeds),
-           "points": {s: int((status["status"] == s).sum())
-                      for s in ("done", "skipped", "failed")},
-           "status": status.to_dict(orient="records"), "wall_s": wall,
-           "recommendation": rec,
-           "agreement": agreement(table_view) if not table.empty else None}
     report_path = None
-    if report and not table.empty:
-        report_path = write_report(out, table_view, spec, rec, status=status,
-                                   failures=failures, wall_s=wall)
-    write_atomic(out / "sweep.json", lambda fh: fh.write(dump_json(doc)))
+    with write_folder(out, mode="into", provenance=sweep_provenance(spec)) as w:
+        failures.to_csv(w.path / "failures.csv", index=False, quoting=csv.QUOTE_MINIMAL,
+                        lineterminator="\n")
+        if not table.empty:
+            _write_parquet(table, w.path / "sweep.parquet", metadata=meta)
+        else:
+            w.drop("sweep.parquet")
+        wall = time.perf_counter() - t0
+        doc = {"generator": "torquemod sweep", "version": __version__, "spec": spec.to_dict(),
+               "sweep_toml": spec.text, "seeds": list(spec.seeds),
+               "points": {s: int((status["status"] == s).sum())
+                          for s in ("done", "skipped", "failed")},
+               "status": status.to_dict(orient="records"), "wall_s": wall,
+               "recommendation": rec,
+               "agreement": agreement(table_view) if not table.empty else None}
+        if report and not table.empty:
+            write_report(w.path, table_view, spec, rec, status=status, failures=failures,
+                         wall_s=wall)
+            report_path = out / "report.html"
+        (w.path / "sweep.json").write_text(dump_json(doc), encoding="utf-8")
     return SweepResult(out, table, status, failures, rec, report_path, link,
                        time.perf_counter() - t0)

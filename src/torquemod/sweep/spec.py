@@ -5,11 +5,12 @@ A sweep names a base twin configuration (the V-Track default, or a config TOML a
 ``torquemod simulate`` reads it; or a train run: ``base = "train"``, or a train config TOML
 with ``kind = "train"``, see :mod:`torquemod.sweep.trainpoint`), the twin parameters to vary
 by their dotted config key (``"modulation.frequency_hz"``, ``"contact.mu0"``,
-``"sensors.torque_noise_nm"``, ...; the keys of ``torquemod/data/vtrack_default.toml``, or
-the train's), as a cartesian ``[grid]`` and/or a list of
-``[[point]]`` tables, the mode (``"full"``: twin + processing chain + fits; ``"theory"``:
-large-signal theory only) and the seeds. Every mistake is an :class:`InputError` naming the
-sweep file and the key, with the nearest known key when it looks like a typo.
+``"sensors.torque_noise_nm"``, ...; the keys of the twin's configuration,
+:class:`~torquemod.twins.vtrack.simconfig.SimTables`, or the train's), as a cartesian
+``[grid]`` and/or a list of ``[[point]]`` tables, the mode (``"full"``: twin + processing
+chain + fits; ``"theory"``: large-signal theory only) and the seeds. Every mistake is an
+:class:`InputError` naming the sweep file and the key, with the nearest known key when it
+looks like a typo.
 """
 
 from __future__ import annotations
@@ -19,12 +20,19 @@ import itertools
 import json
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
-from torquemod._util.tomlcheck import between, default_checks, read_table
+from torquemod._util.tomlcheck import (
+    between,
+    checked,
+    checked_value,
+    default_checks,
+    one_of,
+    read_table,
+    unknown_keys,
+)
 from torquemod.errors import InputError
-from torquemod.io.manifest import check_keys
 from torquemod.sweep.conditions import conditions
 
 __all__ = ["CONDITION_KEY", "MAX_POINTS", "RecommendOptions", "SweepPoint", "SweepSpec",
@@ -34,7 +42,6 @@ __all__ = ["CONDITION_KEY", "MAX_POINTS", "RecommendOptions", "SweepPoint", "Swe
 CONDITION_KEY = "contact.condition"
 _TOP_KEYS = ("name", "description", "base", "mode", "seeds", "repeats", "max_utilisation",
              "fixed", "steps", "grid", "point", "recommend", "processing")
-_STEP_KEYS = ("fractions_of_peak",)
 _MODES = ("full", "theory")
 _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 
@@ -42,14 +49,18 @@ _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 def twin_keys() -> dict[str, object]:
     """Every dotted key of the rig twin's configuration with its default value.
 
+    The keys are the fields of :class:`~torquemod.twins.vtrack.simconfig.SimTables`, the
+    values those read from the default file.
+
     Returns
     -------
     dict of str to object
         ``section.key`` -> default.
     """
-    from torquemod.twins.vtrack.simulate import default_config_text
-    doc = tomllib.loads(default_config_text())
-    return {f"{s}.{k}": v for s, table in doc.items() for k, v in table.items()}
+    from torquemod.twins.vtrack.simconfig import default_tables
+    tables = default_tables()
+    return {f"{s.name}.{f.name}": getattr(getattr(tables, s.name), f.name)
+            for s in fields(tables) for f in fields(getattr(tables, s.name))}
 
 
 @dataclass(frozen=True)
@@ -210,32 +221,30 @@ def _flatten(table: dict, prefix: str = "") -> dict:
 
 
 def _check_value(key: str, value, where: str, path, kind: str = "rig") -> None:
-    """A parameter value must be a number, a string, a bool or a list of numbers, and a
-    condition must be a known name."""
-    ok = (isinstance(value, bool | str) or
-          (isinstance(value, int | float) and math.isfinite(value)) or
-          (isinstance(value, list) and all(isinstance(v, int | float)
-                                           and not isinstance(v, bool) for v in value)))
-    if not ok:
-        raise InputError(f"{where}: '{key}' has an unusable value {value!r}", path=path,
-                         hint="give a number, a string, true/false or a list of numbers")
+    """A parameter's value checked as the twin's reader checks its key (type and range,
+    :func:`~torquemod.twins.vtrack.simconfig.twin_key_check`; a condition: a known name),
+    so that a mistake names the sweep file, the table and the key before any point runs."""
     if kind == "train":
         from torquemod.sweep.trainpoint import check_train_value
         check_train_value(key, value, where, path)
         return
-    if key == CONDITION_KEY:
-        known = conditions()
-        if value not in known:
-            raise InputError(f"{where}: unknown friction condition {value!r}", path=path,
-                             hint=f"use one of {', '.join(known)}, or give the Polach "
-                                  "parameters (contact.mu0, a_ratio, b_s_m, k_a, k_s)")
+    try:
+        if key == CONDITION_KEY:
+            checked_value(value, str, key, None, one_of(*conditions()))
+        else:
+            from torquemod.twins.vtrack.simconfig import twin_key_check
+            twin_key_check(key, value, None)
+    except InputError as exc:
+        hint = ("or give the Polach parameters (contact.mu0, a_ratio, b_s_m, k_a, k_s)"
+                if key == CONDITION_KEY else None)
+        raise InputError(f"{where}: {exc}", path=path, hint=hint) from None
 
 
 def _params(table, where: str, path, allowed) -> dict:
     if not isinstance(table, dict):
         raise InputError(f"{where} must be a table of 'section.key = value'", path=path)
     flat = _flatten(table)
-    check_keys(flat, allowed, where, path, takes="twin parameters are", error=InputError)
+    unknown_keys(flat, allowed, where, path, takes="twin parameters are")
     return flat
 
 
@@ -258,23 +267,15 @@ def _seeds(doc: dict, path) -> tuple[int, ...]:
     return tuple(dict.fromkeys(seeds))
 
 
+@dataclass(frozen=True)
+class _Steps:
+    """``[steps]``: the DC torques as fractions of each point's creep-curve peak torque."""
+
+    fractions_of_peak: tuple[float, ...] | None = checked(None, between(0.0, 1.0, hi_open=True))
+
+
 def _fractions(doc: dict, path) -> tuple[float, ...] | None:
-    steps = doc.get("steps")
-    if steps is None:
-        return None
-    if not isinstance(steps, dict):
-        raise InputError("[steps] must be a table", path=path)
-    check_keys(steps, _STEP_KEYS, "[steps]", path, takes="[steps] takes", error=InputError)
-    fr = steps.get("fractions_of_peak")
-    if fr is None:
-        return None
-    if (not isinstance(fr, list) or not fr
-            or not all(isinstance(v, int | float) and not isinstance(v, bool)
-                       and 0.0 <= v < 1.0 for v in fr)):
-        raise InputError(f"[steps] fractions_of_peak must be a non-empty list of numbers in "
-                         f"[0, 1), got {fr!r}", path=path,
-                         hint="fractions of the creep-curve peak torque, e.g. [0.0, 0.3, 0.5]")
-    return tuple(float(v) for v in fr)
+    return read_table(_Steps, doc.get("steps"), section="steps", path=path).fractions_of_peak
 
 
 def _recommend(doc: dict, path) -> RecommendOptions:
@@ -389,7 +390,7 @@ def parse_sweep(text: str, *, path: str | Path | None = None,
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"TOML syntax error: {exc}", path=where,
                          hint="fix the line named") from None
-    check_keys(doc, _TOP_KEYS, "sweep file", where, takes="a sweep takes", error=InputError)
+    unknown_keys(doc, _TOP_KEYS, "sweep file", where, takes="a sweep takes")
     mode = doc.get("mode", "full")
     if mode not in _MODES:
         raise InputError(f"unknown mode {mode!r}", path=where,

@@ -137,10 +137,22 @@ def train_keys(base: str | Path | None = None) -> tuple[str, ...]:
     return tuple(keys)
 
 
-def check_train_value(key: str, value, where: str, path) -> None:
-    """Check values the config reader would not see until a worker runs the point.
+#: the sweep-only keys' checks (a condition's: a known name, checked where it is needed)
+_PROBE_CHECKS = {
+    "controller.probe_levels": ((tuple, float, None), "e.g. [0.2, 0.4, 0.6, 0.8]; a grid of "
+                                "them is a list of lists"),
+    "controller.probe_depth": (float, "the top level, a fraction of the available adhesion"),
+    "controller.probe_step_m": (float, "the length of each probe level [m]"),
+}
 
-    A condition must be known, probe levels a list of fractions in (0, 1).
+
+def check_train_value(key: str, value, where: str, path) -> None:
+    """Check a train sweep's value before any point runs, as the readers check it.
+
+    A condition must be known, probe levels and depth fractions in (0, 1), the probe step
+    positive, an ``onboard.*`` value as run.toml's ``[onboard]`` takes it
+    (:func:`torquemod._util.tomlcheck.checked_value`); other keys must be a number, a
+    string, true/false or a list of numbers (the train reader checks them per point).
 
     Parameters
     ----------
@@ -149,30 +161,40 @@ def check_train_value(key: str, value, where: str, path) -> None:
     value : object
         Its value.
     where : str
-        The point, named in the message.
+        The sweep's table, named in the message (e.g. "[grid]").
     path : object
         The sweep file, named in the message.
 
     Raises
     ------
     InputError
-        An unknown friction condition, or probe levels or depth not fractions in (0, 1).
+        The value is unusable for the key; the message names the file, the table and the
+        key.
     """
+    from torquemod._util.tomlcheck import POSITIVE, between, checked_value, one_of
+    from torquemod.ontrain.estimator import OnboardConfig
     from torquemod.sweep.conditions import conditions
-    if key.endswith(".condition"):
-        if value not in conditions():
-            raise InputError(f"{where}: unknown friction condition {value!r}", path=path,
-                             hint=f"use one of {', '.join(conditions())}, or give the Polach "
-                                  "parameters (track.mu0, a_ratio, b_s_m, k_a, k_s)")
-    if key == "controller.probe_levels" and not (
-            isinstance(value, list) and value and all(0 < v < 1 for v in value)):
-        raise InputError(f"{where}: controller.probe_levels must be a non-empty list of "
-                         f"fractions in (0, 1), got {value!r}", path=path,
-                         hint="e.g. [0.2, 0.4, 0.6, 0.8]; a grid of them is a list of lists")
-    if key == "controller.probe_depth" and not (
-            isinstance(value, int | float) and not isinstance(value, bool) and 0 < value < 1):
-        raise InputError(f"{where}: controller.probe_depth must be a fraction in (0, 1), got "
-                         f"{value!r}", path=path)
+    hint = None
+    try:
+        if key.endswith(".condition"):
+            hint = ("or give the Polach parameters (track.mu0, a_ratio, b_s_m, k_a, k_s)")
+            checked_value(value, str, key, None, one_of(*conditions()))
+        elif key in _PROBE_CHECKS:
+            kind, hint = _PROBE_CHECKS[key]
+            check = POSITIVE if key.endswith("step_m") else between(
+                0.0, 1.0, lo_open=True, hi_open=True)
+            checked_value(value, kind, key, None, check)
+        elif key.startswith("onboard."):
+            OnboardConfig.from_dict({key.split(".", 1)[1]: value}, source=None)
+        elif not (isinstance(value, bool | str) or
+                  (isinstance(value, int | float) and math.isfinite(value)) or
+                  (isinstance(value, list) and all(isinstance(v, int | float)
+                                                   and not isinstance(v, bool)
+                                                   for v in value))):
+            raise InputError(f"'{key}' has an unusable value {value!r}", hint="give a number, "
+                             "a string, true/false or a list of numbers")
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}", path=path, hint=hint) from None
 
 
 def _polach_with(pol, values: dict):

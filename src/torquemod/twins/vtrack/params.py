@@ -1,13 +1,35 @@
 """Parameters of the V-Track digital twin as frozen dataclasses (SI units throughout).
 
-Which values come from the V-Track paper and which are assumed is documented where the
-defaults live: ``torquemod/data/vtrack_default.toml`` (``torquemod simulate --print-config``).
+The default values have one source, ``torquemod/data/vtrack_default.toml`` (``torquemod
+simulate --print-config``), which says which values come from the V-Track paper and which are
+assumed: the dataclasses of its tables take their defaults from it
+(:func:`~torquemod._util.tomlcheck.defaults_from`) and declare only the range of each value.
 """
 
 from __future__ import annotations
 
 import math
+import tomllib
 from dataclasses import dataclass, field
+from importlib import resources
+
+from torquemod._util.tomlcheck import NON_NEGATIVE, POSITIVE, Check, between, checked, defaults_from
+
+
+def default_config_text() -> str:
+    """The default configuration (V-Track) as commented TOML text.
+
+    Returns
+    -------
+    str
+        ``torquemod/data/vtrack_default.toml``: every default value of the twin, each marked
+        as the V-Track paper's, the project's or assumed.
+    """
+    return (resources.files("torquemod") / "data" / "vtrack_default.toml").read_text("utf-8")
+
+
+#: the default configuration's tables, parsed once: the defaults of the dataclasses below
+DEFAULT_DOC: dict = tomllib.loads(default_config_text())
 
 
 @dataclass(frozen=True)
@@ -142,6 +164,7 @@ class RigParams:
 
 
 @dataclass(frozen=True)
+@defaults_from(DEFAULT_DOC["modulation"])
 class ModulationParams:
     """The motor controller's torque modulation.
 
@@ -155,15 +178,15 @@ class ModulationParams:
     frequency_hz : float
         Nominal modulation frequency [Hz]. Default 2.
     frequency_offset : float
-        How fast the controller's clock runs, relative (e.g. 1e-3) [-]. Default 0.
+        How fast the controller's clock runs, relative (e.g. 1e-3) [-]. Default 1.2e-3.
     random_phase : bool
         Draw the generator phase per recording. Default True.
     """
 
-    amplitude_nm: float = 8.0
-    frequency_hz: float = 2.0
-    frequency_offset: float = 0.0
-    random_phase: bool = True
+    amplitude_nm: float = checked(check=NON_NEGATIVE)
+    frequency_hz: float = checked(check=POSITIVE)
+    frequency_offset: float = checked(check=between(-0.5, 0.5, lo_open=True, hi_open=True))
+    random_phase: bool = checked()
 
     @property
     def actual_frequency_hz(self) -> float:
@@ -171,6 +194,7 @@ class ModulationParams:
 
 
 @dataclass(frozen=True)
+@defaults_from(DEFAULT_DOC["disturbances"])
 class DisturbanceParams:
     """Rig disturbances.
 
@@ -218,30 +242,33 @@ class DisturbanceParams:
         Relative amplitudes of the once- and twice-per-revolution terms [-].
     """
 
-    enabled: bool = True
-    wheel_encoder_ecc1_rad: float = 0.0
-    wheel_encoder_ecc2_rad: float = 0.0
-    wheel_encoder_phase1_rad: float = 0.0
-    wheel_encoder_phase2_rad: float = 0.0
-    platform_encoder_ecc1_rad: float = 0.0
-    platform_encoder_ecc2_rad: float = 0.0
-    platform_encoder_phase1_rad: float = 0.0
-    platform_encoder_phase2_rad: float = 0.0
-    sleeper_count: int = 100
-    sleeper_load_n: float = 0.0
-    joint_count: int = 4
-    joint_load_n: float = 0.0
-    joint_frequency_hz: float = 40.0
-    joint_damping_ratio: float = 0.1
-    speed_wobble_enabled: bool = True
-    speed_wobble_rms: float = 0.0
-    speed_wobble_band_hz: tuple[float, float] = (0.2, 0.6)
-    speed_wobble_components: int = 3
-    speed_wobble_rev1: float = 0.0
-    speed_wobble_rev2: float = 0.0
+    enabled: bool = checked()
+    wheel_encoder_ecc1_rad: float = checked()
+    wheel_encoder_ecc2_rad: float = checked()
+    wheel_encoder_phase1_rad: float = checked()
+    wheel_encoder_phase2_rad: float = checked()
+    platform_encoder_ecc1_rad: float = checked()
+    platform_encoder_ecc2_rad: float = checked()
+    platform_encoder_phase1_rad: float = checked()
+    platform_encoder_phase2_rad: float = checked()
+    sleeper_count: int = checked()
+    sleeper_load_n: float = checked()
+    joint_count: int = checked()
+    joint_load_n: float = checked()
+    joint_frequency_hz: float = checked()
+    joint_damping_ratio: float = checked()
+    speed_wobble_enabled: bool = checked()
+    speed_wobble_rms: float = checked(check=NON_NEGATIVE)
+    speed_wobble_band_hz: tuple[float, float] = checked(check=Check(
+        lo=0.0, lo_open=True, test=lambda b: len(b) == 2 and b[0] <= b[1],
+        need="[low, high] with 0 < low <= high"))
+    speed_wobble_components: int = checked(check=NON_NEGATIVE)
+    speed_wobble_rev1: float = checked(check=NON_NEGATIVE)
+    speed_wobble_rev2: float = checked(check=NON_NEGATIVE)
 
 
 @dataclass(frozen=True)
+@defaults_from(DEFAULT_DOC["sensors"])
 class SensorParams:
     """Sampling rate and white-noise standard deviation of each sensor.
 
@@ -259,14 +286,15 @@ class SensorParams:
         Force noise [N].
     """
 
-    sample_rate_hz: float = 16670.0
-    torque_noise_nm: float = 0.0
-    wheel_speed_noise_rad_s: float = 0.0
-    platform_speed_noise_rad_s: float = 0.0
-    force_noise_n: float = 0.0
+    sample_rate_hz: float = checked(check=POSITIVE)
+    torque_noise_nm: float = checked(check=NON_NEGATIVE)
+    wheel_speed_noise_rad_s: float = checked(check=NON_NEGATIVE)
+    platform_speed_noise_rad_s: float = checked(check=NON_NEGATIVE)
+    force_noise_n: float = checked(check=NON_NEGATIVE)
 
 
 @dataclass(frozen=True)
+@defaults_from(DEFAULT_DOC["procedure"])
 class ProcedureParams:
     """The test procedure and the integrator's step.
 
@@ -290,13 +318,13 @@ class ProcedureParams:
         :func:`torquemod.twins.vtrack.rig.dynamics.integrate`) [-]. Default 8.
     """
 
-    dc_torques_nm: tuple[float, ...] = (0.23, 22.84, 44.47, 55.22, 60.45, 65.82, 72.0)
-    cycles_per_step: int = 3
-    settle_s: float = 4.0
-    ramp_s: float = 0.5
-    slip_creepage: float = 0.05
-    substeps: int = 1
-    samples_per_step: int = 8
+    dc_torques_nm: tuple[float, ...] = checked()
+    cycles_per_step: int = checked(check=between(1, None))
+    settle_s: float = checked(check=NON_NEGATIVE)
+    ramp_s: float = checked(check=NON_NEGATIVE)
+    slip_creepage: float = checked(check=POSITIVE)
+    substeps: int = checked(check=between(1, None))
+    samples_per_step: int = checked(check=between(1, None))
 
 
 @dataclass(frozen=True)

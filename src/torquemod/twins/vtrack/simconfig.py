@@ -7,20 +7,28 @@ kernels nor the large-signal theory (a bad file is refused before any stage star
 
 from __future__ import annotations
 
-import copy
-import math
+import functools
 import tomllib
-from dataclasses import replace
-from importlib import resources
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from torquemod._util.tomlcheck import below_nyquist, between, checked_value, unknown_keys
+from torquemod._util.tomlcheck import (
+    NON_NEGATIVE,
+    POSITIVE,
+    below_nyquist,
+    between,
+    check_key,
+    checked,
+    defaults_from,
+    one_of,
+    read_table,
+)
 from torquemod.analysis.contact.hertz import hertz_ellipse
 from torquemod.analysis.contact.kalker import kalker_coefficients
-from torquemod.analysis.contact.presets import polach_preset
+from torquemod.analysis.contact.presets import POLACH_PRESETS, polach_preset
 from torquemod.errors import InputError
-from torquemod.io.checks import positive_number
 from torquemod.twins.vtrack.params import (
+    DEFAULT_DOC,
     MAX_LAMBDA_H,
     ContactParams,
     DisturbanceParams,
@@ -29,23 +37,150 @@ from torquemod.twins.vtrack.params import (
     RigParams,
     SensorParams,
     SimConfig,
+    default_config_text,
     stiffest_rate,
 )
 
-__all__ = ["config_from_dict", "default_config_text", "load_config"]
+__all__ = ["SimTables", "config_from_dict", "config_from_tables", "default_config_text",
+           "default_tables", "load_config", "twin_key_check"]
 
 _POLACH_KEYS = ("mu0", "a_ratio", "b_s_m", "k_a", "k_s")
 
 
-def default_config_text() -> str:
-    """The default configuration (V-Track) as commented TOML text.
+@dataclass(frozen=True)
+@defaults_from(DEFAULT_DOC["rig"])
+class RigTable:
+    """The ``[rig]`` table as the file gives it; :class:`RigParams` is built from it.
 
-    Returns
-    -------
-    str
-        ``torquemod/data/vtrack_default.toml``.
+    Every value a positive number; the defaults are ``vtrack_default.toml``'s.
+
+    Attributes
+    ----------
+    wheel_radius_m : float
+        Rolling radius of the measuring wheel [m].
+    platform_radius_m : float
+        Radius of the wheel path on the ring [m].
+    speed_km_h : float
+        Set speed at the wheel path [km/h].
+    normal_load_n : float
+        Normal load [N].
+    wheel_inertia_kg_m2 : float
+        Everything rigidly attached downstream of the torque sensor, at the wheel axle
+        [kg*m^2].
+    drive_inertia_kg_m2 : float
+        Motor and gearboxes referred to the wheel axle [kg*m^2].
+    shaft_stiffness_nm_rad : float
+        Torque shaft and sensor [N*m/rad].
+    shaft_damping_nm_s_rad : float
+        Their damping [N*m*s/rad].
+    platform_inertia_kg_m2 : float
+        Platform with the reflected drive [kg*m^2].
+    platform_kp_nm_s_rad : float
+        Proportional gain of the platform's speed controller [N*m*s/rad].
+    platform_ki_nm_rad : float
+        Its integral gain [N*m/rad].
+    rolling_resistance_nm : float
+        Rolling resistance at the platform axis [N*m].
     """
-    return (resources.files("torquemod") / "data" / "vtrack_default.toml").read_text("utf-8")
+
+    wheel_radius_m: float = checked(check=POSITIVE)
+    platform_radius_m: float = checked(check=POSITIVE)
+    speed_km_h: float = checked(check=POSITIVE)
+    normal_load_n: float = checked(check=POSITIVE)
+    wheel_inertia_kg_m2: float = checked(check=POSITIVE)
+    drive_inertia_kg_m2: float = checked(check=POSITIVE)
+    shaft_stiffness_nm_rad: float = checked(check=POSITIVE)
+    shaft_damping_nm_s_rad: float = checked(check=POSITIVE)
+    platform_inertia_kg_m2: float = checked(check=POSITIVE)
+    platform_kp_nm_s_rad: float = checked(check=POSITIVE)
+    platform_ki_nm_rad: float = checked(check=POSITIVE)
+    rolling_resistance_nm: float = checked(check=POSITIVE)
+
+
+@dataclass(frozen=True)
+@defaults_from(DEFAULT_DOC["contact"])
+class ContactTable:
+    """The ``[contact]`` table; :class:`ContactParams` is built from it.
+
+    A Polach preset and its five parameters (a preset named in a file fills those the file
+    does not give), the materials and the geometry: the semi-axes given, or both 0 and the
+    ellipse from Hertz's theory with the transverse radii. The defaults are
+    ``vtrack_default.toml``'s.
+
+    Attributes
+    ----------
+    preset : str
+        A Polach preset's name (:data:`torquemod.analysis.contact.presets.POLACH_PRESETS`).
+    mu0 : float
+        Static friction coefficient [-] (Polach 2005).
+    a_ratio : float
+        Ratio of the friction at infinite slip velocity to ``mu0`` [-].
+    b_s_m : float
+        Friction decay with slip velocity [s/m].
+    k_a : float
+        Polach's reduction factor in the area of adhesion [-].
+    k_s : float
+        Polach's reduction factor in the area of slip [-].
+    youngs_modulus_pa : float
+        Young's modulus [Pa].
+    poisson_ratio : float
+        Poisson's ratio [-], in (0, 0.5).
+    wheel_transverse_radius_m : float
+        Transverse radius of the wheel tread [m]; 0 for a flat tread.
+    rail_transverse_radius_m : float
+        Crown radius of the rail head [m]; 0 for a flat head.
+    semi_axis_a_m : float
+        Contact semi-axis in the rolling direction [m]; 0: from Hertz.
+    semi_axis_b_m : float
+        Lateral contact semi-axis [m]; 0: from Hertz.
+    lateral_creepage : float
+        Constant lateral creepage from running on the ring [-].
+    """
+
+    preset: str = checked(check=one_of(*POLACH_PRESETS))
+    mu0: float = checked(check=POSITIVE)
+    a_ratio: float = checked(check=POSITIVE)
+    b_s_m: float = checked(check=NON_NEGATIVE)
+    k_a: float = checked(check=POSITIVE)
+    k_s: float = checked(check=POSITIVE)
+    youngs_modulus_pa: float = checked(check=POSITIVE)
+    poisson_ratio: float = checked(check=between(0.0, 0.5, lo_open=True, hi_open=True))
+    wheel_transverse_radius_m: float = checked(check=NON_NEGATIVE)
+    rail_transverse_radius_m: float = checked(check=NON_NEGATIVE)
+    semi_axis_a_m: float = checked(check=NON_NEGATIVE)
+    semi_axis_b_m: float = checked(check=NON_NEGATIVE)
+    lateral_creepage: float = checked()
+
+
+@dataclass(frozen=True)
+class SimTables:
+    """The twin's configuration file, table by table, as read and checked.
+
+    Read by :func:`~torquemod._util.tomlcheck.read_table`; the defaults are
+    ``vtrack_default.toml``'s.
+
+    Attributes
+    ----------
+    rig : RigTable
+        ``[rig]``.
+    contact : ContactTable
+        ``[contact]``.
+    modulation : ModulationParams
+        ``[modulation]``.
+    disturbances : DisturbanceParams
+        ``[disturbances]``.
+    sensors : SensorParams
+        ``[sensors]``.
+    procedure : ProcedureParams
+        ``[procedure]``.
+    """
+
+    rig: RigTable = field(default_factory=RigTable)
+    contact: ContactTable = field(default_factory=ContactTable)
+    modulation: ModulationParams = field(default_factory=ModulationParams)
+    disturbances: DisturbanceParams = field(default_factory=DisturbanceParams)
+    sensors: SensorParams = field(default_factory=SensorParams)
+    procedure: ProcedureParams = field(default_factory=ProcedureParams)
 
 
 def _parse(text: str, where: str) -> dict:
@@ -56,83 +191,87 @@ def _parse(text: str, where: str) -> dict:
                          hint="fix the line named") from None
 
 
-def _check_and_merge(default: dict, user: dict, where: str) -> dict:
-    merged = copy.deepcopy(default)
-    unknown_keys(user, default, "the configuration", where, takes="known sections:")
-    for section, table in user.items():
-        if not isinstance(table, dict):
-            raise InputError(f"'{section}' must be a table", path=where)
-        unknown_keys(table, default[section], "", where, prefix=f"{section}.",
-                     takes=f"[{section}] takes")
-        for key, value in table.items():
-            ref = default[section][key]
-            ok = (isinstance(value, bool) if isinstance(ref, bool)
-                  else isinstance(value, str) if isinstance(ref, str)
-                  else isinstance(value, list) if isinstance(ref, list)
-                  else isinstance(value, int | float) and not isinstance(value, bool))
-            if isinstance(ref, int) and not isinstance(ref, bool) and ok:
-                ok = isinstance(value, int)
-            if not ok:
-                raise InputError(f"'{section}.{key}' has the wrong type ({value!r}); the "
-                                 f"default is {ref!r}", path=where)
-            if any(isinstance(v, float) and not math.isfinite(v)
-                   for v in (value if isinstance(value, list) else [value])):
-                raise InputError(f"'{section}.{key}' must be finite, got {value!r}",
-                                 path=where, hint=f"the default is {ref!r}")
-            merged[section][key] = value
-    # a preset chosen by the user fills the Polach values it does not give itself
-    if "preset" in user.get("contact", {}):
-        vals = polach_preset(user["contact"]["preset"]).as_dict()
-        for k in _POLACH_KEYS:
-            merged["contact"][k] = user["contact"].get(k, vals[k])
-    return merged
+@functools.cache
+def default_tables() -> SimTables:
+    """The default configuration (``vtrack_default.toml``), read and checked as a user's.
+
+    Returns
+    -------
+    SimTables
+        Its tables.
+    """
+    return read_table(SimTables, DEFAULT_DOC, section="", path="vtrack_default.toml")
 
 
-def _positive(doc: dict, section: str, key: str, where: str, *, allow_zero=False) -> float:
-    return positive_number(doc[section][key], f"{section}.{key}", path=where,
-                           allow_zero=allow_zero)
+def _merge(base: SimTables, doc: dict, where: str) -> SimTables:
+    """``doc`` (any subset of the tables and keys) read over ``base``; a preset it names
+    fills the Polach values it does not give itself."""
+    tables = read_table(SimTables, doc, section="", path=where, base=base)
+    contact = doc.get("contact", {})
+    if "preset" in contact:
+        vals = polach_preset(tables.contact.preset).as_dict()
+        tables = replace(tables, contact=replace(tables.contact, **{
+            k: vals[k] for k in _POLACH_KEYS if k not in contact}))
+    return tables
 
 
-def _contact(doc: dict, rig: dict, where: str) -> ContactParams:
-    c = doc["contact"]
-    e_mod = _positive(doc, "contact", "youngs_modulus_pa", where)
-    nu = checked_value(c["poisson_ratio"], float, "contact.poisson_ratio", where,
-                       between(0.0, 0.5, lo_open=True, hi_open=True))
-    a, b = float(c["semi_axis_a_m"]), float(c["semi_axis_b_m"])
+def twin_key_check(key: str, value: object, path: object) -> None:
+    """Check a value for one key as the configuration file's would be: its type and range.
+
+    Parameters
+    ----------
+    key : str
+        The dotted key, e.g. ``"contact.mu0"``.
+    value : object
+        Its value.
+    path : object
+        The file, named in the message (None: none).
+
+    Raises
+    ------
+    InputError
+        The value has the wrong type or is out of range; the message names the key.
+    """
+    section, name = key.split(".", 1)
+    check_key(type(getattr(default_tables(), section)), name, value, key, path)
+
+
+def _contact(c: ContactTable, rig: RigTable, where: str) -> ContactParams:
+    e_mod, nu = c.youngs_modulus_pa, c.poisson_ratio
+    a, b = c.semi_axis_a_m, c.semi_axis_b_m
     if a > 0 and b > 0:
         pass
     elif a == 0 and b == 0:
-        rw_t = _positive(doc, "contact", "wheel_transverse_radius_m", where, allow_zero=True)
-        rr_t = _positive(doc, "contact", "rail_transverse_radius_m", where, allow_zero=True)
+        rw_t, rr_t = c.wheel_transverse_radius_m, c.rail_transverse_radius_m
         ky = (1.0 / rw_t if rw_t > 0 else 0.0) + (1.0 / rr_t if rr_t > 0 else 0.0)
         if ky <= 0:
             raise InputError("the contact needs a lateral curvature: give "
                              "rail_transverse_radius_m or wheel_transverse_radius_m > 0",
                              path=where)
-        el = hertz_ellipse(float(rig["normal_load_n"]),
-                           curvature_x_1_m=1.0 / float(rig["wheel_radius_m"]),
+        el = hertz_ellipse(rig.normal_load_n, curvature_x_1_m=1.0 / rig.wheel_radius_m,
                            curvature_y_1_m=ky, youngs_modulus_pa=e_mod, poisson_ratio=nu)
         a, b = el.a_m, el.b_m
     else:
         raise InputError("give both contact.semi_axis_a_m and semi_axis_b_m (> 0) or neither",
                          path=where)
     kc = kalker_coefficients(a / b, nu)
-    for k in _POLACH_KEYS:
-        _positive(doc, "contact", k, where, allow_zero=(k == "b_s_m"))
-    return ContactParams(mu0=float(c["mu0"]), a_ratio=float(c["a_ratio"]),
-                         b_s_m=float(c["b_s_m"]), k_a=float(c["k_a"]), k_s=float(c["k_s"]),
+    return ContactParams(mu0=c.mu0, a_ratio=c.a_ratio, b_s_m=c.b_s_m, k_a=c.k_a, k_s=c.k_s,
                          shear_modulus_pa=e_mod / (2.0 * (1.0 + nu)), a_m=a, b_m=b,
-                         c11=kc.c11, c22=kc.c22, lateral_creepage=float(c["lateral_creepage"]),
-                         preset=str(c["preset"]))
+                         c11=kc.c11, c22=kc.c22, lateral_creepage=c.lateral_creepage,
+                         preset=c.preset)
 
 
-def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
-    """Build a :class:`SimConfig` from a complete (merged) configuration dict.
+def config_from_tables(t: SimTables, *, where: str = "<config>") -> SimConfig:
+    """The configuration the twin runs from the checked tables of a file.
+
+    The rig's mechanics and contact are built (the contact ellipse from Hertz's theory when
+    its semi-axes are not given, Kalker's coefficients), the modulation is checked against
+    the Nyquist frequency and the integrator's step against the rig's fastest mode.
 
     Parameters
     ----------
-    doc : dict
-        The configuration, every section and key.
+    t : SimTables
+        The tables.
     where : str
         The source, named in messages. Default "<config>".
 
@@ -144,70 +283,48 @@ def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
     Raises
     ------
     InputError
-        A bad value: the wobble band, negative wobble amplitudes, no DC torques, or
-        step counts below 1.
+        No lateral curvature, one semi-axis without the other, a modulation at or above
+        the Nyquist frequency, or an integrator step too long for the rig.
     """
-    r = doc["rig"]
-    for key in r:
-        _positive(doc, "rig", key, where)
+    r = t.rig
     rig = RigParams(
-        wheel_radius_m=float(r["wheel_radius_m"]), platform_radius_m=float(r["platform_radius_m"]),
-        speed_m_s=float(r["speed_km_h"]) / 3.6, normal_load_n=float(r["normal_load_n"]),
-        wheel_inertia_kg_m2=float(r["wheel_inertia_kg_m2"]),
-        drive_inertia_kg_m2=float(r["drive_inertia_kg_m2"]),
-        shaft_stiffness_nm_rad=float(r["shaft_stiffness_nm_rad"]),
-        shaft_damping_nm_s_rad=float(r["shaft_damping_nm_s_rad"]),
-        platform_inertia_kg_m2=float(r["platform_inertia_kg_m2"]),
-        platform_kp_nm_s_rad=float(r["platform_kp_nm_s_rad"]),
-        platform_ki_nm_rad=float(r["platform_ki_nm_rad"]),
-        rolling_resistance_nm=float(r["rolling_resistance_nm"]),
-        contact=_contact(doc, r, where))
-    m = doc["modulation"]
-    modulation = ModulationParams(
-        amplitude_nm=_positive(doc, "modulation", "amplitude_nm", where, allow_zero=True),
-        frequency_hz=_positive(doc, "modulation", "frequency_hz", where),
-        frequency_offset=checked_value(m["frequency_offset"], float,
-                                       "modulation.frequency_offset", where,
-                                       between(-0.5, 0.5, lo_open=True, hi_open=True)),
-        random_phase=bool(m["random_phase"]))
-    d = dict(doc["disturbances"])
-    dist = DisturbanceParams(**{k: (v if isinstance(v, bool | int) else
-                                    tuple(float(x) for x in v) if isinstance(v, list)
-                                    else float(v)) for k, v in d.items()})
-    band = dist.speed_wobble_band_hz
-    if len(band) != 2 or not 0 < band[0] <= band[1]:
-        raise InputError(f"disturbances.speed_wobble_band_hz must be [low, high] with "
-                         f"0 < low <= high, got {list(band)}", path=where)
-    if (min(dist.speed_wobble_rms, dist.speed_wobble_rev1, dist.speed_wobble_rev2) < 0
-            or dist.speed_wobble_components < 0):
-        raise InputError("disturbances.speed_wobble_* amplitudes and components must be zero "
-                         "or positive", path=where)
-    for key in doc["sensors"]:
-        _positive(doc, "sensors", key, where, allow_zero=(key != "sample_rate_hz"))
-    sensors = SensorParams(**{k: float(v) for k, v in doc["sensors"].items()})
-    below_nyquist(modulation.actual_frequency_hz, sensors.sample_rate_hz,
+        wheel_radius_m=r.wheel_radius_m, platform_radius_m=r.platform_radius_m,
+        speed_m_s=r.speed_km_h / 3.6, normal_load_n=r.normal_load_n,
+        wheel_inertia_kg_m2=r.wheel_inertia_kg_m2, drive_inertia_kg_m2=r.drive_inertia_kg_m2,
+        shaft_stiffness_nm_rad=r.shaft_stiffness_nm_rad,
+        shaft_damping_nm_s_rad=r.shaft_damping_nm_s_rad,
+        platform_inertia_kg_m2=r.platform_inertia_kg_m2,
+        platform_kp_nm_s_rad=r.platform_kp_nm_s_rad, platform_ki_nm_rad=r.platform_ki_nm_rad,
+        rolling_resistance_nm=r.rolling_resistance_nm, contact=_contact(t.contact, r, where))
+    below_nyquist(t.modulation.actual_frequency_hz, t.sensors.sample_rate_hz,
                   "modulation.frequency_hz", "sensors.sample_rate_hz", where)
-    p = doc["procedure"]
-    torques = p["dc_torques_nm"]
-    if not torques or not all(isinstance(x, int | float) and not isinstance(x, bool)
-                              and math.isfinite(x) for x in torques):
-        raise InputError("'procedure.dc_torques_nm' must be a non-empty list of numbers",
-                         path=where)
-    if p["cycles_per_step"] < 1 or p["substeps"] < 1 or p["samples_per_step"] < 1:
-        raise InputError("'procedure.cycles_per_step', 'substeps' and 'samples_per_step' must "
-                         "be >= 1", path=where)
-    procedure = ProcedureParams(dc_torques_nm=tuple(float(x) for x in torques),
-                                cycles_per_step=int(p["cycles_per_step"]),
-                                settle_s=_positive(doc, "procedure", "settle_s", where,
-                                                   allow_zero=True),
-                                ramp_s=_positive(doc, "procedure", "ramp_s", where,
-                                                 allow_zero=True),
-                                slip_creepage=_positive(doc, "procedure", "slip_creepage", where),
-                                substeps=int(p["substeps"]),
-                                samples_per_step=int(p["samples_per_step"]))
-    procedure = _check_step(rig, sensors, procedure, where)
-    return SimConfig(rig=rig, modulation=modulation, disturbances=dist, sensors=sensors,
-                     procedure=procedure)
+    procedure = _check_step(rig, t.sensors, t.procedure, where)
+    return SimConfig(rig=rig, modulation=t.modulation, disturbances=t.disturbances,
+                     sensors=t.sensors, procedure=procedure)
+
+
+def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
+    """Build a :class:`SimConfig` from a configuration dict, checked as a file.
+
+    Parameters
+    ----------
+    doc : dict
+        The configuration's tables and keys; a missing one keeps the default.
+    where : str
+        The source, named in messages. Default "<config>".
+
+    Returns
+    -------
+    SimConfig
+        The configuration.
+
+    Raises
+    ------
+    InputError
+        An unknown key (with the nearest known one), a value of the wrong type or out of
+        range, or a mistake :func:`config_from_tables` finds.
+    """
+    return config_from_tables(_merge(default_tables(), doc, where), where=where)
 
 
 def _check_step(rig: RigParams, sensors: SensorParams, proc: ProcedureParams,
@@ -252,8 +369,7 @@ def load_config(path: str | Path | None = None, *, overrides: dict | None = None
     InputError
         An unreadable file, TOML syntax, an unknown section or key, or a bad value.
     """
-    default = _parse(default_config_text(), "vtrack_default.toml")
-    merged = default
+    tables = default_tables()
     where = "<default>"
     if path is not None:
         path = Path(path)
@@ -262,7 +378,7 @@ def load_config(path: str | Path | None = None, *, overrides: dict | None = None
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
             raise InputError(f"cannot read the configuration ({exc})", path=path) from None
-        merged = _check_and_merge(default, _parse(text, where), where)
+        tables = _merge(tables, _parse(text, where), where)
     if overrides:
-        merged = _check_and_merge(merged, overrides, "<overrides>")
-    return config_from_dict(merged, where=where)
+        tables = _merge(tables, overrides, "<overrides>")
+    return config_from_tables(tables, where=where)
