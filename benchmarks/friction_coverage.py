@@ -6,7 +6,9 @@ stated range holds the truth (the 95 % interval when closed, else from the lower
 the share determined, the median and worst |error| of the estimate where determined. Rig:
 six steps at V-Track's proportions, phases ``tan(phi) = C/k`` with the 8 N*m modulation's
 creepage swing (describing function), C given (``--rig-c unknown``: C not given, the rig
-without forces and inertia). Train: creep coefficients at four staircase levels, three
+without forces and inertia; ``--rig-c measured``: C as measured from the amplitudes without
+an inertia, drawn with a relative error of ``MODEL_REL_CONSTANT`` (2 %) about the truth and
+stated with that standard error). Train: creep coefficients at four staircase levels, three
 points each.
 
 The fits do not depend on the "determined" rule (closed and half width <= a fraction of
@@ -51,12 +53,17 @@ def fit_record(r: dict, mode: str, rig_c: str, ratio_max: float = 7.0, knee: boo
         fit_available_adhesion_from_phase,
     )
     bounds = (0.3, ratio_max)
+    c, c_rel = (r["constant"] if rig_c in ("given", "measured") else None), 0.0
+    if mode == "rig" and rig_c == "measured":
+        from torquemod.analysis.phasefit import MODEL_REL_CONSTANT
+        c_rel = MODEL_REL_CONSTANT
+        c = c * (1.0 + c_rel * r["c_draw"])
     if mode == "train":
         return fit_available_adhesion(r["coa"], r["y"], r["se"], probe=False,
                                       speed_m_s=r["speed_m_s"], ratio_bounds=bounds,
                                       knee=knee)
     return fit_available_adhesion_from_phase(
-        r["coa"], r["y"], r["se"], constant=r["constant"] if rig_c == "given" else None,
+        r["coa"], r["y"], r["se"], constant=c, constant_rel_se=c_rel,
         creepage_swing=r["swing"], probe=False, speed_m_s=r["speed_m_s"],
         ratio_bounds=bounds, knee=knee)
 
@@ -64,10 +71,13 @@ def fit_record(r: dict, mode: str, rig_c: str, ratio_max: float = 7.0, knee: boo
 def run_cell(task: tuple) -> tuple:
     """Fit ``trials`` records of one cell: (task, (n, 7) array of FIELDS, skipped)."""
     law, mode, depth, noise, trials, rig_c, ratio_max, knee = task
-    rng = np.random.default_rng(zlib.crc32(repr((mode, law, depth, noise)).encode()))
+    seed = zlib.crc32(repr((mode, law, depth, noise)).encode())
+    rng, rng_c = np.random.default_rng(seed), np.random.default_rng([seed, 1])
     rows, skipped = [], 0
     for _ in range(trials):
         r = laws.record(law, rng, depth, mode=mode, noise=noise)
+        if r is not None:  # its own stream: the records are those of the other --rig-c
+            r["c_draw"] = rng_c.standard_normal()
         f = None if r is None else fit_record(r, mode, rig_c, ratio_max, knee)
         if f is None:
             skipped += 1
@@ -159,7 +169,7 @@ def main() -> None:
     ap.add_argument("--modes", nargs="+", default=["rig", "train"])
     ap.add_argument("--depths", type=float, nargs="+", default=[0.95, 0.9, 0.86, 0.8, 0.7, 0.6])
     ap.add_argument("--noise", type=float, nargs="+", default=[0.0, 1.0, 3.0])
-    ap.add_argument("--rig-c", choices=("given", "unknown"), default="given")
+    ap.add_argument("--rig-c", choices=("given", "unknown", "measured"), default="given")
     ap.add_argument("--ratio-max", type=float, default=7.0,
                     help="largest kA/kS of the family's Polach members (default 7)")
     ap.add_argument("--knee", action="store_true",

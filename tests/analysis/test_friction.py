@@ -186,3 +186,21 @@ def test_coverage_on_laws_made_apart(mode):
                 hit += f.lower_bound <= r["P"] * (1 + 1e-9) <= hi * (1 + 2e-9)
     assert n >= 22 and hit >= n - 2
     assert MODEL_REL_ERROR > 0
+
+
+def test_measured_constant_relaxes_the_falling_friction_bound():
+    """With C measured, the bound B <= B_max on falling friction is applied at C's lower
+    95 % end: a relative standard error of 0.3 (1 - 1.96*0.3 < 0.5) lifts it, giving the fit
+    without a speed; none gives the bounded fit, whose interval is the narrower (the
+    falling members that peak low are left out at this speed)."""
+    coa, k = _polach_points(0.3, 1.0, 0.4, 80.0, np.repeat([0.2, 0.42, 0.64, 0.86], 2))
+    kw = {"probe": False}
+    free = fit_available_adhesion(coa, k, 0.02 * k, **kw)
+    bound = fit_available_adhesion(coa, k, 0.02 * k, speed_m_s=2.0, **kw)
+    lifted = fit_available_adhesion(coa, k, 0.02 * k, speed_m_s=2.0, constant_rel_se=0.3,
+                                    **kw)
+    exact = fit_available_adhesion(coa, k, 0.02 * k, speed_m_s=2.0, constant_rel_se=0.0,
+                                   **kw)
+    assert (lifted.estimate, lifted.low, lifted.high) == (free.estimate, free.low, free.high)
+    assert (exact.estimate, exact.low, exact.high) == (bound.estimate, bound.low, bound.high)
+    assert bound.low > free.low

@@ -175,13 +175,17 @@ def analyze(result: ProcessResult, options: FitOptions | dict | None = None, **f
         else:
             warnings.append("wheel inertia given but speed, load or frequency per step is "
                             "missing: the theory constant is fitted instead")
-    pfit, p_skipped = _phase_fit(steps_df, pts, use, constant, measured_c=(radius, n_nom))
+    source = ("rig inertia" if rig_args is not None else
+              "given" if constant is not None else None)
+    pfit, p_skipped = _phase_fit(steps_df, pts, use, constant, measured_c=(radius, n_nom),
+                                 source=source)
     if pfit is None:
         warnings.append(f"mu from the phase was not estimated: {p_skipped}")
     else:
         warnings += [f"mu from the phase: {w}" for w in pfit.warnings]
-        if constant is None and pfit.constant_given:
-            warnings.append(f"mu from the phase: C = {pfit.constant:.4g} measured from the "
+        if pfit.constant_source == "amplitudes":
+            warnings.append(f"mu from the phase: C = {pfit.constant:.4g} "
+                            f"(+-{100 * pfit.constant_rel_se:.1f} %) measured from the "
                             "torque/wheel-speed amplitude ratio (no rig inertia given)")
     ts, ts_se, ts_source = saturation_torque(fit, pfit, normal_load_n=n_nom,
                                              wheel_radius_m=radius)
@@ -331,7 +335,7 @@ def _step_column(steps_df: pd.DataFrame, name: str) -> np.ndarray | None:
 
 
 def measured_constant(steps_df: pd.DataFrame, use: np.ndarray, *, wheel_radius_m: float,
-                      normal_load_n: float) -> float | None:
+                      normal_load_n: float, phase_se_deg=None):
     """The theory constant C = Omega*J*V/(R^2*N) measured from the modulation itself.
 
     Holds where the torque is measured between the drive and the wheel and the speed at the
@@ -348,11 +352,15 @@ def measured_constant(steps_df: pd.DataFrame, use: np.ndarray, *, wheel_radius_m
         R [m].
     normal_load_n : float
         N [N].
+    phase_se_deg : array_like or None
+        Standard errors of the phases per step [deg] (all steps; ``use`` selects); None: 0.
 
     Returns
     -------
-    float or None
-        The median C over the steps [-]; None when a column is missing.
+    ConstantEstimate or None
+        C [-] (the median over the steps), its relative standard error [-] and the number of
+        steps (:func:`torquemod.analysis.phasefit.constant_from_amplitudes`; the implied
+        inertia is NaN: the frequency does not enter here); None when a column is missing.
 
     Notes
     -----
@@ -365,19 +373,21 @@ def measured_constant(steps_df: pd.DataFrame, use: np.ndarray, *, wheel_radius_m
     .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
        Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (1).
     """
+    from torquemod.analysis.phasefit import constant_from_amplitudes
     cols = [_step_column(steps_df, k) for k in ("torque_amplitude_nm", "wheel_amplitude_rad_s",
                                                "phase_deg", "speed_m_s")]
     if any(c is None for c in cols) or not (wheel_radius_m and normal_load_n):
         return None
     t, w, phi, v = (c[use] for c in cols)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ci = t / w * np.sin(np.radians(phi)) * v / (wheel_radius_m**2 * normal_load_n)
-    ci = ci[np.isfinite(ci) & (ci > 0)]
-    return float(np.median(ci)) if ci.size else None
+    se = (np.zeros(t.size) if phase_se_deg is None
+          else np.asarray(phase_se_deg, dtype=float)[use])
+    return constant_from_amplitudes(t, w, phi, se, v, np.nan, wheel_radius_m=wheel_radius_m,
+                                    normal_load_n=normal_load_n)
 
 
 def _phase_fit(steps_df: pd.DataFrame, pts, use: np.ndarray, constant,
-               measured_c: tuple[float, float] | None = None) -> tuple[object, str]:
+               measured_c: tuple[float, float] | None = None,
+               source: str | None = None) -> tuple[object, str]:
     """mu from the phase progression (:mod:`torquemod.analysis.phasefit`) over the steps in ``use``:
     (result or None, reason it was skipped or "")."""
     try:
@@ -397,15 +407,19 @@ def _phase_fit(steps_df: pd.DataFrame, pts, use: np.ndarray, constant,
     c = None if constant is None else np.asarray(constant, dtype=float)
     if c is not None and c.ndim:
         c = float(np.nanmean(c[use]))
+    c_rel = 0.0
     if c is None and measured_c:
-        c = measured_constant(steps_df, use, wheel_radius_m=measured_c[0],
-                              normal_load_n=measured_c[1])
+        est = measured_constant(steps_df, use, wheel_radius_m=measured_c[0],
+                                normal_load_n=measured_c[1], phase_se_deg=se)
+        if est is not None:
+            c, c_rel, source = est.constant, est.rel_se, "amplitudes"
     try:
         speed = _step_column(steps_df, "speed_m_s")
         res = fit_mu_from_phase(coa[use], pts.phase_deg[use], se[use], constant=c,
                                 creepage_swing=None if swing is None else swing[use],
                                 speed_m_s=None if speed is None
-                                else float(np.nanmedian(np.abs(speed[use]))))
+                                else float(np.nanmedian(np.abs(speed[use]))),
+                                constant_rel_se=c_rel, constant_source=source)
     except (InputError, ProcessingError) as exc:
         return None, str(exc)
     return res, ""

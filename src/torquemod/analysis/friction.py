@@ -415,7 +415,8 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
                            scale_by_chi2: bool = True, probe: bool = True,
                            min_points: int = 4, ratio_bounds: tuple = (0.3, 7.0),
                            other_laws: bool = True, speed_m_s: float | None = None,
-                           knee: bool = False) -> AdhesionFit | None:
+                           knee: bool = False, constant_rel_se: float = 0.0
+                           ) -> AdhesionFit | None:
     """The available adhesion P from creep coefficients measured at utilised adhesions.
 
     The one estimator for the rig (phases, :func:`fit_available_adhesion_from_phase`), the
@@ -464,6 +465,11 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
     knee : bool
         Also the members linear up to a knee (Dugoff's law). Default False: they cover
         Dugoff's law but leave Burckhardt's on-board segments undetermined.
+    constant_rel_se : float
+        Relative standard error of ``constant`` when it was measured rather than known (C
+        from the amplitudes) [-]: the bound on falling friction is then applied at C's lower
+        95 % end (a smaller k0 asks a smaller B, so no member that a C within its uncertainty
+        allows is left out). Default 0.
 
     Returns
     -------
@@ -509,13 +515,26 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
     pairs = _pairs(ratio_bounds, other_laws, knee)
     p_grid = _p_grid(c_max, p_span)
     with np.errstate(over="ignore", invalid="ignore"):
-        bmax_v = B_MAX_S_M * float(speed_m_s) if speed_m_s else 0.0
+        bmax_v = _b_bound(speed_m_s, constant_rel_se)
         cols, (chi, amps, fracs) = _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp,
                                                    p_grid, constant, model_rel_error, bmax_v)
     p_grid = p_grid[cols]
     return _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max,
                       model_rel_error, max_rel_half_width, scale_by_chi2, probe, c_se, amp,
-                      constant, p_span, ratio_bounds, other_laws, speed_m_s, knee)
+                      constant, p_span, ratio_bounds, other_laws, speed_m_s, knee,
+                      constant_rel_se)
+
+
+def _b_bound(speed_m_s, constant_rel_se: float = 0.0) -> float:
+    """``B_max*V`` [-] passed to the kernel (0: no bound): with a measured C of relative
+    standard error ``constant_rel_se`` the bound is taken at C's lower 95 % end, i.e. the
+    allowed ``B*V`` grows by ``1/(1 - 1.96*rel_se)`` (no bound once that reaches 2)."""
+    if not speed_m_s:
+        return 0.0
+    shrink = 1.0 - 1.96 * max(float(constant_rel_se), 0.0)
+    if shrink <= 0.5:
+        return 0.0
+    return B_MAX_S_M * float(speed_m_s) / shrink
 
 
 def _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_rel, bmax_v=0.0):
@@ -600,7 +619,7 @@ def _vertex(profile: np.ndarray, j: int) -> float:
 
 def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_rel, max_rel,
                scale_by_chi2, probe, c_se, amp, constant, p_span, ratio_bounds,
-               other_laws, speed_m_s, knee=False) -> AdhesionFit | None:
+               other_laws, speed_m_s, knee=False, constant_rel_se=0.0) -> AdhesionFit | None:
     prof = chi.min(axis=0)
     if not np.isfinite(prof).any():
         return None
@@ -656,7 +675,8 @@ def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_r
     depth = math.nan
     if probe and not determined:
         depth = _probe_depth(best_s, est, k0, coa, y, se, c_se, amp, constant, model_rel,
-                             max_rel, p_span, ratio_bounds, other_laws, speed_m_s, knee)
+                             max_rel, p_span, ratio_bounds, other_laws, speed_m_s, knee,
+                             constant_rel_se)
     return AdhesionFit(
         estimate=est, low=low, high=high, lower_bound=lower, determined=determined,
         closed=closed, mu0=mu0, mu0_low=mu0_low, mu0_high=mu0_high, mu0_identified=mu0_ok,
@@ -666,7 +686,8 @@ def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_r
 
 
 def _probe_depth(best_s, est, k0, coa, y, se, c_se, amp, constant, model_rel, max_rel,
-                 p_span, ratio_bounds, other_laws, speed_m_s, knee=False) -> float:
+                 p_span, ratio_bounds, other_laws, speed_m_s, knee=False,
+                 constant_rel_se=0.0) -> float:
     """The smallest of :data:`PROBE_DEPTHS` beyond the present one at which one more point on
     the best-fitting curve (its relative error the median of the present points') makes P
     determined; NaN when none does."""
@@ -685,7 +706,7 @@ def _probe_depth(best_s, est, k0, coa, y, se, c_se, amp, constant, model_rel, ma
             model_rel_error=model_rel, model_rel_coa=0.0,
             max_rel_half_width=max_rel, p_span=p_span, probe=False,
             ratio_bounds=ratio_bounds, other_laws=other_laws, speed_m_s=speed_m_s,
-            knee=knee)
+            knee=knee, constant_rel_se=constant_rel_se)
         if fit is not None and fit.determined:
             return float(d)
     return math.nan
@@ -698,8 +719,8 @@ def fit_available_adhesion_from_phase(coa, phase_deg, phase_se_deg, *, constant=
                                       max_rel_half_width: float = MAX_REL_HALF_WIDTH,
                                       scale_by_chi2: bool = True, probe: bool = True,
                                       ratio_bounds: tuple = (0.3, 7.0),
-                                      speed_m_s: float | None = None, knee: bool = False
-                                      ) -> AdhesionFit | None:
+                                      speed_m_s: float | None = None, knee: bool = False,
+                                      constant_rel_se: float = 0.0) -> AdhesionFit | None:
     """P from the phases of the wheel speed behind the torque.
 
     ``tan(phi) = C/k`` (V-Track paper Eq. 1): :func:`fit_available_adhesion` on
@@ -739,6 +760,10 @@ def fit_available_adhesion_from_phase(coa, phase_deg, phase_se_deg, *, constant=
         Rolling speed [m/s]. Default None.
     knee : bool
         Also the knee members. Default False.
+    constant_rel_se : float
+        Relative standard error of a measured C [-] (e.g. from the amplitudes,
+        :func:`torquemod.analysis.phasefit.constant_from_amplitudes`); the falling-friction
+        bound is applied at its lower 95 % end. Default 0.
 
     Returns
     -------
@@ -763,4 +788,4 @@ def fit_available_adhesion_from_phase(coa, phase_deg, phase_se_deg, *, constant=
                                   max_rel_half_width=max_rel_half_width,
                                   scale_by_chi2=scale_by_chi2, probe=probe,
                                   ratio_bounds=ratio_bounds, speed_m_s=speed_m_s,
-                                  knee=knee)
+                                  knee=knee, constant_rel_se=constant_rel_se)

@@ -14,6 +14,8 @@ coefficient is ``mu0`` where the data identify it.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from torquemod.analysis.friction import CHI2_95, MODEL_REL_ERROR, fit_available_adhesion_from_phase
@@ -21,11 +23,106 @@ from torquemod.analysis.phasefitresult import PhaseMuFit
 from torquemod.analysis.polachshape import polach_h, polach_h_curvature, polach_h_slope
 from torquemod.errors import InputError
 
-__all__ = ["CHI2_95", "R_BOUNDS", "PhaseMuFit", "fit_mu_from_phase", "polach_h",
-           "polach_h_curvature", "polach_h_slope"]
+__all__ = ["CHI2_95", "MODEL_REL_CONSTANT", "R_BOUNDS", "ConstantEstimate", "PhaseMuFit",
+           "constant_from_amplitudes", "fit_mu_from_phase", "polach_h", "polach_h_curvature",
+           "polach_h_slope"]
 
 #: bounds of r = kA/kS in the family's Polach members (:mod:`torquemod.analysis.creeplaws`)
 R_BOUNDS = (0.3, 7.0)
+#: relative model error [-] of C measured from the amplitudes: what the rigid-wheel impedance
+#: leaves out (compliance between the torque sensor and the contact, the contact's
+#: relaxation, the large swing's harmonics). Measured: the median over six steps within
+#: +0.8 % of the true inertia on the digital twin and on an independent rig simulation
+#: (docs/friction.md); 2 % keeps that bias well inside one standard error.
+MODEL_REL_CONSTANT = 0.02
+
+
+@dataclass(frozen=True)
+class ConstantEstimate:
+    """The rigid-wheel constant measured from the modulation (:func:`constant_from_amplitudes`).
+
+    Attributes
+    ----------
+    constant : float
+        C = Omega*J*V/(R^2*N) [-], the median over the steps.
+    rel_se : float
+        Its relative standard error [-]: the steps' scatter or the phases' noise, and
+        :data:`MODEL_REL_CONSTANT`.
+    inertia_kg_m2 : float
+        The implied wheel inertia J [kg m^2] (NaN without the modulation frequency).
+    n : int
+        Number of steps it comes from.
+    """
+
+    constant: float
+    rel_se: float
+    inertia_kg_m2: float
+    n: int
+
+
+def constant_from_amplitudes(torque_amplitude_nm, wheel_amplitude_rad_s, phase_deg,
+                             phase_se_deg, speed_m_s, frequency_hz, *, wheel_radius_m: float,
+                             normal_load_n: float, model_rel: float = MODEL_REL_CONSTANT
+                             ) -> ConstantEstimate | None:
+    """The constant ``C = Omega*J*V/(R^2*N)`` of ``tan(phi) = C/k`` (V-Track paper Eq. 1)
+    from the amplitudes the chain measures, without the wheel's inertia J.
+
+    In the rigid-wheel model behind Eq. 1 the wheel answers the torque ripple dT with the
+    speed ripple dw through the impedance ``dT/dw = j*Omega*J + R^2*N*k/V`` (the creep force
+    ``N*CoA(xi)`` linearised about the step's creepage, ``dxi = R*dw/V``), so its quadrature
+    part is ``Omega*J = sin(phi)*|dT|/|dw|`` and at every step
+
+        C_i = sin(phi_i)*|dT_i|/|dw_i|*V_i/(R^2*N).
+
+    The estimate is the median over the steps; its relative standard error combines the
+    steps' scatter (``1.2533*1.4826*MAD/sqrt(n)``, the median's efficiency for a normal
+    sample), the phases' standard errors (``se_phi/sin(phi)`` per step, the amplitude ratio's
+    relative error taken equal to the phase's in radians, as for one complex ratio) and the
+    model error ``model_rel``.
+
+    Parameters
+    ----------
+    torque_amplitude_nm, wheel_amplitude_rad_s : array_like
+        Amplitudes [N*m], [rad/s] of the modulation's first harmonic per step, the torque
+        measured between the drive and the wheel, the speed at the wheel.
+    phase_deg, phase_se_deg : array_like
+        Lag of the wheel speed behind the torque [deg] and its standard error per step.
+    speed_m_s, frequency_hz : array_like or float
+        Rolling speed V [m/s] and modulation frequency [Hz] per step (the frequency gives
+        only the implied inertia; NaN leaves it NaN).
+    wheel_radius_m, normal_load_n : float
+        R [m] and N [N].
+    model_rel : float
+        Relative model error [-] of the rigid-wheel impedance.
+
+    Returns
+    -------
+    ConstantEstimate or None
+        None when fewer than two steps give a finite positive value.
+    """
+    t, w, ph, se, v, f = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (
+        torque_amplitude_nm, wheel_amplitude_rad_s, phase_deg, phase_se_deg, speed_m_s,
+        frequency_hz)))
+    if not (wheel_radius_m > 0 and normal_load_n > 0):
+        return None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.sin(np.radians(ph))
+        ci = t / w * s * v / (wheel_radius_m**2 * normal_load_n)
+        ji = t / w * s / (2.0 * np.pi * f)
+        rel_i = np.radians(np.abs(se)) / s
+    ok = np.isfinite(ci) & (ci > 0)
+    if ok.sum() < 2:
+        return None
+    ci, ji = ci[ok], ji[ok]
+    n = int(ci.size)
+    c = float(np.median(ci))
+    mad = float(np.median(np.abs(ci / c - 1.0)))
+    scatter = 1.2533 * 1.4826 * mad / np.sqrt(n)
+    rel_i = rel_i[ok]
+    rel_i = rel_i[np.isfinite(rel_i)]
+    noise = 1.2533 * float(np.sqrt(np.mean(rel_i**2)) / np.sqrt(n)) if rel_i.size else 0.0
+    rel = float(np.sqrt(max(scatter, noise) ** 2 + model_rel**2))
+    return ConstantEstimate(constant=c, rel_se=rel, inertia_kg_m2=float(np.median(ji)), n=n)
 
 
 def _clean(name: str, x, n: int | None = None) -> np.ndarray:
@@ -40,7 +137,8 @@ def fit_mu_from_phase(coa, phase_deg, phase_se_deg, *, constant=None, creepage_s
                       coa_se=None, max_rel_half_width: float = 0.10, scale_by_chi2: bool = True,
                       ratio_bounds: tuple[float, float] = R_BOUNDS,
                       model_rel_error: float = MODEL_REL_ERROR,
-                      speed_m_s: float | None = None) -> PhaseMuFit:
+                      speed_m_s: float | None = None, constant_rel_se: float = 0.0,
+                      constant_source: str | None = None) -> PhaseMuFit:
     """The available adhesion from the phase progression of a rig's torque steps.
 
     Steps with a non-finite value, a phase outside (0, 90) deg or a non-positive standard
@@ -76,6 +174,12 @@ def fit_mu_from_phase(coa, phase_deg, phase_se_deg, *, constant=None, creepage_s
     speed_m_s : float or None
         Rolling speed V [m/s]; with C it bounds how far the friction can fall with the slip
         velocity. Default None.
+    constant_rel_se : float
+        Relative standard error of C when it was measured [-]
+        (:func:`constant_from_amplitudes`). Default 0.
+    constant_source : str or None
+        Where C came from (``"rig inertia"``, ``"amplitudes"``, ...); default ``"given"``,
+        or ``"not given"`` without C.
 
     Returns
     -------
@@ -137,9 +241,14 @@ def fit_mu_from_phase(coa, phase_deg, phase_se_deg, *, constant=None, creepage_s
         coa_se=None if c_se is None else c_se[ok], model_rel_error=model_rel_error,
         max_rel_half_width=max_rel_half_width, scale_by_chi2=scale_by_chi2,
         ratio_bounds=(lo, hi),
-        speed_m_s=speed_m_s if speed_m_s is not None and np.isfinite(speed_m_s) else None)
+        speed_m_s=speed_m_s if speed_m_s is not None and np.isfinite(speed_m_s) else None,
+        constant_rel_se=constant_rel_se if constant is not None else 0.0)
     if fit is None:
         raise InputError("the phase progression fits no creep law of the family (every "
                          "step lies beyond the curves' peaks)",
                          hint="check the steps' CoA and phases")
-    return PhaseMuFit.from_adhesion(fit, coa[ok], phase[ok], se[ok], constant)
+    source = constant_source or ("given" if constant is not None else "not given")
+    return PhaseMuFit.from_adhesion(fit, coa[ok], phase[ok], se[ok], constant,
+                                    constant_source=source,
+                                    constant_rel_se=float(constant_rel_se)
+                                    if constant is not None else 0.0)

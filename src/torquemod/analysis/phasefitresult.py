@@ -75,6 +75,11 @@ class PhaseMuFit:
         What the caller should know.
     adhesion : AdhesionFit or None
         The full fit behind these numbers.
+    constant_source : str
+        Where C came from: ``"rig inertia"``, ``"amplitudes"`` (measured from the torque and
+        wheel-speed amplitudes, no inertia given), ``"given"`` or ``"not given"``.
+    constant_rel_se : float
+        Relative standard error [-] of a measured C (0 when C is known or not given).
 
     References
     ----------
@@ -104,9 +109,12 @@ class PhaseMuFit:
     profile: dict
     warnings: list = field(default_factory=list)
     adhesion: AdhesionFit | None = None
+    constant_source: str = ""
+    constant_rel_se: float = 0.0
 
     @classmethod
-    def from_adhesion(cls, fit, coa, phase_deg, se_deg, constant) -> PhaseMuFit:
+    def from_adhesion(cls, fit, coa, phase_deg, se_deg, constant, *, constant_source: str = "",
+                      constant_rel_se: float = 0.0) -> PhaseMuFit:
         """Wrap an :class:`~torquemod.analysis.friction.AdhesionFit` of phases."""
         det = fit.determined
         warnings = []
@@ -141,7 +149,9 @@ class PhaseMuFit:
             phase_deg=np.asarray(phase_deg, float), sigma_deg=np.asarray(se_deg, float),
             profile={"adhesion_available": fit.p_grid, "chi2": fit.profile,
                      "level": fit.level, "n_evaluations": int(fit.p_grid.size)},
-            warnings=warnings, adhesion=fit)
+            warnings=warnings, adhesion=fit,
+            constant_source=constant_source or ("given" if given else "not given"),
+            constant_rel_se=float(constant_rel_se))
 
     def state(self) -> dict:
         """Every field, the adhesion fit's included, JSON-ready with non-finite numbers as the
@@ -174,7 +184,9 @@ class PhaseMuFit:
         adhesion = AdhesionFit(**a)
         d = dict(doc)
         for key in ("mu_estimate", "mu_lower_bound", "constant", "ratio_ka_ks",
-                    "initial_slope", "level", "chi2", "chi2_scale"):
+                    "initial_slope", "level", "chi2", "chi2_scale", "constant_rel_se"):
+            if key not in d:  # saved before the field existed: its default
+                continue
             d[key] = back(d[key], 0.0)
         for key in ("coa", "phase_deg", "sigma_deg"):
             d[key] = back(d[key], np.zeros(0))
@@ -232,7 +244,9 @@ class PhaseMuFit:
                     f"{depth})")
         mu0 = (f", mu0 of the law = {a.mu0:.4f}" if a.mu0_identified else
                ", mu0 of the law not identified")
-        given = "given" if self.constant_given else "not given (k relative to C)"
+        given = ("not given (k relative to C)" if not self.constant_given else
+                 f"from the torque/wheel-speed amplitudes (+-{100 * self.constant_rel_se:.1f} %)"
+                 if self.constant_source == "amplitudes" else "given")
         par = (f"  best law {a.law} {tuple(round(v, 3) for v in a.params)}, C {given}, "
                f"k0 = {self.initial_slope:.4g}{mu0}, chi2 = {self.chi2:.3g} (dof {self.dof})")
         lines = ["[[available adhesion from the phase]] tan(phi) = C/k(CoA), broad family "
@@ -246,7 +260,8 @@ class PhaseMuFit:
             "mu": self.mu, "mu_stderr": self.mu_stderr, "mu_estimate": self.mu_estimate,
             "mu_determined": self.mu_determined, "mu_interval_95": list(self.mu_interval_95),
             "mu_lower_bound": self.mu_lower_bound, "constant": self.constant,
-            "constant_given": self.constant_given, "ratio_ka_ks": self.ratio_ka_ks,
+            "constant_given": self.constant_given, "constant_source": self.constant_source,
+            "constant_rel_se": self.constant_rel_se, "ratio_ka_ks": self.ratio_ka_ks,
             "initial_slope": self.initial_slope, "k_relative": self.k_relative,
             "chi2": self.chi2, "dof": self.dof, "chi2_scale": self.chi2_scale,
             "utilisation": self.utilisation, "profile": self.profile,

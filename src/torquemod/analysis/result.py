@@ -33,7 +33,10 @@ def phase_keys(pfit) -> dict:
     determined. ``adhesion_available_from_phase*`` name the same quantity explicitly, with
     the interval when it is closed, the lower bound, the probe depth (utilisation) that would
     determine it, and ``mu0_from_phase``, the law's friction coefficient, where the data
-    identify it.
+    identify it. ``mu_from_phase_constant_source`` says where the rigid-wheel constant C
+    came from: ``"rig inertia"``, ``"amplitudes"`` (measured from the torque and wheel-speed
+    amplitudes, no inertia given), ``"given"`` or ``"not given"`` (absent when there is no
+    fit from the phase).
 
     Parameters
     ----------
@@ -68,7 +71,8 @@ def phase_keys(pfit) -> dict:
             "mu0_from_phase": a["mu0"], "mu0_from_phase_low": a["mu0_low"],
             "mu0_from_phase_high": a["mu0_high"],
             "probe_depth_needed_from_phase": a["probe_depth_needed"],
-            "phase_fit_best_law": a["best_law"]}
+            "phase_fit_best_law": a["best_law"],
+            "mu_from_phase_constant_source": getattr(pfit, "constant_source", "") or None}
 
 
 def curve_check(polach, creepage_limit: float, *, n: int = 2000) -> tuple[bool, str | None]:
