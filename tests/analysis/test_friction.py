@@ -25,10 +25,10 @@ from torquemod.analysis.friction import (
     CHI2_95,
     MODEL_REL_ERROR,
     PROBE_DEPTHS,
-    _chi_kernel,
     fit_available_adhesion,
     fit_available_adhesion_from_phase,
 )
+from torquemod.analysis.frictiongrid import _chi_kernel
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import _independent_laws as laws

@@ -1,0 +1,235 @@
+"""The chi-square grid behind :mod:`torquemod.analysis.friction`: for every pair of
+neighbouring members of the creep-law family and every trial available adhesion P, the
+weighted least-squares fit of a mixture of the pair to the observations, and the
+coarse-to-fine pass that evaluates only the trial P where the profile's 95 % level is
+decided (profile likelihood, Wilks 1938). Pure numerics, compiled with numba; the model,
+the estimand and the interval rule are documented in :mod:`torquemod.analysis.friction`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from torquemod.analysis.creeplaws import N_U_SWING, SWING_A
+
+__all__ = ["CHI2_95", "K0_GRID"]
+
+#: chi-square quantile of one degree of freedom at 95 %
+CHI2_95 = 3.841458820694124
+#: k0 values [-] profiled when the swing is given without C
+K0_GRID = np.geomspace(3.0, 3000.0, 19)
+
+
+@njit(cache=True, nogil=True)
+def _swing_row(sw_u, swing_a, s, i, red):
+    """Linear lookup in the reduced swing ``red`` (at most the table's last) of member s's
+    swing rows already interpolated at point i's utilisation (``sw_u[s, i, :]``)."""
+    n_a = swing_a.size
+    j = 0
+    while j < n_a - 2 and swing_a[j + 1] < red:
+        j += 1
+    fa = (red - swing_a[j]) / (swing_a[j + 1] - swing_a[j])
+    return sw_u[s, i, j] * (1 - fa) + sw_u[s, i, j + 1] * fa
+
+
+@njit(cache=True, nogil=True)
+def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_rel, coa_se,
+                amp, p_grid, k_scale, k0_fixed, n_iter, beta_h, bmax_v):
+    """For every pair (a, b) of neighbouring members and trial P: the weighted least squares
+    ``y ~ alpha*s_a + beta*s_b`` with alpha, beta >= 0 (a mixture of the pair; a single
+    member when one is 0). Returns chi2, ``alpha + beta`` (the amplitude: k0 in the units
+    of y) and ``beta/(alpha + beta)``, each (K, M). ``amp``: the creepage swing per point
+    (zeros: none); k0 = ``k_scale*(alpha + beta)`` when k_scale > 0, else ``k0_fixed``.
+    With ``bmax_v`` > 0 (B_max*V [-]) a pair whose falling-friction member needs
+    ``B = beta_h*k0/(mu0*V)`` above B_max (``beta_h`` = beta/h0 per member) is left out."""
+    n_s, n_u = s_tab.shape
+    n_q = pairs.shape[0]
+    n_m = p_grid.size
+    n = coa.size
+    chi = np.full((n_q, n_m), np.inf)
+    amps = np.full((n_q, n_m), np.nan)
+    fracs = np.full((n_q, n_m), np.nan)
+    G = np.empty((n_s, n))
+    DG = np.empty((n_s, n))
+    valid = np.empty(n_s, np.bool_)
+    ga = np.empty(n)
+    gb = np.empty(n)
+    w = np.empty(n)
+    # the variance without the CoA term, the same for every pair and trial P
+    v0 = np.empty(n)
+    for i in range(n):
+        v0[i] = var0[i] + (y_rel * y[i]) ** 2
+    has_swing = sw_tab.shape[0] > 0
+    n_a = swing_a.size
+    n_us = sw_tab.shape[1]
+    a_top = swing_a[n_a - 1]
+    # per trial P: each point's cell of the swing tables' utilisation grid, and every
+    # member's swing rows interpolated there (SW[s, i, :]); a pair's lookup is then linear
+    # in the swing alone (:func:`_swing_row`; the same arithmetic as one bilinear lookup)
+    ks = np.empty(n, np.int64)
+    fs = np.empty(n)
+    SW = np.empty((sw_tab.shape[0], n, n_a))
+    c_max = coa.max()
+    for m in range(n_m):
+        p = p_grid[m]
+        if c_max >= p:
+            continue
+        for i in range(n):
+            pos = coa[i] / p * (n_us - 1)
+            k = min(int(pos), n_us - 2)
+            ks[i] = k
+            fs[i] = pos - k
+        for s in range(n_s):
+            valid[s] = True
+            for i in range(n):
+                pos = coa[i] / p * (n_u - 1)
+                k = min(int(pos), n_u - 2)
+                f = pos - k
+                G[s, i] = s_tab[s, k] * (1.0 - f) + s_tab[s, k + 1] * f
+                DG[s, i] = ds_tab[s, k] * (1.0 - f) + ds_tab[s, k + 1] * f
+                if not (G[s, i] > 0.0):
+                    valid[s] = False
+                    break
+            if has_swing and valid[s]:
+                for i in range(n):
+                    if amp[i] > 0.0:
+                        k = ks[i]
+                        f = fs[i]
+                        for j in range(n_a):
+                            SW[s, i, j] = sw_tab[s, k, j] * (1 - f) + sw_tab[s, k + 1, j] * f
+        for q in range(n_q):
+            a = pairs[q, 0]
+            b = pairs[q, 1]
+            if not (valid[a] and valid[b]):
+                continue
+            al = 0.0
+            be = 0.0
+            for it in range(n_iter):
+                k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
+                swing_now = has_swing and it > 0
+                for i in range(n):
+                    ga[i] = G[a, i]
+                    gb[i] = G[b, i]
+                    if swing_now and amp[i] > 0.0:
+                        ga[i] += _swing_row(SW, swing_a, a, i, min(amp[i] * k0 * f_peak[a] / p,
+                                                                   a_top))
+                        gb[i] += _swing_row(SW, swing_a, b, i, min(amp[i] * k0 * f_peak[b] / p,
+                                                                   a_top))
+                saa = 0.0
+                sab = 0.0
+                sbb = 0.0
+                say = 0.0
+                sby = 0.0
+                for i in range(n):
+                    v = v0[i]
+                    if it > 0:
+                        v += ((al * DG[a, i] + be * DG[b, i]) / p * coa_se[i]) ** 2
+                    w[i] = 1.0 / v
+                    saa += w[i] * ga[i] * ga[i]
+                    sab += w[i] * ga[i] * gb[i]
+                    sbb += w[i] * gb[i] * gb[i]
+                    say += w[i] * ga[i] * y[i]
+                    sby += w[i] * gb[i] * y[i]
+                det = saa * sbb - sab * sab
+                al = -1.0
+                be = -1.0
+                if a != b and det > 1e-12 * saa * sbb:
+                    al = (sbb * say - sab * sby) / det
+                    be = (saa * sby - sab * say) / det
+                if not (al >= 0.0 and be >= 0.0):
+                    # the best single member: chi2 = syy - say^2/saa (syy common)
+                    if say * say / saa >= sby * sby / sbb:
+                        al = say / saa
+                        be = 0.0
+                    else:
+                        al = 0.0
+                        be = sby / sbb
+                if not (al + be > 0.0):
+                    break
+                if it == n_iter - 1:
+                    if bmax_v > 0.0:
+                        k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
+                        if (beta_h[a] * k0 * f_peak[a] > bmax_v * p
+                                or beta_h[b] * k0 * f_peak[b] > bmax_v * p):
+                            break
+                    c = 0.0
+                    for i in range(n):
+                        r = y[i] - al * ga[i] - be * gb[i]
+                        c += w[i] * r * r
+                    if math.isfinite(c):
+                        chi[q, m] = c
+                        amps[q, m] = al + be
+                        fracs[q, m] = be / (al + be)
+    return chi, amps, fracs
+
+
+def _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_rel, bmax_v=0.0):
+    """chi2, amplitudes and mixing fractions (K, M) (:func:`_chi_kernel`), profiling k0 over
+    :data:`K0_GRID` when a swing is given without C."""
+    sw = tabs.swing if tabs.swing is not None else np.zeros((0, N_U_SWING, SWING_A.size))
+    var0 = se * se
+    n_iter = 3 if sw.shape[0] else (2 if np.any(c_se > 0) else 1)
+    if sw.shape[0] == 0 or (constant is not None and constant > 0):
+        k_scale = float(constant) if constant is not None and constant > 0 else 1.0
+        return _chi_kernel(tabs.s, tabs.ds, sw, SWING_A, tabs.f_peak, pairs, coa, y, var0,
+                           model_rel, c_se, amp, p_grid, k_scale, 0.0, n_iter, tabs.beta_h,
+                           bmax_v if constant is not None and constant > 0 else 0.0)
+    best = None
+    for k0 in K0_GRID:
+        out = _chi_kernel(tabs.s, tabs.ds, sw, SWING_A, tabs.f_peak, pairs, coa, y, var0,
+                          model_rel, c_se, amp, p_grid, -1.0, float(k0), n_iter, tabs.beta_h,
+                          bmax_v)
+        if best is None:
+            best = out
+        else:
+            better = out[0] < best[0]
+            best = tuple(np.where(better, o, b) for o, b in zip(out, best, strict=True))
+    return best
+
+
+def _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_rel,
+                    bmax_v: float = 0.0, every: int = 3, rounds: int = 5):
+    """:func:`_chi_all` on every ``every``-th trial P, then on every grid point between two
+    evaluated neighbours where the profile crosses the 95 % level, comes near it from
+    outside, or that hold its minimum, until no such gap is left (the level follows the lowest
+    chi2 found). Returns the
+    evaluated grid indices (sorted) and chi2, amplitude, mixing fraction there (K, m)."""
+    m = p_grid.size
+    done = np.unique(np.r_[np.arange(0, m, every), m - 1])
+    first = _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[done], constant, model_rel,
+                     bmax_v)
+    # every trial P's columns, filled as they are evaluated (a cell is the same whichever
+    # call computes it); ``have`` marks the evaluated ones
+    full = [np.empty((o.shape[0], m), o.dtype) for o in first]
+    for f_, o in zip(full, first, strict=True):
+        f_[:, done] = o
+    have = np.zeros(m, bool)
+    have[done] = True
+    outs = list(first)
+    dof = max(coa.size - 3, 1)
+    for _ in range(rounds):
+        prof = outs[0].min(axis=0)
+        if not np.isfinite(prof).any():
+            break
+        c_min = float(np.min(prof))
+        level = c_min + CHI2_95 * max(1.0, c_min / dof)
+        j = int(np.argmin(prof))
+        ins = prof <= level
+        near = prof <= level + 2.0 * CHI2_95 * max(1.0, c_min / dof)
+        gaps = np.flatnonzero(np.diff(done) > 1)
+        need = [g for g in gaps if (ins[g] != ins[g + 1]) or (near[g] and not ins[g])
+                or (near[g + 1] and not ins[g + 1]) or g in (j - 1, j)]
+        if not need:
+            break
+        new = np.concatenate([np.arange(done[g] + 1, done[g + 1]) for g in need])
+        more = _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[new], constant, model_rel,
+                        bmax_v)
+        for f_, o in zip(full, more, strict=True):
+            f_[:, new] = o
+        have[new] = True
+        done = np.flatnonzero(have)
+        outs = [f_[:, done] for f_ in full]
+    return done, outs
