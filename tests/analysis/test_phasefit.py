@@ -158,6 +158,23 @@ def test_low_utilisation_gives_only_a_lower_bound():
     assert "NOT determined" in fit.report()
 
 
+def test_without_the_probe_only_the_probe_depth_is_left_out():
+    """``probe=False`` skips the search for the probe depth and changes nothing else: every
+    field of the adhesion fit but the depth is equal, bit for bit (the depth is searched
+    after the fit). The case is not determined, so the probe runs and finds a depth."""
+    coa, phase, _ = truth(0.25, DRY, 100.0, 0.6)  # up to 60 %: a depth of 86 % found
+    phase = phase + 0.1 * np.random.default_rng(0).standard_normal(6)
+    with_probe = fit_mu_from_phase(coa, phase, np.full(6, 0.1))
+    without = fit_mu_from_phase(coa, phase, np.full(6, 0.1), probe=False)
+    a, b = with_probe.adhesion, without.adhesion
+    assert not a.determined and np.isfinite(a.probe_depth) and np.isnan(b.probe_depth)
+    for name, value in vars(a).items():
+        if name != "probe_depth":
+            np.testing.assert_array_equal(np.asarray(value), np.asarray(getattr(b, name)),
+                                          err_msg=name)
+    assert with_probe.mu_lower_bound == without.mu_lower_bound
+
+
 def test_understated_errors_widen_the_interval():
     """Twelve steps (each of the six twice) with phase noise ten times the stated 0.1 deg:
     chi2/dof exceeds 1 (measured 2.07; smaller scatter is absorbed by the model's own 1 %

@@ -437,3 +437,38 @@ def test_cli_reports_a_bad_sweep_file_before_starting_a_cluster(tmp_path, capsys
     assert main(["sweep", str(bad), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "bad.toml" in err and "did you mean 'rig.speed_km_h'" in err
+
+
+def test_a_full_point_skips_analyze_probe_depth_without_changing_its_rows(monkeypatch):
+    """The sweep's analyze leaves out the probe depth of the fit from the phase
+    (``FitOptions.probe``): no column of sweep.parquet depends on it, so the point's rows
+    are bit for bit those of a point that computes it. The probe must actually run in the
+    second point (more probe searches than in the first), or the test proves nothing."""
+    import torquemod.api
+    from torquemod.analysis import analyzer, friction
+    from torquemod.sweep.evaluate import evaluate_point, tasks
+    spec = parse_sweep('mode = "full"\nseeds = [4]\n' + SHORT.replace(
+        "[0.0, 0.4, 0.7]", "[0.0, 0.3, 0.5, 0.7, 0.85]"))
+    task = tasks(spec)[0]
+    calls = []
+    real_probe = friction._probe_depth
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return real_probe(*args, **kwargs)
+
+    monkeypatch.setattr(friction, "_probe_depth", counted)
+    skipped = evaluate_point(task)
+    n_skipped = len(calls)
+    seen = []
+
+    def with_probe(result, options=None, **fit_options):
+        ana = analyzer.analyze(result, options, **{**fit_options, "probe": True})
+        seen.append(ana.options.probe)
+        return ana
+
+    monkeypatch.setattr(torquemod.api, "analyze", with_probe, raising=False)
+    probed = evaluate_point(task)
+    assert seen == [True] and len(calls) - n_skipped > n_skipped
+    pd.testing.assert_frame_equal(skipped.drop(columns="point_wall_s"),
+                                  probed.drop(columns="point_wall_s"), check_exact=True)

@@ -178,7 +178,7 @@ def analyze(result: ProcessResult, options: FitOptions | dict | None = None, **f
     source = ("rig inertia" if rig_args is not None else
               "given" if constant is not None else None)
     pfit, p_skipped = _phase_fit(steps_df, pts, use, constant, measured_c=(radius, n_nom),
-                                 source=source)
+                                 source=source, probe=opts.probe)
     if pfit is None:
         warnings.append(f"mu from the phase was not estimated: {p_skipped}")
     else:
@@ -387,9 +387,9 @@ def measured_constant(steps_df: pd.DataFrame, use: np.ndarray, *, wheel_radius_m
 
 def _phase_fit(steps_df: pd.DataFrame, pts, use: np.ndarray, constant,
                measured_c: tuple[float, float] | None = None,
-               source: str | None = None) -> tuple[object, str]:
+               source: str | None = None, probe: bool = True) -> tuple[object, str]:
     """mu from the phase progression (:mod:`torquemod.analysis.phasefit`) over the steps in ``use``:
-    (result or None, reason it was skipped or "")."""
+    (result or None, reason it was skipped or ""); ``probe``: also the probe depth."""
     try:
         from torquemod.analysis.phasefit import fit_mu_from_phase
     except ImportError:  # pragma: no cover - the module ships with the package
@@ -419,7 +419,8 @@ def _phase_fit(steps_df: pd.DataFrame, pts, use: np.ndarray, constant,
                                 creepage_swing=None if swing is None else swing[use],
                                 speed_m_s=None if speed is None
                                 else float(np.nanmedian(np.abs(speed[use]))),
-                                constant_rel_se=c_rel, constant_source=source)
+                                constant_rel_se=c_rel, constant_source=source,
+                                probe=probe)
     except (InputError, ProcessingError) as exc:
         return None, str(exc)
     return res, ""

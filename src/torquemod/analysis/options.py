@@ -55,6 +55,10 @@ class FitOptions:
         Its ``min_jump_deg`` [deg].
     onset_baseline_steps : int, default 2
         Its ``baseline_steps``.
+    probe : bool, default True
+        When the available adhesion from the phase is not determined, also find the probe
+        depth (utilisation of one more step) that would determine it; about half of that
+        fit's cost. False leaves the depth NaN and changes nothing else of the fit.
 
     References
     ----------
@@ -81,6 +85,7 @@ class FitOptions:
     onset_rel_k_drop: float = 0.5
     onset_tan_ratio: float = 2.0
     onset_baseline_steps: int = 2
+    probe: bool = True
 
     def __post_init__(self) -> None:
         check_option_types(self, "fit")

@@ -138,7 +138,7 @@ def fit_mu_from_phase(coa, phase_deg, phase_se_deg, *, constant=None, creepage_s
                       ratio_bounds: tuple[float, float] = R_BOUNDS,
                       model_rel_error: float = MODEL_REL_ERROR,
                       speed_m_s: float | None = None, constant_rel_se: float = 0.0,
-                      constant_source: str | None = None) -> PhaseMuFit:
+                      constant_source: str | None = None, probe: bool = True) -> PhaseMuFit:
     """The available adhesion from the phase progression of a rig's torque steps.
 
     Steps with a non-finite value, a phase outside (0, 90) deg or a non-positive standard
@@ -180,6 +180,10 @@ def fit_mu_from_phase(coa, phase_deg, phase_se_deg, *, constant=None, creepage_s
     constant_source : str or None
         Where C came from (``"rig inertia"``, ``"amplitudes"``, ...); default ``"given"``,
         or ``"not given"`` without C.
+    probe : bool
+        When the adhesion is not determined, also find the probe depth (utilisation of one
+        more step) that would determine it; False leaves it NaN and changes nothing else.
+        Default True.
 
     Returns
     -------
@@ -242,7 +246,7 @@ def fit_mu_from_phase(coa, phase_deg, phase_se_deg, *, constant=None, creepage_s
         max_rel_half_width=max_rel_half_width, scale_by_chi2=scale_by_chi2,
         ratio_bounds=(lo, hi),
         speed_m_s=speed_m_s if speed_m_s is not None and np.isfinite(speed_m_s) else None,
-        constant_rel_se=constant_rel_se if constant is not None else 0.0)
+        constant_rel_se=constant_rel_se if constant is not None else 0.0, probe=probe)
     if fit is None:
         raise InputError("the phase progression fits no creep law of the family (every "
                          "step lies beyond the curves' peaks)",

@@ -423,7 +423,9 @@ def _full_steps(config, t_peak: float, seed: int, workdir: Path | None,
         res = process(workdir / "experiment" / "experiment.toml", cfg, workers=1)
     else:
         res = _process_in_memory(run, cfg)
-    ana = analyze(res)
+    # probe=False: analyze's probe depth reaches none of the point's columns (the sweep's
+    # own probe depth, probe_depth_needed_phase, comes from _phase_mu)
+    ana = analyze(res, probe=False)
     chain = ana.steps.set_index("step")
     rows = []
     for st in truth["steps"]:
