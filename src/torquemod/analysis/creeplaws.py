@@ -76,6 +76,7 @@ from itertools import pairwise
 import numpy as np
 from numba import njit
 
+from torquemod._util.arraycache import cached_arrays, source_digest
 from torquemod.analysis.polachshape import polach_h
 
 __all__ = ["FAMILY", "N_U", "SWING_A", "FamilyTables", "Member", "family", "family_tables",
@@ -342,17 +343,39 @@ def _swing_rows(x: np.ndarray, f: np.ndarray, fpk: float, s_u: np.ndarray) -> np
 @lru_cache(maxsize=2)
 def family_tables(swing: bool = False) -> FamilyTables:
     """The tables of every member of :func:`family` (module docstring); built once per
-    process (about a second; the swing tables a few more)."""
+    machine (about a second; the swing tables a few more) and kept in torquemod's disk
+    cache (:func:`torquemod._util.arraycache.cached_arrays`, keyed by the versions, the
+    grids and this module's source), then loaded in each process."""
     members = family()
+    key = {"swing": bool(swing), "n_u": N_U, "n_u_swing": N_U_SWING,
+           "swing_a": SWING_A.tolist(), "members": [[m.law, list(m.params)] for m in members],
+           "source": _source_digest()}
+    names = ("f_peak", "s", "ds", "beta_h", "falling") + (("swing",) if swing else ())
+    arr = cached_arrays("creeplaw-family", key, lambda: _build_tables(members, swing),
+                        names=names)
+    return FamilyTables(members, arr["f_peak"], arr["s"], arr["ds"], arr.get("swing"),
+                        arr["beta_h"], arr["falling"])
+
+
+def _source_digest() -> str:
+    """Digest of the code that builds the tables: this module, the Polach shape and the
+    Polach force law it uses."""
+    import torquemod.analysis.contact.polach as contact_polach
+    import torquemod.analysis.polachshape as polachshape
+    return source_digest(__file__, polachshape.__file__, contact_polach.__file__)
+
+
+def _build_tables(members: tuple[Member, ...], swing: bool) -> dict[str, np.ndarray]:
+    """The arrays of :class:`FamilyTables` for ``members``, computed."""
     rows = [_small_signal(m) for m in members]
-    f_peak = np.array([r[2] for r in rows])
-    s = np.array([r[3] for r in rows])
-    ds = np.array([r[4] for r in rows])
-    sw = np.array([_swing_rows(r[0], r[1], r[2], r[3]) for r in rows]) if swing else None
-    beta_h = np.array([m.params[2] * np.pi / (2.0 * (m.params[0] + 1.0))
-                       if m.law == "polach_falling" else 0.0 for m in members])
-    falling = np.array([m.law == "polach_falling" for m in members])
-    return FamilyTables(members, f_peak, s, ds, sw, beta_h, falling)
+    out = {"f_peak": np.array([r[2] for r in rows]), "s": np.array([r[3] for r in rows]),
+           "ds": np.array([r[4] for r in rows]),
+           "beta_h": np.array([m.params[2] * np.pi / (2.0 * (m.params[0] + 1.0))
+                               if m.law == "polach_falling" else 0.0 for m in members]),
+           "falling": np.array([m.law == "polach_falling" for m in members])}
+    if swing:
+        out["swing"] = np.array([_swing_rows(r[0], r[1], r[2], r[3]) for r in rows])
+    return out
 
 
 def mixture_curve(law: str, params) -> np.ndarray | None:
