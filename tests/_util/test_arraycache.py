@@ -34,8 +34,12 @@ def test_built_once_then_loaded_bit_for_bit(tmp_path, monkeypatch):
     assert len(calls) == 1 and _same(first, second)
     files = list(cache_dir().iterdir())
     assert cache_dir() == tmp_path / "torquemod" and len(files) == 1  # no temporary left
-    cached_arrays("t", {"n": 8}, build)  # another key: another file, built again
-    assert len(calls) == 2 and len(list(cache_dir().iterdir())) == 2
+    cached_arrays("t", {"n": 8}, build)  # another key (an upgrade): built again, old file gone
+    assert len(calls) == 2 and len(list(cache_dir().iterdir())) == 1
+    cached_arrays("u", {"n": 8}, build)  # other tables: their own file, beside
+    assert len(calls) == 3 and len(list(cache_dir().iterdir())) == 2
+    cached_arrays("t", {"n": 8}, build)  # still cached
+    assert len(calls) == 3
 
 
 def test_a_damaged_file_is_rebuilt(tmp_path, monkeypatch):

@@ -64,16 +64,18 @@ def _load(path: Path, key_text: str, names: tuple[str, ...] | None) -> dict | No
     return out
 
 
-def _store(path: Path, key_text: str, arrays: dict[str, np.ndarray]) -> None:
+def _store(path: Path, key_text: str, arrays: dict[str, np.ndarray]) -> bool:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
     except OSError:
-        return
+        return False
+    stored = False
     try:
         with os.fdopen(fd, "wb") as fh:
             np.savez(fh, **{_KEY: np.array(key_text)}, **arrays)
         os.replace(tmp, path)
+        stored = True
     except OSError:
         pass
     finally:
@@ -82,6 +84,7 @@ def _store(path: Path, key_text: str, arrays: dict[str, np.ndarray]) -> None:
                 os.unlink(tmp)
             except OSError:
                 pass
+    return stored
 
 
 def cached_arrays(name: str, key: dict, build: Callable[[], dict[str, np.ndarray]], *,
@@ -115,5 +118,18 @@ def cached_arrays(name: str, key: dict, build: Callable[[], dict[str, np.ndarray
         if got is not None:
             return got
     arrays = build()
-    _store(path, key_text, arrays)
+    if _store(path, key_text, arrays):
+        _prune(path)
     return arrays
+
+
+def _prune(kept: Path) -> None:
+    """Remove the other files of the same tables (older versions or sources): one file of a
+    name is kept, so the cache does not grow with every upgrade."""
+    name = kept.name.rsplit("-", 1)[0]
+    for old in kept.parent.glob(f"{name}-*.npz"):
+        if old != kept:
+            try:
+                old.unlink()
+            except OSError:
+                pass
