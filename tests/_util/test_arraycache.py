@@ -40,6 +40,8 @@ def test_built_once_then_loaded_bit_for_bit(tmp_path, monkeypatch):
     assert len(calls) == 3 and len(list(cache_dir().iterdir())) == 2
     cached_arrays("t", {"n": 8}, build)  # still cached
     assert len(calls) == 3
+    cached_arrays("t_x", {"n": 8}, build)  # a name that extends another's: no pruning across
+    assert len(calls) == 4 and len(list(cache_dir().iterdir())) == 3
 
 
 def test_a_damaged_file_is_rebuilt(tmp_path, monkeypatch):
@@ -72,8 +74,11 @@ def test_family_tables_from_the_cache_equal_fresh_ones(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     built = creeplaws.family_tables.__wrapped__(True)
     loaded = creeplaws.family_tables.__wrapped__(True)
-    assert len(list(cache_dir().glob("creeplaw-family-*.npz"))) == 1
+    assert len(list(cache_dir().glob("creeplaw_family_swing-*.npz"))) == 1
     assert loaded.members == built.members
     for name in ("f_peak", "s", "ds", "swing", "beta_h", "falling"):
         a, b = getattr(built, name), getattr(loaded, name)
         assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes(), name
+    creeplaws.family_tables.__wrapped__(False)  # the other table set keeps its own file
+    assert len(list(cache_dir().glob("creeplaw_family_swing-*.npz"))) == 1
+    assert len(list(cache_dir().glob("creeplaw_family-*.npz"))) == 1

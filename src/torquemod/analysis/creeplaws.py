@@ -351,8 +351,9 @@ def family_tables(swing: bool = False) -> FamilyTables:
            "swing_a": SWING_A.tolist(), "members": [[m.law, list(m.params)] for m in members],
            "source": _source_digest()}
     names = ("f_peak", "s", "ds", "beta_h", "falling") + (("swing",) if swing else ())
-    arr = cached_arrays("creeplaw-family", key, lambda: _build_tables(members, swing),
-                        names=names)
+    # one name per table set: a new file of one set removes only that set's older files
+    name = "creeplaw_family_swing" if swing else "creeplaw_family"
+    arr = cached_arrays(name, key, lambda: _build_tables(members, swing), names=names)
     return FamilyTables(members, arr["f_peak"], arr["s"], arr["ds"], arr.get("swing"),
                         arr["beta_h"], arr["falling"])
 
