@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from torquemod._util.fsutil import sha256_file
 from torquemod._version import __version__
 
 __all__ = ["cache_dir", "cached_arrays", "source_digest"]
@@ -39,12 +40,13 @@ def cache_dir() -> Path:
 
 
 def source_digest(*files: str | os.PathLike) -> str:
-    """SHA-256 of the given source files' bytes, in order (a missing file counts as empty):
+    """SHA-256 over the given source files' SHA-256 (:func:`~torquemod._util.fsutil.sha256_file`),
+    in order (a missing file counts as empty):
     part of a key, so that a change of the code that builds the tables rebuilds them."""
     h = hashlib.sha256()
     for f in files:
         try:
-            h.update(Path(f).read_bytes())
+            h.update(sha256_file(f).encode())
         except OSError:
             pass
         h.update(b"\0")

@@ -9,7 +9,6 @@ final path.
 from __future__ import annotations
 
 import contextlib
-import errno
 import os
 import re
 import shutil
@@ -22,7 +21,7 @@ from torquemod._util.fsutil import (
     _exchange,
     _mkdtemp_beside,
     _publishable,
-    _rename_noreplace,
+    moved_noreplace,
     output_error,
     output_lock,
 )
@@ -37,15 +36,8 @@ _STAGE = re.compile(re.escape(STAGE_PREFIX) + r"[A-Za-z0-9_]{8}")
 def _swap_in(new: Path, target: Path) -> None:
     """Move the folder ``new`` to ``target``; an existing ``target`` is exchanged with it
     (left at ``new``'s path, for the caller to delete)."""
-    try:
-        _rename_noreplace(new, target)
-        return
-    except (FileExistsError, IsADirectoryError):
-        pass
-    except OSError as exc:
-        if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST):
-            raise
-    _exchange(new, target)
+    if not moved_noreplace(new, target):
+        _exchange(new, target)
 
 
 @contextlib.contextmanager

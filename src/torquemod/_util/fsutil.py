@@ -270,6 +270,20 @@ def _rename_noreplace(src: Path, dst: Path) -> None:
     os.unlink(src)
 
 
+def moved_noreplace(src: Path, dst: Path) -> bool:
+    """Move ``src`` to ``dst`` when nothing is there (:func:`_rename_noreplace`): True when
+    moved, False when ``dst`` exists (left as it is, ``src`` too); other errors propagate."""
+    try:
+        _rename_noreplace(src, dst)
+        return True
+    except (FileExistsError, IsADirectoryError, NotADirectoryError):
+        return False
+    except OSError as exc:
+        if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST):
+            raise
+        return False
+
+
 def _exchange(new: Path, old: Path) -> None:
     """Swap folder ``new`` into ``old``'s place; afterwards ``new``'s path holds the old
     folder (for the caller to delete). One atomic step with ``RENAME_EXCHANGE``; elsewhere
@@ -301,14 +315,8 @@ def publish(tmp: str | Path, target: str | Path, *, force: bool = False,
     a ``steps.csv`` and files of its own."""
     tmp, target = Path(tmp), Path(target)
     try:
-        try:
-            _rename_noreplace(tmp, target)
+        if moved_noreplace(tmp, target):
             return
-        except (FileExistsError, IsADirectoryError, NotADirectoryError):
-            pass
-        except OSError as exc:
-            if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST):
-                raise
         if target.is_symlink() or not target.is_dir():
             raise OutputError(f"{target}: something else appeared at the output's place "
                               "while this run was working; it was left as it is, and the "
