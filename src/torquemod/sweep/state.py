@@ -101,11 +101,9 @@ def study_key(spec: SweepSpec) -> str:
         Hex digest.
     """
     base = Path(spec.base).read_text(encoding="utf-8") if spec.base else spec.kind
-    blob = json.dumps({"mode": spec.mode, "kind": spec.kind,
-                       "base": hashlib.sha256(base.encode()).hexdigest(),
-                       "fractions": spec.fractions_of_peak, "processing": spec.processing},
-                      sort_keys=True, default=str)
-    return hashlib.sha256(blob.encode()).hexdigest()
+    return resume.digest({"mode": spec.mode, "kind": spec.kind,
+                          "base": hashlib.sha256(base.encode()).hexdigest(),
+                          "fractions": spec.fractions_of_peak, "processing": spec.processing})
 
 
 def _held_points(out: Path) -> set[str]:
