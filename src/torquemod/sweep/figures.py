@@ -30,7 +30,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
-from torquemod._util.mpl import figure_axes
+from torquemod._util.mpl import figure_axes, legend_width_in, place_axes
 from torquemod.analysis.creep import phase_from_constant_deg
 from torquemod.sweep.conditions import CONDITION_COLUMN
 from torquemod.sweep.summary import BAND, slipped_mask
@@ -94,11 +94,33 @@ def _panel_grid(n: int, ax, *, width=5.0, height=3.6, cols_max=2):
         return axes[0].figure, axes
     cols = max(1, min(n, cols_max))
     rows = int(np.ceil(n / cols))
-    fig = Figure(figsize=(width * cols, height * rows + 0.9), layout="constrained")
+    fig = Figure(figsize=(width * cols, height * rows + 0.9))
     axes = list(np.atleast_1d(fig.subplots(rows, cols, squeeze=False).ravel()))
     for extra in axes[n:]:
         extra.set_visible(False)
     return fig, axes[:n]
+
+
+#: height of a row of a figure legend at 7 pt, markers up to 11 pt included [in]
+_LEGEND_ROW_IN = 0.2
+
+
+def _panel_legend(fig, axes, ax, handles: list, title: str = "") -> None:
+    """The figure legend below the panels (up to four columns) and the title above them;
+    on a figure of :func:`_panel_grid` (``ax`` None) the panels are placed with fixed
+    margins that leave room for both (no layout engine: the figure is drawn once)."""
+    ncol = min(len(handles), 4)
+    height = fig.get_size_inches()[1]
+    fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.04 / height),
+               ncol=ncol, fontsize=7, frameon=False, borderaxespad=0.0)
+    if title:
+        fig.suptitle(title, fontsize=10, y=1 - 0.08 / height, va="top")
+    if ax is None:
+        rows, cols = axes[0].get_subplotspec().get_gridspec().get_geometry()
+        legend_rows = -(-len(handles) // max(ncol, 1))
+        place_axes(fig, rows=rows, cols=cols, left=0.7, right=0.15,
+                   top=0.55 if title else 0.35, bottom=0.62 + legend_rows * _LEGEND_ROW_IN,
+                   wspace=0.7, hspace=0.75)
 
 
 def _drawn(axes, ax):
@@ -200,10 +222,7 @@ def phase_panels_figure(table: pd.DataFrame, *, panel: str = CONDITION_COLUMN,
     handles = [Line2D([], [], color=_cmap_colour(j, len(curves)), lw=2,
                       label=_label_value(curve, cv)) for j, cv in enumerate(curves)]
     handles += _style_handles(table)
-    fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 4),
-               fontsize=7, frameon=False)
-    if title:
-        fig.suptitle(title, fontsize=10)
+    _panel_legend(fig, axes, ax, handles, title)
     return _drawn(axes, ax)
 
 
@@ -277,9 +296,23 @@ def creep_curves_figure(curves: dict, table: pd.DataFrame, *, ax=None):
     if "coa" in table and table["coa"].notna().any():
         handles += [Line2D([], [], color=_cmap_colour(j, len(freqs)), marker=".", ls="",
                            ms=7, label=f"chain at {f:.3g} Hz") for j, f in enumerate(freqs)]
-    fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 4),
-               fontsize=7, frameon=False)
+    _panel_legend(fig, axes, ax, handles)
     return _drawn(axes, ax)
+
+
+def _place_single(fig, legend=None, *, tick_lines: int = 1, left: float = 0.8,
+                  hspace: float = 0.25) -> None:
+    """Fixed margins of a figure of stacked axes with a title: room at the right for a
+    legend beside the axes, at the bottom for ``tick_lines`` lines of 7 pt category labels
+    (1: numeric ticks)."""
+    rows = len([a for a in fig.axes if a.get_visible()])
+    right = 0.25 + (legend_width_in(legend) if legend is not None else 0.0)
+    place_axes(fig, rows=rows, left=left, right=right, top=0.35,
+               bottom=0.55 + 0.11 * max(tick_lines - 1, 0), hspace=hspace)
+
+
+def _lines(labels) -> int:
+    return max([str(t).count("\n") + 1 for t in labels] or [1])
 
 
 def _wrap(label: str, width: int = 22) -> str:
@@ -305,8 +338,10 @@ def sensitivity_figure(summary: pd.DataFrame, *, ax=None):
     matplotlib.axes.Axes
         The axes drawn in.
     """
-    _fig, ax = figure_axes(ax, figsize=(7.5, 4.6))
+    new = ax is None
+    fig, ax = figure_axes(ax, figsize=(7.5, 4.6), layout=None)
     conds = list(dict.fromkeys(summary[CONDITION_COLUMN]))
+    ticks = None
     amps = list(dict.fromkeys(summary[AMP]))
     chain = summary["dphi_du_chain"].notna().any()
     handles = []
@@ -330,7 +365,8 @@ def sensitivity_figure(summary: pd.DataFrame, *, ax=None):
             ax.plot(x + dx, g["dphi_du_theory"], "_", color=f"C{k}", ms=14, mew=2)
             if chain:
                 ax.plot(x + dx, g["dphi_du_chain"], _MARKERS[k % 10], color=f"C{k}", ms=5)
-        ax.set_xticks(x, [_wrap(c) for c in conds], fontsize=7)
+        ticks = [_wrap(c) for c in conds]
+        ax.set_xticks(x, ticks, fontsize=7)
         ax.set_xlabel("condition")
     if len(amps) > 1 or summary[FREQ].nunique() <= 1:
         handles += [Line2D([], [], color="0.35" if summary[FREQ].nunique() > 1 else f"C{k}",
@@ -341,8 +377,10 @@ def sensitivity_figure(summary: pd.DataFrame, *, ax=None):
     ax.set_title(f"sensitivity of the phase to the utilisation ({what}"
                  + (", markers: chain)" if chain else ")"), fontsize=9)
     ax.grid(True, alpha=0.3)
-    if handles:
-        ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    legend = (ax.legend(handles=handles, fontsize=7, loc="upper left",
+                        bbox_to_anchor=(1.01, 1.0)) if handles else None)
+    if new:
+        _place_single(fig, legend, tick_lines=_lines(ticks or []))
     return ax
 
 
@@ -365,7 +403,8 @@ def mu_error_figure(summary: pd.DataFrame, *, ax=None):
         The axes drawn in.
     """
     conds = list(dict.fromkeys(summary[CONDITION_COLUMN]))
-    _fig, ax = figure_axes(ax, figsize=(max(7.5, 1.3 * len(conds) + 3.0), 4.8))
+    new = ax is None
+    fig, ax = figure_axes(ax, figsize=(max(7.5, 1.3 * len(conds) + 3.0), 4.8), layout=None)
     freqs = sorted(dict.fromkeys(summary[FREQ]))
     amps = list(dict.fromkeys(summary[AMP]))
     settings = [(f, a) for f in freqs for a in amps
@@ -388,7 +427,8 @@ def mu_error_figure(summary: pd.DataFrame, *, ax=None):
     for i in range(1, len(conds)):
         ax.axvline(i - 0.5, color="0.85", lw=0.8)
     ax.axhline(0.0, color="k", lw=0.8)
-    ax.set_xticks(range(len(conds)), [_wrap(c) for c in conds], fontsize=7)
+    ticks = [_wrap(c) for c in conds]
+    ax.set_xticks(range(len(conds)), ticks, fontsize=7)
     ax.set_xlim(-0.5, len(conds) - 0.5)
     ax.set_xlabel("condition")
     ax.set_ylabel("μ from phase / available adhesion − 1 [%]")
@@ -402,7 +442,9 @@ def mu_error_figure(summary: pd.DataFrame, *, ax=None):
                            label=f"{a:.3g} N*m") for k, a in enumerate(amps)]
     handles.append(Line2D([], [], color="0.35", marker="o", mfc="none", ls="",
                           label="lower bound (μ not determined)"))
-    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    legend = ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    if new:
+        _place_single(fig, legend, tick_lines=_lines(ticks))
     return ax
 
 
@@ -432,7 +474,7 @@ def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None,
     matplotlib.axes.Axes or ndarray of Axes
         ``ax`` as given, else the new figure's Axes (an array when it holds several panels).
     """
-    _fig, axes = figure_axes(ax, 2, figsize=(7.0, 5.5))
+    fig, axes = figure_axes(ax, 2, figsize=(7.0, 5.5), layout=None)
     label = [f"{f:.3g} Hz\n{a:.3g} N*m" for f, a in zip(
         settings["modulation_frequency_nominal_hz"], settings["modulation_amplitude_nm"],
         strict=True)]
@@ -445,4 +487,6 @@ def disturbance_figure(settings: pd.DataFrame, limits: dict, *, ax=None,
     axes[1].set_ylabel(ripple_label)
     axes[1].set_xticks(x, label, fontsize=7)
     axes[0].set_title(title, fontsize=9)
+    if ax is None:
+        _place_single(fig, tick_lines=_lines(label), left=0.9, hspace=0.15)
     return _drawn(axes, ax)

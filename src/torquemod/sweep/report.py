@@ -133,7 +133,8 @@ def creep_curves(tab: pd.DataFrame, spec: SweepSpec) -> dict:
     return out
 
 
-def make_figures(tab: pd.DataFrame, spec: SweepSpec, rec: dict) -> list[tuple[str, object, str]]:
+def make_figures(tab: pd.DataFrame, spec: SweepSpec, rec: dict, *,
+                 summary: pd.DataFrame | None = None) -> list[tuple[str, object, str]]:
     """Every figure of the sweep.
 
     Parameters
@@ -144,13 +145,16 @@ def make_figures(tab: pd.DataFrame, spec: SweepSpec, rec: dict) -> list[tuple[st
         The sweep's specification.
     rec : dict
         The recommendation (:func:`torquemod.sweep.summary.recommend`).
+    summary : pandas.DataFrame or None
+        :func:`~torquemod.sweep.summary.point_summary` of ``tab`` when the caller has it.
+        Default None (computed here).
 
     Returns
     -------
     list of tuple
         ``(file stem, matplotlib Figure, caption)``.
     """
-    summary = point_summary(tab, spec)
+    summary = point_summary(tab, spec) if summary is None else summary
     tab = tab.assign(**{CONDITION_COLUMN: condition_labels(tab, spec.swept)})
     conds = list(dict.fromkeys(tab[CONDITION_COLUMN]))
     amp, seed = tab[F.AMP].iloc[0], tab["seed"].iloc[0]
@@ -274,7 +278,8 @@ def _points_html(summary: pd.DataFrame, spec: SweepSpec) -> str:
 
 
 def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
-           failures=None, wall_s: float | None = None) -> str:
+           failures=None, wall_s: float | None = None,
+           summary: pd.DataFrame | None = None) -> str:
     """The sweep's report page as a string.
 
     Parameters
@@ -294,13 +299,16 @@ def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
         Default None.
     wall_s : float or None
         Wall time of the sweep [s]. Default None.
+    summary : pandas.DataFrame or None
+        :func:`~torquemod.sweep.summary.point_summary` of ``tab`` when the caller has it.
+        Default None (computed here).
 
     Returns
     -------
     str
         The HTML page.
     """
-    summary = point_summary(tab, spec)
+    summary = point_summary(tab, spec) if summary is None else summary
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>"
              f"{escape(spec.name)} — torquemod sweep</title><style>{CSS}</style></head><body>",
              f"<h1>Sweep {escape(spec.name)}</h1>"]
@@ -359,7 +367,8 @@ def render(tab: pd.DataFrame, spec: SweepSpec, rec: dict, figs, *, status=None,
 
 
 def write_report(out: str | Path, tab: pd.DataFrame, spec: SweepSpec, rec: dict, *,
-                 status=None, failures=None, wall_s: float | None = None) -> Path:
+                 status=None, failures=None, wall_s: float | None = None,
+                 summary: pd.DataFrame | None = None) -> Path:
     """Draw the figures into ``out/figures`` and write ``out/report.html`` atomically.
 
     Parameters
@@ -379,6 +388,9 @@ def write_report(out: str | Path, tab: pd.DataFrame, spec: SweepSpec, rec: dict,
         Default None.
     wall_s : float or None
         Wall time of the sweep [s]. Default None.
+    summary : pandas.DataFrame or None
+        :func:`~torquemod.sweep.summary.point_summary` of ``tab`` when the caller has it.
+        Default None (computed here once, for the figures and the page).
 
     Returns
     -------
@@ -386,11 +398,13 @@ def write_report(out: str | Path, tab: pd.DataFrame, spec: SweepSpec, rec: dict,
         The report.
     """
     out = Path(out)
+    summary = point_summary(tab, spec) if summary is None else summary
     figs = []
-    for stem, fig, caption in make_figures(tab, spec, rec):
+    for stem, fig, caption in make_figures(tab, spec, rec, summary=summary):
         png = _png(fig)
         save_png(png, out / "figures" / f"{stem}.png")
         figs.append((stem, png, caption))
-    page = render(tab, spec, rec, figs, status=status, failures=failures, wall_s=wall_s)
+    page = render(tab, spec, rec, figs, status=status, failures=failures, wall_s=wall_s,
+                  summary=summary)
     return write_atomic(out / "report.html", lambda fh: fh.write(page))
 

@@ -263,7 +263,8 @@ def noise_keys(spec: SweepSpec) -> list[str]:
     return [k for k in spec.swept if k.startswith(("sensors.", "disturbances."))]
 
 
-def recommend(table: pd.DataFrame, spec: SweepSpec) -> dict:
+def recommend(table: pd.DataFrame, spec: SweepSpec, *,
+              summary: pd.DataFrame | None = None) -> dict:
     """The modulation setting that gives the most accurate mu from the phase, and why.
 
     Among the settings whose disturbance stays within the limits of ``[recommend]``, the one
@@ -277,6 +278,9 @@ def recommend(table: pd.DataFrame, spec: SweepSpec) -> dict:
         The sweep table (``sweep.parquet``: one row per point and step).
     spec : SweepSpec
         The sweep's specification (swept keys, ``[recommend]`` limits).
+    summary : pandas.DataFrame or None
+        :func:`point_summary` of ``table`` when the caller has it. Default None
+        (computed here).
 
     Returns
     -------
@@ -286,7 +290,7 @@ def recommend(table: pd.DataFrame, spec: SweepSpec) -> dict:
         ``by_noise`` (``noise``, ``setting``, ``reasoning``, ``settings``); the top level then
         holds the first level's, and the reasoning all of them.
     """
-    summary = point_summary(table, spec)
+    summary = point_summary(table, spec) if summary is None else summary
     keys = noise_keys(spec)
     if not keys:
         return _recommend(summary, spec)
