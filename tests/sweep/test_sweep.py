@@ -377,17 +377,24 @@ def test_a_full_point_in_memory_gives_the_rows_of_the_point_through_files(tmp_pa
 
 
 def test_points_go_to_the_cluster_in_batches(tmp_path):
-    """Batches: every point once, round-robin, at most slots*3 of them; a batch whose
-    worker died reports the points it finished as done and the others as failed."""
+    """Batches: every point once, dealt with a stride, largest first down to single points
+    (each takes 1/(2*slots) of the points left); a batch whose worker died reports the
+    points it finished as done and the others as failed."""
+    from dataclasses import replace
+
     from torquemod.sweep.evaluate import tasks
     from torquemod.sweep.run import _lost, point_batches, run_point
     todo = tasks(parse_sweep(THEORY))
     assert len(todo) == 4
-    for slots, n in ((1, 3), (2, 4), (8, 4)):
+    for slots, sizes in ((1, [2, 1, 1]), (2, [1, 1, 1, 1]), (8, [1, 1, 1, 1])):
         b = point_batches(todo, slots)
-        assert len(b) == n
+        assert [len(x) for x in b] == sizes
         assert sorted(t.index for batch in b for t in batch) == [0, 1, 2, 3]
-    assert [t.index for t in point_batches(todo, 1)[0]] == [0, 3]
+    assert [t.index for t in point_batches(todo, 1)[0]] == [0, 2]
+    many = [replace(todo[0], index=i) for i in range(54)]
+    sizes = [len(x) for x in point_batches(many, 2)]
+    assert sizes == [14, 10, 8, 6, 4, 3, 3, 2, 1, 1, 1, 1]  # ceil(left / 4)
+    assert sorted(t.index for x in point_batches(many, 2) for t in x) == list(range(54))
     out = tmp_path / "out"
     before = time.time() - 1.0
     assert run_point(todo[0], str(out))["status"] == "done"

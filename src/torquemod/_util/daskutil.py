@@ -30,6 +30,21 @@ _HINT = ("give the scheduler's address as tcp://HOST:PORT (e.g. tcp://10.0.0.5:8
          "out --scheduler for a local cluster")
 
 
+#: Dask settings of the local cluster. Dask's nanny sets ``MALLOC_TRIM_THRESHOLD_=65536`` in
+#: its workers' environment by default, which also stops glibc from raising its mmap
+#: threshold: every array above 128 kB is then mapped and unmapped at each allocation and
+#: its pages faulted in again (+25 % CPU on a sweep point, measured). The sampling profiler
+#: (every 10 ms) and the event loops' health checks take CPU from the task as well; the
+#: dashboard keeps its task stream and progress without them.
+LOCAL_CLUSTER_CONFIG = {
+    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "200ms",
+    "distributed.admin.system-monitor.interval": "1s",
+    "distributed.worker.memory.monitor-interval": "500ms",
+}
+
+
 def check_scheduler(address: str) -> str:
     """The scheduler ``address`` with its scheme (``host:port`` means ``tcp://host:port``);
     an :class:`InputError` at once when it is not ``SCHEME://HOST:PORT``."""
@@ -97,10 +112,23 @@ def _quiet_logs() -> Iterator[None]:
             lg.setLevel(level)
 
 
+def _close(client, cluster, scratch) -> None:
+    """Close the client and the local cluster quietly, then remove the workers' scratch
+    folder (``scratch``: its ``TemporaryDirectory``)."""
+    with _quiet_logs():
+        if client is not None:
+            with contextlib.suppress(Exception):
+                client.close()
+        if cluster is not None:
+            with contextlib.suppress(Exception):
+                cluster.close()
+    scratch.cleanup()
+
+
 @contextlib.contextmanager
 def dask_client(scheduler: str | None = None, n_workers: int | None = None,
-                on_dashboard=None, *, connect_timeout_s: float = CONNECT_TIMEOUT_S
-                ) -> Iterator[object]:
+                on_dashboard=None, *, connect_timeout_s: float = CONNECT_TIMEOUT_S,
+                closing: list | None = None) -> Iterator[object]:
     """A ``dask.distributed.Client`` for the duration of the block.
 
     ``scheduler`` is the address of a running scheduler (``tcp://host:8786``, e.g. started by
@@ -109,6 +137,11 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
     (default: the CPU count) and stops it on exit. ``on_dashboard(link)`` is called with the
     dashboard address when the cluster has one. Bad options and an unreachable scheduler
     raise :class:`InputError`.
+
+    ``closing``: a list; when given, the client and the cluster are closed after the block
+    in a thread that is appended to it (the worker processes take about a second to end:
+    the caller goes on meanwhile and joins the thread before it returns); else they are
+    closed before the block ends.
     """
     address = check_cluster(scheduler, n_workers, connect_timeout_s)
     import logging
@@ -118,10 +151,13 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
     from dask.distributed import Client, LocalCluster
 
     cluster = client = None
+    scratch_dir = tempfile.TemporaryDirectory(prefix="torquemod-dask-",
+                                              ignore_cleanup_errors=True)
     with contextlib.ExitStack() as stack:
-        scratch = stack.enter_context(tempfile.TemporaryDirectory(
-            prefix="torquemod-dask-", ignore_cleanup_errors=True))
-        stack.enter_context(dask.config.set({"temporary-directory": scratch}))
+        scratch = scratch_dir.name
+        stack.enter_context(dask.config.set({"temporary-directory": scratch,
+                                             **(LOCAL_CLUSTER_CONFIG if address is None
+                                                else {})}))
         try:
             if address is None:
                 with _sigint_ignored():
@@ -143,13 +179,14 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
                 on_dashboard(link)
             yield client
         finally:
-            with _quiet_logs(), _sigint_ignored():
-                if client is not None:
-                    with contextlib.suppress(Exception):
-                        client.close()
-                if cluster is not None:
-                    with contextlib.suppress(Exception):
-                        cluster.close()
+            if closing is None:
+                with _sigint_ignored():
+                    _close(client, cluster, scratch_dir)
+            else:  # a thread: the terminal's Ctrl-C never reaches it
+                closer = threading.Thread(target=_close, args=(client, cluster, scratch_dir),
+                                          name="torquemod-dask-close")
+                closer.start()
+                closing.append(closer)
 
 
 def _reason(exc: BaseException) -> str:

@@ -44,6 +44,7 @@ from torquemod.errors import InputError, OutputError, TorquemodError
 from torquemod.results import resume
 from torquemod.results.writer import write_folder
 from torquemod.sweep.evaluate import PointTask, evaluate_point, tasks
+from torquemod.sweep.schedule import point_batches
 from torquemod.sweep.spec import SweepSpec, load_sweep
 from torquemod.sweep.state import (  # noqa: F401  (fingerprint: the sweep's API, here as before)
     digests,
@@ -103,6 +104,38 @@ def _one_line(exc: BaseException) -> str:
     return f"internal error: {type(exc).__name__}: {text}"
 
 
+def _decision(task: PointTask, out: Path, force: bool):
+    """(the point's digests, :func:`~torquemod.results.resume.decide`'s decision, its
+    record or None)."""
+    digest, params_digest, inputs_digest = digests(task)
+    old = resume.read_record(out, task.point_id)
+    decision = resume.decide(old, digest, outputs_ok=_part(out, task.point_id).is_file(),
+                             force=force, parameters_digest=params_digest,
+                             inputs_digest=inputs_digest)
+    return (digest, params_digest, inputs_digest), decision, old
+
+
+def _unchanged(todo: list[PointTask], out: Path, force: bool) -> tuple[list[dict], list]:
+    """The status rows of the points that a run would skip (decided here, as
+    :func:`run_point` decides, so that no worker starts for them) and the points to run."""
+    rows, run = [], []
+    for task in todo:
+        t0 = time.perf_counter()
+        try:
+            _digests, decision, old = _decision(task, out, force)
+        except Exception:  # run_point says what is wrong with the point
+            run.append(task)
+            continue
+        if decision.redo:
+            run.append(task)
+        else:
+            rows.append({"point_id": task.point_id, "point_index": task.index,
+                         "seed": task.seed, "status": "skipped",
+                         "n_rows": old.extra.get("n_rows", 0), "message": "",
+                         "seconds": time.perf_counter() - t0})
+    return rows, run
+
+
 def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
     """Evaluate one point into its partition (a Dask task; also usable alone). Never raises.
 
@@ -127,10 +160,7 @@ def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
            "status": "failed", "n_rows": 0, "message": ""}
     part = _part(out, task.point_id)
     try:
-        digest, params_digest, inputs_digest = digests(task)
-        old = resume.read_record(out, task.point_id)
-        decision = resume.decide(old, digest, outputs_ok=part.is_file(), force=force,
-                                 parameters_digest=params_digest, inputs_digest=inputs_digest)
+        (digest, params_digest, inputs_digest), decision, old = _decision(task, out, force)
         if not decision.redo:
             return {**row, "status": "skipped", "n_rows": old.extra.get("n_rows", 0),
                     "seconds": time.perf_counter() - t0}
@@ -198,10 +228,20 @@ class SweepResult:
 
 def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, scheduler,
                   n_workers, force: bool, progress: bool, on_dashboard, begin,
-                  connect_timeout_s: float = CONNECT_TIMEOUT_S) -> tuple[list, str]:
-    """Every point's status row (``begin()`` creates the output when the work can start)."""
+                  connect_timeout_s: float = CONNECT_TIMEOUT_S,
+                  closing: list | None = None) -> tuple[list, str]:
+    """Every point's status row (``begin()`` creates the output when the work can start).
+
+    The points a run would skip are decided here; a local cluster starts only when some
+    point is left to run, and is closed in a thread appended to ``closing`` (joined by the
+    caller) while the caller assembles the table and draws the report."""
     from tqdm import tqdm
     rows, links = [], []
+    if not in_process:
+        rows, todo = _unchanged(todo, out, force)
+        if not todo:
+            begin()
+            return rows, None
     if in_process:
         begin()
         bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
@@ -219,8 +259,8 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
         if on_dashboard is not None:
             on_dashboard(link)
 
-    with dask_client(scheduler, n_workers, dashboard,
-                     connect_timeout_s=connect_timeout_s) as client:
+    with dask_client(scheduler, n_workers, dashboard, connect_timeout_s=connect_timeout_s,
+                     closing=closing) as client:
         begin()  # once the cluster answers
         bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
         slots = sum(client.nthreads().values()) or 1
@@ -236,36 +276,6 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
             bar.update(len(futures[fut]))
     bar.close()
     return rows, (links[0] if links else None)
-
-
-#: batches per worker thread (:func:`point_batches`): enough that the workers finish close
-#: together, few enough that each task holds several points
-BATCHES_PER_SLOT = 3
-
-
-def point_batches(todo: list[PointTask], slots: int,
-                  per_slot: int = BATCHES_PER_SLOT) -> list[list[PointTask]]:
-    """The points cut into batches, one Dask task each.
-
-    Points are dealt round-robin, so that neighbours in the grid (often alike in cost: the
-    same frequency, the same condition) spread over the batches.
-
-    Parameters
-    ----------
-    todo : list of PointTask
-        The points to run.
-    slots : int
-        Worker slots [-].
-    per_slot : int
-        Batches per slot [-]. Default :data:`BATCHES_PER_SLOT`.
-
-    Returns
-    -------
-    list of list of PointTask
-        ``slots*per_slot`` batches (fewer when there are fewer points).
-    """
-    n = max(1, min(len(todo), slots * per_slot))
-    return [b for b in (todo[k::n] for k in range(n)) if b]
 
 
 def run_points(batch: list[PointTask], out_dir: str, force: bool = False) -> list[dict]:
@@ -470,16 +480,22 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
             raise InputError(f"the output folder holds the sweep's input {given}", path=out,
                              hint="choose an --out outside the folder of the sweep file and "
                                   "its base")
-    with output_lock(out):  # one sweep at a time writes OUT (a second one fails at once)
-        return _run_locked(spec, out, t0, in_process=in_process, scheduler=scheduler,
-                           n_workers=n_workers, force=force, progress=progress,
-                           report=report, on_dashboard=on_dashboard,
-                           connect_timeout_s=connect_timeout_s, on_start=on_start)
+    closing: list = []  # the local cluster closing in a thread while the report is drawn
+    try:
+        with output_lock(out):  # one sweep at a time writes OUT (a second one fails at once)
+            return _run_locked(spec, out, t0, in_process=in_process, scheduler=scheduler,
+                               n_workers=n_workers, force=force, progress=progress,
+                               report=report, on_dashboard=on_dashboard,
+                               connect_timeout_s=connect_timeout_s, on_start=on_start,
+                               closing=closing)
+    finally:
+        for thread in closing:
+            thread.join()
 
 
 def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler, n_workers,
                 force, progress, report, on_dashboard, connect_timeout_s,
-                on_start) -> SweepResult:
+                on_start, closing: list) -> SweepResult:
     todo = tasks(spec)
     begin = one_study(out, spec, todo, force)
     if on_start is not None:
@@ -489,7 +505,7 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
             rows, link = _evaluate_all(todo, out, in_process=in_process, scheduler=scheduler,
                                        n_workers=n_workers, force=force, progress=progress,
                                        on_dashboard=on_dashboard, begin=begin,
-                                       connect_timeout_s=connect_timeout_s)
+                                       connect_timeout_s=connect_timeout_s, closing=closing)
         finally:  # the twin's experiments, also of points cut short by an interrupt
             shutil.rmtree(out / "_work", ignore_errors=True)
     system = [r["message"] for r in rows if r.pop("system", False)]
@@ -508,18 +524,21 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
     meta = {"torquemod_version": __version__, "sweep_toml": spec.text,
             "sweep_spec": json.dumps(spec.to_dict(), default=str)}
     from torquemod.sweep.report import recommend, write_report
-    from torquemod.sweep.summary import agreement
+    from torquemod.sweep.summary import agreement, point_summary
     # the summaries group by the swept values: a list-valued one (procedure.dc_torques_nm)
     # comes back from Parquet as an array, which cannot be grouped; they see it as text
     table_view = _hashable_params(table, spec.swept)
+    shared = {}  # the point summary, computed once for the recommendation and the report
     if spec.kind == "train":
         from torquemod.sweep.trainreport import recommend_train as recommend
         from torquemod.sweep.trainreport import write_train_report as write_report
 
         def agreement(_table):  # the large-signal theory is the rig's
             return None
-    rec = recommend(table_view, spec) if not table.empty else {"setting": None,
-                                                          "reasoning": "no point finished"}
+    elif not table.empty:
+        shared["summary"] = point_summary(table_view, spec)
+    rec = recommend(table_view, spec, **shared) if not table.empty else {
+        "setting": None, "reasoning": "no point finished"}
     report_path = None
     with write_folder(out, mode="into", provenance=sweep_provenance(spec)) as w:
         failures.to_csv(w.path / "failures.csv", index=False, quoting=csv.QUOTE_MINIMAL,
@@ -538,7 +557,7 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
                "agreement": agreement(table_view) if not table.empty else None}
         if report and not table.empty:
             write_report(w.path, table_view, spec, rec, status=status, failures=failures,
-                         wall_s=wall)
+                         wall_s=wall, **shared)
             report_path = out / "report.html"
         (w.path / "sweep.json").write_text(dump_json(doc), encoding="utf-8")
     return SweepResult(out, table, status, failures, rec, report_path, link,
