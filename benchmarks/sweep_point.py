@@ -21,20 +21,26 @@ seconds it simulates (x real time per core).
 ``--wall`` instead times the whole sweep as a user runs it (``torquemod sweep SWEEP --out
 TMP --workers 2``, a fresh process, its local Dask cluster included), alternating this
 checkout with ``--src OTHER/src`` (e.g. the main branch) ``--repeat`` times, and prints
-each wall time, the CPU of the command and its workers, and the ratio of the medians.
+each wall time, the CPU of the command and its workers, and the ratio of the medians; with
+``--rerun`` each finished sweep is run again in its folder (every point skipped: what a
+sweep costs besides its points). ``--report DIR`` draws the report of a finished sweep
+folder in this process and prints the CPU of its parts (imports, point summary,
+figures, PNGs, page).
 
 The shares bound what a faster stage can give the sweep: a stage of share s made
 infinitely fast speeds the sweep up by at most 1/(1 - s) (Amdahl).
 
     python benchmarks/sweep_point.py [--points 6] [--through-files]
                                      [--sweep examples/sweep_vtrack_conditions.toml]
-    python benchmarks/sweep_point.py --wall [--src /work/main/src] [--repeat 1]
+    python benchmarks/sweep_point.py --wall [--src /work/main/src] [--repeat 1] [--rerun]
+    python benchmarks/sweep_point.py --report OUT [--sweep SWEEP]
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
+import inspect
 import os
 import resource
 import statistics
@@ -47,31 +53,81 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parents[1]
 
 
-def sweep_wall(sweep: str, srcs: dict[str, str], repeat: int, workers: int) -> None:
+def _timed_sweep(sweep: str, out: Path, src: str, workers: int) -> tuple[float, float, int]:
+    """(wall [s], CPU of the command and its workers [s], exit code) of one sweep."""
+    env = {**os.environ, "PYTHONPATH": src}
+    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "torquemod.cli", "sweep", sweep, "--out",
+                           str(out), "--workers", str(workers), "--quiet"],
+                          env=env, capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - t0
+    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime), done.returncode
+
+
+def sweep_wall(sweep: str, srcs: dict[str, str], repeat: int, workers: int,
+               rerun: bool = False) -> None:
     """Wall and CPU seconds of ``torquemod sweep`` for each source tree, alternated."""
     walls: dict[str, list[float]] = {k: [] for k in srcs}
     for r in range(repeat):
         for label, src in srcs.items():
             with tempfile.TemporaryDirectory() as tmp:
-                env = {**os.environ, "PYTHONPATH": src}
                 load0 = os.getloadavg()[0]
-                c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-                t0 = time.perf_counter()
-                done = subprocess.run(
-                    [sys.executable, "-m", "torquemod.cli", "sweep", sweep, "--out",
-                     str(Path(tmp) / "out"), "--workers", str(workers), "--quiet"],
-                    env=env, capture_output=True, text=True, check=False)
-                wall = time.perf_counter() - t0
-                c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-                cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
+                wall, cpu, code = _timed_sweep(sweep, Path(tmp) / "out", src, workers)
+                load1 = os.getloadavg()[0]
+                again = _timed_sweep(sweep, Path(tmp) / "out", src, workers) if rerun else None
             walls[label].append(wall)
             print(f"round {r + 1} {label:>7s} ({src}): wall {wall:6.1f} s, CPU {cpu:6.1f} s "
-                  f"(command and workers), exit {done.returncode}, load {load0:.2f} -> "
-                  f"{os.getloadavg()[0]:.2f}", flush=True)
+                  f"(command and workers), exit {code}, load {load0:.2f} -> {load1:.2f}",
+                  flush=True)
+            if again is not None:
+                print(f"        rerun, every point skipped: wall {again[0]:5.1f} s, CPU "
+                      f"{again[1]:5.1f} s, exit {again[2]}, load {os.getloadavg()[0]:.2f}",
+                      flush=True)
     med = {k: statistics.median(v) for k, v in walls.items()}
     if "before" in med:
         print(f"median wall: before {med['before']:.1f} s, after {med['after']:.1f} s -> "
               f"x{med['before'] / med['after']:.2f}")
+
+
+def report_alone(sweep: str, out: Path) -> None:
+    """CPU of drawing a finished sweep's report in this process, by part."""
+    c0 = time.process_time()
+    marks = []
+
+    def mark(label: str) -> None:
+        marks.append((label, time.process_time()))
+
+    import pandas as pd
+
+    from torquemod.sweep import report as rep
+    from torquemod.sweep.run import _hashable_params
+    from torquemod.sweep.spec import load_sweep
+    from torquemod.sweep.summary import point_summary
+    spec = load_sweep(sweep)
+    mark("imports, the sweep file")
+    table = _hashable_params(pd.read_parquet(out / "sweep.parquet"), spec.swept)
+    summary = point_summary(table, spec)
+
+    def shared(fn) -> dict:  # an older checkout (--src) computes the summary itself
+        return ({"summary": summary} if "summary" in inspect.signature(fn).parameters
+                else {})
+    rec = rep.recommend(table, spec, **shared(rep.recommend))
+    mark("table, point summary, recommendation")
+    figs = rep.make_figures(table, spec, rec, **shared(rep.make_figures))
+    mark(f"{len(figs)} figures drawn")
+    pngs = [(stem, rep._png(fig), caption) for stem, fig, caption in figs]
+    mark("their PNGs")
+    rep.render(table, spec, rec, pngs, **shared(rep.render))
+    mark("the page")
+    load = os.getloadavg()[0]
+    print(f"report of {out} ({len(table)} rows), load {load:.2f}:")
+    last = c0
+    for label, c in marks:
+        print(f"  {label:>38s}: {c - last:5.2f} CPU-s")
+        last = c
+    print(f"  {'total':>38s}: {last - c0:5.2f} CPU-s")
 
 
 def main() -> None:
@@ -87,10 +143,17 @@ def main() -> None:
                     help="with --wall: another checkout's src to alternate with (before)")
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--rerun", action="store_true",
+                    help="with --wall: run each finished sweep again (every point skipped)")
+    ap.add_argument("--report", type=Path, default=None, metavar="OUT",
+                    help="draw the report of the finished sweep folder OUT, timed by part")
     args = ap.parse_args()
+    if args.report is not None:
+        report_alone(args.sweep, args.report)
+        return
     if args.wall:
         srcs = ({"before": args.src} if args.src else {}) | {"after": str(HERE / "src")}
-        sweep_wall(args.sweep, srcs, args.repeat, args.workers)
+        sweep_wall(args.sweep, srcs, args.repeat, args.workers, args.rerun)
         return
 
     import torquemod.analysis.analyzer as analyzer
