@@ -161,26 +161,47 @@ def _explained(qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray, fs_hz: float,
     n = r_y.shape[0]
     p = qt.shape[0]
     k2 = 2 * orders.size
-    mt = np.empty((omegas.size * k2, n))
+    rows = np.empty((omegas.size * k2 + r_y.shape[1], n))  # M' and then r_y'
+    mt = rows[:omegas.size * k2]
     _fill_tones_t(mt, fs_hz, omegas, orders)
+    rows[omegas.size * k2:] = r_y.T
     ct = mt @ qt.T  # (M'Q): C' row by row
     out = np.empty(omegas.size)
     g = np.empty((k2, k2))
     b = np.empty(k2)
+    # the products r_M'r_y (k2) and the lower triangle of M'M (k2*(k2+1)/2) of one
+    # frequency: jobs (row of mt, other vector, target), 8 dot products per pass over the
+    # samples (each summed in sample order as one at a time: the same numbers, without
+    # waiting on one sum's additions)
+    n_jobs = k2 + k2 * (k2 + 1) // 2
+    job_a = np.empty(n_jobs, dtype=np.int64)
+    job_d = np.empty(n_jobs, dtype=np.int64)
+    sums = np.empty(n_jobs)
+    n_tone_rows = omegas.size * k2
     for f in range(omegas.size):
         o = f * k2
         col = columns[f]
+        q = 0
         for a in range(k2):
-            s = 0.0
-            for i in range(n):
-                s += mt[o + a, i] * r_y[i, col]
+            job_a[q] = o + a
+            job_d[q] = n_tone_rows + col  # the record's residual, a row after the tones
+            q += 1
+            for d in range(a + 1):
+                job_a[q] = o + a
+                job_d[q] = o + d
+                q += 1
+        for start in range(0, n_jobs, 8):
+            _dots8(rows, job_a, job_d, start, min(start + 8, n_jobs), sums)
+        q = 0
+        for a in range(k2):
+            s = sums[q]
+            q += 1
             for j in range(p):
                 s -= ct[o + a, j] * qy[j, col]
             b[a] = s
             for d in range(a + 1):
-                s = 0.0
-                for i in range(n):
-                    s += mt[o + a, i] * mt[o + d, i]
+                s = sums[q]
+                q += 1
                 for j in range(p):
                     s -= ct[o + a, j] * ct[o + d, j]
                 g[a, d] = s
@@ -212,3 +233,33 @@ def _explained(qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray, fs_hz: float,
             e += b[a] * b[a]
         out[f] = e
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _dots8(rows: np.ndarray, job_a: np.ndarray, job_d: np.ndarray, start: int, stop: int,
+           sums: np.ndarray) -> None:
+    """``sums[q] = rows[job_a[q]] . rows[job_d[q]]`` for q in ``start:stop`` (at most 8):
+    eight running sums at once, each over the samples in order (the numbers of one sum at a
+    time)."""
+    last = stop - 1
+    x0, y0 = rows[job_a[start]], rows[job_d[start]]
+    x1, y1 = rows[job_a[min(start + 1, last)]], rows[job_d[min(start + 1, last)]]
+    x2, y2 = rows[job_a[min(start + 2, last)]], rows[job_d[min(start + 2, last)]]
+    x3, y3 = rows[job_a[min(start + 3, last)]], rows[job_d[min(start + 3, last)]]
+    x4, y4 = rows[job_a[min(start + 4, last)]], rows[job_d[min(start + 4, last)]]
+    x5, y5 = rows[job_a[min(start + 5, last)]], rows[job_d[min(start + 5, last)]]
+    x6, y6 = rows[job_a[min(start + 6, last)]], rows[job_d[min(start + 6, last)]]
+    x7, y7 = rows[job_a[min(start + 7, last)]], rows[job_d[min(start + 7, last)]]
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    for i in range(rows.shape[1]):
+        s0 += x0[i] * y0[i]
+        s1 += x1[i] * y1[i]
+        s2 += x2[i] * y2[i]
+        s3 += x3[i] * y3[i]
+        s4 += x4[i] * y4[i]
+        s5 += x5[i] * y5[i]
+        s6 += x6[i] * y6[i]
+        s7 += x7[i] * y7[i]
+    acc = (s0, s1, s2, s3, s4, s5, s6, s7)
+    for q in range(stop - start):
+        sums[start + q] = acc[q]
