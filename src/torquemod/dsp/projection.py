@@ -24,12 +24,12 @@ import numba
 import numpy as np
 from scipy import linalg
 
-from torquemod.dsp.lstsq import LstsqFactor
+from torquemod.dsp.lstsq import _DPOTRF, LstsqFactor, _cholesky
 
 _TRTRS, _POTRF = linalg.get_lapack_funcs(("trtrs", "potrf"), (np.zeros((1, 1)),))
 
 
-def orthonormal_basis_t(factor: LstsqFactor) -> np.ndarray | None:
+def orthonormal_basis_t(factor: LstsqFactor, *, compiled: bool = False) -> np.ndarray | None:
     """An orthonormal basis of a design's span by CholeskyQR2, transposed.
 
     Parameters
@@ -37,6 +37,12 @@ def orthonormal_basis_t(factor: LstsqFactor) -> np.ndarray | None:
     factor : LstsqFactor
         The design's least-squares factor (its column-normalised design ``dn`` and the upper
         Cholesky factor R of ``dn'dn``).
+    compiled : bool
+        False (default): LAPACK's triangular solves (``trtrs``). True: one compiled call,
+        the triangular solves by row operations over the samples and the second factor by
+        LAPACK's ``potrf``; 2-3x faster on the chain's designs, the same span and as
+        orthonormal (the basis itself differs from the default's by rounding amplified by
+        the design's condition number: ~1e-10 relative at 1e6).
 
     Returns
     -------
@@ -45,6 +51,9 @@ def orthonormal_basis_t(factor: LstsqFactor) -> np.ndarray | None:
         (Fukaya et al. 2014); None when a triangular solve or the second factorisation
         fails (a design too ill-conditioned for it).
     """
+    if compiled:
+        qt, ok = _cholesky_qr2_t(factor.dn, factor.factor, _DPOTRF)
+        return qt if ok else None
     qt1, info = _TRTRS(factor.factor, factor.dn.T, lower=False, trans=1)  # R^-T D'
     if info != 0:
         return None
@@ -55,6 +64,46 @@ def orthonormal_basis_t(factor: LstsqFactor) -> np.ndarray | None:
     if info != 0:
         return None
     return np.ascontiguousarray(qt)
+
+
+@numba.njit(cache=True, nogil=True)
+def _cholesky_qr2_t(dn: np.ndarray, r: np.ndarray, potrf: int) -> tuple[np.ndarray, bool]:
+    """``Q' = R2^-T R^-T dn'`` (CholeskyQR2 from the factor R of ``dn'dn``, upper triangle
+    read) and whether every step succeeded."""
+    p, n = dn.shape[1], dn.shape[0]
+    qt1 = np.empty((p, n))
+    ok = _forward_rows(r, dn.T, qt1)  # R^-T dn'
+    if not ok:
+        return qt1, False
+    r2, status = _cholesky(np.asfortranarray(np.dot(qt1, qt1.T)), potrf)
+    if status == 2:  # (a condition number above 1e10 is fine here: R2 is close to I)
+        return qt1, False
+    qt = np.empty((p, n))
+    ok = _forward_rows(r2, qt1, qt)
+    return qt, ok
+
+
+@numba.njit(cache=True, nogil=True)
+def _forward_rows(r: np.ndarray, b: np.ndarray, out: np.ndarray) -> bool:
+    """``out = R^-T b`` for an upper triangular R (upper triangle read), row by row:
+    ``out_i = (b_i - sum_{j<i} R[j, i] out_j)/R[i, i]``, each an operation over the rows'
+    samples; False on a zero diagonal element."""
+    p, n = b.shape
+    for i in range(p):
+        d = r[i, i]
+        if d == 0.0:
+            return False
+        oi = out[i]
+        for t in range(n):
+            oi[t] = b[i, t]
+        for j in range(i):
+            c = r[j, i]
+            oj = out[j]
+            for t in range(n):
+                oi[t] -= c * oj[t]
+        for t in range(n):
+            oi[t] /= d
+    return True
 
 
 def tone_columns(n: int, fs_hz: float, frequencies_hz, orders=(1,)) -> np.ndarray:

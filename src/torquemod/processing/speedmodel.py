@@ -141,16 +141,17 @@ class SpeedModel:
             return 1.0
         v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
         fac = self.factor if self.factor is not None else filters.LstsqFactor.of(d)
-        qt = projection.orthonormal_basis_t(fac) if fac is not None else None
+        qt = projection.orthonormal_basis_t(fac, compiled=True) if fac is not None else None
         if qt is None:
             # a design rank deficient to rounding (the fit fell back to the SVD): Q from
             # the SVD, over its numerical rank
             u, sv, _ = np.linalg.svd(d / np.sqrt(np.einsum("ij,ij->j", d, d)),
                                      full_matrices=False)
             qt = u[:, sv > sv[0] * 1e-10].T
-        # Q orthonormal to rounding (CholeskyQR2 from the fit's own factor,
-        # dsp.projection): the fraction agrees with an SVD of the design to ~1e-12 relative
-        # and moves by about as little when the inputs move by rounding
+        # Q orthonormal to rounding (CholeskyQR2 from the fit's own factor, the compiled
+        # route of dsp.projection; the fraction depends on Q's span alone, so on the route
+        # by ~1e-12 relative): the fraction agrees with an SVD of the design to ~1e-12
+        # relative and moves by about as little when the inputs move by rounding
         # (tests/processing/test_chain_floor.py). Q = D L^-T from the normal equations alone
         # (the condition number, ~1e6 here, squared) was off by 2-6e-5 relative and moved
         # by as much with any rounding-level change of the design.
