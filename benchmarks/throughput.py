@@ -189,7 +189,8 @@ def chain_throughput(repeat: int = 7) -> None:
     speedmodel = sys.modules.get("torquemod.processing.speedmodel", chain)
     per_length = [getattr(mod, name) for mod, name in (
         (filters, "_slow_basis_cached"), (spectrum, "_window"), (spectrum, "_trend_design"),
-        (spectrum, "_grid"), (speedmodel, "_hann"), (speedmodel, "_hann_fourier"))
+        (spectrum, "_grid"), (speedmodel, "_hann"), (speedmodel, "_hann_fourier"),
+        (speedmodel, "_centred_time"), (sys.modules["torquemod.dsp.phase"], "_frequencies"))
         if hasattr(mod, name)]
 
     def cold() -> None:  # every cycle of a new length: the per-length caches miss

@@ -157,7 +157,8 @@ class SpeedModel:
         # by as much with any rounding-level change of the design.
         qv = qt @ v  # v: the real parts, then the imaginary parts
         kept = 1.0 - (qv * qv).sum(axis=0).reshape(2, -1).sum(axis=0) / v_power
-        return float(np.clip(np.mean(kept), 0.05, 1.0))
+        # np.clip(np.mean(kept), 0.05, 1.0)'s numbers (NaN stays NaN) on Python floats
+        return min(max(float(kept.sum()) / kept.size, 0.05), 1.0)
 
     def mean(self, name: str) -> float:
         """Step-8 mean: the record's mean less the fitted modulation and rotation orders (the
@@ -173,6 +174,14 @@ def _trace_of_inverse_2x2(a: np.ndarray) -> float:
     """``trace(inv(a))`` of a 2x2 matrix: ``(a00 + a11)/det(a)``."""
     a00, a01, a10, a11 = (float(v) for v in a.ravel())
     return (a00 + a11) / (a00 * a11 - a01 * a10)
+
+
+@functools.lru_cache(maxsize=16)
+def _centred_time(n: int, fs_hz: float) -> np.ndarray:
+    """``(arange(n) - (n - 1)/2)/fs_hz`` [s], cached read-only (one per record length)."""
+    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    t.setflags(write=False)
+    return t
 
 
 def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
@@ -198,7 +207,7 @@ def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
     ndarray
         (n, 2*(1 + len(harmonics))) columns [-].
     """
-    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    t = _centred_time(int(n), float(fs_hz))
     w = 2 * np.pi * modulation_hz
     out = np.empty((n, 2 + 2 * len(harmonics)))
     for i, k in enumerate((1, *harmonics)):
@@ -427,7 +436,7 @@ class _SlowOrdersRemoval:
                 if not curvature < 0:  # not near a maximum: keep the spectral peak's value
                     f[i] = peaks[i]
                     continue
-                step = float(np.clip(0.5 * h * (e_lo - e_hi) / curvature, -2.0 * h, 2.0 * h))
+                step = min(max(0.5 * h * (e_lo - e_hi) / curvature, -2.0 * h), 2.0 * h)
                 f[i] += step
                 if not abs(step) < tol_hz:
                     still.append(i)
