@@ -6,6 +6,14 @@ Golub & Van Loan, *Matrix Computations* (4th ed.), section 5.3.2 (normal equatio
 section 3.5.3 (iterative refinement): the normal equations square the condition number, and
 two refinement steps on the residual bring the solution to the SVD's accuracy for these
 well-conditioned designs; near rank deficiency :func:`lstsq` falls back to the SVD.
+
+The factorisation and the refined solve each run as one compiled call (numba) that makes the
+BLAS products numpy made and calls LAPACK's ``potrf`` and ``potrs`` in scipy's own library
+at their addresses (``scipy.linalg.cython_lapack``): the same routines with the same
+arguments as ``scipy.linalg.cho_factor`` and ``cho_solve``, so the same numbers, without
+the Python-level cost of a dozen numpy and scipy calls per solve. Designs and records in
+another memory layout (a strided column, a Fortran-ordered design) keep numpy's route,
+whose BLAS calls differ with the layout.
 """
 
 from __future__ import annotations
@@ -86,7 +94,8 @@ class LstsqFactor:
 
     dn: np.ndarray  # design with unit-norm columns
     scale: np.ndarray  # the columns' norms
-    factor: np.ndarray  # upper Cholesky factor of dn.T @ dn (zeros below the diagonal)
+    factor: np.ndarray  # upper Cholesky factor of dn.T @ dn (LAPACK's layout: Fortran
+    # order, the upper triangle; the lower one is not part of it)
     gram: np.ndarray | None = None  # dn.T @ dn itself, when asked for (keep_gram)
 
     @classmethod
@@ -138,7 +147,9 @@ class LstsqFactor:
         y = np.asarray(y, dtype=np.float64)
         if self.dn.flags.c_contiguous and (y.ndim == 2 or y.flags.c_contiguous):
             # one compiled call (a fresh C copy of y: one signature per dimension)
-            return _solve(self.dn, self.factor, self.scale, np.array(y, order="C"), _DPOTRS)
+            # (LAPACK reads the factor in Fortran order: a factor made elsewhere is copied)
+            return _solve(self.dn, np.asfortranarray(self.factor), self.scale,
+                          np.array(y, order="C"), _DPOTRS)
         # numpy's route (BLAS's matrix-vector products of a strided vector, and of another
         # layout, are their own; this keeps their numbers)
         dn = self.dn
