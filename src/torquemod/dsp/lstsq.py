@@ -106,8 +106,9 @@ class LstsqFactor:
         d = np.asarray(design, dtype=np.float64)
         if d.ndim != 2 or not d.shape[1]:
             return None
-        if d.flags.c_contiguous:  # the column norms and the normalised design in one
-            dn, scale = _normalised(d)  # compiled call (the same numbers as below)
+        if d.flags.c_contiguous and d.shape[1] > 1:  # the column norms and the normalised
+            dn, scale = _normalised(d)  # design in one compiled call (the same numbers as
+            # below; einsum sums a single column in another order)
         else:  # numpy's route: a layout's BLAS calls are its own
             scale = np.sqrt(np.einsum("ij,ij->j", d, d))
             dn = d / scale if scale.min() > 0 else d
@@ -216,16 +217,51 @@ def _cholesky(a: np.ndarray, potrf: int) -> tuple[np.ndarray, int]:
     return a, 0
 
 
+def column_sums_of_squares(a: np.ndarray) -> np.ndarray:
+    """The sum of squares of each column of a matrix, ``einsum("ij,ij->j", a, a)``.
+
+    Parameters
+    ----------
+    a : ndarray
+        ``(n, m)`` matrix, any unit.
+
+    Returns
+    -------
+    ndarray
+        ``(m,)`` sums [unit^2]: einsum's own numbers (each column summed row by row) from
+        one compiled call for a C-ordered float64 matrix of two or more columns; einsum
+        itself otherwise.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> column_sums_of_squares(np.array([[1.0, 2.0], [3.0, 4.0]])).tolist()
+    [10.0, 20.0]
+    """
+    a = np.asarray(a)
+    if a.dtype == np.float64 and a.ndim == 2 and a.shape[1] > 1 and a.flags.c_contiguous:
+        return _sums_of_squares(a)
+    return np.einsum("ij,ij->j", a, a)
+
+
 @numba.njit(cache=True, nogil=True)
-def _normalised(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The columns' norms (summed row by row: the numbers of ``einsum("ij,ij->j")``) and
-    the design divided by them (empty when a norm is zero or not finite)."""
+def _sums_of_squares(d: np.ndarray) -> np.ndarray:
+    """Each column's sum of squares, summed row by row (``einsum("ij,ij->j")``'s order for
+    two or more columns)."""
     n, m = d.shape
     acc = np.zeros(m)
     for i in range(n):
         for j in range(m):
             acc[j] += d[i, j] * d[i, j]
-    scale = np.sqrt(acc)
+    return acc
+
+
+@numba.njit(cache=True, nogil=True)
+def _normalised(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The columns' norms (:func:`_sums_of_squares`) and the design divided by them (empty
+    when a norm is zero or not finite)."""
+    m = d.shape[1]
+    scale = np.sqrt(_sums_of_squares(d))
     for j in range(m):
         if not scale[j] > 0.0:  # (NaN too)
             return np.empty((0, m)), scale
