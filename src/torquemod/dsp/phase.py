@@ -199,15 +199,16 @@ def peak_valley_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod
     for t_all, w_all, kind in ((t_pk, w_pk, "peaks"), (t_vl, w_vl, "valleys")):
         if t_all.size < n_periods or w_all.size == 0:
             raise ProcessingError(f"fewer than {n_periods} torque {kind} in the cycle")
-        w_list = w_all.tolist()  # (Python floats: the same differences, no numpy calls)
-        for t in _closest(t_all, center_s, n_periods).tolist():
-            # the nearest wheel extremum, the first on a tie (np.argmin's)
-            j = min(range(len(w_list)), key=lambda i, t=t: abs(w_list[i] - t))
-            if abs(w_list[j] - t) > period / 2:
+        ts = _closest(t_all, center_s, n_periods)
+        gaps = np.abs(w_all[None, :] - ts[:, None])  # each torque extremum's distance to
+        nearest = gaps.argmin(axis=1)  # every wheel extremum; the first nearest on a tie
+        for t, j, gap in zip(ts.tolist(), nearest.tolist(),
+                             gaps[np.arange(ts.size), nearest].tolist(), strict=True):
+            if gap > period / 2:
                 raise ProcessingError(f"no wheel-speed extremum within half a period of the "
                                       f"torque extremum at {t:.3f} s")
             t_sel.append(t)
-            w_sel.append(w_list[j])
+            w_sel.append(w_all[j])
     t_sel, w_sel = np.asarray(t_sel), np.asarray(w_sel)
     pair = 360.0 * f_mod_hz * (w_sel - t_sel)
     return PeakValleyResult(float(pair.mean()), pair, t_sel, w_sel)
