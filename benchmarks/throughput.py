@@ -83,6 +83,12 @@ decimation 1.08-1.10 ms both; chain 6.44-6.55 -> 4.99-5.02 ms; chain / decimator
 5.95x -> 4.56-4.61x (load 5.8, two more pairs: 6.22-6.30 -> 4.64-4.69 ms, 6.02-6.14x ->
 4.95-5.04x). Step 1's search on an orthonormal basis in one compiled call per step
 (torquemod.dsp.projection), per-length designs cached; docs/performance.md has the rest.
+
+Sixth round, ``--ratio-only`` (main 3ce1749 then this version, interleaved three times,
+load 7.4-8.7): chain 4.77-4.98 -> 4.18-4.33 ms, the rest 3.79-3.91 -> 3.21-3.28 ms, chain /
+decimator pass 4.62-4.91x -> 4.10-4.31x, the phase bit for bit (compiled least squares
+calling LAPACK at scipy's addresses; docs/performance.md, "The rest, compiled where the
+numbers stay the same").
 """
 
 from __future__ import annotations
