@@ -264,6 +264,9 @@ def test_compiled_lstsq_factor_is_scipys_cholesky_route(seed, layout):
                                    rtol=1e-12, atol=0)
     for arr in (fac.dn, fac.scale, fac.factor, fac.gram, sub.dn, sub.factor):
         assert not arr.flags.writeable
+    gram = fac.gram.copy()  # LAPACK factors a copy, also of a 1 x 1 block
+    assert fac.trailing(design.shape[1] - 1) is not None
+    np.testing.assert_array_equal(fac.gram, gram)
 
 
 def test_lstsq_factor_refuses_what_lstsq_leaves_to_the_svd():

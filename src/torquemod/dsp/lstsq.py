@@ -117,7 +117,8 @@ class LstsqFactor:
         # the normal matrix by numpy (BLAS syrk) and its factor by LAPACK's potrf, the
         # routines and arguments of scipy.linalg.cho_factor
         gram = dn.T @ dn
-        factor, status = _cholesky(np.asfortranarray(gram), _DPOTRF)
+        factor, status = _cholesky(np.array(gram, order="F"), _DPOTRF)  # (a copy: potrf
+        # works in place, and a 1 x 1 matrix is already in Fortran order)
         if status != 0:
             return None
         for a in (dn, scale, gram, factor):
@@ -132,7 +133,7 @@ class LstsqFactor:
         give None."""
         if self.gram is None or not 0 <= k < self.gram.shape[0]:
             return None
-        factor, status = _cholesky(np.asfortranarray(self.gram[k:, k:]), _DPOTRF)
+        factor, status = _cholesky(np.array(self.gram[k:, k:], order="F"), _DPOTRF)
         if status != 0:
             return None
         dn = self.dn[:, k:]
