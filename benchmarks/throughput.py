@@ -85,8 +85,8 @@ decimation 1.08-1.10 ms both; chain 6.44-6.55 -> 4.99-5.02 ms; chain / decimator
 (torquemod.dsp.projection), per-length designs cached; docs/performance.md has the rest.
 
 Sixth round, ``--ratio-only`` (main 3ce1749 then this version, interleaved three times,
-load 7.4-8.7): chain 4.77-4.98 -> 4.18-4.33 ms, the rest 3.79-3.91 -> 3.21-3.28 ms, chain /
-decimator pass 4.62-4.91x -> 4.10-4.31x, the phase bit for bit (compiled least squares
+load 6.3-6.7): chain 4.57-4.84 -> 4.06-4.23 ms, the rest 3.63-3.68 -> 3.13-3.17 ms, chain /
+decimator pass 4.18-4.87x -> 3.99-4.35x, the phase bit for bit (compiled least squares
 calling LAPACK at scipy's addresses; docs/performance.md, "The rest, compiled where the
 numbers stay the same").
 """
