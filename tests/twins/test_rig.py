@@ -22,7 +22,7 @@ from torquemod.twins.vtrack.rig.dynamics import (
 )
 from torquemod.twins.vtrack.rig.lanes import integrate
 from torquemod.twins.vtrack.rig.sensors import encoder_speed, measure
-from torquemod.twins.vtrack.simulate import load_config, stiffest_rate
+from torquemod.twins.vtrack.simulate import MAX_LAMBDA_H, load_config, stiffest_rate
 from torquemod.twins.vtrack.theory import operating_point
 
 COL = {n: i for i, n in enumerate(OUT_COLUMNS)}
@@ -67,13 +67,14 @@ def run(cfg, dc, seconds, *, amp=0.0, substeps=1, samples_per_step=None, dc_from
 
 
 def test_default_step():
-    """The configured step spans eight samples (h = 8/16670 s, issue 12), inside RK4's
-    stability region (|lambda*h| < 2.8) and the twin's limit 2.0 for the stiffest mode (the
-    platform's PI loop, lambda ~ 3300 1/s)."""
+    """The configured step spans twelve samples (h = 12/16670 s), inside RK4's stability
+    region (|lambda*h| < 2.78 on the real axis) and the twin's limit 2.5 for the stiffest
+    mode (the platform's PI loop, lambda ~ 3300 1/s)."""
     cfg = load_config()
-    assert (cfg.procedure.samples_per_step, cfg.procedure.substeps) == (8, 1)
+    assert (cfg.procedure.samples_per_step, cfg.procedure.substeps) == (12, 1)
     assert stiffest_rate(cfg.rig) == pytest.approx(3333.3, rel=1e-3)
-    assert stiffest_rate(cfg.rig) * 8 / FS == pytest.approx(1.6, rel=1e-3)
+    assert stiffest_rate(cfg.rig) * 12 / FS == pytest.approx(2.4, rel=1e-3)
+    assert stiffest_rate(cfg.rig) * 12 / FS <= MAX_LAMBDA_H < 2.78
 
 
 def test_normal_load_disturbances(quiet, noisy):

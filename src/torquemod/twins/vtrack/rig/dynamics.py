@@ -25,7 +25,7 @@ Equations (derived for this model; the contact force is quasi-static, Polach 200
 The motor torque is ``T_m = T_dc(t) + A*sin(2*pi*f*(t - t_gen) + phi)`` with a DC ramp.
 
 Integration (:mod:`torquemod.twins.vtrack.rig.lanes`): classical RK4 at a fixed step of
-``samples_per_step`` output samples (default 8, configured in ``[procedure]``); samples inside
+``samples_per_step`` output samples (default 12, configured in ``[procedure]``); samples inside
 a step are the cubic Hermite interpolant of the step's end states and slopes, with the contact
 forces evaluated at that state -- exactly at the step's middle sample, and for the other inner
 samples of an even block of >= 4 by the cubic through the exact forces half a step before, at
@@ -173,8 +173,8 @@ def normal_load(th_p: float, p: np.ndarray) -> float:
 # Within one RK4 step the platform turns by ~5e-4 rad, so every evaluation of the normal load
 # in the step is written as its sines and decay at the step's start angle (the "anchor")
 # rotated/decayed by the small increment: the rotations' sin and cos by Taylor polynomials
-# accurate to rounding for |u| <= _ROT (a joint's ringing turns by ~0.12 rad in a step of
-# 8 samples, the sleepers' argument by ~0.05 rad), the decay's exp for |x| <= _SMALL
+# accurate to rounding for |u| <= _ROT (a joint's ringing turns by ~0.18 rad in a step of
+# 12 samples, the sleepers' argument by ~0.07 rad), the decay's exp for |x| <= _SMALL
 # (:mod:`torquemod.twins.vtrack.rig.kernels`). The anchor itself is advanced the same way
 # from step to step and evaluated exactly every _ANCHOR_EXACT steps. Larger increments, and
 # a rail joint between anchor and angle, fall back to the exact :func:`normal_load`.
