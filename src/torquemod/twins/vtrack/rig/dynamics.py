@@ -29,7 +29,8 @@ Integration (:mod:`torquemod.twins.vtrack.rig.lanes`): classical RK4 at a fixed 
 a step are the cubic Hermite interpolant of the step's end states and slopes, with the contact
 forces evaluated at that state -- exactly at the step's middle sample, and for the other inner
 samples of an even block of >= 4 by the cubic through the exact forces half a step before, at
-the ends and the middle (to ~1e-6 N; exact at rail joints and in fast transients; see
+the ends and the middle (to ~1e-6 N at 4 samples, ~1e-3 N at the default 12 -- the error grows
+as h^4 through a rail joint's ringing; exact at rail joints and in fast transients; see
 :func:`torquemod.twins.vtrack.rig.lanes.integrate`).
 The dynamics (and so the phase) never read these recorded forces. The work per step is trimmed
 without changing the equations: the modulation sine is rotated from step to step, the normal
@@ -405,8 +406,8 @@ def _hermite(w00, w10, w01, w11, y0, y1, y2, y3, y4, y5, y6, a0, a1, a2, a5, a6,
 
 #: largest miss of the quadratic at the step's middle, relative to the normal load, for which
 #: the inner samples take the contact from the cubic (1e-3 N at 4200 N: 99.9 % of the steps
-#: of the default experiment, whose misses stay below 2e-4 N; 0.6 N after a start off
-#: equilibrium)
+#: of the default experiment at 8 samples a step, whose misses stayed below 2e-4 N; 0.6 N
+#: after a start off equilibrium; the miss grows as h^3)
 _CUBIC_MISS = 2.5e-7
 
 
