@@ -25,7 +25,9 @@ each wall time, the CPU of the command and its workers, and the ratio of the med
 ``--rerun`` each finished sweep is run again in its folder (every point skipped: what a
 sweep costs besides its points). ``--report DIR`` draws the report of a finished sweep
 folder in this process and prints the CPU of its parts (imports, point summary,
-figures, PNGs, page).
+figures, PNGs, page). ``--worker`` evaluates ``--points`` points in this process, in a
+worker of Dask's default local cluster and in a worker of torquemod's, and prints the CPU
+of each (what the worker's settings cost a point).
 
 The shares bound what a faster stage can give the sweep: a stage of share s made
 infinitely fast speeds the sweep up by at most 1/(1 - s) (Amdahl).
@@ -34,6 +36,7 @@ infinitely fast speeds the sweep up by at most 1/(1 - s) (Amdahl).
                                      [--sweep examples/sweep_vtrack_conditions.toml]
     python benchmarks/sweep_point.py --wall [--src /work/main/src] [--repeat 1] [--rerun]
     python benchmarks/sweep_point.py --report OUT [--sweep SWEEP]
+    python benchmarks/sweep_point.py --worker [--points 6] [--repeat 1]
 """
 
 from __future__ import annotations
@@ -130,6 +133,45 @@ def report_alone(sweep: str, out: Path) -> None:
     print(f"  {'total':>38s}: {last - c0:5.2f} CPU-s")
 
 
+def _points_cpu(sweep: str, n: int) -> tuple[float, float]:
+    """(CPU of this process [s], wall [s]) of ``n`` points of ``sweep`` after one warm-up
+    point (a Dask task: process-wide CPU, every thread of the worker counted)."""
+    from torquemod.sweep.evaluate import evaluate_point, tasks
+    from torquemod.sweep.spec import load_sweep
+    todo = tasks(load_sweep(sweep))
+    evaluate_point(todo[1])
+    c0, t0 = time.process_time(), time.perf_counter()
+    for task in todo[2:2 + n]:
+        evaluate_point(task)
+    return time.process_time() - c0, time.perf_counter() - t0
+
+
+def worker_cost(sweep: str, n: int, repeat: int) -> None:
+    """The same points in this process, on a worker of Dask's default local cluster and on
+    a worker of torquemod's (``torquemod._util.daskutil.dask_client``), alternated."""
+    import logging
+
+    from dask.distributed import Client, LocalCluster
+
+    from torquemod._util.daskutil import dask_client
+    for r in range(repeat):
+        load = os.getloadavg()[0]
+        bare = _points_cpu(sweep, n)
+        with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                          dashboard_address=None, silence_logs=logging.CRITICAL) as cluster, \
+                Client(cluster) as client:
+            default = client.submit(_points_cpu, sweep, n, pure=False).result()
+        # Dask's nanny left its settings in this process's environment, where the next
+        # workers would inherit them; a torquemod command starts one cluster from a clean one
+        os.environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+        with dask_client(None, 1) as client:
+            ours = client.submit(_points_cpu, sweep, n, pure=False).result()
+        print(f"round {r + 1}, {n} points, load {load:.2f} -> {os.getloadavg()[0]:.2f}: "
+              f"this process {bare[0]:.2f} CPU-s; Dask's default worker {default[0]:.2f} "
+              f"(x{default[0] / bare[0]:.2f}); torquemod's worker {ours[0]:.2f} "
+              f"(x{ours[0] / bare[0]:.2f})", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=6)
@@ -147,7 +189,13 @@ def main() -> None:
                     help="with --wall: run each finished sweep again (every point skipped)")
     ap.add_argument("--report", type=Path, default=None, metavar="OUT",
                     help="draw the report of the finished sweep folder OUT, timed by part")
+    ap.add_argument("--worker", action="store_true",
+                    help="--points points in this process, on a default Dask worker and on "
+                         "torquemod's local worker (CPU each)")
     args = ap.parse_args()
+    if args.worker:
+        worker_cost(args.sweep, args.points, args.repeat)
+        return
     if args.report is not None:
         report_alone(args.sweep, args.report)
         return
