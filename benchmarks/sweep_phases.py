@@ -1,0 +1,88 @@
+"""Where a ``torquemod sweep`` command's time goes besides its points: a timeline.
+
+Runs the command in this process (its arguments after ``--``) with its stages wrapped, and
+prints, as each stage starts and ends, the wall time since the start and this process's
+CPU (the command, the Dask scheduler and the nannies; not the workers): the sweep file,
+the points' decision, the cluster's start, the first and last result, assembling the
+table, the recommendation, the Parquet, the report; at the end the CPU of the workers
+(children). Run on a finished folder, it times a rerun whose points are all skipped.
+
+    python benchmarks/sweep_phases.py -- examples/sweep_vtrack_conditions.toml --out OUT \
+        --workers 2 --quiet
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import os
+import resource
+import sys
+import time
+
+
+def main(argv: list[str]) -> None:
+    t0, c0 = time.perf_counter(), time.process_time()
+
+    def stamp(label: str) -> None:
+        print(f"{time.perf_counter() - t0:8.2f} s wall {time.process_time() - c0:7.2f} "
+              f"CPU-s  {label}", file=sys.stderr, flush=True)
+
+    import dask.distributed as dd
+
+    import torquemod._util.daskutil as daskutil
+    import torquemod.cli as cli
+    import torquemod.sweep.report as report
+    import torquemod.sweep.run as run
+    import torquemod.sweep.spec as spec
+    stamp("imports (the command, Dask, the report)")
+
+    def wrap(mod, name: str) -> None:
+        fn = getattr(mod, name)
+
+        @functools.wraps(fn)
+        def timed(*a, **k):
+            stamp(f"> {name}")
+            try:
+                return fn(*a, **k)
+            finally:
+                stamp(f"< {name}")
+        setattr(mod, name, timed)
+
+    for mod, name in ((spec, "load_sweep"), (run, "load_sweep"), (run, "one_study"),
+                      (run, "_unchanged"), (run, "assemble"), (run, "_write_parquet"),
+                      (report, "recommend"), (report, "write_report")):
+        if hasattr(mod, name):
+            wrap(mod, name)
+    client_of = daskutil.dask_client
+
+    @contextlib.contextmanager
+    def client(*a, **k):
+        stamp("> cluster start")
+        with client_of(*a, **k) as c:
+            stamp("< cluster start")
+            yield c
+            stamp("> cluster close (in a thread when the caller passes `closing`)")
+        stamp("< cluster close")
+    daskutil.dask_client = client
+    completed = dd.as_completed
+
+    def results(futures):
+        stamp(f"{len(futures)} tasks submitted")
+        for k, fut in enumerate(completed(futures)):
+            if k == 0:
+                stamp("first result")
+            yield fut
+        stamp("last result")
+    dd.as_completed = results
+    with contextlib.suppress(SystemExit):
+        cli.main(argv)
+    stamp("end")
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    print(f"workers (children) CPU {children.ru_utime + children.ru_stime:.2f} s, load "
+          f"{os.getloadavg()[0]:.2f}", file=sys.stderr)
+
+
+if __name__ == "__main__":  # the workers import this file as their __mp_main__: no run there
+    args = sys.argv[1:]
+    main(["sweep", *args[args.index("--") + 1:]] if "--" in args else ["sweep", *args])
