@@ -218,7 +218,8 @@ def test_resume_skips_finished_points_and_force_reruns(theory_sweep):
 
 def test_dask_local_cluster_gives_the_in_process_rows(tmp_path, theory_sweep):
     """Two points as tasks on a LocalCluster of 2 worker processes: the same rows as the
-    in-process run of the same points (same ids: same parameters and seed)."""
+    in-process run of the same points (same ids: same parameters and seed). Run again,
+    both are skipped without a cluster (the command decides them)."""
     _, _, inproc = theory_sweep
     spec = parse_sweep(THEORY.replace("[2.0, 3.0]", "[3.0]"))
     links = []
@@ -229,6 +230,11 @@ def test_dask_local_cluster_gives_the_in_process_rows(tmp_path, theory_sweep):
     cols = [c for c in ref if c not in ("point_wall_s", "point_index")]
     pd.testing.assert_frame_equal(res.table[cols].reset_index(drop=True),
                                   ref[cols].reset_index(drop=True))
+    seen = []
+    again = run_sweep(spec, tmp_path / "dask", n_workers=2, report=False,
+                      on_dashboard=seen.append)
+    assert again.count("skipped") == 2 and again.dashboard is None and seen == []
+    pd.testing.assert_frame_equal(again.table, res.table)
 
 
 def test_failed_points_become_rows_and_the_sweep_goes_on(tmp_path):
