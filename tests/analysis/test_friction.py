@@ -28,7 +28,7 @@ from torquemod.analysis.friction import (
     fit_available_adhesion,
     fit_available_adhesion_from_phase,
 )
-from torquemod.analysis.frictiongrid import _chi_grid
+from torquemod.analysis.frictiongrid import _chi_kernel
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import _independent_laws as laws
@@ -46,9 +46,9 @@ def test_kernel_equals_nonnegative_least_squares():
         y = rng.uniform(5.0, 80.0, 7)
         se = rng.uniform(0.5, 3.0, 7)
         p_grid = coa.max() * np.array([1.05, 1.3, 2.0])
-        chi, amp, _frac = _chi_grid(tabs.s, tabs.ds, np.zeros((0, 1, 1)), SWING_A,
-                                   tabs.f_peak, pairs, coa, y, se * se, 0.01, np.zeros(7),
-                                   np.zeros(7), p_grid, 1.0, 0.0, 1, tabs.beta_h, 0.0)
+        chi, amp, _frac = _chi_kernel(tabs.s, tabs.ds, np.zeros((0, 1, 1)), SWING_A,
+                                     tabs.f_peak, pairs, coa, y, se * se, 0.01, np.zeros(7),
+                                     np.zeros(7), p_grid, 1.0, 0.0, 1, tabs.beta_h, 0.0)
         w = 1.0 / np.sqrt(se**2 + (0.01 * y) ** 2)
         for q, (a, b) in enumerate(pairs):
             for m, p in enumerate(p_grid):
