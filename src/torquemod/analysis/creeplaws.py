@@ -161,9 +161,10 @@ def family() -> tuple[Member, ...]:
 def neighbour_pairs() -> np.ndarray:
     """(K, 2) indices of the members that are neighbours on one parameter's grid (r of
     ``polach``; r, A and beta of ``polach_falling``; d of ``burckhardt``; p and q of
-    ``saturation``, and q of its p = 1 tail; kappa of ``knee``). The estimator fits every non-negative mixture
-    ``(alpha*s_a + beta*s_b)/(alpha + beta)`` of a pair: itself a valid curve (s falls from 1
-    to 0), so the family is continuous along those grids instead of stepping with them."""
+    ``saturation``, and q of its p = 1 tail; kappa of ``knee``). The estimator fits every
+    non-negative mixture ``(alpha*s_a + beta*s_b)/(alpha + beta)`` of a pair: itself a valid
+    curve (s falls from 1 to 0), so the family is continuous along those grids instead of
+    stepping with them."""
     members = family()
     index = {(m.law, m.params): i for i, m in enumerate(members)}
     pairs = []
