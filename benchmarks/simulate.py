@@ -36,6 +36,11 @@ the one-core figure. ``--repeat`` runs each measurement N times and prints every
 the best; the machine's other load shows as spread between repeats. Every timed run starts
 with the theory's memos cleared (:func:`cold_theory`), as a fresh process would.
 
+Later figures are in docs/performance.md ("The twin in a sweep" and "The twin's integrator,
+faster": the RK4 step of 12 samples and the normal load without its exact fall-back, batch
+519-538x -> 778-782x real time per core, 570-579x -> 889-898x without the large-signal
+theory).
+
 Measured, fifth round of issue 12 (the same 2-core VM, load average 0.1-1.2 from other
 agents; "before" = commit 472e5c0 from an exported copy, before and after alternated in 3
 rounds with the final code; x real time is the best of 3 in-process runs after a warm-up;

@@ -22,7 +22,7 @@ from torquemod.twins.vtrack.rig.dynamics import (
 )
 from torquemod.twins.vtrack.rig.lanes import integrate
 from torquemod.twins.vtrack.rig.sensors import encoder_speed, measure
-from torquemod.twins.vtrack.simulate import load_config, stiffest_rate
+from torquemod.twins.vtrack.simulate import MAX_LAMBDA_H, load_config, stiffest_rate
 from torquemod.twins.vtrack.theory import operating_point
 
 COL = {n: i for i, n in enumerate(OUT_COLUMNS)}
@@ -67,13 +67,14 @@ def run(cfg, dc, seconds, *, amp=0.0, substeps=1, samples_per_step=None, dc_from
 
 
 def test_default_step():
-    """The configured step spans eight samples (h = 8/16670 s, issue 12), inside RK4's
-    stability region (|lambda*h| < 2.8) and the twin's limit 2.0 for the stiffest mode (the
-    platform's PI loop, lambda ~ 3300 1/s)."""
+    """The configured step spans twelve samples (h = 12/16670 s), inside RK4's stability
+    region (|lambda*h| < 2.78 on the real axis) and the twin's limit 2.5 for the stiffest
+    mode (the platform's PI loop, lambda ~ 3300 1/s)."""
     cfg = load_config()
-    assert (cfg.procedure.samples_per_step, cfg.procedure.substeps) == (8, 1)
+    assert (cfg.procedure.samples_per_step, cfg.procedure.substeps) == (12, 1)
     assert stiffest_rate(cfg.rig) == pytest.approx(3333.3, rel=1e-3)
-    assert stiffest_rate(cfg.rig) * 8 / FS == pytest.approx(1.6, rel=1e-3)
+    assert stiffest_rate(cfg.rig) * 12 / FS == pytest.approx(2.4, rel=1e-3)
+    assert stiffest_rate(cfg.rig) * 12 / FS <= MAX_LAMBDA_H < 2.78
 
 
 def test_normal_load_disturbances(quiet, noisy):
@@ -320,12 +321,15 @@ def test_wheel_follows_the_wobbling_platform(quiet, wobble):
         assert np.mean(xi) == pytest.approx(operating_point(dc, rig).creepage, rel=0.01)
 
 
-def test_inner_samples_carry_the_contact_at_their_state(noisy, wobble):
-    """Inner samples of a 4-sample step take Fx, Fy, N from the cubic through exact values
+@pytest.mark.parametrize(("m", "tol_n"), [(4, 1e-4), (12, 2e-3)])
+def test_inner_samples_carry_the_contact_at_their_state(noisy, wobble, m, tol_n):
+    """Inner samples of an m-sample step take Fx, Fy, N from the cubic through exact values
     (dynamics._cubic_weights) except at rail joints and fast transients: against the contact
     evaluated afresh at every recorded state (Polach and normal_load, independent code), the
-    recorded forces agree to 1e-4 N (measured 6e-6 N, the sensor noise is 3 N), through a
-    start off equilibrium, the DC ramp and a rail joint."""
+    recorded forces agree to ``tol_n`` through a start off equilibrium, the DC ramp and a
+    rail joint: 4 samples to 1e-4 N (measured 6e-6 N), the default 12 to 2e-3 N (measured
+    1.0e-3 N in N and 9e-4 N in Fx: the cubic's error grows as h^4 through the joint's
+    40 Hz ringing); the sensor noise is 3 N."""
     from torquemod.analysis.contact.polach import creep_force
     rig = noisy.rig
     op = operating_point(44.47, rig)
@@ -334,7 +338,7 @@ def test_inner_samples_carry_the_contact_at_their_state(noisy, wobble):
     out = np.empty((int(2.0 * FS), len(OUT_COLUMNS)))
     # the motor torque starts at 40 N*m on a state balanced at 44.47: off equilibrium
     integrate(y, 0.0, out.shape[0], 1 / FS, 1, p, 40.0, 44.47, 0.0, 0.5, 8.0, 2 * np.pi * 2.0,
-              0.3, 0.0, 0.05, out, 4, wobble)
+              0.3, 0.0, 0.05, out, m, wobble)
     th = out[:, COL["platform_angle_rad"]]
     pitch = 2 * np.pi / noisy.disturbances.joint_count
     assert (np.diff((th - 0.5 * pitch) % pitch) < 0).any()  # a joint is crossed
@@ -342,6 +346,6 @@ def test_inner_samples_carry_the_contact_at_their_state(noisy, wobble):
     v = out[:, COL["platform_speed_rad_s"]] * rig.platform_radius_m
     fx, fy = creep_force(out[:, COL["creepage"]], rig.contact.lateral_creepage,
                          normal_load_n=n, speed_m_s=v, **rig.contact.polach_kwargs())
-    np.testing.assert_allclose(out[:, COL["fz_n"]], n, rtol=0, atol=1e-4)
-    np.testing.assert_allclose(out[:, COL["fx_n"]], fx, rtol=0, atol=1e-4)
-    np.testing.assert_allclose(out[:, COL["fy_n"]], fy, rtol=0, atol=1e-4)
+    np.testing.assert_allclose(out[:, COL["fz_n"]], n, rtol=0, atol=tol_n)
+    np.testing.assert_allclose(out[:, COL["fx_n"]], fx, rtol=0, atol=tol_n)
+    np.testing.assert_allclose(out[:, COL["fy_n"]], fy, rtol=0, atol=tol_n)

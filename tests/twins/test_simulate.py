@@ -210,7 +210,7 @@ def test_mean_creepage_matches_steady_state(oracle_run):
 
 
 def test_integrator_step_is_configurable_and_checked():
-    """``procedure.samples_per_step`` (default 8) is validated; a step too long for the
+    """``procedure.samples_per_step`` (default 12) is validated; a step too long for the
     rig's fastest mode (RK4 stability) is shortened by halving samples_per_step (a lower
     sample rate or a stiffer rig runs slower, never unstable), and refused with a hint when
     even one sample per step is too long."""
@@ -218,9 +218,9 @@ def test_integrator_step_is_configurable_and_checked():
                        ).procedure.samples_per_step == 1
     with pytest.raises(InputError, match="samples_per_step"):
         load_config(overrides={"procedure": {"samples_per_step": 0}})
-    # a 10 kHz logger: 8 samples would be lambda*h = 2.7; 4 are 1.33
+    # a 10 kHz logger: 12 samples would be lambda*h = 4.0; 6 are 2.0
     slow = load_config(overrides={"sensors": {"sample_rate_hz": 10_000.0}})
-    assert slow.procedure.samples_per_step == 4
+    assert slow.procedure.samples_per_step == 6
     stiff = {"rig": {"platform_kp_nm_s_rad": 1.0e8}}  # lambda = 33 000 1/s
     assert load_config(overrides=stiff).procedure.samples_per_step == 1  # lambda*h = 1.98
     stiffer = {"rig": {"platform_kp_nm_s_rad": 2.0e8}}

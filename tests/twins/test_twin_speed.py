@@ -75,19 +75,20 @@ def test_streams_are_deterministic_and_independent(draws):
 
 
 def test_settling_step_is_stable_and_longer():
-    """Default rig: 10 samples per RK4 step while settling (lambda*h = 2.0 <= MAX_LAMBDA_H)
-    against the recorded 8; a rig twice as stiff (recording at 4 samples per step, as it
-    must) gets half the step; never shorter than the recorded step."""
+    """Default rig: 12 samples per RK4 step while settling (lambda*h = 2.4 <= MAX_LAMBDA_H),
+    as recorded; a rig twice as stiff recording at 4 samples per step settles at 6
+    (lambda*h = 2.4); never shorter than the recorded step."""
     cfg = load_config()
     fs = cfg.sensors.sample_rate_hz
     r = settle_samples_per_step(cfg)
-    assert r == 10 and cfg.procedure.samples_per_step == 8
+    assert r == 12 and cfg.procedure.samples_per_step == 12
     assert stiffest_rate(cfg.rig) * r / fs <= MAX_LAMBDA_H
     stiff = load_config(overrides={"rig": {"platform_kp_nm_s_rad": 2.0e7},
                                    "procedure": {"samples_per_step": 4}})
-    assert settle_samples_per_step(stiff) == 5
-    stiff = load_config(overrides={"rig": {"platform_kp_nm_s_rad": 1.25e7}})
-    assert settle_samples_per_step(stiff) == 8  # 2.0*16670/4167 = 8.0: the recorded step
+    assert settle_samples_per_step(stiff) == 6  # int(2.5*16670/6667)
+    stiff = load_config(overrides={"rig": {"platform_kp_nm_s_rad": 1.4e7}})
+    assert stiff.procedure.samples_per_step == 6  # 12 would be lambda*h = 3.4
+    assert settle_samples_per_step(stiff) == 8  # int(2.5*16670/4667) = 8
 
 
 def test_coarse_settling_keeps_the_phases():

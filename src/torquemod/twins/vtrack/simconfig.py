@@ -330,7 +330,7 @@ def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
 def _check_step(rig: RigParams, sensors: SensorParams, proc: ProcedureParams,
                 where: str) -> ProcedureParams:
     """``proc`` with an RK4 step the rig's fastest mode allows (lambda*h <= MAX_LAMBDA_H):
-    ``samples_per_step`` is halved (8, 4, 2, 1) while the step is too long -- a shorter step
+    ``samples_per_step`` is halved (12, 6, 3, 1) while the step is too long -- a shorter step
     is only more accurate, so a stiffer rig or a lower sample rate just runs slower; refused
     when even one sample per step is too long (raise ``substeps``)."""
     lam = stiffest_rate(rig)

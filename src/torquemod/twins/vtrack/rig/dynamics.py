@@ -25,11 +25,12 @@ Equations (derived for this model; the contact force is quasi-static, Polach 200
 The motor torque is ``T_m = T_dc(t) + A*sin(2*pi*f*(t - t_gen) + phi)`` with a DC ramp.
 
 Integration (:mod:`torquemod.twins.vtrack.rig.lanes`): classical RK4 at a fixed step of
-``samples_per_step`` output samples (default 8, configured in ``[procedure]``); samples inside
+``samples_per_step`` output samples (default 12, configured in ``[procedure]``); samples inside
 a step are the cubic Hermite interpolant of the step's end states and slopes, with the contact
 forces evaluated at that state -- exactly at the step's middle sample, and for the other inner
 samples of an even block of >= 4 by the cubic through the exact forces half a step before, at
-the ends and the middle (to ~1e-6 N; exact at rail joints and in fast transients; see
+the ends and the middle (to ~1e-6 N at 4 samples, ~1e-3 N at the default 12 -- the error grows
+as h^4 through a rail joint's ringing; exact at rail joints and in fast transients; see
 :func:`torquemod.twins.vtrack.rig.lanes.integrate`).
 The dynamics (and so the phase) never read these recorded forces. The work per step is trimmed
 without changing the equations: the modulation sine is rotated from step to step, the normal
@@ -170,15 +171,29 @@ def normal_load(th_p: float, p: np.ndarray) -> float:
 
 
 # ---- normal load near an anchor angle ---------------------------------------------------
-# Within one RK4 step the platform turns by ~1e-4 rad, so every evaluation of the normal load
+# Within one RK4 step the platform turns by ~5e-4 rad, so every evaluation of the normal load
 # in the step is written as its sines and decay at the step's start angle (the "anchor")
-# rotated/decayed by the small increment, whose sin, cos and exp are Taylor polynomials
-# accurate to rounding for |u| <= _SMALL (:mod:`torquemod.twins.vtrack.rig.kernels`). The anchor
-# itself is
-# advanced the same way from step to step and evaluated exactly every _ANCHOR_EXACT steps.
-# Larger increments, and a rail joint between anchor and angle, fall back to the exact
-# :func:`normal_load`.
+# rotated/decayed by the small increment: the rotations' sin and cos by Taylor polynomials
+# accurate to rounding for |u| <= _ROT (a joint's ringing turns by ~0.18 rad in a step of
+# 12 samples, the sleepers' argument by ~0.07 rad), the decay's exp for |x| <= _SMALL
+# (:mod:`torquemod.twins.vtrack.rig.kernels`). The anchor itself is advanced the same way
+# from step to step and evaluated exactly every _ANCHOR_EXACT steps. Larger increments, and
+# a rail joint between anchor and angle, fall back to the exact :func:`normal_load`.
 _SMALL = 0.05
+_ROT = 0.25
+
+
+def _cos_rot_py(u):
+    """``cos(u)`` for ``|u| <= 0.25``: the first omitted term u**14/14! < 4.3e-20."""
+    v = u * u
+    return 1.0 - v / 2.0 * (1.0 - v / 12.0 * (1.0 - v / 30.0 * (1.0 - v / 56.0 * (
+        1.0 - v / 90.0 * (1.0 - v / 132.0)))))
+
+
+#: ``sin(u)`` for ``|u| <= 0.25``: :func:`~torquemod.twins.vtrack.rig.kernels.sin_small`'s
+#: polynomial, whose first omitted term there is u**13/13! < 9.7e-18 relative
+_sin_rot = _sin_small
+_cos_rot = numba.njit(**_INLINE)(_cos_rot_py)
 # anchor vector: angle, sin/cos of the sleeper argument, joint phase, joint decay, sin/cos
 A_TH, A_SS, A_SC, A_PHI, A_JE, A_JS, A_JC = range(7)
 N_ANCHOR = 7
@@ -215,8 +230,8 @@ def _load_near(th_p: float, p: np.ndarray, l: int, a: np.ndarray) -> float:
     n = p[l, P_N0]
     if p[l, P_SLEEP_A] != 0.0:
         u = p[l, P_SLEEP_N] * d
-        if abs(u) <= _SMALL:
-            n += p[l, P_SLEEP_A] * (a[l, A_SS] * _cos_small(u) + a[l, A_SC] * _sin_small(u))
+        if abs(u) <= _ROT:
+            n += p[l, P_SLEEP_A] * (a[l, A_SS] * _cos_rot(u) + a[l, A_SC] * _sin_rot(u))
         else:
             n += p[l, P_SLEEP_A] * math.sin(p[l, P_SLEEP_N] * th_p)
     if p[l, P_JOINT_A] != 0.0:
@@ -225,9 +240,9 @@ def _load_near(th_p: float, p: np.ndarray, l: int, a: np.ndarray) -> float:
         tau = d / p[l, P_WREF]
         x = p[l, P_JOINT_Z] * tau
         u = p[l, P_JOINT_W] * tau
-        if 0.0 <= phi < pitch and abs(u) <= _SMALL and abs(x) <= _SMALL:
+        if 0.0 <= phi < pitch and abs(u) <= _ROT and abs(x) <= _SMALL:
             n += p[l, P_JOINT_A] * a[l, A_JE] * _exp_small(-x) * (
-                a[l, A_JS] * _cos_small(u) + a[l, A_JC] * _sin_small(u))
+                a[l, A_JS] * _cos_rot(u) + a[l, A_JC] * _sin_rot(u))
         else:
             phi = (th_p - 0.5 * pitch) % pitch
             t = phi / p[l, P_WREF]
@@ -247,25 +262,25 @@ def _load_advance(th_p: float, p: np.ndarray, l: int, a: np.ndarray, b: np.ndarr
     d = th_p - a[l, A_TH]
     sa = p[l, P_SLEEP_A] != 0.0
     u = p[l, P_SLEEP_N] * d
-    if sa and not abs(u) <= _SMALL:
+    if sa and not abs(u) <= _ROT:
         return _load_anchor(th_p, p, l, b)
     ja = p[l, P_JOINT_A] != 0.0
     phi = a[l, A_PHI] + d
     tau = d / p[l, P_WREF]
     x = p[l, P_JOINT_Z] * tau
     v = p[l, P_JOINT_W] * tau
-    if ja and not (0.0 <= phi < 2.0 * math.pi / p[l, P_JOINT_N] and abs(v) <= _SMALL
+    if ja and not (0.0 <= phi < 2.0 * math.pi / p[l, P_JOINT_N] and abs(v) <= _ROT
                    and abs(x) <= _SMALL):
         return _load_anchor(th_p, p, l, b)
     b[l, A_TH] = th_p
     n = p[l, P_N0]
     if sa:
-        cu, su = _cos_small(u), _sin_small(u)
+        cu, su = _cos_rot(u), _sin_rot(u)
         b[l, A_SS] = a[l, A_SS] * cu + a[l, A_SC] * su
         b[l, A_SC] = a[l, A_SC] * cu - a[l, A_SS] * su
         n += p[l, P_SLEEP_A] * b[l, A_SS]
     if ja:
-        cv, sv = _cos_small(v), _sin_small(v)
+        cv, sv = _cos_rot(v), _sin_rot(v)
         b[l, A_PHI] = phi
         b[l, A_JE] = a[l, A_JE] * _exp_small(-x)
         b[l, A_JS] = a[l, A_JS] * cv + a[l, A_JC] * sv
@@ -391,8 +406,8 @@ def _hermite(w00, w10, w01, w11, y0, y1, y2, y3, y4, y5, y6, a0, a1, a2, a5, a6,
 
 #: largest miss of the quadratic at the step's middle, relative to the normal load, for which
 #: the inner samples take the contact from the cubic (1e-3 N at 4200 N: 99.9 % of the steps
-#: of the default experiment, whose misses stay below 2e-4 N; 0.6 N after a start off
-#: equilibrium)
+#: of the default experiment at 8 samples a step, whose misses stayed below 2e-4 N; 0.6 N
+#: after a start off equilibrium; the miss grows as h^3)
 _CUBIC_MISS = 2.5e-7
 
 

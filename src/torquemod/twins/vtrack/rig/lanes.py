@@ -15,6 +15,11 @@ run beside it or which (tested bit for bit). The method (Hermite samples inside 
 their contact forces from the cubic through the exact ones, the normal load from per-step
 anchors, the wobble's phasors, the stop at the first slipping sample) is described in
 :mod:`torquemod.twins.vtrack.rig.dynamics`.
+
+numba caches the compiled kernel under this file's name and time stamp only: the helpers it
+inlines from :mod:`~torquemod.twins.vtrack.rig.dynamics`, :mod:`~torquemod.twins.vtrack.rig.wobble`
+and :mod:`~torquemod.twins.vtrack.rig.kernels` do not invalidate it, so a change to them must
+come with an edit of this file (or a cleared ``__pycache__``) to take effect.
 """
 
 from __future__ import annotations

@@ -47,7 +47,7 @@ def settle_samples_per_step(config: SimConfig) -> int:
     """Output samples per RK4 step while the step settles (its samples are not recorded):
     the largest whole number of samples whose step keeps ``lambda*h`` within
     :data:`MAX_LAMBDA_H` (:func:`stiffest_rate`), at least the recorded step's. Default rig:
-    8 samples (``lambda*h = 1.6``) against 4 recorded.
+    12 samples (``lambda*h = 2.4``), as recorded.
 
     Parameters
     ----------
@@ -246,7 +246,7 @@ def _job_args(job: StepJob, phase: int) -> tuple:
     dt = 1.0 / config.sensors.sample_rate_hz
     r = settle_samples_per_step(config)
     n_c = (min(job.n_quiet, job.n_samples) // r
-           if r * proc.substeps > proc.samples_per_step else 0)
+           if r * proc.substeps >= proc.samples_per_step else 0)
     rest = (plan.dc_from_nm, plan.dc_nm, plan.t0_s, proc.ramp_s, mod.amplitude_nm,
             2.0 * np.pi * mod.actual_frequency_hz, plan.phase_rad, plan.t0_s,
             proc.slip_creepage)
