@@ -83,6 +83,12 @@ decimation 1.08-1.10 ms both; chain 6.44-6.55 -> 4.99-5.02 ms; chain / decimator
 5.95x -> 4.56-4.61x (load 5.8, two more pairs: 6.22-6.30 -> 4.64-4.69 ms, 6.02-6.14x ->
 4.95-5.04x). Step 1's search on an orthonormal basis in one compiled call per step
 (torquemod.dsp.projection), per-length designs cached; docs/performance.md has the rest.
+
+Sixth round, ``--ratio-only`` (main 3ce1749 then this version, interleaved three times,
+load 6.3-6.7): chain 4.57-4.84 -> 4.06-4.23 ms, the rest 3.63-3.68 -> 3.13-3.17 ms, chain /
+decimator pass 4.18-4.87x -> 3.99-4.35x, the phase bit for bit (compiled least squares
+calling LAPACK at scipy's addresses; docs/performance.md, "The rest, compiled where the
+numbers stay the same").
 """
 
 from __future__ import annotations
@@ -189,7 +195,8 @@ def chain_throughput(repeat: int = 7) -> None:
     speedmodel = sys.modules.get("torquemod.processing.speedmodel", chain)
     per_length = [getattr(mod, name) for mod, name in (
         (filters, "_slow_basis_cached"), (spectrum, "_window"), (spectrum, "_trend_design"),
-        (spectrum, "_grid"), (speedmodel, "_hann"), (speedmodel, "_hann_fourier"))
+        (spectrum, "_grid"), (speedmodel, "_hann"), (speedmodel, "_hann_fourier"),
+        (speedmodel, "_centred_time"), (sys.modules["torquemod.dsp.phase"], "_frequencies"))
         if hasattr(mod, name)]
 
     def cold() -> None:  # every cycle of a new length: the per-length caches miss

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from scipy import optimize, signal
 
+from torquemod._util.blas import one_blas_thread
 from torquemod.dsp import filters, phase, resampling, spectrum, tonemodel
 from torquemod.processing import speedmodel
 
@@ -218,3 +219,67 @@ def test_design_notch_is_scipy_iirnotch_bit_for_bit():
     with pytest.raises(ValueError):
         filters.design_notch(30.0, 3.0, 50.0)  # above Nyquist: scipy's error
     assert resampling.resample_ratio(16_670.0, 53.344) == (2, 625)
+
+
+def _refined_cholesky_lstsq(design, y, skip=0):
+    """The least-squares route of filters.lstsq written with scipy's own Cholesky
+    routines: normalised columns, cho_factor/cho_solve, two refinement steps; with ``skip``
+    the fit on the columns after the first ``skip`` from the whole design's normal matrix
+    (LstsqFactor.trailing)."""
+    from scipy import linalg
+    scale = np.sqrt(np.einsum("ij,ij->j", design, design))
+    dn = design / scale
+    gram = dn.T @ dn
+    dn, scale = dn[:, skip:], scale[skip:]
+    factor = linalg.cho_factor(gram[skip:, skip:], lower=False)
+    coef = linalg.cho_solve(factor, dn.T @ y)
+    for _ in range(2):
+        coef += linalg.cho_solve(factor, dn.T @ (y - dn @ coef))
+    return (coef.T / scale).T
+
+
+@pytest.mark.parametrize("layout", ["C", "F"])
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_lstsq_factor_is_scipys_cholesky_route(seed, layout):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(250, 700))
+    slow = filters.slow_basis(n, FS, 1.2)
+    orders = filters.order_design(2 * np.pi * 4.6 * np.arange(n) / FS, [1, 2])
+    t = np.arange(n) / FS
+    w = 2 * np.pi * 2.03
+    design = np.column_stack([np.cos(w * t), np.sin(w * t), slow, orders])
+    design = np.asfortranarray(design) if layout == "F" else np.ascontiguousarray(design)
+    y = np.column_stack([_record(n, seed) + 30, _record(n, seed + 1), _record(n, seed + 2)])
+    fac = filters.LstsqFactor.of(design, keep_gram=True)
+    sub = fac.trailing(2)
+    # the compiled route calls the same LAPACK routines (potrf, potrs) and the same BLAS
+    # products, on one BLAS thread as the chain runs: bit for bit on the development
+    # machine (numpy 2.4 and scipy 1.17 with their own OpenBLAS builds); the bound allows
+    # BLAS kernels that sum in another order (condition number ~1e6: coefficients to ~1e-13)
+    with one_blas_thread():
+        for yy in (y, y[:, 0], y[:, 1].copy(), y[:, :2]):
+            np.testing.assert_allclose(fac.solve(yy), _refined_cholesky_lstsq(design, yy),
+                                       rtol=1e-12, atol=0)
+        np.testing.assert_allclose(sub.solve(y), _refined_cholesky_lstsq(design, y, 2),
+                                   rtol=1e-12, atol=0)
+    for arr in (fac.dn, fac.scale, fac.factor, fac.gram, sub.dn, sub.factor):
+        assert not arr.flags.writeable
+    gram = fac.gram.copy()  # LAPACK factors a copy, also of a 1 x 1 block
+    assert fac.trailing(design.shape[1] - 1) is not None
+    np.testing.assert_array_equal(fac.gram, gram)
+
+
+def test_lstsq_factor_refuses_what_lstsq_leaves_to_the_svd():
+    n = 200
+    t = np.arange(n) / FS
+    good = np.column_stack([np.ones(n), t, np.cos(3 * t)])
+    assert filters.LstsqFactor.of(good) is not None
+    assert filters.LstsqFactor.of(np.column_stack([good, np.zeros(n)])) is None  # zero column
+    with_nan = good.copy()
+    with_nan[5, 1] = np.nan
+    assert filters.LstsqFactor.of(with_nan) is None
+    assert filters.LstsqFactor.of(np.column_stack([good, good[:, 1] * 2])) is None  # rank 3
+    assert filters.LstsqFactor.of(np.empty((n, 0))) is None
+    coef, rank = filters.lstsq(np.column_stack([good, good[:, 1] * 2]), np.cos(3 * t))
+    assert rank == 3 and np.allclose(np.column_stack([good, good[:, 1] * 2]) @ coef,
+                                     np.cos(3 * t))

@@ -6,13 +6,25 @@ Golub & Van Loan, *Matrix Computations* (4th ed.), section 5.3.2 (normal equatio
 section 3.5.3 (iterative refinement): the normal equations square the condition number, and
 two refinement steps on the residual bring the solution to the SVD's accuracy for these
 well-conditioned designs; near rank deficiency :func:`lstsq` falls back to the SVD.
+
+The factorisation and the refined solve each run as one compiled call (numba) that makes the
+BLAS products numpy made and calls LAPACK's ``potrf`` and ``potrs`` in scipy's own library
+at their addresses (``scipy.linalg.cython_lapack``): the same routines with the same
+arguments as ``scipy.linalg.cho_factor`` and ``cho_solve``, so the same numbers, without
+the Python-level cost of a dozen numpy and scipy calls per solve. Designs and records in
+another memory layout (a strided column, a Fortran-ordered design) keep numpy's route,
+whose BLAS calls differ with the layout.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import get_cython_function_address, intrinsic
 from scipy import linalg
 
 
@@ -82,34 +94,36 @@ class LstsqFactor:
 
     dn: np.ndarray  # design with unit-norm columns
     scale: np.ndarray  # the columns' norms
-    factor: np.ndarray  # upper Cholesky factor of dn.T @ dn (LAPACK layout)
+    factor: np.ndarray  # upper Cholesky factor of dn.T @ dn (LAPACK's layout: Fortran
+    # order, the upper triangle; the lower one is not part of it)
     gram: np.ndarray | None = None  # dn.T @ dn itself, when asked for (keep_gram)
 
     @classmethod
     def of(cls, design: np.ndarray, *, keep_gram: bool = False) -> LstsqFactor | None:
         """The factor, or None when :func:`lstsq` would fall back to the SVD (no columns, a
         zero column, or a normalised normal matrix with condition number above 1e10). With
-        ``keep_gram`` the normal matrix is kept too (read-only)."""
+        ``keep_gram`` the normal matrix is kept too. Every array is read-only."""
         d = np.asarray(design, dtype=np.float64)
-        scale = np.sqrt(np.einsum("ij,ij->j", d, d))
-        if not (d.shape[1] and scale.min() > 0):  # (NaN fails too)
+        if d.ndim != 2 or not d.shape[1]:
             return None
-        dn = d / scale
-        dn.setflags(write=False)
-        # LAPACK's potrf/potrs called directly: the same routines and arguments as
-        # scipy.linalg.cho_factor/cho_solve (bit-identical results) without their
-        # per-call validation, which cost more than the factorisation at this size
+        if d.flags.c_contiguous and d.shape[1] > 1:  # the column norms and the normalised
+            dn, scale = _normalised(d)  # design in one compiled call (the same numbers as
+            # below; einsum sums a single column in another order)
+        else:  # numpy's route: a layout's BLAS calls are its own
+            scale = np.sqrt(np.einsum("ij,ij->j", d, d))
+            dn = d / scale if scale.min() > 0 else d
+        if not scale.min() > 0:  # (NaN fails too)
+            return None
+        # the normal matrix by numpy (BLAS syrk) and its factor by LAPACK's potrf, the
+        # routines and arguments of scipy.linalg.cho_factor
         gram = dn.T @ dn
-        factor, info = _POTRF(gram, lower=False, overwrite_a=not keep_gram, clean=False)
-        if info != 0:
+        factor, status = _cholesky(np.array(gram, order="F"), _DPOTRF)  # (a copy: potrf
+        # works in place, and a 1 x 1 matrix is already in Fortran order)
+        if status != 0:
             return None
-        diag = factor.diagonal()
-        if not diag.min() ** 2 > 1e-10 * diag.max() ** 2:  # (potrf's diagonal is positive)
-            return None
-        if keep_gram:
-            gram.setflags(write=False)
-            return cls(dn, scale, factor, gram)
-        return cls(dn, scale, factor)
+        for a in (dn, scale, gram, factor):
+            a.setflags(write=False)
+        return cls(dn, scale, factor, gram if keep_gram else None)
 
     def trailing(self, k: int) -> LstsqFactor | None:
         """The factor of the design without its first ``k`` columns, from the kept normal
@@ -119,21 +133,30 @@ class LstsqFactor:
         give None."""
         if self.gram is None or not 0 <= k < self.gram.shape[0]:
             return None
-        factor, info = _POTRF(self.gram[k:, k:], lower=False, overwrite_a=False, clean=False)
-        if info != 0:
+        factor, status = _cholesky(np.array(self.gram[k:, k:], order="F"), _DPOTRF)
+        if status != 0:
             return None
-        diag = np.diag(factor) ** 2
-        if not diag.min() > 1e-10 * diag.max():
-            return None
-        return LstsqFactor(self.dn[:, k:], self.scale[k:], factor)
+        dn = self.dn[:, k:]
+        if self.dn.flags.c_contiguous:  # (BLAS packs the columns: the same products)
+            dn = np.ascontiguousarray(dn)
+        scale = self.scale[k:].copy()
+        for a in (dn, scale, factor):
+            a.setflags(write=False)
+        return LstsqFactor(dn, scale, factor)
 
     def solve(self, y: np.ndarray) -> np.ndarray:
         """Least-squares coefficients for ``y`` (one or more columns)."""
+        y = np.asarray(y, dtype=np.float64)
+        if self.dn.flags.c_contiguous and (y.ndim == 2 or y.flags.c_contiguous):
+            # one compiled call (a fresh C copy of y: one signature per dimension)
+            # (LAPACK reads the factor in Fortran order: a factor made elsewhere is copied)
+            return _solve(self.dn, np.asfortranarray(self.factor), self.scale,
+                          np.array(y, order="C"), _DPOTRS)
+        # numpy's route (BLAS's matrix-vector products of a strided vector, and of another
+        # layout, are their own; this keeps their numbers)
         dn = self.dn
         coef = _cho_solve(self.factor, dn.T @ y)
-        for _ in range(2):  # iterative refinement: the normal equations square the
-            # condition number, and a large DC (a wheel speed of 30 rad/s beside a
-            # modulation of 1e-3 rad/s) needs the residual to full precision
+        for _ in range(2):  # iterative refinement, as _solve
             coef += _cho_solve(self.factor, dn.T @ (y - dn @ coef))
         return (coef.T / self.scale).T
 
@@ -147,3 +170,133 @@ def _cho_solve(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
     if info != 0:
         raise ValueError(f"illegal value in argument {-info} of LAPACK potrs")
     return x
+
+
+_LAPACK = "scipy.linalg.cython_lapack"
+#: addresses of LAPACK's dpotrf and dpotrs in scipy's own library (that of _POTRF and _POTRS)
+_DPOTRF = get_cython_function_address(_LAPACK, "dpotrf")
+_DPOTRS = get_cython_function_address(_LAPACK, "dpotrs")
+
+
+@intrinsic
+def _fortran_call(typingctx, address, args):
+    """Call the Fortran routine at ``address`` with the tuple ``args`` of addresses (all
+    integers: ``array.ctypes.data``); the routine's address is a run-time value, so the
+    kernels that use it can be cached."""
+    sig = types.void(types.intp, args)
+
+    def codegen(context, builder, signature, llargs):
+        ptr = ir.IntType(8).as_pointer()
+        n_args = len(signature.args[1])
+        routine = builder.inttoptr(llargs[0], ir.FunctionType(ir.VoidType(),
+                                                              [ptr] * n_args).as_pointer())
+        builder.call(routine, [builder.inttoptr(builder.extract_value(llargs[1], i), ptr)
+                               for i in range(n_args)])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@numba.njit(cache=True, nogil=True)
+def _cholesky(a: np.ndarray, potrf: int) -> tuple[np.ndarray, int]:
+    """LAPACK ``potrf`` of the upper triangle of the Fortran-ordered ``a`` in place (the
+    lower triangle kept, as ``potrf(..., clean=False)``): ``(a, status)`` with status 0, 2 (not
+    positive definite) or 3 (condition number above 1e10: the smallest diagonal element
+    squared below 1e-10 of the largest)."""
+    m = a.shape[0]
+    ints = np.array([85, m, m, 0], dtype=np.int32)  # "U" (its first byte), n, lda, info
+    p = ints.ctypes.data
+    _fortran_call(potrf, (p, p + 4, a.ctypes.data, p + 8, p + 12))
+    if ints[3] != 0:
+        return a, 2
+    lo = hi = a[0, 0]
+    for j in range(1, m):
+        lo = min(lo, a[j, j])
+        hi = max(hi, a[j, j])
+    if not lo * lo > 1e-10 * (hi * hi):  # (potrf's diagonal is positive)
+        return a, 3
+    return a, 0
+
+
+def column_sums_of_squares(a: np.ndarray) -> np.ndarray:
+    """The sum of squares of each column of a matrix, ``einsum("ij,ij->j", a, a)``.
+
+    Parameters
+    ----------
+    a : ndarray
+        ``(n, m)`` matrix, any unit.
+
+    Returns
+    -------
+    ndarray
+        ``(m,)`` sums [unit^2]: einsum's own numbers (each column summed row by row) from
+        one compiled call for a C-ordered float64 matrix of two or more columns; einsum
+        itself otherwise.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> column_sums_of_squares(np.array([[1.0, 2.0], [3.0, 4.0]])).tolist()
+    [10.0, 20.0]
+    """
+    a = np.asarray(a)
+    if a.dtype == np.float64 and a.ndim == 2 and a.shape[1] > 1 and a.flags.c_contiguous:
+        return _sums_of_squares(a)
+    return np.einsum("ij,ij->j", a, a)
+
+
+@numba.njit(cache=True, nogil=True)
+def _sums_of_squares(d: np.ndarray) -> np.ndarray:
+    """Each column's sum of squares, summed row by row (``einsum("ij,ij->j")``'s order for
+    two or more columns)."""
+    n, m = d.shape
+    acc = np.zeros(m)
+    for i in range(n):
+        for j in range(m):
+            acc[j] += d[i, j] * d[i, j]
+    return acc
+
+
+@numba.njit(cache=True, nogil=True)
+def _normalised(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The columns' norms (:func:`_sums_of_squares`) and the design divided by them (empty
+    when a norm is zero or not finite)."""
+    m = d.shape[1]
+    scale = np.sqrt(_sums_of_squares(d))
+    for j in range(m):
+        if not scale[j] > 0.0:  # (NaN too)
+            return np.empty((0, m)), scale
+    return d / scale, scale  # (an array expression: vectorised, numpy's numbers)
+
+
+@numba.njit(cache=True, nogil=True)
+def _cho_solve_inplace(factor: np.ndarray, b: np.ndarray, potrs: int) -> None:
+    """LAPACK ``potrs`` with the upper factor: ``b <- (R'R)^-1 b`` in place (``b`` one
+    column, or Fortran-ordered columns)."""
+    m = factor.shape[0]
+    # "U" (its first byte), n, nrhs, lda, ldb, info
+    ints = np.array([85, m, b.size // max(m, 1), m, m, 0], dtype=np.int32)
+    p = ints.ctypes.data
+    _fortran_call(potrs, (p, p + 4, p + 8, factor.ctypes.data, p + 12, b.ctypes.data, p + 16,
+                          p + 20))
+    if ints[5] != 0:
+        raise ValueError("illegal value in an argument of LAPACK potrs")
+
+
+@numba.njit(cache=True, nogil=True)
+def _solve(dn: np.ndarray, factor: np.ndarray, scale: np.ndarray, y: np.ndarray, potrs: int
+           ) -> np.ndarray:
+    """:meth:`LstsqFactor.solve` in one call, with the operations, BLAS products and LAPACK
+    routine of the former numpy and scipy route (the same numbers): the normal equations'
+    solution, two steps of iterative refinement on the residual, the columns' scale
+    undone."""
+    dnt = dn.T
+    coef = np.asfortranarray(np.dot(dnt, y))
+    _cho_solve_inplace(factor, coef, potrs)
+    for _ in range(2):  # iterative refinement: the normal equations square the
+        # condition number, and a large DC (a wheel speed of 30 rad/s beside a
+        # modulation of 1e-3 rad/s) needs the residual to full precision
+        step = np.asfortranarray(np.dot(dnt, y - np.dot(dn, coef)))
+        _cho_solve_inplace(factor, step, potrs)
+        coef += step
+    return (coef.T / scale).T

@@ -199,9 +199,12 @@ def peak_valley_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod
     for t_all, w_all, kind in ((t_pk, w_pk, "peaks"), (t_vl, w_vl, "valleys")):
         if t_all.size < n_periods or w_all.size == 0:
             raise ProcessingError(f"fewer than {n_periods} torque {kind} in the cycle")
-        for t in _closest(t_all, center_s, n_periods):
-            j = int(np.argmin(np.abs(w_all - t)))
-            if abs(w_all[j] - t) > period / 2:
+        ts = _closest(t_all, center_s, n_periods)
+        gaps = np.abs(w_all[None, :] - ts[:, None])  # each torque extremum's distance to
+        nearest = gaps.argmin(axis=1)  # every wheel extremum; the first nearest on a tie
+        for t, j, gap in zip(ts.tolist(), nearest.tolist(),
+                             gaps[np.arange(ts.size), nearest].tolist(), strict=True):
+            if gap > period / 2:
                 raise ProcessingError(f"no wheel-speed extremum within half a period of the "
                                       f"torque extremum at {t:.3f} s")
             t_sel.append(t)
@@ -502,12 +505,25 @@ def periodogram_density(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.nda
     True
     """
     x = np.asarray(x, dtype=np.float64)
+    return np.fft.rfftfreq(x.size, 1.0 / fs_hz), _density(x, fs_hz)
+
+
+def _density(x: np.ndarray, fs_hz: float) -> np.ndarray:
+    """The density of :func:`periodogram_density` [unit^2/Hz] of a float64 record."""
     n = x.size
     w, ss = _hann_periodic(n)
-    spec = np.fft.rfft((x - x.mean()) * w)
+    spec = np.fft.rfft((x - float(x.sum()) / n) * w)  # (np.mean's numbers)
     p = (spec.real ** 2 + spec.imag ** 2) / (fs_hz * ss)
     p[1:n // 2 + (n % 2)] *= 2.0  # one-sided: every bin but DC and (n even) Nyquist
-    return np.fft.rfftfreq(n, 1.0 / fs_hz), p
+    return p
+
+
+@functools.lru_cache(maxsize=16)
+def _frequencies(n: int, fs_hz: float) -> np.ndarray:
+    """``np.fft.rfftfreq(n, 1/fs_hz)`` [Hz], cached read-only (one per record length)."""
+    f = np.fft.rfftfreq(n, 1.0 / fs_hz)
+    f.setflags(write=False)
+    return f
 
 
 def local_noise_psd(residual: np.ndarray, fs_hz: float, f_hz: float, *,
@@ -534,9 +550,11 @@ def local_noise_psd(residual: np.ndarray, fs_hz: float, f_hz: float, *,
     float
         Density [unit^2/Hz].
     """
-    f, p = periodogram_density(residual, fs_hz)
+    x = np.asarray(residual, dtype=np.float64)
+    f, p = _frequencies(x.size, float(fs_hz)), _density(x, fs_hz)  # periodogram_density's
     df = f[1] - f[0]
-    sel = (np.abs(f - f_hz) <= half_width_hz) & (np.abs(f - f_hz) > 1.5 * df)
-    if sel.sum() < 2:
-        return float(np.mean(p[1:]))
-    return float(np.mean(p[sel]))
+    off = np.abs(f - f_hz)
+    vals = p[(off <= half_width_hz) & (off > 1.5 * df)]
+    if vals.size < 2:
+        vals = p[1:]
+    return float(vals.sum()) / vals.size  # (np.mean's numbers)

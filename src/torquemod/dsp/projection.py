@@ -24,12 +24,12 @@ import numba
 import numpy as np
 from scipy import linalg
 
-from torquemod.dsp.lstsq import LstsqFactor
+from torquemod.dsp.lstsq import _DPOTRF, LstsqFactor, _cholesky
 
 _TRTRS, _POTRF = linalg.get_lapack_funcs(("trtrs", "potrf"), (np.zeros((1, 1)),))
 
 
-def orthonormal_basis_t(factor: LstsqFactor) -> np.ndarray | None:
+def orthonormal_basis_t(factor: LstsqFactor, *, compiled: bool = False) -> np.ndarray | None:
     """An orthonormal basis of a design's span by CholeskyQR2, transposed.
 
     Parameters
@@ -37,6 +37,12 @@ def orthonormal_basis_t(factor: LstsqFactor) -> np.ndarray | None:
     factor : LstsqFactor
         The design's least-squares factor (its column-normalised design ``dn`` and the upper
         Cholesky factor R of ``dn'dn``).
+    compiled : bool
+        False (default): LAPACK's triangular solves (``trtrs``). True: one compiled call,
+        the triangular solves by row operations over the samples and the second factor by
+        LAPACK's ``potrf``; 2-3x faster on the chain's designs, the same span and as
+        orthonormal (the basis itself differs from the default's by rounding amplified by
+        the design's condition number: ~1e-10 relative at 1e6).
 
     Returns
     -------
@@ -45,6 +51,9 @@ def orthonormal_basis_t(factor: LstsqFactor) -> np.ndarray | None:
         (Fukaya et al. 2014); None when a triangular solve or the second factorisation
         fails (a design too ill-conditioned for it).
     """
+    if compiled:
+        qt, ok = _cholesky_qr2_t(factor.dn, factor.factor, _DPOTRF)
+        return qt if ok else None
     qt1, info = _TRTRS(factor.factor, factor.dn.T, lower=False, trans=1)  # R^-T D'
     if info != 0:
         return None
@@ -55,6 +64,46 @@ def orthonormal_basis_t(factor: LstsqFactor) -> np.ndarray | None:
     if info != 0:
         return None
     return np.ascontiguousarray(qt)
+
+
+@numba.njit(cache=True, nogil=True)
+def _cholesky_qr2_t(dn: np.ndarray, r: np.ndarray, potrf: int) -> tuple[np.ndarray, bool]:
+    """``Q' = R2^-T R^-T dn'`` (CholeskyQR2 from the factor R of ``dn'dn``, upper triangle
+    read) and whether every step succeeded."""
+    p, n = dn.shape[1], dn.shape[0]
+    qt1 = np.empty((p, n))
+    ok = _forward_rows(r, dn.T, qt1)  # R^-T dn'
+    if not ok:
+        return qt1, False
+    r2, status = _cholesky(np.asfortranarray(np.dot(qt1, qt1.T)), potrf)
+    if status == 2:  # (a condition number above 1e10 is fine here: R2 is close to I)
+        return qt1, False
+    qt = np.empty((p, n))
+    ok = _forward_rows(r2, qt1, qt)
+    return qt, ok
+
+
+@numba.njit(cache=True, nogil=True)
+def _forward_rows(r: np.ndarray, b: np.ndarray, out: np.ndarray) -> bool:
+    """``out = R^-T b`` for an upper triangular R (upper triangle read), row by row:
+    ``out_i = (b_i - sum_{j<i} R[j, i] out_j)/R[i, i]``, each an operation over the rows'
+    samples; False on a zero diagonal element."""
+    p, n = b.shape
+    for i in range(p):
+        d = r[i, i]
+        if d == 0.0:
+            return False
+        oi = out[i]
+        for t in range(n):
+            oi[t] = b[i, t]
+        for j in range(i):
+            c = r[j, i]
+            oj = out[j]
+            for t in range(n):
+                oi[t] -= c * oj[t]
+        for t in range(n):
+            oi[t] /= d
+    return True
 
 
 def tone_columns(n: int, fs_hz: float, frequencies_hz, orders=(1,)) -> np.ndarray:
@@ -161,26 +210,47 @@ def _explained(qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray, fs_hz: float,
     n = r_y.shape[0]
     p = qt.shape[0]
     k2 = 2 * orders.size
-    mt = np.empty((omegas.size * k2, n))
+    rows = np.empty((omegas.size * k2 + r_y.shape[1], n))  # M' and then r_y'
+    mt = rows[:omegas.size * k2]
     _fill_tones_t(mt, fs_hz, omegas, orders)
+    rows[omegas.size * k2:] = r_y.T
     ct = mt @ qt.T  # (M'Q): C' row by row
     out = np.empty(omegas.size)
     g = np.empty((k2, k2))
     b = np.empty(k2)
+    # the products r_M'r_y (k2) and the lower triangle of M'M (k2*(k2+1)/2) of one
+    # frequency: jobs (row of mt, other vector, target), 8 dot products per pass over the
+    # samples (each summed in sample order as one at a time: the same numbers, without
+    # waiting on one sum's additions)
+    n_jobs = k2 + k2 * (k2 + 1) // 2
+    job_a = np.empty(n_jobs, dtype=np.int64)
+    job_d = np.empty(n_jobs, dtype=np.int64)
+    sums = np.empty(n_jobs)
+    n_tone_rows = omegas.size * k2
     for f in range(omegas.size):
         o = f * k2
         col = columns[f]
+        q = 0
         for a in range(k2):
-            s = 0.0
-            for i in range(n):
-                s += mt[o + a, i] * r_y[i, col]
+            job_a[q] = o + a
+            job_d[q] = n_tone_rows + col  # the record's residual, a row after the tones
+            q += 1
+            for d in range(a + 1):
+                job_a[q] = o + a
+                job_d[q] = o + d
+                q += 1
+        for start in range(0, n_jobs, 8):
+            _dots8(rows, job_a, job_d, start, min(start + 8, n_jobs), sums)
+        q = 0
+        for a in range(k2):
+            s = sums[q]
+            q += 1
             for j in range(p):
                 s -= ct[o + a, j] * qy[j, col]
             b[a] = s
             for d in range(a + 1):
-                s = 0.0
-                for i in range(n):
-                    s += mt[o + a, i] * mt[o + d, i]
+                s = sums[q]
+                q += 1
                 for j in range(p):
                     s -= ct[o + a, j] * ct[o + d, j]
                 g[a, d] = s
@@ -212,3 +282,33 @@ def _explained(qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray, fs_hz: float,
             e += b[a] * b[a]
         out[f] = e
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _dots8(rows: np.ndarray, job_a: np.ndarray, job_d: np.ndarray, start: int, stop: int,
+           sums: np.ndarray) -> None:
+    """``sums[q] = rows[job_a[q]] . rows[job_d[q]]`` for q in ``start:stop`` (at most 8):
+    eight running sums at once, each over the samples in order (the numbers of one sum at a
+    time)."""
+    last = stop - 1
+    x0, y0 = rows[job_a[start]], rows[job_d[start]]
+    x1, y1 = rows[job_a[min(start + 1, last)]], rows[job_d[min(start + 1, last)]]
+    x2, y2 = rows[job_a[min(start + 2, last)]], rows[job_d[min(start + 2, last)]]
+    x3, y3 = rows[job_a[min(start + 3, last)]], rows[job_d[min(start + 3, last)]]
+    x4, y4 = rows[job_a[min(start + 4, last)]], rows[job_d[min(start + 4, last)]]
+    x5, y5 = rows[job_a[min(start + 5, last)]], rows[job_d[min(start + 5, last)]]
+    x6, y6 = rows[job_a[min(start + 6, last)]], rows[job_d[min(start + 6, last)]]
+    x7, y7 = rows[job_a[min(start + 7, last)]], rows[job_d[min(start + 7, last)]]
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    for i in range(rows.shape[1]):
+        s0 += x0[i] * y0[i]
+        s1 += x1[i] * y1[i]
+        s2 += x2[i] * y2[i]
+        s3 += x3[i] * y3[i]
+        s4 += x4[i] * y4[i]
+        s5 += x5[i] * y5[i]
+        s6 += x6[i] * y6[i]
+        s7 += x7[i] * y7[i]
+    acc = (s0, s1, s2, s3, s4, s5, s6, s7)
+    for q in range(stop - start):
+        sums[start + q] = acc[q]

@@ -151,7 +151,9 @@ def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] 
     xd = x - design @ coef
     w = _window(window, n) if isinstance(window, str) else \
         signal.get_window(window, n, fftbins=False)
-    nfft = int(2 ** np.ceil(np.log2(zero_pad * n)))
+    m = zero_pad * n  # nfft = 2**ceil(log2(m)), on integers without numpy's scalars
+    nfft = 1 << (m - 1).bit_length() if isinstance(m, int) and m > 0 else \
+        int(2 ** np.ceil(np.log2(m)))
     spec = np.abs(np.fft.rfft(xd * w, nfft))
     freqs, idx, wide = _grid(nfft, fs_hz, lo, hi, n)
     if idx.size < 3:

@@ -6,6 +6,7 @@ Pure functions over one cycle's samples; the orchestration over an experiment is
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -167,6 +168,13 @@ def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
     return float(torque / (normal_load_n * wheel_radius_m))
 
 
+def _std(x: np.ndarray) -> float:
+    """``np.std(x)`` of a 1-D float64 record by numpy's own steps (mean, squared deviations,
+    their sum over the count, square root): the same number without its Python wrappers."""
+    d = x - float(x.sum()) / x.size
+    return math.sqrt(float((d * d).sum()) / x.size)
+
+
 #: The slow band's top stays at least this many frequency resolutions (1/T, T the cycle's
 #: duration) below the nominal modulation frequency. Its extra Slepian sequences reach
 #: beyond it, and a slow basis that overlaps the modulation's main lobe makes the joint fit
@@ -321,7 +329,7 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # taken through one model for every channel.
     means = {k: model.mean(k) for k in names}
     means["torque_nm"] = float(full_means[names.index("torque_nm")])  # the raw record's
-    check_operating_point(means, float(np.std(pl)) if pl is not None else 0.0, where=where)
+    check_operating_point(means, _std(pl) if pl is not None else 0.0, where=where)
     has_forces = all(k in sig for k in ("fx_n", "fz_n"))
     inertia = rig.extra.get("wheel_inertia_kg_m2") if isinstance(rig.extra, dict) else None
     coa_t = _coa_from_torque(model, fs_r, wheel_radius_m=rig.wheel_radius_m,

@@ -141,22 +141,24 @@ class SpeedModel:
             return 1.0
         v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
         fac = self.factor if self.factor is not None else filters.LstsqFactor.of(d)
-        qt = projection.orthonormal_basis_t(fac) if fac is not None else None
+        qt = projection.orthonormal_basis_t(fac, compiled=True) if fac is not None else None
         if qt is None:
             # a design rank deficient to rounding (the fit fell back to the SVD): Q from
             # the SVD, over its numerical rank
             u, sv, _ = np.linalg.svd(d / np.sqrt(np.einsum("ij,ij->j", d, d)),
                                      full_matrices=False)
             qt = u[:, sv > sv[0] * 1e-10].T
-        # Q orthonormal to rounding (CholeskyQR2 from the fit's own factor,
-        # dsp.projection): the fraction agrees with an SVD of the design to ~1e-12 relative
-        # and moves by about as little when the inputs move by rounding
+        # Q orthonormal to rounding (CholeskyQR2 from the fit's own factor, the compiled
+        # route of dsp.projection; the fraction depends on Q's span alone, so on the route
+        # by ~1e-12 relative): the fraction agrees with an SVD of the design to ~1e-12
+        # relative and moves by about as little when the inputs move by rounding
         # (tests/processing/test_chain_floor.py). Q = D L^-T from the normal equations alone
         # (the condition number, ~1e6 here, squared) was off by 2-6e-5 relative and moved
         # by as much with any rounding-level change of the design.
         qv = qt @ v  # v: the real parts, then the imaginary parts
         kept = 1.0 - (qv * qv).sum(axis=0).reshape(2, -1).sum(axis=0) / v_power
-        return float(np.clip(np.mean(kept), 0.05, 1.0))
+        # np.clip(np.mean(kept), 0.05, 1.0)'s numbers (NaN stays NaN) on Python floats
+        return min(max(float(kept.sum()) / kept.size, 0.05), 1.0)
 
     def mean(self, name: str) -> float:
         """Step-8 mean: the record's mean less the fitted modulation and rotation orders (the
@@ -172,6 +174,14 @@ def _trace_of_inverse_2x2(a: np.ndarray) -> float:
     """``trace(inv(a))`` of a 2x2 matrix: ``(a00 + a11)/det(a)``."""
     a00, a01, a10, a11 = (float(v) for v in a.ravel())
     return (a00 + a11) / (a00 * a11 - a01 * a10)
+
+
+@functools.lru_cache(maxsize=16)
+def _centred_time(n: int, fs_hz: float) -> np.ndarray:
+    """``(arange(n) - (n - 1)/2)/fs_hz`` [s], cached read-only (one per record length)."""
+    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    t.setflags(write=False)
+    return t
 
 
 def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
@@ -197,7 +207,7 @@ def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
     ndarray
         (n, 2*(1 + len(harmonics))) columns [-].
     """
-    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    t = _centred_time(int(n), float(fs_hz))
     w = 2 * np.pi * modulation_hz
     out = np.empty((n, 2 + 2 * len(harmonics)))
     for i, k in enumerate((1, *harmonics)):
@@ -426,7 +436,7 @@ class _SlowOrdersRemoval:
                 if not curvature < 0:  # not near a maximum: keep the spectral peak's value
                     f[i] = peaks[i]
                     continue
-                step = float(np.clip(0.5 * h * (e_lo - e_hi) / curvature, -2.0 * h, 2.0 * h))
+                step = min(max(0.5 * h * (e_lo - e_hi) / curvature, -2.0 * h), 2.0 * h)
                 f[i] += step
                 if not abs(step) < tol_hz:
                     still.append(i)

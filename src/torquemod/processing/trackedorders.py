@@ -11,6 +11,7 @@ import functools
 import numpy as np
 
 from torquemod.dsp import filters
+from torquemod.dsp.lstsq import column_sums_of_squares
 from torquemod.io.config import ProcessingConfig
 
 
@@ -124,9 +125,13 @@ def _separable_orders(cols: np.ndarray, base: np.ndarray,
         return cols
     fit = base_factor.solve(cols) if base_factor is not None else filters.lstsq(base, cols)[0]
     res = cols - base @ fit
-    frac = np.sqrt(np.einsum("ij,ij->j", res, res) / np.einsum("ij,ij->j", cols, cols))
-    keep = np.repeat(frac.reshape(-1, 2).min(axis=1) >= ORDER_MIN_RESIDUAL, 2)
-    return cols if keep.all() else np.ascontiguousarray(cols[:, keep])
+    frac = np.sqrt(column_sums_of_squares(res) / column_sums_of_squares(cols))
+    # an order is kept when both its columns keep ORDER_MIN_RESIDUAL (NaN: not kept)
+    keep = [bool(a >= ORDER_MIN_RESIDUAL and b >= ORDER_MIN_RESIDUAL)
+            for a, b in zip(frac[0::2].tolist(), frac[1::2].tolist(), strict=True)]
+    if all(keep):
+        return cols
+    return np.ascontiguousarray(cols[:, np.repeat(np.array(keep, dtype=bool), 2)])
 
 def _slow_and_orders(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float,
                      f_start_hz: float, max_hz: float, cfg: ProcessingConfig
