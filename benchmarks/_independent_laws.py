@@ -26,7 +26,8 @@ Laws (ranges):
   then ``mu*(1 - mu/(4*k0*xi))`` (a kink, slope constant at first; the estimator's family
   has held this shape since it was found to miss it);
 * ``hyperbolic``: ``mu*z/(1 + z)`` with ``z = k0*xi/mu``: a smooth saturation whose slope
-  falls as ``(1 - u)^2`` from the start (not a member of the estimator's family).
+  falls as ``(1 - u)^2`` from the start (the estimator's family has held this shape
+  since it was found to miss it).
 """
 
 from __future__ import annotations

@@ -45,7 +45,7 @@ THRESHOLDS = (0.05, 0.075, 0.10, 0.125, 0.15, 0.20)
 FIELDS = ("P", "estimate", "low", "high", "lower_bound", "closed", "r")
 
 
-def fit_record(r: dict, mode: str, rig_c: str, ratio_max: float = 7.0, knee: bool = False):
+def fit_record(r: dict, mode: str, rig_c: str, ratio_max: float = 7.0, knee: bool = True):
     """The fit of one record (None when it fits nothing); ``ratio_max``: the largest kA/kS
     of the family's Polach members (a shape prior; 7 is the estimator's default)."""
     from torquemod.analysis.friction import (
@@ -53,15 +53,15 @@ def fit_record(r: dict, mode: str, rig_c: str, ratio_max: float = 7.0, knee: boo
         fit_available_adhesion_from_phase,
     )
     bounds = (0.3, ratio_max)
-    c, c_rel = (r["constant"] if rig_c in ("given", "measured") else None), 0.0
-    if mode == "rig" and rig_c == "measured":
-        from torquemod.analysis.phasefit import MODEL_REL_CONSTANT
-        c_rel = MODEL_REL_CONSTANT
-        c = c * (1.0 + c_rel * r["c_draw"])
     if mode == "train":
         return fit_available_adhesion(r["coa"], r["y"], r["se"], probe=False,
                                       speed_m_s=r["speed_m_s"], ratio_bounds=bounds,
                                       knee=knee)
+    c, c_rel = (r["constant"] if rig_c in ("given", "measured") else None), 0.0
+    if rig_c == "measured":
+        from torquemod.analysis.phasefit import MODEL_REL_CONSTANT
+        c_rel = MODEL_REL_CONSTANT
+        c = c * (1.0 + c_rel * r["c_draw"])
     return fit_available_adhesion_from_phase(
         r["coa"], r["y"], r["se"], constant=c, constant_rel_se=c_rel,
         creepage_swing=r["swing"], probe=False, speed_m_s=r["speed_m_s"],
@@ -172,8 +172,8 @@ def main() -> None:
     ap.add_argument("--rig-c", choices=("given", "unknown", "measured"), default="given")
     ap.add_argument("--ratio-max", type=float, default=7.0,
                     help="largest kA/kS of the family's Polach members (default 7)")
-    ap.add_argument("--knee", action="store_true",
-                    help="also the family's knee members (Dugoff's law; off by default)")
+    ap.add_argument("--no-knee", dest="knee", action="store_false",
+                    help="leave the family's knee members (Dugoff's law) out")
     ap.add_argument("--threshold", type=float, default=None,
                     help="the half width rule of the cell table (default: the estimator's)")
     ap.add_argument("--workers", type=int, default=2)
@@ -210,7 +210,8 @@ def main() -> None:
         print(f"{skipped} records skipped (the swing-averaged curve cannot reach the depth)")
     print(f"model_rel_error = {MODEL_REL_ERROR}, model_rel_coa = {MODEL_REL_COA}; base "
           f"standard errors {laws.BASE_SE} (rig: deg per step; train: relative); rig C "
-          f"{args.rig_c}; Polach members' kA/kS up to {args.ratio_max:g}; coverage counts "
+          f"{args.rig_c}; Polach members' kA/kS up to {args.ratio_max:g}; knee members "
+          f"{'in' if args.knee else 'out'}; coverage counts "
           "the lower bound when the interval is open")
     tabulate(results, thr)
     print(f"\nwall time {time.perf_counter() - t0:.0f} s with {args.workers} workers")

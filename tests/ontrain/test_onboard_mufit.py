@@ -154,9 +154,12 @@ def test_saturating_laws_outside_polach_are_covered(law):
     measured to 4 % with the estimator's 5 % model error, 8 points up to 85 % of mu, 40
     replicates: the 95 % interval of the default family (Polach + the saturating
     g = 1 - u^p) holds the true mu in >= 36/40 (binomial: 90 % coverage is what the issue
-    asks; at a true 95 % rate fewer than 36 happens with probability ~5 %). Burckhardt
-    and the exponential law are determined in most replicates, within 5 % (median);
-    tanh's mu stays undetermined (honestly: the data do not fix it)."""
+    asks; at a true 95 % rate fewer than 36 happens with probability ~5 %). The exponential
+    law is determined in most replicates (29 of these 40), within 5 % (median); Burckhardt's
+    in about half (21 of 40; 28 before the family held the hyperbolic fall ``(1 - u)^2``,
+    which with these 6.4 % errors fits the points as well while peaking 1.3-1.5 times
+    higher, so the interval must hold it); tanh's mu stays undetermined (honestly: the data
+    do not fix it)."""
     mu, k0 = 0.2, 60.0
     u = np.linspace(0.1, 0.85, 8)
     coa = u * mu
@@ -176,7 +179,8 @@ def test_saturating_laws_outside_polach_are_covered(law):
     if law == "tanh":
         assert not errors
     else:
-        assert len(errors) >= 25 and np.median(errors) < 0.05
+        assert len(errors) >= {"exponential": 25, "burckhardt": 18}[law]
+        assert np.median(errors) < 0.05
 
 
 def test_group_points_keeps_staircase_levels_apart():

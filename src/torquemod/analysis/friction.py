@@ -225,7 +225,7 @@ class AdhesionFit:
         }
 
 
-def _pairs(ratio_bounds, other_laws: bool, knee: bool = False) -> np.ndarray:
+def _pairs(ratio_bounds, other_laws: bool, knee: bool = True) -> np.ndarray:
     """The neighbour pairs (:func:`torquemod.analysis.creeplaws.neighbour_pairs`) whose Polach
     members
     have kA/kS within ``ratio_bounds`` (widened to the grid values that bracket it, so that
@@ -269,7 +269,7 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
                            scale_by_chi2: bool = True, probe: bool = True,
                            min_points: int = 4, ratio_bounds: tuple = (0.3, 7.0),
                            other_laws: bool = True, speed_m_s: float | None = None,
-                           knee: bool = False, constant_rel_se: float = 0.0
+                           knee: bool = True, constant_rel_se: float = 0.0
                            ) -> AdhesionFit | None:
     """The available adhesion P from creep coefficients measured at utilised adhesions.
 
@@ -317,8 +317,8 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
         counts only where its fall ``exp(-B*xi*V)`` needs B <= :data:`B_MAX_S_M` (at a rig's
         few km/h the slip velocity stays far too small for friction to fall much).
     knee : bool
-        Also the members linear up to a knee (Dugoff's law). Default False: they cover
-        Dugoff's law but leave Burckhardt's on-board segments undetermined.
+        Also the members linear up to a knee (Dugoff's law, kappa 0.3-0.7). Default True;
+        False leaves them out (the family of earlier versions, less the p = 1 tail).
     constant_rel_se : float
         Relative standard error of ``constant`` when it was measured rather than known (C
         from the amplitudes) [-]: the bound on falling friction is then applied at C's lower
@@ -404,7 +404,7 @@ def _vertex(profile: np.ndarray, j: int) -> float:
 
 def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_rel, max_rel,
                scale_by_chi2, probe, c_se, amp, constant, p_span, ratio_bounds,
-               other_laws, speed_m_s, knee=False, constant_rel_se=0.0) -> AdhesionFit | None:
+               other_laws, speed_m_s, knee=True, constant_rel_se=0.0) -> AdhesionFit | None:
     prof = chi.min(axis=0)
     if not np.isfinite(prof).any():
         return None
@@ -471,7 +471,7 @@ def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_r
 
 
 def _probe_depth(best_s, est, k0, coa, y, se, c_se, amp, constant, model_rel, max_rel,
-                 p_span, ratio_bounds, other_laws, speed_m_s, knee=False,
+                 p_span, ratio_bounds, other_laws, speed_m_s, knee=True,
                  constant_rel_se=0.0) -> float:
     """The smallest of :data:`PROBE_DEPTHS` beyond the present one at which one more point on
     the best-fitting curve (its relative error the median of the present points') makes P
@@ -504,7 +504,7 @@ def fit_available_adhesion_from_phase(coa, phase_deg, phase_se_deg, *, constant=
                                       max_rel_half_width: float = MAX_REL_HALF_WIDTH,
                                       scale_by_chi2: bool = True, probe: bool = True,
                                       ratio_bounds: tuple = (0.3, 7.0),
-                                      speed_m_s: float | None = None, knee: bool = False,
+                                      speed_m_s: float | None = None, knee: bool = True,
                                       constant_rel_se: float = 0.0) -> AdhesionFit | None:
     """P from the phases of the wheel speed behind the torque.
 
@@ -544,7 +544,7 @@ def fit_available_adhesion_from_phase(coa, phase_deg, phase_se_deg, *, constant=
     speed_m_s : float or None
         Rolling speed [m/s]. Default None.
     knee : bool
-        Also the knee members. Default False.
+        Also the knee members. Default True.
     constant_rel_se : float
         Relative standard error of a measured C [-] (e.g. from the amplitudes,
         :func:`torquemod.analysis.phasefit.constant_from_amplitudes`); the falling-friction

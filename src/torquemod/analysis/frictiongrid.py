@@ -66,11 +66,13 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
     n_a = swing_a.size
     n_us = sw_tab.shape[1]
     a_top = swing_a[n_a - 1]
-    # per trial P: each point's cell of the swing tables' utilisation grid, and every
+    # per trial P: each point's cell of both utilisation grids, and every
     # member's swing rows interpolated there (SW[s, i, :]); a pair's lookup is then linear
     # in the swing alone (:func:`_swing_row`; the same arithmetic as one bilinear lookup)
     ks = np.empty(n, np.int64)
     fs = np.empty(n)
+    ku = np.empty(n, np.int64)
+    fu = np.empty(n)
     SW = np.empty((sw_tab.shape[0], n, n_a))
     c_max = coa.max()
     for m in range(n_m):
@@ -82,12 +84,15 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
             k = min(int(pos), n_us - 2)
             ks[i] = k
             fs[i] = pos - k
+            pos = coa[i] / p * (n_u - 1)
+            k = min(int(pos), n_u - 2)
+            ku[i] = k
+            fu[i] = pos - k
         for s in range(n_s):
             valid[s] = True
             for i in range(n):
-                pos = coa[i] / p * (n_u - 1)
-                k = min(int(pos), n_u - 2)
-                f = pos - k
+                k = ku[i]
+                f = fu[i]
                 G[s, i] = s_tab[s, k] * (1.0 - f) + s_tab[s, k + 1] * f
                 DG[s, i] = ds_tab[s, k] * (1.0 - f) + ds_tab[s, k + 1] * f
                 if not (G[s, i] > 0.0):
@@ -199,19 +204,26 @@ def _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_
     evaluated grid indices (sorted) and chi2, amplitude, mixing fraction there (K, m)."""
     m = p_grid.size
     done = np.unique(np.r_[np.arange(0, m, every), m - 1])
-    first = _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[done], constant, model_rel,
-                     bmax_v)
-    # every trial P's columns, filled as they are evaluated (a cell is the same whichever
-    # call computes it); ``have`` marks the evaluated ones
-    full = [np.empty((o.shape[0], m), o.dtype) for o in first]
-    for f_, o in zip(full, first, strict=True):
-        f_[:, done] = o
+    # every trial P's columns (column-major: a trial P's column is contiguous), filled as
+    # they are evaluated (a cell is the same whichever call computes it), and the profile
+    # there; ``have`` marks the evaluated ones
+    full: list = []
+    prof_all = np.full(m, np.nan)
     have = np.zeros(m, bool)
-    have[done] = True
-    outs = list(first)
+
+    def put(cols, out):
+        if not full:
+            full.extend(np.empty((o.shape[0], m), o.dtype, order="F") for o in out)
+        for f_, o in zip(full, out, strict=True):
+            f_[:, cols] = o
+        prof_all[cols] = out[0].min(axis=0)
+        have[cols] = True
+
+    put(done, _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[done], constant, model_rel,
+                       bmax_v))
     dof = max(coa.size - 3, 1)
     for _ in range(rounds):
-        prof = outs[0].min(axis=0)
+        prof = prof_all[done]
         if not np.isfinite(prof).any():
             break
         c_min = float(np.min(prof))
@@ -225,11 +237,8 @@ def _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_
         if not need:
             break
         new = np.concatenate([np.arange(done[g] + 1, done[g + 1]) for g in need])
-        more = _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[new], constant, model_rel,
-                        bmax_v)
-        for f_, o in zip(full, more, strict=True):
-            f_[:, new] = o
-        have[new] = True
+        put(new, _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[new], constant,
+                          model_rel, bmax_v))
         done = np.flatnonzero(have)
-        outs = [f_[:, done] for f_ in full]
+    outs = [f_[:, done] for f_ in full]
     return done, outs
