@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq, nnls
 
+from torquemod.analysis import frictiongrid as fg
 from torquemod.analysis.contact.polach import (
     adhesion_curve,
     adhesion_slope,
@@ -226,3 +227,35 @@ def test_default_family_holds_hyperbolic_and_dugoff(law, mode):
                                        speed_m_s=r["speed_m_s"])
         hi = f.high if f.closed else math.inf
         assert f.lower_bound <= r["P"] * (1 + 1e-9) <= hi * (1 + 1e-9), (law, mode, depth, f)
+
+
+def _train_fit(r):
+    return fit_available_adhesion(r["coa"], r["y"], r["se"], probe=False,
+                                  speed_m_s=r["speed_m_s"])
+
+
+def test_new_members_widen_only_unless_they_win_clearly(monkeypatch):
+    """The widen-only rule (frictiongrid.reference_chi2). A hyperbolic record (train, 86 %,
+    chain's noise) whose best fit is a p = 1 tail member better than the rail members' by
+    less than NEW_MEMBER_MARGIN: the level is the rail members' (higher), the interval holds
+    the one without the rule, the estimate is a rail member's. A Dugoff record, where the
+    knee wins by more than the margin: the knee gives the estimate, as without the rule."""
+    margin = fg.NEW_MEMBER_MARGIN
+    assert fg.reference_chi2(5.0, 9.0) == (9.0, True)
+    assert fg.reference_chi2(5.0, 16.0) == (5.0, False)
+    assert fg.reference_chi2(5.0, math.inf) == (5.0, False)
+    hyp = laws.record("hyperbolic", np.random.default_rng(3), 0.86, mode="train", noise=1.0)
+    dug = laws.record("dugoff", np.random.default_rng(0), 0.86, mode="train", noise=1.0)
+    rule_h, rule_d = _train_fit(hyp), _train_fit(dug)
+    monkeypatch.setattr(fg, "NEW_MEMBER_MARGIN", -math.inf)  # the whole family, always
+    all_h, all_d = _train_fit(hyp), _train_fit(dug)
+    monkeypatch.setattr(fg, "NEW_MEMBER_MARGIN", math.inf)  # the rail members, always
+    rail_d = _train_fit(dug)
+    assert 0.0 < rule_h.chi2 - all_h.chi2 < margin
+    assert rule_h.level > all_h.level
+    assert rule_h.low <= all_h.low and rule_h.high >= all_h.high
+    assert rule_h.law == "saturation" and rule_h.params[0] != 1.0
+    assert all_d.chi2 < rail_d.chi2 - margin
+    assert rule_d.law == "knee"
+    assert (rule_d.estimate, rule_d.low, rule_d.high) == (all_d.estimate, all_d.low,
+                                                         all_d.high)

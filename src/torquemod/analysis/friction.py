@@ -39,12 +39,14 @@ that noise-free records of laws outside the family do not give narrow intervals 
 of P is the union over the whole family of the profile-likelihood range,
 ``{P : min_theta chi2(P, theta) <= chi2_min + 3.84*max(1, chi2_min/dof)}`` (Wilks 1938;
 widened when the points scatter more than their errors, never narrowed), each end one grid
-step outward, its hull taken as the interval. P is *determined* when that hull is closed
-inside the grid and its half width ``(high - low)/2`` is at most ``max_rel_half_width`` of
-the estimate; otherwise the lower bound (the set's lowest point, never below the largest
-CoA: adhesion cannot exceed what is available) is what is known, with the interval when it
-is closed, and the probe depth (the deepest utilisation of a further point on the
-best-fitting curve) that would determine it.
+step outward, its hull taken as the interval. The members no rail law needs (knee, p = 1
+tail) may only widen it: unless they beat the others by ``NEW_MEMBER_MARGIN`` in chi2, the
+others' minimum is ``chi2_min`` and gives the estimate (``frictiongrid.reference_chi2``).
+P is *determined* when that hull is closed inside the grid and its half width
+``(high - low)/2`` is at most ``max_rel_half_width`` of the estimate; otherwise the lower
+bound (the set's lowest point, never below the largest CoA: adhesion cannot exceed what is
+available) is what is known, with the interval when it is closed, and the probe depth (the
+deepest utilisation of a further point on the best-fitting curve) that would determine it.
 """
 
 from __future__ import annotations
@@ -64,6 +66,8 @@ from torquemod.analysis.creeplaws import (
 from torquemod.analysis.frictiongrid import (
     CHI2_95,
     _coarse_to_fine,
+    new_pairs,
+    reference_chi2,
 )
 from torquemod.errors import InputError
 
@@ -141,7 +145,8 @@ class AdhesionFit:
         The fitted initial creep coefficient in the units of the observations [-] (``k0/C``
         from phases without C).
     chi2 : float
-        Chi-square of the best fit [-].
+        Chi-square of the best fit [-] (of the rail members' when the widen-only rule applies:
+        :func:`~torquemod.analysis.frictiongrid.reference_chi2`).
     dof : int
         Its degrees of freedom [-].
     chi2_scale : float
@@ -371,7 +376,8 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
     with np.errstate(over="ignore", invalid="ignore"):
         bmax_v = _b_bound(speed_m_s, constant_rel_se)
         cols, (chi, amps, fracs) = _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp,
-                                                   p_grid, constant, model_rel_error, bmax_v)
+                                                   p_grid, constant, model_rel_error, bmax_v,
+                                                   rail=~new_pairs(tabs, pairs))
     p_grid = p_grid[cols]
     return _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max,
                       model_rel_error, max_rel_half_width, scale_by_chi2, probe, c_se, amp,
@@ -408,9 +414,15 @@ def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_r
     prof = chi.min(axis=0)
     if not np.isfinite(prof).any():
         return None
-    j = int(np.nanargmin(prof))
-    i = int(np.argmin(chi[:, j]))
-    chi_min = float(prof[j])
+    # the widen-only rule (frictiongrid.reference_chi2): unless the members no rail law needs
+    # beat the others by NEW_MEMBER_MARGIN, the others alone give the level and the estimate
+    chi_set = np.where(new_pairs(tabs, pairs)[:, None], np.inf, chi)
+    chi_min, rail_only = reference_chi2(float(np.nanmin(prof)), float(np.nanmin(chi_set)))
+    if not rail_only:
+        chi_set = chi
+    prof_set = chi_set.min(axis=0)
+    j = int(np.nanargmin(prof_set))
+    i = int(np.argmin(chi_set[:, j]))
     dof = max(coa.size - 3, 1)
     scale = max(1.0, chi_min / dof) if scale_by_chi2 else 1.0
     # the estimate: the constant-friction laws are nested in the falling-friction ones (two
@@ -418,14 +430,14 @@ def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_r
     # of chi2 with two degrees of freedom (the likelihood-ratio test), the best
     # constant-friction fit gives the estimate. The interval is the whole family's.
     falling = tabs.falling[pairs[:, 0]] | tabs.falling[pairs[:, 1]]
-    chi_c = np.where(falling[:, None], np.inf, chi)
+    chi_c = np.where(falling[:, None], np.inf, chi_set)
     prof_c = chi_c.min(axis=0)
     if np.isfinite(prof_c).any() and float(prof_c.min()) <= chi_min + CHI2_95_2 * scale:
         j = int(np.argmin(prof_c))
         i = int(np.argmin(chi_c[:, j]))
         est_prof = prof_c
     else:
-        est_prof = prof
+        est_prof = prof_set
     level = chi_min + CHI2_95 * scale
     inside_cells = chi <= level
     inside = inside_cells.any(axis=0)
