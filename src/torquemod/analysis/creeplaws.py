@@ -131,6 +131,13 @@ class Member:
     law: str
     params: tuple
 
+    @property
+    def beyond_rail_laws(self) -> bool:
+        """Whether no rail law needs this member: a knee, or the p = 1 tail beyond
+        :data:`Q_GRID` (:data:`Q_TAIL`; Dugoff's and the hyperbolic law)."""
+        return self.law == "knee" or (self.law == "saturation" and self.params[0] == 1.0
+                                      and self.params[1] > Q_GRID[-1])
+
 
 def family() -> tuple[Member, ...]:
     """Every member of the family, in the order of the tables' rows.

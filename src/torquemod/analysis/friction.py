@@ -373,13 +373,14 @@ def fit_available_adhesion(coa, k, k_se, *, coa_se=None, swing=None, constant=1.
     tabs = family_tables(bool(np.any(amp > 0)))
     pairs = _pairs(ratio_bounds, other_laws, knee)
     p_grid = _p_grid(c_max, p_span)
+    rail = ~new_pairs(tabs, pairs)
     with np.errstate(over="ignore", invalid="ignore"):
         bmax_v = _b_bound(speed_m_s, constant_rel_se)
         cols, (chi, amps, fracs) = _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp,
                                                    p_grid, constant, model_rel_error, bmax_v,
-                                                   rail=~new_pairs(tabs, pairs))
+                                                   rail=rail)
     p_grid = p_grid[cols]
-    return _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max,
+    return _summarise(tabs, pairs, rail, chi, amps, fracs, p_grid, coa, y, se, c_max,
                       model_rel_error, max_rel_half_width, scale_by_chi2, probe, c_se, amp,
                       constant, p_span, ratio_bounds, other_laws, speed_m_s, knee,
                       constant_rel_se)
@@ -408,15 +409,15 @@ def _vertex(profile: np.ndarray, j: int) -> float:
     return min(0.5, max(-0.5, 0.5 * (a - c) / curv))
 
 
-def _summarise(tabs, pairs, chi, amps, fracs, p_grid, coa, y, se, c_max, model_rel, max_rel,
-               scale_by_chi2, probe, c_se, amp, constant, p_span, ratio_bounds,
+def _summarise(tabs, pairs, rail, chi, amps, fracs, p_grid, coa, y, se, c_max, model_rel,
+               max_rel, scale_by_chi2, probe, c_se, amp, constant, p_span, ratio_bounds,
                other_laws, speed_m_s, knee=True, constant_rel_se=0.0) -> AdhesionFit | None:
     prof = chi.min(axis=0)
     if not np.isfinite(prof).any():
         return None
     # the widen-only rule (frictiongrid.reference_chi2): unless the members no rail law needs
     # beat the others by NEW_MEMBER_MARGIN, the others alone give the level and the estimate
-    chi_set = np.where(new_pairs(tabs, pairs)[:, None], np.inf, chi)
+    chi_set = np.where(rail[:, None], chi, np.inf)
     chi_min, rail_only = reference_chi2(float(np.nanmin(prof)), float(np.nanmin(chi_set)))
     if not rail_only:
         chi_set = chi

@@ -28,8 +28,9 @@ K0_GRID = np.geomspace(3.0, 3000.0, 19)
 
 
 def new_pairs(tabs, pairs) -> np.ndarray:
-    """Which pairs hold a member that no rail law needs: the knee members (law ``knee``) and
-    the saturation tail at p = 1 with q > 1.5 (Dugoff's and the hyperbolic law).
+    """Which pairs hold a member that no rail law needs
+    (:attr:`~torquemod.analysis.creeplaws.Member.beyond_rail_laws`: the knee members and the
+    saturation tail at p = 1 with q > 1.5; Dugoff's and the hyperbolic law).
 
     Parameters
     ----------
@@ -43,8 +44,7 @@ def new_pairs(tabs, pairs) -> np.ndarray:
     ndarray of bool, shape (K,)
         True where a pair holds such a member.
     """
-    new = np.array([m.law == "knee" or (m.law == "saturation" and m.params[0] == 1.0
-                                         and m.params[1] > 1.5) for m in tabs.members])
+    new = np.array([m.beyond_rail_laws for m in tabs.members])
     return new[pairs[:, 0]] | new[pairs[:, 1]]
 
 
