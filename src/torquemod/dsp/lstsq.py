@@ -161,7 +161,7 @@ class LstsqFactor:
         return (coef.T / self.scale).T
 
 
-_POTRF, _POTRS = linalg.get_lapack_funcs(("potrf", "potrs"), (np.zeros((1, 1)),))
+_POTRS = linalg.get_lapack_funcs(("potrs",), (np.zeros((1, 1)),))[0]
 
 
 def _cho_solve(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -173,7 +173,7 @@ def _cho_solve(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 _LAPACK = "scipy.linalg.cython_lapack"
-#: addresses of LAPACK's dpotrf and dpotrs in scipy's own library (that of _POTRF and _POTRS)
+#: addresses of LAPACK's dpotrf and dpotrs in scipy's own library (_POTRS is the latter)
 _DPOTRF = get_cython_function_address(_LAPACK, "dpotrf")
 _DPOTRS = get_cython_function_address(_LAPACK, "dpotrs")
 
