@@ -225,10 +225,13 @@ from torquemod.twins.vtrack.theory import operating_point
 
 
 def cold_theory() -> None:
-    """Forget the theory's remembered creep-curve peaks and operating points, so that every
-    timed run computes them as a fresh process does (theory.py memoises them per rig)."""
+    """Forget the theory's remembered creep-curve peaks, operating points, large-signal
+    results and FFT of the identity, so that every timed run computes them as a fresh
+    process does (theory.py memoises them per rig)."""
     _theory._creep_curve_peak_memo.cache_clear()
     _theory._operating_point_memo.cache_clear()
+    _theory._large_signal_memo.cache_clear()
+    _theory._eye_spectrum.cache_clear()
 
 
 def warm_up(config) -> float:
