@@ -394,7 +394,8 @@ def large_signal_phase_deg(dc_torque_nm: float, params: RigParams, frequency_hz:
     harmonics in the top eighth of the resolved band (3n/8 to n/2) exceed 1e-6 of the first,
     ``n_samples`` is doubled (up to 1024), Newton starting from the solution on half the
     points interpolated (two or three iterations instead of about four; the converged
-    phase moves by < 1e-13 deg against a start from the small-signal response). On the default rig at 8 N*m the default 64 points
+    phase moves by < 1e-13 deg against a start from the small-signal response).
+    On the default rig at 8 N*m the default 64 points
     (128 at step 1, where the creepage swings through zero and resolves most slowly) agree
     with 1024 to 1e-9 deg and with the simulator to 1e-3 deg (``drive = "motor"``). Cost
     3-25 ms per call, plus about 0.2 s once per process to load the compiled solver.
