@@ -28,6 +28,7 @@ from torquemod.twins.vtrack.rig.noise import (
     _normal_rest,
     _splitmix,
     add_normal,
+    add_normal_pair,
 )
 
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
@@ -169,7 +170,16 @@ def measure(raw: np.ndarray, *, disturbances: DisturbanceParams, sensors: Sensor
     sigma = {"torque_nm": s.torque_noise_nm, "wheel_speed_rad_s": s.wheel_speed_noise_rad_s,
              "platform_speed_rad_s": s.platform_speed_noise_rad_s, "fx_n": s.force_noise_n,
              "fy_n": s.force_noise_n, "fz_n": s.force_noise_n}
+    # the channels with noise only, two per pass (their streams' work overlaps)
+    plain = [k for k, name in enumerate(_NOISY) if name not in encs and sigma[name] > 0]
+    for k1, k2 in zip(plain[0::2], plain[1::2], strict=False):
+        n1, n2 = _NOISY[k1], _NOISY[k2]
+        add_normal_pair(raw[:, _COL[n1]], sigma[n1], int(states[k1]), ch[n1],
+                        raw[:, _COL[n2]], sigma[n2], int(states[k2]), ch[n2])
+    paired = set(plain) if len(plain) % 2 == 0 else set(plain[:-1])
     for k, name in enumerate(_NOISY):
+        if k in paired:
+            continue
         src = raw[:, _COL[name]]
         if name in encs and sigma[name] > 0:  # the encoder and its noise in one pass
             _encoder_noise_kernel(src, raw[:, _COL[_ENCODER[name]]], *encs[name],
