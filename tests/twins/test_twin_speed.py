@@ -209,3 +209,36 @@ def test_twin_recording_times_are_the_recordings():
         ch = {"torque_nm": np.zeros(n)}
         want = Recording(ch, fs_hz=fs, t0_s=t0).time_s()
         assert np.array_equal(_TwinRecording(ch, fs_hz=fs, t0_s=t0).time_s(), want)
+
+
+def test_fused_sensor_passes_equal_the_separate_ones():
+    """The encoder with its noise in one pass, and two noisy channels in one pass, give the
+    values of the separate passes bit for bit (strided columns of an output block as in
+    ``measure``; the tail and wedge draws, ~1 % of the numbers, included)."""
+    from torquemod.twins.vtrack.rig.noise import _ZF, _ZK, _ZW, add_normal_pair
+    from torquemod.twins.vtrack.rig.sensors import _encoder_kernel, _encoder_noise_kernel
+
+    rng = np.random.default_rng(11)
+    n = 40_000
+    raw = np.empty((n, 9))
+    raw[:, 0] = 30.0 + rng.standard_normal(n)
+    raw[:, 1] = 1.0 + 0.01 * rng.standard_normal(n)
+    raw[:, 6] = np.cumsum(np.full(n, 1e-3)) + 0.2 * (np.arange(n) == n // 2)  # a jump
+    raw[:, 3] = rng.standard_normal(n)
+    enc = (0.004, 0.0015, 0.7, 2.1)
+    want = np.empty(n)
+    _encoder_kernel(raw[:, 1], raw[:, 6], *enc, want)
+    end = add_normal(want, 0.02, 123456789, want)
+    got = np.empty(n)
+    got_end = _encoder_noise_kernel(raw[:, 1], raw[:, 6], *enc, 0.02, np.uint64(123456789),
+                                    _ZK, _ZW, _ZF, got)
+    np.testing.assert_array_equal(got, want)
+    assert int(got_end) == end
+    a, b = np.empty(n), np.empty(n)
+    ends = (add_normal(raw[:, 0], 0.5, 7, a), add_normal(raw[:, 3], 2.0, 2**64 - 3, b))
+    pa, pb = np.empty(n), np.empty(n)
+    assert add_normal_pair(raw[:, 0], 0.5, 7, pa, raw[:, 3], 2.0, 2**64 - 3, pb) == ends
+    np.testing.assert_array_equal(pa, a)
+    np.testing.assert_array_equal(pb, b)
+    with pytest.raises(ValueError, match="differ in shape"):
+        add_normal_pair(raw[:, 0], 0.5, 7, pa, raw[:10, 3], 2.0, 1, pb)
