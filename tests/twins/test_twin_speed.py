@@ -244,3 +244,39 @@ def test_fused_sensor_passes_equal_the_separate_ones():
     np.testing.assert_array_equal(pb, b)
     with pytest.raises(ValueError, match="differ in shape"):
         add_normal_pair(raw[:, 0], 0.5, 7, pa, raw[:10, 3], 2.0, 1, pb)
+
+
+def test_reference_angle_shares_the_band_sines():
+    """The step starts' reference angle with the band rows' sines evaluated twice per RK4
+    step is, bit for bit, the RK4 that evaluates the whole wobble four times (plain Python
+    over the compiled ``_wobble``), for wobble tables with band rows first, revolution rows
+    first, and band rows only."""
+    import math as _m
+
+    from torquemod.twins.vtrack.rig.dynamics import wobble_table
+    from torquemod.twins.vtrack.rig.steps import _ANGLE_STEP_S, _reference_angle
+    from torquemod.twins.vtrack.rig.wobble import _wobble
+
+    def plain(t_ends, phi, w0, ipi, wob):
+        out, t = [], 0.0
+        for k, te in enumerate(t_ends):
+            n = max(1, _m.ceil((te - t) / _ANGLE_STEP_S))
+            h, q = (te - t) / n, ipi[k]
+            for _ in range(n):
+                k1 = w0 + _wobble(t, phi - q, wob)
+                k2 = w0 + _wobble(t + 0.5 * h, phi + 0.5 * h * k1 - q, wob)
+                k3 = w0 + _wobble(t + 0.5 * h, phi + 0.5 * h * k2 - q, wob)
+                k4 = w0 + _wobble(t + h, phi + h * k3 - q, wob)
+                phi += h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
+                t += h
+            out.append(phi)
+        return np.array(out)
+
+    cfg = load_config()
+    rng = np.random.default_rng(12)
+    full = wobble_table(cfg.disturbances, 0.97, rng)
+    for wob in (full, np.ascontiguousarray(full[::-1]), np.ascontiguousarray(full[:3])):
+        t_ends = np.array([0.37, 1.2, 1.9])
+        ipi = np.array([1e-3, -2e-3, 5e-4])
+        np.testing.assert_array_equal(_reference_angle(t_ends, 0.4, 0.97, ipi, wob),
+                                      plain(t_ends, 0.4, 0.97, ipi, wob))
