@@ -40,7 +40,8 @@ Later figures are in docs/performance.md ("The twin in a sweep", "The twin's int
 faster": the RK4 step of 12 samples and the normal load without its exact fall-back, batch
 519-538x -> 778-782x real time per core, 570-579x -> 889-898x without the large-signal
 theory; "The twin toward 1000x": the platform loop taken exactly, the sensors in fewer
-passes, batch 772-787x -> 806-822x, ``simulate_run`` 461-474x -> 472-512x).
+passes, skipped steps after a slip: batch 749-789x -> 821-863x, 854-880x -> 865-944x
+without the large-signal theory).
 
 Measured, fifth round of issue 12 (the same 2-core VM, load average 0.1-1.2 from other
 agents; "before" = commit 472e5c0 from an exported copy, before and after alternated in 3
