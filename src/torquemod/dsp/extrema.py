@@ -176,11 +176,11 @@ def peak_valley_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod
 
     Notes
     -----
-    One compiled call (:func:`_paired_extrema`) finds the extrema, pairs them and averages
-    the pairs with numpy's arithmetic (its pairwise summation for the mean), so the same
-    numbers as the step-by-step route, :func:`peak_valley_phase_reference`
-    (tests/dsp/test_extrema.py); that route runs where the kernel cannot decide as it
-    would (plateaus, a tie at the cut of the nearest extrema) and raises the errors.
+    One compiled call (:func:`_paired_extrema`) finds the extrema and pairs them with
+    numpy's arithmetic, so the same numbers as the step-by-step route,
+    :func:`peak_valley_phase_reference` (tests/dsp/test_extrema.py); that route runs where
+    the kernel cannot decide as it would (plateaus, a tie at the cut of the nearest
+    extrema) and raises the errors.
 
     References
     ----------
@@ -195,8 +195,7 @@ def peak_valley_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod
                                                      float(f_mod_hz), float(center_s),
                                                      int(n_periods))
         if status == 0:
-            return PeakValleyResult(float(_numpy_sum(pair, 0, pair.size) / pair.size), pair,
-                                    t_sel, w_sel)
+            return PeakValleyResult(float(pair.mean()), pair, t_sel, w_sel)
     return peak_valley_phase_reference(torque, wheel, fs_hz, f_mod_hz, center_s=center_s,
                                        n_periods=n_periods)
 
@@ -275,27 +274,57 @@ def _paired_extrema(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_h
 @njit(cache=True, nogil=True)
 def _numpy_sum(a: np.ndarray, lo: int, n: int) -> float:
     """The sum of ``a[lo:lo + n]`` as numpy's ``add.reduce`` forms it for a contiguous
-    float64 record (pairwise summation: blocks of up to 128 in eight running sums,
-    halves above), so ``np.mean``'s numbers (tests/dsp/test_extrema.py)."""
+    float64 record (pairwise summation: blocks of up to 128 in eight running sums
+    (:func:`_block_sum`), halves above, the left half's sum plus the right's), so
+    ``np.mean``'s numbers (tests/dsp/test_extrema.py). The halving runs on an explicit
+    stack (numba's cache does not keep recursive kernels)."""
+    if n <= 128:
+        return _block_sum(a, lo, n)
+    kind = np.empty(128, dtype=np.int64)  # 0: sum a segment, 1: add the top two sums
+    seg_lo = np.empty(128, dtype=np.int64)
+    seg_n = np.empty(128, dtype=np.int64)
+    sums = np.empty(128)
+    kind[0], seg_lo[0], seg_n[0] = 0, lo, n
+    top, n_sums = 1, 0
+    while top:
+        top -= 1
+        if kind[top] == 1:
+            n_sums -= 1
+            sums[n_sums - 1] = sums[n_sums - 1] + sums[n_sums]
+        elif seg_n[top] <= 128:
+            sums[n_sums] = _block_sum(a, seg_lo[top], seg_n[top])
+            n_sums += 1
+        else:  # the left half first, then the right, then their sum
+            m, start = seg_n[top], seg_lo[top]
+            half = m // 2
+            half -= half % 8
+            kind[top] = 1
+            kind[top + 1], seg_lo[top + 1], seg_n[top + 1] = 0, start + half, m - half
+            kind[top + 2], seg_lo[top + 2], seg_n[top + 2] = 0, start, half
+            top += 3
+    return sums[0]
+
+
+@njit(cache=True, nogil=True)
+def _block_sum(a: np.ndarray, lo: int, n: int) -> float:
+    """numpy's pairwise-summation leaf for ``n <= 128`` values from ``a[lo]``: a plain
+    running sum below 8, else eight running sums over blocks of 8, added as
+    ``((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))``, then the remainder."""
     if n < 8:
         res = -0.0
         for i in range(n):
             res += a[lo + i]
         return res
-    if n <= 128:
-        r = np.empty(8)
+    r = np.empty(8)
+    for j in range(8):
+        r[j] = a[lo + j]
+    i = 8
+    while i < n - n % 8:
         for j in range(8):
-            r[j] = a[lo + j]
-        i = 8
-        while i < n - n % 8:
-            for j in range(8):
-                r[j] += a[lo + i + j]
-            i += 8
-        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
-        while i < n:
-            res += a[lo + i]
-            i += 1
-        return res
-    half = n // 2
-    half -= half % 8
-    return _numpy_sum(a, lo, half) + _numpy_sum(a, lo + half, n - half)
+            r[j] += a[lo + i + j]
+        i += 8
+    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res

@@ -326,14 +326,14 @@ def lstsq_compiled(design: np.ndarray, y: np.ndarray, potrf: int, potrs: int
     design : ndarray
         ``(n, m)`` C-ordered design, ``m >= 2``.
     y : ndarray
-        ``(n,)`` observations, C-ordered.
+        ``(n,)`` or ``(n, k)`` observations, C-ordered.
     potrf, potrs : int
         LAPACK's routines (:func:`lapack_addresses`).
 
     Returns
     -------
     coef : ndarray
-        ``(m,)`` coefficients (empty unless the status is 0).
+        ``(m,)`` or ``(m, k)`` coefficients, C-ordered (none unless the status is 0).
     status : int
         0; 1 a zero or non-finite column; 2 a normal matrix not positive definite; 3 its
         condition number above 1e10. Where it is not 0, :func:`lstsq` would fall back to the
@@ -341,9 +341,9 @@ def lstsq_compiled(design: np.ndarray, y: np.ndarray, potrf: int, potrs: int
     """
     dn, scale = _normalised(design)
     if dn.shape[0] == 0:
-        return np.empty(0), 1
+        return np.empty((0, *y.shape[1:])), 1
     gram = np.asfortranarray(np.dot(dn.T, dn))
     factor, status = _cholesky(gram, potrf)
     if status != 0:
-        return np.empty(0), status
-    return _solve(dn, factor, scale, y, potrs), 0
+        return np.empty((0, *y.shape[1:])), status
+    return np.ascontiguousarray(_solve(dn, factor, scale, y, potrs)), 0

@@ -25,11 +25,12 @@ from scipy import signal
 
 from torquemod.dsp.extrema import (  # noqa: F401  (re-exported: the paper's estimator)
     PeakValleyResult,
+    _numpy_sum,
     extrema_times,
     parabolic_vertex,
     peak_valley_phase,
 )
-from torquemod.dsp.lstsq import LstsqFactor, lstsq
+from torquemod.dsp.lstsq import LstsqFactor, lapack_addresses, lstsq, lstsq_compiled
 from torquemod.dsp.tonemodel import tone_design
 from torquemod.errors import ProcessingError
 
@@ -217,19 +218,14 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
     keep = tuple(f for f in nuisance_hz if abs(f - f_mod_hz) > resolution)
     design = _design(n, fs_hz, f_mod_hz, keep, trend)
     y = np.column_stack([torque[start:stop], wheel[start:stop]])
-    fac = LstsqFactor.of(design)  # one factor for both fits below (lstsq's own numbers)
-    if fac is None and lstsq(design, y[:, 0])[1] < design.shape[1]:
-        raise ProcessingError("sine-fit design matrix is rank deficient (nuisance tones "
-                              "coincide)")
-    if noise_from is None:
-        coef = fac.solve(y) if fac is not None else lstsq(design, y)[0]
-        resid = y - design @ coef
-    else:  # the four records in one solve
-        y_all = np.column_stack([y, np.asarray(noise_from[0])[start:stop],
-                                 np.asarray(noise_from[1])[start:stop]])
-        c_all = fac.solve(y_all) if fac is not None else lstsq(design, y_all)[0]
-        coef = c_all[:, :2]
-        resid = y_all[:, 2:] - design @ c_all[:, 2:]
+    if noise_from is not None:  # the four records in one solve
+        y = np.column_stack([y, np.asarray(noise_from[0])[start:stop],
+                             np.asarray(noise_from[1])[start:stop]])
+    status, coef, psds = (5, None, None) if n < 8 or y.dtype != np.float64 else \
+        _sine_fit(np.ascontiguousarray(design), y, float(fs_hz), float(f_mod_hz),
+                  *_dft_table(n), *lapack_addresses())
+    if status != 0:  # numpy's route: a design that needs the SVD, or too short a window
+        coef, psds = _sine_fit_numpy(design, y, fs_hz, f_mod_hz)
     t_win = n / fs_hz
     phases, amps, var_phi = [], [], 0.0
     for ch in range(2):
@@ -239,13 +235,100 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
             raise ProcessingError("zero amplitude at the modulation frequency")
         # var(phi_i) = S_i/(A_i^2 T) with S_i the one-sided noise density at f_mod
         # (Rife and Boorstyn 1974)
-        psd = local_noise_psd(resid[:, ch], fs_hz, f_mod_hz)
-        var_phi += psd / (a2 * t_win)
+        var_phi += psds[ch] / (a2 * t_win)
         phases.append(float(np.arctan2(-s, c)))
         amps.append(float(np.sqrt(a2)))
     lag = np.angle(np.exp(1j * (phases[0] - phases[1])))
     return SineFitResult(float(np.degrees(lag)), float(np.degrees(np.sqrt(var_phi))), amps[0],
                          amps[1], phases[0], phases[1], n, (start / fs_hz, stop / fs_hz))
+
+
+def _sine_fit_numpy(design: np.ndarray, y: np.ndarray, fs_hz: float, f_mod_hz: float
+                    ) -> tuple[np.ndarray, list[float]]:
+    """:func:`sinefit_phase`'s fit step by step in numpy: the signals' coefficients
+    ``(m, 2)`` and the residuals' noise densities near ``f_mod_hz`` [unit^2/Hz]
+    (:func:`local_noise_psd`), the residual of ``y``'s last two columns (``y`` holds the
+    torque and wheel speed, then optionally the records whose residual gives the noise)."""
+    fac = LstsqFactor.of(design)  # one factor for both fits below (lstsq's own numbers)
+    if fac is None and lstsq(design, y[:, 0])[1] < design.shape[1]:
+        raise ProcessingError("sine-fit design matrix is rank deficient (nuisance tones "
+                              "coincide)")
+    c_all = fac.solve(y) if fac is not None else lstsq(design, y)[0]
+    resid = y[:, -2:] - design @ c_all[:, -2:]
+    return c_all[:, :2], [local_noise_psd(resid[:, ch], fs_hz, f_mod_hz) for ch in range(2)]
+
+
+@functools.lru_cache(maxsize=16)
+def _dft_table(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """``cos`` and ``sin`` of ``2*pi*j/n`` for j = 0..n-1 (the DFT's twiddles, exact index
+    arithmetic ``k*t mod n`` picks them), the periodic Hann window and its sum of squares
+    (:func:`_hann_periodic`); cached read-only, one per window length."""
+    angle = 2.0 * np.pi * np.arange(n) / n
+    w, ss = _hann_periodic(n)
+    out = (np.cos(angle), np.sin(angle), w)
+    for a in out:
+        a.setflags(write=False)
+    return (*out, ss)
+
+
+@njit(cache=True, nogil=True)
+def _sine_fit(design: np.ndarray, y: np.ndarray, fs_hz: float, f_hz: float, cos_t: np.ndarray,
+              sin_t: np.ndarray, w: np.ndarray, ss: float, potrf: int, potrs: int
+              ) -> tuple[int, np.ndarray, np.ndarray]:
+    """:func:`_sine_fit_numpy` in one call: ``(status, coef, psds)``, status 0, or not 0
+    where that route must decide (a design :func:`~torquemod.dsp.lstsq.lstsq_compiled`
+    leaves to the SVD, fewer than two bins in the noise band). The least squares by
+    :func:`~torquemod.dsp.lstsq.lstsq_compiled`; each density as
+    :func:`local_noise_psd` forms it with the periodogram's bins in the band summed
+    directly over the samples (:func:`_band_density`) instead of by the FFT (the same
+    values to rounding)."""
+    coef, status = lstsq_compiled(design, y, potrf, potrs)
+    if status != 0:
+        return status, np.empty((0, 2)), np.empty(2)
+    k0 = y.shape[1] - 2
+    fit = np.dot(design, np.ascontiguousarray(coef[:, k0:]))
+    psds = np.empty(2)
+    for ch in range(2):
+        psds[ch] = _band_density(y[:, k0 + ch] - fit[:, ch], fs_hz, f_hz, cos_t, sin_t, w,
+                                 ss, 0.75)
+        if not psds[ch] == psds[ch]:
+            return 4, coef, psds
+    return 0, np.ascontiguousarray(coef[:, :2]), psds
+
+
+@njit(cache=True, nogil=True)
+def _band_density(x: np.ndarray, fs_hz: float, f_hz: float, cos_t: np.ndarray,
+                  sin_t: np.ndarray, w: np.ndarray, ss: float, half_width_hz: float) -> float:
+    """:func:`local_noise_psd` of ``x`` [unit^2/Hz] with the Hann-windowed periodogram's
+    bins within ``half_width_hz`` of ``f_hz`` (the two nearest left out) evaluated as DFT
+    sums over the samples: the same bins, frequencies and scaling as :func:`_density` and
+    the mean as numpy forms it; NaN where the band holds fewer than two bins."""
+    n = x.size
+    mean = _numpy_sum(x, 0, n) / n
+    xw = (x - mean) * w
+    val = 1.0 / (n * (1.0 / fs_hz))  # np.fft.rfftfreq's spacing
+    vals = np.empty(n // 2 + 1)
+    count = 0
+    for k in range(n // 2 + 1):
+        off = abs(k * val - f_hz)
+        if off <= half_width_hz and off > 1.5 * (val - 0.0):
+            re = 0.0
+            im = 0.0
+            j = 0
+            for t in range(n):  # exp(-2j*pi*k*t/n), j = k*t mod n
+                re += xw[t] * cos_t[j]
+                im -= xw[t] * sin_t[j]
+                j += k
+                if j >= n:
+                    j -= n
+            p = (re * re + im * im) / (fs_hz * ss)
+            if 1 <= k < n // 2 + (n % 2):
+                p *= 2.0
+            vals[count] = p
+            count += 1
+    if count < 2:
+        return math.nan
+    return _numpy_sum(vals, 0, count) / count
 
 
 def phase_crb_deg(amplitude_1: float, amplitude_2: float, noise_std_1: float, noise_std_2: float,
