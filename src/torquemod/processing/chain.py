@@ -11,9 +11,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from torquemod.dsp import filters, resampling, tonemodel
+from torquemod.dsp import filters, resampling
 from torquemod.dsp.align import alignment_lag
 from torquemod.dsp.basis import needs_wide_band
+from torquemod.dsp.padfilter import padded_and_filtered
 from torquemod.dsp.phase import SineFitResult, local_noise_psd, peak_valley_phase, sinefit_phase
 from torquemod.dsp.spectrum import peak_frequencies, peak_frequency
 from torquemod.errors import InputError, ProcessingError
@@ -330,13 +331,13 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     pad = max(filters.settling_samples(ba) for ba in [hp, bp, *notch_ba.values()])
     tones = [f_mod, *wheel_notches]
 
-    (wh_p, wh_level, _), (tq_p, tq_level, _) = tonemodel.model_padded_rows(
-        [sig[k] - model.part(k, "slow") - model.part(k, "orders") - model.part(k, "harmonics")
-         for k in ("wheel_speed_rad_s", "torque_nm")], fs_r, tones, pad)
+    # the records less their slow part, orders and harmonics, padded by their tone model;
     # the wheel speed through its notches, then both records through the high-pass and the
-    # band-pass together (one lfilter call per filter and direction for both rows)
-    wh_p = filters.zero_phase_cascade([notch_ba[f0] for f0 in wheel_notches], wh_p)
-    both_f = filters.zero_phase_cascade([hp, bp], np.vstack([wh_p, tq_p]))
+    # band-pass (one compiled call)
+    wh_p, wh_level, tq_p, tq_level, both_f = padded_and_filtered(
+        *[sig[k] - model.part(k, "slow") - model.part(k, "orders") - model.part(k, "harmonics")
+          for k in ("wheel_speed_rad_s", "torque_nm")], fs_r, tones, pad,
+        [notch_ba[f0] for f0 in wheel_notches], [hp, bp])
     wh_n = wh_p[pad:pad + n] + wh_level + model.mean("wheel_speed_rad_s")
     tq_n = tq_p[pad:pad + n] + tq_level + model.mean("torque_nm")
     wh_f, tq_f = both_f[0, pad:pad + n], both_f[1, pad:pad + n]
