@@ -347,3 +347,41 @@ def lstsq_compiled(design: np.ndarray, y: np.ndarray, potrf: int, potrs: int
     if status != 0:
         return np.empty((0, *y.shape[1:])), status
     return np.ascontiguousarray(_solve(dn, factor, scale, y, potrs)), 0
+
+
+@numba.njit(cache=True, nogil=True)
+def leading_residual(design: np.ndarray, gram: np.ndarray, dn: np.ndarray, scale: np.ndarray,
+                     k: int, potrf: int, potrs: int) -> tuple[np.ndarray, int]:
+    """The residual of a design's first ``k`` columns fitted on its other columns, from the
+    design's kept normal matrix (:meth:`LstsqFactor.of` with ``keep_gram``).
+
+    The trailing block of the column-normalised normal matrix is the other columns' own
+    (:meth:`LstsqFactor.trailing`): factored by LAPACK ``potrf``, the first ``k`` columns
+    solved on the others with two steps of iterative refinement (:func:`_solve`), the fit
+    subtracted. The same steps as ``trailing(k).solve(design[:, :k])`` and the product,
+    in one call.
+
+    Parameters
+    ----------
+    design : ndarray
+        ``(n, m)`` design, C-ordered, any unit per column.
+    gram, dn, scale : ndarray
+        Its :class:`LstsqFactor`'s normal matrix, normalised design and column norms.
+    k : int
+        Leading columns, ``1 <= k < m``.
+    potrf, potrs : int
+        LAPACK's routines (:func:`lapack_addresses`).
+
+    Returns
+    -------
+    residual : ndarray
+        ``(n, k)``, the leading columns' units (empty unless the status is 0).
+    status : int
+        0, or :func:`_cholesky`'s status for the trailing block (the caller falls back).
+    """
+    factor, status = _cholesky(np.asfortranarray(gram[k:, k:]), potrf)
+    if status != 0:
+        return np.empty((0, k)), status
+    lead = np.ascontiguousarray(design[:, :k])
+    coef = _solve(np.ascontiguousarray(dn[:, k:]), factor, scale[k:].copy(), lead, potrs)
+    return lead - np.dot(np.ascontiguousarray(design[:, k:]), np.ascontiguousarray(coef)), 0
