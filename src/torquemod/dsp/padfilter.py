@@ -11,7 +11,7 @@ import numba
 import numpy as np
 
 from torquemod.dsp import filters, tonemodel
-from torquemod.dsp.filters import _filtfilt_rows, _lfilter_zi, _steady_state
+from torquemod.dsp.filters import _filtfilt_rows, _steady_state_solve
 from torquemod.dsp.lstsq import _DPOTRS, LstsqFactor, _solve
 from torquemod.dsp.tonemodel import _fill_cos_sin, _line_and_tones_design
 
@@ -83,40 +83,38 @@ def padded_and_filtered_reference(first: np.ndarray, second: np.ndarray, fs_hz: 
     return p1, level1, p2, level2, both
 
 
-def _packed(filters_ba: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-    """The filters' ``b``, ``a`` and steady states (``lfilter_zi``, as
-    :func:`~torquemod.dsp.filters.zero_phase_cascade` takes them) as rows of three arrays,
-    and each filter's length; None where a filter is not of the compiled kind (``a[0] = 1``,
-    ``b`` and ``a`` of one length, at least 2)."""
-    coeffs = []
+def _packed(filters_ba: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The filters' ``b`` and ``a`` as rows of two arrays (zero-padded) and each filter's
+    length; None where a filter is not of the compiled kind (``a[0] = 1``, ``b`` and ``a``
+    of one length, at least 2)."""
+    size = 2
     for b, a in filters_ba:
-        b = np.atleast_1d(np.asarray(b, dtype=np.float64))
-        a = np.atleast_1d(np.asarray(a, dtype=np.float64))
-        if a[0] != 1.0 or a.size != b.size or b.size < 2 or b.ndim != 1:
+        if np.ndim(b) != 1 or np.ndim(a) != 1 or len(b) != len(a) or len(b) < 2 \
+                or a[0] != 1.0:
             return None
-        zi = _lfilter_zi(b.tobytes(), a.tobytes()) if not (b.flags.writeable
-                                                           or a.flags.writeable) \
-            else _steady_state(b, a)
-        coeffs.append((b, a, zi))
-    size = max([b.size for b, _, _ in coeffs], default=2)
-    bs, as_, zs = (np.zeros((len(coeffs), size)) for _ in range(3))
-    lengths = np.zeros(len(coeffs), dtype=np.int64)
-    for i, (b, a, zi) in enumerate(coeffs):
-        bs[i, :b.size], as_[i, :a.size], zs[i, :zi.size] = b, a, zi
-        lengths[i] = b.size
-    return bs, as_, zs, lengths
+        size = max(size, len(b))
+    bs = np.zeros((len(filters_ba), size))
+    as_ = np.zeros((len(filters_ba), size))
+    lengths = np.empty(len(filters_ba), dtype=np.int64)
+    for i, (b, a) in enumerate(filters_ba):
+        bs[i, :len(b)] = b
+        as_[i, :len(a)] = a
+        lengths[i] = len(b)
+    return bs, as_, lengths
 
 
 @numba.njit(cache=True, nogil=True)
 def _pad_and_filter(rows: np.ndarray, dn: np.ndarray, factor: np.ndarray, scale: np.ndarray,
                     line: np.ndarray, omegas: np.ndarray, pad: int, bs: np.ndarray,
-                    as_: np.ndarray, zs: np.ndarray, lengths: np.ndarray, n_first: int,
-                    potrs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    as_: np.ndarray, lengths: np.ndarray, n_first: int, potrs: int
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`padded_and_filtered` on the rows of ``rows``: the line and tones fitted by
     the compiled solve (:func:`~torquemod.dsp.lstsq._solve`, the route of
     ``LstsqFactor.solve`` for a contiguous record), the tones over the padded times by
     :func:`~torquemod.dsp.tonemodel._fill_cos_sin`, each filter by
-    :func:`~torquemod.dsp.filters._filtfilt_rows`: ``(padded, levels, both_filtered)``."""
+    :func:`~torquemod.dsp.filters._filtfilt_rows` from the steady state of
+    :func:`~torquemod.dsp.filters._steady_state_solve` (``lfilter_zi``'s numbers):
+    ``(padded, levels, both_filtered)``."""
     n_rows, n = rows.shape
     total = n + 2 * pad
     k = omegas.size
@@ -132,11 +130,14 @@ def _pad_and_filter(rows: np.ndarray, dn: np.ndarray, factor: np.ndarray, scale:
         for i in range(n):
             padded[r, pad + i] = x[i] - coef[0] - coef[1] * line[i]
         levels[r] = coef[0]
-    for f in range(n_first):  # the first row through its own filters
+    both = padded  # (the first row's own filters act on it before the copy below)
+    for f in range(lengths.size):
         m = lengths[f]
-        _filtfilt_rows(bs[f, :m].copy(), as_[f, :m].copy(), zs[f, :m - 1].copy(), padded[:1])
-    both = padded.copy()
-    for f in range(n_first, lengths.size):  # then both rows through the common ones
-        m = lengths[f]
-        _filtfilt_rows(bs[f, :m].copy(), as_[f, :m].copy(), zs[f, :m - 1].copy(), both)
+        b = bs[f, :m].copy()
+        a = as_[f, :m].copy()
+        if f == n_first:  # then both rows through the common ones
+            both = padded.copy()
+        _filtfilt_rows(b, a, _steady_state_solve(b, a), padded[:1] if f < n_first else both)
+    if n_first == lengths.size:
+        both = padded.copy()
     return padded, levels, both
