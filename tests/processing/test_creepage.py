@@ -1,5 +1,6 @@
 """Step 8's creepage fit in one compiled call (torquemod.processing.creepage) against the
-numpy route step by step."""
+numpy route step by step, and the compiled least squares it uses
+(torquemod.dsp.lstsq.lstsq_compiled) against the SVD."""
 
 from __future__ import annotations
 
@@ -8,10 +9,33 @@ import dataclasses
 import numpy as np
 import pytest
 
+from torquemod.dsp.lstsq import lapack_addresses, lstsq, lstsq_compiled
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Rig
 from torquemod.processing import chain, creepage
 from torquemod.testing import SyntheticSpec, synthetic_recording
+
+
+@pytest.mark.parametrize("n,m,seed", [(323, 2, 0), (323, 8, 1), (690, 12, 2)])
+def test_lstsq_compiled_against_the_svd(n, m, seed):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 53.344
+    d = np.column_stack([np.ones(n), t, *[np.cos((k + 1) * t + k) for k in range(m - 2)]])
+    y = d @ rng.standard_normal(m) + 1e-3 * rng.standard_normal(n)
+    coef, status = lstsq_compiled(d, y, *lapack_addresses())
+    assert status == 0
+    ref = np.linalg.lstsq(d, y, rcond=None)[0]
+    # condition numbers here ~1e2-1e3: both agree to ~1e-13 relative; bound 1e-10
+    np.testing.assert_allclose(coef, ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
+    np.testing.assert_allclose(coef, lstsq(d, y)[0], rtol=1e-12, atol=0)
+
+
+def test_lstsq_compiled_reports_what_needs_the_svd():
+    n = 100
+    d = np.column_stack([np.ones(n), np.arange(n), np.zeros(n)])  # a zero column
+    assert lstsq_compiled(d, np.ones(n), *lapack_addresses())[1] == 1
+    d = np.column_stack([np.ones(n), np.arange(n), np.arange(n) + 1e-9])  # collinear
+    assert lstsq_compiled(d, np.ones(n), *lapack_addresses())[1] in (2, 3)
 
 
 def _model(spec: SyntheticSpec):

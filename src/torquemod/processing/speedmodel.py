@@ -14,7 +14,6 @@ import numpy as np
 from scipy.signal import get_window
 
 from torquemod.dsp import filters, projection
-from torquemod.dsp.lstsq import lapack_addresses, leading_residual
 
 
 @functools.lru_cache(maxsize=16)
@@ -116,16 +115,6 @@ class SpeedModel:
         # condition number (~1e6 here) and came out 6e-5 relative off the SVD's (this route:
         # 1e-11, measured). The fit's normal matrix gives the other columns' factor.
         other = d[:, 2:]
-        fac = self.factor
-        if other.shape[1] and fac is not None and fac.gram is not None \
-                and d.flags.c_contiguous and fac.dn.flags.c_contiguous:
-            # the trailing factor, the solve and the residual in one compiled call (the
-            # route below, to rounding)
-            m_res, status = leading_residual(d, fac.gram, fac.dn, fac.scale, 2,
-                                             *lapack_addresses())
-            if status == 0:
-                return float(max(1.0, _trace_of_inverse_2x2(m_res.T @ m_res)
-                                 / _trace_of_inverse_2x2(m.T @ m)))
         sub = self.factor.trailing(2) if self.factor is not None else None
         if other.shape[1]:
             c_o = sub.solve(m) if sub is not None else filters.lstsq(other, m)[0]
