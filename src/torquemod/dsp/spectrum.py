@@ -16,7 +16,7 @@ import numba
 import numpy as np
 from scipy import signal
 
-from torquemod.dsp.lstsq import _DPOTRS, LstsqFactor, _solve, lstsq
+from torquemod.dsp.lstsq import LstsqFactor, lstsq
 from torquemod.dsp.tonemodel import tone_design
 from torquemod.errors import ProcessingError
 
@@ -183,13 +183,12 @@ def peak_frequencies(records: np.ndarray, fs_hz: float, *,
                      band_hz: tuple[float, float] = (1.5, 2.5), window: str = "hann",
                      detrend: str = "linear", zero_pad: int = 8, xtol_hz: float = 1e-6,
                      min_peak_to_floor: float = 20.0) -> list[float]:
-    """:func:`peak_frequency` of each column of ``records``, in three calls for all columns.
+    """:func:`peak_frequency` of each column of ``records``, the search in one call for all.
 
-    The detrending fit, the window and the zero-padded FFT's magnitudes of every column in
-    one compiled call, one FFT of all columns, then the bin search and the refinement by
-    Brent's search of ``|X_w(f)|`` in another compiled call: the steps and parameters of
-    :func:`peak_frequency`. The detrending fit of a column takes the compiled route of
-    :meth:`~torquemod.dsp.lstsq.LstsqFactor.solve` for a contiguous record, so the
+    Each column detrended and windowed, one FFT of all columns, then the bin search and the
+    refinement by Brent's search of ``|X_w(f)|`` for all columns in one compiled call: the
+    steps and parameters of :func:`peak_frequency`. A column is detrended as a contiguous
+    record (:meth:`~torquemod.dsp.lstsq.LstsqFactor.solve`'s compiled route), so the
     frequencies equal :func:`peak_frequency`'s on each column as a contiguous array
     (tests/dsp/test_spectrum_batch.py). A column whose checks fail, and other windows or
     detrending designs, go through :func:`peak_frequency` itself, which raises its error.
@@ -228,8 +227,10 @@ def peak_frequencies(records: np.ndarray, fs_hz: float, *,
     w = _window(window, n)
     m = zero_pad * n
     nfft = 1 << (m - 1).bit_length()
-    wx = _detrended_windowed(x, design, fac.dn, np.asfortranarray(fac.factor), fac.scale, w,
-                             _DPOTRS)
+    wx = np.empty((x.shape[1], n))
+    for i in range(x.shape[1]):  # detrended and windowed (the compiled solve of a
+        col = np.ascontiguousarray(x[:, i])  # contiguous record: one kernel fewer to load)
+        np.multiply(col - design @ fac.solve(col), w, out=wx[i])
     freqs, idx, wide = _grid(nfft, fs_hz, lo, hi, n)
     if idx.size >= 3:
         spec = np.fft.rfft(wx, nfft, axis=1)
@@ -240,22 +241,6 @@ def peak_frequencies(records: np.ndarray, fs_hz: float, *,
             return peaks.tolist()
     return [peak_frequency(np.ascontiguousarray(x[:, i]), fs_hz, **kw)
             for i in range(x.shape[1])]
-
-
-@numba.njit(cache=True, nogil=True)
-def _detrended_windowed(x: np.ndarray, design: np.ndarray, dn: np.ndarray, factor: np.ndarray,
-                        scale: np.ndarray, w: np.ndarray, potrs: int) -> np.ndarray:
-    """Rows ``w*(x_c - design @ coef_c)`` for each column ``x_c`` of ``x``, ``coef_c`` by
-    the compiled least-squares solve (:func:`~torquemod.dsp.lstsq._solve`) with the
-    design's factor: :func:`peak_frequency`'s windowed, detrended record of each column."""
-    n, k = x.shape
-    out = np.empty((k, n))
-    for c in range(k):
-        y = np.ascontiguousarray(x[:, c])
-        fit = np.dot(design, _solve(dn, factor, scale, y, potrs))
-        for i in range(n):
-            out[c, i] = (y[i] - fit[i]) * w[i]
-    return out
 
 
 @numba.njit(cache=True, nogil=True)
