@@ -203,8 +203,32 @@ def peak_valley_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod
 def peak_valley_phase_reference(torque: np.ndarray, wheel: np.ndarray, fs_hz: float,
                                 f_mod_hz: float, *, center_s: float, n_periods: int = 3
                                 ) -> PeakValleyResult:
-    """:func:`peak_valley_phase` step by step in numpy (the same parameters, result and
-    errors): its reference and its route where the compiled one cannot decide."""
+    """:func:`peak_valley_phase` step by step in numpy: its reference and its route where
+    the compiled one cannot decide.
+
+    Parameters
+    ----------
+    torque, wheel : ndarray
+        Band-passed torque [N*m] and wheel angular velocity [rad/s], sampled together.
+    fs_hz : float
+        Sampling rate [Hz].
+    f_mod_hz : float
+        Modulation frequency [Hz].
+    center_s : float
+        Centre of the cycle [s from the first sample].
+    n_periods : int, default 3
+        Peaks (and valleys) used.
+
+    Returns
+    -------
+    PeakValleyResult
+        Mean phase [deg], per-pair phases [deg] and the paired times [s].
+
+    Raises
+    ------
+    ProcessingError
+        Too few extrema, or no wheel-speed extremum within half a period of a torque one.
+    """
     t_pk, t_vl = extrema_times(torque, fs_hz)
     w_pk, w_vl = extrema_times(wheel, fs_hz)
     period = 1.0 / f_mod_hz

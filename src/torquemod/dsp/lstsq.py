@@ -303,9 +303,14 @@ def _solve(dn: np.ndarray, factor: np.ndarray, scale: np.ndarray, y: np.ndarray,
 
 
 def lapack_addresses() -> tuple[int, int]:
-    """The addresses of LAPACK's ``dpotrf`` and ``dpotrs`` in scipy's library, the last two
-    arguments of :func:`lstsq_compiled` (run-time values, so a kernel that takes them can be
-    cached)."""
+    """The addresses of LAPACK's ``dpotrf`` and ``dpotrs`` in scipy's library.
+
+    Returns
+    -------
+    potrf, potrs : int
+        The routines' addresses, the last two arguments of :func:`lstsq_compiled` (run-time
+        values, so a kernel that takes them can be cached).
+    """
     return _DPOTRF, _DPOTRS
 
 

@@ -75,7 +75,27 @@ def padded_and_filtered_reference(first: np.ndarray, second: np.ndarray, fs_hz: 
                                   common_filters: list
                                   ) -> tuple[np.ndarray, float, np.ndarray, float, np.ndarray]:
     """:func:`padded_and_filtered` by :func:`~torquemod.dsp.tonemodel.model_padded_rows` and
-    :func:`~torquemod.dsp.filters.zero_phase_cascade` (the same parameters and results)."""
+    :func:`~torquemod.dsp.filters.zero_phase_cascade`, one after the other.
+
+    Parameters
+    ----------
+    first, second : ndarray
+        Records of equal length, any unit each.
+    fs_hz : float
+        Sample rate [Hz].
+    tones_hz : list of float
+        The stationary tones [Hz].
+    pad : int
+        Samples added at each end [-].
+    first_filters, common_filters : list of tuple of ndarray
+        (b, a) of each filter, in order.
+
+    Returns
+    -------
+    first_padded, first_level, second_padded, second_level, both_filtered
+        As :func:`padded_and_filtered` (the records' units; ``both_filtered`` is
+        ``(2, n + 2*pad)``).
+    """
     (p1, level1, _), (p2, level2, _) = tonemodel.model_padded_rows([first, second], fs_hz,
                                                                    tones_hz, pad)
     p1 = filters.zero_phase_cascade(first_filters, p1)

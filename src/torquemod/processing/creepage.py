@@ -77,8 +77,28 @@ def creepage_and_drift_reference(model: SpeedModel, fs_hz: float, *, wheel_radiu
                                  platform_radius_m: float, platform_harmonics: tuple[int, ...]
                                  ) -> tuple[float, float]:
     """:func:`creepage_and_drift` by numpy and :func:`torquemod.dsp.lstsq.lstsq` step by
-    step (the route before the compiled one, and its fallback): the same parameters and
-    results [-]."""
+    step: the route before the compiled one, and its fallback.
+
+    Parameters
+    ----------
+    model : SpeedModel
+        The joint speed model of the cycle.
+    fs_hz : float
+        Sample rate [Hz].
+    wheel_radius_m : float
+        Rw [m].
+    platform_radius_m : float
+        Rp [m].
+    platform_harmonics : tuple of int
+        The platform's revolution harmonics fitted.
+
+    Returns
+    -------
+    creepage : float
+        xi [-].
+    drift : float
+        Its change over the record [-].
+    """
     w = model.part("wheel_speed_rad_s", "slow")
     p = model.part("platform_speed_rad_s", "slow")
     if np.any(w == 0):
