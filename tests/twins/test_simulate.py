@@ -11,6 +11,7 @@ import pytest
 from torquemod import __version__
 from torquemod.errors import InputError, OutputError
 from torquemod.io import read_experiment, read_recording
+from torquemod.twins.vtrack.params import ACCURACY_LAMBDA_H, MAX_STEP_S, explicit_rate
 from torquemod.twins.vtrack.simulate import (
     default_config_text,
     load_config,
@@ -210,25 +211,33 @@ def test_mean_creepage_matches_steady_state(oracle_run):
 
 
 def test_integrator_step_is_configurable_and_checked():
-    """``procedure.samples_per_step`` (default 12) is validated; a step longer than the
-    accuracy bound MAX_STEP_S or too long for the explicit part's fastest mode (RK4
-    stability) is shortened by halving samples_per_step (a lower sample rate or a stiffer
-    rig runs slower, never less accurate or unstable), and refused with a hint when even
-    one sample per step is too long. The platform's PI loop no longer bounds the step (its
-    rate is taken exactly)."""
+    """``procedure.samples_per_step`` (default 16) is validated; a step longer than the
+    accuracy bound MAX_STEP_S, or taking lambda*h beyond ACCURACY_LAMBDA_H for the explicit
+    part's fastest mode, is shortened to the largest sample count within both (a lower
+    sample rate, a lower speed or a stiffer rig runs slower, never less accurate), and
+    refused with a hint when even one sample per step is too long (MAX_STEP_S) or unstable
+    (MAX_LAMBDA_H). The platform's PI loop no longer bounds the step (its rate is taken
+    exactly)."""
+    fs = 16670.0
     assert load_config(overrides={"procedure": {"samples_per_step": 1}}
                        ).procedure.samples_per_step == 1
     with pytest.raises(InputError, match="samples_per_step"):
         load_config(overrides={"procedure": {"samples_per_step": 0}})
-    # a 10 kHz logger: 12 samples would be 1.2e-3 s > MAX_STEP_S; 6 are 6e-4 s
+    # a 10 kHz logger: 16 samples would be 1.6e-3 s > MAX_STEP_S; 9 are 9e-4 s
     slow = load_config(overrides={"sensors": {"sample_rate_hz": 10_000.0}})
-    assert slow.procedure.samples_per_step == 6
+    assert slow.procedure.samples_per_step == 9
+    assert 10 / 10_000.0 > MAX_STEP_S >= 9 / 10_000.0
     with pytest.raises(InputError, match=r"accuracy.*substeps"):  # 1 kHz: 1e-3 s at best
         load_config(overrides={"sensors": {"sample_rate_hz": 1000.0}})
     assert load_config(overrides={"sensors": {"sample_rate_hz": 1000.0},
                                   "procedure": {"substeps": 2}}).procedure.substeps == 2
     stiff_pi = {"rig": {"platform_kp_nm_s_rad": 1.0e8}}  # Kp/Jp = 33 000 1/s: taken exactly
-    assert load_config(overrides=stiff_pi).procedure.samples_per_step == 12
+    assert load_config(overrides=stiff_pi).procedure.samples_per_step == 16
+    # dry contact at 2 km/h: the creep-force damping (~1700 1/s, as 1/V) bounds the step
+    dry = load_config(overrides={"contact": {"preset": "dry"}, "rig": {"speed_km_h": 2.0}})
+    sps = dry.procedure.samples_per_step
+    lam = explicit_rate(dry.rig)
+    assert lam * sps / fs <= ACCURACY_LAMBDA_H < lam * (sps + 1) / fs
     stiff = {"rig": {"shaft_stiffness_nm_rad": 3.0e8}}  # torsion ~21 000 1/s
     assert load_config(overrides=stiff).procedure.samples_per_step == 1  # lambda*h = 1.28
     stiffer = {"rig": {"shaft_stiffness_nm_rad": 3.0e9}}  # ~67 000 1/s

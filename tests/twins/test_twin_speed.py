@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from torquemod.twins.vtrack.params import MAX_LAMBDA_H, explicit_rate, stiffest_rate
+from torquemod.twins.vtrack.params import (
+    ACCURACY_LAMBDA_H,
+    MAX_LAMBDA_H,
+    explicit_rate,
+    stiffest_rate,
+)
 from torquemod.twins.vtrack.rig.batch import plan_run
 from torquemod.twins.vtrack.rig.dynamics import pack_parameters
 from torquemod.twins.vtrack.rig.noise import ZIG_R, add_normal, standard_normal, ziggurat_tables
@@ -71,26 +76,27 @@ def test_streams_are_deterministic_and_independent(draws):
 
 
 def test_settling_step_is_stable_and_longer():
-    """Default rig: the settling at 24 samples per RK4 step, twice the recorded 12 (the
+    """Default rig: the settling at 32 samples per RK4 step, twice the recorded 16 (the
     platform's PI loop, ~3300 1/s, is taken exactly: only the torsional mode, ~200 1/s,
-    bounds the step, lambda*h = 0.28); a stiffer platform loop changes neither step; a
-    stiff shaft (torsion ~3900 1/s) halves the recorded step to 6 and settles at 10
-    (lambda*h = 2.34 <= MAX_LAMBDA_H); never shorter than the recorded step."""
+    bounds the step, lambda*h = 0.38); a stiffer platform loop changes neither step; a
+    stiff shaft (torsion ~3900 1/s) lowers the recorded step to 2 (lambda*h = 0.47 <=
+    ACCURACY_LAMBDA_H) and settles at 4; never shorter than the recorded step."""
     cfg = load_config()
     fs = cfg.sensors.sample_rate_hz
     r = settle_samples_per_step(cfg)
-    assert r == 24 and cfg.procedure.samples_per_step == 12
-    assert explicit_rate(cfg.rig) * r / fs <= 0.3
+    assert r == 32 and cfg.procedure.samples_per_step == 16
+    assert explicit_rate(cfg.rig) * r / fs <= 0.4
     assert stiffest_rate(cfg.rig) * r / fs > 4.0  # beyond classical RK4's stability
     stiff = load_config(overrides={"rig": {"platform_kp_nm_s_rad": 2.0e7},
                                    "procedure": {"samples_per_step": 4}})
     assert settle_samples_per_step(stiff) == 8
     stiff = load_config(overrides={"rig": {"platform_kp_nm_s_rad": 1.4e7}})
-    assert stiff.procedure.samples_per_step == 12 and settle_samples_per_step(stiff) == 24
+    assert stiff.procedure.samples_per_step == 16 and settle_samples_per_step(stiff) == 32
     shaft = load_config(overrides={"rig": {"shaft_stiffness_nm_rad": 1.0e7}})
-    assert shaft.procedure.samples_per_step == 6  # 12 would be lambda*h = 2.8
-    assert settle_samples_per_step(shaft) == 10  # int(2.5*16670/3895)
-    assert explicit_rate(shaft.rig) * 10 / fs <= MAX_LAMBDA_H
+    assert shaft.procedure.samples_per_step == 2  # 3 would be lambda*h = 0.70
+    assert explicit_rate(shaft.rig) * 2 / fs <= ACCURACY_LAMBDA_H
+    assert settle_samples_per_step(shaft) == 4
+    assert explicit_rate(shaft.rig) * 4 / fs <= MAX_LAMBDA_H
 
 
 def test_coarse_settling_keeps_the_phases():

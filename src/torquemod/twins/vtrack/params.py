@@ -315,7 +315,9 @@ class ProcedureParams:
         Classical RK4 steps per ``samples_per_step`` output samples [-]. Default 1.
     samples_per_step : int
         Output samples per integration step (those inside a step are interpolated,
-        :func:`torquemod.twins.vtrack.rig.lanes.integrate`) [-]. Default 12.
+        :func:`torquemod.twins.vtrack.rig.lanes.integrate`) [-]. Default 16; a loaded
+        configuration lowers it to keep the step within :data:`MAX_STEP_S` and
+        :data:`ACCURACY_LAMBDA_H`.
     """
 
     dc_torques_nm: tuple[float, ...] = checked()
@@ -356,11 +358,21 @@ class SimConfig:
 #: the real axis; the platform's PI loop, taken exactly, does not count:
 #: :func:`explicit_rate`)
 MAX_LAMBDA_H = 2.5
-#: longest RK4 step [s] accepted for accuracy: the default step (12 samples at 16 670 Hz,
-#: 7.2e-4 s) keeps the simulated phases within 1e-4 deg of a step of 4 samples, 24 samples
-#: do not (docs/performance.md); 7.5e-4 s is the bound the platform loop's stability set
-#: (2.5/(Kp/Jp) on the default rig) before that loop was taken exactly
-MAX_STEP_S = 7.5e-4
+#: largest |lambda*h| of the explicit part's fastest mode accepted for ACCURACY (not
+#: stability): with the disturbances off the simulated phases' error against a step of 4
+#: samples grows roughly as (lambda*h)^4 where the creep-force damping (rising as 1/V)
+#: dominates, ~1e-4 deg at lambda*h = 0.6 (dry contact at 4 km/h); 0.5 keeps it below
+#: ~5e-5 deg (benchmarks/twin_step_accuracy.py, docs/performance.md)
+ACCURACY_LAMBDA_H = 0.5
+#: longest RK4 step [s] accepted for accuracy: 16 samples at 16 670 Hz (9.6e-4 s). Over the
+#: example sweep's conditions, speeds, loads and modulation frequencies, with the
+#: disturbances on, the simulated phases stay within 9.0e-4 deg a revolution of a step of 4
+#: samples (1 % of 0.145 deg, the smallest per-cycle phase standard error the chain reports
+#: at the default sensor noise) and, with them off, within 1e-4 deg (1 % of the 0.01 deg to
+#: which the twin is held against an independent simulation); 24 samples exceed the first
+#: (1.7e-3 deg), 20 leave a joint's ringing beyond the normal load's fast rotation
+#: (rig/dynamics.py) for little gain (docs/performance.md, benchmarks/twin_step_accuracy.py)
+MAX_STEP_S = 9.6e-4
 
 
 def stiffest_rate(rig: RigParams) -> float:

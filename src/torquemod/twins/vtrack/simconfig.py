@@ -28,6 +28,7 @@ from torquemod.analysis.contact.kalker import kalker_coefficients
 from torquemod.analysis.contact.presets import POLACH_PRESETS, polach_preset
 from torquemod.errors import InputError
 from torquemod.twins.vtrack.params import (
+    ACCURACY_LAMBDA_H,
     DEFAULT_DOC,
     MAX_LAMBDA_H,
     MAX_STEP_S,
@@ -330,22 +331,19 @@ def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
 
 def _check_step(rig: RigParams, sensors: SensorParams, proc: ProcedureParams,
                 where: str) -> ProcedureParams:
-    """``proc`` with an RK4 step the rig allows: within :data:`MAX_STEP_S` (accuracy) and
-    with ``lambda*h <= MAX_LAMBDA_H`` for the explicit part's fastest mode
-    (:func:`explicit_rate`; the platform's PI loop is taken exactly) -- ``samples_per_step``
-    is halved (12, 6, 3, 1) while the step is too long (a shorter step is only more
-    accurate, so a stiffer rig or a lower sample rate just runs slower); refused when even
-    one sample per step is too long (raise ``substeps``)."""
+    """``proc`` with an RK4 step the rig allows: ``samples_per_step`` lowered to the largest
+    count whose step is within :data:`MAX_STEP_S` and takes ``lambda*h <=``
+    :data:`ACCURACY_LAMBDA_H` for the explicit part's fastest mode (:func:`explicit_rate`;
+    the platform's PI loop is taken exactly) -- both accuracy bounds, so a lower sample
+    rate, a lower speed or a stiffer contact runs slower, never less accurate. Refused when
+    even one sample per step is longer than :data:`MAX_STEP_S` or takes ``lambda*h`` beyond
+    RK4's stability (:data:`MAX_LAMBDA_H`): raise ``substeps``. Between
+    :data:`ACCURACY_LAMBDA_H` and :data:`MAX_LAMBDA_H` one sample per step is accepted."""
     lam = explicit_rate(rig)
-
-    def too_long(sps: int) -> bool:
-        h = sps / (proc.substeps * sensors.sample_rate_hz)
-        return lam * h > MAX_LAMBDA_H or h > MAX_STEP_S
-
-    sps = proc.samples_per_step
-    while sps > 1 and too_long(sps):
-        sps //= 2
-    h = sps / (proc.substeps * sensors.sample_rate_hz)
+    per_sample = 1.0 / (proc.substeps * sensors.sample_rate_hz)  # step of one sample [s]
+    fit = min(MAX_STEP_S / per_sample, ACCURACY_LAMBDA_H / (lam * per_sample))
+    sps = max(1, min(proc.samples_per_step, int(fit * (1.0 + 1e-12))))
+    h = sps * per_sample
     if lam * h > MAX_LAMBDA_H:
         raise InputError(f"integrator step {h:.3g} s too long for the rig's fastest mode "
                          f"(lambda*h = {lam * h:.2f} > {MAX_LAMBDA_H} with one sample per "

@@ -25,16 +25,16 @@ Equations (derived for this model; the contact force is quasi-static, Polach 200
 The motor torque is ``T_m = T_dc(t) + A*sin(2*pi*f*(t - t_gen) + phi)`` with a DC ramp.
 
 Integration (:mod:`torquemod.twins.vtrack.rig.lanes`): classical RK4 at a fixed step of
-``samples_per_step`` output samples (default 12, configured in ``[procedure]``), the platform
+``samples_per_step`` output samples (default 16, configured in ``[procedure]``), the platform
 speed ``W_p`` by the exponential RK4 of Krogstad (2005) with its linear rate ``-K_p/J_p``
 taken exactly (the PI loop's stiff mode, ~3300 1/s on the default rig, bounds no step);
 samples inside
 a step are the cubic Hermite interpolant of the step's end states and slopes, with the contact
 forces evaluated at that state -- exactly at the step's middle sample, and for the other inner
 samples of an even block of >= 4 by the cubic through the exact forces half a step before, at
-the ends and the middle (to ~1e-6 N at 4 samples, ~1e-3 N at the default 12 -- the error grows
-as h^4 through a rail joint's ringing; exact at rail joints and in fast transients; see
-:func:`torquemod.twins.vtrack.rig.lanes.integrate`).
+the ends and the middle (to ~1e-6 N at 4 samples, ~1e-3 N at 12, ~3e-3 N at the default
+16 -- the error grows as h^4 through a rail joint's ringing; exact at rail joints and in
+fast transients; see :func:`torquemod.twins.vtrack.rig.lanes.integrate`).
 The dynamics (and so the phase) never read these recorded forces. The work per step is trimmed
 without changing the equations: the modulation sine is rotated from step to step, the normal
 load's sines from a per-step anchor (above :func:`_load_near`), the speed reference's wobble

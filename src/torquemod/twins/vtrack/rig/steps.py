@@ -55,7 +55,7 @@ def settle_samples_per_step(config: SimConfig) -> int:
     :data:`SETTLE_STEPS` recorded steps, fewer if that step would take ``lambda*h`` of the
     explicit part (:func:`~torquemod.twins.vtrack.params.explicit_rate`) beyond
     :data:`~torquemod.twins.vtrack.params.MAX_LAMBDA_H`, at least the recorded step. Default
-    rig: 24 samples (``lambda*h = 0.28`` for the torsional mode; the platform's PI loop is
+    rig: 32 samples (``lambda*h = 0.38`` for the torsional mode; the platform's PI loop is
     taken exactly).
 
     Parameters
