@@ -115,8 +115,7 @@ def groups(quick: bool, quiet: bool = False) -> dict[str, list]:
     for f in (2.0, 3.0):
         out[f"default {f:g} Hz"] = [load_config(overrides={"modulation": {"frequency_hz": f}})]
         out[f"default {f:g} Hz, 10 kHz"] = [load_config(overrides={
-            "modulation": {"frequency_hz": f}, "sensors": {"sample_rate_hz": 10000.0},
-            "procedure": {"samples_per_step": 6}})]
+            "modulation": {"frequency_hz": f}, "sensors": {"sample_rate_hz": 10000.0}})]
     # the corners: the creep damping rate grows as 1/V (explicit_rate), the modulation to 8 Hz
     for cond, kmh, f in (("dry", 2.0, 2.0), ("dry", 4.0, 4.0), ("vtrack", 2.0, 2.0),
                          ("dry", 7.0, 8.0), ("leaves", 7.0, 8.0)):

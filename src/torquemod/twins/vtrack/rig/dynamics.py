@@ -177,8 +177,9 @@ def normal_load(th_p: float, p: np.ndarray) -> float:
 # Within one RK4 step the platform turns by ~5e-4 rad, so every evaluation of the normal load
 # in the step is written as its sines and decay at the step's start angle (the "anchor")
 # rotated/decayed by the small increment: the rotations' sin and cos by Taylor polynomials
-# accurate to rounding for |u| <= _ROT (a joint's ringing turns by ~0.18 rad in a step of
-# 12 samples, the sleepers' argument by ~0.07 rad), the decay's exp for |x| <= _SMALL
+# accurate to rounding for |u| <= _ROT (a joint's ringing turns by ~0.24 rad in a step of
+# the default 16 samples, the sleepers' argument by ~0.09 rad; at 20 samples the ringing's
+# 0.30 rad would take the exact fall-back), the decay's exp for |x| <= _SMALL
 # (:mod:`torquemod.twins.vtrack.rig.kernels`). The anchor itself is advanced the same way
 # from step to step and evaluated exactly every _ANCHOR_EXACT steps. Larger increments, and
 # a rail joint between anchor and angle, fall back to the exact :func:`normal_load`.
