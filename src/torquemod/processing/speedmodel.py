@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import get_window
 
-from torquemod.dsp import filters, projection
+from torquemod.dsp import filters, lstsq, numpyblas, projection
 
 
 @functools.lru_cache(maxsize=16)
@@ -316,6 +316,23 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     design[:, 2 + n_s:2 + n_s + n_o] = orders
     design[:, 2 + n_s + n_o:] = mod[:, 2:]
     y = np.column_stack([channels[k] for k in names])
+    blas = numpyblas.addresses()
+    if blas is not None and n > 1 and y.dtype == np.float64:
+        # the factor, the coefficients and every channel's parts in one compiled call, with
+        # the numbers of the route below and of SpeedModel.part (numpy's BLAS calls)
+        end = design.shape[1] - 2 * len(harmonics)
+        bounds = np.array([[2, 2 + n_s], [2 + n_s, end], [end, design.shape[1]]])
+        dn, scale, gram, factor, coef, parts, status = lstsq.fit_with_parts(
+            design, y, bounds, blas[0], blas[2], *lstsq.lapack_addresses())
+        if status == 0:
+            for a in (dn, scale, gram, factor, coef, parts):
+                a.setflags(write=False)
+            model = SpeedModel(modulation_hz, fs_hz, design, n_s, coef, names,
+                               lstsq.LstsqFactor(dn, scale, factor, gram), 2 * len(harmonics))
+            for j, name in enumerate(names):
+                for i, which in enumerate(("slow", "orders", "harmonics")):
+                    model._parts[(name, which)] = parts[i, j]
+            return model
     fac = filters.LstsqFactor.of(design, keep_gram=True)  # the model's statistics reuse it
     coef = fac.solve(y) if fac is not None else filters.lstsq(design, y)[0]
     return SpeedModel(modulation_hz, fs_hz, design, slow.shape[1], coef, names, fac,

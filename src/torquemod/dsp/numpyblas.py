@@ -1,0 +1,213 @@
+"""numpy's own BLAS products inside compiled code, with numpy's numbers.
+
+The chain's phase is defined to its last bits by the rounding of the matrix products in its
+least-squares fits: a wheel speed of ~30 rad/s carrying a ~2e-3 rad/s modulation turns one
+ulp of its slow part into ~1e-10 deg of phase. A product computed any other way (numba's
+``np.dot`` calls scipy's BLAS, a hand loop sums in another order) moves those bits. The
+kernels here call the CBLAS routines of the OpenBLAS that numpy itself is linked against, at
+their run-time addresses, with the arguments numpy's ``matmul`` passes for the same operands
+(numpy/_core/src/umath/matmul.c.src): the same library, routine and arguments, so the same
+numbers.
+
+For C-ordered float64 operands whose every dimension is at least 2, ``matmul`` calls
+
+* ``a.T @ a`` (one buffer on both sides): ``dsyrk(RowMajor, Upper, Trans, m, n, 1, a, m,
+  0, c, m)`` and copies the upper triangle to the lower one;
+* ``a @ b``: ``dgemm(RowMajor, NoTrans, NoTrans, m, p, n, 1, a, n, b, p, 0, c, p)``;
+* ``a.T @ b`` (another buffer): ``dgemm(RowMajor, Trans, NoTrans, m, p, n, 1, a, m, b, p, 0,
+  c, p)``;
+* ``a @ x`` (a contiguous vector): ``dgemv(ColMajor, Trans, n, m, 1, a, n, x, 1, 0, y, 1)``;
+* ``a.T @ v``: ``dgemv(RowMajor, Trans, n, m, 1, a, m, v, 1, 0, y, 1)``.
+
+Dimensions of 1 or 0 take other routes in numpy (a dot product, its own loops): the
+functions here refuse them (the callers keep numpy's route there). The routines are looked
+up once per process in the libraries numpy's extension module loads (:func:`addresses`) and
+checked against numpy's ``matmul`` on a small design; if a symbol is absent or a check
+differs, :func:`addresses` gives None and the callers use numpy itself. The addresses are
+run-time arguments of the kernels, so numba's cache stays valid across processes.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+
+import numba
+import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
+
+# CBLAS's enumerations (cblas.h)
+_ROW_MAJOR, _COL_MAJOR = 101, 102
+_NO_TRANS, _TRANS = 111, 112
+_UPPER = 121
+
+#: symbol names tried, in order: numpy >= 2.0 wheels (scipy-openblas, 64-bit integers), then
+#: numpy 1.26 wheels (openblas64_); both ILP64 (64-bit integers)
+_PREFIXES = ("scipy_cblas_", "cblas_")
+_SUFFIX = "64_"
+
+
+@intrinsic
+def _cblas_call(typingctx, address, args):
+    """Call the C routine at ``address`` with the tuple ``args`` passed by value: int32
+    (CBLAS's enumerations), int64 (its integers and, as integers, its pointers) and float64
+    (its scalars). The routine's address is a run-time value, so the kernels that use it can
+    be cached."""
+    sig = types.void(types.intp, args)
+
+    def codegen(context, builder, signature, llargs):
+        arg_types = [context.get_value_type(t) for t in signature.args[1]]
+        fn = ir.FunctionType(ir.VoidType(), arg_types)
+        routine = builder.inttoptr(llargs[0], fn.as_pointer())
+        builder.call(routine, [builder.extract_value(llargs[1], i)
+                               for i in range(len(arg_types))])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@numba.njit(cache=True, nogil=True)
+def gram_t(a: np.ndarray, syrk: int) -> np.ndarray:
+    """``a.T @ a`` of a C-ordered ``(n, m)`` float64 matrix (n, m >= 2) by numpy's ``dsyrk``
+    call, the full symmetric ``(m, m)`` result."""
+    n, m = a.shape
+    c = np.empty((m, m))
+    _cblas_call(syrk, (np.int32(_ROW_MAJOR), np.int32(_UPPER), np.int32(_TRANS), np.int64(m),
+                       np.int64(n), 1.0, np.int64(a.ctypes.data), np.int64(m), 0.0,
+                       np.int64(c.ctypes.data), np.int64(m)))
+    for i in range(m):
+        for j in range(i + 1, m):
+            c[j, i] = c[i, j]
+    return c
+
+
+@numba.njit(cache=True, nogil=True)
+def matmul(a: np.ndarray, b: np.ndarray, gemm: int) -> np.ndarray:
+    """``a @ b`` of C-ordered float64 matrices ``(m, n)`` and ``(n, p)`` (all >= 2) by
+    numpy's ``dgemm`` call."""
+    m, n = a.shape
+    p = b.shape[1]
+    c = np.empty((m, p))
+    _cblas_call(gemm, (np.int32(_ROW_MAJOR), np.int32(_NO_TRANS), np.int32(_NO_TRANS),
+                       np.int64(m), np.int64(p), np.int64(n), 1.0, np.int64(a.ctypes.data),
+                       np.int64(n), np.int64(b.ctypes.data), np.int64(p), 0.0,
+                       np.int64(c.ctypes.data), np.int64(p)))
+    return c
+
+
+@numba.njit(cache=True, nogil=True)
+def matmul_tn(a: np.ndarray, b: np.ndarray, gemm: int) -> np.ndarray:
+    """``a.T @ b`` of C-ordered float64 matrices ``(n, m)`` and ``(n, p)`` (all >= 2, not
+    one buffer: that is :func:`gram_t`) by numpy's ``dgemm`` call."""
+    n, m = a.shape
+    p = b.shape[1]
+    c = np.empty((m, p))
+    _cblas_call(gemm, (np.int32(_ROW_MAJOR), np.int32(_TRANS), np.int32(_NO_TRANS),
+                       np.int64(m), np.int64(p), np.int64(n), 1.0, np.int64(a.ctypes.data),
+                       np.int64(m), np.int64(b.ctypes.data), np.int64(p), 0.0,
+                       np.int64(c.ctypes.data), np.int64(p)))
+    return c
+
+
+@numba.njit(cache=True, nogil=True)
+def matvec(a: np.ndarray, x: np.ndarray, gemv: int) -> np.ndarray:
+    """``a @ x`` of a float64 ``(m, n)`` matrix (m >= 2) whose rows are contiguous (a C-ordered
+    matrix or a block of its columns) and an ``(n,)`` vector of any positive stride (a
+    column of a C- or Fortran-ordered matrix), as numpy's ``matmul`` makes it: its
+    ``dgemv`` call for n >= 2 (``dgemv(ColMajor, Trans, n, m, 1, a, lda, x, incx, 0, y,
+    1)``), its own loop for n = 1 (``0 + a*x``), zeros for n = 0."""
+    m, n = a.shape
+    y = np.zeros(m)
+    if n == 1:
+        for i in range(m):
+            y[i] = 0.0 + a[i, 0] * x[0]
+    elif n > 1:
+        _cblas_call(gemv, (np.int32(_COL_MAJOR), np.int32(_TRANS), np.int64(n), np.int64(m),
+                           1.0, np.int64(a.ctypes.data), np.int64(a.strides[0] // 8),
+                           np.int64(x.ctypes.data), np.int64(x.strides[0] // 8), 0.0,
+                           np.int64(y.ctypes.data), np.int64(1)))
+    return y
+
+
+@numba.njit(cache=True, nogil=True)
+def matvec_t(a: np.ndarray, v: np.ndarray, gemv: int) -> np.ndarray:
+    """``a.T @ v`` of a C-ordered ``(n, m)`` float64 matrix (n, m >= 2) and a contiguous
+    ``(n,)`` vector by numpy's ``dgemv`` call."""
+    n, m = a.shape
+    y = np.empty(m)
+    _cblas_call(gemv, (np.int32(_ROW_MAJOR), np.int32(_TRANS), np.int64(n), np.int64(m), 1.0,
+                       np.int64(a.ctypes.data), np.int64(m), np.int64(v.ctypes.data),
+                       np.int64(1), 0.0, np.int64(y.ctypes.data), np.int64(1)))
+    return y
+
+
+def _lookup() -> tuple[int, int, int] | None:
+    """The addresses of ``dsyrk``, ``dgemm`` and ``dgemv`` in the BLAS numpy is linked
+    against, or None."""
+    try:
+        from numpy._core import _multiarray_umath as umath
+    except ImportError:  # numpy < 2.0
+        from numpy.core import _multiarray_umath as umath
+    try:
+        lib = ctypes.CDLL(umath.__file__)  # (the loaded module: dlsym searches its
+    except OSError:  # dependencies, numpy's own BLAS among them)
+        return None
+    for prefix in _PREFIXES:
+        found = []
+        for name in ("dsyrk", "dgemm", "dgemv"):
+            try:
+                found.append(ctypes.cast(getattr(lib, f"{prefix}{name}{_SUFFIX}"),
+                                         ctypes.c_void_p).value)
+            except AttributeError:
+                break
+        if len(found) == 3 and all(found):
+            return tuple(found)
+    return None
+
+
+def _agrees(found: tuple[int, int, int]) -> bool:
+    """Whether the routines at ``found``, called through ctypes with the arguments the
+    kernels pass, give numpy's ``matmul`` bit for bit on a small design."""
+    syrk, gemm, gemv = found
+    i32, i64, f64, ptr = ctypes.c_int32, ctypes.c_int64, ctypes.c_double, ctypes.c_void_p
+    rng = np.random.default_rng(5)
+    a = rng.standard_normal((57, 7)) * np.logspace(0, 3, 7)
+    b = rng.standard_normal((57, 3))
+    x = rng.standard_normal(7)
+    n, m = a.shape
+    p = b.shape[1]
+    c = np.zeros((m, m))
+    ctypes.CFUNCTYPE(None, i32, i32, i32, i64, i64, f64, ptr, i64, f64, ptr, i64)(syrk)(
+        _ROW_MAJOR, _UPPER, _TRANS, m, n, 1.0, a.ctypes.data, m, 0.0, c.ctypes.data, m)
+    c = np.triu(c) + np.triu(c, 1).T
+    d = np.zeros((m, p))
+    ctypes.CFUNCTYPE(None, i32, i32, i32, i64, i64, i64, f64, ptr, i64, ptr, i64, f64, ptr,
+                     i64)(gemm)(_ROW_MAJOR, _TRANS, _NO_TRANS, m, p, n, 1.0, a.ctypes.data, m,
+                                b.ctypes.data, p, 0.0, d.ctypes.data, p)
+    y = np.zeros(n)
+    ctypes.CFUNCTYPE(None, i32, i32, i64, i64, f64, ptr, i64, ptr, i64, f64, ptr, i64)(gemv)(
+        _COL_MAJOR, _TRANS, m, n, 1.0, a.ctypes.data, m, x.ctypes.data, 1, 0.0, y.ctypes.data,
+        1)
+    return (np.array_equal(c, a.T @ a) and np.array_equal(d, a.T @ b)
+            and np.array_equal(y, a @ x))
+
+
+@functools.cache
+def addresses() -> tuple[int, int, int] | None:
+    """The run-time addresses of numpy's own ``dsyrk``, ``dgemm`` and ``dgemv`` (CBLAS,
+    64-bit integers), the last arguments of the kernels here.
+
+    Returns
+    -------
+    tuple of int or None
+        ``(syrk, gemm, gemv)``; None when numpy's BLAS does not export them under the names
+        of numpy's wheels (numpy 1.26-2.x: ``scipy_cblas_*64_`` or ``cblas_*64_``) or when
+        they do not reproduce numpy's ``matmul`` bit for bit on a check design: the callers
+        then keep numpy's own route, with the same numbers.
+    """
+    found = _lookup()
+    if found is None or not _agrees(found):
+        return None
+    return found
