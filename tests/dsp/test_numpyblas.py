@@ -65,7 +65,7 @@ def test_factor_equals_the_numpy_route(seed, monkeypatch):
                for _ in range(10)]
     fast = [lstsq.LstsqFactor.of(d, keep_gram=True) for d in designs]
     monkeypatch.setattr(numpyblas, "addresses", lambda: None)
-    for d, f in zip(designs, fast):
+    for d, f in zip(designs, fast, strict=True):
         ref = lstsq.LstsqFactor.of(d, keep_gram=True)
         for a, b in ((f.dn, ref.dn), (f.scale, ref.scale), (f.gram, ref.gram),
                      (np.triu(f.factor), np.triu(ref.factor))):
