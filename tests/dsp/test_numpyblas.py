@@ -94,3 +94,23 @@ def test_speed_model_fit_equals_the_numpy_route(seed, monkeypatch):
             np.testing.assert_array_equal(fast.part(name, which), ref.part(name, which))
     assert fast.variance_factor() == ref.variance_factor()
     assert fast.noise_depletion() == ref.noise_depletion()
+
+
+@needs_blas
+def test_matmul_any_and_matvec_follow_numpys_layout_rules():
+    _, gemm, gemv = BLAS
+    rng = np.random.default_rng(30)
+    for _ in range(20):
+        n, m, p = int(rng.integers(2, 500)), int(rng.integers(2, 30)), int(rng.integers(2, 9))
+        for a in (_design(rng, n, m), np.asfortranarray(_design(rng, n, m))):
+            for b in (rng.standard_normal((m, p)), np.asfortranarray(rng.standard_normal((m, p)))):
+                np.testing.assert_array_equal(numpyblas.matmul_any(a, b, gemm), a @ b)
+            x = rng.standard_normal((m, 3))[:, 1]  # a strided vector
+            np.testing.assert_array_equal(numpyblas.matvec(a, x, gemv), a @ x)
+
+
+def test_vector_sum_is_numpys_pairwise_sum():
+    rng = np.random.default_rng(31)
+    for n in [*range(1, 300), 511, 1024, 1029, 4097, 20011]:
+        a = rng.standard_normal(n) * 10.0 ** rng.uniform(-3, 3, n) + rng.uniform(-50, 50)
+        assert numpyblas.vector_sum(a) == a.sum()

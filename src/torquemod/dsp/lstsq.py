@@ -429,3 +429,14 @@ def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, syrk: 
         for j in range(k):
             parts[p, j] = numpyblas.matvec(design[:, b0:b1], coef[b0:b1, j], gemv)
     return dn, scale, gram, factor, coef, parts, status
+
+
+#: :meth:`LstsqFactor.of`'s compiled route (:func:`_factor_of`: a C-ordered design of two or
+#: more rows and columns; ``syrk`` from :func:`torquemod.dsp.numpyblas.addresses`, ``potrf``
+#: from :func:`lapack_addresses`), for other kernels to call
+factor_compiled = _factor_of
+#: :meth:`LstsqFactor.solve`'s compiled route (:func:`_solve`: the factor in Fortran order, a
+#: C-ordered ``y``), for other kernels to call
+solve_compiled = _solve
+#: :func:`column_sums_of_squares`'s compiled route (two or more columns), for other kernels
+sums_of_squares_compiled = _sums_of_squares

@@ -114,13 +114,19 @@ def matmul_tn(a: np.ndarray, b: np.ndarray, gemm: int) -> np.ndarray:
 @numba.njit(cache=True, nogil=True)
 def matvec(a: np.ndarray, x: np.ndarray, gemv: int) -> np.ndarray:
     """``a @ x`` of a float64 ``(m, n)`` matrix (m >= 2) whose rows are contiguous (a C-ordered
-    matrix or a block of its columns) and an ``(n,)`` vector of any positive stride (a
-    column of a C- or Fortran-ordered matrix), as numpy's ``matmul`` makes it: its
-    ``dgemv`` call for n >= 2 (``dgemv(ColMajor, Trans, n, m, 1, a, lda, x, incx, 0, y,
-    1)``), its own loop for n = 1 (``0 + a*x``), zeros for n = 0."""
+    matrix or a block of its columns) or else whose columns are, and an ``(n,)`` vector of
+    any positive stride (a column of a C- or Fortran-ordered matrix), as numpy's
+    ``matmul`` makes it: its ``dgemv`` call for n >= 2 (rows contiguous: ``dgemv(ColMajor,
+    Trans, n, m, 1, a, lda, x, incx, 0, y, 1)``; columns: ``dgemv(RowMajor, Trans, n, m, 1,
+    a, lda, x, incx, 0, y, 1)``), its own loop for n = 1 (``0 + a*x``), zeros for n = 0."""
     m, n = a.shape
     y = np.zeros(m)
-    if n == 1:
+    if n > 1 and not _c_blasable(a):  # columns contiguous: numpy's row-major call
+        _cblas_call(gemv, (np.int32(_ROW_MAJOR), np.int32(_TRANS), np.int64(n), np.int64(m),
+                           1.0, np.int64(a.ctypes.data), np.int64(a.strides[1] // 8),
+                           np.int64(x.ctypes.data), np.int64(x.strides[0] // 8), 0.0,
+                           np.int64(y.ctypes.data), np.int64(1)))
+    elif n == 1:
         for i in range(m):
             y[i] = 0.0 + a[i, 0] * x[0]
     elif n > 1:
@@ -141,6 +147,115 @@ def matvec_t(a: np.ndarray, v: np.ndarray, gemv: int) -> np.ndarray:
                        np.int64(a.ctypes.data), np.int64(m), np.int64(v.ctypes.data),
                        np.int64(1), 0.0, np.int64(y.ctypes.data), np.int64(1)))
     return y
+
+
+@numba.njit(cache=True, nogil=True)
+def _c_blasable(a: np.ndarray) -> bool:
+    """numpy's test that a 2-D float64 array's rows are contiguous for BLAS."""
+    return a.strides[1] == 8 and a.strides[0] % 8 == 0 and a.strides[0] // 8 >= a.shape[1]
+
+
+@numba.njit(cache=True, nogil=True)
+def _f_blasable(a: np.ndarray) -> bool:
+    """numpy's test that a 2-D float64 array's columns are contiguous for BLAS."""
+    return a.strides[0] == 8 and a.strides[1] % 8 == 0 and a.strides[1] // 8 >= a.shape[0]
+
+
+@numba.njit(cache=True, nogil=True)
+def matmul_any(a: np.ndarray, b: np.ndarray, gemm: int) -> np.ndarray:
+    """``a @ b`` of float64 matrices ``(m, n)`` and ``(n, p)`` (all >= 2), each with
+    contiguous rows or contiguous columns, not one buffer, as numpy's ``matmul`` makes it:
+    ``dgemm(RowMajor, ta, tb, m, p, n, 1, a, lda, b, ldb, 0, c, p)`` with NoTrans and the
+    row stride for rows that are contiguous, Trans and the column stride otherwise. Raises
+    ValueError for other layouts (numpy copies them first)."""
+    m, n = a.shape
+    p = b.shape[1]
+    if _c_blasable(a):
+        ta, lda = _NO_TRANS, a.strides[0] // 8
+    elif _f_blasable(a):
+        ta, lda = _TRANS, a.strides[1] // 8
+    else:
+        raise ValueError("matmul_any: a layout numpy copies")
+    if _c_blasable(b):
+        tb, ldb = _NO_TRANS, b.strides[0] // 8
+    elif _f_blasable(b):
+        tb, ldb = _TRANS, b.strides[1] // 8
+    else:
+        raise ValueError("matmul_any: a layout numpy copies")
+    c = np.empty((m, p))
+    _cblas_call(gemm, (np.int32(_ROW_MAJOR), np.int32(ta), np.int32(tb), np.int64(m),
+                       np.int64(p), np.int64(n), 1.0, np.int64(a.ctypes.data), np.int64(lda),
+                       np.int64(b.ctypes.data), np.int64(ldb), 0.0, np.int64(c.ctypes.data),
+                       np.int64(p)))
+    return c
+
+
+@numba.njit(cache=True, nogil=True)
+def _pairwise_leaf(a: np.ndarray, lo: int, n: int) -> float:
+    """numpy's pairwise sum of a block ``a[lo:lo + n]`` of at most 128 elements: in order
+    below 8, else in eight interleaved partial sums combined as a tree, then the rest."""
+    if n < 8:
+        res = -0.0
+        for i in range(n):
+            res += a[lo + i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    end = n - n % 8
+    while i < end:
+        j = lo + i
+        r0 += a[j]
+        r1 += a[j + 1]
+        r2 += a[j + 2]
+        r3 += a[j + 3]
+        r4 += a[j + 4]
+        r5 += a[j + 5]
+        r6 += a[j + 6]
+        r7 += a[j + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@numba.njit(cache=True, nogil=True)
+def vector_sum(a: np.ndarray) -> float:
+    """``a.sum()`` of a contiguous 1-D float64 array with numpy's numbers: its pairwise
+    summation (blocks above 128 elements split in halves rounded down to a multiple of 8,
+    the halves' sums added) added to the reduction's initial 0. Iterative (an explicit
+    stack: numba's cached recursion is not used)."""
+    los = np.empty(64, dtype=np.int64)
+    ns = np.empty(64, dtype=np.int64)
+    stage = np.empty(64, dtype=np.int64)
+    vals = np.empty(64)
+    top, nv = 1, 0
+    los[0], ns[0], stage[0] = 0, a.size, 0
+    while top > 0:
+        t = top - 1
+        lo, n = los[t], ns[t]
+        if n <= 128:
+            vals[nv] = _pairwise_leaf(a, lo, n)
+            nv += 1
+            top -= 1
+            continue
+        n2 = n // 2
+        n2 -= n2 % 8
+        if stage[t] == 0:  # the first half
+            stage[t] = 1
+            los[top], ns[top], stage[top] = lo, n2, 0
+            top += 1
+        elif stage[t] == 1:  # the second half
+            stage[t] = 2
+            los[top], ns[top], stage[top] = lo + n2, n - n2, 0
+            top += 1
+        else:  # both halves' sums are the last two values
+            vals[nv - 2] = vals[nv - 2] + vals[nv - 1]
+            nv -= 1
+            top -= 1
+    return 0.0 + vals[0]
 
 
 def _lookup() -> tuple[int, int, int] | None:
