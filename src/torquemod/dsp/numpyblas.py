@@ -326,3 +326,36 @@ def addresses() -> tuple[int, int, int] | None:
     if found is None or not _agrees(found):
         return None
     return found
+
+
+@functools.cache
+def gesv_address() -> int | None:
+    """The run-time address of LAPACK's ``dgesv`` (64-bit integers) in the library numpy's
+    ``numpy.linalg.solve`` calls, or None (absent, or not numpy's numbers on a check
+    system): the kernels that solve small systems as ``numpy.linalg.solve`` take it."""
+    try:
+        from numpy.linalg import _umath_linalg
+        lib = ctypes.CDLL(_umath_linalg.__file__)
+    except (ImportError, OSError):
+        return None
+    address = None
+    for prefix in ("scipy_", ""):
+        try:
+            address = ctypes.cast(getattr(lib, f"{prefix}dgesv_{_SUFFIX}"), ctypes.c_void_p).value
+            break
+        except AttributeError:
+            continue
+    if not address:
+        return None
+    rng = np.random.default_rng(6)
+    a = rng.standard_normal((6, 6)) + 3 * np.eye(6)
+    b = rng.standard_normal((6, 2))
+    af, bf = np.asfortranarray(a), np.asfortranarray(b)
+    ints = np.array([6, 2, 6, 6, 0], dtype=np.int64)
+    ipiv = np.zeros(6, dtype=np.int64)
+    p = ints.ctypes.data
+    ctypes.CFUNCTYPE(None, *[ctypes.c_void_p] * 8)(address)(
+        p, p + 8, af.ctypes.data, p + 16, ipiv.ctypes.data, bf.ctypes.data, p + 24, p + 32)
+    if ints[4] != 0 or not np.array_equal(bf, np.linalg.solve(a, b)):
+        return None
+    return address
