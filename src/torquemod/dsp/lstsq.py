@@ -438,5 +438,8 @@ factor_compiled = _factor_of
 #: :meth:`LstsqFactor.solve`'s compiled route (:func:`_solve`: the factor in Fortran order, a
 #: C-ordered ``y``), for other kernels to call
 solve_compiled = _solve
+#: LAPACK ``potrf`` of a Fortran-ordered matrix in place with :func:`lstsq`'s refusals
+#: (:func:`_cholesky`), for other kernels to call
+cholesky_compiled = _cholesky
 #: :func:`column_sums_of_squares`'s compiled route (two or more columns), for other kernels
 sums_of_squares_compiled = _sums_of_squares

@@ -70,12 +70,14 @@ def _cblas_call(typingctx, address, args):
 
 @numba.njit(cache=True, nogil=True)
 def gram_t(a: np.ndarray, syrk: int) -> np.ndarray:
-    """``a.T @ a`` of a C-ordered ``(n, m)`` float64 matrix (n, m >= 2) by numpy's ``dsyrk``
-    call, the full symmetric ``(m, m)`` result."""
+    """``a.T @ a`` of a float64 ``(n, m)`` matrix (n, m >= 2) with contiguous rows (a C-ordered
+    matrix or a block of its columns) by numpy's ``dsyrk`` call (the row stride as the
+    leading dimension), the full symmetric ``(m, m)`` result."""
     n, m = a.shape
     c = np.empty((m, m))
     _cblas_call(syrk, (np.int32(_ROW_MAJOR), np.int32(_UPPER), np.int32(_TRANS), np.int64(m),
-                       np.int64(n), 1.0, np.int64(a.ctypes.data), np.int64(m), 0.0,
+                       np.int64(n), 1.0, np.int64(a.ctypes.data), np.int64(a.strides[0] // 8),
+                       0.0,
                        np.int64(c.ctypes.data), np.int64(m)))
     for i in range(m):
         for j in range(i + 1, m):
