@@ -383,14 +383,16 @@ def lstsq_compiled(design: np.ndarray, y: np.ndarray, potrf: int, potrs: int
 
 @numba.njit(cache=True, nogil=True)
 def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, syrk: int,
-                   gemv: int, potrf: int, potrs: int):
+                   gemm: int, gemv: int, potrf: int, potrs: int):
     """:func:`lstsq` of every column of ``y`` on a design and the fit's parts over blocks of
     the design's columns, in one compiled call with numpy's and LAPACK's numbers.
 
     The factor as :meth:`LstsqFactor.of` (the normal matrix by numpy's own ``syrk`` call),
     the coefficients as :meth:`LstsqFactor.solve` (Golub & Van Loan, sections 5.3.2 and
     3.5.3), and each part ``design[:, b0:b1] @ coef[b0:b1, j]`` as numpy's ``matmul`` makes
-    it (:func:`torquemod.dsp.numpyblas.matvec`).
+    it (:func:`torquemod.dsp.numpyblas.matvec`); and the variance ratio of the first two
+    coefficients, ``trace((R'R)^-1)/trace((M'M)^-1)`` with M the first two columns and R
+    their residual on the others (Schur complement of the normal matrix).
 
     Parameters
     ----------
@@ -400,7 +402,7 @@ def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, syrk: 
         ``(n, k)`` C-ordered observations.
     bounds : ndarray
         ``(parts, 2)`` integer column ranges ``[b0, b1)`` of the parts.
-    syrk, gemv : int
+    syrk, gemm, gemv : int
         numpy's BLAS routines (:func:`torquemod.dsp.numpyblas.addresses`).
     potrf, potrs : int
         LAPACK's routines (:func:`lapack_addresses`).
@@ -413,6 +415,9 @@ def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, syrk: 
         ``(m, k)`` coefficients (Fortran order, as :meth:`LstsqFactor.solve` gives them).
     parts : ndarray
         ``(parts, k, n)``: part p of column j in ``parts[p, j]``.
+    ratio : float
+        The variance ratio (:func:`_leading_variance_ratio`), NaN for fewer than four
+        columns or where the others' factor fails.
     status : int
         As :func:`lstsq_compiled`; where it is not 0 nothing else is meaningful and the
         caller fits by :func:`lstsq`.
@@ -421,14 +426,39 @@ def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, syrk: 
     n, k = y.shape
     if status != 0:
         e = np.empty((0, 0))
-        return dn, scale, gram, factor, np.asfortranarray(e), np.empty((0, 0, 0)), status
+        return (dn, scale, gram, factor, np.asfortranarray(e), np.empty((0, 0, 0)), np.nan,
+                status)
     coef = _solve(dn, factor, scale, y, potrs)
     parts = np.empty((bounds.shape[0], k, n))
     for p in range(bounds.shape[0]):
         b0, b1 = bounds[p, 0], bounds[p, 1]
         for j in range(k):
             parts[p, j] = numpyblas.matvec(design[:, b0:b1], coef[b0:b1, j], gemv)
-    return dn, scale, gram, factor, coef, parts, status
+    ratio = np.nan
+    if design.shape[1] > 3:
+        ratio = _leading_variance_ratio(design, gram, dn, scale, potrf, potrs, syrk, gemm)
+    return dn, scale, gram, factor, coef, parts, ratio, status
+
+
+@numba.njit(cache=True, nogil=True)
+def _leading_variance_ratio(d, gram, dn, scale, potrf, potrs, syrk, gemm):
+    """``trace((R'R)^-1)/trace((M'M)^-1)`` for the first two columns M of a C-ordered design
+    (four or more columns) and R their least-squares residual on the others, step by step
+    as ``SpeedModel.variance_factor``'s numpy route (the trailing factor of
+    :meth:`LstsqFactor.trailing`, the refined solve, numpy's BLAS calls); NaN where that
+    factor fails."""
+    factor, status = _cholesky(np.asfortranarray(gram[2:, 2:].copy()), potrf)
+    if status != 0:
+        return np.nan
+    m = d[:, :2]
+    c_o = _solve(np.ascontiguousarray(dn[:, 2:]), factor, scale[2:].copy(),
+                 np.ascontiguousarray(m), potrs)
+    m_res = m - numpyblas.matmul_any(d[:, 2:], c_o, gemm)
+    a = numpyblas.gram_t(m_res, syrk)
+    b = numpyblas.gram_t(m, syrk)
+    t_a = (a[0, 0] + a[1, 1]) / (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0])
+    t_b = (b[0, 0] + b[1, 1]) / (b[0, 0] * b[1, 1] - b[0, 1] * b[1, 0])
+    return t_a / t_b
 
 
 #: :meth:`LstsqFactor.of`'s compiled route (:func:`_factor_of`: a C-ordered design of two or
@@ -438,8 +468,5 @@ factor_compiled = _factor_of
 #: :meth:`LstsqFactor.solve`'s compiled route (:func:`_solve`: the factor in Fortran order, a
 #: C-ordered ``y``), for other kernels to call
 solve_compiled = _solve
-#: LAPACK ``potrf`` of a Fortran-ordered matrix in place with :func:`lstsq`'s refusals
-#: (:func:`_cholesky`), for other kernels to call
-cholesky_compiled = _cholesky
 #: :func:`column_sums_of_squares`'s compiled route (two or more columns), for other kernels
 sums_of_squares_compiled = _sums_of_squares

@@ -10,7 +10,6 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 from scipy.signal import get_window
 
@@ -109,15 +108,9 @@ class SpeedModel:
         modulation from the slow part and the orders, at the Cramér-Rao bound of the joint
         model (white noise)."""
         d = self.design
-        fac, blas = self.factor, numpyblas.addresses()
-        if (blas is not None and fac is not None and fac.gram is not None
-                and d.flags.c_contiguous and d.shape[1] > 3 and d.shape[0] > 1
-                and fac.dn.flags.c_contiguous):
-            # the steps below in one compiled call (numpy's BLAS calls: the same numbers)
-            ratio = _variance_ratio(d, fac.gram, fac.dn, fac.scale, *lstsq.lapack_addresses(),
-                                    blas[0], blas[1])
-            if ratio == ratio:  # (NaN: the trailing factor failed; the route below)
-                return float(max(1.0, ratio))
+        ratio = self._parts.get("variance_ratio", float("nan"))
+        if ratio == ratio:  # computed by the fit's compiled call with the numbers of the
+            return float(max(1.0, ratio))  # steps below (NaN: not, or it failed)
         m = d[:, :2]
         # (D'D)^-1 restricted to the modulation is (M'(I - P_B)M)^-1, P_B the projection on
         # the other columns (the Schur complement), by a refined least-squares fit on them.
@@ -178,26 +171,6 @@ class SpeedModel:
             slow = self.part(name, "slow")
             self._parts[key] = float(slow.sum()) / slow.size  # np.mean's numbers, cheaper
         return self._parts[key]
-
-
-@numba.njit(cache=True, nogil=True)
-def _variance_ratio(d, gram, dn, scale, potrf, potrs, syrk, gemm):
-    """:meth:`SpeedModel.variance_factor` before its floor at 1, step by step as it: the
-    trailing factor (:meth:`~torquemod.dsp.lstsq.LstsqFactor.trailing`), the refined solve,
-    numpy's BLAS calls (:mod:`torquemod.dsp.numpyblas`); NaN where the trailing factor
-    fails."""
-    factor, status = lstsq.cholesky_compiled(np.asfortranarray(gram[2:, 2:].copy()), potrf)
-    if status != 0:
-        return np.nan
-    m = d[:, :2]
-    c_o = lstsq.solve_compiled(np.ascontiguousarray(dn[:, 2:]), factor, scale[2:].copy(),
-                               np.ascontiguousarray(m), potrs)
-    m_res = m - numpyblas.matmul_any(d[:, 2:], c_o, gemm)
-    a = numpyblas.gram_t(m_res, syrk)
-    b = numpyblas.gram_t(m, syrk)
-    t_a = (a[0, 0] + a[1, 1]) / (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0])
-    t_b = (b[0, 0] + b[1, 1]) / (b[0, 0] * b[1, 1] - b[0, 1] * b[1, 0])
-    return t_a / t_b
 
 
 def _trace_of_inverse_2x2(a: np.ndarray) -> float:
@@ -352,8 +325,8 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
         # the numbers of the route below and of SpeedModel.part (numpy's BLAS calls)
         end = design.shape[1] - 2 * len(harmonics)
         bounds = np.array([[2, 2 + n_s], [2 + n_s, end], [end, design.shape[1]]])
-        dn, scale, gram, factor, coef, parts, status = lstsq.fit_with_parts(
-            design, y, bounds, blas[0], blas[2], *lstsq.lapack_addresses())
+        dn, scale, gram, factor, coef, parts, ratio, status = lstsq.fit_with_parts(
+            design, y, bounds, *blas, *lstsq.lapack_addresses())
         if status == 0:
             for a in (dn, scale, gram, factor, coef, parts):
                 a.setflags(write=False)
@@ -362,6 +335,7 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
             for j, name in enumerate(names):
                 for i, which in enumerate(("slow", "orders", "harmonics")):
                     model._parts[(name, which)] = parts[i, j]
+            model._parts["variance_ratio"] = float(ratio)  # (variance_factor's)
             return model
     fac = filters.LstsqFactor.of(design, keep_gram=True)  # the model's statistics reuse it
     coef = fac.solve(y) if fac is not None else filters.lstsq(design, y)[0]
@@ -416,7 +390,7 @@ class _SlowOrdersRemoval:
             return self.y - fit
         m = modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
         if self.compiled:  # the steps below in one compiled call (the same numbers)
-            out = projection.removal_at(m, self.qt, self.r_y, self.qy)
+            out = projection.removal_at(m, self.qt, self.r_y, self.qy, self.fac)
             if out is not None:
                 return out
         if self.qt is not None:  # y - B c_B = r_y + Q Q'M c_M, r_M'r_M = M'M - (Q'M)'(Q'M)
