@@ -382,8 +382,8 @@ def lstsq_compiled(design: np.ndarray, y: np.ndarray, potrf: int, potrs: int
 
 
 @numba.njit(cache=True, nogil=True)
-def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, syrk: int,
-                   gemm: int, gemv: int, potrf: int, potrs: int):
+def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, wanted: np.ndarray,
+                   syrk: int, gemm: int, gemv: int, potrf: int, potrs: int):
     """:func:`lstsq` of every column of ``y`` on a design and the fit's parts over blocks of
     the design's columns, in one compiled call with numpy's and LAPACK's numbers.
 
@@ -402,6 +402,8 @@ def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, syrk: 
         ``(n, k)`` C-ordered observations.
     bounds : ndarray
         ``(parts, 2)`` integer column ranges ``[b0, b1)`` of the parts.
+    wanted : ndarray
+        ``(parts, k)`` booleans: the parts to compute (the others are left undefined).
     syrk, gemm, gemv : int
         numpy's BLAS routines (:func:`torquemod.dsp.numpyblas.addresses`).
     potrf, potrs : int
@@ -414,7 +416,7 @@ def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, syrk: 
     coef : ndarray
         ``(m, k)`` coefficients (Fortran order, as :meth:`LstsqFactor.solve` gives them).
     parts : ndarray
-        ``(parts, k, n)``: part p of column j in ``parts[p, j]``.
+        ``(parts, k, n)``: part p of column j in ``parts[p, j]`` where wanted.
     ratio : float
         The variance ratio (:func:`_leading_variance_ratio`), NaN for fewer than four
         columns or where the others' factor fails.
@@ -433,7 +435,8 @@ def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, syrk: 
     for p in range(bounds.shape[0]):
         b0, b1 = bounds[p, 0], bounds[p, 1]
         for j in range(k):
-            parts[p, j] = numpyblas.matvec(design[:, b0:b1], coef[b0:b1, j], gemv)
+            if wanted[p, j]:
+                parts[p, j] = numpyblas.matvec(design[:, b0:b1], coef[b0:b1, j], gemv)
     ratio = np.nan
     if design.shape[1] > 3:
         ratio = _leading_variance_ratio(design, gram, dn, scale, potrf, potrs, syrk, gemm)

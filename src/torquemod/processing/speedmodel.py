@@ -280,6 +280,11 @@ def modulation_harmonics(modulation_hz: float, fs_hz: float, n_samples: int,
                  and all(abs(k * modulation_hz - g) > 2 * resolution for g in avoid_hz))
 
 
+#: the records whose orders and harmonics the chain removes (steps 3-5), computed with the
+#: fit; the other parts on demand (:meth:`SpeedModel.part`, the same numbers)
+_FILTERED = ("wheel_speed_rad_s", "torque_nm")
+
+
 def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz: float,
                     slow: np.ndarray, orders: np.ndarray, harmonics: tuple[int, ...] = ()
                     ) -> SpeedModel:
@@ -325,8 +330,13 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
         # the numbers of the route below and of SpeedModel.part (numpy's BLAS calls)
         end = design.shape[1] - 2 * len(harmonics)
         bounds = np.array([[2, 2 + n_s], [2 + n_s, end], [end, design.shape[1]]])
+        # the parts the chain reads: every channel's slow part (its step-8 mean), the
+        # orders and harmonics of the records it filters
+        wanted = np.zeros((3, len(names)), dtype=bool)
+        wanted[0] = True
+        wanted[1:, [j for j, k in enumerate(names) if k in _FILTERED]] = True
         dn, scale, gram, factor, coef, parts, ratio, status = lstsq.fit_with_parts(
-            design, y, bounds, *blas, *lstsq.lapack_addresses())
+            design, y, bounds, wanted, *blas, *lstsq.lapack_addresses())
         if status == 0:
             for a in (dn, scale, gram, factor, coef, parts):
                 a.setflags(write=False)
@@ -334,7 +344,8 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
                                lstsq.LstsqFactor(dn, scale, factor, gram), 2 * len(harmonics))
             for j, name in enumerate(names):
                 for i, which in enumerate(("slow", "orders", "harmonics")):
-                    model._parts[(name, which)] = parts[i, j]
+                    if wanted[i, j]:
+                        model._parts[(name, which)] = parts[i, j]
             model._parts["variance_ratio"] = float(ratio)  # (variance_factor's)
             return model
     fac = filters.LstsqFactor.of(design, keep_gram=True)  # the model's statistics reuse it
