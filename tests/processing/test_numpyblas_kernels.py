@@ -84,6 +84,12 @@ def test_removal_is_the_numpy_route(seed, monkeypatch):
         np.testing.assert_array_equal(a, b)
     for g, f in zip(got, (2.0, 2.1), strict=True):
         np.testing.assert_array_equal(g, ref.at(f))
+    # the refinement in one compiled call against its steps one call each
+    peaks = [2.1 + 0.004 * (seed - 1), 2.1 - 0.003]
+    duration = n / fs
+    for tol in (1e-6, 1e-9):
+        assert fast.refine_many([0, 1], peaks, tol_hz=tol) == \
+            fast._refine_steps([0, 1], peaks, duration, tol)
 
 
 def test_gesv_is_numpys_solve():

@@ -465,6 +465,15 @@ class _SlowOrdersRemoval:
         if self.fac is None:
             return peaks
         duration = self.y.shape[0] / self.fs_hz
+        if self.qt is not None:  # the steps of _refine_steps in one compiled call (the
+            # same numbers)
+            return projection.refine_peaks(self.qt, self.r_y, self.qy, self.fs_hz, duration,
+                                           columns, peaks, (1, *self.harmonics), tol_hz=tol_hz)
+        return self._refine_steps(columns, peaks, duration, tol_hz)
+
+    def _refine_steps(self, columns, peaks: list[float], duration: float, tol_hz: float
+                      ) -> list[float]:
+        """:meth:`refine_many`'s steps, one :meth:`explained_many` call each."""
         f = list(peaks)
         active = list(range(len(peaks)))
         for h in (0.05 / duration, 0.005 / duration, 0.0005 / duration):
