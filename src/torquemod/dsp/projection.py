@@ -68,56 +68,6 @@ def orthonormal_basis_t(factor: LstsqFactor, *, compiled: bool = False) -> np.nd
     return np.ascontiguousarray(qt)
 
 
-def kept_fraction(factor: LstsqFactor, v: np.ndarray, v_power: np.ndarray) -> float | None:
-    """The mean fraction of the squared norm of each pair of columns of v (real and
-    imaginary parts of a complex vector) that lies outside a design's span:
-    ``mean_j(1 - (|Q'v_j|^2 + |Q'v_j'|^2)/v_power_j)`` with Q the orthonormal basis of
-    :func:`orthonormal_basis_t` (``compiled=True``), in one compiled call with numpy's
-    numbers (its ``gemm`` for ``Q'v``, the sums in numpy's order).
-
-    Parameters
-    ----------
-    factor : LstsqFactor
-        The design's least-squares factor.
-    v : ndarray
-        ``(n, 2b)`` C-ordered columns: b real parts, then b imaginary parts.
-    v_power : ndarray
-        ``(b,)`` the complex vectors' squared norms.
-
-    Returns
-    -------
-    float or None
-        The mean fraction (not clipped); None where the basis fails or numpy's BLAS cannot
-        be called (the caller takes numpy's route).
-    """
-    blas = numpyblas.addresses()
-    if (blas is None or not factor.dn.flags.c_contiguous or v.ndim != 2 or v.shape[1] < 2
-            or not v.flags.c_contiguous or v.shape[0] < 2):
-        return None
-    mean, ok = _kept_fraction(factor.dn, np.asfortranarray(factor.factor), v, v_power,
-                              _DPOTRF, blas[1])
-    return float(mean) if ok else None
-
-
-@numba.njit(cache=True, nogil=True)
-def _kept_fraction(dn, r, v, v_power, potrf, gemm):
-    """:func:`kept_fraction` in one call: ``(mean, ok)``."""
-    qt, ok = _cholesky_qr2_t(dn, r, potrf)
-    if not ok:
-        return np.nan, False
-    qv = numpyblas.matmul(qt, v, gemm)
-    m = qv.shape[1]
-    s = np.zeros(m)  # (qv*qv).sum(axis=0): the rows added in order
-    for i in range(qv.shape[0]):
-        for j in range(m):
-            s[j] += qv[i, j] * qv[i, j]
-    b = m // 2
-    kept = np.empty(b)
-    for j in range(b):
-        kept[j] = 1.0 - (s[j] + s[b + j]) / v_power[j]
-    return numpyblas.vector_sum(kept) / b, True
-
-
 @numba.njit(cache=True, nogil=True)
 def _cholesky_qr2_t(dn: np.ndarray, r: np.ndarray, potrf: int) -> tuple[np.ndarray, bool]:
     """``Q' = R2^-T R^-T dn'`` (CholeskyQR2 from the factor R of ``dn'dn``, upper triangle

@@ -144,10 +144,6 @@ class SpeedModel:
             return 1.0
         v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
         fac = self.factor if self.factor is not None else filters.LstsqFactor.of(d)
-        if fac is not None:  # the steps below in one compiled call (the same numbers)
-            mean = projection.kept_fraction(fac, v, v_power)
-            if mean is not None:
-                return min(max(mean, 0.05), 1.0)
         qt = projection.orthonormal_basis_t(fac, compiled=True) if fac is not None else None
         if qt is None:
             # a design rank deficient to rounding (the fit fell back to the SVD): Q from
