@@ -22,7 +22,6 @@ import math
 
 import numba
 import numpy as np
-from numba.extending import get_cython_function_address
 from scipy import linalg
 
 from torquemod.dsp import numpyblas
@@ -108,116 +107,48 @@ def _forward_rows(r: np.ndarray, b: np.ndarray, out: np.ndarray) -> bool:
     return True
 
 
-#: LAPACK's dtrtrs in scipy's library (the routine of scipy.linalg.lapack's trtrs)
-_DTRTRS = get_cython_function_address("scipy.linalg.cython_lapack", "dtrtrs")
-
-
-def removal_basis(y: np.ndarray, factor: LstsqFactor
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """An orthonormal basis of a design's span and records less their projection on it,
-    with the numbers of :func:`orthonormal_basis_t` (its LAPACK route) and numpy's
-    products, in one compiled call.
-
-    Parameters
-    ----------
-    y : ndarray
-        ``(n, k)`` C-ordered records, ``k >= 2``.
-    factor : LstsqFactor
-        The design's least-squares factor (C-ordered ``dn`` of two or more columns).
-
-    Returns
-    -------
-    tuple of ndarray or None
-        ``(Q', y - Q Q'y, Q'(y - Q Q'y))`` (``Q'`` by CholeskyQR2, Fukaya et al. 2014, as
-        :func:`orthonormal_basis_t`); None where that would give None, or where numpy's
-        routines cannot be called (:mod:`torquemod.dsp.numpyblas`) or the inputs' layout is
-        not the one the kernel reproduces: the caller then takes numpy's route.
-    """
-    blas, gesv = numpyblas.addresses(), numpyblas.gesv_address()
-    if (blas is None or gesv is None or y.ndim != 2 or y.shape[1] < 2
-            or y.dtype != np.float64 or not y.flags.c_contiguous or not y.flags.writeable
-            or not factor.dn.flags.c_contiguous or factor.dn.shape[1] < 2 or y.shape[0] < 2):
-        return None
-    qt, r_y, qy, _, ok = _removal(y, factor.dn, np.asfortranarray(factor.factor), y, y, y, y,
-                                  True, blas[0], blas[1], _DTRTRS, _DPOTRF, gesv)
-    return (qt, r_y, qy) if ok else None
-
-
-def removal_at(m: np.ndarray, qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray,
-               factor: LstsqFactor) -> np.ndarray | None:
-    """Records less their projection on a basis and a tone, from :func:`removal_basis`'s
-    outputs: ``r_y + Q C c_M`` with ``C = Q'M`` and ``c_M`` the solution of
-    ``(M'M - C'C) c_M = M'r_y - C'Q'r_y`` (Frisch-Waugh-Lovell), with numpy's numbers
-    (its BLAS calls and the ``dgesv`` of ``numpy.linalg.solve``) in one compiled call.
+def removal_at(m: np.ndarray, qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray
+               ) -> np.ndarray | None:
+    """Records less their projection on a basis and a tone: ``r_y + Q C c_M`` with
+    ``C = Q'M`` and ``c_M`` the solution of ``(M'M - C'C) c_M = M'r_y - C'Q'r_y``
+    (Frisch-Waugh-Lovell), with numpy's numbers (its BLAS calls for the products and the
+    ``dgesv`` of ``numpy.linalg.solve``) in one compiled call.
 
     Parameters
     ----------
     m : ndarray
         ``(n, k2)`` C-ordered tone columns, ``k2 >= 2``.
-    qt, r_y, qy : ndarray
-        :func:`removal_basis`'s outputs (``r_y`` of two or more records).
-    factor : LstsqFactor
-        The factor given to :func:`removal_basis`.
+    qt : ndarray
+        ``Q'`` (``p x n``, C order, ``p >= 2``) of an orthonormal basis Q
+        (:func:`orthonormal_basis_t`).
+    r_y : ndarray
+        ``(n, k)`` C-ordered records less their projection on Q, ``k >= 2``.
+    qy : ndarray
+        ``Q' r_y`` (``p x k``, C order).
 
     Returns
     -------
     ndarray or None
-        ``(n, k)`` records; None where numpy's routines cannot be called or the system is
-        singular (``numpy.linalg.solve`` raises there: the caller takes numpy's route).
+        ``(n, k)`` records; None where numpy's routines cannot be called
+        (:mod:`torquemod.dsp.numpyblas`), the layouts are not those the kernel reproduces,
+        or the system is singular (``numpy.linalg.solve`` raises there): the caller takes
+        numpy's route.
     """
     blas, gesv = numpyblas.addresses(), numpyblas.gesv_address()
-    if (blas is None or gesv is None or m.ndim != 2 or m.shape[1] < 2
-            or not m.flags.c_contiguous or not m.flags.writeable or m.dtype != np.float64):
+    arrays = (m, qt, r_y, qy)
+    if (blas is None or gesv is None or any(a.ndim != 2 or a.shape[0] < 2 or a.shape[1] < 2
+                                            or a.dtype != np.float64
+                                            or not a.flags.c_contiguous for a in arrays)):
         return None
-    _, _, _, out, ok = _removal(r_y, factor.dn, np.asfortranarray(factor.factor), qt, r_y, qy,
-                                m, False, blas[0], blas[1], _DTRTRS, _DPOTRF, gesv)
+    out, ok = _removal_at(m, qt, r_y, qy, blas[0], blas[1], gesv)
     return out if ok else None
 
 
 @numba.njit(cache=True, nogil=True)
-def _trtrs_t(r: np.ndarray, b: np.ndarray, trtrs: int) -> tuple[np.ndarray, int]:
-    """``scipy.linalg.lapack.dtrtrs(r, b, lower=False, trans=1)``: ``R^-T b`` for the upper
-    triangle of a Fortran-ordered R, into a Fortran-ordered copy of b; and LAPACK's info."""
-    p, k = b.shape
-    x = np.empty((k, p)).T
-    x[:, :] = b
-    # "U", "T", "N" (their first bytes), n, nrhs, lda, ldb, info
-    ints = np.array([85, 84, 78, p, k, r.shape[0], p, 0], dtype=np.int32)
-    q = ints.ctypes.data
-    _fortran_call(trtrs, (q, q + 4, q + 8, q + 12, q + 16, r.ctypes.data, q + 20, x.ctypes.data,
-                          q + 24, q + 28))
-    return x, ints[7]
-
-
-@numba.njit(cache=True, nogil=True)
-def _removal(y, dn, r, qt, r_y, qy, m, basis, syrk, gemm, trtrs, potrf, gesv):
-    """:func:`removal_basis` (``basis`` true: ``y``, ``dn`` and ``r`` read) or
-    :func:`removal_at` (``qt``, ``r_y``, ``qy`` and ``m`` read) in one call, one kernel for
-    both (each kernel costs its load from numba's cache once per process): the steps of
-    :func:`orthonormal_basis_t`'s LAPACK route (``trtrs``, numpy's ``syrk`` for ``Q1'Q1``,
-    ``potrf`` with the lower triangle cleared, ``trtrs``), of the records' projection and
-    of :class:`~torquemod.processing.speedmodel._SlowOrdersRemoval`'s ``at`` (numpy's
-    ``syrk`` and ``gemm`` calls, its ``dgesv``). Returns ``(qt, r_y, qy, out, ok)``."""
-    if basis:
-        qt1, info = _trtrs_t(r, dn.T, trtrs)
-        if info != 0:
-            return y, y, y, y, False
-        g = np.asfortranarray(numpyblas.gram_t(qt1.T, syrk))  # qt1 @ qt1.T as numpy makes it
-        k = g.shape[0]
-        ints = np.array([85, k, k, 0], dtype=np.int32)  # "U", n, lda, info
-        q = ints.ctypes.data
-        _fortran_call(potrf, (q, q + 4, g.ctypes.data, q + 8, q + 12))
-        if ints[3] != 0:
-            return y, y, y, y, False
-        for j in range(k):  # clean=True: the strictly lower triangle zeroed
-            for i in range(j + 1, k):
-                g[i, j] = 0.0
-        qt_f, info = _trtrs_t(g, qt1, trtrs)
-        if info != 0:
-            return y, y, y, y, False
-        qt_c = np.ascontiguousarray(qt_f)
-        r_y_c = y - numpyblas.matmul_any(qt_c.T, numpyblas.matmul(qt_c, y, gemm), gemm)
-        return qt_c, r_y_c, numpyblas.matmul(qt_c, r_y_c, gemm), y, True
+def _removal_at(m, qt, r_y, qy, syrk, gemm, gesv):
+    """:func:`removal_at` in one call: numpy's ``syrk`` for ``M'M`` and ``C'C``, its
+    ``gemm`` for the other products, its ``dgesv`` on Fortran-ordered copies as
+    ``numpy.linalg.solve``; ``(out, ok)``."""
     c = numpyblas.matmul(qt, m, gemm)
     a = np.asfortranarray(numpyblas.gram_t(m, syrk) - numpyblas.gram_t(c, syrk))
     b = np.asfortranarray(numpyblas.matmul_tn(m, r_y, gemm) - numpyblas.matmul_tn(c, qy, gemm))
@@ -228,10 +159,9 @@ def _removal(y, dn, r, qt, r_y, qy, m, basis, syrk, gemm, trtrs, potrf, gesv):
     _fortran_call(gesv, (q, q + 8, a.ctypes.data, q + 16, ipiv.ctypes.data, b.ctypes.data,
                          q + 24, q + 32))
     if ints[4] != 0:
-        return qt, r_y, qy, r_y, False
+        return r_y, False
     c_m = np.ascontiguousarray(b)
-    out = r_y + numpyblas.matmul_any(qt.T, numpyblas.matmul(c, c_m, gemm), gemm)
-    return qt, r_y, qy, out, True
+    return r_y + numpyblas.matmul_any(qt.T, numpyblas.matmul(c, c_m, gemm), gemm), True
 
 
 def tone_columns(n: int, fs_hz: float, frequencies_hz, orders=(1,)) -> np.ndarray:

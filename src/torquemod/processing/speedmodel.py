@@ -374,16 +374,9 @@ class _SlowOrdersRemoval:
         self.b = np.hstack([slow, orders])
         self.fac = filters.LstsqFactor.of(self.b)
         self.qt = None
-        self.compiled = False
         if self.fac is not None:
             # an orthonormal basis Q of B (dsp.projection): the residual is y - Q Q'y, and
-            # each trial frequency costs one product with Q instead of a solve on B; one
-            # compiled call with the numbers of the route below where it can
-            done = projection.removal_basis(y, self.fac)
-            if done is not None:
-                self.qt, self.r_y, self.qy = done
-                self.compiled = True
-                return
+            # each trial frequency costs one product with Q instead of a solve on B
             self.qt = projection.orthonormal_basis_t(self.fac)
             if self.qt is not None:
                 self.r_y = y - self.qt.T @ (self.qt @ y)
@@ -400,8 +393,8 @@ class _SlowOrdersRemoval:
             fit = model.design[:, 2:end] @ model.coef[2:end]
             return self.y - fit
         m = modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
-        if self.compiled:  # the steps below in one compiled call (the same numbers)
-            out = projection.removal_at(m, self.qt, self.r_y, self.qy, self.fac)
+        if self.qt is not None:  # the steps below in one compiled call (the same numbers)
+            out = projection.removal_at(m, self.qt, self.r_y, self.qy)
             if out is not None:
                 return out
         if self.qt is not None:  # y - B c_B = r_y + Q Q'M c_M, r_M'r_M = M'M - (Q'M)'(Q'M)
