@@ -72,7 +72,20 @@ def _cblas_call(typingctx, address, args):
 def gram_t(a: np.ndarray, syrk: int) -> np.ndarray:
     """``a.T @ a`` of a float64 ``(n, m)`` matrix (n, m >= 2) with contiguous rows (a C-ordered
     matrix or a block of its columns) by numpy's ``dsyrk`` call (the row stride as the
-    leading dimension), the full symmetric ``(m, m)`` result."""
+    leading dimension), the full symmetric ``(m, m)`` result.
+
+    Parameters
+    ----------
+    a : ndarray
+        ``(n, m)`` float64 matrix [any unit].
+    syrk : int
+        numpy's routine (:func:`addresses`).
+
+    Returns
+    -------
+    ndarray
+        ``(m, m)`` C-ordered product [unit^2].
+    """
     n, m = a.shape
     c = np.empty((m, m))
     _cblas_call(syrk, (np.int32(_ROW_MAJOR), np.int32(_UPPER), np.int32(_TRANS), np.int64(m),
@@ -88,7 +101,20 @@ def gram_t(a: np.ndarray, syrk: int) -> np.ndarray:
 @numba.njit(cache=True, nogil=True)
 def matmul(a: np.ndarray, b: np.ndarray, gemm: int) -> np.ndarray:
     """``a @ b`` of C-ordered float64 matrices ``(m, n)`` and ``(n, p)`` (all >= 2) by
-    numpy's ``dgemm`` call."""
+    numpy's ``dgemm`` call.
+
+    Parameters
+    ----------
+    a, b : ndarray
+        ``(m, n)`` and ``(n, p)`` C-ordered float64 matrices.
+    gemm : int
+        numpy's routine (:func:`addresses`).
+
+    Returns
+    -------
+    ndarray
+        ``(m, p)`` C-ordered product.
+    """
     m, n = a.shape
     p = b.shape[1]
     c = np.empty((m, p))
@@ -102,7 +128,20 @@ def matmul(a: np.ndarray, b: np.ndarray, gemm: int) -> np.ndarray:
 @numba.njit(cache=True, nogil=True)
 def matmul_tn(a: np.ndarray, b: np.ndarray, gemm: int) -> np.ndarray:
     """``a.T @ b`` of C-ordered float64 matrices ``(n, m)`` and ``(n, p)`` (all >= 2, not
-    one buffer: that is :func:`gram_t`) by numpy's ``dgemm`` call."""
+    one buffer: that is :func:`gram_t`) by numpy's ``dgemm`` call.
+
+    Parameters
+    ----------
+    a, b : ndarray
+        ``(n, m)`` and ``(n, p)`` C-ordered float64 matrices.
+    gemm : int
+        numpy's routine (:func:`addresses`).
+
+    Returns
+    -------
+    ndarray
+        ``(m, p)`` C-ordered product.
+    """
     n, m = a.shape
     p = b.shape[1]
     c = np.empty((m, p))
@@ -120,7 +159,22 @@ def matvec(a: np.ndarray, x: np.ndarray, gemv: int) -> np.ndarray:
     any positive stride (a column of a C- or Fortran-ordered matrix), as numpy's
     ``matmul`` makes it: its ``dgemv`` call for n >= 2 (rows contiguous: ``dgemv(ColMajor,
     Trans, n, m, 1, a, lda, x, incx, 0, y, 1)``; columns: ``dgemv(RowMajor, Trans, n, m, 1,
-    a, lda, x, incx, 0, y, 1)``), its own loop for n = 1 (``0 + a*x``), zeros for n = 0."""
+    a, lda, x, incx, 0, y, 1)``), its own loop for n = 1 (``0 + a*x``), zeros for n = 0.
+
+    Parameters
+    ----------
+    a : ndarray
+        ``(m, n)`` float64 matrix.
+    x : ndarray
+        ``(n,)`` float64 vector.
+    gemv : int
+        numpy's routine (:func:`addresses`).
+
+    Returns
+    -------
+    ndarray
+        ``(m,)`` product.
+    """
     m, n = a.shape
     y = np.zeros(m)
     if n > 1 and not _c_blasable(a):  # columns contiguous: numpy's row-major call
@@ -142,7 +196,22 @@ def matvec(a: np.ndarray, x: np.ndarray, gemv: int) -> np.ndarray:
 @numba.njit(cache=True, nogil=True)
 def matvec_t(a: np.ndarray, v: np.ndarray, gemv: int) -> np.ndarray:
     """``a.T @ v`` of a C-ordered ``(n, m)`` float64 matrix (n, m >= 2) and a contiguous
-    ``(n,)`` vector by numpy's ``dgemv`` call."""
+    ``(n,)`` vector by numpy's ``dgemv`` call.
+
+    Parameters
+    ----------
+    a : ndarray
+        ``(n, m)`` C-ordered float64 matrix.
+    v : ndarray
+        ``(n,)`` contiguous float64 vector.
+    gemv : int
+        numpy's routine (:func:`addresses`).
+
+    Returns
+    -------
+    ndarray
+        ``(m,)`` product.
+    """
     n, m = a.shape
     y = np.empty(m)
     _cblas_call(gemv, (np.int32(_ROW_MAJOR), np.int32(_TRANS), np.int64(n), np.int64(m), 1.0,
@@ -169,7 +238,20 @@ def matmul_any(a: np.ndarray, b: np.ndarray, gemm: int) -> np.ndarray:
     contiguous rows or contiguous columns, not one buffer, as numpy's ``matmul`` makes it:
     ``dgemm(RowMajor, ta, tb, m, p, n, 1, a, lda, b, ldb, 0, c, p)`` with NoTrans and the
     row stride for rows that are contiguous, Trans and the column stride otherwise. Raises
-    ValueError for other layouts (numpy copies them first)."""
+    ValueError for other layouts (numpy copies them first).
+
+    Parameters
+    ----------
+    a, b : ndarray
+        ``(m, n)`` and ``(n, p)`` float64 matrices.
+    gemm : int
+        numpy's routine (:func:`addresses`).
+
+    Returns
+    -------
+    ndarray
+        ``(m, p)`` C-ordered product.
+    """
     m, n = a.shape
     p = b.shape[1]
     if _c_blasable(a):
@@ -228,7 +310,18 @@ def vector_sum(a: np.ndarray) -> float:
     """``a.sum()`` of a contiguous 1-D float64 array with numpy's numbers: its pairwise
     summation (blocks above 128 elements split in halves rounded down to a multiple of 8,
     the halves' sums added) added to the reduction's initial 0. Iterative (an explicit
-    stack: numba's cached recursion is not used)."""
+    stack: numba's cached recursion is not used).
+
+    Parameters
+    ----------
+    a : ndarray
+        Contiguous 1-D float64 array [any unit].
+
+    Returns
+    -------
+    float
+        The sum [unit].
+    """
     los = np.empty(64, dtype=np.int64)
     ns = np.empty(64, dtype=np.int64)
     stage = np.empty(64, dtype=np.int64)
