@@ -84,20 +84,8 @@ def reference_chi2(chi_all: float, chi_rail: float,
     return float(chi_all), False
 
 
-@njit(cache=True, nogil=True)
-def _swing_row(sw_u, swing_a, s, i, red):
-    """Linear lookup in the reduced swing ``red`` (at most the table's last) of member s's
-    swing rows already interpolated at point i's utilisation (``sw_u[s, i, :]``)."""
-    n_a = swing_a.size
-    j = 0
-    while j < n_a - 2 and swing_a[j + 1] < red:
-        j += 1
-    fa = (red - swing_a[j]) / (swing_a[j + 1] - swing_a[j])
-    return sw_u[s, i, j] * (1 - fa) + sw_u[s, i, j + 1] * fa
-
-
-@njit(cache=True, nogil=True)
-def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_rel, coa_se,
+@njit(cache=True, nogil=True, error_model="numpy")
+def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, coa_se,
                 amp, p_grid, k_scale, k0_fixed, n_iter, beta_h, bmax_v):
     """For every pair (a, b) of neighbouring members and trial P: the weighted least squares
     ``y ~ alpha*s_a + beta*s_b`` with alpha, beta >= 0 (a mixture of the pair; a single
@@ -105,8 +93,15 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
     of y) and ``beta/(alpha + beta)``, each (K, M). ``amp``: the creepage swing per point
     (zeros: none); k0 = ``k_scale*(alpha + beta)`` when k_scale > 0, else ``k0_fixed``.
     With ``bmax_v`` > 0 (B_max*V [-]) a pair whose falling-friction member needs
-    ``B = beta_h*k0/(mu0*V)`` above B_max (``beta_h`` = beta/h0 per member) is left out."""
-    n_s, n_u = s_tab.shape
+    ``B = beta_h*k0/(mu0*V)`` above B_max (``beta_h`` = beta/h0 per member) is left out.
+
+    The tables are utilisation-major (:class:`~torquemod.analysis.creeplaws.FamilyTables`
+    ``s_t``, ``ds_t``, ``swing_t``; a swing table with no member means no swing): each
+    trial P interpolates every member at each point's utilisation, which then reads one
+    contiguous block per point instead of one scattered row per member and point. The first
+    pass's weights do not depend on the pair, so each member's own sums in it are formed
+    once per trial P (the same sums, in the same order, as a pair would form them)."""
+    n_u, n_s = s_t.shape
     n_q = pairs.shape[0]
     n_m = p_grid.size
     n = coa.size
@@ -116,25 +111,29 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
     G = np.empty((n_s, n))
     DG = np.empty((n_s, n))
     valid = np.empty(n_s, np.bool_)
+    s_gg = np.empty(n_s)
+    s_gy = np.empty(n_s)
     ga = np.empty(n)
     gb = np.empty(n)
     w = np.empty(n)
-    # the variance without the CoA term, the same for every pair and trial P
+    # the variance without the CoA term and its weight: the same for every pair and trial P
     v0 = np.empty(n)
+    w0 = np.empty(n)
     for i in range(n):
         v0[i] = var0[i] + (y_rel * y[i]) ** 2
-    has_swing = sw_tab.shape[0] > 0
+        w0[i] = 1.0 / v0[i]
+    has_swing = sw_t.shape[1] > 0
     n_a = swing_a.size
-    n_us = sw_tab.shape[1]
+    n_us = sw_t.shape[0]
     a_top = swing_a[n_a - 1]
-    # per trial P: each point's cell of both utilisation grids, and every
-    # member's swing rows interpolated there (SW[s, i, :]); a pair's lookup is then linear
-    # in the swing alone (:func:`_swing_row`; the same arithmetic as one bilinear lookup)
+    # per trial P: each point's cell of both utilisation grids, and every valid member's
+    # swing rows interpolated there (SW[s, i, :]); a pair's lookup is then linear in the
+    # swing alone (the same arithmetic as one bilinear lookup)
     ks = np.empty(n, np.int64)
     fs = np.empty(n)
     ku = np.empty(n, np.int64)
     fu = np.empty(n)
-    SW = np.empty((sw_tab.shape[0], n, n_a))
+    SW = np.empty((sw_t.shape[1], n, n_a))
     c_max = coa.max()
     for m in range(n_m):
         p = p_grid[m]
@@ -151,21 +150,33 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
             fu[i] = pos - k
         for s in range(n_s):
             valid[s] = True
-            for i in range(n):
-                k = ku[i]
-                f = fu[i]
-                G[s, i] = s_tab[s, k] * (1.0 - f) + s_tab[s, k + 1] * f
-                DG[s, i] = ds_tab[s, k] * (1.0 - f) + ds_tab[s, k + 1] * f
-                if not (G[s, i] > 0.0):
+        for i in range(n):
+            k = ku[i]
+            f = fu[i]
+            for s in range(n_s):
+                g = s_t[k, s] * (1.0 - f) + s_t[k + 1, s] * f
+                G[s, i] = g
+                DG[s, i] = ds_t[k, s] * (1.0 - f) + ds_t[k + 1, s] * f
+                if not (g > 0.0):
                     valid[s] = False
-                    break
-            if has_swing and valid[s]:
+        for s in range(n_s):
+            if valid[s]:
+                sgg = 0.0
+                sgy = 0.0
                 for i in range(n):
-                    if amp[i] > 0.0:
-                        k = ks[i]
-                        f = fs[i]
-                        for j in range(n_a):
-                            SW[s, i, j] = sw_tab[s, k, j] * (1 - f) + sw_tab[s, k + 1, j] * f
+                    sgg += w0[i] * G[s, i] * G[s, i]
+                    sgy += w0[i] * G[s, i] * y[i]
+                s_gg[s] = sgg
+                s_gy[s] = sgy
+        if has_swing:
+            for i in range(n):
+                if amp[i] > 0.0:
+                    k = ks[i]
+                    f = fs[i]
+                    for s in range(n_s):
+                        if valid[s]:
+                            for j in range(n_a):
+                                SW[s, i, j] = sw_t[k, s, j] * (1 - f) + sw_t[k + 1, s, j] * f
         for q in range(n_q):
             a = pairs[q, 0]
             b = pairs[q, 1]
@@ -173,32 +184,53 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
                 continue
             al = 0.0
             be = 0.0
+            fpa = f_peak[a]
+            fpb = f_peak[b]
             for it in range(n_iter):
-                k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
-                swing_now = has_swing and it > 0
-                for i in range(n):
-                    ga[i] = G[a, i]
-                    gb[i] = G[b, i]
-                    if swing_now and amp[i] > 0.0:
-                        ga[i] += _swing_row(SW, swing_a, a, i, min(amp[i] * k0 * f_peak[a] / p,
-                                                                   a_top))
-                        gb[i] += _swing_row(SW, swing_a, b, i, min(amp[i] * k0 * f_peak[b] / p,
-                                                                   a_top))
-                saa = 0.0
-                sab = 0.0
-                sbb = 0.0
-                say = 0.0
-                sby = 0.0
-                for i in range(n):
-                    v = v0[i]
-                    if it > 0:
-                        v += ((al * DG[a, i] + be * DG[b, i]) / p * coa_se[i]) ** 2
-                    w[i] = 1.0 / v
-                    saa += w[i] * ga[i] * ga[i]
-                    sab += w[i] * ga[i] * gb[i]
-                    sbb += w[i] * gb[i] * gb[i]
-                    say += w[i] * ga[i] * y[i]
-                    sby += w[i] * gb[i] * y[i]
+                if it == 0:
+                    # fixed weights 1/v0 and no swing: the members' own sums
+                    saa = s_gg[a]
+                    sbb = s_gg[b]
+                    say = s_gy[a]
+                    sby = s_gy[b]
+                    sab = 0.0
+                    for i in range(n):
+                        ga[i] = G[a, i]
+                        gb[i] = G[b, i]
+                        w[i] = w0[i]
+                        sab += w0[i] * G[a, i] * G[b, i]
+                else:
+                    k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
+                    for i in range(n):
+                        ga[i] = G[a, i]
+                        gb[i] = G[b, i]
+                        if has_swing and amp[i] > 0.0:
+                            # the reduced swing (at most the table's last), linear lookup
+                            ra = min(amp[i] * k0 * fpa / p, a_top)
+                            rb = min(amp[i] * k0 * fpb / p, a_top)
+                            ja = 0
+                            while ja < n_a - 2 and swing_a[ja + 1] < ra:
+                                ja += 1
+                            jb = 0
+                            while jb < n_a - 2 and swing_a[jb + 1] < rb:
+                                jb += 1
+                            xa = (ra - swing_a[ja]) / (swing_a[ja + 1] - swing_a[ja])
+                            xb = (rb - swing_a[jb]) / (swing_a[jb + 1] - swing_a[jb])
+                            ga[i] += SW[a, i, ja] * (1 - xa) + SW[a, i, ja + 1] * xa
+                            gb[i] += SW[b, i, jb] * (1 - xb) + SW[b, i, jb + 1] * xb
+                    saa = 0.0
+                    sab = 0.0
+                    sbb = 0.0
+                    say = 0.0
+                    sby = 0.0
+                    for i in range(n):
+                        v = v0[i] + ((al * DG[a, i] + be * DG[b, i]) / p * coa_se[i]) ** 2
+                        w[i] = 1.0 / v
+                        saa += w[i] * ga[i] * ga[i]
+                        sab += w[i] * ga[i] * gb[i]
+                        sbb += w[i] * gb[i] * gb[i]
+                        say += w[i] * ga[i] * y[i]
+                        sby += w[i] * gb[i] * y[i]
                 det = saa * sbb - sab * sab
                 al = -1.0
                 be = -1.0
@@ -218,8 +250,8 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
                 if it == n_iter - 1:
                     if bmax_v > 0.0:
                         k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
-                        if (beta_h[a] * k0 * f_peak[a] > bmax_v * p
-                                or beta_h[b] * k0 * f_peak[b] > bmax_v * p):
+                        if (beta_h[a] * k0 * fpa > bmax_v * p
+                                or beta_h[b] * k0 * fpb > bmax_v * p):
                             break
                     c = 0.0
                     for i in range(n):
@@ -235,17 +267,17 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
 def _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_rel, bmax_v=0.0):
     """chi2, amplitudes and mixing fractions (K, M) (:func:`_chi_kernel`), profiling k0 over
     :data:`K0_GRID` when a swing is given without C."""
-    sw = tabs.swing if tabs.swing is not None else np.zeros((0, N_U_SWING, SWING_A.size))
+    sw = tabs.swing_t if tabs.swing_t is not None else np.zeros((N_U_SWING, 0, SWING_A.size))
     var0 = se * se
-    n_iter = 3 if sw.shape[0] else (2 if np.any(c_se > 0) else 1)
-    if sw.shape[0] == 0 or (constant is not None and constant > 0):
+    n_iter = 3 if sw.shape[1] else (2 if np.any(c_se > 0) else 1)
+    if sw.shape[1] == 0 or (constant is not None and constant > 0):
         k_scale = float(constant) if constant is not None and constant > 0 else 1.0
-        return _chi_kernel(tabs.s, tabs.ds, sw, SWING_A, tabs.f_peak, pairs, coa, y, var0,
+        return _chi_kernel(tabs.s_t, tabs.ds_t, sw, SWING_A, tabs.f_peak, pairs, coa, y, var0,
                            model_rel, c_se, amp, p_grid, k_scale, 0.0, n_iter, tabs.beta_h,
                            bmax_v if constant is not None and constant > 0 else 0.0)
     best = None
     for k0 in K0_GRID:
-        out = _chi_kernel(tabs.s, tabs.ds, sw, SWING_A, tabs.f_peak, pairs, coa, y, var0,
+        out = _chi_kernel(tabs.s_t, tabs.ds_t, sw, SWING_A, tabs.f_peak, pairs, coa, y, var0,
                           model_rel, c_se, amp, p_grid, -1.0, float(k0), n_iter, tabs.beta_h,
                           bmax_v)
         if best is None:
