@@ -459,11 +459,17 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
     # profile likelihood of mu: the valley of chi2 is curved (mu trades against kS*s), so the
     # Jacobian's local standard error can be far too small; the interval where
     # chi2_profile - chi2_min <= scale is the honest 68 % interval (Wilks)
+    def with_mu(rest, mu_fixed):
+        th = np.empty(len(rest) + 1)  # np.r_[mu_fixed, rest] without its index machinery
+        th[0] = mu_fixed
+        th[1:] = rest
+        return th
+
     def resid_at(rest, mu_fixed):
-        return (model(np.r_[mu_fixed, rest]) - coa) / sigma
+        return (model(with_mu(rest, mu_fixed)) - coa) / sigma
 
     def jac_at(rest, mu_fixed):
-        return model_jac(np.r_[mu_fixed, rest])[:, 1:] / sigma[:, None]
+        return model_jac(with_mu(rest, mu_fixed))[:, 1:] / sigma[:, None]
     profile = _profile_interval(resid_at, theta, lo[1:], hi[1:], chi2_min=chi2,
                                 threshold=scale if np.isfinite(scale) else 1.0,
                                 mu_bounds=MU_BOUNDS, max_nfev=max_nfev,
