@@ -60,6 +60,12 @@ __all__ = ["SweepResult", "fingerprint", "plan_line", "point_batches", "run_poin
 FAILURE_COLUMNS = ["point_id", "point_index", "seed", "params", "message"]
 
 
+#: what the local cluster's workers have imported before their first point: they are forked
+#: from a fork server that imported these (:func:`torquemod._util.daskutil.
+#: start_worker_server`; ``torquemod sweep`` starts it before its own imports)
+WORKER_MODULES = ("torquemod.sweep.workerpreload",)
+
+
 def _part(out: Path, point_id: str) -> Path:
     return out / "points" / f"point={point_id}" / "part-0.parquet"
 
@@ -260,7 +266,7 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
             on_dashboard(link)
 
     with dask_client(scheduler, n_workers, dashboard, connect_timeout_s=connect_timeout_s,
-                     closing=closing) as client:
+                     closing=closing, worker_modules=WORKER_MODULES) as client:
         begin()  # once the cluster answers
         bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
         slots = sum(client.nthreads().values()) or 1
