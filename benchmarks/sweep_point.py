@@ -77,14 +77,17 @@ def sweep_wall(sweep: str, srcs: dict[str, str], repeat: int, workers: int,
     """Wall and CPU seconds of ``torquemod sweep`` for each source tree, alternated.
 
     Each tree gets its own torquemod disk cache (XDG_CACHE_HOME in a temporary folder),
-    filled before the first timed run: the creep-law tables are keyed by their source, and
-    two trees sharing one cache would each replace the other's tables and rebuild them in
-    every run (seconds of CPU per worker)."""
+    filled before the first timed run by one point evaluated in a process of its own (which
+    also compiles any kernel missing from numba's cache): the creep-law tables are keyed by
+    their source, and two trees sharing one cache would each replace the other's tables
+    and rebuild them in every run (seconds of CPU per worker)."""
     walls: dict[str, list[float]] = {k: [] for k in srcs}
     caches = {k: tempfile.mkdtemp(prefix=f"torquemod-bench-cache-{k}-") for k in srcs}
+    warm = ("import sys; from torquemod.sweep.evaluate import evaluate_point, tasks; "
+            "from torquemod.sweep.spec import load_sweep; "
+            "evaluate_point(tasks(load_sweep(sys.argv[1]))[0])")
     for label, src in srcs.items():
-        subprocess.run([sys.executable, "-c", "from torquemod.analysis.creeplaws import "
-                        "family_tables; family_tables(True); family_tables(False)"],
+        subprocess.run([sys.executable, "-c", warm, sweep],
                        env={**os.environ, "PYTHONPATH": src, "XDG_CACHE_HOME": caches[label]},
                        check=True)
     for r in range(repeat):
