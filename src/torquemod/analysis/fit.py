@@ -129,8 +129,9 @@ def _lm_lower_bounded(resid, jac, x0, lo, *args, max_iter: int = 100,
         free = (x > lo) | (g < 0.0)
         if not free.any():
             return x, cost
-        Hf = (J.T @ J)[np.ix_(free, free)]
-        gf = g[free]
+        all_free = bool(free.all())
+        Hf = J.T @ J if all_free else (J.T @ J)[np.ix_(free, free)]
+        gf = g if all_free else g[free]
         d = np.diag(Hf).copy()
         d[d <= 0.0] = 1.0
         for _retry in range(12):
@@ -383,14 +384,24 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
     lo = [MU_BOUNDS[0], 0.0, 0.0] + ([0.0, 0.0] if velocity_dependent else [])
     hi = [MU_BOUNDS[1], np.inf, np.inf] + ([1.0, B_MAX_S_M] if velocity_dependent else [])
 
+    last: list = [None, None]  # the last parameters and their longitudinal mean CoA
+
+    def mean_at(th):
+        """longitudinal_mean at th, kept for the next call: the solvers ask for the
+        residuals and the Jacobian at the same parameters one after the other."""
+        key = np.asarray(th, dtype=float).tobytes()
+        if last[0] != key:
+            last[0], last[1] = key, longitudinal_mean(xi, th, swing, spd)
+        return last[1]
+
     def model(th):
-        return np.hypot(longitudinal_mean(xi, th, swing, spd), lateral)
+        return np.hypot(mean_at(th), lateral)
 
     def model_jac(th):
         """d model/d theta (n, 3), constant friction: the closed form of Polach's curve
         (:func:`torquemod.analysis.polachcurve.longitudinal_mean_jacobian`) through the
         hypotenuse with the lateral CoA."""
-        f = longitudinal_mean(xi, th, swing, spd)
+        f = mean_at(th)
         m = np.hypot(f, lateral)
         ratio = np.divide(f, m, out=np.ones_like(f), where=m > 0)
         return ratio[:, None] * longitudinal_mean_jacobian(xi, th, swing)
