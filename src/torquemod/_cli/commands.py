@@ -284,9 +284,13 @@ SWEEP_WORKER_MODULES = ("torquemod.sweep.workerpreload",)
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     from torquemod._util.daskutil import check_cluster, start_worker_server
-    if check_cluster(args.scheduler, args.workers, args.connect_timeout) is None:
-        # a local cluster's workers fork from a server that imports what they need
-        # meanwhile, on another core while this process imports and reads the sweep
+    out = Path(args.out)
+    fresh = not out.exists() or (out.is_dir() and not any(out.iterdir()))
+    if check_cluster(args.scheduler, args.workers, args.connect_timeout) is None and fresh:
+        # a new output folder: every point runs, on a local cluster whose workers fork from
+        # a server that imports what they need meanwhile, on another core while this
+        # process imports and reads the sweep (in a folder with finished points the
+        # cluster, if any is needed, starts the server itself)
         start_worker_server(SWEEP_WORKER_MODULES)
     from torquemod.sweep.run import plan_line, run_sweep
     from torquemod.sweep.spec import MAX_POINTS, load_sweep
