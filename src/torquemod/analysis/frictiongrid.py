@@ -97,10 +97,13 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
 
     The tables are utilisation-major (:class:`~torquemod.analysis.creeplaws.FamilyTables`
     ``s_t``, ``ds_t``, ``swing_t``; a swing table with no member means no swing): each
-    trial P interpolates every member at each point's utilisation, which then reads one
-    contiguous block per point instead of one scattered row per member and point. The first
-    pass's weights do not depend on the pair, so each member's own sums in it are formed
-    once per trial P (the same sums, in the same order, as a pair would form them)."""
+    trial P interpolates every member at each point's utilisation, reading one contiguous
+    block per point. The first pass's weights do not depend on the pair, so each member's
+    own sums in it are formed once per trial P. The pairs of a trial P then advance
+    together, point by point, in loops over the pairs that the compiler turns into vector
+    instructions (a pair's values are read into contiguous arrays first); every pair's
+    arithmetic is the same, in the same order, as a pair fitted alone (a pair whose fit
+    stops early is carried along and left out at the end)."""
     n_u, n_s = s_t.shape
     n_q = pairs.shape[0]
     n_m = p_grid.size
@@ -108,15 +111,11 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
     chi = np.full((n_q, n_m), np.inf)
     amps = np.full((n_q, n_m), np.nan)
     fracs = np.full((n_q, n_m), np.nan)
-    G = np.empty((n_s, n))
-    DG = np.empty((n_s, n))
+    G = np.empty((n, n_s))
+    DG = np.empty((n, n_s))
     valid = np.empty(n_s, np.bool_)
     s_gg = np.empty(n_s)
     s_gy = np.empty(n_s)
-    ga = np.empty(n)
-    gb = np.empty(n)
-    w = np.empty(n)
-    # the variance without the CoA term and its weight: the same for every pair and trial P
     v0 = np.empty(n)
     w0 = np.empty(n)
     for i in range(n):
@@ -126,14 +125,52 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
     n_a = swing_a.size
     n_us = sw_t.shape[0]
     a_top = swing_a[n_a - 1]
-    # per trial P: each point's cell of both utilisation grids, and every valid member's
-    # swing rows interpolated there (SW[s, i, :]); a pair's lookup is then linear in the
-    # swing alone (the same arithmetic as one bilinear lookup)
     ks = np.empty(n, np.int64)
     fs = np.empty(n)
     ku = np.empty(n, np.int64)
     fu = np.empty(n)
-    SW = np.empty((sw_t.shape[1], n, n_a))
+    # per trial P: each point's cell of both utilisation grids, every member interpolated
+    # there (G, DG: point-major), and every valid member's swing rows (SW[i, s*n_a + j]); a
+    # pair's swing lookup is then linear in the swing alone (the arithmetic of one bilinear
+    # lookup)
+    SW = np.empty((n, sw_t.shape[1] * n_a))
+    # per pair (compacted to the pairs of valid members of a trial P): the pair, its fit so
+    # far and its sums; GA, GB, W the last pass's curves and weights at each point; the
+    # rest scratch rows, one value per pair
+    qi = np.empty(n_q, np.int64)
+    A = np.empty(n_q, np.int64)
+    B = np.empty(n_q, np.int64)
+    AL = np.empty(n_q)
+    BE = np.empty(n_q)
+    K0 = np.empty(n_q)
+    FA = np.empty(n_q)
+    FB = np.empty(n_q)
+    LIVE = np.empty(n_q, np.bool_)
+    SAA = np.empty(n_q)
+    SAB = np.empty(n_q)
+    SBB = np.empty(n_q)
+    SAY = np.empty(n_q)
+    SBY = np.empty(n_q)
+    GA = np.empty((n, n_q))
+    GB = np.empty((n, n_q))
+    W = np.empty((n, n_q))
+    RA = np.empty(n_q)
+    RB = np.empty(n_q)
+    JA = np.empty(n_q, np.int64)
+    JB = np.empty(n_q, np.int64)
+    C = np.empty(n_q)
+    TA = np.empty(n_q)
+    TB = np.empty(n_q)
+    DA = np.empty(n_q)
+    DB = np.empty(n_q)
+    S0A = np.empty(n_q)
+    S1A = np.empty(n_q)
+    S0B = np.empty(n_q)
+    S1B = np.empty(n_q)
+    W0A = np.empty(n_q)
+    W1A = np.empty(n_q)
+    W0B = np.empty(n_q)
+    W1B = np.empty(n_q)
     c_max = coa.max()
     for m in range(n_m):
         p = p_grid[m]
@@ -155,8 +192,8 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
             f = fu[i]
             for s in range(n_s):
                 g = s_t[k, s] * (1.0 - f) + s_t[k + 1, s] * f
-                G[s, i] = g
-                DG[s, i] = ds_t[k, s] * (1.0 - f) + ds_t[k + 1, s] * f
+                G[i, s] = g
+                DG[i, s] = ds_t[k, s] * (1.0 - f) + ds_t[k + 1, s] * f
                 if not (g > 0.0):
                     valid[s] = False
         for s in range(n_s):
@@ -164,8 +201,8 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
                 sgg = 0.0
                 sgy = 0.0
                 for i in range(n):
-                    sgg += w0[i] * G[s, i] * G[s, i]
-                    sgy += w0[i] * G[s, i] * y[i]
+                    sgg += w0[i] * G[i, s] * G[i, s]
+                    sgy += w0[i] * G[i, s] * y[i]
                 s_gg[s] = sgg
                 s_gy[s] = sgy
         if has_swing:
@@ -176,65 +213,112 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
                     for s in range(n_s):
                         if valid[s]:
                             for j in range(n_a):
-                                SW[s, i, j] = sw_t[k, s, j] * (1 - f) + sw_t[k + 1, s, j] * f
+                                SW[i, s * n_a + j] = sw_t[k, s, j] * (1 - f) + sw_t[k + 1, s, j] * f
+        # the pairs of valid members, in order
+        nv = 0
         for q in range(n_q):
             a = pairs[q, 0]
             b = pairs[q, 1]
-            if not (valid[a] and valid[b]):
-                continue
-            al = 0.0
-            be = 0.0
-            fpa = f_peak[a]
-            fpb = f_peak[b]
-            for it in range(n_iter):
-                if it == 0:
-                    # fixed weights 1/v0 and no swing: the members' own sums
-                    saa = s_gg[a]
-                    sbb = s_gg[b]
-                    say = s_gy[a]
-                    sby = s_gy[b]
-                    sab = 0.0
-                    for i in range(n):
-                        ga[i] = G[a, i]
-                        gb[i] = G[b, i]
-                        w[i] = w0[i]
-                        sab += w0[i] * G[a, i] * G[b, i]
-                else:
-                    k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
-                    for i in range(n):
-                        ga[i] = G[a, i]
-                        gb[i] = G[b, i]
-                        if has_swing and amp[i] > 0.0:
-                            # the reduced swing (at most the table's last), linear lookup
-                            ra = min(amp[i] * k0 * fpa / p, a_top)
-                            rb = min(amp[i] * k0 * fpb / p, a_top)
-                            ja = 0
-                            while ja < n_a - 2 and swing_a[ja + 1] < ra:
-                                ja += 1
-                            jb = 0
-                            while jb < n_a - 2 and swing_a[jb + 1] < rb:
-                                jb += 1
-                            xa = (ra - swing_a[ja]) / (swing_a[ja + 1] - swing_a[ja])
-                            xb = (rb - swing_a[jb]) / (swing_a[jb + 1] - swing_a[jb])
-                            ga[i] += SW[a, i, ja] * (1 - xa) + SW[a, i, ja + 1] * xa
-                            gb[i] += SW[b, i, jb] * (1 - xb) + SW[b, i, jb + 1] * xb
-                    saa = 0.0
-                    sab = 0.0
-                    sbb = 0.0
-                    say = 0.0
-                    sby = 0.0
-                    for i in range(n):
-                        v = v0[i] + ((al * DG[a, i] + be * DG[b, i]) / p * coa_se[i]) ** 2
-                        w[i] = 1.0 / v
-                        saa += w[i] * ga[i] * ga[i]
-                        sab += w[i] * ga[i] * gb[i]
-                        sbb += w[i] * gb[i] * gb[i]
-                        say += w[i] * ga[i] * y[i]
-                        sby += w[i] * gb[i] * y[i]
+            if valid[a] and valid[b]:
+                qi[nv] = q
+                A[nv] = a
+                B[nv] = b
+                FA[nv] = f_peak[a]
+                FB[nv] = f_peak[b]
+                LIVE[nv] = True
+                nv += 1
+        for it in range(n_iter):
+            if it == 0:
+                # fixed weights 1/v0 and no swing: the members' own sums, and the cross sum
+                for v in range(nv):
+                    SAA[v] = s_gg[A[v]]
+                    SBB[v] = s_gg[B[v]]
+                    SAY[v] = s_gy[A[v]]
+                    SBY[v] = s_gy[B[v]]
+                    SAB[v] = 0.0
+                for i in range(n):
+                    wi = w0[i]
+                    for v in range(nv):
+                        ga = G[i, A[v]]
+                        gb = G[i, B[v]]
+                        GA[i, v] = ga
+                        GB[i, v] = gb
+                        W[i, v] = wi
+                        SAB[v] += wi * ga * gb
+            else:
+                for v in range(nv):
+                    K0[v] = k_scale * (AL[v] + BE[v]) if k_scale > 0.0 else k0_fixed
+                    SAA[v] = 0.0
+                    SAB[v] = 0.0
+                    SBB[v] = 0.0
+                    SAY[v] = 0.0
+                    SBY[v] = 0.0
+                for i in range(n):
+                    # the pairs' values at point i, contiguous
+                    for v in range(nv):
+                        TA[v] = G[i, A[v]]
+                        TB[v] = G[i, B[v]]
+                        DA[v] = DG[i, A[v]]
+                        DB[v] = DG[i, B[v]]
+                    if has_swing and amp[i] > 0.0:
+                        ai = amp[i]
+                        for v in range(nv):
+                            RA[v] = min(ai * K0[v] * FA[v] / p, a_top)
+                            RB[v] = min(ai * K0[v] * FB[v] / p, a_top)
+                            JA[v] = 0
+                            JB[v] = 0
+                        # the swing's cell: how many inner grid values lie below it (the
+                        # first cell whose upper end reaches it; 0 for NaN)
+                        for t in range(1, n_a - 1):
+                            st = swing_a[t]
+                            for v in range(nv):
+                                JA[v] += RA[v] > st
+                                JB[v] += RB[v] > st
+                        for v in range(nv):
+                            ja = JA[v]
+                            jb = JB[v]
+                            ba = A[v] * n_a + ja
+                            bb = B[v] * n_a + jb
+                            S0A[v] = swing_a[ja]
+                            S1A[v] = swing_a[ja + 1]
+                            S0B[v] = swing_a[jb]
+                            S1B[v] = swing_a[jb + 1]
+                            W0A[v] = SW[i, ba]
+                            W1A[v] = SW[i, ba + 1]
+                            W0B[v] = SW[i, bb]
+                            W1B[v] = SW[i, bb + 1]
+                        for v in range(nv):
+                            xa = (RA[v] - S0A[v]) / (S1A[v] - S0A[v])
+                            xb = (RB[v] - S0B[v]) / (S1B[v] - S0B[v])
+                            TA[v] = TA[v] + (W0A[v] * (1 - xa) + W1A[v] * xa)
+                            TB[v] = TB[v] + (W0B[v] * (1 - xb) + W1B[v] * xb)
+                    # the weights with the CoA term of the last fit, and the sums
+                    v0i = v0[i]
+                    ci = coa_se[i]
+                    yi = y[i]
+                    for v in range(nv):
+                        ga = TA[v]
+                        gb = TB[v]
+                        GA[i, v] = ga
+                        GB[i, v] = gb
+                        wv = 1.0 / (v0i + ((AL[v] * DA[v] + BE[v] * DB[v]) / p * ci) ** 2)
+                        W[i, v] = wv
+                        SAA[v] += wv * ga * ga
+                        SAB[v] += wv * ga * gb
+                        SBB[v] += wv * gb * gb
+                        SAY[v] += wv * ga * yi
+                        SBY[v] += wv * gb * yi
+            # the nonnegative fit of each pair from its sums (closed form)
+            for v in range(nv):
+                saa = SAA[v]
+                sab = SAB[v]
+                sbb = SBB[v]
+                say = SAY[v]
+                sby = SBY[v]
                 det = saa * sbb - sab * sab
                 al = -1.0
                 be = -1.0
-                if a != b and det > 1e-12 * saa * sbb:
+                if A[v] != B[v] and det > 1e-12 * saa * sbb:
                     al = (sbb * say - sab * sby) / det
                     be = (saa * sby - sab * say) / det
                 if not (al >= 0.0 and be >= 0.0):
@@ -245,22 +329,34 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
                     else:
                         al = 0.0
                         be = sby / sbb
-                if not (al + be > 0.0):
-                    break
-                if it == n_iter - 1:
-                    if bmax_v > 0.0:
-                        k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
-                        if (beta_h[a] * k0 * fpa > bmax_v * p
-                                or beta_h[b] * k0 * fpb > bmax_v * p):
-                            break
-                    c = 0.0
-                    for i in range(n):
-                        r = y[i] - al * ga[i] - be * gb[i]
-                        c += w[i] * r * r
-                    if math.isfinite(c):
-                        chi[q, m] = c
-                        amps[q, m] = al + be
-                        fracs[q, m] = be / (al + be)
+                if LIVE[v] and not (al + be > 0.0):  # no fit: the pair stops here
+                    LIVE[v] = False
+                AL[v] = al
+                BE[v] = be
+        # the last iteration's fit, of the pairs still live
+        for v in range(nv):
+            C[v] = 0.0
+        for i in range(n):
+            yi = y[i]
+            for v in range(nv):
+                r = yi - AL[v] * GA[i, v] - BE[v] * GB[i, v]
+                C[v] += W[i, v] * r * r
+        for v in range(nv):
+            if not LIVE[v]:
+                continue
+            al = AL[v]
+            be = BE[v]
+            if bmax_v > 0.0:
+                k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
+                if (beta_h[A[v]] * k0 * FA[v] > bmax_v * p
+                        or beta_h[B[v]] * k0 * FB[v] > bmax_v * p):
+                    continue
+            c = C[v]
+            if math.isfinite(c):
+                q = qi[v]
+                chi[q, m] = c
+                amps[q, m] = al + be
+                fracs[q, m] = be / (al + be)
     return chi, amps, fracs
 
 
