@@ -36,10 +36,12 @@ the one-core figure. ``--repeat`` runs each measurement N times and prints every
 the best; the machine's other load shows as spread between repeats. Every timed run starts
 with the theory's memos cleared (:func:`cold_theory`), as a fresh process would.
 
-Later figures are in docs/performance.md ("The twin in a sweep" and "The twin's integrator,
+Later figures are in docs/performance.md ("The twin in a sweep", "The twin's integrator,
 faster": the RK4 step of 12 samples and the normal load without its exact fall-back, batch
 519-538x -> 778-782x real time per core, 570-579x -> 889-898x without the large-signal
-theory).
+theory; "The twin toward 1000x": the platform loop taken exactly, the sensors in fewer
+passes, skipped steps after a slip: batch 749-789x -> 821-863x, 854-880x -> 865-944x
+without the large-signal theory).
 
 Measured, fifth round of issue 12 (the same 2-core VM, load average 0.1-1.2 from other
 agents; "before" = commit 472e5c0 from an exported copy, before and after alternated in 3
@@ -225,10 +227,13 @@ from torquemod.twins.vtrack.theory import operating_point
 
 
 def cold_theory() -> None:
-    """Forget the theory's remembered creep-curve peaks and operating points, so that every
-    timed run computes them as a fresh process does (theory.py memoises them per rig)."""
-    _theory._creep_curve_peak_memo.cache_clear()
-    _theory._operating_point_memo.cache_clear()
+    """Forget the theory's remembered creep-curve peaks, operating points, large-signal
+    results and FFT of the identity, so that every timed run computes them as a fresh
+    process does (theory.py memoises them per rig)."""
+    for name in ("_creep_curve_peak_memo", "_operating_point_memo", "_large_signal_memo",
+                 "_eye_spectrum"):  # (an older checkout, run with its PYTHONPATH, lacks some)
+        if hasattr(_theory, name):
+            getattr(_theory, name).cache_clear()
 
 
 def warm_up(config) -> float:

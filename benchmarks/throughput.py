@@ -89,6 +89,12 @@ load 6.3-6.7): chain 4.57-4.84 -> 4.06-4.23 ms, the rest 3.63-3.68 -> 3.13-3.17 
 decimator pass 4.18-4.87x -> 3.99-4.35x, the phase bit for bit (compiled least squares
 calling LAPACK at scipy's addresses; docs/performance.md, "The rest, compiled where the
 numbers stay the same").
+
+Seventh round, ``--ratio-only`` (main 4af4fc0 then this version, interleaved three times,
+load 2.5-2.8): chain 3.84-3.88 -> 3.50-3.65 ms, the rest 2.84-2.96 -> 2.59-2.65 ms, chain /
+decimator pass 3.85-4.32x -> 3.65-3.92x; the phase within 8.4e-11 deg (step 1's peaks, the
+creepage fit, steps 3-5, the peak/valley phase and the sine fit each one compiled call;
+docs/performance.md, "The rest in fewer compiled calls").
 """
 
 from __future__ import annotations

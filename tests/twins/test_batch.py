@@ -178,3 +178,36 @@ def test_batch_equals_points_alone(two):
     for cfg, seed, point in zip((two, other, two), (1, 2, 3), together, strict=True):
         alone = simulate_batch([cfg], seed=seed, lanes=1)[0]
         assert point.steps == alone.steps
+
+
+def test_steps_after_a_slip_are_not_integrated(monkeypatch, tmp_path):
+    """A point's truth ends at its first slip: with one worker the batch and a run skip the
+    steps after it -- the free step 4 (a steady state at 30 N*m to start from) as well as the
+    chained step 3 -- and give the truth they gave when those steps still ran (the same as
+    each other, as before)."""
+    from torquemod.twins.vtrack import simulate as sim
+    from torquemod.twins.vtrack.rig import batch
+
+    cfg = load_config(overrides={"procedure": {"dc_torques_nm": [44.47, 80.0, 30.0, 20.0],
+                                               "cycles_per_step": 1, "settle_s": 1.0}})
+    rp = plan_run(cfg, 0)
+    assert rp.steps[2].y0 is None and rp.steps[3].y0 is not None
+    ran = []
+
+    def counted(fn):
+        def wrapped(*args, **kwargs):
+            jobs = args[0] if isinstance(args[0], list) else [args[3]]
+            ran.extend(j.plan.index if isinstance(j, StepJob) else j.index for j in jobs)
+            return fn(*args, **kwargs)
+        return wrapped
+
+    monkeypatch.setattr(batch, "integrate_steps", counted(integrate_steps))
+    monkeypatch.setattr(batch, "integrate_step", counted(integrate_step))
+    point = simulate_batch([cfg], seed=0, workers=1)[0]
+    assert point.slip_step == 2 and sorted(ran) == [1, 2]
+    ran.clear()
+    monkeypatch.setattr(sim, "integrate_step", counted(integrate_step))
+    truth = run_simulation(cfg, tmp_path / "s", seed=0, fmt="hdf5", progress=False,
+                           workers=1)
+    assert sorted(ran) == [1, 2]
+    assert truth["steps"] == point.steps and truth["slip_step"] == 2

@@ -67,14 +67,20 @@ def run(cfg, dc, seconds, *, amp=0.0, substeps=1, samples_per_step=None, dc_from
 
 
 def test_default_step():
-    """The configured step spans twelve samples (h = 12/16670 s), inside RK4's stability
-    region (|lambda*h| < 2.78 on the real axis) and the twin's limit 2.5 for the stiffest
-    mode (the platform's PI loop, lambda ~ 3300 1/s)."""
+    """The configured step spans twelve samples (h = 12/16670 s, within MAX_STEP_S). The
+    stiffest mode, the platform's PI loop (lambda ~ 3300 1/s, lambda*h = 2.4), is taken
+    exactly; the explicit part's fastest, the torsional mode (~196 1/s), sits at
+    lambda*h = 0.14, far inside RK4's stability region (2.78 on the real axis) and the
+    twin's limit 2.5."""
+    from torquemod.twins.vtrack.params import MAX_STEP_S, explicit_rate
+
     cfg = load_config()
     assert (cfg.procedure.samples_per_step, cfg.procedure.substeps) == (12, 1)
+    assert 12 / FS <= MAX_STEP_S
     assert stiffest_rate(cfg.rig) == pytest.approx(3333.3, rel=1e-3)
     assert stiffest_rate(cfg.rig) * 12 / FS == pytest.approx(2.4, rel=1e-3)
-    assert stiffest_rate(cfg.rig) * 12 / FS <= MAX_LAMBDA_H < 2.78
+    assert explicit_rate(cfg.rig) == pytest.approx(195.7, rel=1e-3)
+    assert explicit_rate(cfg.rig) * 12 / FS <= 0.15 < MAX_LAMBDA_H < 2.78
 
 
 def test_normal_load_disturbances(quiet, noisy):

@@ -210,21 +210,29 @@ def test_mean_creepage_matches_steady_state(oracle_run):
 
 
 def test_integrator_step_is_configurable_and_checked():
-    """``procedure.samples_per_step`` (default 12) is validated; a step too long for the
-    rig's fastest mode (RK4 stability) is shortened by halving samples_per_step (a lower
-    sample rate or a stiffer rig runs slower, never unstable), and refused with a hint when
-    even one sample per step is too long."""
+    """``procedure.samples_per_step`` (default 12) is validated; a step longer than the
+    accuracy bound MAX_STEP_S or too long for the explicit part's fastest mode (RK4
+    stability) is shortened by halving samples_per_step (a lower sample rate or a stiffer
+    rig runs slower, never less accurate or unstable), and refused with a hint when even
+    one sample per step is too long. The platform's PI loop no longer bounds the step (its
+    rate is taken exactly)."""
     assert load_config(overrides={"procedure": {"samples_per_step": 1}}
                        ).procedure.samples_per_step == 1
     with pytest.raises(InputError, match="samples_per_step"):
         load_config(overrides={"procedure": {"samples_per_step": 0}})
-    # a 10 kHz logger: 12 samples would be lambda*h = 4.0; 6 are 2.0
+    # a 10 kHz logger: 12 samples would be 1.2e-3 s > MAX_STEP_S; 6 are 6e-4 s
     slow = load_config(overrides={"sensors": {"sample_rate_hz": 10_000.0}})
     assert slow.procedure.samples_per_step == 6
-    stiff = {"rig": {"platform_kp_nm_s_rad": 1.0e8}}  # lambda = 33 000 1/s
-    assert load_config(overrides=stiff).procedure.samples_per_step == 1  # lambda*h = 1.98
-    stiffer = {"rig": {"platform_kp_nm_s_rad": 2.0e8}}
-    with pytest.raises(InputError, match=r"lambda\*h = 4\.00 .*substeps"):
+    with pytest.raises(InputError, match=r"accuracy.*substeps"):  # 1 kHz: 1e-3 s at best
+        load_config(overrides={"sensors": {"sample_rate_hz": 1000.0}})
+    assert load_config(overrides={"sensors": {"sample_rate_hz": 1000.0},
+                                  "procedure": {"substeps": 2}}).procedure.substeps == 2
+    stiff_pi = {"rig": {"platform_kp_nm_s_rad": 1.0e8}}  # Kp/Jp = 33 000 1/s: taken exactly
+    assert load_config(overrides=stiff_pi).procedure.samples_per_step == 12
+    stiff = {"rig": {"shaft_stiffness_nm_rad": 3.0e8}}  # torsion ~21 000 1/s
+    assert load_config(overrides=stiff).procedure.samples_per_step == 1  # lambda*h = 1.28
+    stiffer = {"rig": {"shaft_stiffness_nm_rad": 3.0e9}}  # ~67 000 1/s
+    with pytest.raises(InputError, match=r"lambda\*h = 4\.0\d .*substeps"):
         load_config(overrides=stiffer)
     cfg = load_config(overrides={**stiffer, "procedure": {"samples_per_step": 1,
                                                           "substeps": 2}})

@@ -297,3 +297,30 @@ def test_large_signal_input_checks_and_slip(cfg):
     near = large_signal_phase_deg(69.0, cfg.rig, f, 8.0, drive="motor")
     assert not near.slipped and 80.0 < near.phase_deg < 90.0
     assert near.creepage_max > near.creepage_min > 0
+
+
+def test_doubled_collocation_starts_from_the_coarser_solution(cfg):
+    """Step 1 (creepage through zero) needs 128 points; Newton there starts from the
+    64-point solution interpolated and reaches the state a start from the small-signal
+    response reaches (phase to 1e-12 deg: both converge quadratically to rounding) in fewer
+    iterations. The result is remembered per argument set."""
+    from torquemod.twins.vtrack import theory
+
+    rig, f = cfg.rig, cfg.modulation.actual_frequency_hz
+    dc = TABLE1[0]
+    op = operating_point(dc, rig)
+    coarse = theory._periodic_state(dc, rig, op, f, 8.0, "motor", True, 64, 1e-10, 50)
+    cold = theory._periodic_state(dc, rig, op, f, 8.0, "motor", True, 128, 1e-10, 50)
+    warm = theory._periodic_state(dc, rig, op, f, 8.0, "motor", True, 128, 1e-10, 50,
+                                  coarse[5])
+
+    def phase(sol):
+        t1, w1 = np.fft.rfft(sol[0])[1], np.fft.rfft(sol[1])[1]
+        return math.degrees(np.angle(t1 / w1))
+
+    assert abs(phase(warm) - phase(cold)) < 1e-12
+    assert warm[4] < cold[4]
+    res = large_signal_phase_deg(dc, rig, f, 8.0, drive="motor")
+    assert res.n_samples == 128 and res.iterations == warm[4]
+    assert abs(res.phase_deg - phase(warm)) < 1e-13
+    assert large_signal_phase_deg(dc, rig, f, 8.0, drive="motor") is res

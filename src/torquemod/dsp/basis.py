@@ -195,6 +195,11 @@ def _order_columns(theta: np.ndarray, orders: np.ndarray) -> np.ndarray:
     return out
 
 
+#: :func:`order_design`'s compiled kernel (``theta`` [rad] as a float64 array, ``orders`` as
+#: an int64 array of positive orders), for other compiled kernels to call.
+order_columns = _order_columns
+
+
 #: Thresholds of :func:`needs_wide_band`: the platform speed's variation above the quiet
 #: band must be significant (F test; false-alarm probability on white noise) ...
 WIDE_BAND_FALSE_ALARM = 1e-3

@@ -300,3 +300,55 @@ def _solve(dn: np.ndarray, factor: np.ndarray, scale: np.ndarray, y: np.ndarray,
         _cho_solve_inplace(factor, step, potrs)
         coef += step
     return (coef.T / scale).T
+
+
+def lapack_addresses() -> tuple[int, int]:
+    """The addresses of LAPACK's ``dpotrf`` and ``dpotrs`` in scipy's library.
+
+    Returns
+    -------
+    potrf, potrs : int
+        The routines' addresses, the last two arguments of :func:`lstsq_compiled` (run-time
+        values, so a kernel that takes them can be cached).
+    """
+    return _DPOTRF, _DPOTRS
+
+
+@numba.njit(cache=True, nogil=True)
+def lstsq_compiled(design: np.ndarray, y: np.ndarray, potrf: int, potrs: int
+                   ) -> tuple[np.ndarray, int]:
+    """:func:`lstsq`'s Cholesky route inside compiled code, for kernels that fit small
+    designs in a loop.
+
+    The column-normalised normal equations ``dn'dn`` factored by LAPACK ``potrf`` and solved
+    with two steps of iterative refinement by ``potrs`` (Golub & Van Loan, sections 5.3.2
+    and 3.5.3), the routines of :func:`lstsq`. The normal matrix is a general matrix product
+    here (numpy's is a symmetric rank-k update), so the coefficients agree with
+    :func:`lstsq`'s to rounding, not bit for bit.
+
+    Parameters
+    ----------
+    design : ndarray
+        ``(n, m)`` C-ordered design, ``m >= 2``.
+    y : ndarray
+        ``(n,)`` or ``(n, k)`` observations, C-ordered.
+    potrf, potrs : int
+        LAPACK's routines (:func:`lapack_addresses`).
+
+    Returns
+    -------
+    coef : ndarray
+        ``(m,)`` or ``(m, k)`` coefficients, C-ordered (none unless the status is 0).
+    status : int
+        0; 1 a zero or non-finite column; 2 a normal matrix not positive definite; 3 its
+        condition number above 1e10. Where it is not 0, :func:`lstsq` would fall back to the
+        SVD: the caller does.
+    """
+    dn, scale = _normalised(design)
+    if dn.shape[0] == 0:
+        return np.empty((0, *y.shape[1:])), 1
+    gram = np.asfortranarray(np.dot(dn.T, dn))
+    factor, status = _cholesky(gram, potrf)
+    if status != 0:
+        return np.empty((0, *y.shape[1:])), status
+    return np.ascontiguousarray(_solve(dn, factor, scale, y, potrs)), 0

@@ -23,195 +23,16 @@ import numpy as np
 from numba import njit
 from scipy import signal
 
-from torquemod.dsp.lstsq import LstsqFactor, lstsq
+from torquemod.dsp.extrema import (  # noqa: F401  (re-exported: the paper's estimator)
+    PeakValleyResult,
+    _numpy_sum,
+    extrema_times,
+    parabolic_vertex,
+    peak_valley_phase,
+)
+from torquemod.dsp.lstsq import LstsqFactor, lapack_addresses, lstsq, lstsq_compiled
 from torquemod.dsp.tonemodel import tone_design
 from torquemod.errors import ProcessingError
-
-
-def parabolic_vertex(y_m1: np.ndarray, y_0: np.ndarray, y_p1: np.ndarray) -> np.ndarray:
-    """Offset of the vertex of the parabola through three equally spaced samples.
-
-    Parameters
-    ----------
-    y_m1, y_0, y_p1 : array_like
-        The samples before, at and after the extremum.
-
-    Returns
-    -------
-    ndarray
-        Vertex offset from the middle sample [samples], clipped to [-0.5, 0.5]; 0 where the
-        three samples are collinear.
-
-    Examples
-    --------
-    >>> round(float(parabolic_vertex(0.0, 1.0, 0.5)), 4)
-    0.1667
-    >>> float(parabolic_vertex(0.0, 1.0, 1.0))
-    0.5
-    """
-    den = y_m1 - 2.0 * y_0 + y_p1
-    d = np.zeros(np.broadcast(y_m1, y_0, y_p1).shape)
-    np.divide(0.5 * (y_m1 - y_p1), den, out=d, where=den != 0)  # 0 where den == 0
-    return np.minimum(np.maximum(d, -0.5), 0.5)
-
-
-def extrema_times(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Times of the local maxima and minima of a signal, refined by parabolic interpolation.
-
-    Whole-sample peaks at 53 Hz are 13.5 deg apart at 2 Hz, hence the refinement.
-
-    Parameters
-    ----------
-    x : ndarray
-        The signal, any unit.
-    fs_hz : float
-        Sample rate [Hz].
-
-    Returns
-    -------
-    peaks : ndarray
-        Times of the maxima [s from the first sample].
-    valleys : ndarray
-        Times of the minima [s from the first sample].
-    """
-    x = np.asarray(x, dtype=np.float64)
-    if x.ndim == 1 and x.size >= 3:  # find_peaks's strict local extrema, compiled
-        pk, vl, flat = _strict_extrema_times(x, float(fs_hz))
-        if not flat:
-            return pk, vl
-    out = []
-    dx = np.diff(x)
-    flat = bool(np.any(dx == 0))  # a plateau: find_peaks's own handling (its middle sample)
-    for sgn in (1.0, -1.0):
-        if flat:
-            idx, _ = signal.find_peaks(sgn * x)
-            idx = idx[(idx > 0) & (idx < x.size - 1)]
-        else:  # find_peaks's strict local extrema without its per-call overhead
-            rise = dx > 0 if sgn > 0 else dx < 0
-            idx = np.flatnonzero(rise[:-1] & ~rise[1:]) + 1
-        # the vertex of -x is the same number as that of x (negation is exact in IEEE
-        # arithmetic, and so symmetric in its rounding)
-        d = parabolic_vertex(x[idx - 1], x[idx], x[idx + 1])
-        out.append((idx + d) / fs_hz)
-    return out[0], out[1]
-
-
-@njit(cache=True, nogil=True)
-def _strict_extrema_times(x: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray, bool]:
-    """:func:`extrema_times` of a record without plateaus in one pass: the samples above
-    (below) both neighbours, each moved to the vertex of the parabola through it and its
-    neighbours with :func:`parabolic_vertex`'s arithmetic (so the same bits,
-    tests/processing/test_chain_kernels.py). The third value is True, and the times empty, when two
-    neighbouring samples are equal (a plateau: left to ``find_peaks``)."""
-    n = x.size
-    for i in range(n - 1):
-        if x[i + 1] - x[i] == 0:
-            return np.empty(0), np.empty(0), True
-    peaks = np.empty(n)
-    valleys = np.empty(n)
-    n_pk = 0
-    n_vl = 0
-    for i in range(1, n - 1):
-        d0 = x[i] - x[i - 1]
-        d1 = x[i + 1] - x[i]
-        if (d0 > 0 and not d1 > 0) or (d0 < 0 and not d1 < 0):
-            den = x[i - 1] - 2.0 * x[i] + x[i + 1]
-            d = 0.5 * (x[i - 1] - x[i + 1]) / den if den != 0 else 0.0
-            d = min(max(d, -0.5), 0.5)
-            if d0 > 0:
-                peaks[n_pk] = (i + d) / fs_hz
-                n_pk += 1
-            else:
-                valleys[n_vl] = (i + d) / fs_hz
-                n_vl += 1
-    return peaks[:n_pk].copy(), valleys[:n_vl].copy(), False
-
-
-def _closest(times: np.ndarray, center_s: float, count: int) -> np.ndarray:
-    order = np.argsort(np.abs(times - center_s))[:count]
-    return np.sort(times[order])
-
-
-@dataclass(frozen=True)
-class PeakValleyResult:
-    """The phase from peak and valley times (the V-Track paper's method).
-
-    Attributes
-    ----------
-    phase_deg : float
-        Mean phase lag of the wheel speed behind the torque [deg].
-    pair_phases_deg : ndarray
-        The phase of each matched extremum pair [deg].
-    torque_times_s : ndarray
-        The torque's extremum times [s].
-    wheel_times_s : ndarray
-        The wheel speed's matched extremum times [s].
-    """
-
-    phase_deg: float
-    pair_phases_deg: np.ndarray
-    torque_times_s: np.ndarray
-    wheel_times_s: np.ndarray
-
-
-def peak_valley_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz: float, *,
-                      center_s: float, n_periods: int = 3) -> PeakValleyResult:
-    """Phase lag of the wheel speed behind the torque from paired peaks and valleys,
-    ``phi_pair = 360*f_mod*(t_wheel - t_torque)``, averaged over the pairs.
-
-    The ``n_periods`` torque peaks and valleys nearest ``center_s`` are each paired with the
-    wheel-speed extremum of the same kind nearest to it (within half a period); extrema are
-    located to a fraction of a sample by :func:`parabolic_vertex`.
-
-    Parameters
-    ----------
-    torque, wheel : ndarray
-        Band-passed torque [N*m] and wheel angular velocity [rad/s] (any units: only the
-        times of their extrema matter), sampled together.
-    fs_hz : float
-        Sampling rate [Hz].
-    f_mod_hz : float
-        Modulation frequency [Hz].
-    center_s : float
-        Centre of the cycle [s from the first sample].
-    n_periods : int, default 3
-        Peaks (and valleys) used.
-
-    Returns
-    -------
-    PeakValleyResult
-        Mean phase [deg], per-pair phases [deg] and the paired times [s].
-
-    Raises
-    ------
-    ProcessingError
-        Too few extrema, or no wheel-speed extremum within half a period of a torque one.
-
-    References
-    ----------
-    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
-       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (2).
-    """
-    t_pk, t_vl = extrema_times(torque, fs_hz)
-    w_pk, w_vl = extrema_times(wheel, fs_hz)
-    period = 1.0 / f_mod_hz
-    t_sel, w_sel = [], []
-    for t_all, w_all, kind in ((t_pk, w_pk, "peaks"), (t_vl, w_vl, "valleys")):
-        if t_all.size < n_periods or w_all.size == 0:
-            raise ProcessingError(f"fewer than {n_periods} torque {kind} in the cycle")
-        ts = _closest(t_all, center_s, n_periods)
-        gaps = np.abs(w_all[None, :] - ts[:, None])  # each torque extremum's distance to
-        nearest = gaps.argmin(axis=1)  # every wheel extremum; the first nearest on a tie
-        for t, j, gap in zip(ts.tolist(), nearest.tolist(),
-                             gaps[np.arange(ts.size), nearest].tolist(), strict=True):
-            if gap > period / 2:
-                raise ProcessingError(f"no wheel-speed extremum within half a period of the "
-                                      f"torque extremum at {t:.3f} s")
-            t_sel.append(t)
-            w_sel.append(w_all[j])
-    t_sel, w_sel = np.asarray(t_sel), np.asarray(w_sel)
-    pair = 360.0 * f_mod_hz * (w_sel - t_sel)
-    return PeakValleyResult(float(pair.mean()), pair, t_sel, w_sel)
 
 
 @dataclass(frozen=True)
@@ -397,19 +218,14 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
     keep = tuple(f for f in nuisance_hz if abs(f - f_mod_hz) > resolution)
     design = _design(n, fs_hz, f_mod_hz, keep, trend)
     y = np.column_stack([torque[start:stop], wheel[start:stop]])
-    fac = LstsqFactor.of(design)  # one factor for both fits below (lstsq's own numbers)
-    if fac is None and lstsq(design, y[:, 0])[1] < design.shape[1]:
-        raise ProcessingError("sine-fit design matrix is rank deficient (nuisance tones "
-                              "coincide)")
-    if noise_from is None:
-        coef = fac.solve(y) if fac is not None else lstsq(design, y)[0]
-        resid = y - design @ coef
-    else:  # the four records in one solve
-        y_all = np.column_stack([y, np.asarray(noise_from[0])[start:stop],
-                                 np.asarray(noise_from[1])[start:stop]])
-        c_all = fac.solve(y_all) if fac is not None else lstsq(design, y_all)[0]
-        coef = c_all[:, :2]
-        resid = y_all[:, 2:] - design @ c_all[:, 2:]
+    if noise_from is not None:  # the four records in one solve
+        y = np.column_stack([y, np.asarray(noise_from[0])[start:stop],
+                             np.asarray(noise_from[1])[start:stop]])
+    status, coef, psds = (5, None, None) if n < 8 or y.dtype != np.float64 else \
+        _sine_fit(np.ascontiguousarray(design), y, float(fs_hz), float(f_mod_hz),
+                  *_dft_table(n), *lapack_addresses())
+    if status != 0:  # numpy's route: a design that needs the SVD, or too short a window
+        coef, psds = _sine_fit_numpy(design, y, fs_hz, f_mod_hz)
     t_win = n / fs_hz
     phases, amps, var_phi = [], [], 0.0
     for ch in range(2):
@@ -419,13 +235,100 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
             raise ProcessingError("zero amplitude at the modulation frequency")
         # var(phi_i) = S_i/(A_i^2 T) with S_i the one-sided noise density at f_mod
         # (Rife and Boorstyn 1974)
-        psd = local_noise_psd(resid[:, ch], fs_hz, f_mod_hz)
-        var_phi += psd / (a2 * t_win)
+        var_phi += psds[ch] / (a2 * t_win)
         phases.append(float(np.arctan2(-s, c)))
         amps.append(float(np.sqrt(a2)))
     lag = np.angle(np.exp(1j * (phases[0] - phases[1])))
     return SineFitResult(float(np.degrees(lag)), float(np.degrees(np.sqrt(var_phi))), amps[0],
                          amps[1], phases[0], phases[1], n, (start / fs_hz, stop / fs_hz))
+
+
+def _sine_fit_numpy(design: np.ndarray, y: np.ndarray, fs_hz: float, f_mod_hz: float
+                    ) -> tuple[np.ndarray, list[float]]:
+    """:func:`sinefit_phase`'s fit step by step in numpy: the signals' coefficients
+    ``(m, 2)`` and the residuals' noise densities near ``f_mod_hz`` [unit^2/Hz]
+    (:func:`local_noise_psd`), the residual of ``y``'s last two columns (``y`` holds the
+    torque and wheel speed, then optionally the records whose residual gives the noise)."""
+    fac = LstsqFactor.of(design)  # one factor for both fits below (lstsq's own numbers)
+    if fac is None and lstsq(design, y[:, 0])[1] < design.shape[1]:
+        raise ProcessingError("sine-fit design matrix is rank deficient (nuisance tones "
+                              "coincide)")
+    c_all = fac.solve(y) if fac is not None else lstsq(design, y)[0]
+    resid = y[:, -2:] - design @ c_all[:, -2:]
+    return c_all[:, :2], [local_noise_psd(resid[:, ch], fs_hz, f_mod_hz) for ch in range(2)]
+
+
+@functools.lru_cache(maxsize=16)
+def _dft_table(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """``cos`` and ``sin`` of ``2*pi*j/n`` for j = 0..n-1 (the DFT's twiddles, exact index
+    arithmetic ``k*t mod n`` picks them), the periodic Hann window and its sum of squares
+    (:func:`_hann_periodic`); cached read-only, one per window length."""
+    angle = 2.0 * np.pi * np.arange(n) / n
+    w, ss = _hann_periodic(n)
+    out = (np.cos(angle), np.sin(angle), w)
+    for a in out:
+        a.setflags(write=False)
+    return (*out, ss)
+
+
+@njit(cache=True, nogil=True)
+def _sine_fit(design: np.ndarray, y: np.ndarray, fs_hz: float, f_hz: float, cos_t: np.ndarray,
+              sin_t: np.ndarray, w: np.ndarray, ss: float, potrf: int, potrs: int
+              ) -> tuple[int, np.ndarray, np.ndarray]:
+    """:func:`_sine_fit_numpy` in one call: ``(status, coef, psds)``, status 0, or not 0
+    where that route must decide (a design :func:`~torquemod.dsp.lstsq.lstsq_compiled`
+    leaves to the SVD, fewer than two bins in the noise band). The least squares by
+    :func:`~torquemod.dsp.lstsq.lstsq_compiled`; each density as
+    :func:`local_noise_psd` forms it with the periodogram's bins in the band summed
+    directly over the samples (:func:`_band_density`) instead of by the FFT (the same
+    values to rounding)."""
+    coef, status = lstsq_compiled(design, y, potrf, potrs)
+    if status != 0:
+        return status, np.empty((0, 2)), np.empty(2)
+    k0 = y.shape[1] - 2
+    fit = np.dot(design, np.ascontiguousarray(coef[:, k0:]))
+    psds = np.empty(2)
+    for ch in range(2):
+        psds[ch] = _band_density(y[:, k0 + ch] - fit[:, ch], fs_hz, f_hz, cos_t, sin_t, w,
+                                 ss, 0.75)
+        if not psds[ch] == psds[ch]:
+            return 4, coef, psds
+    return 0, np.ascontiguousarray(coef[:, :2]), psds
+
+
+@njit(cache=True, nogil=True)
+def _band_density(x: np.ndarray, fs_hz: float, f_hz: float, cos_t: np.ndarray,
+                  sin_t: np.ndarray, w: np.ndarray, ss: float, half_width_hz: float) -> float:
+    """:func:`local_noise_psd` of ``x`` [unit^2/Hz] with the Hann-windowed periodogram's
+    bins within ``half_width_hz`` of ``f_hz`` (the two nearest left out) evaluated as DFT
+    sums over the samples: the same bins, frequencies and scaling as :func:`_density` and
+    the mean as numpy forms it; NaN where the band holds fewer than two bins."""
+    n = x.size
+    mean = _numpy_sum(x, 0, n) / n
+    xw = (x - mean) * w
+    val = 1.0 / (n * (1.0 / fs_hz))  # np.fft.rfftfreq's spacing
+    vals = np.empty(n // 2 + 1)
+    count = 0
+    for k in range(n // 2 + 1):
+        off = abs(k * val - f_hz)
+        if off <= half_width_hz and off > 1.5 * (val - 0.0):
+            re = 0.0
+            im = 0.0
+            j = 0
+            for t in range(n):  # exp(-2j*pi*k*t/n), j = k*t mod n
+                re += xw[t] * cos_t[j]
+                im -= xw[t] * sin_t[j]
+                j += k
+                if j >= n:
+                    j -= n
+            p = (re * re + im * im) / (fs_hz * ss)
+            if 1 <= k < n // 2 + (n % 2):
+                p *= 2.0
+            vals[count] = p
+            count += 1
+    if count < 2:
+        return math.nan
+    return _numpy_sum(vals, 0, count) / count
 
 
 def phase_crb_deg(amplitude_1: float, amplitude_2: float, noise_std_1: float, noise_std_2: float,

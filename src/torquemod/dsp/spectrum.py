@@ -179,6 +179,93 @@ def peak_frequency(x: np.ndarray, fs_hz: float, *, band_hz: tuple[float, float] 
                             float(xtol_hz), 500))
 
 
+def peak_frequencies(records: np.ndarray, fs_hz: float, *,
+                     band_hz: tuple[float, float] = (1.5, 2.5), window: str = "hann",
+                     detrend: str = "linear", zero_pad: int = 8, xtol_hz: float = 1e-6,
+                     min_peak_to_floor: float = 20.0) -> list[float]:
+    """:func:`peak_frequency` of each column of ``records``, the search in one call for all.
+
+    Each column detrended and windowed, one FFT of all columns, then the bin search and the
+    refinement by Brent's search of ``|X_w(f)|`` for all columns in one compiled call: the
+    steps and parameters of :func:`peak_frequency`. A column is detrended as a contiguous
+    record (:meth:`~torquemod.dsp.lstsq.LstsqFactor.solve`'s compiled route), so the
+    frequencies equal :func:`peak_frequency`'s on each column as a contiguous array
+    (tests/dsp/test_spectrum_batch.py). A column whose checks fail, and other windows or
+    detrending designs, go through :func:`peak_frequency` itself, which raises its error.
+
+    Parameters
+    ----------
+    records : ndarray
+        ``(n, k)`` records, one a column, any unit.
+    fs_hz : float
+        Sample rate [Hz].
+    band_hz, window, detrend, zero_pad, xtol_hz, min_peak_to_floor
+        As :func:`peak_frequency` (band [Hz], refinement tolerance [Hz], power ratio [-]).
+
+    Returns
+    -------
+    list of float
+        The peak frequency of each column [Hz].
+
+    Raises
+    ------
+    ValueError, ProcessingError
+        As :func:`peak_frequency`, for the first column that fails.
+    """
+    x = np.asarray(records, dtype=np.float64)
+    if x.ndim != 2:
+        raise ValueError(f"records must be (n, k), not of shape {x.shape}")
+    n = x.shape[0]
+    lo, hi = band_hz
+    kw = dict(band_hz=band_hz, window=window, detrend=detrend, zero_pad=zero_pad,
+              xtol_hz=xtol_hz, min_peak_to_floor=min_peak_to_floor)
+    design, fac = _trend_design(n, fs_hz, detrend == "linear") if n >= 3 else (None, None)
+    if fac is None or not fac.dn.flags.c_contiguous or not isinstance(window, str) \
+            or not isinstance(zero_pad, int) or zero_pad < 1 or not 0 <= lo < hi <= fs_hz / 2:
+        return [peak_frequency(np.ascontiguousarray(x[:, i]), fs_hz, **kw)
+                for i in range(x.shape[1])]
+    w = _window(window, n)
+    m = zero_pad * n
+    nfft = 1 << (m - 1).bit_length()
+    wx = np.empty((x.shape[1], n))
+    for i in range(x.shape[1]):  # detrended and windowed (the compiled solve of a
+        col = np.ascontiguousarray(x[:, i])  # contiguous record: one kernel fewer to load)
+        np.multiply(col - design @ fac.solve(col), w, out=wx[i])
+    freqs, idx, wide = _grid(nfft, fs_hz, lo, hi, n)
+    if idx.size >= 3:
+        spec = np.fft.rfft(wx, nfft, axis=1)
+        peaks, ok = _peaks_of_spectra(spec, freqs, idx, wide, 2.0 * fs_hz / n, wx,
+                                      float(fs_hz), float(xtol_hz), float(min_peak_to_floor),
+                                      500)
+        if ok.all():
+            return peaks.tolist()
+    return [peak_frequency(np.ascontiguousarray(x[:, i]), fs_hz, **kw)
+            for i in range(x.shape[1])]
+
+
+@numba.njit(cache=True, nogil=True)
+def _peaks_of_spectra(spec: np.ndarray, freqs: np.ndarray, idx: np.ndarray, wide: np.ndarray,
+                      lobe: float, wx: np.ndarray, fs_hz: float, xtol_hz: float,
+                      min_ratio: float, maxfun: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`peak_frequency`'s checks (:func:`_line_search` on each row's FFT magnitudes
+    ``|spec|``) and its refinement (:func:`_dtft_peak` of the windowed record ``wx``) for
+    each row: the frequencies [Hz] and whether each row passed the checks (NaN where not)."""
+    rows = spec.shape[0]
+    out = np.full(rows, np.nan)
+    ok = np.zeros(rows, dtype=np.bool_)
+    df = freqs[1] - freqs[0]
+    for r in range(rows):
+        mag = np.abs(spec[r])
+        k, j, floor = _line_search(mag, freqs, idx, wide, lobe)
+        if k == idx[0] or k == idx[-1] or not mag[k] > 0 or mag[j] > mag[k]:
+            continue
+        if floor > 0 and mag[k] ** 2 < min_ratio * floor:
+            continue
+        out[r] = _dtft_peak(wx[r], fs_hz, freqs[k] - df, freqs[k] + df, xtol_hz, maxfun)
+        ok[r] = True
+    return out, ok
+
+
 @numba.njit(cache=True, nogil=True)
 def _line_search(spec: np.ndarray, freqs: np.ndarray, idx: np.ndarray, wide: np.ndarray,
                  lobe: float) -> tuple[int, int, float]:

@@ -11,14 +11,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from torquemod.dsp import filters, resampling, tonemodel
+from torquemod.dsp import filters, resampling
 from torquemod.dsp.align import alignment_lag
 from torquemod.dsp.basis import needs_wide_band
+from torquemod.dsp.padfilter import padded_and_filtered
 from torquemod.dsp.phase import SineFitResult, local_noise_psd, peak_valley_phase, sinefit_phase
-from torquemod.dsp.spectrum import peak_frequency
+from torquemod.dsp.spectrum import peak_frequencies, peak_frequency
 from torquemod.errors import InputError, ProcessingError
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Recording, Rig
+from torquemod.processing.creepage import creepage_and_drift
 from torquemod.processing.cyclechecks import check_operating_point
 from torquemod.processing.speedmodel import (
     SpeedModel,
@@ -185,6 +187,30 @@ def _std(x: np.ndarray) -> float:
 SLOW_GAP_RESOLUTIONS = 4.0
 
 
+_PEAK_CHANNELS = ("torque_nm", "wheel_speed_rad_s")
+
+
+def _modulation_peaks(cleaned: np.ndarray, fs_hz: float, cfg: ProcessingConfig, where: str
+                      ) -> dict[str, float]:
+    """Step 1's spectral peaks [Hz] of the cleaned torque and wheel speed (the columns of
+    ``cleaned``), both in one pass (:func:`~torquemod.dsp.spectrum.peak_frequencies`); where
+    a column has no modulation line, the error names its channel."""
+    fp = cfg.frequency
+    kw = dict(band_hz=fp.band_hz, window=fp.window, detrend=fp.detrend, zero_pad=fp.zero_pad)
+    try:
+        return dict(zip(_PEAK_CHANNELS, peak_frequencies(cleaned, fs_hz, **kw), strict=True))
+    except ProcessingError:
+        pass
+    for i, name in enumerate(_PEAK_CHANNELS):  # which channel: the column on its own
+        try:
+            peak_frequency(np.ascontiguousarray(cleaned[:, i]), fs_hz, **kw)
+        except ProcessingError as exc:
+            raise InputError(f"no modulation found: {exc}", path=where, channel=name,
+                             hint="check the modulation was on and [processing] "
+                             "frequency.band_hz") from None
+    raise AssertionError("peak_frequencies failed where peak_frequency did not")
+
+
 def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str,
                   nominal_hz: float | None = None, normal_load_n: float | None = None
                   ) -> CycleSignals:
@@ -278,15 +304,7 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     cleaner = _SlowOrdersRemoval(np.column_stack([tq, wh]), slow, orders, fs_r, mod_harmonics)
     for _ in range(2):
         cleaned = cleaner.at(f_mod)
-        for i, name in enumerate(("torque_nm", "wheel_speed_rad_s")):
-            try:
-                peaks[name] = peak_frequency(cleaned[:, i], fs_r, band_hz=fp.band_hz,
-                                             window=fp.window, detrend=fp.detrend,
-                                             zero_pad=fp.zero_pad)
-            except ProcessingError as exc:
-                raise InputError(f"no modulation found: {exc}", path=where, channel=name,
-                                 hint="check the modulation was on and [processing] "
-                                 "frequency.band_hz") from None
+        peaks.update(_modulation_peaks(cleaned, fs_r, cfg, where))
         f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
     if fp.refine:
         peaks["torque_nm"], peaks["wheel_speed_rad_s"] = cleaner.refine_many(
@@ -313,13 +331,13 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     pad = max(filters.settling_samples(ba) for ba in [hp, bp, *notch_ba.values()])
     tones = [f_mod, *wheel_notches]
 
-    (wh_p, wh_level, _), (tq_p, tq_level, _) = tonemodel.model_padded_rows(
-        [sig[k] - model.part(k, "slow") - model.part(k, "orders") - model.part(k, "harmonics")
-         for k in ("wheel_speed_rad_s", "torque_nm")], fs_r, tones, pad)
+    # the records less their slow part, orders and harmonics, padded by their tone model;
     # the wheel speed through its notches, then both records through the high-pass and the
-    # band-pass together (one lfilter call per filter and direction for both rows)
-    wh_p = filters.zero_phase_cascade([notch_ba[f0] for f0 in wheel_notches], wh_p)
-    both_f = filters.zero_phase_cascade([hp, bp], np.vstack([wh_p, tq_p]))
+    # band-pass (one compiled call)
+    wh_p, wh_level, tq_p, tq_level, both_f = padded_and_filtered(
+        *[sig[k] - model.part(k, "slow") - model.part(k, "orders") - model.part(k, "harmonics")
+          for k in ("wheel_speed_rad_s", "torque_nm")], fs_r, tones, pad,
+        [notch_ba[f0] for f0 in wheel_notches], [hp, bp])
     wh_n = wh_p[pad:pad + n] + wh_level + model.mean("wheel_speed_rad_s")
     tq_n = tq_p[pad:pad + n] + tq_level + model.mean("torque_nm")
     wh_f, tq_f = both_f[0, pad:pad + n], both_f[1, pad:pad + n]
@@ -358,65 +376,6 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                       "speed_m_s": speed, "coa_torque": coa_t,
                       "coa_source": "forces" if has_forces else "torque"})
     return out
-
-
-def creepage_and_drift(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
-                       platform_radius_m: float, platform_harmonics: tuple[int, ...]
-                       ) -> tuple[float, float]:
-    """Creepage of Eq. (3) [1]_ and its change over the record, from the slow speeds.
-
-    The ratio ``q(t) = W(t)*Rp/(w(t)*Rw) = (1 + e(theta_p))/(1 + xi(t))`` is free of any
-    speed variation that wheel and platform share; the platform encoder's eccentricity ``e``
-    (at its revolution harmonics) enters it linearly. A least-squares fit
-    ``q ~ c0 + c1*(t - mean t) + sum(a_k*cos + b_k*sin)(k*theta_p)`` gives ``xi = 1/c0 - 1``
-    and the drift ``-c1*T/c0^2``: a wheel that follows a moving platform keeps its creepage;
-    a wheel that starts to slip shows a creepage rising within the cycle.
-
-    Parameters
-    ----------
-    model : SpeedModel
-        The joint speed model of the cycle.
-    fs_hz : float
-        Sample rate [Hz].
-    wheel_radius_m : float
-        Rw [m].
-    platform_radius_m : float
-        Rp [m].
-    platform_harmonics : tuple of int
-        The platform's revolution harmonics fitted.
-
-    Returns
-    -------
-    creepage : float
-        xi [-]; NaN when the model has no platform speed.
-    drift : float
-        Its change over the record [-].
-
-    References
-    ----------
-    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
-       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Eq. (3).
-    """
-    w = model.part("wheel_speed_rad_s", "slow")
-    p = model.part("platform_speed_rad_s", "slow")
-    if np.any(w == 0):
-        return float("nan"), float("nan")
-    q = p * platform_radius_m / (w * wheel_radius_m)
-    n = q.size
-    t = np.arange(n) / fs_hz
-    c0 = float(q.sum()) / n  # np.mean's numbers
-    design = np.empty((n, 2 + 2 * len(platform_harmonics)))  # [1, t - mean t, orders]
-    design[:, 0] = 1.0
-    design[:, 1] = t - t.mean()
-    for _ in range(2):
-        # the platform's true angle from the wheel's speed (free of the platform encoder's
-        # own error, whose square would otherwise bias c0 by e^2/2)
-        theta = filters.unwrapped_angle(w * c0 * wheel_radius_m / platform_radius_m, fs_hz)
-        kept = [k for k in platform_harmonics if k * abs(theta[-1]) / (2 * np.pi) > 0.5]
-        design[:, 2:2 + 2 * len(kept)] = filters.order_design(theta, kept)
-        coef, _ = filters.lstsq(design[:, :2 + 2 * len(kept)], q)
-        c0, c1 = float(coef[0]), float(coef[1])
-    return 1.0 / c0 - 1.0, -c1 * (n / fs_hz) / c0**2
 
 
 def align_lags(cycles: list[CycleSignals], cfg: ProcessingConfig) -> list[int]:

@@ -352,9 +352,15 @@ class SimConfig:
     procedure: ProcedureParams = field(default_factory=ProcedureParams)
 
 
-#: largest |lambda*h| accepted for the integrator (RK4 is stable to 2.78 on the real axis;
-#: the default step, 12 samples at 16 670 Hz, puts the platform's PI loop at 2.4)
+#: largest |lambda*h| accepted for the integrator's explicit part (RK4 is stable to 2.78 on
+#: the real axis; the platform's PI loop, taken exactly, does not count:
+#: :func:`explicit_rate`)
 MAX_LAMBDA_H = 2.5
+#: longest RK4 step [s] accepted for accuracy: the default step (12 samples at 16 670 Hz,
+#: 7.2e-4 s) keeps the simulated phases within 1e-4 deg of a step of 4 samples, 24 samples
+#: do not (docs/performance.md); 7.5e-4 s is the bound the platform loop's stability set
+#: (2.5/(Kp/Jp) on the default rig) before that loop was taken exactly
+MAX_STEP_S = 7.5e-4
 
 
 def stiffest_rate(rig: RigParams) -> float:
@@ -386,3 +392,30 @@ def stiffest_rate(rig: RigParams) -> float:
     contact = (rig.wheel_radius_m ** 2 / rig.wheel_inertia_kg_m2
                + rig.platform_radius_m ** 2 / rig.platform_inertia_kg_m2) * kx / rig.speed_m_s
     return max(rig.platform_kp_nm_s_rad / rig.platform_inertia_kg_m2, torsion, contact)
+
+
+def explicit_rate(rig: RigParams) -> float:
+    """Estimate of the fastest eigenvalue the integrator's explicit (RK4) part sees.
+
+    :func:`stiffest_rate` without the platform's PI loop ``Kp/Jp``, whose linear rate the
+    integrator takes exactly (exponential RK4 on the platform speed,
+    :mod:`torquemod.twins.vtrack.rig.lanes`): the torsional mode or the creep-force damping,
+    whichever is larger.
+
+    Parameters
+    ----------
+    rig : RigParams
+        The rig.
+
+    Returns
+    -------
+    float
+        The rate [1/s].
+    """
+    c = rig.contact
+    inv_j = 1.0 / rig.drive_inertia_kg_m2 + 1.0 / rig.wheel_inertia_kg_m2
+    torsion = math.sqrt(rig.shaft_stiffness_nm_rad * inv_j) + rig.shaft_damping_nm_s_rad * inv_j
+    kx = 2.0 * (c.k_a + c.k_s) * c.stiffness_x_n / math.pi  # dFx/dxi at 0, P05 Eq. (8)
+    contact = (rig.wheel_radius_m ** 2 / rig.wheel_inertia_kg_m2
+               + rig.platform_radius_m ** 2 / rig.platform_inertia_kg_m2) * kx / rig.speed_m_s
+    return max(torsion, contact)

@@ -30,6 +30,7 @@ from torquemod.errors import InputError
 from torquemod.twins.vtrack.params import (
     DEFAULT_DOC,
     MAX_LAMBDA_H,
+    MAX_STEP_S,
     ContactParams,
     DisturbanceParams,
     ModulationParams,
@@ -38,7 +39,7 @@ from torquemod.twins.vtrack.params import (
     SensorParams,
     SimConfig,
     default_config_text,
-    stiffest_rate,
+    explicit_rate,
 )
 
 __all__ = ["SimTables", "config_from_dict", "config_from_tables", "default_config_text",
@@ -329,19 +330,30 @@ def config_from_dict(doc: dict, *, where: str = "<config>") -> SimConfig:
 
 def _check_step(rig: RigParams, sensors: SensorParams, proc: ProcedureParams,
                 where: str) -> ProcedureParams:
-    """``proc`` with an RK4 step the rig's fastest mode allows (lambda*h <= MAX_LAMBDA_H):
-    ``samples_per_step`` is halved (12, 6, 3, 1) while the step is too long -- a shorter step
-    is only more accurate, so a stiffer rig or a lower sample rate just runs slower; refused
-    when even one sample per step is too long (raise ``substeps``)."""
-    lam = stiffest_rate(rig)
+    """``proc`` with an RK4 step the rig allows: within :data:`MAX_STEP_S` (accuracy) and
+    with ``lambda*h <= MAX_LAMBDA_H`` for the explicit part's fastest mode
+    (:func:`explicit_rate`; the platform's PI loop is taken exactly) -- ``samples_per_step``
+    is halved (12, 6, 3, 1) while the step is too long (a shorter step is only more
+    accurate, so a stiffer rig or a lower sample rate just runs slower); refused when even
+    one sample per step is too long (raise ``substeps``)."""
+    lam = explicit_rate(rig)
+
+    def too_long(sps: int) -> bool:
+        h = sps / (proc.substeps * sensors.sample_rate_hz)
+        return lam * h > MAX_LAMBDA_H or h > MAX_STEP_S
+
     sps = proc.samples_per_step
-    while sps > 1 and lam * sps / (proc.substeps * sensors.sample_rate_hz) > MAX_LAMBDA_H:
+    while sps > 1 and too_long(sps):
         sps //= 2
     h = sps / (proc.substeps * sensors.sample_rate_hz)
     if lam * h > MAX_LAMBDA_H:
         raise InputError(f"integrator step {h:.3g} s too long for the rig's fastest mode "
                          f"(lambda*h = {lam * h:.2f} > {MAX_LAMBDA_H} with one sample per "
                          "step)", path=where, hint="raise procedure.substeps")
+    if h > MAX_STEP_S:
+        raise InputError(f"integrator step {h:.3g} s too long for the twin's accuracy "
+                         f"(> {MAX_STEP_S:g} s with one sample per step)", path=where,
+                         hint="raise procedure.substeps")
     return proc if sps == proc.samples_per_step else replace(proc, samples_per_step=sps)
 
 

@@ -178,13 +178,24 @@ def _simulate(config: SimConfig, folder: Path | None, *, seed: int, fmt: str | N
     else:
         bar = _NoProgress()
 
+    # the first step known to have slipped: the run ends there, so a later step that starts,
+    # or finishes integrating, after it is skipped (never read; its files never written)
+    first_slip = [len(torques) + 1]
+    skipped = (None, [], None, None)
+
     def run(rp, plan, before):
         start = None if plan.y0 is not None else before.result()[2]
+        if first_slip[0] < plan.index or (plan.y0 is None and start is None):
+            bar.update(1)
+            return skipped
         out, n_done, slipped, y_end = integrate_step(config, params, rp.wobble, plan,
                                                      rp.n_step, start, rp.n_settle)
         bar.update(1)
         if slipped:
+            first_slip[0] = min(first_slip[0], plan.index)
             return None, [], y_end, plan.t0_s + n_done * dt
+        if first_slip[0] < plan.index:
+            return skipped
         # (offering a step's truth to the pool while its thread draws the noise and writes
         # the files was tried in an earlier version: 2 cores, 30 alternations, median
         # 271 against 248 ms a run -- two threads wanting the GIL at once wait for each

@@ -238,22 +238,47 @@ class LargeSignalResult:
     slipped: bool
 
 
+@functools.lru_cache(maxsize=8)
+def _eye_spectrum(n: int) -> np.ndarray:
+    """``rfft`` of the ``n x n`` identity along its columns (read-only; remembered per ``n``:
+    every :func:`_circulant` of a collocation size starts from it)."""
+    out = np.fft.rfft(np.eye(n), axis=0)
+    out.flags.writeable = False
+    return out
+
+
 def _circulant(symbol: np.ndarray, n: int) -> np.ndarray:
     """Real ``n x n`` matrix of the periodic linear operator whose frequency response at
     harmonic k = 0..n/2 is ``symbol[k]`` (the Nyquist bin is set to zero)."""
     h = np.array(symbol, dtype=complex)
     h[-1] = 0.0
-    return np.fft.irfft(h[:, None] * np.fft.rfft(np.eye(n), axis=0), n=n, axis=0)
+    return np.fft.irfft(h[:, None] * _eye_spectrum(n), n=n, axis=0)
+
+
+def _refine(x: np.ndarray, n: int, platform: bool) -> np.ndarray:
+    """A collocation solution on ``n`` points per period (``u``, then ``w`` with the
+    platform) resampled to ``2n`` points by trigonometric interpolation (its spectrum padded
+    with zeros; the Nyquist bin, which collocation leaves unresolved, dropped)."""
+    parts = [x[:n], x[n:]] if platform else [x]
+    out = []
+    for v in parts:
+        spec = np.fft.rfft(v)
+        spec[-1] = 0.0
+        out.append(np.fft.irfft(spec, n=2 * n) * 2.0)
+    return np.concatenate(out)
 
 
 def _periodic_state(dc_torque_nm, p: RigParams, op: OperatingPoint, f: float, amplitude: float,
-                    drive: str, platform: bool, n: int, rtol: float, max_iter: int):
-    """Collocation solve of :func:`large_signal_phase_deg` on ``n`` points per period.
+                    drive: str, platform: bool, n: int, rtol: float, max_iter: int,
+                    start: np.ndarray | None = None):
+    """Collocation solve of :func:`large_signal_phase_deg` on ``n`` points per period,
+    from ``start`` (the unknowns on ``n/2`` points, :func:`_refine`) when given, else from
+    the small-signal response.
 
-    Returns ``(torque, u, xi, k_mean, iterations)`` -- measured torque [N*m], wheel-speed
+    Returns ``(torque, u, xi, k_mean, iterations, x)`` -- measured torque [N*m], wheel-speed
     deviation from the steady state [rad/s] and creepage [-] at the collocation instants, the
-    period mean of d(F_x/N)/dxi_x [-] -- or None when Newton's method (with amplitude
-    continuation) finds no periodic solution."""
+    period mean of d(F_x/N)/dxi_x [-], the unknowns -- or None when Newton's method (with
+    amplitude continuation) finds no periodic solution."""
     om = 2.0 * np.pi * f
     s = 1j * om * np.arange(n // 2 + 1)
     t = np.arange(n) / (n * f)
@@ -299,10 +324,13 @@ def _periodic_state(dc_torque_nm, p: RigParams, op: OperatingPoint, f: float, am
                                platform, n, consts, float(rtol), int(max_iter))
 
     # start: the steady state plus the small-signal response of the wheel speed
-    h_t, h_w = drive_line_response(op.creep_coefficient, p, f, creepage=op.creepage)
-    h1 = h_w / h_t if drive == "shaft" else h_w
-    x = np.zeros(2 * n if platform else n)
-    x[:n] = amplitude * np.imag(h1 * np.exp(1j * om * t))
+    if start is not None:  # the solution on half the points, interpolated
+        x = _refine(start, n // 2, platform)
+    else:
+        h_t, h_w = drive_line_response(op.creep_coefficient, p, f, creepage=op.creepage)
+        h1 = h_w / h_t if drive == "shaft" else h_w
+        x = np.zeros(2 * n if platform else n)
+        x[:n] = amplitude * np.imag(h1 * np.exp(1j * om * t))
     x, iters, ok = newton(x, amplitude)
     if not ok:  # amplitude continuation from the steady state
         x, iters = np.zeros_like(x), 0
@@ -319,7 +347,7 @@ def _periodic_state(dc_torque_nm, p: RigParams, op: OperatingPoint, f: float, am
     torque = dc_torque_nm + amplitude * sine
     if g2_op is not None:
         torque = torque - g2_op @ u
-    return torque, u, xi, k_mean, iters
+    return torque, u, xi, k_mean, iters, x
 
 
 def large_signal_phase_deg(dc_torque_nm: float, params: RigParams, frequency_hz: float,
@@ -364,10 +392,16 @@ def large_signal_phase_deg(dc_torque_nm: float, params: RigParams, frequency_hz:
     fallback; ``rtol`` is the last Newton step relative to the speed swing.
     The phase and amplitudes are DFT bin 1 of the converged signals. If the wheel speed's
     harmonics in the top eighth of the resolved band (3n/8 to n/2) exceed 1e-6 of the first,
-    ``n_samples`` is doubled (up to 1024). On the default rig at 8 N*m the default 64 points
+    ``n_samples`` is doubled (up to 1024), Newton starting from the solution on half the
+    points interpolated (two or three iterations instead of about four; the converged
+    phase moves by < 1e-13 deg against a start from the small-signal response).
+    On the default rig at 8 N*m the default 64 points
     (128 at step 1, where the creepage swings through zero and resolves most slowly) agree
     with 1024 to 1e-9 deg and with the simulator to 1e-3 deg (``drive = "motor"``). Cost
     3-25 ms per call, plus about 0.2 s once per process to load the compiled solver.
+    Remembered per argument set when ``params`` is a (frozen) :class:`RigParams`: a sweep
+    asks again for the points its seeds repeat, a run written to files for the theory its
+    truth already holds.
 
     Raises InputError for an unknown ``drive``, ``frequency_hz <= 0``, ``amplitude_nm <= 0``
     or an odd/too small ``n_samples``. A DC torque above the creep-curve peak, or no periodic
@@ -418,6 +452,17 @@ def large_signal_phase_deg(dc_torque_nm: float, params: RigParams, frequency_hz:
        calculating the steady-state response of nonlinear dynamic systems", J. Appl. Mech.
        56 (1989) 149-154.
     """
+    if type(params) is RigParams:
+        return _large_signal_memo(float(dc_torque_nm), params, float(frequency_hz),
+                                  float(amplitude_nm), drive, bool(platform), int(n_samples),
+                                  float(rtol), int(max_iter))
+    return _large_signal(dc_torque_nm, params, frequency_hz, amplitude_nm, drive, platform,
+                         n_samples, rtol, max_iter)
+
+
+def _large_signal(dc_torque_nm, params, frequency_hz, amplitude_nm, drive, platform,
+                  n_samples, rtol, max_iter) -> LargeSignalResult:
+    """:func:`large_signal_phase_deg` (its arguments in order)."""
     if drive not in ("shaft", "motor"):
         raise InputError(f"drive must be 'shaft' or 'motor', got {drive!r}")
     if not (np.isfinite(frequency_hz) and frequency_hz > 0):
@@ -437,12 +482,14 @@ def large_signal_phase_deg(dc_torque_nm: float, params: RigParams, frequency_hz:
                                       params if platform else _stiff_platform(params), f,
                                       creepage=op.creepage))
     n = n_samples
+    start = None
     while True:
-        sol = _periodic_state(dc, params, op, f, amp, drive, platform, n, rtol, max_iter)
+        sol = _periodic_state(dc, params, op, f, amp, drive, platform, n, rtol, max_iter,
+                              start)
         if sol is None:
             return LargeSignalResult(dc, amp, f, nan, nan, nan, nan, nan, nan, nan,
                                      float(op.creepage), small, 0, n, True)
-        torque, u, xi, k_mean, iters = sol
+        torque, u, xi, k_mean, iters, start = sol
         spec = np.abs(np.fft.rfft(u))
         if spec[3 * n // 8:n // 2].max() <= 1e-6 * spec[1] or n >= 1024:
             break
@@ -456,6 +503,9 @@ def large_signal_phase_deg(dc_torque_nm: float, params: RigParams, frequency_hz:
         creepage_min=float(xi.min()), creepage_max=float(xi.max()),
         mean_creep_coefficient=k_mean, steady_creepage=float(op.creepage),
         small_signal_phase_deg=small, iterations=iters, n_samples=n, slipped=not k_mean > 0)
+
+
+_large_signal_memo = functools.lru_cache(maxsize=4096)(_large_signal)
 
 
 def _stiff_platform(params: RigParams) -> RigParams:

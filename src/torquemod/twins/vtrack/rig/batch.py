@@ -8,7 +8,9 @@ steady state of the torque before, :mod:`torquemod.twins.vtrack.rig.steps`); gro
 ``lanes`` steps, of one point or of several, are integrated side by side in one compiled loop
 over a structure of arrays (:mod:`torquemod.twins.vtrack.rig.lanes`), and the groups run on a
 pool of threads: the compiled integrator releases the GIL, so they advance together on all
-cores.
+cores. The steps are dealt step by step across the points, and a step that starts (or
+finishes integrating) after an earlier step of its point slipped is skipped: the point's
+truth ends at its first slip.
 
 For the same ``seed`` a point's steps are those of
 :func:`torquemod.twins.vtrack.simulate.run_simulation`
@@ -71,6 +73,10 @@ class BatchPoint:
     def phases_deg(self) -> list[float]:
         """Simulated phase [deg] of each step that did not slip, in step order."""
         return [s["simulated"]["phase_deg"] for s in self.steps if not s["slipped"]]
+
+
+#: what a step skipped after its point's first slip stands for (never read)
+_SKIPPED = (None, None, None)
 
 
 def default_workers() -> int:
@@ -210,11 +216,25 @@ def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 
     points = [(config, plan_run(config, s), pack_parameters(config.rig, config.disturbances))
               for config, s in zip(configs, seeds, strict=True)]
 
+    # the first step known to have slipped, per point: its later steps are never read (the
+    # point's truth ends at its first slip), so a step that starts, or finishes integrating,
+    # after an earlier step of its point slipped is skipped (the numbers of the steps that
+    # are read do not depend on it)
+    first_slip: dict[int, int] = {}
+    lock = threading.Lock()
+
+    def after_slip(point, plan) -> bool:
+        return first_slip.get(id(point), plan.index) < plan.index
+
     def finish(point, plan, result):
         config, rp, _ = point
         out, n_done, slipped, y_end = result
         if slipped:
+            with lock:
+                first_slip[id(point)] = min(first_slip.get(id(point), plan.index), plan.index)
             return None, plan.t0_s + n_done * (1.0 / config.sensors.sample_rate_hz), y_end
+        if after_slip(point, plan):
+            return _SKIPPED
         entry, _ = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done, plan.t0_s,
                                        rp.wobble, rp.n_settle, large_signal)
         return entry, None, y_end
@@ -222,27 +242,40 @@ def simulate_batch(configs: Sequence[SimConfig], *, seed: int | Sequence[int] = 
     local = threading.local()  # each thread's sample buffer, reused from group to group
 
     def run_group(group):
+        todo = [q for q, (pt, plan) in enumerate(group) if not after_slip(pt, plan)]
+        done = [_SKIPPED] * len(group)
+        if not todo:
+            return done
         jobs = [StepJob(pt[0], pt[2], pt[1].wobble, plan, pt[1].n_step, None, pt[1].n_settle)
-                for pt, plan in group]
+                for pt, plan in (group[q] for q in todo)]
         shape = steps_buffer_shape(jobs)
         buf = getattr(local, "buf", None)
         if buf is None or buf.shape != shape:
             local.buf = buf = np.empty(shape)
         results = integrate_steps(jobs, buf)
-        return [finish(pt, plan, res) for (pt, plan), res in zip(group, results, strict=True)]
+        for q, res in zip(todo, results, strict=True):
+            done[q] = finish(*group[q], res)
+        return done
 
     def run_chained(point, plan, before):
         config, rp, params = point
-        res = integrate_step(config, params, rp.wobble, plan, rp.n_step, before()[2],
-                             rp.n_settle)
+        if after_slip(point, plan):
+            return [_SKIPPED]
+        start = before()[2]
+        if start is None or after_slip(point, plan):
+            return [_SKIPPED]
+        res = integrate_step(config, params, rp.wobble, plan, rp.n_step, start, rp.n_settle)
         return [finish(point, plan, res)]
 
     results = []
     with ThreadPoolExecutor(max_workers=workers or default_workers()) as pool:
-        # every step with its own start state goes to a group of lanes, in point order (a
-        # point's steps have the same length); a step that starts where the one before
-        # ended is submitted after it, so that waiting for it never blocks
-        free = [(pt, plan) for pt in points for plan in pt[1].steps if plan.y0 is not None]
+        # every step with its own start state goes to a group of lanes, step by step across
+        # the points (a point's steps run apart in time, so that a slip is known before
+        # the point's later steps start; steps of one index have the same length); a step
+        # that starts where the one before ended is submitted after it, so that waiting for
+        # it never blocks
+        free = sorted(((pt, plan) for pt in points for plan in pt[1].steps
+                       if plan.y0 is not None), key=lambda item: item[1].index)
         where = {}
         for g in range(0, len(free), n_lanes):
             group = free[g:g + n_lanes]

@@ -25,7 +25,10 @@ Equations (derived for this model; the contact force is quasi-static, Polach 200
 The motor torque is ``T_m = T_dc(t) + A*sin(2*pi*f*(t - t_gen) + phi)`` with a DC ramp.
 
 Integration (:mod:`torquemod.twins.vtrack.rig.lanes`): classical RK4 at a fixed step of
-``samples_per_step`` output samples (default 12, configured in ``[procedure]``); samples inside
+``samples_per_step`` output samples (default 12, configured in ``[procedure]``), the platform
+speed ``W_p`` by the exponential RK4 of Krogstad (2005) with its linear rate ``-K_p/J_p``
+taken exactly (the PI loop's stiff mode, ~3300 1/s on the default rig, bounds no step);
+samples inside
 a step are the cubic Hermite interpolant of the step's end states and slopes, with the contact
 forces evaluated at that state -- exactly at the step's middle sample, and for the other inner
 samples of an even block of >= 4 by the cubic through the exact forces half a step before, at

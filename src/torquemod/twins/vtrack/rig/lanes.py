@@ -1,5 +1,12 @@
 """The twin's fixed-step RK4 integrator, run across lanes (numba).
 
+Classical RK4 for every state but the platform speed, whose linear rate ``-K_p/J_p`` (the
+platform's PI loop, by far the stiffest mode) is taken exactly by the exponential RK4 of
+S. Krogstad, "Generalized integrating factor methods for stiff PDEs", J. Comput. Phys. 203
+(2005) 72-88 (weights :func:`_etd_coefficients`); with that rate zero it is classical RK4.
+The step is then bounded by the other modes (the torsional, ~200 1/s on the default rig),
+so the settling runs at twice the recorded step (:mod:`torquemod.twins.vtrack.rig.steps`).
+
 :func:`integrate_lanes` advances ``L`` independent integrations -- torque steps of one run or
 of many sweep points, each with its own parameters, start state, time axis, modulation and
 speed-reference wobble -- in one compiled loop over a structure of arrays: every round does
@@ -69,8 +76,43 @@ I_N, I_SUB, I_M, I_OFF = range(4)
 N_SI = 4
 #: columns of the per-lane step values kept between the stages of a round
 (V_HB, V_TMH, V_TM1, V_ES, V_EC, V_S2, V_S5, V_U2, V_U5, V_V2, V_V5, V_WTH, V_WT1, V_TB,
- V_HPREV, V_RC, V_RS, V_MS, V_MC, V_DTH) = range(20)
-N_V = 20
+ V_HPREV, V_RC, V_RS, V_MS, V_MC, V_DTH, V_E2, V_A1, V_B2, V_E, V_C1, V_C2, V_F1, V_F2,
+ V_F3, V_NA, V_L) = range(31)
+N_V = 31
+#: points on the circle of the contour means of :func:`_etd_coefficients`
+_ETD_POINTS = 32
+
+
+@numba.njit(inline="always", **_FAST)
+def _phis(z):
+    """``phi_1(z) = (e^z - 1)/z``, ``phi_2 = (e^z - 1 - z)/z^2``,
+    ``phi_3 = (e^z - 1 - z - z^2/2)/z^3`` as means over a circle of radius 1 around ``z``
+    in the complex plane (A.-K. Kassam and L. N. Trefethen, SIAM J. Sci. Comput. 26 (2005)
+    1214-1233): free of the plain formulas' cancellation as ``z -> 0`` (1, 1/2, 1/6 there)."""
+    a1 = a2 = a3 = 0.0
+    for k in range(_ETD_POINTS):
+        ang = 2.0 * math.pi * (k + 0.5) / _ETD_POINTS
+        r = complex(z + math.cos(ang), math.sin(ang))
+        em = np.exp(r) - 1.0
+        a1 += (em / r).real
+        a2 += ((em - r) / (r * r)).real
+        a3 += ((em - r - 0.5 * r * r) / (r * r * r)).real
+    return a1 / _ETD_POINTS, a2 / _ETD_POINTS, a3 / _ETD_POINTS
+
+
+@numba.njit(inline="always", **_FAST)
+def _etd_coefficients(lam, h):
+    """The weights of the exponential RK4 of S. Krogstad (J. Comput. Phys. 203 (2005)
+    72-88) for the linear rate ``lam`` [1/s] over a step ``h`` [s], ``z = lam*h``:
+    ``e^(z/2)``, ``h/2*phi_1(z/2)``, ``h*phi_2(z/2)`` (stages 2 and 3), ``e^z``,
+    ``h*phi_1(z)``, ``2*h*phi_2(z)`` (stage 4), and of the end ``h*(phi_1 - 3*phi_2 +
+    4*phi_3)``, ``h*(phi_2 - 2*phi_3)`` (taken twice) and ``h*(4*phi_3 - phi_2)``
+    (:func:`_phis`); with ``lam = 0`` they are classical RK4's."""
+    z = lam * h
+    p1h, p2h, _ = _phis(0.5 * z)
+    p1, p2, p3 = _phis(z)
+    return (math.exp(0.5 * z), 0.5 * h * p1h, h * p2h, math.exp(z), h * p1, 2.0 * h * p2,
+            h * (p1 - 3.0 * p2 + 4.0 * p3), h * (p2 - 2.0 * p3), h * (4.0 * p3 - p2))
 
 
 @numba.njit(nogil=True, _nrt=False, **_FAST)
@@ -100,6 +142,7 @@ def _integrate_lanes(y, sf, si, p, wob, nw, out, res, wf, wi):
         f0[l, 0], f0[l, 1], f0[l, 2], f0[l, 3] = fx0, fy0, n0, xi0
         v[l, V_HPREV] = -1.0
         v[l, V_RC] = v[l, V_RS] = 1.0
+        v[l, V_L] = -cst[l, 8] * cst[l, 5]  # the platform loop's -K_p/J_p [1/s]
     while n_act > 0:
         # ---- the step's set-up, its start sample and the first stage ----------------------
         for l in range(nl):
@@ -120,6 +163,8 @@ def _integrate_lanes(y, sf, si, p, wob, nw, out, res, wf, wi):
                 if hb != v[l, V_HPREV]:  # rotation of the modulation phase by half a step
                     v[l, V_HPREV] = hb
                     v[l, V_RC], v[l, V_RS] = math.cos(0.5 * omega * hb), math.sin(0.5 * omega * hb)
+                    (v[l, V_E2], v[l, V_A1], v[l, V_B2], v[l, V_E], v[l, V_C1], v[l, V_C2],
+                     v[l, V_F1], v[l, V_F2], v[l, V_F3]) = _etd_coefficients(v[l, V_L], hb)
                     for j in range(nw[l]):
                         wrc[l, j] = math.cos(0.5 * wob[l, j, 1] * hb)
                         wrs[l, j] = math.sin(0.5 * wob[l, j, 1] * hb)
@@ -179,7 +224,13 @@ def _integrate_lanes(y, sf, si, p, wob, nw, out, res, wf, wi):
             v[l, V_TMH] = tmh
             v[l, V_TM1] = _ramp(ta + hb, dcf, dct, tst, rmp) + amp * es
             a0, a1, a2, a5, a6 = ya[l, 0], ya[l, 1], ya[l, 2], ya[l, 3], ya[l, 4]
-            s2, s5 = y2 + hh * a2, y5 + hh * a5
+            # the platform speed's stages and end by exponential RK4 (its linear rate
+            # -K_p/J_p taken exactly, the rest of its right-hand side "n" as RK4 takes all):
+            # its stiff mode no longer bounds the step; the other states by classical RK4
+            lam = v[l, V_L]
+            na = a5 - lam * y5
+            v[l, V_NA] = na
+            s2, s5 = y2 + hh * a2, v[l, V_E2] * y5 + v[l, V_A1] * na
             s4 = y4 + hh * y5
             dw = (wth + _wob_rev(wsum, l, hh * y5)) if use_wob else 0.0
             b0, b1, b2, b5, b6, _, _, _ = _rhs_s(y0 + hh * a0, y1 + hh * a1, s2, s5,
@@ -194,8 +245,10 @@ def _integrate_lanes(y, sf, si, p, wob, nw, out, res, wf, wi):
             hh = 0.5 * v[l, V_HB]
             y0, y1, y2, y4, y5, y6 = y[l, 0], y[l, 1], y[l, 2], y[l, 4], y[l, 5], y[l, 6]
             b0, b1, b2, b5, b6 = kb[l, 0], kb[l, 1], kb[l, 2], kb[l, 3], kb[l, 4]
-            u2, u5 = y2 + hh * b2, y5 + hh * b5
             s5 = v[l, V_S5]
+            na = v[l, V_NA]
+            u2 = y2 + hh * b2
+            u5 = v[l, V_E2] * y5 + v[l, V_A1] * na + v[l, V_B2] * ((b5 - v[l, V_L] * s5) - na)
             u4 = y4 + hh * s5
             dw = (v[l, V_WTH] + _wob_rev(wsum, l, hh * s5)) if nw[l] > 0 else 0.0
             c0, c1, c2, c5, c6, _, _, _ = _rhs_s(y0 + hh * b0, y1 + hh * b1, u2, u5,
@@ -211,8 +264,10 @@ def _integrate_lanes(y, sf, si, p, wob, nw, out, res, wf, wi):
             hb = v[l, V_HB]
             y0, y1, y2, y4, y5, y6 = y[l, 0], y[l, 1], y[l, 2], y[l, 4], y[l, 5], y[l, 6]
             c0, c1, c2, c5, c6 = kc[l, 0], kc[l, 1], kc[l, 2], kc[l, 3], kc[l, 4]
-            v2, v5 = y2 + hb * c2, y5 + hb * c5
             u5 = v[l, V_U5]
+            v2 = y2 + hb * c2
+            na = v[l, V_NA]
+            v5 = v[l, V_E] * y5 + v[l, V_C1] * na + v[l, V_C2] * ((c5 - v[l, V_L] * u5) - na)
             v4 = y4 + hb * u5
             dw = (v[l, V_WT1] + _wob_rev(wsum, l, hb * u5)) if nw[l] > 0 else 0.0
             d0, d1, d2, d5, d6, _, _, _ = _rhs_s(y0 + hb * c0, y1 + hb * c1, v2, v5,
@@ -234,7 +289,10 @@ def _integrate_lanes(y, sf, si, p, wob, nw, out, res, wf, wi):
             z2 = y2 + h6 * (ya[l, 2] + 2.0 * (kb[l, 2] + kc[l, 2]) + kd[l, 2])
             z3 = y3 + h6 * (y2 + 2.0 * (v[l, V_S2] + v[l, V_U2]) + v[l, V_V2])
             z4 = y4 + h6 * (y5 + 2.0 * (v[l, V_S5] + v[l, V_U5]) + v[l, V_V5])
-            z5 = y5 + h6 * (ya[l, 3] + 2.0 * (kb[l, 3] + kc[l, 3]) + kd[l, 3])
+            lam = v[l, V_L]
+            nb, nc = kb[l, 3] - lam * v[l, V_S5], kc[l, 3] - lam * v[l, V_U5]
+            z5 = v[l, V_E] * y5 + v[l, V_F1] * v[l, V_NA] + 2.0 * v[l, V_F2] * (nb + nc) \
+                + v[l, V_F3] * (kd[l, 3] - lam * v[l, V_V5])
             z6 = y6 + h6 * (ya[l, 4] + 2.0 * (kb[l, 4] + kc[l, 4]) + kd[l, 4])
             nn = _load_advance(z4, p, l, anc, anc_n, n_steps[l] % _ANCHOR_EXACT == 0)
             dth = z4 - y4

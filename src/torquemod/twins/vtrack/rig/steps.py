@@ -37,17 +37,26 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from torquemod.twins.vtrack.params import MAX_LAMBDA_H, SimConfig, stiffest_rate
+from torquemod.twins.vtrack.params import MAX_LAMBDA_H, SimConfig, explicit_rate
 from torquemod.twins.vtrack.rig.dynamics import N_STATES, OUT_COLUMNS, _wobble, initial_state
 from torquemod.twins.vtrack.rig.lanes import integrate_lanes, lane_settings, stack_wobbles
+from torquemod.twins.vtrack.rig.wobble import _band_sines, _wobble_banded
 from torquemod.twins.vtrack.theory import operating_point
+
+#: the settling's RK4 step, in recorded steps: on the 16-point default batch the simulated
+#: phases stay as close to a run at 4 samples a step as the recorded step's own error with
+#: the settling at 2 recorded steps (<= 2.8e-5 deg per step, 1.1e-4 per revolution, against
+#: 3.2e-5 and 1.1e-4 settling at 1), not at 3 (4.7e-5 and 1.3e-4) or at 7 (6.1e-5, 1.6e-4)
+SETTLE_STEPS = 2
 
 
 def settle_samples_per_step(config: SimConfig) -> int:
     """Output samples per RK4 step while the step settles (its samples are not recorded):
-    the largest whole number of samples whose step keeps ``lambda*h`` within
-    :data:`MAX_LAMBDA_H` (:func:`stiffest_rate`), at least the recorded step's. Default rig:
-    12 samples (``lambda*h = 2.4``), as recorded.
+    :data:`SETTLE_STEPS` recorded steps, fewer if that step would take ``lambda*h`` of the
+    explicit part (:func:`~torquemod.twins.vtrack.params.explicit_rate`) beyond
+    :data:`~torquemod.twins.vtrack.params.MAX_LAMBDA_H`, at least the recorded step. Default
+    rig: 24 samples (``lambda*h = 0.28`` for the torsional mode; the platform's PI loop is
+    taken exactly).
 
     Parameters
     ----------
@@ -61,8 +70,8 @@ def settle_samples_per_step(config: SimConfig) -> int:
     """
     proc, fs = config.procedure, config.sensors.sample_rate_hz
     rec = max(1, proc.samples_per_step // proc.substeps)
-    fit = int(MAX_LAMBDA_H * fs / stiffest_rate(config.rig))
-    return max(rec, fit)
+    fit = int(MAX_LAMBDA_H * fs / explicit_rate(config.rig))
+    return max(rec, min(SETTLE_STEPS * rec, fit))
 
 
 #: RK4 step [s] of the reference angle: the wobble's lines lie below 1 Hz, so that the
@@ -74,20 +83,29 @@ _ANGLE_STEP_S = 0.01
 def _reference_angle(t_ends, phi0, w0, ipi, wob):
     """``phi = th_p + i_pi`` [rad] at the times ``t_ends`` (ascending, from 0) for
     ``phi' = W0 + wobble(t, phi - i_pi)`` (:func:`~torquemod.twins.vtrack.rig.dynamics._wobble`),
-    ``phi(0) = phi0``, ``i_pi = ipi[k]`` on the way to ``t_ends[k]``; classical RK4."""
+    ``phi(0) = phi0``, ``i_pi = ipi[k]`` on the way to ``t_ends[k]``; classical RK4. The
+    band rows' sines depend on time only: each step evaluates them at its middle and end
+    (shared by stages 2 and 3, and by stage 4 with the next step's stage 1;
+    :func:`~torquemod.twins.vtrack.rig.wobble._wobble_banded`), the same values as four
+    evaluations of :func:`_wobble`."""
     out = np.empty(t_ends.size)
     phi, t = phi0, 0.0
+    b0, bm, b1 = np.zeros(wob.shape[0]), np.zeros(wob.shape[0]), np.zeros(wob.shape[0])
+    _band_sines(t, wob, b0)
     for k in range(t_ends.size):
         n = max(1, math.ceil((t_ends[k] - t) / _ANGLE_STEP_S))
         h = (t_ends[k] - t) / n
         q = ipi[k]
         for _ in range(n):
-            k1 = w0 + _wobble(t, phi - q, wob)
-            k2 = w0 + _wobble(t + 0.5 * h, phi + 0.5 * h * k1 - q, wob)
-            k3 = w0 + _wobble(t + 0.5 * h, phi + 0.5 * h * k2 - q, wob)
-            k4 = w0 + _wobble(t + h, phi + h * k3 - q, wob)
+            _band_sines(t + 0.5 * h, wob, bm)
+            _band_sines(t + h, wob, b1)
+            k1 = w0 + _wobble_banded(phi - q, wob, b0)
+            k2 = w0 + _wobble_banded(phi + 0.5 * h * k1 - q, wob, bm)
+            k3 = w0 + _wobble_banded(phi + 0.5 * h * k2 - q, wob, bm)
+            k4 = w0 + _wobble_banded(phi + h * k3 - q, wob, b1)
             phi += h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
             t += h
+            b0, b1 = b1, b0
         out[k] = phi
     return out
 

@@ -38,6 +38,29 @@ def _wobble(t, th_p, wob):
     return out
 
 
+@numba.njit(**_FAST)
+def _band_sines(t, wob, out):
+    """``out[j] = sin(rate*t + phase)`` for the band rows ``j`` of ``wob`` (kind 0) at time
+    ``t`` [s], each as :func:`_wobble` evaluates it; the other rows of ``out`` are left."""
+    for j in range(wob.shape[0]):
+        if not wob[j, 3] > 0.5:
+            out[j] = math.sin(wob[j, 1] * t + wob[j, 2])
+
+
+@numba.njit(**_FAST)
+def _wobble_banded(th_p, wob, band):
+    """:func:`_wobble` with the band rows' sines given (``band``, :func:`_band_sines` at the
+    same time): the same terms added in the same order, so the same value."""
+    out = 0.0
+    for j in range(wob.shape[0]):
+        if wob[j, 3] > 0.5:
+            s = math.sin(wob[j, 1] * th_p + wob[j, 2])
+        else:
+            s = band[j]
+        out += wob[j, 0] * s
+    return out
+
+
 @numba.njit(inline="always", **_FAST)
 def _wob_set(t, th_p, wob, l, nw, ws, wc):
     """Lane ``l``'s wobble rows (``wob[l, :nw[l]]``, tables stacked (lanes, rows, 4)): each
