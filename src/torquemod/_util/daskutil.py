@@ -70,6 +70,8 @@ def start_worker_server(modules: tuple[str, ...] | list[str]) -> None:
     import multiprocessing
     from multiprocessing import forkserver
 
+    if not forking_available():
+        return
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(["distributed", *modules])
     saved = {k: os.environ.get(k) for k in _WORKER_ENV}
@@ -91,6 +93,12 @@ def start_worker_server(modules: tuple[str, ...] | list[str]) -> None:
 
 
 _SERVER_STOP_REGISTERED = False
+
+
+def forking_available() -> bool:
+    """Whether this platform has multiprocessing's fork server (not on Windows)."""
+    import multiprocessing
+    return "forkserver" in multiprocessing.get_all_start_methods()
 
 
 def _stop_worker_server() -> None:
@@ -210,7 +218,8 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
 
     ``worker_modules``: the local cluster's workers are forked from multiprocessing's fork
     server with these modules imported (:func:`start_worker_server`, started here unless
-    the caller started it earlier) instead of spawned; ignored with a scheduler.
+    the caller started it earlier) instead of spawned; ignored with a scheduler or where
+    there is no fork server (Windows).
     """
     address = check_cluster(scheduler, n_workers, connect_timeout_s)
     import logging
@@ -224,7 +233,7 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
                                               ignore_cleanup_errors=True)
     with contextlib.ExitStack() as stack:
         scratch = scratch_dir.name
-        forked = address is None and worker_modules is not None
+        forked = address is None and worker_modules is not None and forking_available()
         stack.enter_context(dask.config.set({"temporary-directory": scratch,
                                              **(LOCAL_CLUSTER_CONFIG if address is None
                                                 else {}),
