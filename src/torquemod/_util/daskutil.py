@@ -88,7 +88,7 @@ def start_worker_server(modules: tuple[str, ...] | list[str]) -> None:
     global _SERVER_STOP_REGISTERED
     if not _SERVER_STOP_REGISTERED:
         import atexit
-        atexit.register(_stop_worker_server)
+        atexit.register(stop_worker_server)
         _SERVER_STOP_REGISTERED = True
 
 
@@ -101,8 +101,9 @@ def forking_available() -> bool:
     return "forkserver" in multiprocessing.get_all_start_methods()
 
 
-def _stop_worker_server() -> None:
-    """End the fork server at exit and wait for it. By then the clusters are closed and the
+def stop_worker_server() -> None:
+    """End the fork server and wait for it (registered for the exit; a benchmark may call it
+    before it reads its children's CPU time). By then the clusters are closed and the
     server has reaped the workers it forked, so their CPU time counts as this process's
     children's, as a spawned worker's does; a server still importing (no cluster was
     needed, or the input was refused) is ended at once rather than waited for."""
