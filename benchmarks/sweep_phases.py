@@ -78,6 +78,8 @@ def main(argv: list[str]) -> None:
     with contextlib.suppress(SystemExit):
         cli.main(argv)
     stamp("end")
+    # the workers forked from the fork server count once it is ended and waited for
+    daskutil.stop_worker_server()
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
     print(f"workers (children) CPU {children.ru_utime + children.ru_stime:.2f} s, load "
           f"{os.getloadavg()[0]:.2f}", file=sys.stderr)

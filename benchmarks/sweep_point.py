@@ -46,6 +46,7 @@ import functools
 import inspect
 import os
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -56,9 +57,11 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parents[1]
 
 
-def _timed_sweep(sweep: str, out: Path, src: str, workers: int) -> tuple[float, float, int]:
-    """(wall [s], CPU of the command and its workers [s], exit code) of one sweep."""
-    env = {**os.environ, "PYTHONPATH": src}
+def _timed_sweep(sweep: str, out: Path, src: str, workers: int,
+                 cache: str | None = None) -> tuple[float, float, int]:
+    """(wall [s], CPU of the command and its workers [s], exit code) of one sweep
+    (``cache``: its torquemod disk cache folder, XDG_CACHE_HOME)."""
+    env = {**os.environ, "PYTHONPATH": src, **({"XDG_CACHE_HOME": cache} if cache else {})}
     c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     done = subprocess.run([sys.executable, "-m", "torquemod.cli", "sweep", sweep, "--out",
@@ -71,15 +74,31 @@ def _timed_sweep(sweep: str, out: Path, src: str, workers: int) -> tuple[float, 
 
 def sweep_wall(sweep: str, srcs: dict[str, str], repeat: int, workers: int,
                rerun: bool = False) -> None:
-    """Wall and CPU seconds of ``torquemod sweep`` for each source tree, alternated."""
+    """Wall and CPU seconds of ``torquemod sweep`` for each source tree, alternated.
+
+    Each tree gets its own torquemod disk cache (XDG_CACHE_HOME in a temporary folder),
+    filled before the first timed run by one point evaluated in a process of its own (which
+    also compiles any kernel missing from numba's cache): the creep-law tables are keyed by
+    their source, and two trees sharing one cache would each replace the other's tables
+    and rebuild them in every run (seconds of CPU per worker)."""
     walls: dict[str, list[float]] = {k: [] for k in srcs}
+    caches = {k: tempfile.mkdtemp(prefix=f"torquemod-bench-cache-{k}-") for k in srcs}
+    warm = ("import sys; from torquemod.sweep.evaluate import evaluate_point, tasks; "
+            "from torquemod.sweep.spec import load_sweep; "
+            "evaluate_point(tasks(load_sweep(sys.argv[1]))[0])")
+    for label, src in srcs.items():
+        subprocess.run([sys.executable, "-c", warm, sweep],
+                       env={**os.environ, "PYTHONPATH": src, "XDG_CACHE_HOME": caches[label]},
+                       check=True)
     for r in range(repeat):
         for label, src in srcs.items():
             with tempfile.TemporaryDirectory() as tmp:
                 load0 = os.getloadavg()[0]
-                wall, cpu, code = _timed_sweep(sweep, Path(tmp) / "out", src, workers)
+                wall, cpu, code = _timed_sweep(sweep, Path(tmp) / "out", src, workers,
+                                               caches[label])
                 load1 = os.getloadavg()[0]
-                again = _timed_sweep(sweep, Path(tmp) / "out", src, workers) if rerun else None
+                again = (_timed_sweep(sweep, Path(tmp) / "out", src, workers, caches[label])
+                         if rerun else None)
             walls[label].append(wall)
             print(f"round {r + 1} {label:>7s} ({src}): wall {wall:6.1f} s, CPU {cpu:6.1f} s "
                   f"(command and workers), exit {code}, load {load0:.2f} -> {load1:.2f}",
@@ -88,6 +107,8 @@ def sweep_wall(sweep: str, srcs: dict[str, str], repeat: int, workers: int,
                 print(f"        rerun, every point skipped: wall {again[0]:5.1f} s, CPU "
                       f"{again[1]:5.1f} s, exit {again[2]}, load {os.getloadavg()[0]:.2f}",
                       flush=True)
+    for cache in caches.values():
+        shutil.rmtree(cache, ignore_errors=True)
     med = {k: statistics.median(v) for k, v in walls.items()}
     if "before" in med:
         print(f"median wall: before {med['before']:.1f} s, after {med['after']:.1f} s -> "

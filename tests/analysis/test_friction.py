@@ -47,7 +47,7 @@ def test_kernel_equals_nonnegative_least_squares():
         y = rng.uniform(5.0, 80.0, 7)
         se = rng.uniform(0.5, 3.0, 7)
         p_grid = coa.max() * np.array([1.05, 1.3, 2.0])
-        chi, amp, _frac = _chi_kernel(tabs.s, tabs.ds, np.zeros((0, 1, 1)), SWING_A,
+        chi, amp, _frac = _chi_kernel(tabs.s_t, tabs.ds_t, np.zeros((1, 0, 1)), SWING_A,
                                      tabs.f_peak, pairs, coa, y, se * se, 0.01, np.zeros(7),
                                      np.zeros(7), p_grid, 1.0, 0.0, 1, tabs.beta_h, 0.0)
         w = 1.0 / np.sqrt(se**2 + (0.01 * y) ** 2)

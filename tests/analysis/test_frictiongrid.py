@@ -110,9 +110,9 @@ def test_kernel_cells_equal_the_model_evaluated_cell_by_cell():
     coa, y, se, c_se, amp = _inputs(3)
     p_grid = coa.max() * np.array([1.02, 1.2, 1.8])
     k_scale, bmax_v = 2.0, 2.0
-    chi, amps, _ = _chi_kernel(tabs.s, tabs.ds, tabs.swing, SWING_A, tabs.f_peak, pick, coa, y,
-                               se * se, 0.01, c_se, amp, p_grid, k_scale, 0.0, 3, tabs.beta_h,
-                               bmax_v)
+    chi, amps, _ = _chi_kernel(tabs.s_t, tabs.ds_t, tabs.swing_t, SWING_A, tabs.f_peak, pick,
+                               coa, y, se * se, 0.01, c_se, amp, p_grid, k_scale, 0.0, 3,
+                               tabs.beta_h, bmax_v)
     n_finite = 0
     for q, (a, b) in enumerate(pick):
         for m, p in enumerate(p_grid):

@@ -237,6 +237,26 @@ def test_dask_local_cluster_gives_the_in_process_rows(tmp_path, theory_sweep):
     pd.testing.assert_frame_equal(again.table, res.table)
 
 
+def test_the_report_imports_run_beside_the_last_batch(tmp_path, monkeypatch):
+    """Once fewer batches are left than worker slots, the command imports what the report
+    needs in a thread (on the core a worker no longer uses), once, and waits for it before
+    the table is assembled; without a report nothing is started."""
+    import threading
+
+    import torquemod.sweep.report as report_mod
+    import torquemod.sweep.run as run_mod
+    calls = []
+    monkeypatch.setattr(run_mod, "_import_report_modules",
+                        lambda kind: calls.append((kind, threading.current_thread().name)))
+    monkeypatch.setattr(report_mod, "write_report", lambda *a, **k: calls.append("report"))
+    spec = parse_sweep(THEORY.replace("[2.0, 3.0]", "[3.0]"))  # 2 points: 2 batches
+    run_sweep(spec, tmp_path / "a", n_workers=2, report=True)
+    assert calls == [("rig", "torquemod-sweep-tail"), "report"]
+    calls.clear()
+    run_sweep(spec, tmp_path / "b", n_workers=2, report=False)
+    assert calls == []
+
+
 def test_failed_points_become_rows_and_the_sweep_goes_on(tmp_path):
     spec = parse_sweep("""
 mode = "theory"

@@ -278,11 +278,22 @@ def cmd_fleet(args: argparse.Namespace) -> int:
     return 0
 
 
+#: torquemod.sweep.run.WORKER_MODULES (not imported: the fork server starts before the imports)
+SWEEP_WORKER_MODULES = ("torquemod.sweep.workerpreload",)
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from torquemod._util.daskutil import check_cluster
+    from torquemod._util.daskutil import check_cluster, start_worker_server
+    out = Path(args.out)
+    fresh = not out.exists() or (out.is_dir() and not any(out.iterdir()))
+    if check_cluster(args.scheduler, args.workers, args.connect_timeout) is None and fresh:
+        # a new output folder: every point runs, on a local cluster whose workers fork from
+        # a server that imports what they need meanwhile, on another core while this
+        # process imports and reads the sweep (in a folder with finished points the
+        # cluster, if any is needed, starts the server itself)
+        start_worker_server(SWEEP_WORKER_MODULES)
     from torquemod.sweep.run import plan_line, run_sweep
     from torquemod.sweep.spec import MAX_POINTS, load_sweep
-    check_cluster(args.scheduler, args.workers, args.connect_timeout)
     spec = load_sweep(args.sweep, max_points=None if args.yes else args.max_points or MAX_POINTS)
     say = stage_printer(args)
     res = run_sweep(spec, Path(args.out), scheduler=args.scheduler, on_start=say and (

@@ -45,6 +45,79 @@ LOCAL_CLUSTER_CONFIG = {
 }
 
 
+#: the environment Dask's nanny gives a spawned worker by default
+#: (``distributed.nanny.pre-spawn-environ``): one thread for the numerical libraries; a
+#: worker forked from the fork server (:func:`start_worker_server`) has the server's
+_WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+
+def start_worker_server(modules: tuple[str, ...] | list[str]) -> None:
+    """Start multiprocessing's fork server, from which the local cluster's workers are then
+    forked (:func:`dask_client` with ``worker_modules``), with ``modules`` imported in it.
+
+    A spawned worker imports everything its tasks need itself (about 2 CPU-s for a sweep
+    point); forked from the server, it finds them imported once for all workers. The server
+    starts at once and imports in its own process, so a caller that starts it before its
+    own imports overlaps the two. It gets the environment a spawned worker gets
+    (:data:`_WORKER_ENV`) and ignores Ctrl-C, as do the workers forked from it. Nothing
+    happens when the server already runs; it ends with this process.
+
+    Parameters
+    ----------
+    modules : sequence of str
+        Importable module names (one that fails to import is left out by the server).
+    """
+    import multiprocessing
+    from multiprocessing import forkserver
+
+    if not forking_available():
+        return
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(["distributed", *modules])
+    saved = {k: os.environ.get(k) for k in _WORKER_ENV}
+    os.environ.update(_WORKER_ENV)
+    try:
+        with _sigint_ignored():
+            forkserver.ensure_running()
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    global _SERVER_STOP_REGISTERED
+    if not _SERVER_STOP_REGISTERED:
+        import atexit
+        atexit.register(stop_worker_server)
+        _SERVER_STOP_REGISTERED = True
+
+
+_SERVER_STOP_REGISTERED = False
+
+
+def forking_available() -> bool:
+    """Whether this platform has multiprocessing's fork server (not on Windows)."""
+    import multiprocessing
+    return "forkserver" in multiprocessing.get_all_start_methods()
+
+
+def stop_worker_server() -> None:
+    """End the fork server and wait for it (registered for the exit; a benchmark may call it
+    before it reads its children's CPU time). By then the clusters are closed and the
+    server has reaped the workers it forked, so their CPU time counts as this process's
+    children's, as a spawned worker's does; a server still importing (no cluster was
+    needed, or the input was refused) is ended at once rather than waited for."""
+    from multiprocessing import forkserver
+    server = forkserver._forkserver
+    pid = getattr(server, "_forkserver_pid", None)
+    if pid is None:
+        return
+    with contextlib.suppress(OSError):
+        os.kill(pid, signal.SIGTERM)
+    with contextlib.suppress(Exception):
+        server._stop()  # closes its "alive" pipe and waits for it
+
+
 def check_scheduler(address: str) -> str:
     """The scheduler ``address`` with its scheme (``host:port`` means ``tcp://host:port``);
     an :class:`InputError` at once when it is not ``SCHEME://HOST:PORT``."""
@@ -128,7 +201,8 @@ def _close(client, cluster, scratch) -> None:
 @contextlib.contextmanager
 def dask_client(scheduler: str | None = None, n_workers: int | None = None,
                 on_dashboard=None, *, connect_timeout_s: float = CONNECT_TIMEOUT_S,
-                closing: list | None = None) -> Iterator[object]:
+                closing: list | None = None,
+                worker_modules: tuple[str, ...] | None = None) -> Iterator[object]:
     """A ``dask.distributed.Client`` for the duration of the block.
 
     ``scheduler`` is the address of a running scheduler (``tcp://host:8786``, e.g. started by
@@ -142,6 +216,11 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
     in a thread that is appended to it (the worker processes take about a second to end:
     the caller goes on meanwhile and joins the thread before it returns); else they are
     closed before the block ends.
+
+    ``worker_modules``: the local cluster's workers are forked from multiprocessing's fork
+    server with these modules imported (:func:`start_worker_server`, started here unless
+    the caller started it earlier) instead of spawned; ignored with a scheduler or where
+    there is no fork server (Windows).
     """
     address = check_cluster(scheduler, n_workers, connect_timeout_s)
     import logging
@@ -155,10 +234,15 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
                                               ignore_cleanup_errors=True)
     with contextlib.ExitStack() as stack:
         scratch = scratch_dir.name
+        forked = address is None and worker_modules is not None and forking_available()
         stack.enter_context(dask.config.set({"temporary-directory": scratch,
                                              **(LOCAL_CLUSTER_CONFIG if address is None
-                                                else {})}))
+                                                else {}),
+                                             **({"distributed.worker.multiprocessing-method":
+                                                 "forkserver"} if forked else {})}))
         try:
+            if forked:
+                start_worker_server(worker_modules)
             if address is None:
                 with _sigint_ignored():
                     cluster = LocalCluster(n_workers=n_workers or os.cpu_count() or 1,

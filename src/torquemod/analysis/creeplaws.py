@@ -291,6 +291,12 @@ class FamilyTables:
         ``exp(-beta_h*x)`` in the reduced creepage x), 0 for the others.
     falling : ndarray of bool
         (S,) the member's friction falls with the slip velocity.
+    s_t, ds_t : ndarray or None
+        (N_U, S) ``s`` and ``ds`` utilisation-major (C-contiguous; ``s`` and ``ds`` are their
+        transposed views when the tables come from :func:`family_tables`): one utilisation
+        of every member lies together in memory, which is how the chi2 grid reads them.
+    swing_t : ndarray or None
+        (N_U_SWING, S, len(SWING_A)) ``swing`` utilisation-major in the same way.
     """
 
     members: tuple[Member, ...]
@@ -300,6 +306,9 @@ class FamilyTables:
     swing: np.ndarray | None
     beta_h: np.ndarray
     falling: np.ndarray
+    s_t: np.ndarray | None = None
+    ds_t: np.ndarray | None = None
+    swing_t: np.ndarray | None = None
 
 
 def _small_signal(m: Member) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]:
@@ -372,12 +381,27 @@ def family_tables(swing: bool = False) -> FamilyTables:
     key = {"swing": bool(swing), "n_u": N_U, "n_u_swing": N_U_SWING,
            "swing_a": SWING_A.tolist(), "members": [[m.law, list(m.params)] for m in members],
            "source": _source_digest()}
-    names = ("f_peak", "s", "ds", "beta_h", "falling") + (("swing",) if swing else ())
+    names = ("f_peak", "s_t", "ds_t", "beta_h", "falling") + (("swing_t",) if swing else ())
     # one name per table set: a new file of one set removes only that set's older files
     name = "creeplaw_family_swing" if swing else "creeplaw_family"
-    arr = cached_arrays(name, key, lambda: _build_tables(members, swing), names=names)
-    return FamilyTables(members, arr["f_peak"], arr["s"], arr["ds"], arr.get("swing"),
-                        arr["beta_h"], arr["falling"])
+    # stored utilisation-major (the chi2 grid's order), the member-major tables are views
+    arr = cached_arrays(name, key, lambda: _utilisation_major(_build_tables(members, swing)),
+                        names=names)
+    sw_t = arr.get("swing_t")
+    return FamilyTables(members, arr["f_peak"], arr["s_t"].T, arr["ds_t"].T,
+                        None if sw_t is None else sw_t.transpose(1, 0, 2), arr["beta_h"],
+                        arr["falling"], s_t=arr["s_t"], ds_t=arr["ds_t"], swing_t=sw_t)
+
+
+def _utilisation_major(tables: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The tables ``s``, ``ds`` and ``swing`` of :func:`_build_tables` as C-contiguous
+    utilisation-major copies ``s_t``, ``ds_t``, ``swing_t`` (the same values)."""
+    out = {k: v for k, v in tables.items() if k not in ("s", "ds", "swing")}
+    out["s_t"] = np.ascontiguousarray(tables["s"].T)
+    out["ds_t"] = np.ascontiguousarray(tables["ds"].T)
+    if "swing" in tables:
+        out["swing_t"] = np.ascontiguousarray(tables["swing"].transpose(1, 0, 2))
+    return out
 
 
 def _source_digest() -> str:

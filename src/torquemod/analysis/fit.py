@@ -129,8 +129,9 @@ def _lm_lower_bounded(resid, jac, x0, lo, *args, max_iter: int = 100,
         free = (x > lo) | (g < 0.0)
         if not free.any():
             return x, cost
-        Hf = (J.T @ J)[np.ix_(free, free)]
-        gf = g[free]
+        all_free = bool(free.all())
+        Hf = J.T @ J if all_free else (J.T @ J)[np.ix_(free, free)]
+        gf = g if all_free else g[free]
         d = np.diag(Hf).copy()
         d[d <= 0.0] = 1.0
         for _retry in range(12):
@@ -383,14 +384,24 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
     lo = [MU_BOUNDS[0], 0.0, 0.0] + ([0.0, 0.0] if velocity_dependent else [])
     hi = [MU_BOUNDS[1], np.inf, np.inf] + ([1.0, B_MAX_S_M] if velocity_dependent else [])
 
+    last: list = [None, None]  # the last parameters and their longitudinal mean CoA
+
+    def mean_at(th):
+        """longitudinal_mean at th, kept for the next call: the solvers ask for the
+        residuals and the Jacobian at the same parameters one after the other."""
+        key = np.asarray(th, dtype=float).tobytes()
+        if last[0] != key:
+            last[0], last[1] = key, longitudinal_mean(xi, th, swing, spd)
+        return last[1]
+
     def model(th):
-        return np.hypot(longitudinal_mean(xi, th, swing, spd), lateral)
+        return np.hypot(mean_at(th), lateral)
 
     def model_jac(th):
         """d model/d theta (n, 3), constant friction: the closed form of Polach's curve
         (:func:`torquemod.analysis.polachcurve.longitudinal_mean_jacobian`) through the
         hypotenuse with the lateral CoA."""
-        f = longitudinal_mean(xi, th, swing, spd)
+        f = mean_at(th)
         m = np.hypot(f, lateral)
         ratio = np.divide(f, m, out=np.ones_like(f), where=m > 0)
         return ratio[:, None] * longitudinal_mean_jacobian(xi, th, swing)
@@ -459,11 +470,17 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
     # profile likelihood of mu: the valley of chi2 is curved (mu trades against kS*s), so the
     # Jacobian's local standard error can be far too small; the interval where
     # chi2_profile - chi2_min <= scale is the honest 68 % interval (Wilks)
+    def with_mu(rest, mu_fixed):
+        th = np.empty(len(rest) + 1)  # np.r_[mu_fixed, rest] without its index machinery
+        th[0] = mu_fixed
+        th[1:] = rest
+        return th
+
     def resid_at(rest, mu_fixed):
-        return (model(np.r_[mu_fixed, rest]) - coa) / sigma
+        return (model(with_mu(rest, mu_fixed)) - coa) / sigma
 
     def jac_at(rest, mu_fixed):
-        return model_jac(np.r_[mu_fixed, rest])[:, 1:] / sigma[:, None]
+        return model_jac(with_mu(rest, mu_fixed))[:, 1:] / sigma[:, None]
     profile = _profile_interval(resid_at, theta, lo[1:], hi[1:], chi2_min=chi2,
                                 threshold=scale if np.isfinite(scale) else 1.0,
                                 mu_bounds=MU_BOUNDS, max_nfev=max_nfev,

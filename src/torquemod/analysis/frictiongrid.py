@@ -84,20 +84,8 @@ def reference_chi2(chi_all: float, chi_rail: float,
     return float(chi_all), False
 
 
-@njit(cache=True, nogil=True)
-def _swing_row(sw_u, swing_a, s, i, red):
-    """Linear lookup in the reduced swing ``red`` (at most the table's last) of member s's
-    swing rows already interpolated at point i's utilisation (``sw_u[s, i, :]``)."""
-    n_a = swing_a.size
-    j = 0
-    while j < n_a - 2 and swing_a[j + 1] < red:
-        j += 1
-    fa = (red - swing_a[j]) / (swing_a[j + 1] - swing_a[j])
-    return sw_u[s, i, j] * (1 - fa) + sw_u[s, i, j + 1] * fa
-
-
-@njit(cache=True, nogil=True)
-def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_rel, coa_se,
+@njit(cache=True, nogil=True, error_model="numpy")
+def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, coa_se,
                 amp, p_grid, k_scale, k0_fixed, n_iter, beta_h, bmax_v):
     """For every pair (a, b) of neighbouring members and trial P: the weighted least squares
     ``y ~ alpha*s_a + beta*s_b`` with alpha, beta >= 0 (a mixture of the pair; a single
@@ -105,36 +93,84 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
     of y) and ``beta/(alpha + beta)``, each (K, M). ``amp``: the creepage swing per point
     (zeros: none); k0 = ``k_scale*(alpha + beta)`` when k_scale > 0, else ``k0_fixed``.
     With ``bmax_v`` > 0 (B_max*V [-]) a pair whose falling-friction member needs
-    ``B = beta_h*k0/(mu0*V)`` above B_max (``beta_h`` = beta/h0 per member) is left out."""
-    n_s, n_u = s_tab.shape
+    ``B = beta_h*k0/(mu0*V)`` above B_max (``beta_h`` = beta/h0 per member) is left out.
+
+    The tables are utilisation-major (:class:`~torquemod.analysis.creeplaws.FamilyTables`
+    ``s_t``, ``ds_t``, ``swing_t``; a swing table with no member means no swing): each
+    trial P interpolates every member at each point's utilisation, reading one contiguous
+    block per point. The first pass's weights do not depend on the pair, so each member's
+    own sums in it are formed once per trial P. The pairs of a trial P then advance
+    together, point by point, in loops over the pairs that the compiler turns into vector
+    instructions (a pair's values are read into contiguous arrays first); every pair's
+    arithmetic is the same, in the same order, as a pair fitted alone (a pair whose fit
+    stops early is carried along and left out at the end)."""
+    n_u, n_s = s_t.shape
     n_q = pairs.shape[0]
     n_m = p_grid.size
     n = coa.size
     chi = np.full((n_q, n_m), np.inf)
     amps = np.full((n_q, n_m), np.nan)
     fracs = np.full((n_q, n_m), np.nan)
-    G = np.empty((n_s, n))
-    DG = np.empty((n_s, n))
+    G = np.empty((n, n_s))
+    DG = np.empty((n, n_s))
     valid = np.empty(n_s, np.bool_)
-    ga = np.empty(n)
-    gb = np.empty(n)
-    w = np.empty(n)
-    # the variance without the CoA term, the same for every pair and trial P
+    s_gg = np.empty(n_s)
+    s_gy = np.empty(n_s)
     v0 = np.empty(n)
+    w0 = np.empty(n)
     for i in range(n):
         v0[i] = var0[i] + (y_rel * y[i]) ** 2
-    has_swing = sw_tab.shape[0] > 0
+        w0[i] = 1.0 / v0[i]
+    has_swing = sw_t.shape[1] > 0
     n_a = swing_a.size
-    n_us = sw_tab.shape[1]
+    n_us = sw_t.shape[0]
     a_top = swing_a[n_a - 1]
-    # per trial P: each point's cell of both utilisation grids, and every
-    # member's swing rows interpolated there (SW[s, i, :]); a pair's lookup is then linear
-    # in the swing alone (:func:`_swing_row`; the same arithmetic as one bilinear lookup)
     ks = np.empty(n, np.int64)
     fs = np.empty(n)
     ku = np.empty(n, np.int64)
     fu = np.empty(n)
-    SW = np.empty((sw_tab.shape[0], n, n_a))
+    # per trial P: each point's cell of both utilisation grids, every member interpolated
+    # there (G, DG: point-major), and every valid member's swing rows (SW[i, s*n_a + j]); a
+    # pair's swing lookup is then linear in the swing alone (the arithmetic of one bilinear
+    # lookup)
+    SW = np.empty((n, sw_t.shape[1] * n_a))
+    # per pair (compacted to the pairs of valid members of a trial P): the pair, its fit so
+    # far and its sums; GA, GB, W the last pass's curves and weights at each point; the
+    # rest scratch rows, one value per pair
+    qi = np.empty(n_q, np.int64)
+    A = np.empty(n_q, np.int64)
+    B = np.empty(n_q, np.int64)
+    AL = np.empty(n_q)
+    BE = np.empty(n_q)
+    K0 = np.empty(n_q)
+    FA = np.empty(n_q)
+    FB = np.empty(n_q)
+    LIVE = np.empty(n_q, np.bool_)
+    SAA = np.empty(n_q)
+    SAB = np.empty(n_q)
+    SBB = np.empty(n_q)
+    SAY = np.empty(n_q)
+    SBY = np.empty(n_q)
+    GA = np.empty((n, n_q))
+    GB = np.empty((n, n_q))
+    W = np.empty((n, n_q))
+    RA = np.empty(n_q)
+    RB = np.empty(n_q)
+    JA = np.empty(n_q, np.int64)
+    JB = np.empty(n_q, np.int64)
+    C = np.empty(n_q)
+    TA = np.empty(n_q)
+    TB = np.empty(n_q)
+    DA = np.empty(n_q)
+    DB = np.empty(n_q)
+    S0A = np.empty(n_q)
+    S1A = np.empty(n_q)
+    S0B = np.empty(n_q)
+    S1B = np.empty(n_q)
+    W0A = np.empty(n_q)
+    W1A = np.empty(n_q)
+    W0B = np.empty(n_q)
+    W1B = np.empty(n_q)
     c_max = coa.max()
     for m in range(n_m):
         p = p_grid[m]
@@ -151,58 +187,138 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
             fu[i] = pos - k
         for s in range(n_s):
             valid[s] = True
-            for i in range(n):
-                k = ku[i]
-                f = fu[i]
-                G[s, i] = s_tab[s, k] * (1.0 - f) + s_tab[s, k + 1] * f
-                DG[s, i] = ds_tab[s, k] * (1.0 - f) + ds_tab[s, k + 1] * f
-                if not (G[s, i] > 0.0):
+        for i in range(n):
+            k = ku[i]
+            f = fu[i]
+            for s in range(n_s):
+                g = s_t[k, s] * (1.0 - f) + s_t[k + 1, s] * f
+                G[i, s] = g
+                DG[i, s] = ds_t[k, s] * (1.0 - f) + ds_t[k + 1, s] * f
+                if not (g > 0.0):
                     valid[s] = False
-                    break
-            if has_swing and valid[s]:
+        for s in range(n_s):
+            if valid[s]:
+                sgg = 0.0
+                sgy = 0.0
                 for i in range(n):
-                    if amp[i] > 0.0:
-                        k = ks[i]
-                        f = fs[i]
-                        for j in range(n_a):
-                            SW[s, i, j] = sw_tab[s, k, j] * (1 - f) + sw_tab[s, k + 1, j] * f
+                    sgg += w0[i] * G[i, s] * G[i, s]
+                    sgy += w0[i] * G[i, s] * y[i]
+                s_gg[s] = sgg
+                s_gy[s] = sgy
+        if has_swing:
+            for i in range(n):
+                if amp[i] > 0.0:
+                    k = ks[i]
+                    f = fs[i]
+                    for s in range(n_s):
+                        if valid[s]:
+                            for j in range(n_a):
+                                SW[i, s * n_a + j] = sw_t[k, s, j] * (1 - f) + sw_t[k + 1, s, j] * f
+        # the pairs of valid members, in order
+        nv = 0
         for q in range(n_q):
             a = pairs[q, 0]
             b = pairs[q, 1]
-            if not (valid[a] and valid[b]):
-                continue
-            al = 0.0
-            be = 0.0
-            for it in range(n_iter):
-                k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
-                swing_now = has_swing and it > 0
+            if valid[a] and valid[b]:
+                qi[nv] = q
+                A[nv] = a
+                B[nv] = b
+                FA[nv] = f_peak[a]
+                FB[nv] = f_peak[b]
+                LIVE[nv] = True
+                nv += 1
+        for it in range(n_iter):
+            if it == 0:
+                # fixed weights 1/v0 and no swing: the members' own sums, and the cross sum
+                for v in range(nv):
+                    SAA[v] = s_gg[A[v]]
+                    SBB[v] = s_gg[B[v]]
+                    SAY[v] = s_gy[A[v]]
+                    SBY[v] = s_gy[B[v]]
+                    SAB[v] = 0.0
                 for i in range(n):
-                    ga[i] = G[a, i]
-                    gb[i] = G[b, i]
-                    if swing_now and amp[i] > 0.0:
-                        ga[i] += _swing_row(SW, swing_a, a, i, min(amp[i] * k0 * f_peak[a] / p,
-                                                                   a_top))
-                        gb[i] += _swing_row(SW, swing_a, b, i, min(amp[i] * k0 * f_peak[b] / p,
-                                                                   a_top))
-                saa = 0.0
-                sab = 0.0
-                sbb = 0.0
-                say = 0.0
-                sby = 0.0
+                    wi = w0[i]
+                    for v in range(nv):
+                        ga = G[i, A[v]]
+                        gb = G[i, B[v]]
+                        GA[i, v] = ga
+                        GB[i, v] = gb
+                        W[i, v] = wi
+                        SAB[v] += wi * ga * gb
+            else:
+                for v in range(nv):
+                    K0[v] = k_scale * (AL[v] + BE[v]) if k_scale > 0.0 else k0_fixed
+                    SAA[v] = 0.0
+                    SAB[v] = 0.0
+                    SBB[v] = 0.0
+                    SAY[v] = 0.0
+                    SBY[v] = 0.0
                 for i in range(n):
-                    v = v0[i]
-                    if it > 0:
-                        v += ((al * DG[a, i] + be * DG[b, i]) / p * coa_se[i]) ** 2
-                    w[i] = 1.0 / v
-                    saa += w[i] * ga[i] * ga[i]
-                    sab += w[i] * ga[i] * gb[i]
-                    sbb += w[i] * gb[i] * gb[i]
-                    say += w[i] * ga[i] * y[i]
-                    sby += w[i] * gb[i] * y[i]
+                    # the pairs' values at point i, contiguous
+                    for v in range(nv):
+                        TA[v] = G[i, A[v]]
+                        TB[v] = G[i, B[v]]
+                        DA[v] = DG[i, A[v]]
+                        DB[v] = DG[i, B[v]]
+                    if has_swing and amp[i] > 0.0:
+                        ai = amp[i]
+                        for v in range(nv):
+                            RA[v] = min(ai * K0[v] * FA[v] / p, a_top)
+                            RB[v] = min(ai * K0[v] * FB[v] / p, a_top)
+                            JA[v] = 0
+                            JB[v] = 0
+                        # the swing's cell: how many inner grid values lie below it (the
+                        # first cell whose upper end reaches it; 0 for NaN)
+                        for t in range(1, n_a - 1):
+                            st = swing_a[t]
+                            for v in range(nv):
+                                JA[v] += RA[v] > st
+                                JB[v] += RB[v] > st
+                        for v in range(nv):
+                            ja = JA[v]
+                            jb = JB[v]
+                            ba = A[v] * n_a + ja
+                            bb = B[v] * n_a + jb
+                            S0A[v] = swing_a[ja]
+                            S1A[v] = swing_a[ja + 1]
+                            S0B[v] = swing_a[jb]
+                            S1B[v] = swing_a[jb + 1]
+                            W0A[v] = SW[i, ba]
+                            W1A[v] = SW[i, ba + 1]
+                            W0B[v] = SW[i, bb]
+                            W1B[v] = SW[i, bb + 1]
+                        for v in range(nv):
+                            xa = (RA[v] - S0A[v]) / (S1A[v] - S0A[v])
+                            xb = (RB[v] - S0B[v]) / (S1B[v] - S0B[v])
+                            TA[v] = TA[v] + (W0A[v] * (1 - xa) + W1A[v] * xa)
+                            TB[v] = TB[v] + (W0B[v] * (1 - xb) + W1B[v] * xb)
+                    # the weights with the CoA term of the last fit, and the sums
+                    v0i = v0[i]
+                    ci = coa_se[i]
+                    yi = y[i]
+                    for v in range(nv):
+                        ga = TA[v]
+                        gb = TB[v]
+                        GA[i, v] = ga
+                        GB[i, v] = gb
+                        wv = 1.0 / (v0i + ((AL[v] * DA[v] + BE[v] * DB[v]) / p * ci) ** 2)
+                        W[i, v] = wv
+                        SAA[v] += wv * ga * ga
+                        SAB[v] += wv * ga * gb
+                        SBB[v] += wv * gb * gb
+                        SAY[v] += wv * ga * yi
+                        SBY[v] += wv * gb * yi
+            # the nonnegative fit of each pair from its sums (closed form)
+            for v in range(nv):
+                saa = SAA[v]
+                sab = SAB[v]
+                sbb = SBB[v]
+                say = SAY[v]
+                sby = SBY[v]
                 det = saa * sbb - sab * sab
                 al = -1.0
                 be = -1.0
-                if a != b and det > 1e-12 * saa * sbb:
+                if A[v] != B[v] and det > 1e-12 * saa * sbb:
                     al = (sbb * say - sab * sby) / det
                     be = (saa * sby - sab * say) / det
                 if not (al >= 0.0 and be >= 0.0):
@@ -213,39 +329,51 @@ def _chi_kernel(s_tab, ds_tab, sw_tab, swing_a, f_peak, pairs, coa, y, var0, y_r
                     else:
                         al = 0.0
                         be = sby / sbb
-                if not (al + be > 0.0):
-                    break
-                if it == n_iter - 1:
-                    if bmax_v > 0.0:
-                        k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
-                        if (beta_h[a] * k0 * f_peak[a] > bmax_v * p
-                                or beta_h[b] * k0 * f_peak[b] > bmax_v * p):
-                            break
-                    c = 0.0
-                    for i in range(n):
-                        r = y[i] - al * ga[i] - be * gb[i]
-                        c += w[i] * r * r
-                    if math.isfinite(c):
-                        chi[q, m] = c
-                        amps[q, m] = al + be
-                        fracs[q, m] = be / (al + be)
+                if LIVE[v] and not (al + be > 0.0):  # no fit: the pair stops here
+                    LIVE[v] = False
+                AL[v] = al
+                BE[v] = be
+        # the last iteration's fit, of the pairs still live
+        for v in range(nv):
+            C[v] = 0.0
+        for i in range(n):
+            yi = y[i]
+            for v in range(nv):
+                r = yi - AL[v] * GA[i, v] - BE[v] * GB[i, v]
+                C[v] += W[i, v] * r * r
+        for v in range(nv):
+            if not LIVE[v]:
+                continue
+            al = AL[v]
+            be = BE[v]
+            if bmax_v > 0.0:
+                k0 = k_scale * (al + be) if k_scale > 0.0 else k0_fixed
+                if (beta_h[A[v]] * k0 * FA[v] > bmax_v * p
+                        or beta_h[B[v]] * k0 * FB[v] > bmax_v * p):
+                    continue
+            c = C[v]
+            if math.isfinite(c):
+                q = qi[v]
+                chi[q, m] = c
+                amps[q, m] = al + be
+                fracs[q, m] = be / (al + be)
     return chi, amps, fracs
 
 
 def _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_rel, bmax_v=0.0):
     """chi2, amplitudes and mixing fractions (K, M) (:func:`_chi_kernel`), profiling k0 over
     :data:`K0_GRID` when a swing is given without C."""
-    sw = tabs.swing if tabs.swing is not None else np.zeros((0, N_U_SWING, SWING_A.size))
+    sw = tabs.swing_t if tabs.swing_t is not None else np.zeros((N_U_SWING, 0, SWING_A.size))
     var0 = se * se
-    n_iter = 3 if sw.shape[0] else (2 if np.any(c_se > 0) else 1)
-    if sw.shape[0] == 0 or (constant is not None and constant > 0):
+    n_iter = 3 if sw.shape[1] else (2 if np.any(c_se > 0) else 1)
+    if sw.shape[1] == 0 or (constant is not None and constant > 0):
         k_scale = float(constant) if constant is not None and constant > 0 else 1.0
-        return _chi_kernel(tabs.s, tabs.ds, sw, SWING_A, tabs.f_peak, pairs, coa, y, var0,
+        return _chi_kernel(tabs.s_t, tabs.ds_t, sw, SWING_A, tabs.f_peak, pairs, coa, y, var0,
                            model_rel, c_se, amp, p_grid, k_scale, 0.0, n_iter, tabs.beta_h,
                            bmax_v if constant is not None and constant > 0 else 0.0)
     best = None
     for k0 in K0_GRID:
-        out = _chi_kernel(tabs.s, tabs.ds, sw, SWING_A, tabs.f_peak, pairs, coa, y, var0,
+        out = _chi_kernel(tabs.s_t, tabs.ds_t, sw, SWING_A, tabs.f_peak, pairs, coa, y, var0,
                           model_rel, c_se, amp, p_grid, -1.0, float(k0), n_iter, tabs.beta_h,
                           bmax_v)
         if best is None:

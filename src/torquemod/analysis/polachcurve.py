@@ -205,8 +205,11 @@ def polach_coa_jacobian(xi, theta):
     g = t * r
     g1 = r * (2.0 * r - 1.0)  # (1 - t^2)/(1 + t^2)^2
     c = 2.0 / np.pi
-    return np.stack([c * (g + np.arctan(u) - e * (a * g1 + s * h1)),
-                     c * x * g1, c * x * h1], axis=-1)
+    out = np.empty((*x.shape, 3))  # the columns in place (np.stack's values, without it)
+    out[..., 0] = c * (g + np.arctan(u) - e * (a * g1 + s * h1))
+    out[..., 1] = c * x * g1
+    out[..., 2] = c * x * h1
+    return out
 
 
 def longitudinal_mean_jacobian(xi, theta, swing=None):

@@ -27,6 +27,8 @@ from numba import types
 from numba.extending import get_cython_function_address, intrinsic
 from scipy import linalg
 
+from torquemod.dsp import numpyblas
+
 
 def lstsq(design: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, int]:
     """Least-squares coefficients of ``y ~ design @ coef`` and the design's numerical rank.
@@ -106,6 +108,15 @@ class LstsqFactor:
         d = np.asarray(design, dtype=np.float64)
         if d.ndim != 2 or not d.shape[1]:
             return None
+        blas = numpyblas.addresses()
+        if blas is not None and d.flags.c_contiguous and d.shape[0] > 1 and d.shape[1] > 1:
+            # one compiled call: the same steps as below, numpy's syrk called from it
+            dn, scale, gram, factor, status = _factor_of(d, blas[0], _DPOTRF)
+            if status != 0:
+                return None
+            for a in (dn, scale, gram, factor):
+                a.setflags(write=False)
+            return cls(dn, scale, factor, gram if keep_gram else None)
         if d.flags.c_contiguous and d.shape[1] > 1:  # the column norms and the normalised
             dn, scale = _normalised(d)  # design in one compiled call (the same numbers as
             # below; einsum sums a single column in another order)
@@ -302,6 +313,22 @@ def _solve(dn: np.ndarray, factor: np.ndarray, scale: np.ndarray, y: np.ndarray,
     return (coef.T / scale).T
 
 
+@numba.njit(cache=True, nogil=True)
+def _factor_of(d: np.ndarray, syrk: int, potrf: int
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """:meth:`LstsqFactor.of` of a C-ordered design of two or more rows and columns in one
+    call: the normalised design and the columns' norms (:func:`_normalised`), the normal
+    matrix by numpy's own ``syrk`` call (:func:`torquemod.dsp.numpyblas.gram_t`: numpy's
+    numbers) and its factor by LAPACK ``potrf``; the status of :func:`lstsq_compiled`."""
+    dn, scale = _normalised(d)
+    if dn.shape[0] == 0:
+        e = np.empty((0, 0))
+        return dn, scale, e, e, 1
+    gram = numpyblas.gram_t(dn, syrk)
+    factor, status = _cholesky(np.asfortranarray(gram), potrf)
+    return dn, scale, gram, factor, status
+
+
 def lapack_addresses() -> tuple[int, int]:
     """The addresses of LAPACK's ``dpotrf`` and ``dpotrs`` in scipy's library.
 
@@ -352,3 +379,97 @@ def lstsq_compiled(design: np.ndarray, y: np.ndarray, potrf: int, potrs: int
     if status != 0:
         return np.empty((0, *y.shape[1:])), status
     return np.ascontiguousarray(_solve(dn, factor, scale, y, potrs)), 0
+
+
+@numba.njit(cache=True, nogil=True)
+def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, wanted: np.ndarray,
+                   syrk: int, gemm: int, gemv: int, potrf: int, potrs: int):
+    """:func:`lstsq` of every column of ``y`` on a design and the fit's parts over blocks of
+    the design's columns, in one compiled call with numpy's and LAPACK's numbers.
+
+    The factor as :meth:`LstsqFactor.of` (the normal matrix by numpy's own ``syrk`` call),
+    the coefficients as :meth:`LstsqFactor.solve` (Golub & Van Loan, sections 5.3.2 and
+    3.5.3), and each part ``design[:, b0:b1] @ coef[b0:b1, j]`` as numpy's ``matmul`` makes
+    it (:func:`torquemod.dsp.numpyblas.matvec`); and the variance ratio of the first two
+    coefficients, ``trace((R'R)^-1)/trace((M'M)^-1)`` with M the first two columns and R
+    their residual on the others (Schur complement of the normal matrix).
+
+    Parameters
+    ----------
+    design : ndarray
+        ``(n, m)`` C-ordered design, ``n, m >= 2``.
+    y : ndarray
+        ``(n, k)`` C-ordered observations.
+    bounds : ndarray
+        ``(parts, 2)`` integer column ranges ``[b0, b1)`` of the parts.
+    wanted : ndarray
+        ``(parts, k)`` booleans: the parts to compute (the others are left undefined).
+    syrk, gemm, gemv : int
+        numpy's BLAS routines (:func:`torquemod.dsp.numpyblas.addresses`).
+    potrf, potrs : int
+        LAPACK's routines (:func:`lapack_addresses`).
+
+    Returns
+    -------
+    dn, scale, gram, factor : ndarray
+        The parts of :class:`LstsqFactor` (``factor`` in Fortran order).
+    coef : ndarray
+        ``(m, k)`` coefficients (Fortran order, as :meth:`LstsqFactor.solve` gives them).
+    parts : ndarray
+        ``(parts, k, n)``: part p of column j in ``parts[p, j]`` where wanted.
+    ratio : float
+        The variance ratio (:func:`_leading_variance_ratio`), NaN for fewer than four
+        columns or where the others' factor fails.
+    status : int
+        As :func:`lstsq_compiled`; where it is not 0 nothing else is meaningful and the
+        caller fits by :func:`lstsq`.
+    """
+    dn, scale, gram, factor, status = _factor_of(design, syrk, potrf)
+    n, k = y.shape
+    if status != 0:
+        e = np.empty((0, 0))
+        return (dn, scale, gram, factor, np.asfortranarray(e), np.empty((0, 0, 0)), np.nan,
+                status)
+    coef = _solve(dn, factor, scale, y, potrs)
+    parts = np.empty((bounds.shape[0], k, n))
+    for p in range(bounds.shape[0]):
+        b0, b1 = bounds[p, 0], bounds[p, 1]
+        for j in range(k):
+            if wanted[p, j]:
+                parts[p, j] = numpyblas.matvec(design[:, b0:b1], coef[b0:b1, j], gemv)
+    ratio = np.nan
+    if design.shape[1] > 3:
+        ratio = _leading_variance_ratio(design, gram, dn, scale, potrf, potrs, syrk, gemm)
+    return dn, scale, gram, factor, coef, parts, ratio, status
+
+
+@numba.njit(cache=True, nogil=True)
+def _leading_variance_ratio(d, gram, dn, scale, potrf, potrs, syrk, gemm):
+    """``trace((R'R)^-1)/trace((M'M)^-1)`` for the first two columns M of a C-ordered design
+    (four or more columns) and R their least-squares residual on the others, step by step
+    as ``SpeedModel.variance_factor``'s numpy route (the trailing factor of
+    :meth:`LstsqFactor.trailing`, the refined solve, numpy's BLAS calls); NaN where that
+    factor fails."""
+    factor, status = _cholesky(np.asfortranarray(gram[2:, 2:].copy()), potrf)
+    if status != 0:
+        return np.nan
+    m = d[:, :2]
+    c_o = _solve(np.ascontiguousarray(dn[:, 2:]), factor, scale[2:].copy(),
+                 np.ascontiguousarray(m), potrs)
+    m_res = m - numpyblas.matmul_any(d[:, 2:], c_o, gemm)
+    a = numpyblas.gram_t(m_res, syrk)
+    b = numpyblas.gram_t(m, syrk)
+    t_a = (a[0, 0] + a[1, 1]) / (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0])
+    t_b = (b[0, 0] + b[1, 1]) / (b[0, 0] * b[1, 1] - b[0, 1] * b[1, 0])
+    return t_a / t_b
+
+
+#: :meth:`LstsqFactor.of`'s compiled route (:func:`_factor_of`: a C-ordered design of two or
+#: more rows and columns; ``syrk`` from :func:`torquemod.dsp.numpyblas.addresses`, ``potrf``
+#: from :func:`lapack_addresses`), for other kernels to call
+factor_compiled = _factor_of
+#: :meth:`LstsqFactor.solve`'s compiled route (:func:`_solve`: the factor in Fortran order, a
+#: C-ordered ``y``), for other kernels to call
+solve_compiled = _solve
+#: :func:`column_sums_of_squares`'s compiled route (two or more columns), for other kernels
+sums_of_squares_compiled = _sums_of_squares

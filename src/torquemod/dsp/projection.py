@@ -24,7 +24,8 @@ import numba
 import numpy as np
 from scipy import linalg
 
-from torquemod.dsp.lstsq import _DPOTRF, LstsqFactor, _cholesky
+from torquemod.dsp import numpyblas
+from torquemod.dsp.lstsq import _DPOTRF, LstsqFactor, _cholesky, _fortran_call
 
 _TRTRS, _POTRF = linalg.get_lapack_funcs(("trtrs", "potrf"), (np.zeros((1, 1)),))
 
@@ -104,6 +105,63 @@ def _forward_rows(r: np.ndarray, b: np.ndarray, out: np.ndarray) -> bool:
         for t in range(n):
             oi[t] /= d
     return True
+
+
+def removal_at(m: np.ndarray, qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray
+               ) -> np.ndarray | None:
+    """Records less their projection on a basis and a tone: ``r_y + Q C c_M`` with
+    ``C = Q'M`` and ``c_M`` the solution of ``(M'M - C'C) c_M = M'r_y - C'Q'r_y``
+    (Frisch-Waugh-Lovell), with numpy's numbers (its BLAS calls for the products and the
+    ``dgesv`` of ``numpy.linalg.solve``) in one compiled call.
+
+    Parameters
+    ----------
+    m : ndarray
+        ``(n, k2)`` C-ordered tone columns, ``k2 >= 2``.
+    qt : ndarray
+        ``Q'`` (``p x n``, C order, ``p >= 2``) of an orthonormal basis Q
+        (:func:`orthonormal_basis_t`).
+    r_y : ndarray
+        ``(n, k)`` C-ordered records less their projection on Q, ``k >= 2``.
+    qy : ndarray
+        ``Q' r_y`` (``p x k``, C order).
+
+    Returns
+    -------
+    ndarray or None
+        ``(n, k)`` records; None where numpy's routines cannot be called
+        (:mod:`torquemod.dsp.numpyblas`), the layouts are not those the kernel reproduces,
+        or the system is singular (``numpy.linalg.solve`` raises there): the caller takes
+        numpy's route.
+    """
+    blas, gesv = numpyblas.addresses(), numpyblas.gesv_address()
+    arrays = (m, qt, r_y, qy)
+    if (blas is None or gesv is None or any(a.ndim != 2 or a.shape[0] < 2 or a.shape[1] < 2
+                                            or a.dtype != np.float64
+                                            or not a.flags.c_contiguous for a in arrays)):
+        return None
+    out, ok = _removal_at(m, qt, r_y, qy, blas[0], blas[1], gesv)
+    return out if ok else None
+
+
+@numba.njit(cache=True, nogil=True)
+def _removal_at(m, qt, r_y, qy, syrk, gemm, gesv):
+    """:func:`removal_at` in one call: numpy's ``syrk`` for ``M'M`` and ``C'C``, its
+    ``gemm`` for the other products, its ``dgesv`` on Fortran-ordered copies as
+    ``numpy.linalg.solve``; ``(out, ok)``."""
+    c = numpyblas.matmul(qt, m, gemm)
+    a = np.asfortranarray(numpyblas.gram_t(m, syrk) - numpyblas.gram_t(c, syrk))
+    b = np.asfortranarray(numpyblas.matmul_tn(m, r_y, gemm) - numpyblas.matmul_tn(c, qy, gemm))
+    k2, k = b.shape
+    ints = np.array([k2, k, k2, k2, 0], dtype=np.int64)  # n, nrhs, lda, ldb, info
+    ipiv = np.zeros(k2, dtype=np.int64)
+    q = ints.ctypes.data
+    _fortran_call(gesv, (q, q + 8, a.ctypes.data, q + 16, ipiv.ctypes.data, b.ctypes.data,
+                         q + 24, q + 32))
+    if ints[4] != 0:
+        return r_y, False
+    c_m = np.ascontiguousarray(b)
+    return r_y + numpyblas.matmul_any(qt.T, numpyblas.matmul(c, c_m, gemm), gemm), True
 
 
 def tone_columns(n: int, fs_hz: float, frequencies_hz, orders=(1,)) -> np.ndarray:
@@ -201,6 +259,82 @@ def explained_power(qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray, fs_hz: floa
     return _explained(qt, np.ascontiguousarray(r_y), np.ascontiguousarray(qy), float(fs_hz),
                       2 * np.pi * np.asarray(frequencies_hz, dtype=np.float64),
                       np.asarray(columns, dtype=np.int64), np.asarray(orders, dtype=np.int64))
+
+
+def refine_peaks(qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray, fs_hz: float,
+                 duration_s: float, columns, peaks_hz, orders=(1,), *,
+                 tol_hz: float = 1e-6) -> list[float]:
+    """The frequencies near ``peaks_hz`` at which a tone explains most of each record beyond
+    a basis (variable projection, Golub and Pereyra 1973): parabolic steps through three
+    values of :func:`explained_power`, ``0.05/T``, ``0.005/T`` and ``0.0005/T`` apart (T the
+    record's duration), each from the previous vertex, until a step is below ``tol_hz``; a
+    record whose explained power is not concave there keeps its peak. All the records
+    advance in step, in one compiled call.
+
+    Parameters
+    ----------
+    qt, r_y, qy : ndarray
+        As :func:`explained_power`.
+    fs_hz : float
+        Sample rate [Hz].
+    duration_s : float
+        The records' duration T [s] (samples over the rate).
+    columns, peaks_hz : sequence
+        Record index and starting frequency [Hz] of each search.
+    orders : sequence of int
+        The tone's orders (1 and its harmonics).
+    tol_hz : float
+        Step below which a search stops [Hz]. Default 1e-6.
+
+    Returns
+    -------
+    list of float
+        The refined frequencies [Hz].
+    """
+    out = _refine(qt, np.ascontiguousarray(r_y), np.ascontiguousarray(qy), float(fs_hz),
+                  float(duration_s), np.asarray(columns, dtype=np.int64),
+                  np.asarray(peaks_hz, dtype=np.float64), np.asarray(orders, dtype=np.int64),
+                  float(tol_hz))
+    return [float(v) for v in out]
+
+
+@numba.njit(cache=True, nogil=True)
+def _refine(qt, r_y, qy, fs_hz, duration, columns, peaks, orders, tol_hz):
+    """:func:`refine_peaks` in one call: each step's explained powers of every active
+    search from one :func:`_explained` evaluation, the steps' arithmetic as Python's on
+    floats."""
+    f = peaks.copy()
+    active = np.ones(peaks.size, dtype=np.bool_)
+    two_pi = 2 * np.pi
+    for h in (0.05 / duration, 0.005 / duration, 0.0005 / duration):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        omegas = np.empty(3 * idx.size)
+        cols = np.empty(3 * idx.size, dtype=np.int64)
+        for j in range(idx.size):
+            i = idx[j]
+            omegas[3 * j] = two_pi * (f[i] + -1.0 * h)
+            omegas[3 * j + 1] = two_pi * (f[i] + 0.0 * h)
+            omegas[3 * j + 2] = two_pi * (f[i] + 1.0 * h)
+            cols[3 * j] = cols[3 * j + 1] = cols[3 * j + 2] = columns[i]
+        e = _explained(qt, r_y, qy, fs_hz, omegas, cols, orders)
+        for j in range(idx.size):
+            i = idx[j]
+            e_lo, e_0, e_hi = e[3 * j], e[3 * j + 1], e[3 * j + 2]
+            curvature = e_lo - 2.0 * e_0 + e_hi
+            active[i] = False
+            if not curvature < 0:  # not near a maximum: the spectral peak's value
+                f[i] = peaks[i]
+                continue
+            step = 0.5 * h * (e_lo - e_hi) / curvature
+            lo, hi = -2.0 * h, 2.0 * h
+            step = lo if lo > step else step  # Python's max(step, lo), min(., hi)
+            step = hi if hi < step else step
+            f[i] += step
+            if not abs(step) < tol_hz:
+                active[i] = True
+    return f
 
 
 @numba.njit(cache=True, nogil=True)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import get_window
 
-from torquemod.dsp import filters, projection
+from torquemod.dsp import filters, lstsq, numpyblas, projection
 
 
 @functools.lru_cache(maxsize=16)
@@ -108,6 +108,9 @@ class SpeedModel:
         modulation from the slow part and the orders, at the Cramér-Rao bound of the joint
         model (white noise)."""
         d = self.design
+        ratio = self._parts.get("variance_ratio", float("nan"))
+        if ratio == ratio:  # computed by the fit's compiled call with the numbers of the
+            return float(max(1.0, ratio))  # steps below (NaN: not, or it failed)
         m = d[:, :2]
         # (D'D)^-1 restricted to the modulation is (M'(I - P_B)M)^-1, P_B the projection on
         # the other columns (the Schur complement), by a refined least-squares fit on them.
@@ -277,6 +280,11 @@ def modulation_harmonics(modulation_hz: float, fs_hz: float, n_samples: int,
                  and all(abs(k * modulation_hz - g) > 2 * resolution for g in avoid_hz))
 
 
+#: the records whose orders and harmonics the chain removes (steps 3-5), computed with the
+#: fit; the other parts on demand (:meth:`SpeedModel.part`, the same numbers)
+_FILTERED = ("wheel_speed_rad_s", "torque_nm")
+
+
 def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz: float,
                     slow: np.ndarray, orders: np.ndarray, harmonics: tuple[int, ...] = ()
                     ) -> SpeedModel:
@@ -316,6 +324,30 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     design[:, 2 + n_s:2 + n_s + n_o] = orders
     design[:, 2 + n_s + n_o:] = mod[:, 2:]
     y = np.column_stack([channels[k] for k in names])
+    blas = numpyblas.addresses()
+    if blas is not None and n > 1 and y.dtype == np.float64:
+        # the factor, the coefficients and every channel's parts in one compiled call, with
+        # the numbers of the route below and of SpeedModel.part (numpy's BLAS calls)
+        end = design.shape[1] - 2 * len(harmonics)
+        bounds = np.array([[2, 2 + n_s], [2 + n_s, end], [end, design.shape[1]]])
+        # the parts the chain reads: every channel's slow part (its step-8 mean), the
+        # orders and harmonics of the records it filters
+        wanted = np.zeros((3, len(names)), dtype=bool)
+        wanted[0] = True
+        wanted[1:, [j for j, k in enumerate(names) if k in _FILTERED]] = True
+        dn, scale, gram, factor, coef, parts, ratio, status = lstsq.fit_with_parts(
+            design, y, bounds, wanted, *blas, *lstsq.lapack_addresses())
+        if status == 0:
+            for a in (dn, scale, gram, factor, coef, parts):
+                a.setflags(write=False)
+            model = SpeedModel(modulation_hz, fs_hz, design, n_s, coef, names,
+                               lstsq.LstsqFactor(dn, scale, factor, gram), 2 * len(harmonics))
+            for j, name in enumerate(names):
+                for i, which in enumerate(("slow", "orders", "harmonics")):
+                    if wanted[i, j]:
+                        model._parts[(name, which)] = parts[i, j]
+            model._parts["variance_ratio"] = float(ratio)  # (variance_factor's)
+            return model
     fac = filters.LstsqFactor.of(design, keep_gram=True)  # the model's statistics reuse it
     coef = fac.solve(y) if fac is not None else filters.lstsq(design, y)[0]
     return SpeedModel(modulation_hz, fs_hz, design, slow.shape[1], coef, names, fac,
@@ -361,6 +393,10 @@ class _SlowOrdersRemoval:
             fit = model.design[:, 2:end] @ model.coef[2:end]
             return self.y - fit
         m = modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
+        if self.qt is not None:  # the steps below in one compiled call (the same numbers)
+            out = projection.removal_at(m, self.qt, self.r_y, self.qy)
+            if out is not None:
+                return out
         if self.qt is not None:  # y - B c_B = r_y + Q Q'M c_M, r_M'r_M = M'M - (Q'M)'(Q'M)
             c = self.qt @ m
             c_m = np.linalg.solve(m.T @ m - c.T @ c, m.T @ self.r_y - c.T @ self.qy)
@@ -422,6 +458,15 @@ class _SlowOrdersRemoval:
         if self.fac is None:
             return peaks
         duration = self.y.shape[0] / self.fs_hz
+        if self.qt is not None:  # the steps of _refine_steps in one compiled call (the
+            # same numbers)
+            return projection.refine_peaks(self.qt, self.r_y, self.qy, self.fs_hz, duration,
+                                           columns, peaks, (1, *self.harmonics), tol_hz=tol_hz)
+        return self._refine_steps(columns, peaks, duration, tol_hz)
+
+    def _refine_steps(self, columns, peaks: list[float], duration: float, tol_hz: float
+                      ) -> list[float]:
+        """:meth:`refine_many`'s steps, one :meth:`explained_many` call each."""
         f = list(peaks)
         active = list(range(len(peaks)))
         for h in (0.05 / duration, 0.005 / duration, 0.0005 / duration):

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import functools
 
+import numba
 import numpy as np
 
-from torquemod.dsp import filters
+from torquemod.dsp import basis, filters, lstsq, numpyblas
 from torquemod.dsp.lstsq import column_sums_of_squares
 from torquemod.io.config import ProcessingConfig
 
@@ -76,6 +77,19 @@ def _tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
                     avoid_hz: float) -> tuple[np.ndarray, float]:
     """:func:`tracked_orders` with its first design ``base`` given, and that design's
     least-squares factor when already computed (wheel and platform share both)."""
+    blas = numpyblas.addresses()
+    if (blas is not None and base_factor is not None and speed_rad_s.ndim == 1
+            and speed_rad_s.dtype == np.float64 and speed_rad_s.flags.c_contiguous
+            and slow.shape[1] > 1 and base.flags.c_contiguous and base.shape[1] > 1
+            and speed_rad_s.size > 1):
+        # one compiled call with the numbers of the route below (numpy's BLAS calls)
+        cols, f_rot, status = _tracked_orders_compiled(
+            speed_rad_s, float(fs_hz), slow,
+            np.array([int(h) for h in harmonics], dtype=np.int64), base, base_factor.dn,
+            np.asfortranarray(base_factor.factor), base_factor.scale, float(above_hz),
+            float(avoid_hz), *blas, *lstsq.lapack_addresses())
+        if status == 0:
+            return cols, float(f_rot)
     resolution = fs_hz / speed_rad_s.size
     cols = np.empty((speed_rad_s.size, 0))
     f_rot = float("nan")
@@ -97,6 +111,72 @@ def _tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
         if not cols.shape[1]:
             return cols, f_rot
     return cols, f_rot
+
+
+@numba.njit(cache=True, nogil=True)
+def _tracked_orders_compiled(speed, fs_hz, slow, harmonics, base, dn_b, factor_b, scale_b,
+                             above_hz, avoid_hz, syrk, gemm, gemv, potrf, potrs):
+    """:func:`_tracked_orders` in one call, step by step as it (the BLAS products numpy's
+    own calls, :mod:`torquemod.dsp.numpyblas`; sums and the angle's trapezoidal sum in
+    numpy's order): ``(cols, f_rot, status)``, status 1 where :func:`_tracked_orders` would
+    fit by the SVD (the caller then runs it)."""
+    n = speed.size
+    n_slow = slow.shape[1]
+    resolution = fs_hz / n
+    y = speed.copy()
+    cols = np.empty((n, 0))
+    f_rot = np.nan
+    for it in range(2):
+        if it == 0:
+            coef = lstsq.solve_compiled(dn_b, factor_b, scale_b, y, potrs)
+        else:
+            design = np.empty((n, base.shape[1] + cols.shape[1]))
+            design[:, :base.shape[1]] = base
+            design[:, base.shape[1]:] = cols
+            dn, scale, _, factor, status = lstsq.factor_compiled(design, syrk, potrf)
+            if status != 0:
+                return cols, f_rot, 1
+            coef = lstsq.solve_compiled(dn, factor, scale, y, potrs)
+        w_s = numpyblas.matvec(slow, coef[:n_slow], gemv)
+        mean = numpyblas.vector_sum(w_s) / n
+        f_rot = abs(mean) / (2 * np.pi)
+        n_kept = 0
+        kept = np.empty(harmonics.size, dtype=np.int64)
+        for h in harmonics:
+            if above_hz < h * f_rot < 0.45 * fs_hz and abs(h * f_rot - avoid_hz) > \
+                    2 * resolution:
+                kept[n_kept] = h
+                n_kept += 1
+        if n_kept == 0 or mean == 0:
+            return np.empty((n, 0)), f_rot, 0
+        angle = np.empty(n)  # basis.unwrapped_angle: a trapezoidal cumulative sum
+        angle[0] = 0.0
+        acc = 0.0
+        for i in range(n - 1):
+            step = 0.5 * (w_s[i + 1] + w_s[i]) / fs_hz
+            acc = step if i == 0 else acc + step
+            angle[i + 1] = acc
+        raw = basis.order_columns(angle, kept[:n_kept])
+        cols = np.empty_like(raw)
+        for i in range(n):
+            g = w_s[i] / mean
+            for j in range(raw.shape[1]):
+                cols[i, j] = raw[i, j] * g
+        # _separable_orders
+        fit = lstsq.solve_compiled(dn_b, factor_b, scale_b, cols, potrs)
+        res = cols - numpyblas.matmul_any(base, fit, gemm)
+        ss_res = lstsq.sums_of_squares_compiled(res)
+        ss_col = lstsq.sums_of_squares_compiled(cols)
+        keep = np.zeros(cols.shape[1], dtype=np.bool_)
+        for k in range(cols.shape[1] // 2):
+            a = np.sqrt(ss_res[2 * k] / ss_col[2 * k])
+            b = np.sqrt(ss_res[2 * k + 1] / ss_col[2 * k + 1])
+            keep[2 * k] = keep[2 * k + 1] = a >= ORDER_MIN_RESIDUAL and b >= ORDER_MIN_RESIDUAL
+        if not keep.all():
+            cols = np.ascontiguousarray(cols[:, keep])
+        if not cols.shape[1]:
+            return cols, f_rot, 0
+    return cols, f_rot, 0
 
 
 #: an order's columns whose residual on the slow basis and the modulation keeps less than

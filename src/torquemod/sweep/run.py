@@ -26,6 +26,7 @@ import csv
 import json
 import os
 import shutil
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,6 +59,12 @@ __all__ = ["SweepResult", "fingerprint", "plan_line", "point_batches", "run_poin
            "run_points", "run_sweep", "tasks"]
 
 FAILURE_COLUMNS = ["point_id", "point_index", "seed", "params", "message"]
+
+
+#: what the local cluster's workers have imported before their first point: they are forked
+#: from a fork server that imported these (:func:`torquemod._util.daskutil.
+#: start_worker_server`; ``torquemod sweep`` starts it before its own imports)
+WORKER_MODULES = ("torquemod.sweep.workerpreload",)
 
 
 def _part(out: Path, point_id: str) -> Path:
@@ -229,12 +236,14 @@ class SweepResult:
 def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, scheduler,
                   n_workers, force: bool, progress: bool, on_dashboard, begin,
                   connect_timeout_s: float = CONNECT_TIMEOUT_S,
-                  closing: list | None = None) -> tuple[list, str]:
+                  closing: list | None = None, tail=None) -> tuple[list, str]:
     """Every point's status row (``begin()`` creates the output when the work can start).
 
     The points a run would skip are decided here; a local cluster starts only when some
     point is left to run, and is closed in a thread appended to ``closing`` (joined by the
-    caller) while the caller assembles the table and draws the report."""
+    caller) while the caller assembles the table and draws the report. ``tail()`` runs in
+    a thread once fewer batches are left than worker slots (a core the workers no longer
+    use), and is waited for before this returns."""
     from tqdm import tqdm
     rows, links = [], []
     if not in_process:
@@ -260,7 +269,7 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
             on_dashboard(link)
 
     with dask_client(scheduler, n_workers, dashboard, connect_timeout_s=connect_timeout_s,
-                     closing=closing) as client:
+                     closing=closing, worker_modules=WORKER_MODULES) as client:
         begin()  # once the cluster answers
         bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
         slots = sum(client.nthreads().values()) or 1
@@ -268,14 +277,39 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
         futures = {client.submit(run_points, b, str(out), force, pure=False,
                                  key=f"torquemod-sweep-{b[0].point_id}-{time.time_ns()}"): b
                    for b in point_batches(todo, slots)}
-        for fut in as_completed(futures):
-            try:
-                rows.extend(fut.result())
-            except Exception as exc:  # the worker died (memory, a kill): its points failed
-                rows.extend(_lost(futures[fut], out, _one_line(exc), since, force))
-            bar.update(len(futures[fut]))
+        left, helper = len(futures), None
+        try:
+            for fut in as_completed(futures):
+                try:
+                    rows.extend(fut.result())
+                except Exception as exc:  # the worker died (memory, a kill): points failed
+                    rows.extend(_lost(futures[fut], out, _one_line(exc), since, force))
+                bar.update(len(futures[fut]))
+                left -= 1
+                if tail is not None and helper is None and 0 < left < slots:
+                    helper = threading.Thread(target=tail, name="torquemod-sweep-tail",
+                                              daemon=True)
+                    helper.start()
+        finally:
+            if helper is not None:
+                helper.join()
     bar.close()
     return rows, (links[0] if links else None)
+
+
+def _import_report_modules(kind: str) -> None:
+    """Import what the report will draw with (matplotlib, the figures, the twin's theory
+    for the creep curves): run while the last points finish, so that the report does not
+    wait for it after them. A module that fails to import is left to the report."""
+    import importlib
+    names = (("torquemod.sweep.trainreport",) if kind == "train" else
+             ("torquemod.sweep.report", "torquemod.sweep.evaluate",
+              "torquemod.twins.vtrack.theory", "torquemod.analysis.contact.polach"))
+    for name in (*names, "matplotlib.backends.backend_agg"):
+        try:
+            importlib.import_module(name)
+        except Exception:  # the report imports it again and says why
+            return
 
 
 def run_points(batch: list[PointTask], out_dir: str, force: bool = False) -> list[dict]:
@@ -505,7 +539,9 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
             rows, link = _evaluate_all(todo, out, in_process=in_process, scheduler=scheduler,
                                        n_workers=n_workers, force=force, progress=progress,
                                        on_dashboard=on_dashboard, begin=begin,
-                                       connect_timeout_s=connect_timeout_s, closing=closing)
+                                       connect_timeout_s=connect_timeout_s, closing=closing,
+                                       tail=(lambda: _import_report_modules(spec.kind))
+                                       if report else None)
         finally:  # the twin's experiments, also of points cut short by an interrupt
             shutil.rmtree(out / "_work", ignore_errors=True)
     system = [r["message"] for r in rows if r.pop("system", False)]

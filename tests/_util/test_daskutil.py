@@ -1,0 +1,51 @@
+"""The local cluster's workers forked from a fork server with their modules imported
+(:func:`torquemod._util.daskutil.start_worker_server`)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+SRC = str(Path(__file__).resolve().parents[2] / "src")
+
+_SCRIPT = """
+import os, sys
+from torquemod._util.daskutil import dask_client
+
+def probe():
+    import os, sys
+    return "colorsys" in sys.modules, os.getppid()
+
+modules = ("colorsys",) if sys.argv[1] == "forked" else None
+with dask_client(n_workers=1, worker_modules=modules) as client:
+    had, ppid = client.submit(probe, pure=False).result()
+print(had, ppid == os.getpid())
+"""
+
+
+def _run(how: str) -> str:
+    env = {**os.environ, "PYTHONPATH": SRC}
+    done = subprocess.run([sys.executable, "-c", _SCRIPT, how], env=env, capture_output=True,
+                          text=True, timeout=120, check=True)
+    return done.stdout.split()
+
+
+def test_workers_fork_from_a_server_that_imported_their_modules():
+    """With ``worker_modules`` a worker's parent is the fork server, not this process, and a
+    module no worker imports by itself (colorsys) is there before its first task; without,
+    the worker is spawned by this process and has not imported it."""
+    assert _run("forked") == ["True", "False"]
+    assert _run("spawned") == ["False", "True"]
+
+
+def test_the_command_preloads_what_the_sweep_names():
+    """``torquemod sweep`` starts the server before importing the sweep (its own copy of the
+    module list) with the modules the sweep's cluster asks for."""
+    from torquemod._cli.commands import SWEEP_WORKER_MODULES
+    from torquemod.sweep.run import WORKER_MODULES
+    assert SWEEP_WORKER_MODULES == WORKER_MODULES
+    import importlib
+    for name in WORKER_MODULES:
+        assert importlib.util.find_spec(name) is not None

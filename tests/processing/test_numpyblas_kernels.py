@@ -1,0 +1,109 @@
+"""The chain's kernels built on numpy's own BLAS (torquemod.dsp.numpyblas) against the
+numpy routes they replace, bit for bit: the tracked rotation orders, step 1's removal of the
+slow part and orders, and whole cycles."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from torquemod.dsp import numpyblas, projection
+from torquemod.io.config import ProcessingConfig
+from torquemod.io.experiment import Rig
+from torquemod.processing import chain, speedmodel, trackedorders
+from torquemod.testing import SyntheticSpec, synthetic_recording
+
+needs_blas = pytest.mark.skipif(numpyblas.addresses() is None,
+                                reason="numpy's BLAS exports no CBLAS64 symbols")
+SPECS = [SyntheticSpec(seed=5, speed_wobble=(), speed_wobble_rev=()),
+         SyntheticSpec(seed=6, speed_wobble=((6e-3, 0.9, 0.1), (3e-3, 1.1, 1.0))),
+         SyntheticSpec(seed=7, creepage_rate_per_s=2e-4),
+         SyntheticSpec(seed=8, n_revolutions=2.0)]
+
+
+@needs_blas
+@pytest.mark.parametrize("spec", SPECS, ids=["no-wobble", "wobble", "ramp", "two-revolutions"])
+def test_cycle_is_the_numpy_routes_bit_for_bit(spec, monkeypatch):
+    rec, rig = synthetic_recording(spec), Rig(0.0675, 2.0)
+    cfg = ProcessingConfig().with_phase_method("sinefit")
+    used = []
+    kernel = trackedorders._tracked_orders_compiled
+
+    def spy(*args):
+        out = kernel(*args)
+        used.append(out[2])
+        return out
+
+    monkeypatch.setattr(trackedorders, "_tracked_orders_compiled", spy)
+    removed = []
+    removal_at = projection.removal_at
+
+    def spy_at(*args):
+        out = removal_at(*args)
+        removed.append(out is not None)
+        return out
+
+    monkeypatch.setattr(projection, "removal_at", spy_at)
+
+    def run():
+        c = chain.process_cycle(rec, rig, cfg, where="t", nominal_hz=2.0)
+        return c, chain.cycle_phase(c, cfg, center_index=c.torque_filtered.size / 2)
+
+    fast, (phase, se, _) = run()
+    assert used and all(s == 0 for s in used)  # the kernels ran, and decided
+    assert removed and all(removed)
+    monkeypatch.setattr(numpyblas, "addresses", lambda: None)
+    ref, (phase_ref, se_ref, _) = run()
+    assert phase == phase_ref
+    assert se == se_ref
+    assert fast.modulation_hz == ref.modulation_hz
+    m, m_ref = fast.extra["speed_model"], ref.extra["speed_model"]
+    np.testing.assert_array_equal(m.design, m_ref.design)
+    np.testing.assert_array_equal(m.coef, m_ref.coef)
+
+
+@needs_blas
+@pytest.mark.parametrize("seed", range(3))
+def test_removal_is_the_numpy_route(seed, monkeypatch):
+    rng = np.random.default_rng(40 + seed)
+    n, fs = 323 + 29 * seed, 53.344
+    t = np.arange(n) / fs
+    slow = np.asfortranarray(np.column_stack([np.cos(np.pi * k * t / t[-1]) for k in range(12)]))
+    orders = np.column_stack([f(2 * np.pi * r * t + 0.1 * np.sin(0.3 * t))
+                              for r in (0.3, 0.6) for f in (np.cos, np.sin)])
+    y = np.column_stack([40 + np.cos(2 * np.pi * 2.1 * t) + 0.3 * rng.standard_normal(n),
+                         30 + 1e-3 * np.sin(2 * np.pi * 2.1 * t) + 1e-4 * rng.standard_normal(n)])
+    harmonics = (2,) if seed else ()
+    fast = speedmodel._SlowOrdersRemoval(y, slow, orders, fs, harmonics)
+    assert projection.removal_at(speedmodel.modulation_columns(n, fs, 2.0, harmonics),
+                                 fast.qt, fast.r_y, fast.qy) is not None
+    got = [fast.at(f) for f in (2.0, 2.1)]
+    monkeypatch.setattr(numpyblas, "addresses", lambda: None)
+    ref = speedmodel._SlowOrdersRemoval(y, slow, orders, fs, harmonics)
+    for a, b in ((fast.qt, ref.qt), (fast.r_y, ref.r_y), (fast.qy, ref.qy)):
+        np.testing.assert_array_equal(a, b)
+    for g, f in zip(got, (2.0, 2.1), strict=True):
+        np.testing.assert_array_equal(g, ref.at(f))
+    # the refinement in one compiled call against its steps one call each
+    peaks = [2.1 + 0.004 * (seed - 1), 2.1 - 0.003]
+    duration = n / fs
+    for tol in (1e-6, 1e-9):
+        assert fast.refine_many([0, 1], peaks, tol_hz=tol) == \
+            fast._refine_steps([0, 1], peaks, duration, tol)
+
+
+def test_gesv_is_numpys_solve():
+    gesv = numpyblas.gesv_address()
+    if gesv is None:
+        pytest.skip("numpy's LAPACK exports no dgesv64")
+    rng = np.random.default_rng(41)
+    for k2 in (2, 4, 6, 8):
+        a = rng.standard_normal((k2, k2)) + k2 * np.eye(k2)
+        b = rng.standard_normal((k2, 2))
+        ints = np.array([k2, 2, k2, k2, 0], dtype=np.int64)
+        af, bf, ipiv = np.asfortranarray(a), np.asfortranarray(b), np.zeros(k2, dtype=np.int64)
+        import ctypes
+        p = ints.ctypes.data
+        ctypes.CFUNCTYPE(None, *[ctypes.c_void_p] * 8)(gesv)(
+            p, p + 8, af.ctypes.data, p + 16, ipiv.ctypes.data, bf.ctypes.data, p + 24, p + 32)
+        np.testing.assert_array_equal(bf, np.linalg.solve(a, b))
