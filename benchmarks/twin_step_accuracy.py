@@ -1,14 +1,19 @@
 """The V-Track twin's discretisation error against its recorded RK4 step.
 
-Run: ``python benchmarks/twin_step_accuracy.py [--steps 12 16 20 24] [--ref 4] [--quick]``.
+Run: ``python benchmarks/twin_step_accuracy.py [--steps 12 16 20 24] [--ref 4] [--quick]
+[--quiet] [--only LABEL] [--settle-same] [--check-ref]`` (all groups, four candidates: ~4 min
+on one core).
 
 For every configuration a user runs -- the points of ``examples/sweep_vtrack_conditions.toml``
 (five contact conditions, 4 and 8.5 km/h, 2500 and 6000 N, modulation 1/2/4 Hz at 8 and 4 N*m,
-DC torques up to 0.95 of the creep-curve peak), the default experiment at 2 and 3 Hz and the
-default experiment sampled at 10 kHz -- the twin is run (:func:`simulate_batch`, truth only,
-noise-free by construction: the truth is taken from the integrated states) with
+DC torques up to 0.95 of the creep-curve peak), the default experiment at 2 and 3 Hz, the
+default experiment sampled at 10 kHz, and corners (dry contact at 2 and 4 km/h, where the
+creep-force damping is fastest, vtrack at 2 km/h, dry and leaves at 8 Hz) -- the twin is run
+(:func:`simulate_batch`, truth only, noise-free by construction: the truth is taken from the
+integrated states) with
 ``procedure.samples_per_step`` set to each candidate and to a short reference step (``--ref``
-samples, its settling at the same step), bypassing the step guard. Printed per configuration
+samples, its settling at the same step), bypassing the step check (a candidate of 0: the step
+the configuration's check sets, i.e. the twin as shipped). Printed per configuration
 group and candidate: the largest difference from the reference of
 
 * the simulated phase of a whole step (the wobble fitted out) [deg],
