@@ -397,13 +397,7 @@ def stiffest_rate(rig: RigParams) -> float:
     .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
        limit", Wear 258 (2005) 992-1000, Eq. (8).
     """
-    c = rig.contact
-    inv_j = 1.0 / rig.drive_inertia_kg_m2 + 1.0 / rig.wheel_inertia_kg_m2
-    torsion = math.sqrt(rig.shaft_stiffness_nm_rad * inv_j) + rig.shaft_damping_nm_s_rad * inv_j
-    kx = 2.0 * (c.k_a + c.k_s) * c.stiffness_x_n / math.pi  # dFx/dxi at 0, P05 Eq. (8)
-    contact = (rig.wheel_radius_m ** 2 / rig.wheel_inertia_kg_m2
-               + rig.platform_radius_m ** 2 / rig.platform_inertia_kg_m2) * kx / rig.speed_m_s
-    return max(rig.platform_kp_nm_s_rad / rig.platform_inertia_kg_m2, torsion, contact)
+    return max(rig.platform_kp_nm_s_rad / rig.platform_inertia_kg_m2, explicit_rate(rig))
 
 
 def explicit_rate(rig: RigParams) -> float:
@@ -411,8 +405,8 @@ def explicit_rate(rig: RigParams) -> float:
 
     :func:`stiffest_rate` without the platform's PI loop ``Kp/Jp``, whose linear rate the
     integrator takes exactly (exponential RK4 on the platform speed,
-    :mod:`torquemod.twins.vtrack.rig.lanes`): the torsional mode or the creep-force damping,
-    whichever is larger.
+    :mod:`torquemod.twins.vtrack.rig.lanes`): the torsional mode or the creep-force damping
+    (dFx/dxi at zero creepage from Eq. (8) of [1]_), whichever is larger.
 
     Parameters
     ----------
@@ -423,6 +417,11 @@ def explicit_rate(rig: RigParams) -> float:
     -------
     float
         The rate [1/s].
+
+    References
+    ----------
+    .. [1] O. Polach, "Creep forces in simulations of traction vehicles running on adhesion
+       limit", Wear 258 (2005) 992-1000, Eq. (8).
     """
     c = rig.contact
     inv_j = 1.0 / rig.drive_inertia_kg_m2 + 1.0 / rig.wheel_inertia_kg_m2
