@@ -262,28 +262,94 @@ def needs_wide_band(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float
     """
     if platform is None:
         return True
+    stats = _wide_band_statistics(wheel, platform, fs_hz, modulation_hz, quiet_hz, wide_hz,
+                                  extra=extra, degree=degree)
+    if stats is None:
+        return True
+    f_stat, f_critical, risk = stats
+    return bool(f_stat > f_critical and risk > WIDE_BAND_RISK_RAD)
+
+
+def _wide_band_statistics(wheel: np.ndarray, platform: np.ndarray, fs_hz: float,
+                          modulation_hz: float, quiet_hz: float, wide_hz: float, *,
+                          extra: int, degree: int, maps: bool = True
+                          ) -> tuple[float, float, float] | None:
+    """:func:`needs_wide_band`'s F statistic [-], its critical value [-] and the risk [rad];
+    None where the test cannot be made (no degrees of freedom, a zero mean speed or no
+    wheel modulation: the wide band). ``maps=False``: each fit by its own refined solve
+    instead of the cached coefficient maps (the same fits, other rounding: ~1e-12
+    relative, tests/dsp/test_wide_band.py)."""
     n = wheel.size
-    y = np.column_stack([wheel, platform])
-    fits = []
-    for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
-        # the design depends on the record's length and the configuration only: made and
-        # factored once for every cycle of that length (the same numbers as each time)
-        design, fac = _wide_band_design(int(n), float(fs_hz), float(modulation_hz),
-                                        float(band), int(ext), int(degree))
-        coef, rank = (fac.solve(y), design.shape[1]) if fac is not None else lstsq(design, y)
-        resid = platform - design @ coef[:, 1]
-        fits.append((float(resid @ resid), rank, coef[:2]))
-    (rss_q, rank_q, coef_q), (rss_w, rank_w, coef_w) = fits
+    key = (int(n), float(fs_hz), float(modulation_hz), int(degree))
+    cached = _wide_band_maps(*key, float(quiet_hz), float(wide_hz), int(extra)) \
+        if maps and degree >= 0 else None  # (degree >= 0: the designs hold the constant)
+    if cached is not None:
+        # both fits by the designs' coefficient maps (made once per record length): the
+        # platform's coefficients of both in one product, the wheel's modulation in one;
+        # of the records less their means (both designs hold the constant: the same fits,
+        # without the means' share of the maps' rounding)
+        (d_q, d_w), pmap, wheel_mod = cached
+        p_q = d_q.shape[1]
+        pl = platform - float(platform.sum()) / platform.size
+        coef_p = pmap @ pl
+        coef_w0 = wheel_mod @ (wheel - float(wheel.sum()) / wheel.size)
+        r_q = pl - d_q @ coef_p[:p_q]
+        r_w = pl - d_w @ coef_p[p_q:]
+        rss_q, rss_w = float(r_q @ r_q), float(r_w @ r_w)
+        rank_q, rank_w = p_q, d_w.shape[1]
+        plat_q, plat_w = coef_p[:2], coef_p[p_q:p_q + 2]
+    else:
+        y = np.column_stack([wheel, platform])
+        fits = []
+        for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
+            design, fac = _wide_band_design(*key[:3], float(band), int(ext), int(degree))
+            coef, rank = (fac.solve(y), design.shape[1]) if fac is not None \
+                else lstsq(design, y)
+            resid = platform - design @ coef[:, 1]
+            fits.append((float(resid @ resid), rank, coef[:2]))
+        (rss_q, rank_q, coef_q), (rss_w, rank_w, coef_w) = fits
+        plat_q, plat_w, coef_w0 = coef_q[:, 1], coef_w[:, 1], coef_w[:, 0]
     dfn, dfd = rank_w - rank_q, n - rank_w
     w_mean = float(wheel.sum()) / wheel.size  # np.mean's numbers, cheaper
     p_mean = float(platform.sum()) / platform.size
-    wheel_rel = float(np.hypot(*coef_w[:, 0])) / abs(w_mean) if w_mean else 0.0
+    wheel_rel = float(np.hypot(coef_w0[0], coef_w0[1])) / abs(w_mean) if w_mean else 0.0
     if dfn <= 0 or dfd <= 0 or not (p_mean and wheel_rel > 0):
-        return True
+        return None
     f_stat = (rss_q - rss_w) / dfn / max(rss_w / dfd, 1e-300)
-    risk = float(np.hypot(*(coef_q[:, 1] - coef_w[:, 1]))) / abs(p_mean) / wheel_rel
-    return bool(f_stat > fdtri(dfn, dfd, 1.0 - WIDE_BAND_FALSE_ALARM)
-                and risk > WIDE_BAND_RISK_RAD)
+    d_plat = plat_q - plat_w
+    risk = float(np.hypot(d_plat[0], d_plat[1])) / abs(p_mean) / wheel_rel
+    return f_stat, _f_critical(dfn, dfd), risk
+
+
+@functools.lru_cache(maxsize=64)
+def _f_critical(dfn: int, dfd: int) -> float:
+    """The F distribution's upper :data:`WIDE_BAND_FALSE_ALARM` point for ``dfn`` and
+    ``dfd`` degrees of freedom [-] (``scipy.special.fdtri``), cached."""
+    return float(fdtri(dfn, dfd, 1.0 - WIDE_BAND_FALSE_ALARM))
+
+
+@functools.lru_cache(maxsize=16)
+def _wide_band_maps(n: int, fs_hz: float, modulation_hz: float, degree: int, quiet_hz: float,
+                    wide_hz: float, extra: int
+                    ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray, np.ndarray] | None:
+    """The two designs of :func:`needs_wide_band` (quiet band without extra sequences, wide
+    band with ``extra``), their least-squares coefficient maps stacked, ``(p_q + p_w, n)``
+    (each the refined solve of the identity, :meth:`~torquemod.dsp.lstsq.LstsqFactor.solve`:
+    a map times a record is that design's least-squares coefficients), and the wide map's
+    first two rows (the modulation's). None when either design has no factor (the SVD's
+    route). Cached, read-only: the designs depend on the record's length and the
+    configuration only."""
+    parts = []
+    for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
+        design, fac = _wide_band_design(n, fs_hz, modulation_hz, band, ext, degree)
+        if fac is None:
+            return None
+        parts.append((design, fac.solve(np.eye(n))))
+    pmap = np.ascontiguousarray(np.vstack([m for _, m in parts]))
+    wheel_mod = np.ascontiguousarray(parts[1][1][:2])
+    for a in (pmap, wheel_mod):
+        a.setflags(write=False)
+    return (parts[0][0], parts[1][0]), pmap, wheel_mod
 
 
 @functools.lru_cache(maxsize=32)
