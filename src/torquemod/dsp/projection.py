@@ -25,7 +25,7 @@ import numpy as np
 from scipy import linalg
 
 from torquemod.dsp import numpyblas
-from torquemod.dsp.lstsq import _DPOTRF, LstsqFactor, _cholesky, _fortran_call
+from torquemod.dsp.lstsq import _DPOTRF, LstsqFactor, _cho_solve, _cholesky, _fortran_call
 
 _TRTRS, _POTRF = linalg.get_lapack_funcs(("trtrs", "potrf"), (np.zeros((1, 1)),))
 
@@ -105,6 +105,48 @@ def _forward_rows(r: np.ndarray, b: np.ndarray, out: np.ndarray) -> bool:
         for t in range(n):
             oi[t] /= d
     return True
+
+
+def powers_in_span(qt_b: np.ndarray, m: np.ndarray, v: np.ndarray) -> np.ndarray | None:
+    """The power of each column of ``v`` in the span of a basis and further columns:
+    ``|Q'v_j|^2`` for Q an orthonormal basis of ``[B, M]``, given ``Q_B'`` of B.
+
+    ``|Q'v|^2 = |Q_B'v|^2 + b'(R'R)^-1 b`` with ``R = M - Q_B Q_B'M`` (classical
+    Gram-Schmidt, twice, so that R is orthogonal to Q_B to rounding) and ``b = R'v``: the
+    projection on ``[B, M]`` split into B's and that of M's part orthogonal to B
+    (Frisch-Waugh-Lovell), from the basis of B and a few small products instead of an
+    orthonormal basis of the whole design.
+
+    Parameters
+    ----------
+    qt_b : ndarray
+        ``Q_B'`` (``p x n``, rows orthonormal).
+    m : ndarray
+        ``(n, k)`` further columns, any unit.
+    v : ndarray
+        ``(n, j)`` vectors, any unit.
+
+    Returns
+    -------
+    ndarray or None
+        ``(j,)`` powers [``v``'s unit squared]; None when M's part orthogonal to B is
+        (nearly) rank deficient (a column of R keeps less than 1e-5 of its column of M's
+        norm, or ``R'R``'s Cholesky factorisation fails or its condition number exceeds
+        1e10).
+    """
+    mt = np.ascontiguousarray(m.T)
+    rt = mt - (mt @ qt_b.T) @ qt_b
+    rt -= (rt @ qt_b.T) @ qt_b
+    gram = rt @ rt.T
+    # a column left with less than 1e-5 of its norm lies (nearly) inside B's span
+    if not (np.diagonal(gram) > 1e-10 * (mt * mt).sum(axis=1)).all():
+        return None
+    factor, status = _cholesky(np.asfortranarray(gram), _DPOTRF)
+    if status != 0:
+        return None
+    b = rt @ v
+    pb = qt_b @ v
+    return (pb * pb).sum(axis=0) + (b * _cho_solve(factor, b)).sum(axis=0)
 
 
 def removal_at(m: np.ndarray, qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray

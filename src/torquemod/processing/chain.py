@@ -369,7 +369,7 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                        creepage_drift=drift)
     out.extra.update({"speed_model": model, "slow_band_hz": float(max_hz),
                       "variance_factor": model.variance_factor(),
-                      "noise_kept": model.noise_depletion(),
+                      "noise_kept": model.noise_depletion(basis_t=cleaner.qt),
                       "torque_amplitude_nm": model.amplitude("torque_nm"),
                       "wheel_amplitude_rad_s": wheel_amp,
                       "creepage_swing": wheel_amp * rig.wheel_radius_m / speed,

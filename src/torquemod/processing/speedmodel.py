@@ -127,22 +127,32 @@ class SpeedModel:
         return float(max(1.0, _trace_of_inverse_2x2(m_res.T @ m_res)
                          / _trace_of_inverse_2x2(m.T @ m)))
 
-    def noise_depletion(self, *, half_width_hz: float = 0.75) -> float:
+    def noise_depletion(self, *, half_width_hz: float = 0.75,
+                        basis_t: np.ndarray | None = None) -> float:
         """Fraction (<= 1) of white noise's power near the modulation that the model's
         residual keeps, averaged over the bins :func:`~torquemod.dsp.phase.local_noise_psd`
         reads: ``1 - |Q^H v_f|^2/|v_f|^2`` for the Hann-windowed Fourier vector ``v_f`` of each
         bin and Q an orthonormal basis of the design. The slow basis overlaps the modulation's
         neighbourhood, so its residual understates the noise density there; dividing by this
-        restores it (E[r r^T] = sigma^2 (I - H) for least squares)."""
+        restores it (E[r r^T] = sigma^2 (I - H) for least squares).
+
+        ``basis_t``, ``Q_B'`` (``p x n``) of an orthonormal basis of the design's slow and
+        order columns (the chain's step-1 search has one), spares the basis of the whole
+        design (:func:`~torquemod.dsp.projection.powers_in_span`: the same span, another
+        rounding, ~1e-12 relative here)."""
         d = self.design
         n = d.shape[0]
-        df = self.fs_hz / n
-        k = np.arange(n // 2 + 1)
-        off = np.abs(k * df - self.modulation_hz)
-        sel = k[(off <= half_width_hz) & (off > 1.5 * df)]
-        if sel.size < 2:
+        sel = _bins_near(n, self.fs_hz, self.modulation_hz, half_width_hz)
+        if len(sel) < 2:
             return 1.0
-        v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
+        v, v_power = _hann_fourier(n, sel)
+        if basis_t is not None and basis_t.shape == (d.shape[1] - 2 - self.n_harmonic_columns,
+                                                     n):
+            end = d.shape[1] - self.n_harmonic_columns
+            qv = projection.powers_in_span(basis_t, np.hstack([d[:, :2], d[:, end:]]), v)
+            if qv is not None:
+                kept = 1.0 - qv.reshape(2, -1).sum(axis=0) / v_power
+                return min(max(float(kept.sum()) / kept.size, 0.05), 1.0)
         fac = self.factor if self.factor is not None else filters.LstsqFactor.of(d)
         qt = projection.orthonormal_basis_t(fac, compiled=True) if fac is not None else None
         if qt is None:
@@ -171,6 +181,17 @@ class SpeedModel:
             slow = self.part(name, "slow")
             self._parts[key] = float(slow.sum()) / slow.size  # np.mean's numbers, cheaper
         return self._parts[key]
+
+
+def _bins_near(n: int, fs_hz: float, f_hz: float, half_width_hz: float) -> tuple[int, ...]:
+    """The DFT bins k (of ``n // 2 + 1``) with ``1.5*df < |k*df - f_hz| <= half_width_hz``,
+    ``df = fs_hz/n`` [Hz]: the same float operations as on numpy's arrays, over the
+    candidates near ``f_hz`` only."""
+    df = fs_hz / n
+    lo = max(0, int((f_hz - half_width_hz) / df) - 2)
+    hi = min(n // 2, int((f_hz + half_width_hz) / df) + 2)
+    return tuple(k for k in range(lo, hi + 1)
+                 if 1.5 * df < abs(k * df - f_hz) <= half_width_hz)
 
 
 def _trace_of_inverse_2x2(a: np.ndarray) -> float:
