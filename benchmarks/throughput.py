@@ -202,7 +202,11 @@ def chain_throughput(repeat: int = 7) -> None:
     per_length = [getattr(mod, name) for mod, name in (
         (filters, "_slow_basis_cached"), (spectrum, "_window"), (spectrum, "_trend_design"),
         (spectrum, "_grid"), (speedmodel, "_hann"), (speedmodel, "_hann_fourier"),
-        (speedmodel, "_centred_time"), (sys.modules["torquemod.dsp.phase"], "_frequencies"))
+        (speedmodel, "_centred_time"), (sys.modules["torquemod.dsp.phase"], "_frequencies"),
+        (speedmodel, "_modulation_columns_cached"),
+        (sys.modules["torquemod.dsp.basis"], "_wide_band_maps"),
+        (sys.modules["torquemod.dsp.basis"], "_wide_band_design"),
+        (sys.modules.get("torquemod.processing.trackedorders", chain), "_slow_and_base"))
         if hasattr(mod, name)]
 
     def cold() -> None:  # every cycle of a new length: the per-length caches miss

@@ -240,6 +240,16 @@ def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
     return out
 
 
+@functools.lru_cache(maxsize=8)
+def _modulation_columns_cached(n: int, fs_hz: float, modulation_hz: float,
+                               harmonics: tuple[int, ...]) -> np.ndarray:
+    """:func:`modulation_columns`, cached read-only: step 1 starts every cycle of a step at
+    the same nominal frequency."""
+    out = modulation_columns(n, fs_hz, modulation_hz, harmonics)
+    out.setflags(write=False)
+    return out
+
+
 def _modulation_columns_many(n: int, fs_hz: float, frequencies_hz, harmonics: tuple[int, ...] = ()
                             ) -> np.ndarray:
     """:func:`modulation_columns` at each of ``frequencies_hz`` [Hz], side by side (the same
@@ -413,7 +423,8 @@ class _SlowOrdersRemoval:
             end = model.design.shape[1] - model.n_harmonic_columns
             fit = model.design[:, 2:end] @ model.coef[2:end]
             return self.y - fit
-        m = modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
+        m = _modulation_columns_cached(self.y.shape[0], float(self.fs_hz),
+                                       float(modulation_hz), self.harmonics)
         if self.qt is not None:  # the steps below in one compiled call (the same numbers)
             out = projection.removal_at(m, self.qt, self.r_y, self.qy)
             if out is not None:
