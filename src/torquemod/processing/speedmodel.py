@@ -359,13 +359,7 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     if blas is not None and n > 1 and y.dtype == np.float64:
         # the factor, the coefficients and every channel's parts in one compiled call, with
         # the numbers of the route below and of SpeedModel.part (numpy's BLAS calls)
-        end = design.shape[1] - 2 * len(harmonics)
-        bounds = np.array([[2, 2 + n_s], [2 + n_s, end], [end, design.shape[1]]])
-        # the parts the chain reads: every channel's slow part (its step-8 mean), the
-        # orders and harmonics of the records it filters
-        wanted = np.zeros((3, len(names)), dtype=bool)
-        wanted[0] = True
-        wanted[1:, [j for j, k in enumerate(names) if k in _FILTERED]] = True
+        bounds, wanted = _parts_wanted(names, n_s, n_o, 2 * len(harmonics))
         dn, scale, gram, factor, coef, parts, ratio, status = lstsq.fit_with_parts(
             design, y, bounds, wanted, *blas, *lstsq.lapack_addresses())
         if status == 0:
@@ -383,6 +377,23 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     coef = fac.solve(y) if fac is not None else filters.lstsq(design, y)[0]
     return SpeedModel(modulation_hz, fs_hz, design, slow.shape[1], coef, names, fac,
                       2 * len(harmonics))
+
+
+@functools.lru_cache(maxsize=16)
+def _parts_wanted(names: tuple[str, ...], n_slow: int, n_orders: int, n_harmonic: int
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`fit_speed_model`'s column bounds of the slow part, the orders and the
+    harmonics, and which parts of which channel its compiled fit forms: every channel's
+    slow part (its step-8 mean), the orders and harmonics of the records the chain filters
+    (:data:`_FILTERED`); cached read-only (the same for every cycle of a recording)."""
+    end = 2 + n_slow + n_orders
+    bounds = np.array([[2, 2 + n_slow], [2 + n_slow, end], [end, end + n_harmonic]])
+    wanted = np.zeros((3, len(names)), dtype=bool)
+    wanted[0] = True
+    wanted[1:, [j for j, k in enumerate(names) if k in _FILTERED]] = True
+    for a in (bounds, wanted):
+        a.setflags(write=False)
+    return bounds, wanted
 
 
 class _SlowOrdersRemoval:
