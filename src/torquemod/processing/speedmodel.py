@@ -244,7 +244,7 @@ def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
 def _modulation_columns_cached(n: int, fs_hz: float, modulation_hz: float,
                                harmonics: tuple[int, ...]) -> np.ndarray:
     """:func:`modulation_columns`, cached read-only: step 1 starts every cycle of a step at
-    the same nominal frequency."""
+    the same nominal frequency (:class:`_SlowOrdersRemoval` looks up that one only)."""
     out = modulation_columns(n, fs_hz, modulation_hz, harmonics)
     out.setflags(write=False)
     return out
@@ -410,8 +410,9 @@ class _SlowOrdersRemoval:
     to rounding (tests/processing/test_chain_kernels.py)."""
 
     def __init__(self, y: np.ndarray, slow: np.ndarray, orders: np.ndarray, fs_hz: float,
-                 harmonics: tuple[int, ...] = ()):
+                 harmonics: tuple[int, ...] = (), *, start_hz: float | None = None):
         self.y, self.fs_hz, self.harmonics = y, fs_hz, tuple(harmonics)
+        self.start_hz = start_hz  # the search's nominal start [Hz]: its columns cached
         self.slow, self.orders = slow, orders
         self.b = np.hstack([slow, orders])
         self.fac = filters.LstsqFactor.of(self.b)
@@ -435,7 +436,9 @@ class _SlowOrdersRemoval:
             fit = model.design[:, 2:end] @ model.coef[2:end]
             return self.y - fit
         m = _modulation_columns_cached(self.y.shape[0], float(self.fs_hz),
-                                       float(modulation_hz), self.harmonics)
+                                       float(modulation_hz), self.harmonics) \
+            if modulation_hz == self.start_hz else \
+            modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
         if self.qt is not None:  # the steps below in one compiled call (the same numbers)
             out = projection.removal_at(m, self.qt, self.r_y, self.qy)
             if out is not None:
