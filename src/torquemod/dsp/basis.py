@@ -13,6 +13,7 @@ import numpy as np
 from scipy.special import fdtri
 
 from torquemod.dsp.lstsq import LstsqFactor, lstsq
+from torquemod.dsp.projection import orthonormal_basis_t
 
 
 @functools.lru_cache(maxsize=64)
@@ -284,20 +285,20 @@ def _wide_band_statistics(wheel: np.ndarray, platform: np.ndarray, fs_hz: float,
     cached = _wide_band_maps(*key, float(quiet_hz), float(wide_hz), int(extra)) \
         if maps and degree >= 0 else None  # (degree >= 0: the designs hold the constant)
     if cached is not None:
-        # both fits by the designs' coefficient maps (made once per record length): the
-        # platform's coefficients of both in one product, the wheel's modulation in one;
-        # of the records less their means (both designs hold the constant: the same fits,
-        # without the means' share of the maps' rounding)
-        (d_q, d_w), pmap, wheel_mod = cached
-        p_q = d_q.shape[1]
+        # both fits from the designs' orthonormal bases and the modulation's rows of their
+        # pseudo-inverses (made once per record length), of the records less their means
+        # (both designs hold the constant: the same fits): one product gives Q'p of both
+        # bases and the platform's modulation in both fits, two more the residuals
+        maps, q_q, q_w, wheel_mod = cached
+        p_q, p_w = q_q.shape[1], q_w.shape[1]
         pl = platform - float(platform.sum()) / platform.size
-        coef_p = pmap @ pl
+        proj = maps @ pl
         coef_w0 = wheel_mod @ (wheel - float(wheel.sum()) / wheel.size)
-        r_q = pl - d_q @ coef_p[:p_q]
-        r_w = pl - d_w @ coef_p[p_q:]
+        r_q = pl - q_q @ proj[:p_q]
+        r_w = pl - q_w @ proj[p_q:p_q + p_w]
         rss_q, rss_w = float(r_q @ r_q), float(r_w @ r_w)
-        rank_q, rank_w = p_q, d_w.shape[1]
-        plat_q, plat_w = coef_p[:2], coef_p[p_q:p_q + 2]
+        rank_q, rank_w = p_q, p_w
+        plat_q, plat_w = proj[p_q + p_w:p_q + p_w + 2], proj[p_q + p_w + 2:]
     else:
         y = np.column_stack([wheel, platform])
         fits = []
@@ -331,25 +332,31 @@ def _f_critical(dfn: int, dfd: int) -> float:
 @functools.lru_cache(maxsize=16)
 def _wide_band_maps(n: int, fs_hz: float, modulation_hz: float, degree: int, quiet_hz: float,
                     wide_hz: float, extra: int
-                    ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray, np.ndarray] | None:
-    """The two designs of :func:`needs_wide_band` (quiet band without extra sequences, wide
-    band with ``extra``), their least-squares coefficient maps stacked, ``(p_q + p_w, n)``
-    (each the refined solve of the identity, :meth:`~torquemod.dsp.lstsq.LstsqFactor.solve`:
-    a map times a record is that design's least-squares coefficients), and the wide map's
-    first two rows (the modulation's). None when either design has no factor (the SVD's
-    route). Cached, read-only: the designs depend on the record's length and the
-    configuration only."""
-    parts = []
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """For the two designs of :func:`needs_wide_band` (quiet band without extra sequences,
+    wide band with ``extra``): ``[Q_q'; Q_w'; W_q; W_w]`` (``(p_q + p_w + 4, n)``), ``Q_q``
+    and ``Q_w`` (C order) and ``W_w`` again. Q is an orthonormal basis of a design D
+    (CholeskyQR2 from its factor, :func:`~torquemod.dsp.projection.orthonormal_basis_t`)
+    and W the modulation's two rows of D's pseudo-inverse ``(Q'D)^-1 Q'``: ``W x`` is the
+    modulation's least-squares coefficients of a record x, ``x - Q Q'x`` its residual.
+    None when either design has no factor or basis (the refined solves' route). Cached,
+    read-only: the designs depend on the record's length and the configuration only."""
+    qs, ws = [], []
     for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
         design, fac = _wide_band_design(n, fs_hz, modulation_hz, band, ext, degree)
-        if fac is None:
+        qt = orthonormal_basis_t(fac, compiled=True) if fac is not None else None
+        if qt is None:
             return None
-        parts.append((design, fac.solve(np.eye(n))))
-    pmap = np.ascontiguousarray(np.vstack([m for _, m in parts]))
-    wheel_mod = np.ascontiguousarray(parts[1][1][:2])
-    for a in (pmap, wheel_mod):
+        qs.append(qt)
+        # the first two rows of (Q'D)^-1 Q': (Q'D)' z_i = e_i, W = [z_0 z_1]' Q'
+        z = np.linalg.solve((qt @ design).T, np.eye(design.shape[1], 2))
+        ws.append(z.T @ qt)
+    maps = np.ascontiguousarray(np.vstack([*qs, *ws]))
+    q_q, q_w = (np.ascontiguousarray(qt.T) for qt in qs)
+    wheel_mod = np.ascontiguousarray(ws[1])
+    for a in (maps, q_q, q_w, wheel_mod):
         a.setflags(write=False)
-    return (parts[0][0], parts[1][0]), pmap, wheel_mod
+    return maps, q_q, q_w, wheel_mod
 
 
 @functools.lru_cache(maxsize=32)
