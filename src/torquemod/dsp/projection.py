@@ -25,7 +25,7 @@ import numpy as np
 from scipy import linalg
 
 from torquemod.dsp import numpyblas
-from torquemod.dsp.lstsq import _DPOTRF, LstsqFactor, _cho_solve, _cholesky, _fortran_call
+from torquemod.dsp.lstsq import _DPOTRF, LstsqFactor, _cholesky, _fortran_call
 
 _TRTRS, _POTRF = linalg.get_lapack_funcs(("trtrs", "potrf"), (np.zeros((1, 1)),))
 
@@ -132,22 +132,59 @@ def powers_in_span(qt_b: np.ndarray, m: np.ndarray, v: np.ndarray) -> np.ndarray
     ndarray or None
         ``(j,)`` powers [``v``'s unit squared]; None when M's part orthogonal to B is
         (nearly) rank deficient (a column of R keeps less than 1e-5 of its column of M's
-        norm, or ``R'R``'s Cholesky factorisation fails or its condition number exceeds
-        1e10).
+        norm, or a pivot of ``R'R``'s Cholesky factorisation falls below 1e-10 of its
+        diagonal element).
     """
-    mt = np.ascontiguousarray(m.T)
-    rt = mt - (mt @ qt_b.T) @ qt_b
-    gram = rt @ rt.T
-    # a column left with less than 1e-5 of its norm lies (nearly) inside B's span
-    if not (np.diagonal(gram) > 1e-10 * (mt * mt).sum(axis=1)).all():
-        return None
-    factor, status = _cholesky(np.asfortranarray(gram), _DPOTRF)
-    if status != 0:
-        return None
-    p = qt_b.shape[0]
-    bv = np.vstack([qt_b, rt]) @ v  # Q_B'v and R'v in one product
-    pb, b = bv[:p], bv[p:]
-    return (pb * pb).sum(axis=0) + (b * _cho_solve(factor, b)).sum(axis=0)
+    powers, ok = _powers_in_span(np.ascontiguousarray(qt_b, dtype=np.float64),
+                                 np.ascontiguousarray(m.T, dtype=np.float64),
+                                 np.ascontiguousarray(v, dtype=np.float64))
+    return powers if ok else None
+
+
+@numba.njit(cache=True, nogil=True)
+def _powers_in_span(qt_b: np.ndarray, mt: np.ndarray, v: np.ndarray
+                    ) -> tuple[np.ndarray, bool]:
+    """:func:`powers_in_span` with M given transposed (``k x n``), in one call: the products
+    by BLAS (``np.dot``), ``R'R``'s Cholesky factor and its two triangular solves by hand
+    (k is a few columns); ``(powers, ok)``."""
+    k, j = mt.shape[0], v.shape[1]
+    rt = mt - np.dot(np.dot(mt, qt_b.T), qt_b)
+    gram = np.dot(rt, rt.T)
+    for i in range(k):  # a column left with less than 1e-5 of its norm: (nearly) in B
+        norm2 = 0.0
+        for t in range(mt.shape[1]):
+            norm2 += mt[i, t] * mt[i, t]
+        if not gram[i, i] > 1e-10 * norm2:
+            return np.empty(0), False
+    low = np.zeros((k, k))  # gram = L L'
+    for i in range(k):
+        for c in range(i + 1):
+            acc = gram[i, c]
+            for q in range(c):
+                acc -= low[i, q] * low[c, q]
+            if i == c:
+                if not acc > 1e-10 * gram[i, i]:  # (and NaN)
+                    return np.empty(0), False
+                low[i, i] = math.sqrt(acc)
+            else:
+                low[i, c] = acc / low[c, c]
+    pb = np.dot(qt_b, v)
+    b = np.dot(rt, v)
+    powers = np.zeros(j)
+    y = np.empty(k)
+    for col in range(j):
+        for i in range(k):  # L y = b, then |y|^2 = b'(L L')^-1 b
+            acc = b[i, col]
+            for q in range(i):
+                acc -= low[i, q] * y[q]
+            y[i] = acc / low[i, i]
+        acc = 0.0
+        for i in range(pb.shape[0]):
+            acc += pb[i, col] * pb[i, col]
+        for i in range(k):
+            acc += y[i] * y[i]
+        powers[col] = acc
+    return powers, True
 
 
 def removal_at(m: np.ndarray, qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray
