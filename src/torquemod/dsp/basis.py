@@ -291,14 +291,12 @@ def _wide_band_statistics(wheel: np.ndarray, platform: np.ndarray, fs_hz: float,
         # bases and the platform's modulation in both fits, two more the residuals
         maps, q_q, q_w, wheel_mod = cached
         p_q, p_w = q_q.shape[1], q_w.shape[1]
-        pl = platform - float(platform.sum()) / platform.size
-        proj = maps @ pl
-        coef_w0 = wheel_mod @ (wheel - float(wheel.sum()) / wheel.size)
-        r_q = pl - q_q @ proj[:p_q]
-        r_w = pl - q_w @ proj[p_q:p_q + p_w]
-        rss_q, rss_w = float(r_q @ r_q), float(r_w @ r_w)
+        sums = _wide_band_sums(maps, q_q, q_w, wheel_mod,
+                               np.ascontiguousarray(wheel, dtype=np.float64),
+                               np.ascontiguousarray(platform, dtype=np.float64))
+        rss_q, rss_w = float(sums[0]), float(sums[1])
         rank_q, rank_w = p_q, p_w
-        plat_q, plat_w = proj[p_q + p_w:p_q + p_w + 2], proj[p_q + p_w + 2:]
+        plat_q, plat_w, coef_w0 = sums[2:4], sums[4:6], sums[6:8]
     else:
         y = np.column_stack([wheel, platform])
         fits = []
@@ -320,6 +318,45 @@ def _wide_band_statistics(wheel: np.ndarray, platform: np.ndarray, fs_hz: float,
     d_plat = plat_q - plat_w
     risk = float(np.hypot(d_plat[0], d_plat[1])) / abs(p_mean) / wheel_rel
     return f_stat, _f_critical(dfn, dfd), risk
+
+
+@numba.njit(cache=True, nogil=True)
+def _wide_band_sums(maps: np.ndarray, q_q: np.ndarray, q_w: np.ndarray, wheel_mod: np.ndarray,
+                    wheel: np.ndarray, platform: np.ndarray) -> np.ndarray:
+    """:func:`_wide_band_statistics`' fits from :func:`_wide_band_maps`' arrays in one call:
+    ``[rss_q, rss_w, c_q (2), c_w (2), wheel's c_w (2)]``, the platform's residual sums of
+    squares and modulation coefficients in both fits and the wheel's in the wide one, all
+    of the records less their means (plain loops)."""
+    n = platform.size
+    p_q, p_w = q_q.shape[1], q_w.shape[1]
+    p_mean = 0.0
+    w_mean = 0.0
+    for t in range(n):
+        p_mean += platform[t]
+        w_mean += wheel[t]
+    p_mean /= n
+    w_mean /= n
+    pl = platform - p_mean
+    proj = np.zeros(maps.shape[0])
+    for i in range(maps.shape[0]):
+        acc = 0.0
+        for t in range(n):
+            acc += maps[i, t] * pl[t]
+        proj[i] = acc
+    out = np.zeros(8)
+    for t in range(n):
+        fit_q = 0.0
+        for i in range(p_q):
+            fit_q += q_q[t, i] * proj[i]
+        fit_w = 0.0
+        for i in range(p_w):
+            fit_w += q_w[t, i] * proj[p_q + i]
+        out[0] += (pl[t] - fit_q) ** 2
+        out[1] += (pl[t] - fit_w) ** 2
+        out[6] += wheel_mod[0, t] * (wheel[t] - w_mean)
+        out[7] += wheel_mod[1, t] * (wheel[t] - w_mean)
+    out[2:6] = proj[p_q + p_w:p_q + p_w + 4]
+    return out
 
 
 @functools.lru_cache(maxsize=64)
