@@ -318,9 +318,11 @@ def _peaks_of_records(wx: np.ndarray, nfft: int, k_lo: int, k_hi: int, freqs: np
                       idx: np.ndarray, wide: np.ndarray, lobe: float, fs_hz: float,
                       xtol_hz: float, min_ratio: float, maxfun: int
                       ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_peaks_of_spectra` of the windowed records ``wx`` (rows) with the spectrum's
-    magnitudes by :func:`_band_magnitudes` over the bins the checks read (zeros elsewhere,
-    never read)."""
+    """:func:`peak_frequency`'s checks (:func:`_line_search` on the magnitudes of each
+    row's ``nfft``-point spectrum, by :func:`_band_magnitudes` over the bins the checks
+    read: zeros elsewhere, never read) and its refinement (:func:`_dtft_peak` of the
+    windowed record) for each row of ``wx``: the frequencies [Hz] and whether each row
+    passed the checks (NaN where not)."""
     rows = wx.shape[0]
     out = np.full(rows, np.nan)
     ok = np.zeros(rows, dtype=np.bool_)
@@ -328,29 +330,6 @@ def _peaks_of_records(wx: np.ndarray, nfft: int, k_lo: int, k_hi: int, freqs: np
     for r in range(rows):
         mag = np.zeros(nfft // 2 + 1)
         _band_magnitudes(wx[r], nfft, k_lo, k_hi, mag)
-        k, j, floor = _line_search(mag, freqs, idx, wide, lobe)
-        if k == idx[0] or k == idx[-1] or not mag[k] > 0 or mag[j] > mag[k]:
-            continue
-        if floor > 0 and mag[k] ** 2 < min_ratio * floor:
-            continue
-        out[r] = _dtft_peak(wx[r], fs_hz, freqs[k] - df, freqs[k] + df, xtol_hz, maxfun)
-        ok[r] = True
-    return out, ok
-
-
-@numba.njit(cache=True, nogil=True)
-def _peaks_of_spectra(spec: np.ndarray, freqs: np.ndarray, idx: np.ndarray, wide: np.ndarray,
-                      lobe: float, wx: np.ndarray, fs_hz: float, xtol_hz: float,
-                      min_ratio: float, maxfun: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`peak_frequency`'s checks (:func:`_line_search` on each row's FFT magnitudes
-    ``|spec|``) and its refinement (:func:`_dtft_peak` of the windowed record ``wx``) for
-    each row: the frequencies [Hz] and whether each row passed the checks (NaN where not)."""
-    rows = spec.shape[0]
-    out = np.full(rows, np.nan)
-    ok = np.zeros(rows, dtype=np.bool_)
-    df = freqs[1] - freqs[0]
-    for r in range(rows):
-        mag = np.abs(spec[r])
         k, j, floor = _line_search(mag, freqs, idx, wide, lobe)
         if k == idx[0] or k == idx[-1] or not mag[k] > 0 or mag[j] > mag[k]:
             continue
