@@ -31,8 +31,10 @@ def _polach(c: np.ndarray) -> dict:
     return dict(zip(keys, c[7:].tolist(), strict=True))
 
 
-def newton_reference(x, amp, dc, sine, lin_w, p_op, platform, n, c, rtol, max_iter):
-    """theory.py's Newton loop before the fifth round (numpy, vectorised Polach force)."""
+def newton_reference(x, amp, dc, sine, lin_w, p_op, pl, platform, n, c, rtol, max_iter):
+    """theory.py's Newton loop before the fifth round (numpy, vectorised Polach force), on
+    the whole ``2n x 2n`` Jacobian (``pl``, which the compiled loop's Schur complement
+    uses, is not read)."""
     rw, rp, n0, wref, v0 = c[C_RW], c[C_RP], c[C_N0], c[C_WREF], c[C_V0]
     kw = _polach(c)
 

@@ -137,7 +137,7 @@ def test_partition_moments_add_in_order(cols, std_cols):
 
 
 def test_fit_sums_add_row_by_row():
-    """The fit's sums taken four rows per load of each sum (_add_rows4) are exactly those of
+    """The fit's sums taken eight rows per load of each sum (_add_rows8) are exactly those of
     one row at a time in row order, piece by piece between window edges (plain Python over
     the kernel's own basis; pieces of 3, 4, 5 and 130 rows cover the remainder loop)."""
     from torquemod.twins.vtrack.rig.truth import _FIT_COLS, _fit_sums

@@ -242,39 +242,28 @@ _MEAN_COLS = np.array([_COL[c] for c in _MEANS])
 _STD_COLS = np.array([_MEANS.index("creepage"), _MEANS.index("platform_speed_rad_s")])
 
 
+#: rows of the fit taken per load and store of each sum (:func:`_add_rows8`)
+_ROWS = 8
+
+
 @numba.njit(cache=True, nogil=True)
-def _add_rows4(raw, x, i, stride, cols, sg, sr):
-    """Add fit rows ``i..i+3`` (basis ``x``, torque and speed from ``raw``) to the upper
-    triangle of ``sg = X^T X`` and to ``sr = X^T [torque, speed]``: each sum is loaded and
-    stored once for the four rows and takes their products one row after the other, as
-    four single-row updates would (the same additions in the same order, a quarter of the
-    memory traffic of the sums)."""
-    m = x.shape[1]
-    j1, j2 = i * stride, (i + 1) * stride
-    j3, j4 = (i + 2) * stride, (i + 3) * stride
-    u0, u1, u2, u3 = raw[j1, cols[1]], raw[j2, cols[1]], raw[j3, cols[1]], raw[j4, cols[1]]
-    v0, v1, v2, v3 = raw[j1, cols[2]], raw[j2, cols[2]], raw[j3, cols[2]], raw[j4, cols[2]]
-    for p in range(m):
-        b0, b1, b2, b3 = x[i, p], x[i + 1, p], x[i + 2, p], x[i + 3, p]
-        r = sr[p, 0]
-        r += b0 * u0
-        r += b1 * u1
-        r += b2 * u2
-        r += b3 * u3
-        sr[p, 0] = r
-        r = sr[p, 1]
-        r += b0 * v0
-        r += b1 * v1
-        r += b2 * v2
-        r += b3 * v3
-        sr[p, 1] = r
-        for q in range(p, m):
-            t = sg[p, q]
-            t += b0 * x[i, q]
-            t += b1 * x[i + 1, q]
-            t += b2 * x[i + 2, q]
-            t += b3 * x[i + 3, q]
-            sg[p, q] = t
+def _add_rows8(x, i, sg):
+    """Add rows ``i..i+7`` of ``x`` (the fit's basis, then torque and speed, padded with
+    zeros) to ``sg[p, q] = sum x[:, p]*x[:, q]`` for every basis column ``p``: each sum is
+    loaded and stored once for the eight rows and takes their products one row after the
+    other, as eight single-row updates would (the same additions in the same order). The
+    loop over ``q`` runs over whole rows of ``sg`` (the lower triangle is computed too and
+    never read), so that it compiles to vector instructions across the sums."""
+    r0, r1, r2, r3 = x[i], x[i + 1], x[i + 2], x[i + 3]
+    r4, r5, r6, r7 = x[i + 4], x[i + 5], x[i + 6], x[i + 7]
+    w = x.shape[1]
+    for p in range(sg.shape[0]):
+        b0, b1, b2, b3 = r0[p], r1[p], r2[p], r3[p]
+        b4, b5, b6, b7 = r4[p], r5[p], r6[p], r7[p]
+        row = sg[p]
+        for q in range(w):
+            row[q] = (((((((row[q] + b0 * r0[q]) + b1 * r1[q]) + b2 * r2[q]) + b3 * r3[q])
+                        + b4 * r4[q]) + b5 * r5[q]) + b6 * r6[q]) + b7 * r7[q]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -288,45 +277,51 @@ def _fit_sums(raw, t0_s, fs, stride, w, wob, coef, cols, win_lo, win_hi, gram, r
     ``gram[j] = X^T X`` and ``rhs[j] = X^T [torque, speed]``. ``ref[i]``: the speed
     reference's wobble at fit sample ``i``, ``X[i, 3:] @ coef``. The windows overlap (the
     whole step and its revolutions), so the sums are taken over the pieces between
-    consecutive window edges (each sample once) and added up per window."""
+    consecutive window edges (each sample once, row after row) and added up per window.
+    Torque and speed ride as two more columns of the basis (``X^T [torque, speed]`` are
+    then columns of the same sums: ``x_p*u`` is the product ``u*x_p`` bit for bit), the
+    rows padded to a multiple of 8 columns for :func:`_add_rows8`."""
     n = (raw.shape[0] + stride - 1) // stride
     m = 3 + 2 * wob.shape[0]
+    width = (m + 2 + 7) // 8 * 8
     t, theta = np.empty(n), np.empty(n)
     for i in range(n):
         t[i] = t0_s + (i * stride) / fs
         theta[i] = raw[i * stride, cols[0]]
-    x = np.empty((n, m))
+    x = np.zeros((n, width))
     _fit_basis(t, w, wob, theta, x)
     for i in range(n):
+        x[i, m] = raw[i * stride, cols[1]]
+        x[i, m + 1] = raw[i * stride, cols[2]]
         r = 0.0
         for q in range(m - 3):
             r += x[i, 3 + q] * coef[q]
         ref[i] = r
     edges = np.unique(np.concatenate((win_lo, win_hi)))
     nseg = edges.size - 1
-    sg = np.zeros((max(nseg, 1), m, m))
-    sr = np.zeros((max(nseg, 1), m, 2))
+    sg = np.zeros((max(nseg, 1), m, width))
     nw = win_lo.size
     gram[:] = 0.0
     rhs[:] = 0.0
     for g in range(nseg):
         i, hi = edges[g], edges[g + 1]
-        while i + 4 <= hi:  # four rows per load and store of each sum, added row by row
-            _add_rows4(raw, x, i, stride, cols, sg[g], sr[g])
-            i += 4
+        sgg = sg[g]
+        while i + _ROWS <= hi:  # eight rows per load and store of each sum, row by row
+            _add_rows8(x, i, sgg)
+            i += _ROWS
         while i < hi:
-            u, v = raw[i * stride, cols[1]], raw[i * stride, cols[2]]
             for p in range(m):
                 bp = x[i, p]
-                sr[g, p, 0] += bp * u
-                sr[g, p, 1] += bp * v
-                for q in range(p, m):
-                    sg[g, p, q] += bp * x[i, q]
+                for q in range(width):
+                    sgg[p, q] += bp * x[i, q]
             i += 1
         for j in range(nw):
             if win_lo[j] <= edges[g] and edges[g + 1] <= win_hi[j]:
-                gram[j] += sg[g]
-                rhs[j] += sr[g]
+                for p in range(m):
+                    for q in range(m):
+                        gram[j, p, q] += sgg[p, q]
+                    rhs[j, p, 0] += sgg[p, m]
+                    rhs[j, p, 1] += sgg[p, m + 1]
     for j in range(nw):
         for p in range(m):
             for q in range(p):
