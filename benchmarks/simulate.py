@@ -230,10 +230,10 @@ from torquemod.twins.vtrack.theory import operating_point
 
 def cold_theory() -> None:
     """Forget the theory's remembered creep-curve peaks, operating points, large-signal
-    results and FFT of the identity, so that every timed run computes them as a fresh
-    process does (theory.py memoises them per rig)."""
+    results, FFT of the identity and collocation operators, so that every timed run
+    computes them as a fresh process does (theory.py memoises them per rig)."""
     for name in ("_creep_curve_peak_memo", "_operating_point_memo", "_large_signal_memo",
-                 "_eye_spectrum"):  # (an older checkout, run with its PYTHONPATH, lacks some)
+                 "_eye_spectrum", "_operators_memo"):  # (an older checkout lacks some)
         if hasattr(_theory, name):
             getattr(_theory, name).cache_clear()
 
