@@ -318,10 +318,11 @@ _operators_memo = functools.lru_cache(maxsize=64)(_build_operators)
 
 def _periodic_state(dc_torque_nm, p: RigParams, op: OperatingPoint, f: float, amplitude: float,
                     drive: str, platform: bool, n: int, rtol: float, max_iter: int,
-                    start: np.ndarray | None = None):
+                    start: np.ndarray | None = None, response: tuple | None = None):
     """Collocation solve of :func:`large_signal_phase_deg` on ``n`` points per period,
     from ``start`` (the unknowns on ``n/2`` points, :func:`_refine`) when given, else from
-    the small-signal response.
+    the small-signal response (``response``: :func:`drive_line_response` at the operating
+    point when already known).
 
     Returns ``(torque, u, xi, k_mean, iterations, x)`` -- measured torque [N*m], wheel-speed
     deviation from the steady state [rad/s] and creepage [-] at the collocation instants, the
@@ -345,7 +346,8 @@ def _periodic_state(dc_torque_nm, p: RigParams, op: OperatingPoint, f: float, am
     if start is not None:  # the solution on half the points, interpolated
         x = _refine(start, n // 2, platform)
     else:
-        h_t, h_w = drive_line_response(op.creep_coefficient, p, f, creepage=op.creepage)
+        h_t, h_w = response if response is not None else drive_line_response(
+            op.creep_coefficient, p, f, creepage=op.creepage)
         h1 = h_w / h_t if drive == "shaft" else h_w
         x = np.zeros(2 * n if platform else n)
         x[:n] = amplitude * np.imag(h1 * np.exp(1j * om * t))
@@ -496,14 +498,18 @@ def _large_signal(dc_torque_nm, params, frequency_hz, amplitude_nm, drive, platf
     if op.slipped:
         return LargeSignalResult(dc, amp, f, nan, nan, nan, nan, nan, nan, nan, nan, nan, 0,
                                  n_samples, True)
-    small = float(predicted_phase_deg(op.creep_coefficient,
-                                      params if platform else _stiff_platform(params), f,
-                                      creepage=op.creepage))
+    response = None
+    if platform:  # the start's small-signal response gives the small-signal phase too
+        response = drive_line_response(op.creep_coefficient, params, f, creepage=op.creepage)
+        small = float(np.degrees(np.angle(response[0] / response[1])))
+    else:
+        small = float(predicted_phase_deg(op.creep_coefficient, _stiff_platform(params), f,
+                                          creepage=op.creepage))
     n = n_samples
     start = None
     while True:
         sol = _periodic_state(dc, params, op, f, amp, drive, platform, n, rtol, max_iter,
-                              start)
+                              start, response)
         if sol is None:
             return LargeSignalResult(dc, amp, f, nan, nan, nan, nan, nan, nan, nan,
                                      float(op.creepage), small, 0, n, True)

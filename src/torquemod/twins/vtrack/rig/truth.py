@@ -25,7 +25,11 @@ from torquemod.twins.vtrack.rig.truthsums import (
     step_sums,
 )
 from torquemod.twins.vtrack.smallsignal import predicted_phase_deg, rigid_wheel_phase_deg
-from torquemod.twins.vtrack.theory import large_signal_phase_deg, operating_point
+from torquemod.twins.vtrack.theory import (
+    LargeSignalResult,
+    large_signal_phase_deg,
+    operating_point,
+)
 
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
 #: columns of the output the truth fit reads: platform angle, torque, wheel speed
@@ -161,12 +165,11 @@ def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.nda
     return out
 
 
-def _large_signal(dc: float, config: SimConfig) -> float | None:
-    """Phase [deg] at the actual modulation amplitude (periodic steady state of the same
-    model, driven by the motor as in the simulation; :func:`large_signal_phase_deg`)."""
-    res = large_signal_phase_deg(dc, config.rig, config.modulation.actual_frequency_hz,
-                                 config.modulation.amplitude_nm, drive="motor")
-    return None if res.slipped else float(res.phase_deg)
+def _large_signal(dc: float, config: SimConfig) -> LargeSignalResult:
+    """The periodic steady state at the actual modulation amplitude (the same model, driven
+    by the motor as in the simulation; :func:`large_signal_phase_deg`)."""
+    return large_signal_phase_deg(dc, config.rig, config.modulation.actual_frequency_hz,
+                                  config.modulation.amplitude_nm, drive="motor")
 
 
 def step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None,
@@ -215,11 +218,15 @@ def step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None
                      phase_theory_deg=None, phase_rigid_deg=None,
                      phase_large_signal_deg=None)
     else:
+        # the large-signal solve carries the small-signal phase (the same computation)
+        ls = _large_signal(dc, config) if large_signal else None
         entry.update(
             creepage=op.creepage, coa=op.coa, creep_coefficient=k, dcoa_dxi=op.dcoa_dxi,
             fx_n=op.fx_n, fy_n=op.fy_n,
-            phase_theory_deg=float(predicted_phase_deg(k, rig, f, creepage=op.creepage)),
-            phase_large_signal_deg=_large_signal(dc, config) if large_signal else None,
+            phase_theory_deg=(ls.small_signal_phase_deg if ls is not None else
+                              float(predicted_phase_deg(k, rig, f, creepage=op.creepage))),
+            phase_large_signal_deg=(None if ls is None or ls.slipped
+                                    else float(ls.phase_deg)),
             phase_rigid_deg=float(rigid_wheel_phase_deg(
                 k, inertia_kg_m2=rig.wheel_inertia_kg_m2, speed_m_s=rig.speed_m_s,
                 wheel_radius_m=rig.wheel_radius_m, normal_load_n=rig.normal_load_n,
