@@ -329,16 +329,17 @@ def step_sums(raw, t0_s, fs, stride, w, wob, coef, fcols, win_lo, win_hi, gram, 
                 part += 1
         nb = i1 - i0
         for r in range(nb):
-            t[r] = t0_s + ((i0 + r) * stride) / fs
-            theta[r] = raw[(i0 + r) * stride, fcols[0]]
+            k_r = (i0 + r) * stride
+            t[r] = t0_s + k_r / fs
+            theta[r] = raw[k_r, fcols[0]]
+            x[r, m] = raw[k_r, fcols[1]]
+            x[r, m + 1] = raw[k_r, fcols[2]]
+            ref[i0 + r] = 0.0
         _basis_rows(t[:nb], dt, w, wob, theta[:nb], x)
-        for r in range(nb):
-            x[r, m] = raw[(i0 + r) * stride, fcols[1]]
-            x[r, m + 1] = raw[(i0 + r) * stride, fcols[2]]
-            acc = 0.0
-            for q in range(m - 3):
-                acc += x[r, 3 + q] * coef[q]
-            ref[i0 + r] = acc
+        for q in range(m - 3):  # each row's terms in order; the rows side by side
+            cq = coef[q]
+            for r in range(nb):
+                ref[i0 + r] += x[r, 3 + q] * cq
         for g in range(nseg):
             a, b = max(fedges[g], i0), min(fedges[g + 1], i1)
             sgg = sg[g]
