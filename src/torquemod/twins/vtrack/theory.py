@@ -405,8 +405,9 @@ def large_signal_phase_deg(dc_torque_nm: float, params: RigParams, frequency_hz:
     J. H. Griffin, J. Appl. Mech. 56 (1989) 149-154. Unknowns are the wheel and platform
     speeds at ``n_samples`` equispaced instants of one period; d/dt and the linear transfer
     functions act as circulant matrices built by FFT, the Polach force pointwise in time.
-    Newton-Raphson (dense Jacobian, finite differences of the contact force, backtracking on
-    the residual; compiled without the GIL,
+    Newton-Raphson (dense Jacobian, finite differences of the contact force, each step
+    solved through the Jacobian's ``n x n`` Schur complement since the platform equation is
+    linear in the force, backtracking on the residual; compiled without the GIL,
     :func:`torquemod.twins.vtrack.theory_kernels.newton_periodic`)
     from the steady state plus the small-signal response, with amplitude continuation as a
     fallback; ``rtol`` is the last Newton step relative to the speed swing.
@@ -418,7 +419,7 @@ def large_signal_phase_deg(dc_torque_nm: float, params: RigParams, frequency_hz:
     On the default rig at 8 N*m the default 64 points
     (128 at step 1, where the creepage swings through zero and resolves most slowly) agree
     with 1024 to 1e-9 deg and with the simulator to 1e-3 deg (``drive = "motor"``). Cost
-    3-25 ms per call, plus about 0.2 s once per process to load the compiled solver.
+    0.5-3 ms per call, plus about 0.2 s once per process to load the compiled solver.
     Remembered per argument set when ``params`` is a (frozen) :class:`RigParams`: a sweep
     asks again for the points its seeds repeat, a run written to files for the theory its
     truth already holds.

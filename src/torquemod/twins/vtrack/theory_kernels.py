@@ -12,11 +12,13 @@ with ``L`` and ``P`` circulant matrices built by theory.py and ``F_x`` the Polac
 longitudinal creep force (P05 Eqs. 1-9, the same operations in the same order as the
 vectorised :func:`torquemod.analysis.contact.polach.creep_force`) at the creepage
 ``xi = (V0*xi0 + u*R_w - w*R_p)/V``, ``V = (W_ref + w)*R_p``. :func:`newton_periodic` is
-Newton-Raphson on them (dense Jacobian by central differences of the force, solved by
-:func:`_dense_solve`, backtracking on the residual norm) as theory.py ran it in Python
-before an earlier version; here it runs without the GIL, so that the twin's steps
-solve their theory side by side. Results agree with the Python loop to ~1e-12 (summation
-order of the matrix products; tested in tests/twins/test_theory_kernels.py).
+Newton-Raphson on them (dense Jacobian by central differences of the force, backtracking
+on the residual norm) as theory.py ran it in Python before an earlier version; here it
+runs without the GIL, so that the twin's steps solve their theory side by side, and each
+step solves the Jacobian's ``n x n`` Schur complement (:func:`_newton_step`, by
+:func:`_dense_solve`) instead of the whole ``2n x 2n`` system. Results agree with the
+whole-Jacobian Python loop to ~1e-12 (rounding of the solve and of the matrix products;
+tested in tests/twins/test_theory_kernels.py).
 """
 
 from __future__ import annotations
