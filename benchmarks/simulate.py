@@ -45,7 +45,7 @@ without the large-signal theory; "The twin's recorded step": 16 samples instead 
 the measured discretisation error, batch 836-868x -> 919-969x, 921-951x -> 1064-1102x
 without the theory; "The twin's batch past 1000x": the large-signal theory's Newton steps
 by the Jacobian's Schur complement and its operators per rig, the truth's fit sums and
-moments in one vectorised sweep, batch 961-975x -> 1060-1107x, 1101-1172x without the
+moments in one vectorised sweep, batch 909-975x -> 1060-1107x, 1101-1172x without the
 theory). ``--samples-per-step N`` runs the batch at another recorded step.
 
 Measured, fifth round of issue 12 (the same 2-core VM, load average 0.1-1.2 from other
