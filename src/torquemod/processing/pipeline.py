@@ -14,6 +14,7 @@ import datetime as _dt
 import os
 import time
 from collections import deque
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,6 +25,7 @@ import pandas as pd
 from torquemod._util.blas import single_blas
 from torquemod._util.fsutil import sha256_file
 from torquemod._util.progress import WarmupBar
+from torquemod._util.records import ColumnarRecords
 from torquemod._version import __version__
 from torquemod.errors import InputError
 from torquemod.io import read_entry, read_experiment
@@ -33,7 +35,12 @@ from torquemod.io.stream import hash_file_async, open_stream
 from torquemod.io.validate import check_finite, clipping_notes
 from torquemod.processing import chain, cyclechecks
 from torquemod.processing.cycles import revolution_bounds
-from torquemod.processing.stepmeasure import InOrderStep, in_order_steps, phase_parts
+from torquemod.processing.stepmeasure import (
+    InOrderStep,
+    finish_in_order,
+    in_order_steps,
+    measure_at_end,
+)
 from torquemod.processing.steptable import STEP_COLUMNS, aggregate_steps, detect_slip
 
 __all__ = ["CYCLE_COLUMNS", "STEP_COLUMNS", "TRACE_NAMES", "ProcessResult", "ProcessingConfig",
@@ -72,8 +79,10 @@ class ProcessResult:
         One row per torque step (:data:`STEP_COLUMNS`): ``dc_torque_nm`` [N*m], the cycle
         means and standard deviations of the phase [deg], creepage [-] and CoA [-],
         ``n_cycles``, ``slip`` and the step means of the per-cycle amplitudes.
-    cycle_details : list of dict
-        Per cycle: the means of every channel (SI units), filters, windows, slip reason.
+    cycle_details : sequence of dict
+        Per cycle: the means of every channel (SI units), filters, windows, slip reason
+        (a :class:`~torquemod._util.records.ColumnarRecords` when processed here: each item
+        is rebuilt as a new dict when read; a list when loaded from a results folder).
     traces : dict
         ``(step, cycle)`` -> named arrays (:data:`TRACE_NAMES`) for the figures.
     warnings : list of str
@@ -96,7 +105,7 @@ class ProcessResult:
     config: ProcessingConfig
     cycles: pd.DataFrame
     steps: pd.DataFrame
-    cycle_details: list[dict]
+    cycle_details: Sequence[dict]
     traces: dict[tuple[int, int], dict[str, np.ndarray]]
     warnings: list[str]
     timing_s: dict = field(default_factory=dict)
@@ -324,8 +333,9 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
     cfg : ProcessingConfig
         The parameters.
     reduce : callable or None
-        Maps each cycle's item to what is kept of it, as soon as the cycle is done, so that a
-        long file's cycles are not all held at once. Default None.
+        Maps each cycle's item to what is kept of it (None: nothing is listed), as soon as
+        the cycle is done, so that a long file's cycles are not all held at once. Default
+        None.
     recording : Recording or None
         The entry's samples already in memory, as :func:`~torquemod.io.read_entry` would
         return them (nothing is read; the digest is empty). Default None.
@@ -382,7 +392,9 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
             continue
         item = _cycle_item(entry, exp, cfg, where, cyc, seg)
         notes += item[1].notes
-        out.append(item if reduce is None else reduce(item))
+        kept = item if reduce is None else reduce(item)
+        if kept is not None:  # None: the reducer keeps what it needs itself
+            out.append(kept)
     return t1 - t0, time.perf_counter() - t1, digest_future.result(), actions, notes, out
 
 
@@ -523,16 +535,18 @@ def process_experiment(experiment: Experiment | str | Path, *,
             nan_actions += actions
             notes += rec_notes
             for cyc, sig, info, raw in cycles_out:
-                per_step.setdefault(entry.step, []).append((cyc, sig, info))
+                if entry.step not in in_order:  # an in-order step keeps its own cycles
+                    per_step.setdefault(entry.step, []).append((cyc, sig, info))
                 if raw is not None:
                     traces[(entry.step, cyc)] = dict(raw)
             bar.update()
     finally:
         bar.close()
-    if not per_step:
+    present = set(per_step) | {s for s, m in in_order.items() if m.count}
+    if not present:
         raise InputError("no cycle could be processed", path=exp.manifest_path,
                          hint="every cycle was dropped; see --nan-policy")
-    emptied = [s for s in exp.steps if s not in per_step]
+    emptied = [s for s in exp.steps if s not in present]
     if emptied:
         raise InputError(f"step {emptied[0]} has no cycle left after --nan-policy drop-cycle "
                          f"(every cycle held NaN/inf samples; steps without cycles: "
@@ -540,52 +554,21 @@ def process_experiment(experiment: Experiment | str | Path, *,
                          hint="repair the files, use --nan-policy interpolate, or remove the "
                          "step from the manifest")
     t1 = time.perf_counter()
-    rows, details = [], []
+    rows: list[tuple] = []
+    details = ColumnarRecords()
     slipped: dict[int, bool] = {}
-    for step in sorted(per_step):
-        items = sorted(per_step[step], key=lambda it: it[0])
-        cycles_seen = [c for c, _, _ in items]
-        if len(set(cycles_seen)) != len(cycles_seen):
-            raise InputError(f"step {step} has cycle numbers {cycles_seen} more than once "
-                             "(a file spanning cycles and single-cycle files overlap)",
-                             path=exp.manifest_path, hint="give each cycle once")
-        sigs = [s for _, s, _ in items]
-        slip = detect_slip([s.creepage for s in sigs], [s.coa for s in sigs],
-                           [s.creepage_drift for s in sigs], cfg.slip)
-        slipped[step] = any(slip)
-        for (cyc, _, _), why in zip(items, slip, strict=True):
-            if why:
-                notes.append(f"step {step}: slip detected in cycle {cyc} ({why}); the step is "
-                             "flagged in steps.csv 'slip' and left out of the creep-curve fit")
+    for step in sorted(present):
         if step in in_order:  # measured while read (InOrderStep)
-            measured = []
-            for (_, m, _), why in zip(items, slip, strict=True):
-                if m.error is not None:
-                    raise m.error
-                detail = m.detail_dict()
-                detail["slip"] = why
-                measured.append((m.row_dict(CYCLE_COLUMNS), detail, None))
+            slipped[step] = finish_in_order(in_order.pop(step), cfg, notes, rows, details)
         else:
-            lags = chain.align_lags(sigs, cfg)
-            n_ref = sigs[0].torque_filtered.size
-            measured = []
-            for (cyc, sig, info), lag, why in zip(items, lags, slip, strict=True):
-                row, detail, tr = phase_parts(step, cyc, sig, info, lag, n_ref, cfg)
-                detail["slip"] = why
-                measured.append((row, detail, tr))
-            for k, (cyc, _, _) in enumerate(items):  # traces of the first cycles only
-                if k >= TRACE_CYCLES:
-                    traces.pop((step, cyc), None)
-        for (cyc, _, _), (row, detail, tr) in zip(items, measured, strict=True):
-            rows.append(row)
-            details.append(detail)
-            if tr is not None and (step, cyc) in traces:
-                traces[(step, cyc)].update(tr)
+            slipped[step] = measure_at_end(step, per_step.pop(step), cfg, exp, notes, rows,
+                                           details, traces, TRACE_CYCLES, CYCLE_COLUMNS)
     t_compute += time.perf_counter() - t1
     if not rows:
         raise InputError("no cycle could be processed", path=exp.manifest_path,
                          hint="every cycle was dropped; see --nan-policy")
     cycles = pd.DataFrame(rows, columns=CYCLE_COLUMNS)
+    del rows
     dc = {e.step: e.dc_torque_nm for e in exp.recordings}
     steps = aggregate_steps(cycles, dc, slipped)
     timing = {"wall_s": time.perf_counter() - t_start, "read_thread_s": t_read,

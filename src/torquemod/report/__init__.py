@@ -34,7 +34,7 @@ from torquemod.report.figures import (
     phase_fit_figure,
     save_figure,
 )
-from torquemod.report.html import render_report
+from torquemod.report.html import iter_report
 from torquemod.report.pdf import PDF_ENGINES, html_to_pdf
 
 if TYPE_CHECKING:
@@ -167,10 +167,10 @@ def write_report(folder, result: ProcessResult, analysis: Analysis, *, options=N
         "torque), with the fit tan φ = C/k(CoA) over the Polach family that gives μ from "
         "the phase alone; labels: step (utilisation CoA/μ).")
     title = opts.title or f"torquemod report: {result.name}"
-    text = render_report(title=title, fit=analysis.to_dict(), steps=analysis.steps,
+    pieces = iter_report(title=title, fit=analysis.to_dict(), steps=analysis.steps,
                          cycles=result.cycles, provenance=prov, figures=figures,
                          warnings=warnings)
-    path = write_atomic(folder / "report.html", lambda fh: fh.write(text))
+    path = write_atomic(folder / "report.html", lambda fh: fh.writelines(pieces))
     if opts.pdf:
         html_to_pdf(path, folder / "report.pdf", engine=opts.pdf)
     else:  # a PDF of an earlier report would no longer match this one

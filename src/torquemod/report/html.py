@@ -1,7 +1,8 @@
 """Self-contained HTML report: inline CSS, figures as base64 PNG, every text escaped.
 
 No external resources (stylesheets, scripts, fonts, images) are referenced, so the file reads
-the same offline. :func:`render_report` is a pure function from the loaded results to a string.
+the same offline. :func:`render_report` is a pure function from the loaded results to a string;
+:func:`iter_report` gives the same text in pieces, the per-cycle details one cycle at a time.
 """
 
 from __future__ import annotations
@@ -11,7 +12,9 @@ import json
 import math
 from html import escape
 
-__all__ = ["render_report", "table"]
+from torquemod._util.jsonutil import iter_json_list
+
+__all__ = ["iter_report", "render_report", "table"]
 
 CSS = """
 body{font-family:system-ui,-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;margin:2em auto;
@@ -171,7 +174,29 @@ def _pm(value, err, digits=4) -> str:
 
 def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
                   figures: list[dict], warnings: list[str]) -> str:
-    """HTML text of the report.
+    """HTML text of the report: :func:`iter_report`'s pieces joined.
+
+    Parameters
+    ----------
+    title, fit, steps, cycles, provenance, figures, warnings
+        As for :func:`iter_report`.
+
+    Returns
+    -------
+    str
+        The page.
+    """
+    return "".join(iter_report(title=title, fit=fit, steps=steps, cycles=cycles,
+                               provenance=provenance, figures=figures, warnings=warnings))
+
+
+_CYCLES = object()  # where iter_report puts the per-cycle details
+
+
+def iter_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
+                figures: list[dict], warnings: list[str]):
+    """HTML text of the report in pieces, the per-cycle details (``provenance["cycles"]``,
+    any sequence of dicts) encoded one cycle at a time.
 
     Parameters
     ----------
@@ -190,10 +215,10 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
     warnings : list of str
         Plain strings.
 
-    Returns
-    -------
+    Yields
+    ------
     str
-        The page.
+        Consecutive pieces of the page.
     """
     exp = provenance.get("experiment", {})
     theory = fit.get("theory") or {}
@@ -298,12 +323,21 @@ def render_report(*, title: str, fit: dict, steps, cycles, provenance: dict,
         "<h2>Provenance</h2>", t_in,
         "<details><summary>provenance.json (without inputs and cycles)</summary><pre>"
         + escape(json.dumps(prov_small, indent=2, default=str)) + "</pre></details>",
-        "<details><summary>Per-cycle details</summary><pre>"
-        + escape(json.dumps(provenance.get("cycles", []), indent=1, default=str))
-        + "</pre></details>",
+        _CYCLES,
         "</body></html>",
     ]
-    return "\n".join(parts) + "\n"
+    for k, part in enumerate(parts):
+        if k:
+            yield "\n"
+        if part is _CYCLES:  # escape() maps characters one by one: piecewise is the same
+            yield "<details><summary>Per-cycle details</summary><pre>"
+            for piece in iter_json_list(provenance.get("cycles", []), indent=1, level=0,
+                                        default=str):
+                yield escape(piece)
+            yield "</pre></details>"
+        else:
+            yield part
+    yield "\n"
 
 
 def _frequency_tables(cycles) -> str:
