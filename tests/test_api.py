@@ -97,7 +97,7 @@ def test_save_load_round_trip_is_exact(tmp_path):
     res2, ana2 = tm.load(tmp_path / "r")
     pd.testing.assert_frame_equal(res2.steps, res.steps)
     pd.testing.assert_frame_equal(res2.cycles, res.cycles)
-    assert res2.cycle_details == json.loads(json.dumps(res.cycle_details))
+    assert res2.cycle_details == json.loads(json.dumps(list(res.cycle_details)))
     assert sorted(res2.traces) == sorted(res.traces)
     np.testing.assert_array_equal(res2.traces[(2, 3)]["torque_filtered_nm"],
                                   res.traces[(2, 3)]["torque_filtered_nm"])

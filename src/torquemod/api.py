@@ -343,9 +343,11 @@ def run(experiment, out, *, config: ProcessingConfig | None = None,
         check_output_dir(out, force=force)  # refuse an occupied --out before any work
         say(f"processing {len(exp.recordings)} recordings (the first run compiles the numba "
             "decimation filter, a few seconds; later runs reuse the compiled cache) ...")
-        _bind("analyze", "save")
         res = process(exp, config, phase_method=phase_method, nan_policy=nan_policy,
                       progress=progress)
+        # the analysis, the layout and the report (matplotlib) are imported once the
+        # recordings are done, so that their memory does not add to the processing's peak
+        _bind("analyze", "save")
         t1 = time.perf_counter()
         ana = None
         if fit:
