@@ -106,3 +106,47 @@ def test_binary_file_streamed_by_its_decoded_size(tmp_path, monkeypatch):
     monkeypatch.setattr(pl, "STREAM_MIN_DECODED_BYTES", decoded + 1)  # neither: read whole
     pl.process_experiment(manifest, workers=1)
     assert len(streamed) == 1
+
+
+def test_files_written_from_columnar_details_equal_those_from_dicts(tmp_path):
+    """result.json, provenance.json and report.html are written one cycle's details at a
+    time from the columns; the text must be that of the same details as a list of dicts."""
+    import dataclasses
+
+    import torquemod as tm
+    from torquemod._util.records import ColumnarRecords
+
+    write_synthetic_experiment(tmp_path / "exp", n_steps=2, n_cycles=3,
+                               files_per_cycle=False, fmt="hdf5", seed=3)
+    res = tm.process(tmp_path / "exp" / "experiment.toml")
+    assert isinstance(res.cycle_details, ColumnarRecords) and len(res.cycle_details) == 6
+    ana = tm.analyze(res)
+    as_dicts = dataclasses.replace(res, cycle_details=list(res.cycle_details))
+    tm.save(res, ana, tmp_path / "out_qzc")
+    tm.save(as_dicts, ana, tmp_path / "out_qzd")
+    for name in ("result.json", "provenance.json", "report.html"):
+        got = (tmp_path / "out_qzc" / name).read_text(encoding="utf-8")
+        want = (tmp_path / "out_qzd" / name).read_text(encoding="utf-8")
+        assert got.replace("out_qzc", "out_qzd") == want, name
+        assert '"slip"' in got or "&quot;slip&quot;" in got  # the details are in it
+
+
+def test_run_imports_the_report_after_processing(tmp_path):
+    """`torquemod process` loads the analysis, layout and report modules (matplotlib) only
+    once the recordings are processed, so that they do not add to the processing's peak."""
+    import subprocess
+    import sys
+
+    write_synthetic_experiment(tmp_path / "exp", n_steps=1, n_cycles=2, fmt="hdf5", seed=1)
+    code = ("import sys, torquemod.api as api\n"
+            "real = api.process\n"
+            "def spy(*a, **k):\n"
+            "    print(sorted(m for m in ('torquemod.report', 'torquemod.results.folder',\n"
+            "                 'torquemod.analysis.analyzer') if m in sys.modules))\n"
+            "    return real(*a, **k)\n"
+            "api.process = spy\n"
+            "api.run(sys.argv[1], sys.argv[2], fit=False)\n")
+    out = subprocess.run([sys.executable, "-c", code, str(tmp_path / "exp"),
+                          str(tmp_path / "out")], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+    assert (tmp_path / "out" / "result.json").is_file()
