@@ -22,6 +22,7 @@ wheel slipping at the first step, ...) becomes a row of failures.csv and the swe
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
@@ -236,21 +237,26 @@ class SweepResult:
 def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, scheduler,
                   n_workers, force: bool, progress: bool, on_dashboard, begin,
                   connect_timeout_s: float = CONNECT_TIMEOUT_S,
-                  closing: list | None = None, tail=None) -> tuple[list, str]:
-    """Every point's status row (``begin()`` creates the output when the work can start).
+                  closing: list | None = None, tail=None, stack=None,
+                  warm: bool = False) -> tuple[list, str, object]:
+    """Every point's status row, the dashboard's address and the local cluster's client
+    (None without one) for drawing the report's figures (``begin()`` creates the output
+    when the work can start).
 
     The points a run would skip are decided here; a local cluster starts only when some
-    point is left to run, and is closed in a thread appended to ``closing`` (joined by the
-    caller) while the caller assembles the table and draws the report. ``tail()`` runs in
-    a thread once fewer batches are left than worker slots (a core the workers no longer
-    use), and is waited for before this returns."""
+    point is left to run. Its client is entered into ``stack`` (a ``contextlib.ExitStack``
+    the caller closes after the report; the cluster then closes in a thread appended to
+    ``closing``, joined by the caller). ``tail()`` runs in a thread once fewer batches are
+    left than worker slots (a core the workers no longer use), and is waited for before
+    this returns; ``warm`` then also gives each worker the drawing code's imports
+    (:func:`~torquemod.sweep.figurejobs.import_drawing`) to run once it has no point left."""
     from tqdm import tqdm
     rows, links = [], []
     if not in_process:
         rows, todo = _unchanged(todo, out, force)
         if not todo:
             begin()
-            return rows, None
+            return rows, None, None
     if in_process:
         begin()
         bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
@@ -258,7 +264,7 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
             rows.append(run_point(task, str(out), force))
             bar.update()
         bar.close()
-        return rows, None
+        return rows, None, None
     from dask.distributed import as_completed
 
     from torquemod._util.daskutil import dask_client
@@ -268,44 +274,82 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
         if on_dashboard is not None:
             on_dashboard(link)
 
-    with dask_client(scheduler, n_workers, dashboard, connect_timeout_s=connect_timeout_s,
-                     closing=closing, worker_modules=WORKER_MODULES) as client:
-        begin()  # once the cluster answers
-        bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
-        slots = sum(client.nthreads().values()) or 1
-        since = time.time()
-        futures = {client.submit(run_points, b, str(out), force, pure=False,
-                                 key=f"torquemod-sweep-{b[0].point_id}-{time.time_ns()}"): b
-                   for b in point_batches(todo, slots)}
-        left, helper = len(futures), None
-        try:
-            for fut in as_completed(futures):
-                try:
-                    rows.extend(fut.result())
-                except Exception as exc:  # the worker died (memory, a kill): points failed
-                    rows.extend(_lost(futures[fut], out, _one_line(exc), since, force))
-                bar.update(len(futures[fut]))
-                left -= 1
-                if tail is not None and helper is None and 0 < left < slots:
-                    helper = threading.Thread(target=tail, name="torquemod-sweep-tail",
-                                              daemon=True)
-                    helper.start()
-        finally:
-            if helper is not None:
-                helper.join()
+    client = stack.enter_context(dask_client(
+        scheduler, n_workers, dashboard, connect_timeout_s=connect_timeout_s,
+        closing=closing, worker_modules=WORKER_MODULES))
+    begin()  # once the cluster answers
+    bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
+    slots = sum(client.nthreads().values()) or 1
+    since = time.time()
+    futures = {client.submit(run_points, b, str(out), force, pure=False,
+                             key=f"torquemod-sweep-{b[0].point_id}-{time.time_ns()}"): b
+               for b in point_batches(todo, slots)}
+    left, helper = len(futures), None
+    try:
+        for fut in as_completed(futures):
+            try:
+                rows.extend(fut.result())
+            except Exception as exc:  # the worker died (memory, a kill): points failed
+                rows.extend(_lost(futures[fut], out, _one_line(exc), since, force))
+            bar.update(len(futures[fut]))
+            left -= 1
+            if tail is not None and helper is None and 0 < left < slots:
+                if warm and scheduler is None:  # kept until the figures are drawn
+                    stack.callback(list.clear, _warm_workers(client))
+                helper = threading.Thread(target=tail, name="torquemod-sweep-tail",
+                                          daemon=True)
+                helper.start()
+    finally:
+        if helper is not None:
+            helper.join()
     bar.close()
-    return rows, (links[0] if links else None)
+    return rows, (links[0] if links else None), (client if scheduler is None else None)
 
 
-def _import_report_modules(kind: str) -> None:
-    """Import what the report will draw with (matplotlib, the figures, the twin's theory
-    for the creep curves): run while the last points finish, so that the report does not
-    wait for it after them. A module that fails to import is left to the report."""
+def _warm_workers(client) -> list:
+    """Each worker imports the report's drawing code once its points are done: a task of
+    lower priority than the points, bound to it. Returns the futures (a released future's
+    task would be dropped)."""
+    from torquemod.sweep.figurejobs import import_drawing
+    return [client.submit(import_drawing, workers=[address], allow_other_workers=False,
+                          priority=-1, pure=False, key=f"torquemod-warm-{k}-{time.time_ns()}")
+            for k, address in enumerate(client.scheduler_info()["workers"])]
+
+
+def _draw_on(client):
+    """``draw(jobs)`` for :func:`~torquemod.sweep.report.write_report`: the figures drawn
+    and encoded as tasks on the sweep's workers, side by side (the dearest handed out
+    first); a figure whose task fails (a lost worker) is drawn here (a figure's own error
+    is then raised here)."""
+    def draw(jobs: list) -> list:
+        from torquemod.sweep.figurejobs import draw_png
+        order = sorted(range(len(jobs)), key=lambda i: -jobs[i].cost)
+        futures = {i: client.submit(draw_png, jobs[i], pure=False,
+                                    key=f"torquemod-figure-{jobs[i].stem}-{time.time_ns()}")
+                   for i in order}
+        pngs = []
+        for i, job in enumerate(jobs):
+            try:
+                pngs.append(futures[i].result())
+            except Exception:
+                pngs.append(draw_png(job))
+        return pngs
+    return draw
+
+
+def _import_report_modules(kind: str, drawing: bool = True) -> None:
+    """Import what the report will need (the page; with ``drawing`` also matplotlib's
+    canvas, the figures, the twin's theory for the creep curves): run while the last points
+    finish, so that the report does not wait for it after them. A module that fails to
+    import is left to the report."""
     import importlib
-    names = (("torquemod.sweep.trainreport",) if kind == "train" else
-             ("torquemod.sweep.report", "torquemod.sweep.evaluate",
-              "torquemod.twins.vtrack.theory", "torquemod.analysis.contact.polach"))
-    for name in (*names, "matplotlib.backends.backend_agg"):
+    names = (("torquemod.sweep.trainreport", "matplotlib.backends.backend_agg")
+             if kind == "train" else ("torquemod.sweep.report",))
+    if drawing and kind != "train":
+        names += ("torquemod.sweep.evaluate", "torquemod.sweep.figures",
+                  "torquemod.twins.vtrack.theory", "torquemod.analysis.contact.polach",
+                  "matplotlib.backends.backend_agg")
+    for name in names:
         try:
             importlib.import_module(name)
         except Exception:  # the report imports it again and says why
@@ -514,14 +558,16 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
             raise InputError(f"the output folder holds the sweep's input {given}", path=out,
                              hint="choose an --out outside the folder of the sweep file and "
                                   "its base")
-    closing: list = []  # the local cluster closing in a thread while the report is drawn
+    closing: list = []  # the local cluster closing in a thread
     try:
-        with output_lock(out):  # one sweep at a time writes OUT (a second one fails at once)
+        # one sweep at a time writes OUT (a second one fails at once); the cluster's client
+        # stays open (``stack``) until the report's figures are drawn on its workers
+        with output_lock(out), contextlib.ExitStack() as stack:
             return _run_locked(spec, out, t0, in_process=in_process, scheduler=scheduler,
                                n_workers=n_workers, force=force, progress=progress,
                                report=report, on_dashboard=on_dashboard,
                                connect_timeout_s=connect_timeout_s, on_start=on_start,
-                               closing=closing)
+                               closing=closing, stack=stack)
     finally:
         for thread in closing:
             thread.join()
@@ -529,19 +575,19 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
 
 def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler, n_workers,
                 force, progress, report, on_dashboard, connect_timeout_s,
-                on_start, closing: list) -> SweepResult:
+                on_start, closing: list, stack) -> SweepResult:
     todo = tasks(spec)
     begin = one_study(out, spec, todo, force)
     if on_start is not None:
         on_start()
     with removed_if_left_empty(out):
         try:
-            rows, link = _evaluate_all(todo, out, in_process=in_process, scheduler=scheduler,
-                                       n_workers=n_workers, force=force, progress=progress,
-                                       on_dashboard=on_dashboard, begin=begin,
-                                       connect_timeout_s=connect_timeout_s, closing=closing,
-                                       tail=(lambda: _import_report_modules(spec.kind))
-                                       if report else None)
+            rows, link, client = _evaluate_all(
+                todo, out, in_process=in_process, scheduler=scheduler, n_workers=n_workers,
+                force=force, progress=progress, on_dashboard=on_dashboard, begin=begin,
+                connect_timeout_s=connect_timeout_s, closing=closing, stack=stack,
+                tail=(lambda: _import_report_modules(spec.kind, drawing=scheduler is not None))
+                if report else None, warm=report and spec.kind == "rig")
         finally:  # the twin's experiments, also of points cut short by an interrupt
             shutil.rmtree(out / "_work", ignore_errors=True)
     system = [r["message"] for r in rows if r.pop("system", False)]
@@ -592,6 +638,8 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
                "recommendation": rec,
                "agreement": agreement(table_view) if not table.empty else None}
         if report and not table.empty:
+            if client is not None and spec.kind == "rig":  # on the workers, side by side
+                shared["draw"] = _draw_on(client)
             write_report(w.path, table_view, spec, rec, status=status, failures=failures,
                          wall_s=wall, **shared)
             report_path = out / "report.html"
