@@ -238,7 +238,7 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
                   n_workers, force: bool, progress: bool, on_dashboard, begin,
                   connect_timeout_s: float = CONNECT_TIMEOUT_S,
                   closing: list | None = None, tail=None, stack=None,
-                  warm: bool = False) -> tuple[list, str, object]:
+                  warm: bool = False, cluster=None) -> tuple[list, str, object]:
     """Every point's status row, the dashboard's address and the local cluster's client
     (None without one) for drawing the report's figures (``begin()`` creates the output
     when the work can start).
@@ -249,7 +249,9 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
     ``closing``, joined by the caller). ``tail()`` runs in a thread once fewer batches are
     left than worker slots (a core the workers no longer use), and is waited for before
     this returns; ``warm`` then also gives each worker the drawing code's imports
-    (:func:`~torquemod.sweep.figurejobs.import_drawing`) to run once it has no point left."""
+    (:func:`~torquemod.sweep.figurejobs.import_drawing`) to run once it has no point left.
+    ``cluster``: the local cluster already starting (:class:`~torquemod._util.daskutil.
+    EarlyCluster`), used when points are left to run."""
     from tqdm import tqdm
     rows, links = [], []
     if not in_process:
@@ -276,7 +278,7 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
 
     client = stack.enter_context(dask_client(
         scheduler, n_workers, dashboard, connect_timeout_s=connect_timeout_s,
-        closing=closing, worker_modules=WORKER_MODULES))
+        closing=closing, worker_modules=WORKER_MODULES, started=cluster))
     begin()  # once the cluster answers
     bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
     slots = sum(client.nthreads().values()) or 1
@@ -494,7 +496,8 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
               in_process: bool = False, scheduler: str | None = None,
               n_workers: int | None = None, force: bool = False, progress: bool = False,
               report: bool = True, on_dashboard=None,
-              connect_timeout_s: float = CONNECT_TIMEOUT_S, on_start=None) -> SweepResult:
+              connect_timeout_s: float = CONNECT_TIMEOUT_S, on_start=None,
+              cluster=None) -> SweepResult:
     """Run a sweep into a results folder.
 
     Points run as Dask tasks: on the scheduler at ``scheduler``, else on a local cluster of
@@ -527,6 +530,10 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
     on_start : callable or None
         Called once the inputs and the output folder are checked, before the cluster starts
         (:func:`plan_line` says what is about to run).
+    cluster : torquemod._util.daskutil.EarlyCluster or None
+        A local cluster of ``n_workers`` already starting (the command starts it before
+        its own imports when every point will run), used instead of a new one when points
+        are left to run; else left to the caller to close. Default None.
 
     Returns
     -------
@@ -567,7 +574,8 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
                                n_workers=n_workers, force=force, progress=progress,
                                report=report, on_dashboard=on_dashboard,
                                connect_timeout_s=connect_timeout_s, on_start=on_start,
-                               closing=closing, stack=stack)
+                               closing=closing, stack=stack,
+                               cluster=None if in_process or scheduler else cluster)
     finally:
         for thread in closing:
             thread.join()
@@ -575,7 +583,7 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
 
 def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler, n_workers,
                 force, progress, report, on_dashboard, connect_timeout_s,
-                on_start, closing: list, stack) -> SweepResult:
+                on_start, closing: list, stack, cluster) -> SweepResult:
     todo = tasks(spec)
     begin = one_study(out, spec, todo, force)
     if on_start is not None:
@@ -587,7 +595,7 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
                 force=force, progress=progress, on_dashboard=on_dashboard, begin=begin,
                 connect_timeout_s=connect_timeout_s, closing=closing, stack=stack,
                 tail=(lambda: _import_report_modules(spec.kind, drawing=scheduler is not None))
-                if report else None, warm=report and spec.kind == "rig")
+                if report else None, warm=report and spec.kind == "rig", cluster=cluster)
         finally:  # the twin's experiments, also of points cut short by an interrupt
             shutil.rmtree(out / "_work", ignore_errors=True)
     system = [r["message"] for r in rows if r.pop("system", False)]
