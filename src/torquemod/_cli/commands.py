@@ -283,22 +283,29 @@ SWEEP_WORKER_MODULES = ("torquemod.sweep.workerpreload",)
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from torquemod._util.daskutil import EarlyCluster, check_cluster, forking_available
+    from torquemod._util.daskutil import (
+        EarlyCluster,
+        check_cluster,
+        forking_available,
+        start_worker_server,
+    )
     out = Path(args.out)
     fresh = not out.exists() or (out.is_dir() and not any(out.iterdir()))
-    early = None
-    if check_cluster(args.scheduler, args.workers, args.connect_timeout) is None and fresh \
-            and forking_available():
-        # a new output folder: every point runs, on a local cluster that starts now, its
-        # workers forked from a server that imports what they need, on another core while
-        # this process imports and reads the sweep (in a folder with finished points the
-        # cluster, if any is needed, starts later)
-        early = EarlyCluster(args.workers, SWEEP_WORKER_MODULES)
+    local = check_cluster(args.scheduler, args.workers, args.connect_timeout) is None
+    if local and fresh:
+        # a new output folder: every point runs, on a local cluster whose workers fork from
+        # a server that imports what they need meanwhile, on another core while this
+        # process imports and reads the sweep (in a folder with finished points the
+        # cluster, if any is needed, starts the server itself)
+        start_worker_server(SWEEP_WORKER_MODULES)
+    from torquemod.sweep.run import plan_line, run_sweep
+    from torquemod.sweep.spec import MAX_POINTS, load_sweep
+    spec = load_sweep(args.sweep, max_points=None if args.yes else args.max_points or MAX_POINTS)
+    # the sweep file is sound: the cluster starts in a thread while the output folder and
+    # the points are checked (and waits for the server's imports there, not here)
+    early = (EarlyCluster(args.workers, SWEEP_WORKER_MODULES)
+             if local and fresh and forking_available() else None)
     try:
-        from torquemod.sweep.run import plan_line, run_sweep
-        from torquemod.sweep.spec import MAX_POINTS, load_sweep
-        spec = load_sweep(args.sweep,
-                          max_points=None if args.yes else args.max_points or MAX_POINTS)
         say = stage_printer(args)
         res = run_sweep(spec, Path(args.out), scheduler=args.scheduler, on_start=say and (
                             lambda: say(plan_line(spec, args.out, n_workers=args.workers,
@@ -308,7 +315,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                         on_dashboard=lambda link: print(f"dashboard: {link}",
                                                         file=sys.stderr, flush=True))
     finally:
-        if early is not None:  # not needed after all (a refused input): closed here
+        if early is not None:  # not used after all (a refused output folder): closed here
             early.close()
     print(f"{res.status.shape[0]} points: {res.count('done')} run, {res.count('skipped')} "
           f"unchanged (skipped), {res.count('failed')} failed in {res.wall_s:.1f} s")

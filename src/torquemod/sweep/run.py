@@ -25,7 +25,6 @@ from __future__ import annotations
 import contextlib
 import csv
 import json
-import os
 import shutil
 import threading
 import time
@@ -46,12 +45,13 @@ from torquemod.errors import InputError, OutputError, TorquemodError
 from torquemod.results import resume
 from torquemod.results.writer import write_folder
 from torquemod.sweep.evaluate import PointTask, evaluate_point, tasks
-from torquemod.sweep.schedule import point_batches
+from torquemod.sweep.schedule import plan_line, point_batches
 from torquemod.sweep.spec import SweepSpec, load_sweep
 from torquemod.sweep.state import (  # noqa: F401  (fingerprint: the sweep's API, here as before)
     digests,
     fingerprint,
     one_study,
+    partition_path,
     study_key,
     sweep_provenance,
 )
@@ -66,10 +66,6 @@ FAILURE_COLUMNS = ["point_id", "point_index", "seed", "params", "message"]
 #: from a fork server that imported these (:func:`torquemod._util.daskutil.
 #: start_worker_server`; ``torquemod sweep`` starts it before its own imports)
 WORKER_MODULES = ("torquemod.sweep.workerpreload",)
-
-
-def _part(out: Path, point_id: str) -> Path:
-    return out / "points" / f"point={point_id}" / "part-0.parquet"
 
 
 def _write_parquet(df: pd.DataFrame, path: Path, metadata: dict | None = None) -> None:
@@ -117,7 +113,7 @@ def _decision(task: PointTask, out: Path, force: bool):
     record or None)."""
     digest, params_digest, inputs_digest = digests(task)
     old = resume.read_record(out, task.point_id)
-    decision = resume.decide(old, digest, outputs_ok=_part(out, task.point_id).is_file(),
+    decision = resume.decide(old, digest, outputs_ok=partition_path(out, task.point_id).is_file(),
                              force=force, parameters_digest=params_digest,
                              inputs_digest=inputs_digest)
     return (digest, params_digest, inputs_digest), decision, old
@@ -166,7 +162,7 @@ def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
     out = Path(out_dir)
     row = {"point_id": task.point_id, "point_index": task.index, "seed": task.seed,
            "status": "failed", "n_rows": 0, "message": ""}
-    part = _part(out, task.point_id)
+    part = partition_path(out, task.point_id)
     try:
         (digest, params_digest, inputs_digest), decision, old = _decision(task, out, force)
         if not decision.redo:
@@ -397,7 +393,7 @@ def _lost(batch: list[PointTask], out: Path, why: str, since: float = 0.0,
             written = resume.record_path(out, t.point_id).stat().st_mtime
         except OSError:
             written = 0.0
-        if _part(out, t.point_id).is_file() and rec is not None \
+        if partition_path(out, t.point_id).is_file() and rec is not None \
                 and rec.fingerprint == fingerprint(t):
             status = "done" if written >= since else None if force else "skipped"
             if status is not None:
@@ -405,61 +401,6 @@ def _lost(batch: list[PointTask], out: Path, why: str, since: float = 0.0,
                            seconds=float(rec.extra.get("seconds", float("nan"))))
         rows.append(row)
     return rows
-
-
-#: rough seconds a point takes on one worker of a 2-core machine under load (theory: docs;
-#: a full rig point of the default procedure and a train point of the default 4 km run are
-#: larger, measured once with ``torquemod sweep``); a resumed sweep uses its own points' times
-POINT_SECONDS = {("rig", "theory"): 0.5, ("rig", "full"): 5.0, ("train", "full"): 120.0}
-
-
-def plan_line(spec: SweepSpec, out: str | Path, *, n_workers: int | None = None,
-              scheduler: str | None = None) -> str:
-    """What the sweep is about to do, said before it starts.
-
-    Parameters
-    ----------
-    spec : SweepSpec
-        The sweep.
-    out : str or pathlib.Path
-        The output folder (points already done there are counted).
-    n_workers : int or None
-        Local workers; None: the CPU count.
-    scheduler : str or None
-        A scheduler's address, when the points run there.
-
-    Returns
-    -------
-    str
-        The points (to run, finished) and a rough time on the workers.
-    """
-    out = Path(out)
-    done, seconds = 0, []
-    for p in spec.points:
-        rec = resume.read_record(out, p.point_id)
-        if rec is None:
-            continue
-        done += _part(out, p.point_id).is_file()
-        if isinstance(rec.extra.get("seconds"), int | float):
-            seconds.append(float(rec.extra["seconds"]))
-    per = (sorted(seconds)[len(seconds) // 2] if seconds
-           else POINT_SECONDS.get((spec.kind, spec.mode), 60.0))
-    workers = n_workers or (None if scheduler else os.cpu_count() or 1)
-    todo = len(spec.points) - done
-    total = todo * per / (workers or 1)
-    where = f"{workers} worker{'s' if workers != 1 else ''}" if workers else "the cluster"
-    when = (f"about {_duration(total)} on {where}" if workers
-            else f"about {_duration(todo * per)} of worker time")
-    return (f"sweep: {len(spec.points)} points ({todo} to run, {done} finished); {when} "
-            f"(~{per:.3g} s a point{'' if seconds else ', a rough guess'})")
-
-
-def _duration(seconds: float) -> str:
-    if seconds < 120:
-        return f"{seconds:.0f} s"
-    if seconds < 7200:
-        return f"{seconds / 60:.0f} min"
-    return f"{seconds / 3600:.1f} h"
 
 
 def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
@@ -483,7 +424,7 @@ def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
     """
     order = {p.point_id: p.index for p in spec.points}
     ok = status.loc[status["status"].isin(["done", "skipped"]), "point_id"]
-    frames = [pd.read_parquet(_part(out, pid)) for pid in ok]
+    frames = [pd.read_parquet(partition_path(out, pid)) for pid in ok]
     if not frames:
         return pd.DataFrame()
     table = pd.concat(frames, ignore_index=True)
