@@ -15,6 +15,7 @@ files in a temporary folder that is removed at the end.
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import os
 import signal
 import threading
@@ -314,8 +315,12 @@ class EarlyCluster:
         self._client = None
         self._error: BaseException | None = None
         self._closed = False
+        # the start and the close run in one context (a client entered as a context
+        # manager sets a context variable that must be reset in the context it was set in)
+        self._context = contextvars.copy_context()
         start_worker_server(worker_modules)
-        self._thread = threading.Thread(target=self._start, args=(tuple(worker_modules),),
+        self._thread = threading.Thread(target=self._context.run,
+                                        args=(self._start, tuple(worker_modules)),
                                         name="torquemod-dask-start", daemon=True)
         self._thread.start()
 
@@ -344,7 +349,7 @@ class EarlyCluster:
         self._closed = True
         self._thread.join()
         with _sigint_ignored():
-            self._stack.close()
+            self._context.run(self._stack.close)
         if closing is not None:
             closing.extend(self._closing)
         else:
