@@ -243,10 +243,10 @@ def test_the_report_imports_run_beside_the_last_batch(tmp_path, monkeypatch):
     the table is assembled; without a report nothing is started."""
     import threading
 
+    import torquemod.sweep.finish as finish_mod
     import torquemod.sweep.report as report_mod
-    import torquemod.sweep.run as run_mod
     calls = []
-    monkeypatch.setattr(run_mod, "_import_report_modules",
+    monkeypatch.setattr(finish_mod, "import_report_modules",
                         lambda kind, drawing=True: calls.append(
                             (kind, threading.current_thread().name)))
     monkeypatch.setattr(report_mod, "write_report", lambda *a, **k: calls.append("report"))
@@ -265,10 +265,10 @@ def test_the_figures_drawn_on_the_workers_are_those_drawn_here(tmp_path, theory_
     files, byte for byte, and the same page but its run time as the in-process sweep's."""
     import re
 
-    import torquemod.sweep.run as run_mod
+    import torquemod.sweep.finish as finish_mod
     out0, spec, _ = theory_sweep
     drawn, warmed, states = [], [], []
-    draw_on, warm = run_mod._draw_on, run_mod._warm_workers
+    draw_on, warm = finish_mod.draw_on, finish_mod.warm_workers
 
     def counted(client):
         inner = draw_on(client)
@@ -280,8 +280,8 @@ def test_the_figures_drawn_on_the_workers_are_those_drawn_here(tmp_path, theory_
             return pngs
         return draw
 
-    monkeypatch.setattr(run_mod, "_draw_on", counted)
-    monkeypatch.setattr(run_mod, "_warm_workers",
+    monkeypatch.setattr(finish_mod, "draw_on", counted)
+    monkeypatch.setattr(finish_mod, "warm_workers",
                         lambda client: warmed.extend(warm(client)) or list(warmed))
     out = tmp_path / "dask"
     res = run_sweep(spec, out, n_workers=2)

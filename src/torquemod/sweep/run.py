@@ -44,6 +44,7 @@ from torquemod._version import __version__
 from torquemod.errors import InputError, OutputError, TorquemodError
 from torquemod.results import resume
 from torquemod.results.writer import write_folder
+from torquemod.sweep import finish
 from torquemod.sweep.evaluate import PointTask, evaluate_point, tasks
 from torquemod.sweep.schedule import plan_line, point_batches
 from torquemod.sweep.spec import SweepSpec, load_sweep
@@ -234,7 +235,8 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
                   n_workers, force: bool, progress: bool, on_dashboard, begin,
                   connect_timeout_s: float = CONNECT_TIMEOUT_S,
                   closing: list | None = None, tail=None, stack=None,
-                  warm: bool = False, cluster=None) -> tuple[list, str, object]:
+                  warm: bool = False, cluster=None,
+                  frames: dict | None = None) -> tuple[list, str, object]:
     """Every point's status row, the dashboard's address and the local cluster's client
     (None without one) for drawing the report's figures (``begin()`` creates the output
     when the work can start).
@@ -245,9 +247,11 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
     ``closing``, joined by the caller). ``tail()`` runs in a thread once fewer batches are
     left than worker slots (a core the workers no longer use), and is waited for before
     this returns; ``warm`` then also gives each worker the drawing code's imports
-    (:func:`~torquemod.sweep.figurejobs.import_drawing`) to run once it has no point left.
+    (:func:`~torquemod.sweep.finish.warm_workers`) to run once it has no point left.
     ``cluster``: the local cluster already starting (:class:`~torquemod._util.daskutil.
-    EarlyCluster`), used when points are left to run."""
+    EarlyCluster`), used when points are left to run. ``frames`` receives the partitions
+    of the points a batch finished, read while the other batches run (for
+    :func:`assemble`)."""
     from tqdm import tqdm
     rows, links = [], []
     if not in_process:
@@ -286,14 +290,17 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
     try:
         for fut in as_completed(futures):
             try:
-                rows.extend(fut.result())
+                done = fut.result()
             except Exception as exc:  # the worker died (memory, a kill): points failed
-                rows.extend(_lost(futures[fut], out, _one_line(exc), since, force))
+                done = _lost(futures[fut], out, _one_line(exc), since, force)
+            rows.extend(done)
+            if frames is not None:
+                finish.read_parts(done, out, frames)
             bar.update(len(futures[fut]))
             left -= 1
             if tail is not None and helper is None and 0 < left < slots:
                 if warm and scheduler is None:  # kept until the figures are drawn
-                    stack.callback(list.clear, _warm_workers(client))
+                    stack.callback(list.clear, finish.warm_workers(client))
                 helper = threading.Thread(target=tail, name="torquemod-sweep-tail",
                                           daemon=True)
                 helper.start()
@@ -302,56 +309,6 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
             helper.join()
     bar.close()
     return rows, (links[0] if links else None), (client if scheduler is None else None)
-
-
-def _warm_workers(client) -> list:
-    """Each worker imports the report's drawing code once its points are done: a task of
-    lower priority than the points, bound to it. Returns the futures (a released future's
-    task would be dropped)."""
-    from torquemod.sweep.figurejobs import import_drawing
-    return [client.submit(import_drawing, workers=[address], allow_other_workers=False,
-                          priority=-1, pure=False, key=f"torquemod-warm-{k}-{time.time_ns()}")
-            for k, address in enumerate(client.scheduler_info()["workers"])]
-
-
-def _draw_on(client):
-    """``draw(jobs)`` for :func:`~torquemod.sweep.report.write_report`: the figures drawn
-    and encoded as tasks on the sweep's workers, side by side (the dearest handed out
-    first); a figure whose task fails (a lost worker) is drawn here (a figure's own error
-    is then raised here)."""
-    def draw(jobs: list) -> list:
-        from torquemod.sweep.figurejobs import draw_png
-        order = sorted(range(len(jobs)), key=lambda i: -jobs[i].cost)
-        futures = {i: client.submit(draw_png, jobs[i], pure=False,
-                                    key=f"torquemod-figure-{jobs[i].stem}-{time.time_ns()}")
-                   for i in order}
-        pngs = []
-        for i, job in enumerate(jobs):
-            try:
-                pngs.append(futures[i].result())
-            except Exception:
-                pngs.append(draw_png(job))
-        return pngs
-    return draw
-
-
-def _import_report_modules(kind: str, drawing: bool = True) -> None:
-    """Import what the report will need (the page; with ``drawing`` also matplotlib's
-    canvas, the figures, the twin's theory for the creep curves): run while the last points
-    finish, so that the report does not wait for it after them. A module that fails to
-    import is left to the report."""
-    import importlib
-    names = (("torquemod.sweep.trainreport", "matplotlib.backends.backend_agg")
-             if kind == "train" else ("torquemod.sweep.report",))
-    if drawing and kind != "train":
-        names += ("torquemod.sweep.evaluate", "torquemod.sweep.figures",
-                  "torquemod.twins.vtrack.theory", "torquemod.analysis.contact.polach",
-                  "matplotlib.backends.backend_agg")
-    for name in names:
-        try:
-            importlib.import_module(name)
-        except Exception:  # the report imports it again and says why
-            return
 
 
 def run_points(batch: list[PointTask], out_dir: str, force: bool = False) -> list[dict]:
@@ -403,7 +360,8 @@ def _lost(batch: list[PointTask], out: Path, why: str, since: float = 0.0,
     return rows
 
 
-def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
+def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame,
+             frames: dict | None = None) -> pd.DataFrame:
     """The sweep table from the partitions of the points that are done.
 
     This spec's points only; stale partitions of an earlier spec are left alone.
@@ -416,6 +374,9 @@ def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
         The sweep.
     status : pandas.DataFrame
         The points' status.
+    frames : dict or None
+        Partitions already read (point id -> table, as read here), e.g. while the
+        other points ran. Default None.
 
     Returns
     -------
@@ -424,7 +385,9 @@ def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
     """
     order = {p.point_id: p.index for p in spec.points}
     ok = status.loc[status["status"].isin(["done", "skipped"]), "point_id"]
-    frames = [pd.read_parquet(partition_path(out, pid)) for pid in ok]
+    read = frames or {}
+    frames = [read[pid] if pid in read else pd.read_parquet(partition_path(out, pid))
+              for pid in ok]
     if not frames:
         return pd.DataFrame()
     table = pd.concat(frames, ignore_index=True)
@@ -529,14 +492,17 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
     begin = one_study(out, spec, todo, force)
     if on_start is not None:
         on_start()
+    parts: dict = {}  # the points' partitions, read as their batches finish
     with removed_if_left_empty(out):
         try:
             rows, link, client = _evaluate_all(
                 todo, out, in_process=in_process, scheduler=scheduler, n_workers=n_workers,
                 force=force, progress=progress, on_dashboard=on_dashboard, begin=begin,
                 connect_timeout_s=connect_timeout_s, closing=closing, stack=stack,
-                tail=(lambda: _import_report_modules(spec.kind, drawing=scheduler is not None))
-                if report else None, warm=report and spec.kind == "rig", cluster=cluster)
+                tail=(lambda: finish.import_report_modules(spec.kind,
+                                                         drawing=scheduler is not None))
+                if report else None, warm=report and spec.kind == "rig", cluster=cluster,
+                frames=parts)
         finally:  # the twin's experiments, also of points cut short by an interrupt
             shutil.rmtree(out / "_work", ignore_errors=True)
     system = [r["message"] for r in rows if r.pop("system", False)]
@@ -544,7 +510,7 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
         raise OutputError(system[0] if system[0].startswith(str(out)) else
                           f"{out}: {system[0]}")
     status = pd.DataFrame(rows).sort_values("point_index", ignore_index=True)
-    table = assemble(out, spec, status)
+    table = assemble(out, spec, status, frames=parts)
     params = {p.point_id: json.dumps(p.params, sort_keys=True, default=str)
               for p in spec.points}
     failed = status.loc[status["status"] == "failed"]
@@ -588,7 +554,7 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
                "agreement": agreement(table_view) if not table.empty else None}
         if report and not table.empty:
             if client is not None and spec.kind == "rig":  # on the workers, side by side
-                shared["draw"] = _draw_on(client)
+                shared["draw"] = finish.draw_on(client)
             write_report(w.path, table_view, spec, rec, status=status, failures=failures,
                          wall_s=wall, **shared)
             report_path = out / "report.html"
