@@ -3,9 +3,12 @@
 Runs the command in this process (its arguments after ``--``) with its stages wrapped, and
 prints, as each stage starts and ends, the wall time since the start and this process's
 CPU (the command, the Dask scheduler and the nannies; not the workers): the sweep file,
-the points' decision, the cluster's start, the first and last result, assembling the
-table, the recommendation, the Parquet, the report; at the end the CPU of the workers
-(children). Run on a finished folder, it times a rerun whose points are all skipped.
+the points' decision, the cluster's start (in a thread from the end of the sweep file on
+when the output folder is new: "early"; joined when the points are submitted), the first
+and last result, assembling the table, the recommendation, the Parquet, the report and
+its figures (drawn on the workers when there is a local cluster); at the end the CPU of
+the workers (children). Run on a finished folder, it times a rerun whose points are all
+skipped.
 
     python benchmarks/sweep_phases.py -- examples/sweep_vtrack_conditions.toml --out OUT \
         --workers 2 --quiet
@@ -58,13 +61,33 @@ def main(argv: list[str]) -> None:
 
     @contextlib.contextmanager
     def client(*a, **k):
-        stamp("> cluster start")
+        what = ("cluster joined (started early)" if k.get("started") is not None else
+                "cluster start (early, in a thread)" if "started" not in k else
+                "cluster start")
+        stamp(f"> {what}")
         with client_of(*a, **k) as c:
-            stamp("< cluster start")
+            stamp(f"< {what}")
             yield c
             stamp("> cluster close (in a thread when the caller passes `closing`)")
         stamp("< cluster close")
     daskutil.dask_client = client
+    try:
+        import torquemod.sweep.finish as finish
+        draw_on = finish.draw_on
+
+        def timed_draw_on(c):
+            draw = draw_on(c)
+
+            def timed(jobs):
+                stamp(f"> {len(jobs)} figures drawn on the workers")
+                try:
+                    return draw(jobs)
+                finally:
+                    stamp("< figures drawn on the workers")
+            return timed
+        finish.draw_on = timed_draw_on
+    except ImportError:  # an older checkout draws them in the command
+        pass
     completed = dd.as_completed
 
     def results(futures):

@@ -261,26 +261,28 @@ def test_the_report_imports_run_beside_the_last_batch(tmp_path, monkeypatch):
 def test_the_figures_drawn_on_the_workers_are_those_drawn_here(tmp_path, theory_sweep,
                                                                 monkeypatch):
     """On a local cluster the report's figures are drawn as tasks on its workers (after
-    the workers imported the drawing code, once their points were done): the same PNG
-    files, byte for byte, and the same page but its run time as the in-process sweep's."""
+    the workers imported the drawing code, once their points were done; those drawn from
+    the table alone submitted first): the same PNG files, byte for byte, and the same page
+    but its run time as the in-process sweep's."""
     import re
 
     import torquemod.sweep.finish as finish_mod
     out0, spec, _ = theory_sweep
-    drawn, warmed, states = [], [], []
-    draw_on, warm = finish_mod.draw_on, finish_mod.warm_workers
+    drawn, early, warmed, states = [], [], [], []
+    warm = finish_mod.warm_workers
 
-    def counted(client):
-        inner = draw_on(client)
+    class Counted(finish_mod.FigureDrawer):
+        def submit(self, jobs):
+            early.extend(j.stem for j in jobs)
+            return super().submit(jobs)
 
-        def draw(jobs):
+        def __call__(self, jobs):
             drawn.extend(j.stem for j in jobs)
-            pngs = inner(jobs)
+            pngs = super().__call__(jobs)
             states.extend(f.status for f in warmed)  # the imports: none failed
             return pngs
-        return draw
 
-    monkeypatch.setattr(finish_mod, "draw_on", counted)
+    monkeypatch.setattr(finish_mod, "draw_on", Counted)
     monkeypatch.setattr(finish_mod, "warm_workers",
                         lambda client: warmed.extend(warm(client)) or list(warmed))
     out = tmp_path / "dask"
@@ -289,6 +291,8 @@ def test_the_figures_drawn_on_the_workers_are_those_drawn_here(tmp_path, theory_
     assert len(warmed) == 2 and set(states) <= {"pending", "finished"} and states
     files = sorted(p.name for p in (out0 / "figures").glob("*.png"))
     assert sorted(f"{s}.png" for s in drawn) == files and len(files) >= 4
+    # those of the table alone were handed out before the summary was worked out
+    assert early[:3] == ["phase_by_condition", "phase_by_frequency", "creep_curves"]
     for name in files:
         assert (out / "figures" / name).read_bytes() == (out0 / "figures" / name).read_bytes()
 

@@ -22,7 +22,8 @@ from torquemod.sweep.conditions import CONDITION_COLUMN, condition_labels
 from torquemod.sweep.spec import SweepSpec
 from torquemod.sweep.summary import BAND, SETTING, point_summary, setting_table
 
-__all__ = ["FigureJob", "creep_curves", "draw_png", "figure_jobs", "make_figures"]
+__all__ = ["FigureJob", "creep_curves", "draw_png", "figure_jobs", "make_figures",
+           "table_jobs"]
 
 FREQ, AMP = SETTING
 
@@ -233,9 +234,10 @@ def _disturbance(settings: pd.DataFrame, limits: dict):
     return disturbance_figure(settings, limits)
 
 
-def figure_jobs(tab: pd.DataFrame, spec: SweepSpec, rec: dict, *,
-                summary: pd.DataFrame | None = None) -> list[FigureJob]:
-    """Every figure of the sweep's report, in the report's order, not yet drawn.
+def table_jobs(tab: pd.DataFrame, spec: SweepSpec) -> list[FigureJob]:
+    """The report's figures drawn from the table alone (the phase against utilisation per
+    condition and per frequency, the creep curves), in the report's order: they can be
+    drawn while the point summary and the recommendation are worked out.
 
     Parameters
     ----------
@@ -243,11 +245,6 @@ def figure_jobs(tab: pd.DataFrame, spec: SweepSpec, rec: dict, *,
         The sweep table (``sweep.parquet``).
     spec : SweepSpec
         The sweep's specification.
-    rec : dict
-        The recommendation (:func:`torquemod.sweep.summary.recommend`).
-    summary : pandas.DataFrame or None
-        :func:`~torquemod.sweep.summary.point_summary` of ``tab`` when the caller has it.
-        Default None (computed here).
 
     Returns
     -------
@@ -255,7 +252,6 @@ def figure_jobs(tab: pd.DataFrame, spec: SweepSpec, rec: dict, *,
         The figures; the creep curves' job draws nothing (None) when no condition has a
         curve.
     """
-    summary = point_summary(tab, spec) if summary is None else summary
     tab = tab.assign(**{CONDITION_COLUMN: condition_labels(tab, spec.swept)})
     conds = list(dict.fromkeys(tab[CONDITION_COLUMN]))
     amp, seed = tab[AMP].iloc[0], tab["seed"].iloc[0]
@@ -292,7 +288,36 @@ def figure_jobs(tab: pd.DataFrame, spec: SweepSpec, rec: dict, *,
         "points of the torque steps" + (", with the chain's measured points per modulation "
                                         "frequency" if spec.mode == "full" else "") + ".",
         _creep, (ref, spec)))
-    if summary[FREQ].nunique() > 1 or len(conds) > 1:
+    return out
+
+
+def figure_jobs(tab: pd.DataFrame, spec: SweepSpec, rec: dict, *,
+                summary: pd.DataFrame | None = None) -> list[FigureJob]:
+    """Every figure of the sweep's report, in the report's order, not yet drawn: those of
+    :func:`table_jobs`, then those of the point summary.
+
+    Parameters
+    ----------
+    tab : pandas.DataFrame
+        The sweep table (``sweep.parquet``).
+    spec : SweepSpec
+        The sweep's specification.
+    rec : dict
+        The recommendation (:func:`torquemod.sweep.summary.recommend`).
+    summary : pandas.DataFrame or None
+        :func:`~torquemod.sweep.summary.point_summary` of ``tab`` when the caller has it.
+        Default None (computed here).
+
+    Returns
+    -------
+    list of FigureJob
+        The figures; the creep curves' job draws nothing (None) when no condition has a
+        curve.
+    """
+    summary = point_summary(tab, spec) if summary is None else summary
+    out = table_jobs(tab, spec)
+    several = len(set(condition_labels(tab, spec.swept))) > 1
+    if summary[FREQ].nunique() > 1 or several:
         out.append(FigureJob(
             "sensitivity",
             f"Sensitivity dφ/du of the phase to the utilisation over "

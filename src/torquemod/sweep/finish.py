@@ -13,7 +13,7 @@ import pandas as pd
 
 from torquemod.sweep.state import partition_path
 
-__all__ = ["draw_on", "import_report_modules", "read_parts", "warm_workers"]
+__all__ = ["FigureDrawer", "draw_on", "import_report_modules", "read_parts", "warm_workers"]
 
 
 def read_parts(rows: list[dict], out: Path, frames: dict) -> None:
@@ -61,12 +61,68 @@ def warm_workers(client) -> list:
             for k, address in enumerate(client.scheduler_info()["workers"])]
 
 
-def draw_on(client):
+class FigureDrawer:
     """The report's figures drawn and encoded as tasks on the sweep's workers, side by
     side (the dearest handed out first).
 
+    :meth:`submit` hands jobs to the workers at once (those drawn from the table alone
+    while the point summary is worked out); calling it with every job of the report
+    returns their PNG bytes, the jobs submitted before (by file stem) not submitted again.
     A figure whose task fails (a lost worker) is drawn here instead (a figure's own error
     is then raised here, as without workers).
+
+    Parameters
+    ----------
+    client : dask.distributed.Client
+        The sweep's client (its cluster still open).
+    """
+
+    def __init__(self, client) -> None:
+        self.client = client
+        self._futures: dict = {}
+
+    def submit(self, jobs: list) -> None:
+        """Hand ``jobs`` (:class:`~torquemod.sweep.figurejobs.FigureJob`) to the workers,
+        the dearest first; a stem already submitted is left as it is.
+
+        Parameters
+        ----------
+        jobs : list of FigureJob
+            The figures.
+        """
+        from torquemod.sweep.figurejobs import draw_png
+        for job in sorted(jobs, key=lambda j: -j.cost):
+            if job.stem not in self._futures:
+                self._futures[job.stem] = self.client.submit(
+                    draw_png, job, pure=False,
+                    key=f"torquemod-figure-{job.stem}-{time.time_ns()}")
+
+    def __call__(self, jobs: list) -> list:
+        """``draw(jobs)`` for :func:`~torquemod.sweep.report.write_report`.
+
+        Parameters
+        ----------
+        jobs : list of FigureJob
+            Every figure of the report.
+
+        Returns
+        -------
+        list
+            The PNG bytes (or None: nothing to draw) of each job, in their order.
+        """
+        from torquemod.sweep.figurejobs import draw_png
+        self.submit(jobs)
+        pngs = []
+        for job in jobs:
+            try:
+                pngs.append(self._futures.pop(job.stem).result())
+            except Exception:
+                pngs.append(draw_png(job))
+        return pngs
+
+
+def draw_on(client) -> FigureDrawer:
+    """The report's figures drawn on the sweep's workers (:class:`FigureDrawer`).
 
     Parameters
     ----------
@@ -75,24 +131,11 @@ def draw_on(client):
 
     Returns
     -------
-    callable
-        ``draw(jobs)`` for :func:`~torquemod.sweep.report.write_report`: the PNG bytes
-        (or None) of each :class:`~torquemod.sweep.figurejobs.FigureJob`, in their order.
+    FigureDrawer
+        ``draw(jobs)`` for :func:`~torquemod.sweep.report.write_report`, whose
+        ``submit(jobs)`` starts figures early.
     """
-    def draw(jobs: list) -> list:
-        from torquemod.sweep.figurejobs import draw_png
-        order = sorted(range(len(jobs)), key=lambda i: -jobs[i].cost)
-        futures = {i: client.submit(draw_png, jobs[i], pure=False,
-                                    key=f"torquemod-figure-{jobs[i].stem}-{time.time_ns()}")
-                   for i in order}
-        pngs = []
-        for i, job in enumerate(jobs):
-            try:
-                pngs.append(futures[i].result())
-            except Exception:
-                pngs.append(draw_png(job))
-        return pngs
-    return draw
+    return FigureDrawer(client)
 
 
 def import_report_modules(kind: str, drawing: bool = True) -> None:

@@ -526,6 +526,13 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
     # comes back from Parquet as an array, which cannot be grouped; they see it as text
     table_view = _hashable_params(table, spec.swept)
     shared = {}  # the point summary, computed once for the recommendation and the report
+    drawn = {}  # on a local cluster the report's figures are drawn on its workers
+    if report and client is not None and spec.kind == "rig" and not table.empty:
+        # those of the table alone start now, while the summary and the recommendation
+        # are worked out here
+        from torquemod.sweep.figurejobs import table_jobs
+        drawn["draw"] = finish.draw_on(client)
+        drawn["draw"].submit(table_jobs(table_view, spec))
     if spec.kind == "train":
         from torquemod.sweep.trainreport import recommend_train as recommend
         from torquemod.sweep.trainreport import write_train_report as write_report
@@ -553,10 +560,8 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
                "recommendation": rec,
                "agreement": agreement(table_view) if not table.empty else None}
         if report and not table.empty:
-            if client is not None and spec.kind == "rig":  # on the workers, side by side
-                shared["draw"] = finish.draw_on(client)
             write_report(w.path, table_view, spec, rec, status=status, failures=failures,
-                         wall_s=wall, **shared)
+                         wall_s=wall, **shared, **drawn)
             report_path = out / "report.html"
         (w.path / "sweep.json").write_text(dump_json(doc), encoding="utf-8")
     return SweepResult(out, table, status, failures, rec, report_path, link,
