@@ -73,19 +73,19 @@ def main(argv: list[str]) -> None:
     daskutil.dask_client = client
     try:
         import torquemod.sweep.finish as finish
-        draw_on = finish.draw_on
 
-        def timed_draw_on(c):
-            draw = draw_on(c)
+        class TimedDrawer(finish.FigureDrawer):
+            def submit(self, jobs):
+                stamp(f"{len(jobs)} figures handed to the workers")
+                return super().submit(jobs)
 
-            def timed(jobs):
+            def __call__(self, jobs):
                 stamp(f"> {len(jobs)} figures drawn on the workers")
                 try:
-                    return draw(jobs)
+                    return super().__call__(jobs)
                 finally:
                     stamp("< figures drawn on the workers")
-            return timed
-        finish.draw_on = timed_draw_on
+        finish.draw_on = TimedDrawer
     except ImportError:  # an older checkout draws them in the command
         pass
     completed = dd.as_completed
