@@ -126,6 +126,9 @@ def _unchanged(todo: list[PointTask], out: Path, force: bool) -> tuple[list[dict
     rows, run = [], []
     for task in todo:
         t0 = time.perf_counter()
+        if force or not resume.record_path(out, task.point_id).is_file():
+            run.append(task)  # runs whatever its digests (a new folder: none computed)
+            continue
         try:
             _digests, decision, old = _decision(task, out, force)
         except Exception:  # run_point says what is wrong with the point
