@@ -139,10 +139,16 @@ def report_alone(sweep: str, out: Path) -> None:
                 else {})
     rec = rep.recommend(table, spec, **shared(rep.recommend))
     mark("table, point summary, recommendation")
-    figs = rep.make_figures(table, spec, rec, **shared(rep.make_figures))
-    mark(f"{len(figs)} figures drawn")
-    pngs = [(stem, rep._png(fig), caption) for stem, fig, caption in figs]
-    mark("their PNGs")
+    if hasattr(rep, "figure_jobs"):  # each figure drawn and encoded by its job
+        jobs = rep.figure_jobs(table, spec, rec, **shared(rep.figure_jobs))
+        mark("the figures' jobs")
+        pngs = [(job.stem, rep.draw_png(job), job.caption) for job in jobs]
+        mark(f"{len(pngs)} figures drawn and encoded")
+    else:  # an older checkout (--src): drawn, then encoded
+        figs = rep.make_figures(table, spec, rec, **shared(rep.make_figures))
+        mark(f"{len(figs)} figures drawn")
+        pngs = [(stem, rep._png(fig), caption) for stem, fig, caption in figs]
+        mark("their PNGs")
     rep.render(table, spec, rec, pngs, **shared(rep.render))
     mark("the page")
     load = os.getloadavg()[0]
