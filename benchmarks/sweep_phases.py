@@ -21,6 +21,7 @@ import functools
 import os
 import resource
 import sys
+import threading
 import time
 
 
@@ -61,8 +62,9 @@ def main(argv: list[str]) -> None:
 
     @contextlib.contextmanager
     def client(*a, **k):
-        what = ("cluster joined (started early)" if k.get("started") is not None else
-                "cluster start (early, in a thread)" if "started" not in k else
+        early = threading.current_thread().name == "torquemod-dask-start"
+        what = ("cluster start (early, in a thread)" if early else
+                "cluster joined (started early)" if k.get("started") is not None else
                 "cluster start")
         stamp(f"> {what}")
         with client_of(*a, **k) as c:
