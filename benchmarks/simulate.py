@@ -43,7 +43,10 @@ theory; "The twin toward 1000x": the platform loop taken exactly, the sensors in
 passes, skipped steps after a slip: batch 749-789x -> 821-863x, 854-880x -> 865-944x
 without the large-signal theory; "The twin's recorded step": 16 samples instead of 12, from
 the measured discretisation error, batch 836-868x -> 919-969x, 921-951x -> 1064-1102x
-without the theory). ``--samples-per-step N`` runs the batch at another recorded step.
+without the theory; "The twin's batch past 1000x": the large-signal theory's Newton steps
+by the Jacobian's Schur complement and its operators per rig, the truth's fit sums and
+moments in one vectorised sweep, batch 909-975x -> 1060-1107x, 1101-1172x without the
+theory). ``--samples-per-step N`` runs the batch at another recorded step.
 
 Measured, fifth round of issue 12 (the same 2-core VM, load average 0.1-1.2 from other
 agents; "before" = commit 472e5c0 from an exported copy, before and after alternated in 3
@@ -230,10 +233,10 @@ from torquemod.twins.vtrack.theory import operating_point
 
 def cold_theory() -> None:
     """Forget the theory's remembered creep-curve peaks, operating points, large-signal
-    results and FFT of the identity, so that every timed run computes them as a fresh
-    process does (theory.py memoises them per rig)."""
+    results, FFT of the identity and collocation operators, so that every timed run
+    computes them as a fresh process does (theory.py memoises them per rig)."""
     for name in ("_creep_curve_peak_memo", "_operating_point_memo", "_large_signal_memo",
-                 "_eye_spectrum"):  # (an older checkout, run with its PYTHONPATH, lacks some)
+                 "_eye_spectrum", "_operators_memo"):  # (an older checkout lacks some)
         if hasattr(_theory, name):
             getattr(_theory, name).cache_clear()
 

@@ -95,6 +95,28 @@ load 2.5-2.8): chain 3.84-3.88 -> 3.50-3.65 ms, the rest 2.84-2.96 -> 2.59-2.65 
 decimator pass 3.85-4.32x -> 3.65-3.92x; the phase within 8.4e-11 deg (step 1's peaks, the
 creepage fit, steps 3-5, the peak/valley phase and the sine fit each one compiled call;
 docs/performance.md, "The rest in fewer compiled calls").
+
+Eighth round, ``--ratio-only`` (main 1545cac then this version, interleaved four times,
+load 3.8-4.0; the round between, numpy's own BLAS in the phase-defining fits, is in
+docs/performance.md):
+
+===================================  ==============  ==============
+two_stage chain, one cycle           before          after
+===================================  ==============  ==============
+decimation pass (resample_rows)      0.87-1.05 ms    0.91-0.99 ms
+chain, steps 1-8 and the phase       2.93-3.54 ms    2.86-3.05 ms
+the rest after the decimation        2.06-2.49 ms    1.95-2.12 ms
+of which the slow-band decision      0.058-0.061 ms  0.025-0.026 ms
+chain / decimator pass               3.32-3.67x      2.98-3.29x
+===================================  ==============  ==============
+
+The phase bit for bit, its standard error within 8.4e-13 relative (benchmarks/
+chain_numbers.py; the golden test unchanged): filters of order 2 and 4 with their state in
+registers, step 1's spectral bins by Goertzel's recurrence instead of the FFT, the
+slow-band decision and the noise statistic from bases made once per length or by step 1
+(docs/performance.md, "The rest near its floor"). 1.5x is not reached: of the rest (~1.8
+ms in benchmarks/chain_split.py) 1.2 ms is compiled code and library routines, ~1.0 ms of
+it the fits whose rounding is the phase.
 """
 
 from __future__ import annotations
@@ -202,7 +224,11 @@ def chain_throughput(repeat: int = 7) -> None:
     per_length = [getattr(mod, name) for mod, name in (
         (filters, "_slow_basis_cached"), (spectrum, "_window"), (spectrum, "_trend_design"),
         (spectrum, "_grid"), (speedmodel, "_hann"), (speedmodel, "_hann_fourier"),
-        (speedmodel, "_centred_time"), (sys.modules["torquemod.dsp.phase"], "_frequencies"))
+        (speedmodel, "_centred_time"), (sys.modules["torquemod.dsp.phase"], "_frequencies"),
+        (speedmodel, "_modulation_columns_cached"),
+        (sys.modules["torquemod.dsp.basis"], "_wide_band_maps"),
+        (sys.modules["torquemod.dsp.basis"], "_wide_band_design"),
+        (sys.modules.get("torquemod.processing.trackedorders", chain), "_slow_and_base"))
         if hasattr(mod, name)]
 
     def cold() -> None:  # every cycle of a new length: the per-length caches miss

@@ -151,6 +151,9 @@ def test_noise_kept_is_the_svds(spec):
     # measured within 1e-12 relative of the SVD on the chain's cycles (condition ~1e6);
     # the normal equations' route was 2-6e-5 off. Bound 1e-10
     assert m.noise_depletion() == pytest.approx(ref, rel=1e-10)
+    # the chain's value, from step 1's basis of the slow part and orders
+    # (dsp.projection.powers_in_span): measured within 2e-12 of the route above
+    assert c.extra["noise_kept"] == pytest.approx(ref, rel=1e-10)
 
 
 @pytest.mark.parametrize("spec", [SyntheticSpec(seed=5, speed_wobble=(), speed_wobble_rev=()),

@@ -37,6 +37,19 @@ def test_zero_phase_cascade_is_filtfilt_in_sequence_bit_for_bit():
                                   signal.filtfilt(*bas[0], rows[0], padlen=0))
 
 
+@pytest.mark.parametrize("n_rows", [1, 2, 3])
+def test_zero_phase_cascade_of_every_order_and_row_count_is_filtfilt(n_rows):
+    # orders 2 and 4 take the kernel with the state in registers, two rows at a time (an
+    # odd row count leaves one alone); orders 1 and 3 the general loop
+    bas = [signal.butter(1, 3.0, fs=FS), signal.butter(3, [1.5, 2.5], "bandpass", fs=FS),
+           filters.design_notch(4.6, 3.0, FS), filters.design_bandpass(2.03, 0.36, 2, FS)]
+    rows = np.vstack([_record(700, 10 + i) for i in range(n_rows)])
+    for ba in bas:
+        got = filters.zero_phase_cascade([ba], rows)
+        for i in range(n_rows):
+            np.testing.assert_array_equal(got[i], signal.filtfilt(*ba, rows[i], padlen=0))
+
+
 @pytest.mark.parametrize("method", ["two_stage", "polyphase"])
 def test_resample_rows_is_resample_of_the_stack_bit_for_bit(method):
     n = 40_000

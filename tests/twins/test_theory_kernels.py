@@ -31,8 +31,10 @@ def _polach(c: np.ndarray) -> dict:
     return dict(zip(keys, c[7:].tolist(), strict=True))
 
 
-def newton_reference(x, amp, dc, sine, lin_w, p_op, platform, n, c, rtol, max_iter):
-    """theory.py's Newton loop before the fifth round (numpy, vectorised Polach force)."""
+def newton_reference(x, amp, dc, sine, lin_w, p_op, pl, platform, n, c, rtol, max_iter):
+    """theory.py's Newton loop before the fifth round (numpy, vectorised Polach force), on
+    the whole ``2n x 2n`` Jacobian (``pl``, which the compiled loop's Schur complement
+    uses, is not read)."""
     rw, rp, n0, wref, v0 = c[C_RW], c[C_RP], c[C_N0], c[C_WREF], c[C_V0]
     kw = _polach(c)
 
@@ -184,3 +186,29 @@ def test_dense_solve_two_pivots_per_pass_is_one_at_a_time():
         got, ref = _dense_solve(a, b), _solve_one_pivot_at_a_time(a, b)
         assert np.array_equal(got, ref, equal_nan=True), trial
         assert np.array_equal(np.signbit(got), np.signbit(ref)), trial
+
+
+@pytest.mark.parametrize("platform", [True, False])
+def test_newton_step_is_the_whole_jacobian_solve(platform):
+    """The Newton step through the n x n Schur complement (the platform rows plus P/R_w
+    times the wheel rows lose the force) against numpy's solve of the whole Jacobian, for
+    arbitrary (non-circulant) L and P with PL = P @ L: rounding only (1e-10 relative)."""
+    from torquemod.twins.vtrack.theory_kernels import _newton_step
+
+    rng = np.random.default_rng(21)
+    n, rw = 24, 0.0675
+    lin_w = rng.standard_normal((n, n)) + 4.0 * np.eye(n)
+    p_op = 0.1 * rng.standard_normal((n, n))
+    fu, fw = rng.uniform(1e3, 1e4, n), -rng.uniform(1e2, 1e3, n)
+    r = rng.standard_normal(2 * n if platform else n)
+    c = np.zeros(theory_kernels.N_CONST)
+    c[C_RW] = rw
+    got = _newton_step(r, lin_w, p_op, p_op @ lin_w, platform, n, c, fu, fw,
+                       np.empty((n, n)))
+    if platform:
+        jac = np.block([[lin_w + rw * np.diag(fu), rw * np.diag(fw)],
+                        [-p_op * fu[None, :], np.eye(n) - p_op * fw[None, :]]])
+    else:
+        jac = lin_w + rw * np.diag(fu)
+    ref = np.linalg.solve(jac, -r)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-10 * np.abs(ref).max())

@@ -137,7 +137,7 @@ def test_partition_moments_add_in_order(cols, std_cols):
 
 
 def test_fit_sums_add_row_by_row():
-    """The fit's sums taken four rows per load of each sum (_add_rows4) are exactly those of
+    """The fit's sums taken eight rows per load of each sum (_add_rows8) are exactly those of
     one row at a time in row order, piece by piece between window edges (plain Python over
     the kernel's own basis; pieces of 3, 4, 5 and 130 rows cover the remainder loop)."""
     from torquemod.twins.vtrack.rig.truth import _FIT_COLS, _fit_sums
@@ -174,3 +174,43 @@ def test_fit_sums_add_row_by_row():
         np.testing.assert_array_equal(np.triu(gram[j]), np.triu(g_ref))
         np.testing.assert_array_equal(gram[j], gram[j].T)
         np.testing.assert_array_equal(rhs[j], r_ref)
+
+
+@pytest.mark.parametrize(("n_rows", "edges"), [(9001, [0, 2999, 6010, 9001]),
+                                               (4103, [5, 2048, 2049, 4100])])
+def test_step_sums_are_the_fit_sums_and_moments(n_rows, edges):
+    """The one-sweep kernel (blocks of 256 fit rows; the moments' parts, the fit's pieces
+    and the blocks' edges falling anywhere, the basis's resync inside the sweep) gives
+    exactly the fit's sums, speed reference and moments of the separate kernels."""
+    from torquemod.twins.vtrack.rig.truth import (
+        _FIT_COLS,
+        _MEAN_COLS,
+        _STD_COLS,
+        _fit_sums,
+        _partition_moments,
+        step_sums,
+    )
+
+    stride, fs, t0 = 8, 16670.0, 7.75
+    wob, raw, rng = _fit_inputs(11, n_rows, fs, t0, spread=3.0, offset=0.1)
+    n_fit = (n_rows + stride - 1) // stride
+    third = n_fit // 3
+    lo = np.array([0, 0, third + 3, 2 * third + 5])
+    hi = np.array([n_fit - 3, third - 7, 2 * third - 1, n_fit - 1])
+    m = 3 + 2 * wob.shape[0]
+    coef = rng.standard_normal(m - 3)
+    w = 2 * np.pi * 3.0011
+    edges = np.array(edges)
+    out = {}
+    for name in ("apart", "fused"):
+        gram, rhs, ref = np.empty((4, m, m)), np.empty((4, m, 2)), np.empty(n_fit)
+        mean, std = np.empty((4, _MEAN_COLS.size)), np.empty((4, _STD_COLS.size))
+        args = (raw, t0, fs, stride, w, wob, coef, _FIT_COLS, lo, hi, gram, rhs, ref)
+        if name == "apart":
+            _fit_sums(*args)
+            _partition_moments(raw, edges, _MEAN_COLS, mean, _STD_COLS, std)
+        else:
+            step_sums(*args, edges, _MEAN_COLS, _STD_COLS, mean, std)
+        out[name] = (gram, rhs, ref, mean, std)
+    for a, b in zip(out["apart"], out["fused"], strict=True):
+        np.testing.assert_array_equal(a, b)

@@ -13,6 +13,7 @@ import numpy as np
 from scipy.special import fdtri
 
 from torquemod.dsp.lstsq import LstsqFactor, lstsq
+from torquemod.dsp.projection import orthonormal_basis_t
 
 
 @functools.lru_cache(maxsize=64)
@@ -262,28 +263,137 @@ def needs_wide_band(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float
     """
     if platform is None:
         return True
+    stats = _wide_band_statistics(wheel, platform, fs_hz, modulation_hz, quiet_hz, wide_hz,
+                                  extra=extra, degree=degree)
+    if stats is None:
+        return True
+    f_stat, f_critical, risk = stats
+    return bool(f_stat > f_critical and risk > WIDE_BAND_RISK_RAD)
+
+
+def _wide_band_statistics(wheel: np.ndarray, platform: np.ndarray, fs_hz: float,
+                          modulation_hz: float, quiet_hz: float, wide_hz: float, *,
+                          extra: int, degree: int, maps: bool = True
+                          ) -> tuple[float, float, float] | None:
+    """:func:`needs_wide_band`'s F statistic [-], its critical value [-] and the risk [rad];
+    None where the test cannot be made (no degrees of freedom, a zero mean speed or no
+    wheel modulation: the wide band). ``maps=False``: each fit by its own refined solve
+    instead of the cached coefficient maps (the same fits, other rounding: ~1e-12
+    relative, tests/dsp/test_wide_band.py)."""
     n = wheel.size
-    y = np.column_stack([wheel, platform])
-    fits = []
-    for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
-        # the design depends on the record's length and the configuration only: made and
-        # factored once for every cycle of that length (the same numbers as each time)
-        design, fac = _wide_band_design(int(n), float(fs_hz), float(modulation_hz),
-                                        float(band), int(ext), int(degree))
-        coef, rank = (fac.solve(y), design.shape[1]) if fac is not None else lstsq(design, y)
-        resid = platform - design @ coef[:, 1]
-        fits.append((float(resid @ resid), rank, coef[:2]))
-    (rss_q, rank_q, coef_q), (rss_w, rank_w, coef_w) = fits
+    key = (int(n), float(fs_hz), float(modulation_hz), int(degree))
+    cached = _wide_band_maps(*key, float(quiet_hz), float(wide_hz), int(extra)) \
+        if maps and degree >= 0 else None  # (degree >= 0: the designs hold the constant)
+    if cached is not None:
+        # both fits from the designs' orthonormal bases and the modulation's rows of their
+        # pseudo-inverses (made once per record length), of the records less their means
+        # (both designs hold the constant: the same fits): one product gives Q'p of both
+        # bases and the platform's modulation in both fits, two more the residuals
+        maps, q_q, q_w, wheel_mod = cached
+        p_q, p_w = q_q.shape[1], q_w.shape[1]
+        sums = _wide_band_sums(maps, q_q, q_w, wheel_mod,
+                               np.ascontiguousarray(wheel, dtype=np.float64),
+                               np.ascontiguousarray(platform, dtype=np.float64))
+        rss_q, rss_w = float(sums[0]), float(sums[1])
+        rank_q, rank_w = p_q, p_w
+        plat_q, plat_w, coef_w0 = sums[2:4], sums[4:6], sums[6:8]
+    else:
+        y = np.column_stack([wheel, platform])
+        fits = []
+        for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
+            design, fac = _wide_band_design(*key[:3], float(band), int(ext), int(degree))
+            coef, rank = (fac.solve(y), design.shape[1]) if fac is not None \
+                else lstsq(design, y)
+            resid = platform - design @ coef[:, 1]
+            fits.append((float(resid @ resid), rank, coef[:2]))
+        (rss_q, rank_q, coef_q), (rss_w, rank_w, coef_w) = fits
+        plat_q, plat_w, coef_w0 = coef_q[:, 1], coef_w[:, 1], coef_w[:, 0]
     dfn, dfd = rank_w - rank_q, n - rank_w
     w_mean = float(wheel.sum()) / wheel.size  # np.mean's numbers, cheaper
     p_mean = float(platform.sum()) / platform.size
-    wheel_rel = float(np.hypot(*coef_w[:, 0])) / abs(w_mean) if w_mean else 0.0
+    wheel_rel = float(np.hypot(coef_w0[0], coef_w0[1])) / abs(w_mean) if w_mean else 0.0
     if dfn <= 0 or dfd <= 0 or not (p_mean and wheel_rel > 0):
-        return True
+        return None
     f_stat = (rss_q - rss_w) / dfn / max(rss_w / dfd, 1e-300)
-    risk = float(np.hypot(*(coef_q[:, 1] - coef_w[:, 1]))) / abs(p_mean) / wheel_rel
-    return bool(f_stat > fdtri(dfn, dfd, 1.0 - WIDE_BAND_FALSE_ALARM)
-                and risk > WIDE_BAND_RISK_RAD)
+    d_plat = plat_q - plat_w
+    risk = float(np.hypot(d_plat[0], d_plat[1])) / abs(p_mean) / wheel_rel
+    return f_stat, _f_critical(dfn, dfd), risk
+
+
+@numba.njit(cache=True, nogil=True)
+def _wide_band_sums(maps: np.ndarray, q_q: np.ndarray, q_w: np.ndarray, wheel_mod: np.ndarray,
+                    wheel: np.ndarray, platform: np.ndarray) -> np.ndarray:
+    """:func:`_wide_band_statistics`' fits from :func:`_wide_band_maps`' arrays in one call:
+    ``[rss_q, rss_w, c_q (2), c_w (2), wheel's c_w (2)]``, the platform's residual sums of
+    squares and modulation coefficients in both fits and the wheel's in the wide one, all
+    of the records less their means (plain loops)."""
+    n = platform.size
+    p_q, p_w = q_q.shape[1], q_w.shape[1]
+    p_mean = 0.0
+    w_mean = 0.0
+    for t in range(n):
+        p_mean += platform[t]
+        w_mean += wheel[t]
+    p_mean /= n
+    w_mean /= n
+    pl = platform - p_mean
+    proj = np.zeros(maps.shape[0])
+    for i in range(maps.shape[0]):
+        acc = 0.0
+        for t in range(n):
+            acc += maps[i, t] * pl[t]
+        proj[i] = acc
+    out = np.zeros(8)
+    for t in range(n):
+        fit_q = 0.0
+        for i in range(p_q):
+            fit_q += q_q[t, i] * proj[i]
+        fit_w = 0.0
+        for i in range(p_w):
+            fit_w += q_w[t, i] * proj[p_q + i]
+        out[0] += (pl[t] - fit_q) ** 2
+        out[1] += (pl[t] - fit_w) ** 2
+        out[6] += wheel_mod[0, t] * (wheel[t] - w_mean)
+        out[7] += wheel_mod[1, t] * (wheel[t] - w_mean)
+    out[2:6] = proj[p_q + p_w:p_q + p_w + 4]
+    return out
+
+
+@functools.lru_cache(maxsize=64)
+def _f_critical(dfn: int, dfd: int) -> float:
+    """The F distribution's upper :data:`WIDE_BAND_FALSE_ALARM` point for ``dfn`` and
+    ``dfd`` degrees of freedom [-] (``scipy.special.fdtri``), cached."""
+    return float(fdtri(dfn, dfd, 1.0 - WIDE_BAND_FALSE_ALARM))
+
+
+@functools.lru_cache(maxsize=16)
+def _wide_band_maps(n: int, fs_hz: float, modulation_hz: float, degree: int, quiet_hz: float,
+                    wide_hz: float, extra: int
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """For the two designs of :func:`needs_wide_band` (quiet band without extra sequences,
+    wide band with ``extra``): ``[Q_q'; Q_w'; W_q; W_w]`` (``(p_q + p_w + 4, n)``), ``Q_q``
+    and ``Q_w`` (C order) and ``W_w`` again. Q is an orthonormal basis of a design D
+    (CholeskyQR2 from its factor, :func:`~torquemod.dsp.projection.orthonormal_basis_t`)
+    and W the modulation's two rows of D's pseudo-inverse ``(Q'D)^-1 Q'``: ``W x`` is the
+    modulation's least-squares coefficients of a record x, ``x - Q Q'x`` its residual.
+    None when either design has no factor or basis (the refined solves' route). Cached,
+    read-only: the designs depend on the record's length and the configuration only."""
+    qs, ws = [], []
+    for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
+        design, fac = _wide_band_design(n, fs_hz, modulation_hz, band, ext, degree)
+        qt = orthonormal_basis_t(fac, compiled=True) if fac is not None else None
+        if qt is None:
+            return None
+        qs.append(qt)
+        # the first two rows of (Q'D)^-1 Q': (Q'D)' z_i = e_i, W = [z_0 z_1]' Q'
+        z = np.linalg.solve((qt @ design).T, np.eye(design.shape[1], 2))
+        ws.append(z.T @ qt)
+    maps = np.ascontiguousarray(np.vstack([*qs, *ws]))
+    q_q, q_w = (np.ascontiguousarray(qt.T) for qt in qs)
+    wheel_mod = np.ascontiguousarray(ws[1])
+    for a in (maps, q_q, q_w, wheel_mod):
+        a.setflags(write=False)
+    return maps, q_q, q_w, wheel_mod
 
 
 @functools.lru_cache(maxsize=32)

@@ -265,6 +265,10 @@ def _filtfilt_rows(b: np.ndarray, a: np.ndarray, zi: np.ndarray, x: np.ndarray) 
     independent, so the processor overlaps them."""
     n_rows, n = x.shape
     m = b.size - 1
+    if m == 2 or m == 4:  # second and fourth order: the state in registers (the same
+        for r in range(0, n_rows, 2):  # operations in the same order), two rows at a time
+            _filtfilt_pair(b, a, zi, x, r, min(r + 1, n_rows - 1))
+        return
     z = np.empty((n_rows, m))
     for direction in range(2):
         first = 0 if direction == 0 else n - 1
@@ -280,6 +284,109 @@ def _filtfilt_rows(b: np.ndarray, a: np.ndarray, zi: np.ndarray, x: np.ndarray) 
                     z[r, i] = z[r, i + 1] + xn * b[i + 1] - yn * a[i + 1]
                 z[r, m - 1] = xn * b[m] - yn * a[m]
                 x[r, j] = yn
+
+
+@numba.njit(cache=True, nogil=True)
+def _filtfilt_pair(b: np.ndarray, a: np.ndarray, zi: np.ndarray, x: np.ndarray, r: int,
+                   s: int) -> None:
+    """:func:`_filtfilt_rows` of rows ``r`` and ``s`` of ``x`` (one row when ``r == s``) for
+    a filter of order 2 or 4 (``b.size`` 3 or 5), the state as scalars (registers, not
+    memory) and both recursions in one loop: each sample's operations and their order are
+    those of :func:`_filtfilt_rows`, so the same bits."""
+    n = x.shape[1]
+    two = s != r
+    fourth = b.size == 5
+    b0, b1, b2 = b[0], b[1], b[2]
+    a1, a2 = a[1], a[2]
+    b3 = b[3] if fourth else 0.0
+    b4 = b[4] if fourth else 0.0
+    a3 = a[3] if fourth else 0.0
+    a4 = a[4] if fourth else 0.0
+    xr, xs = x[r], x[s]
+    for direction in range(2):
+        first = 0 if direction == 0 else n - 1
+        step = 1 if direction == 0 else -1
+        u0, u1 = zi[0] * xr[first], zi[1] * xr[first]
+        v0, v1 = zi[0] * xs[first], zi[1] * xs[first]
+        u2 = zi[2] * xr[first] if fourth else 0.0
+        u3 = zi[3] * xr[first] if fourth else 0.0
+        v2 = zi[2] * xs[first] if fourth else 0.0
+        v3 = zi[3] * xs[first] if fourth else 0.0
+        j = first
+        if fourth:
+            for _ in range(n):
+                xn = xr[j]
+                yn = u0 + b0 * xn
+                u0 = u1 + xn * b1 - yn * a1
+                u1 = u2 + xn * b2 - yn * a2
+                u2 = u3 + xn * b3 - yn * a3
+                u3 = xn * b4 - yn * a4
+                xr[j] = yn
+                if two:
+                    xm = xs[j]
+                    ym = v0 + b0 * xm
+                    v0 = v1 + xm * b1 - ym * a1
+                    v1 = v2 + xm * b2 - ym * a2
+                    v2 = v3 + xm * b3 - ym * a3
+                    v3 = xm * b4 - ym * a4
+                    xs[j] = ym
+                j += step
+        else:
+            for _ in range(n):
+                xn = xr[j]
+                yn = u0 + b0 * xn
+                u0 = u1 + xn * b1 - yn * a1
+                u1 = xn * b2 - yn * a2
+                xr[j] = yn
+                if two:
+                    xm = xs[j]
+                    ym = v0 + b0 * xm
+                    v0 = v1 + xm * b1 - ym * a1
+                    v1 = xm * b2 - ym * a2
+                    xs[j] = ym
+                j += step
+
+
+@numba.njit(cache=True, nogil=True)
+def _response_samples(b: np.ndarray, a: np.ndarray, z: np.ndarray, h: np.ndarray, start: int,
+                      stop: int) -> None:
+    """Samples ``start:stop`` of the impulse response of ``b/a`` into ``h``, from and to the
+    state ``z`` (:func:`_filtfilt_rows`'s operations; orders 2 and 4 with the state as
+    scalars: the same bits)."""
+    m = b.size - 1
+    if m == 2 or m == 4:
+        fourth = m == 4
+        z0, z1 = z[0], z[1]
+        z2 = z[2] if fourth else 0.0
+        z3 = z[3] if fourth else 0.0
+        b0, b1, b2, a1, a2 = b[0], b[1], b[2], a[1], a[2]
+        b3 = b[3] if fourth else 0.0
+        b4 = b[4] if fourth else 0.0
+        a3 = a[3] if fourth else 0.0
+        a4 = a[4] if fourth else 0.0
+        for k in range(start, stop):
+            xn = 1.0 if k == 0 else 0.0
+            yn = z0 + b0 * xn
+            if fourth:
+                z0 = z1 + xn * b1 - yn * a1
+                z1 = z2 + xn * b2 - yn * a2
+                z2 = z3 + xn * b3 - yn * a3
+                z3 = xn * b4 - yn * a4
+            else:
+                z0 = z1 + xn * b1 - yn * a1
+                z1 = xn * b2 - yn * a2
+            h[k] = yn
+        z[0], z[1] = z0, z1
+        if fourth:
+            z[2], z[3] = z2, z3
+        return
+    for k in range(start, stop):
+        xn = 1.0 if k == 0 else 0.0
+        yn = z[0] + b[0] * xn
+        for i in range(m - 1):
+            z[i] = z[i + 1] + xn * b[i + 1] - yn * a[i + 1]
+        z[m - 1] = xn * b[m] - yn * a[m]
+        h[k] = yn
 
 
 def _steady_state(b: np.ndarray, a: np.ndarray) -> np.ndarray:
@@ -425,13 +532,7 @@ def _settling_kernel(b: np.ndarray, a: np.ndarray, tol: float, max_samples: int)
             grown = np.empty(min(max_samples, 4 * n))
             grown[:done] = h[:done]
             h = grown
-        for k in range(done, n):  # the response's first n samples
-            xn = 1.0 if k == 0 else 0.0
-            yn = z[0] + b[0] * xn
-            for i in range(m - 1):
-                z[i] = z[i + 1] + xn * b[i + 1] - yn * a[i + 1]
-            z[m - 1] = xn * b[m] - yn * a[m]
-            h[k] = yn
+        _response_samples(b, a, z, h, done, n)  # the response's first n samples
         done = n
         peak = 0.0
         for k in range(n):

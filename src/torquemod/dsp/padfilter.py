@@ -133,7 +133,8 @@ def _pad_and_filter(rows: np.ndarray, dn: np.ndarray, factor: np.ndarray, scale:
     ``LstsqFactor.solve`` for a contiguous record), the tones over the padded times by
     :func:`~torquemod.dsp.tonemodel._fill_cos_sin`, each filter by
     :func:`~torquemod.dsp.filters._filtfilt_rows` from the steady state of
-    :func:`~torquemod.dsp.filters._steady_state_solve` (``lfilter_zi``'s numbers):
+    :func:`~torquemod.dsp.filters._steady_state_solve` (``lfilter_zi``'s numbers; the
+    second- and fourth-order ones with their state in registers, two rows at a time):
     ``(padded, levels, both_filtered)``."""
     n_rows, n = rows.shape
     total = n + 2 * pad

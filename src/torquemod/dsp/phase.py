@@ -217,10 +217,10 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
     resolution = fs_hz / n
     keep = tuple(f for f in nuisance_hz if abs(f - f_mod_hz) > resolution)
     design = _design(n, fs_hz, f_mod_hz, keep, trend)
-    y = np.column_stack([torque[start:stop], wheel[start:stop]])
+    records = [torque, wheel]
     if noise_from is not None:  # the four records in one solve
-        y = np.column_stack([y, np.asarray(noise_from[0])[start:stop],
-                             np.asarray(noise_from[1])[start:stop]])
+        records += [np.asarray(noise_from[0]), np.asarray(noise_from[1])]
+    y = np.column_stack([r[start:stop] for r in records])
     status, coef, psds = (5, None, None) if n < 8 or y.dtype != np.float64 else \
         _sine_fit(np.ascontiguousarray(design), y, float(fs_hz), float(f_mod_hz),
                   *_dft_table(n), *lapack_addresses())

@@ -107,6 +107,86 @@ def _forward_rows(r: np.ndarray, b: np.ndarray, out: np.ndarray) -> bool:
     return True
 
 
+def powers_in_span(qt_b: np.ndarray, m: np.ndarray, v: np.ndarray) -> np.ndarray | None:
+    """The power of each column of ``v`` in the span of a basis and further columns:
+    ``|Q'v_j|^2`` for Q an orthonormal basis of ``[B, M]``, given ``Q_B'`` of B.
+
+    ``|Q'v|^2 = |Q_B'v|^2 + b'(R'R)^-1 b`` with ``R = M - Q_B Q_B'M`` (one classical
+    Gram-Schmidt pass: R's share along Q_B, ~1e-16 of M, moves the power by as little
+    where M keeps a good part of its norm, which is what is asked) and ``b = R'v``: the
+    projection on ``[B, M]`` split into B's and that of M's part orthogonal to B
+    (Frisch-Waugh-Lovell), from the basis of B and a few small products instead of an
+    orthonormal basis of the whole design.
+
+    Parameters
+    ----------
+    qt_b : ndarray
+        ``Q_B'`` (``p x n``, rows orthonormal).
+    m : ndarray
+        ``(n, k)`` further columns, any unit.
+    v : ndarray
+        ``(n, j)`` vectors, any unit.
+
+    Returns
+    -------
+    ndarray or None
+        ``(j,)`` powers [``v``'s unit squared]; None when M's part orthogonal to B is
+        (nearly) rank deficient (a column of R keeps less than 1e-5 of its column of M's
+        norm, or a pivot of ``R'R``'s Cholesky factorisation falls below 1e-10 of its
+        diagonal element).
+    """
+    powers, ok = _powers_in_span(np.ascontiguousarray(qt_b, dtype=np.float64),
+                                 np.ascontiguousarray(m.T, dtype=np.float64),
+                                 np.ascontiguousarray(v, dtype=np.float64))
+    return powers if ok else None
+
+
+@numba.njit(cache=True, nogil=True)
+def _powers_in_span(qt_b: np.ndarray, mt: np.ndarray, v: np.ndarray
+                    ) -> tuple[np.ndarray, bool]:
+    """:func:`powers_in_span` with M given transposed (``k x n``), in one call: the products
+    by BLAS (``np.dot``), ``R'R``'s Cholesky factor and its two triangular solves by hand
+    (k is a few columns); ``(powers, ok)``."""
+    k, j = mt.shape[0], v.shape[1]
+    rt = mt - np.dot(np.dot(mt, qt_b.T), qt_b)
+    gram = np.dot(rt, rt.T)
+    for i in range(k):  # a column left with less than 1e-5 of its norm: (nearly) in B
+        norm2 = 0.0
+        for t in range(mt.shape[1]):
+            norm2 += mt[i, t] * mt[i, t]
+        if not gram[i, i] > 1e-10 * norm2:
+            return np.empty(0), False
+    low = np.zeros((k, k))  # gram = L L'
+    for i in range(k):
+        for c in range(i + 1):
+            acc = gram[i, c]
+            for q in range(c):
+                acc -= low[i, q] * low[c, q]
+            if i == c:
+                if not acc > 1e-10 * gram[i, i]:  # (and NaN)
+                    return np.empty(0), False
+                low[i, i] = math.sqrt(acc)
+            else:
+                low[i, c] = acc / low[c, c]
+    pb = np.dot(qt_b, v)
+    b = np.dot(rt, v)
+    powers = np.zeros(j)
+    y = np.empty(k)
+    for col in range(j):
+        for i in range(k):  # L y = b, then |y|^2 = b'(L L')^-1 b
+            acc = b[i, col]
+            for q in range(i):
+                acc -= low[i, q] * y[q]
+            y[i] = acc / low[i, i]
+        acc = 0.0
+        for i in range(pb.shape[0]):
+            acc += pb[i, col] * pb[i, col]
+        for i in range(k):
+            acc += y[i] * y[i]
+        powers[col] = acc
+    return powers, True
+
+
 def removal_at(m: np.ndarray, qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray
                ) -> np.ndarray | None:
     """Records less their projection on a basis and a tone: ``r_y + Q C c_M`` with

@@ -16,7 +16,8 @@ import numba
 import numpy as np
 from scipy import signal
 
-from torquemod.dsp.lstsq import LstsqFactor, lstsq
+from torquemod.dsp import numpyblas
+from torquemod.dsp.lstsq import _DPOTRS, LstsqFactor, _solve, lstsq
 from torquemod.dsp.tonemodel import tone_design
 from torquemod.errors import ProcessingError
 
@@ -227,16 +228,26 @@ def peak_frequencies(records: np.ndarray, fs_hz: float, *,
     w = _window(window, n)
     m = zero_pad * n
     nfft = 1 << (m - 1).bit_length()
-    wx = np.empty((x.shape[1], n))
-    for i in range(x.shape[1]):  # detrended and windowed (the compiled solve of a
-        col = np.ascontiguousarray(x[:, i])  # contiguous record: one kernel fewer to load)
-        np.multiply(col - design @ fac.solve(col), w, out=wx[i])
+    blas = numpyblas.addresses()
+    if blas is not None and design.flags.c_contiguous:
+        # detrended and windowed in one compiled call: the solve below and numpy's dgemv
+        # for the trend (numpyblas.matvec), the same numbers
+        wx = _detrended_windowed(x, fac.dn, np.asfortranarray(fac.factor), fac.scale, design,
+                                 w, blas[2], _DPOTRS)
+    else:
+        wx = np.empty((x.shape[1], n))
+        for i in range(x.shape[1]):  # detrended and windowed (the compiled solve of a
+            col = np.ascontiguousarray(x[:, i])  # contiguous record)
+            np.multiply(col - design @ fac.solve(col), w, out=wx[i])
     freqs, idx, wide = _grid(nfft, fs_hz, lo, hi, n)
     if idx.size >= 3:
-        spec = np.fft.rfft(wx, nfft, axis=1)
-        peaks, ok = _peaks_of_spectra(spec, freqs, idx, wide, 2.0 * fs_hz / n, wx,
-                                      float(fs_hz), float(xtol_hz), float(min_peak_to_floor),
-                                      500)
+        # the magnitudes of only the bins the checks read, by Goertzel's recurrence in the
+        # same compiled call (the FFT's values to rounding: the same bins chosen; the
+        # frequency itself is Brent's, from the record)
+        k_lo, k_hi = _bins_read(nfft, fs_hz, lo, hi, n)
+        peaks, ok = _peaks_of_records(wx, nfft, k_lo, k_hi, freqs, idx, wide,
+                                      2.0 * fs_hz / n, float(fs_hz), float(xtol_hz),
+                                      float(min_peak_to_floor), 500)
         if ok.all():
             return peaks.tolist()
     return [peak_frequency(np.ascontiguousarray(x[:, i]), fs_hz, **kw)
@@ -244,18 +255,81 @@ def peak_frequencies(records: np.ndarray, fs_hz: float, *,
 
 
 @numba.njit(cache=True, nogil=True)
-def _peaks_of_spectra(spec: np.ndarray, freqs: np.ndarray, idx: np.ndarray, wide: np.ndarray,
-                      lobe: float, wx: np.ndarray, fs_hz: float, xtol_hz: float,
-                      min_ratio: float, maxfun: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`peak_frequency`'s checks (:func:`_line_search` on each row's FFT magnitudes
-    ``|spec|``) and its refinement (:func:`_dtft_peak` of the windowed record ``wx``) for
-    each row: the frequencies [Hz] and whether each row passed the checks (NaN where not)."""
-    rows = spec.shape[0]
+def _detrended_windowed(x: np.ndarray, dn: np.ndarray, factor: np.ndarray, scale: np.ndarray,
+                        design: np.ndarray, w: np.ndarray, gemv: int, potrs: int
+                        ) -> np.ndarray:
+    """Each column of ``x`` less its least-squares fit on ``design`` (the compiled solve of
+    :meth:`~torquemod.dsp.lstsq.LstsqFactor.solve` of a contiguous record; the fit by
+    numpy's ``dgemv``, :func:`~torquemod.dsp.numpyblas.matvec`), times the window ``w``:
+    ``(k, n)`` rows, numpy's numbers."""
+    n, k = x.shape
+    out = np.empty((k, n))
+    for i in range(k):
+        col = np.ascontiguousarray(x[:, i])
+        fit = numpyblas.matvec(design, _solve(dn, factor, scale, col, potrs), gemv)
+        for t in range(n):
+            out[i, t] = (col[t] - fit[t]) * w[t]
+    return out
+
+
+@functools.lru_cache(maxsize=32)
+def _bins_read(nfft: int, fs_hz: float, lo: float, hi: float, n: int) -> tuple[int, int]:
+    """The first and last bin of an ``nfft``-point spectrum that :func:`_line_search` can
+    read for the band ``lo..hi`` [Hz] (:func:`_grid`): the floor's range and every bin
+    within two main lobes of a bin of the band; cached."""
+    freqs, idx, wide = _grid(nfft, fs_hz, lo, hi, n)
+    reach = 2.0 * (2.0 * fs_hz / n)  # 2*lobe [Hz]
+    near = np.flatnonzero((freqs >= freqs[idx[0]] - reach) & (freqs <= freqs[idx[-1]] + reach))
+    read = np.concatenate([near, np.flatnonzero(wide), idx])
+    return int(read.min()), int(read.max())
+
+
+@numba.njit(cache=True, nogil=True)
+def _band_magnitudes(x: np.ndarray, nfft: int, k_lo: int, k_hi: int, out: np.ndarray) -> None:
+    """``|X[k]|`` of the ``nfft``-point DFT of the zero-padded record ``x`` for the bins
+    ``k_lo..k_hi`` into ``out[k]``, by Goertzel's recurrence (``s_t = x_t + 2 cos(w) s_(t-1)
+    - s_(t-2)``, ``|X| = |s_(n-1) - exp(-iw) s_(n-2)|``, w = 2*pi*k/nfft), all bins advancing
+    together over the samples (they vectorise)."""
+    m = k_hi - k_lo + 1
+    coef = np.empty(m)
+    cw = np.empty(m)
+    sw = np.empty(m)
+    for b in range(m):
+        w = 2.0 * math.pi * (k_lo + b) / nfft
+        cw[b] = math.cos(w)
+        sw[b] = math.sin(w)
+        coef[b] = 2.0 * cw[b]
+    s1 = np.zeros(m)
+    s2 = np.zeros(m)
+    for t in range(x.size):
+        xt = x[t]
+        for b in range(m):
+            s0 = xt + coef[b] * s1[b] - s2[b]
+            s2[b] = s1[b]
+            s1[b] = s0
+    for b in range(m):
+        re = s1[b] - cw[b] * s2[b]
+        im = sw[b] * s2[b]
+        out[k_lo + b] = math.sqrt(re * re + im * im)
+
+
+@numba.njit(cache=True, nogil=True)
+def _peaks_of_records(wx: np.ndarray, nfft: int, k_lo: int, k_hi: int, freqs: np.ndarray,
+                      idx: np.ndarray, wide: np.ndarray, lobe: float, fs_hz: float,
+                      xtol_hz: float, min_ratio: float, maxfun: int
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`peak_frequency`'s checks (:func:`_line_search` on the magnitudes of each
+    row's ``nfft``-point spectrum, by :func:`_band_magnitudes` over the bins the checks
+    read: zeros elsewhere, never read) and its refinement (:func:`_dtft_peak` of the
+    windowed record) for each row of ``wx``: the frequencies [Hz] and whether each row
+    passed the checks (NaN where not)."""
+    rows = wx.shape[0]
     out = np.full(rows, np.nan)
     ok = np.zeros(rows, dtype=np.bool_)
     df = freqs[1] - freqs[0]
     for r in range(rows):
-        mag = np.abs(spec[r])
+        mag = np.zeros(nfft // 2 + 1)
+        _band_magnitudes(wx[r], nfft, k_lo, k_hi, mag)
         k, j, floor = _line_search(mag, freqs, idx, wide, lobe)
         if k == idx[0] or k == idx[-1] or not mag[k] > 0 or mag[j] > mag[k]:
             continue

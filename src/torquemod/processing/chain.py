@@ -301,7 +301,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # modulation and pulls the plain peak towards the frequency assumed.
     f_mod = f_start
     peaks: dict[str, float] = {}
-    cleaner = _SlowOrdersRemoval(np.column_stack([tq, wh]), slow, orders, fs_r, mod_harmonics)
+    cleaner = _SlowOrdersRemoval(np.column_stack([tq, wh]), slow, orders, fs_r, mod_harmonics,
+                                 start_hz=f_start)
     for _ in range(2):
         cleaned = cleaner.at(f_mod)
         peaks.update(_modulation_peaks(cleaned, fs_r, cfg, where))
@@ -369,7 +370,7 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
                        creepage_drift=drift)
     out.extra.update({"speed_model": model, "slow_band_hz": float(max_hz),
                       "variance_factor": model.variance_factor(),
-                      "noise_kept": model.noise_depletion(),
+                      "noise_kept": model.noise_depletion(basis_t=cleaner.qt),
                       "torque_amplitude_nm": model.amplitude("torque_nm"),
                       "wheel_amplitude_rad_s": wheel_amp,
                       "creepage_swing": wheel_amp * rig.wheel_radius_m / speed,

@@ -127,22 +127,32 @@ class SpeedModel:
         return float(max(1.0, _trace_of_inverse_2x2(m_res.T @ m_res)
                          / _trace_of_inverse_2x2(m.T @ m)))
 
-    def noise_depletion(self, *, half_width_hz: float = 0.75) -> float:
+    def noise_depletion(self, *, half_width_hz: float = 0.75,
+                        basis_t: np.ndarray | None = None) -> float:
         """Fraction (<= 1) of white noise's power near the modulation that the model's
         residual keeps, averaged over the bins :func:`~torquemod.dsp.phase.local_noise_psd`
         reads: ``1 - |Q^H v_f|^2/|v_f|^2`` for the Hann-windowed Fourier vector ``v_f`` of each
         bin and Q an orthonormal basis of the design. The slow basis overlaps the modulation's
         neighbourhood, so its residual understates the noise density there; dividing by this
-        restores it (E[r r^T] = sigma^2 (I - H) for least squares)."""
+        restores it (E[r r^T] = sigma^2 (I - H) for least squares).
+
+        ``basis_t``, ``Q_B'`` (``p x n``) of an orthonormal basis of the design's slow and
+        order columns (the chain's step-1 search has one), spares the basis of the whole
+        design (:func:`~torquemod.dsp.projection.powers_in_span`: the same span, another
+        rounding, ~1e-12 relative here)."""
         d = self.design
         n = d.shape[0]
-        df = self.fs_hz / n
-        k = np.arange(n // 2 + 1)
-        off = np.abs(k * df - self.modulation_hz)
-        sel = k[(off <= half_width_hz) & (off > 1.5 * df)]
-        if sel.size < 2:
+        sel = _bins_near(n, self.fs_hz, self.modulation_hz, half_width_hz)
+        if len(sel) < 2:
             return 1.0
-        v, v_power = _hann_fourier(n, tuple(int(b) for b in sel))
+        v, v_power = _hann_fourier(n, sel)
+        if basis_t is not None and basis_t.shape == (d.shape[1] - 2 - self.n_harmonic_columns,
+                                                     n):
+            end = d.shape[1] - self.n_harmonic_columns
+            qv = projection.powers_in_span(basis_t, np.hstack([d[:, :2], d[:, end:]]), v)
+            if qv is not None:
+                kept = 1.0 - qv.reshape(2, -1).sum(axis=0) / v_power
+                return min(max(float(kept.sum()) / kept.size, 0.05), 1.0)
         fac = self.factor if self.factor is not None else filters.LstsqFactor.of(d)
         qt = projection.orthonormal_basis_t(fac, compiled=True) if fac is not None else None
         if qt is None:
@@ -171,6 +181,17 @@ class SpeedModel:
             slow = self.part(name, "slow")
             self._parts[key] = float(slow.sum()) / slow.size  # np.mean's numbers, cheaper
         return self._parts[key]
+
+
+def _bins_near(n: int, fs_hz: float, f_hz: float, half_width_hz: float) -> tuple[int, ...]:
+    """The DFT bins k (of ``n // 2 + 1``) with ``1.5*df < |k*df - f_hz| <= half_width_hz``,
+    ``df = fs_hz/n`` [Hz]: the same float operations as on numpy's arrays, over the
+    candidates near ``f_hz`` only."""
+    df = fs_hz / n
+    lo = max(0, int((f_hz - half_width_hz) / df) - 2)
+    hi = min(n // 2, int((f_hz + half_width_hz) / df) + 2)
+    return tuple(k for k in range(lo, hi + 1)
+                 if 1.5 * df < abs(k * df - f_hz) <= half_width_hz)
 
 
 def _trace_of_inverse_2x2(a: np.ndarray) -> float:
@@ -216,6 +237,16 @@ def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
     for i, k in enumerate((1, *harmonics)):
         out[:, 2 * i] = np.cos(k * w * t)
         out[:, 2 * i + 1] = np.sin(k * w * t)
+    return out
+
+
+@functools.lru_cache(maxsize=8)
+def _modulation_columns_cached(n: int, fs_hz: float, modulation_hz: float,
+                               harmonics: tuple[int, ...]) -> np.ndarray:
+    """:func:`modulation_columns`, cached read-only: step 1 starts every cycle of a step at
+    the same nominal frequency (:class:`_SlowOrdersRemoval` looks up that one only)."""
+    out = modulation_columns(n, fs_hz, modulation_hz, harmonics)
+    out.setflags(write=False)
     return out
 
 
@@ -328,13 +359,7 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     if blas is not None and n > 1 and y.dtype == np.float64:
         # the factor, the coefficients and every channel's parts in one compiled call, with
         # the numbers of the route below and of SpeedModel.part (numpy's BLAS calls)
-        end = design.shape[1] - 2 * len(harmonics)
-        bounds = np.array([[2, 2 + n_s], [2 + n_s, end], [end, design.shape[1]]])
-        # the parts the chain reads: every channel's slow part (its step-8 mean), the
-        # orders and harmonics of the records it filters
-        wanted = np.zeros((3, len(names)), dtype=bool)
-        wanted[0] = True
-        wanted[1:, [j for j, k in enumerate(names) if k in _FILTERED]] = True
+        bounds, wanted = _parts_wanted(names, n_s, n_o, 2 * len(harmonics))
         dn, scale, gram, factor, coef, parts, ratio, status = lstsq.fit_with_parts(
             design, y, bounds, wanted, *blas, *lstsq.lapack_addresses())
         if status == 0:
@@ -354,6 +379,23 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
                       2 * len(harmonics))
 
 
+@functools.lru_cache(maxsize=16)
+def _parts_wanted(names: tuple[str, ...], n_slow: int, n_orders: int, n_harmonic: int
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`fit_speed_model`'s column bounds of the slow part, the orders and the
+    harmonics, and which parts of which channel its compiled fit forms: every channel's
+    slow part (its step-8 mean), the orders and harmonics of the records the chain filters
+    (:data:`_FILTERED`); cached read-only (the same for every cycle of a recording)."""
+    end = 2 + n_slow + n_orders
+    bounds = np.array([[2, 2 + n_slow], [2 + n_slow, end], [end, end + n_harmonic]])
+    wanted = np.zeros((3, len(names)), dtype=bool)
+    wanted[0] = True
+    wanted[1:, [j for j, k in enumerate(names) if k in _FILTERED]] = True
+    for a in (bounds, wanted):
+        a.setflags(write=False)
+    return bounds, wanted
+
+
 class _SlowOrdersRemoval:
     """Records ``y`` (columns) less the slow part and the rotation orders of the
     :class:`SpeedModel` fitted with the modulation at a frequency f: ``y - B c_B`` of the
@@ -368,8 +410,9 @@ class _SlowOrdersRemoval:
     to rounding (tests/processing/test_chain_kernels.py)."""
 
     def __init__(self, y: np.ndarray, slow: np.ndarray, orders: np.ndarray, fs_hz: float,
-                 harmonics: tuple[int, ...] = ()):
+                 harmonics: tuple[int, ...] = (), *, start_hz: float | None = None):
         self.y, self.fs_hz, self.harmonics = y, fs_hz, tuple(harmonics)
+        self.start_hz = start_hz  # the search's nominal start [Hz]: its columns cached
         self.slow, self.orders = slow, orders
         self.b = np.hstack([slow, orders])
         self.fac = filters.LstsqFactor.of(self.b)
@@ -392,7 +435,10 @@ class _SlowOrdersRemoval:
             end = model.design.shape[1] - model.n_harmonic_columns
             fit = model.design[:, 2:end] @ model.coef[2:end]
             return self.y - fit
-        m = modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
+        m = _modulation_columns_cached(self.y.shape[0], float(self.fs_hz),
+                                       float(modulation_hz), self.harmonics) \
+            if modulation_hz == self.start_hz else \
+            modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
         if self.qt is not None:  # the steps below in one compiled call (the same numbers)
             out = projection.removal_at(m, self.qt, self.r_y, self.qy)
             if out is not None:

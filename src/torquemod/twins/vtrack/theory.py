@@ -41,6 +41,7 @@ from torquemod.twins.vtrack.smallsignal import drive_line_response, predicted_ph
 from torquemod.twins.vtrack.theory_kernels import (
     _dense_solve,  # noqa: F401 - its old home
     newton_periodic,
+    orbit_forces,
     pack_constants,
 )
 
@@ -268,26 +269,26 @@ def _refine(x: np.ndarray, n: int, platform: bool) -> np.ndarray:
     return np.concatenate(out)
 
 
-def _periodic_state(dc_torque_nm, p: RigParams, op: OperatingPoint, f: float, amplitude: float,
-                    drive: str, platform: bool, n: int, rtol: float, max_iter: int,
-                    start: np.ndarray | None = None):
-    """Collocation solve of :func:`large_signal_phase_deg` on ``n`` points per period,
-    from ``start`` (the unknowns on ``n/2`` points, :func:`_refine`) when given, else from
-    the small-signal response.
+def _operators(p: RigParams, f: float, n: int, drive: str, platform: bool) -> tuple:
+    """The collocation's operators on ``n`` points per period at ``f`` [Hz]: the unit drive
+    at the collocation instants, ``L`` (``J_w d/dt``, plus ``G2`` when the motor drives),
+    ``P`` (``R_p H_p``, the platform loop), ``P L`` and ``G2`` (None when the shaft torque
+    drives) -- circulant matrices built by FFT (:func:`_circulant`). They depend on the rig,
+    not on the DC torque: remembered per argument set when ``p`` is a (frozen)
+    :class:`RigParams` (every step of a run shares them; never written to)."""
+    if type(p) is RigParams:
+        return _operators_memo(p, f, n, drive, platform)
+    return _build_operators(p, f, n, drive, platform)
 
-    Returns ``(torque, u, xi, k_mean, iterations, x)`` -- measured torque [N*m], wheel-speed
-    deviation from the steady state [rad/s] and creepage [-] at the collocation instants, the
-    period mean of d(F_x/N)/dxi_x [-], the unknowns -- or None when Newton's method (with
-    amplitude continuation) finds no periodic solution."""
+
+def _build_operators(p, f, n, drive, platform) -> tuple:
+    """:func:`_operators`, computed."""
     om = 2.0 * np.pi * f
     s = 1j * om * np.arange(n // 2 + 1)
     t = np.arange(n) / (n * f)
-    rw, rp, n0 = p.wheel_radius_m, p.platform_radius_m, p.normal_load_n
-    wref = p.platform_speed_rad_s
-    v0 = wref * rp
-    kw = p.contact.polach_kwargs()
-    xiy = p.contact.lateral_creepage
+    rp = p.platform_radius_m
     lin_w = p.wheel_inertia_kg_m2 * _circulant(s, n)  # J_w d/dt
+    lin_sym = p.wheel_inertia_kg_m2 * s  # its frequency response
     with np.errstate(divide="ignore", invalid="ignore"):
         z_s = p.shaft_stiffness_nm_rad / s + p.shaft_damping_nm_s_rad
         g1 = z_s / (p.drive_inertia_kg_m2 * s + z_s)
@@ -302,32 +303,51 @@ def _periodic_state(dc_torque_nm, p: RigParams, op: OperatingPoint, f: float, am
         g2[0] = 0.0
         g2_op = _circulant(g2, n)
         lin_w = lin_w + g2_op
+        lin_sym = lin_sym + g2
     if platform:
         hp[0] = 0.0  # integral action: the platform's mean speed is the set speed
-        p_op = rp * _circulant(hp, n)
+        p_mat = np.ascontiguousarray(rp * _circulant(hp, n))
+        pl_mat = np.ascontiguousarray(_circulant(rp * hp * lin_sym, n))  # P L
+    else:
+        p_mat = pl_mat = np.zeros((0, 0))
+    return np.ascontiguousarray(sine), np.ascontiguousarray(lin_w), p_mat, pl_mat, g2_op
 
-    def force(u, w):
-        v = (wref + w) * rp
-        # w*R_w - V = V0*xi0 + u*R_w - w*R_p: keeps the digits of small creepages
-        xi = (v0 * op.creepage + u * rw - w * rp) / v
-        return creep_force(xi, xiy, normal_load_n=n0, speed_m_s=v, **kw)[0], xi
 
-    def split(x):
-        return x[:n], (x[n:] if platform else np.zeros(n))
+_operators_memo = functools.lru_cache(maxsize=64)(_build_operators)
 
+
+def _periodic_state(dc_torque_nm, p: RigParams, op: OperatingPoint, f: float, amplitude: float,
+                    drive: str, platform: bool, n: int, rtol: float, max_iter: int,
+                    start: np.ndarray | None = None, response: tuple | None = None):
+    """Collocation solve of :func:`large_signal_phase_deg` on ``n`` points per period,
+    from ``start`` (the unknowns on ``n/2`` points, :func:`_refine`) when given, else from
+    the small-signal response (``response``: :func:`drive_line_response` at the operating
+    point when already known).
+
+    Returns ``(torque, u, xi, k_mean, iterations, x)`` -- measured torque [N*m], wheel-speed
+    deviation from the steady state [rad/s] and creepage [-] at the collocation instants, the
+    period mean of d(F_x/N)/dxi_x [-], the unknowns -- or None when Newton's method (with
+    amplitude continuation) finds no periodic solution."""
+    om = 2.0 * np.pi * f
+    t = np.arange(n) / (n * f)
+    rw, rp, n0 = p.wheel_radius_m, p.platform_radius_m, p.normal_load_n
+    wref = p.platform_speed_rad_s
+    v0 = wref * rp
+    kw = p.contact.polach_kwargs()
+    xiy = p.contact.lateral_creepage
+    sine_c, lin_c, p_mat, pl_mat, g2_op = _operators(p, f, n, drive, platform)
     consts = pack_constants(rw, rp, n0, wref, v0, float(op.creepage), xiy, kw)
-    p_mat = np.ascontiguousarray(p_op) if platform else np.zeros((0, 0))
-    sine_c, lin_c = np.ascontiguousarray(sine), np.ascontiguousarray(lin_w)
 
     def newton(x, amp):  # compiled, without the GIL (theory_kernels.py)
         return newton_periodic(x, float(amp), float(dc_torque_nm), sine_c, lin_c, p_mat,
-                               platform, n, consts, float(rtol), int(max_iter))
+                               pl_mat, platform, n, consts, float(rtol), int(max_iter))
 
     # start: the steady state plus the small-signal response of the wheel speed
     if start is not None:  # the solution on half the points, interpolated
         x = _refine(start, n // 2, platform)
     else:
-        h_t, h_w = drive_line_response(op.creep_coefficient, p, f, creepage=op.creepage)
+        h_t, h_w = response if response is not None else drive_line_response(
+            op.creep_coefficient, p, f, creepage=op.creepage)
         h1 = h_w / h_t if drive == "shaft" else h_w
         x = np.zeros(2 * n if platform else n)
         x[:n] = amplitude * np.imag(h1 * np.exp(1j * om * t))
@@ -339,12 +359,12 @@ def _periodic_state(dc_torque_nm, p: RigParams, op: OperatingPoint, f: float, am
             iters += it
             if not ok:
                 return None
-    u, w = split(x)
-    xi = force(u, w)[1]
+    u = x[:n]
     hu = 1e-7 * (1.0 + np.abs(u).max())
-    k_mean = float(np.mean(force(u + hu, w)[0] - force(u - hu, w)[0])) / (2.0 * hu) \
+    xi, f_plus, f_minus = orbit_forces(x, platform, n, consts, hu)
+    k_mean = float(np.mean(f_plus - f_minus)) / (2.0 * hu) \
         * (wref * rp) / (rw * n0)  # dF/du = dF/dxi * R_w/V; V varies by < 1e-5 relative
-    torque = dc_torque_nm + amplitude * sine
+    torque = dc_torque_nm + amplitude * sine_c
     if g2_op is not None:
         torque = torque - g2_op @ u
     return torque, u, xi, k_mean, iters, x
@@ -385,8 +405,9 @@ def large_signal_phase_deg(dc_torque_nm: float, params: RigParams, frequency_hz:
     J. H. Griffin, J. Appl. Mech. 56 (1989) 149-154. Unknowns are the wheel and platform
     speeds at ``n_samples`` equispaced instants of one period; d/dt and the linear transfer
     functions act as circulant matrices built by FFT, the Polach force pointwise in time.
-    Newton-Raphson (dense Jacobian, finite differences of the contact force, backtracking on
-    the residual; compiled without the GIL,
+    Newton-Raphson (dense Jacobian, finite differences of the contact force, each step
+    solved through the Jacobian's ``n x n`` Schur complement since the platform equation is
+    linear in the force, backtracking on the residual; compiled without the GIL,
     :func:`torquemod.twins.vtrack.theory_kernels.newton_periodic`)
     from the steady state plus the small-signal response, with amplitude continuation as a
     fallback; ``rtol`` is the last Newton step relative to the speed swing.
@@ -398,7 +419,7 @@ def large_signal_phase_deg(dc_torque_nm: float, params: RigParams, frequency_hz:
     On the default rig at 8 N*m the default 64 points
     (128 at step 1, where the creepage swings through zero and resolves most slowly) agree
     with 1024 to 1e-9 deg and with the simulator to 1e-3 deg (``drive = "motor"``). Cost
-    3-25 ms per call, plus about 0.2 s once per process to load the compiled solver.
+    0.5-3 ms per call, plus about 0.2 s once per process to load the compiled solver.
     Remembered per argument set when ``params`` is a (frozen) :class:`RigParams`: a sweep
     asks again for the points its seeds repeat, a run written to files for the theory its
     truth already holds.
@@ -478,14 +499,18 @@ def _large_signal(dc_torque_nm, params, frequency_hz, amplitude_nm, drive, platf
     if op.slipped:
         return LargeSignalResult(dc, amp, f, nan, nan, nan, nan, nan, nan, nan, nan, nan, 0,
                                  n_samples, True)
-    small = float(predicted_phase_deg(op.creep_coefficient,
-                                      params if platform else _stiff_platform(params), f,
-                                      creepage=op.creepage))
+    response = None
+    if platform:  # the start's small-signal response gives the small-signal phase too
+        response = drive_line_response(op.creep_coefficient, params, f, creepage=op.creepage)
+        small = float(np.degrees(np.angle(response[0] / response[1])))
+    else:
+        small = float(predicted_phase_deg(op.creep_coefficient, _stiff_platform(params), f,
+                                          creepage=op.creepage))
     n = n_samples
     start = None
     while True:
         sol = _periodic_state(dc, params, op, f, amp, drive, platform, n, rtol, max_iter,
-                              start)
+                              start, response)
         if sol is None:
             return LargeSignalResult(dc, amp, f, nan, nan, nan, nan, nan, nan, nan,
                                      float(op.creepage), small, 0, n, True)

@@ -12,11 +12,13 @@ with ``L`` and ``P`` circulant matrices built by theory.py and ``F_x`` the Polac
 longitudinal creep force (P05 Eqs. 1-9, the same operations in the same order as the
 vectorised :func:`torquemod.analysis.contact.polach.creep_force`) at the creepage
 ``xi = (V0*xi0 + u*R_w - w*R_p)/V``, ``V = (W_ref + w)*R_p``. :func:`newton_periodic` is
-Newton-Raphson on them (dense Jacobian by central differences of the force, solved by
-:func:`_dense_solve`, backtracking on the residual norm) as theory.py ran it in Python
-before an earlier version; here it runs without the GIL, so that the twin's steps
-solve their theory side by side. Results agree with the Python loop to ~1e-12 (summation
-order of the matrix products; tested in tests/twins/test_theory_kernels.py).
+Newton-Raphson on them (dense Jacobian by central differences of the force, backtracking
+on the residual norm) as theory.py ran it in Python before an earlier version; here it
+runs without the GIL, so that the twin's steps solve their theory side by side, and each
+step solves the Jacobian's ``n x n`` Schur complement (:func:`_newton_step`, by
+:func:`_dense_solve`) instead of the whole ``2n x 2n`` system. Results agree with the
+whole-Jacobian Python loop to ~1e-12 (rounding of the solve and of the matrix products;
+tested in tests/twins/test_theory_kernels.py).
 """
 
 from __future__ import annotations
@@ -188,6 +190,24 @@ def _force(u, w, du, dw, c, out):
 
 
 @numba.njit(cache=True, nogil=True)
+def orbit_forces(x, platform, n, c, hu):
+    """The converged orbit's creepage and the force on either side of it: ``xi`` [-] at
+    ``x`` and ``F_x`` [N] at wheel deviations ``u +- hu`` [rad/s] (``x`` as in
+    :func:`newton_periodic`). Returns ``(xi, f_plus, f_minus)``."""
+    u = x[:n]
+    w = x[n:] if platform else np.zeros(n)
+    rw, rp, wref = c[C_RW], c[C_RP], c[C_WREF]
+    base = c[C_V0] * c[C_XI0]
+    xi = np.empty(n)
+    for i in range(n):
+        xi[i] = (base + u[i] * rw - w[i] * rp) / ((wref + w[i]) * rp)
+    f_plus, f_minus = np.empty(n), np.empty(n)
+    _force(u, w, hu, 0.0, c, f_plus)
+    _force(u, w, -hu, 0.0, c, f_minus)
+    return xi, f_plus, f_minus
+
+
+@numba.njit(cache=True, nogil=True)
 def _residual(x, amp, dc, sine, lin_w, p_op, platform, n, c, fx, r):
     """The collocation residual ``r`` (``r1``, then ``r2`` with the platform) at ``x``."""
     u = x[:n]
@@ -208,34 +228,69 @@ def _residual(x, amp, dc, sine, lin_w, p_op, platform, n, c, fx, r):
 
 
 @numba.njit(cache=True, nogil=True)
-def _jacobian(x, lin_w, p_op, platform, n, c, jac):
-    """Dense Jacobian of :func:`_residual` (central differences of the force, steps
-    ``1e-7*(1 + max|u|)`` and ``1e-7*(1e-3 + max|w|)``) into ``jac``."""
+def _force_slopes(x, platform, n, c, fu, fw):
+    """Central differences of the force at ``x`` into ``fu = dF_x/du`` and (with the
+    platform) ``fw = dF_x/dw`` [N*s/rad], steps ``1e-7*(1 + max|u|)`` and
+    ``1e-7*(1e-3 + max|w|)`` [rad/s]."""
     u = x[:n]
     w = x[n:] if platform else np.zeros(n)
-    rw = c[C_RW]
     hu = 1e-7 * (1.0 + np.abs(u).max())
     fp, fm = np.empty(n), np.empty(n)
     _force(u, w, hu, 0.0, c, fp)
     _force(u, w, -hu, 0.0, c, fm)
-    fu = (fp - fm) / (2.0 * hu)
     for i in range(n):
-        for j in range(n):
-            jac[i, j] = lin_w[i, j]
-        jac[i, i] += rw * fu[i]
+        fu[i] = (fp[i] - fm[i]) / (2.0 * hu)
     if not platform:
         return
     hw = 1e-7 * (1e-3 + np.abs(w).max())
     _force(u, w, 0.0, hw, c, fp)
     _force(u, w, 0.0, -hw, c, fm)
-    fw = (fp - fm) / (2.0 * hw)
+    for i in range(n):
+        fw[i] = (fp[i] - fm[i]) / (2.0 * hw)
+
+
+@numba.njit(cache=True, nogil=True)
+def _newton_step(r, lin_w, p_op, pl, platform, n, c, fu, fw, s):
+    """Newton step ``dx`` with ``J dx = -r`` for the Jacobian of :func:`_residual`::
+
+        J = [[L + R_w Fu,  R_w Fw    ],     Fu = diag(dF_x/du), Fw = diag(dF_x/dw)
+             [-P Fu,       I - P Fw  ]]
+
+    Without the platform ``J = L + R_w Fu`` is solved as it stands. With it, the second
+    block row plus ``P/R_w`` times the first is ``(P L/R_w) du + dw = -r2 - P r1/R_w``
+    (the platform equation is linear in the force, so the force drops out of that
+    combination), which gives ``dw`` from ``du`` and leaves the ``n x n`` Schur
+    complement ``(L + R_w Fu - Fw P L) du = -r1 - R_w Fw (-r2 - P r1/R_w)``: the same
+    step as the ``2n x 2n`` system up to rounding, at an eighth of the elimination's
+    operations. ``pl`` is the circulant ``P L``; ``s`` an ``n x n`` work array."""
+    rw = c[C_RW]
+    if not platform:
+        for i in range(n):
+            for j in range(n):
+                s[i, j] = lin_w[i, j]
+            s[i, i] += rw * fu[i]
+        return _dense_solve(s, -r)
+    b2 = np.empty(n)
+    for i in range(n):
+        acc = 0.0
+        for j in range(n):
+            acc += p_op[i, j] * r[j]
+        b2[i] = -r[n + i] - acc / rw
+    rhs = np.empty(n)
     for i in range(n):
         for j in range(n):
-            jac[i, n + j] = 0.0
-            jac[n + i, j] = -p_op[i, j] * fu[j]
-            jac[n + i, n + j] = -p_op[i, j] * fw[j]
-        jac[i, n + i] = rw * fw[i]
-        jac[n + i, n + i] += 1.0
+            s[i, j] = lin_w[i, j] - fw[i] * pl[i, j]
+        s[i, i] += rw * fu[i]
+        rhs[i] = -r[i] - rw * fw[i] * b2[i]
+    du = _dense_solve(s, rhs)
+    dx = np.empty(2 * n)
+    for i in range(n):
+        acc = 0.0
+        for j in range(n):
+            acc += pl[i, j] * du[j]
+        dx[i] = du[i]
+        dx[n + i] = b2[i] - acc / rw
+    return dx
 
 
 @numba.njit(cache=True, nogil=True)
@@ -247,23 +302,26 @@ def _norm(r):
 
 
 @numba.njit(cache=True, nogil=True)
-def newton_periodic(x, amp, dc, sine, lin_w, p_op, platform, n, c, rtol, max_iter):
+def newton_periodic(x, amp, dc, sine, lin_w, p_op, pl, platform, n, c, rtol, max_iter):
     """Newton-Raphson on the collocation equations from ``x`` (length ``n``, or ``2n`` with
     the platform) at modulation amplitude ``amp`` [N*m] on ``dc`` [N*m]; ``sine`` the unit
-    drive at the collocation instants, ``lin_w`` and ``p_op`` the circulant operators,
-    ``c`` :func:`pack_constants`. Converged when the last step's largest wheel-speed change
-    is at most ``rtol`` of the largest wheel-speed deviation; each step is halved (down to
-    1e-4) until the residual norm falls. Returns ``(x, iterations, converged)``."""
+    drive at the collocation instants, ``lin_w``, ``p_op`` and ``pl = p_op @ lin_w`` the
+    circulant operators, ``c`` :func:`pack_constants`. Each step solves the Jacobian's
+    ``n x n`` Schur complement (:func:`_newton_step`). Converged when the last step's
+    largest wheel-speed change is at most ``rtol`` of the largest wheel-speed deviation;
+    each step is halved (down to 1e-4) until the residual norm falls. Returns
+    ``(x, iterations, converged)``."""
     m = x.size
     fx = np.empty(n)
     r = np.empty(m)
     rn = np.empty(m)
-    jac = np.empty((m, m))
+    fu, fw = np.empty(n), np.empty(n)
+    s = np.empty((n, n))
     _residual(x, amp, dc, sine, lin_w, p_op, platform, n, c, fx, r)
     norm = _norm(r)
     for it in range(1, max_iter + 1):
-        _jacobian(x, lin_w, p_op, platform, n, c, jac)
-        dx = _dense_solve(jac, -r)
+        _force_slopes(x, platform, n, c, fu, fw)
+        dx = _newton_step(r, lin_w, p_op, pl, platform, n, c, fu, fw, s)
         if not np.all(np.isfinite(dx)):
             return x, it, False
         small = np.abs(dx[:n]).max() <= rtol * max(np.abs(x[:n]).max(), 1e-9)

@@ -11,17 +11,25 @@ creepage and of the platform speed, also per platform revolution. Moved out of
 from __future__ import annotations
 
 import itertools
-import math
 
-import numba
 import numpy as np
 
 from torquemod.twins.vtrack.params import SimConfig
 from torquemod.twins.vtrack.rig.dynamics import OUT_COLUMNS
-from torquemod.twins.vtrack.rig.kernels import SMALL, cos_small, sin_small
 from torquemod.twins.vtrack.rig.truthphase import WOBBLE_FIT_STRIDE, sine_fit_phase_deg
+from torquemod.twins.vtrack.rig.truthsums import (
+    _fit_basis,  # noqa: F401 - tests read it here
+    _fit_sums,
+    _partition_moments,
+    _span_moments,
+    step_sums,
+)
 from torquemod.twins.vtrack.smallsignal import predicted_phase_deg, rigid_wheel_phase_deg
-from torquemod.twins.vtrack.theory import large_signal_phase_deg, operating_point
+from torquemod.twins.vtrack.theory import (
+    LargeSignalResult,
+    large_signal_phase_deg,
+    operating_point,
+)
 
 _COL = {name: i for i, name in enumerate(OUT_COLUMNS)}
 #: columns of the output the truth fit reads: platform angle, torque, wheel speed
@@ -76,261 +84,8 @@ def wobble_truth(config: SimConfig, wobble: np.ndarray) -> dict:
 _MEANS = ("creepage", "torque_nm", "fx_n", "fy_n", "fz_n", "platform_speed_rad_s")
 
 
-@numba.njit(cache=True, nogil=True)
-def _span_moments(raw, a, b, cols, mean, std_cols, std):
-    """Means over rows ``a:b`` of ``raw`` of the columns ``cols`` into ``mean``, and the
-    standard deviations (two passes, as ``numpy.std``) of the columns ``std_cols`` (indices
-    into ``cols``) into ``std``: one pass over the rows instead of a copy per column."""
-    mean[:] = 0.0
-    for k in range(a, b):
-        for j in range(cols.size):
-            mean[j] += raw[k, cols[j]]
-    mean /= b - a
-    std[:] = 0.0
-    for k in range(a, b):
-        for j in range(std_cols.size):
-            d = raw[k, cols[std_cols[j]]] - mean[std_cols[j]]
-            std[j] += d * d
-    for j in range(std_cols.size):
-        std[j] = math.sqrt(std[j] / (b - a))
-
-
-@numba.njit(cache=True, nogil=True)
-def _partition_moments(raw, edges, cols, mean, std_cols, std):
-    """:func:`_span_moments` of the whole ``edges[0]:edges[-1]`` (row 0 of ``mean`` and
-    ``std``) and of each part ``edges[j]:edges[j+1]`` (row ``j + 1``) in two passes over the
-    rows instead of two per span: the parts' sums give the whole's mean, and the second pass
-    gathers the squared deviations from both means. The truth's layout (6 means, 2 standard
-    deviations) sums in local variables (:func:`_partition_sums_6_2`: a third of the time
-    of sums kept in the output arrays, the same additions in the same order)."""
-    m = edges.size - 1
-    nc, ns = cols.size, std_cols.size
-    mean[:] = 0.0
-    std[:] = 0.0
-    if nc == 6 and ns == 2:
-        _partition_sums_6_2(raw, edges, cols, mean, std_cols, std)
-    else:
-        for j in range(m):
-            for k in range(edges[j], edges[j + 1]):
-                for c in range(nc):
-                    mean[j + 1, c] += raw[k, cols[c]]
-        _means_from_sums(edges, mean)
-        for j in range(m):
-            for k in range(edges[j], edges[j + 1]):
-                for c in range(ns):
-                    x = raw[k, cols[std_cols[c]]]
-                    d = x - mean[j + 1, std_cols[c]]
-                    e = x - mean[0, std_cols[c]]
-                    std[j + 1, c] += d * d
-                    std[0, c] += e * e
-    for j in range(m):
-        for c in range(ns):
-            std[j + 1, c] = math.sqrt(std[j + 1, c] / (edges[j + 1] - edges[j]))
-    for c in range(ns):
-        std[0, c] = math.sqrt(std[0, c] / (edges[m] - edges[0]))
-
-
-@numba.njit(cache=True, nogil=True)
-def _means_from_sums(edges, mean):
-    """Rows ``1..m`` of ``mean`` hold the parts' sums: make them means and row 0 the
-    whole's (the sum of the parts' sums over all rows)."""
-    m = edges.size - 1
-    for j in range(m):
-        for c in range(mean.shape[1]):
-            mean[0, c] += mean[j + 1, c]
-            mean[j + 1, c] /= edges[j + 1] - edges[j]
-    for c in range(mean.shape[1]):
-        mean[0, c] /= edges[m] - edges[0]
-
-
-@numba.njit(cache=True, nogil=True)
-def _partition_sums_6_2(raw, edges, cols, mean, std_cols, std):
-    """:func:`_partition_moments`' two passes for 6 mean and 2 deviation columns with the
-    running sums in local variables (registers) instead of the output arrays; leaves the
-    means and the sums of squared deviations (rows as there) in ``mean`` and ``std``."""
-    m = edges.size - 1
-    c0, c1, c2, c3, c4, c5 = cols[0], cols[1], cols[2], cols[3], cols[4], cols[5]
-    for j in range(m):
-        s0 = s1 = s2 = s3 = s4 = s5 = 0.0
-        for k in range(edges[j], edges[j + 1]):
-            s0 += raw[k, c0]
-            s1 += raw[k, c1]
-            s2 += raw[k, c2]
-            s3 += raw[k, c3]
-            s4 += raw[k, c4]
-            s5 += raw[k, c5]
-        mean[j + 1, 0], mean[j + 1, 1], mean[j + 1, 2] = s0, s1, s2
-        mean[j + 1, 3], mean[j + 1, 4], mean[j + 1, 5] = s3, s4, s5
-    _means_from_sums(edges, mean)
-    a0, a1 = std_cols[0], std_cols[1]
-    k0, k1 = cols[a0], cols[a1]
-    w0 = w1 = 0.0  # the whole's
-    for j in range(m):
-        p0 = p1 = 0.0  # the part's
-        mj0, mj1, mw0, mw1 = mean[j + 1, a0], mean[j + 1, a1], mean[0, a0], mean[0, a1]
-        for k in range(edges[j], edges[j + 1]):
-            x = raw[k, k0]
-            d = x - mj0
-            e = x - mw0
-            p0 += d * d
-            w0 += e * e
-            x = raw[k, k1]
-            d = x - mj1
-            e = x - mw1
-            p1 += d * d
-            w1 += e * e
-        std[j + 1, 0], std[j + 1, 1] = p0, p1
-    std[0, 0], std[0, 1] = w0, w1
-
-
-#: fit samples between exact evaluations of the basis's sines (rotated in between)
-_BASIS_EXACT = 256
-
-
-@numba.njit(cache=True, nogil=True)
-def _fit_basis(t, w, wob, theta, x):
-    """The truth fit's basis at times ``t`` [s] (equally spaced) and platform angles
-    ``theta`` [rad] into ``x``: ``cos(w*t)``, ``sin(w*t)``, 1, then per wobble row
-    (:func:`~torquemod.twins.vtrack.rig.dynamics.wobble_table`) cos and sin of ``rate*t`` (band
-    rows) or
-    ``order*theta`` (revolution rows) -- :func:`~torquemod.twins.vtrack.rig.dynamics.wobble_basis`
-    and the
-    modulation's columns, each sine rotated from sample to sample (through ``rate*dt``, whose
-    small-angle sin and cos are computed once per column, or the angle's small increment,
-    :mod:`torquemod.twins.vtrack.rig.kernels`) and exact every ``_BASIS_EXACT`` samples."""
-    n = t.size
-    nw = wob.shape[0]
-    dt = t[1] - t[0] if n > 1 else 0.0
-    m1 = nw + 1
-    rates = np.empty(m1)
-    rev = np.zeros(m1, dtype=np.bool_)
-    rates[0] = w
-    for j in range(nw):
-        rates[j + 1] = wob[j, 1]
-        rev[j + 1] = wob[j, 3] > 0.5
-    # time columns turn by the same rates[j]*dt every sample
-    c_dt, s_dt = np.empty(m1), np.empty(m1)
-    small = np.zeros(m1, dtype=np.bool_)
-    for j in range(m1):
-        d = rates[j] * dt
-        small[j] = abs(d) <= SMALL
-        c_dt[j], s_dt[j] = cos_small(d), sin_small(d)
-    c, s = np.empty(m1), np.empty(m1)
-    for k in range(n):
-        exact = k % _BASIS_EXACT == 0
-        for j in range(m1):
-            if rev[j]:
-                d = rates[j] * (theta[k] - theta[k - 1]) if k > 0 else 0.0
-                if exact or not abs(d) <= SMALL:
-                    arg = rates[j] * theta[k]
-                    c[j], s[j] = math.cos(arg), math.sin(arg)
-                else:
-                    cd, sd = cos_small(d), sin_small(d)
-                    c[j], s[j] = c[j] * cd - s[j] * sd, s[j] * cd + c[j] * sd
-            elif exact or not small[j]:
-                arg = rates[j] * t[k]
-                c[j], s[j] = math.cos(arg), math.sin(arg)
-            else:
-                cd, sd = c_dt[j], s_dt[j]
-                c[j], s[j] = c[j] * cd - s[j] * sd, s[j] * cd + c[j] * sd
-        x[k, 0], x[k, 1], x[k, 2] = c[0], s[0], 1.0
-        for j in range(nw):
-            x[k, 3 + 2 * j], x[k, 4 + 2 * j] = c[j + 1], s[j + 1]
-
-
 _MEAN_COLS = np.array([_COL[c] for c in _MEANS])
 _STD_COLS = np.array([_MEANS.index("creepage"), _MEANS.index("platform_speed_rad_s")])
-
-
-@numba.njit(cache=True, nogil=True)
-def _add_rows4(raw, x, i, stride, cols, sg, sr):
-    """Add fit rows ``i..i+3`` (basis ``x``, torque and speed from ``raw``) to the upper
-    triangle of ``sg = X^T X`` and to ``sr = X^T [torque, speed]``: each sum is loaded and
-    stored once for the four rows and takes their products one row after the other, as
-    four single-row updates would (the same additions in the same order, a quarter of the
-    memory traffic of the sums)."""
-    m = x.shape[1]
-    j1, j2 = i * stride, (i + 1) * stride
-    j3, j4 = (i + 2) * stride, (i + 3) * stride
-    u0, u1, u2, u3 = raw[j1, cols[1]], raw[j2, cols[1]], raw[j3, cols[1]], raw[j4, cols[1]]
-    v0, v1, v2, v3 = raw[j1, cols[2]], raw[j2, cols[2]], raw[j3, cols[2]], raw[j4, cols[2]]
-    for p in range(m):
-        b0, b1, b2, b3 = x[i, p], x[i + 1, p], x[i + 2, p], x[i + 3, p]
-        r = sr[p, 0]
-        r += b0 * u0
-        r += b1 * u1
-        r += b2 * u2
-        r += b3 * u3
-        sr[p, 0] = r
-        r = sr[p, 1]
-        r += b0 * v0
-        r += b1 * v1
-        r += b2 * v2
-        r += b3 * v3
-        sr[p, 1] = r
-        for q in range(p, m):
-            t = sg[p, q]
-            t += b0 * x[i, q]
-            t += b1 * x[i + 1, q]
-            t += b2 * x[i + 2, q]
-            t += b3 * x[i + 3, q]
-            sg[p, q] = t
-
-
-@numba.njit(cache=True, nogil=True)
-def _fit_sums(raw, t0_s, fs, stride, w, wob, coef, cols, win_lo, win_hi, gram, rhs, ref):
-    """The truth fit's normal equations over windows of one step, without the GIL.
-
-    The fit's samples are the rows ``i*stride`` of ``raw`` (sample ``k`` at
-    ``t0_s + k/fs`` [s]); their basis is :func:`_fit_basis` (modulation cos, sin, DC, then the
-    wobble rows of ``wob``; ``cols = (platform angle, torque, wheel speed)`` columns of
-    ``raw``). For each window ``j`` (fit samples ``win_lo[j] <= i < win_hi[j]``):
-    ``gram[j] = X^T X`` and ``rhs[j] = X^T [torque, speed]``. ``ref[i]``: the speed
-    reference's wobble at fit sample ``i``, ``X[i, 3:] @ coef``. The windows overlap (the
-    whole step and its revolutions), so the sums are taken over the pieces between
-    consecutive window edges (each sample once) and added up per window."""
-    n = (raw.shape[0] + stride - 1) // stride
-    m = 3 + 2 * wob.shape[0]
-    t, theta = np.empty(n), np.empty(n)
-    for i in range(n):
-        t[i] = t0_s + (i * stride) / fs
-        theta[i] = raw[i * stride, cols[0]]
-    x = np.empty((n, m))
-    _fit_basis(t, w, wob, theta, x)
-    for i in range(n):
-        r = 0.0
-        for q in range(m - 3):
-            r += x[i, 3 + q] * coef[q]
-        ref[i] = r
-    edges = np.unique(np.concatenate((win_lo, win_hi)))
-    nseg = edges.size - 1
-    sg = np.zeros((max(nseg, 1), m, m))
-    sr = np.zeros((max(nseg, 1), m, 2))
-    nw = win_lo.size
-    gram[:] = 0.0
-    rhs[:] = 0.0
-    for g in range(nseg):
-        i, hi = edges[g], edges[g + 1]
-        while i + 4 <= hi:  # four rows per load and store of each sum, added row by row
-            _add_rows4(raw, x, i, stride, cols, sg[g], sr[g])
-            i += 4
-        while i < hi:
-            u, v = raw[i * stride, cols[1]], raw[i * stride, cols[2]]
-            for p in range(m):
-                bp = x[i, p]
-                sr[g, p, 0] += bp * u
-                sr[g, p, 1] += bp * v
-                for q in range(p, m):
-                    sg[g, p, q] += bp * x[i, q]
-            i += 1
-        for j in range(nw):
-            if win_lo[j] <= edges[g] and edges[g + 1] <= win_hi[j]:
-                gram[j] += sg[g]
-                rhs[j] += sr[g]
-    for j in range(nw):
-        for p in range(m):
-            for q in range(p):
-                gram[j, p, q] = gram[j, q, p]
 
 
 def _phase_from_sums(gram: np.ndarray, rhs: np.ndarray) -> float:
@@ -350,14 +105,21 @@ def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.nda
     and the platform speed's variation (``std``; the latter ``/mean`` [%]) and that of the
     speed reference over the same samples
     (``amp*sin(arg + ph) = amp*(sin(arg)*cos(ph) + cos(arg)*sin(ph))`` from the fit's basis).
-    The sums run in compiled kernels that release the GIL (:func:`_fit_sums`,
-    :func:`_partition_moments`), so that steps finish side by side."""
+    The sums run in compiled kernels that release the GIL
+    (:mod:`torquemod.twins.vtrack.rig.truthsums`), so that steps finish side by side."""
     f, fs = config.modulation.actual_frequency_hz, config.sensors.sample_rate_hz
     w0 = config.rig.platform_speed_rad_s
     stride = WOBBLE_FIT_STRIDE
     n_fit = (raw.shape[0] + stride - 1) // stride
     nw = wobble.shape[0]
     ref = np.zeros(n_fit)
+    edges = [a for a, _ in spans[1:]] + [spans[-1][1]] if len(spans) > 1 else []
+    partition = (len(spans) > 1 and spans[0] == (edges[0], edges[-1])
+                 and all(spans[j][1] == spans[j + 1][0] for j in range(1, len(spans) - 1)))
+    if partition:  # the whole and its revolutions: two passes over the samples in all
+        edges = np.array(edges, dtype=np.int64)
+        means = np.empty((len(spans), _MEAN_COLS.size))
+        stds = np.empty((len(spans), _STD_COLS.size))
     if nw:
         windows = []
         for a, b in spans:
@@ -369,16 +131,14 @@ def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.nda
         wob = np.ascontiguousarray(wobble, dtype=np.float64)
         coef = np.column_stack([wob[:, 0] * np.sin(wob[:, 2]),
                                 wob[:, 0] * np.cos(wob[:, 2])]).ravel()
-        _fit_sums(raw, t0_s, fs, stride, 2.0 * np.pi * f, wob, coef, _FIT_COLS, lo, hi,
-                  gram, rhs, ref)
-    edges = [a for a, _ in spans[1:]] + [spans[-1][1]] if len(spans) > 1 else []
-    partition = (len(spans) > 1 and spans[0] == (edges[0], edges[-1])
-                 and all(spans[j][1] == spans[j + 1][0] for j in range(1, len(spans) - 1)))
-    if partition:  # the whole and its revolutions: two passes in all
-        means = np.empty((len(spans), _MEAN_COLS.size))
-        stds = np.empty((len(spans), _STD_COLS.size))
-        _partition_moments(raw, np.array(edges, dtype=np.int64), _MEAN_COLS, means,
-                           _STD_COLS, stds)
+        args = (raw, t0_s, fs, stride, 2.0 * np.pi * f, wob, coef, _FIT_COLS, lo, hi, gram,
+                rhs, ref)
+        if partition:  # the fit's sums and the moments in one sweep
+            step_sums(*args, edges, _MEAN_COLS, _STD_COLS, means, stds)
+        else:
+            _fit_sums(*args)
+    if partition and not nw:
+        _partition_moments(raw, edges, _MEAN_COLS, means, _STD_COLS, stds)
     out = []
     for i, (a, b) in enumerate(spans):
         if partition:
@@ -405,12 +165,11 @@ def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.nda
     return out
 
 
-def _large_signal(dc: float, config: SimConfig) -> float | None:
-    """Phase [deg] at the actual modulation amplitude (periodic steady state of the same
-    model, driven by the motor as in the simulation; :func:`large_signal_phase_deg`)."""
-    res = large_signal_phase_deg(dc, config.rig, config.modulation.actual_frequency_hz,
-                                 config.modulation.amplitude_nm, drive="motor")
-    return None if res.slipped else float(res.phase_deg)
+def _large_signal(dc: float, config: SimConfig) -> LargeSignalResult:
+    """The periodic steady state at the actual modulation amplitude (the same model, driven
+    by the motor as in the simulation; :func:`large_signal_phase_deg`)."""
+    return large_signal_phase_deg(dc, config.rig, config.modulation.actual_frequency_hz,
+                                  config.modulation.amplitude_nm, drive="motor")
 
 
 def step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None,
@@ -459,11 +218,15 @@ def step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None
                      phase_theory_deg=None, phase_rigid_deg=None,
                      phase_large_signal_deg=None)
     else:
+        # the large-signal solve carries the small-signal phase (the same computation)
+        ls = _large_signal(dc, config) if large_signal else None
         entry.update(
             creepage=op.creepage, coa=op.coa, creep_coefficient=k, dcoa_dxi=op.dcoa_dxi,
             fx_n=op.fx_n, fy_n=op.fy_n,
-            phase_theory_deg=float(predicted_phase_deg(k, rig, f, creepage=op.creepage)),
-            phase_large_signal_deg=_large_signal(dc, config) if large_signal else None,
+            phase_theory_deg=(ls.small_signal_phase_deg if ls is not None else
+                              float(predicted_phase_deg(k, rig, f, creepage=op.creepage))),
+            phase_large_signal_deg=(None if ls is None or ls.slipped
+                                    else float(ls.phase_deg)),
             phase_rigid_deg=float(rigid_wheel_phase_deg(
                 k, inertia_kg_m2=rig.wheel_inertia_kg_m2, speed_m_s=rig.speed_m_s,
                 wheel_radius_m=rig.wheel_radius_m, normal_load_n=rig.normal_load_n,
