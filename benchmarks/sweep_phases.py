@@ -3,9 +3,12 @@
 Runs the command in this process (its arguments after ``--``) with its stages wrapped, and
 prints, as each stage starts and ends, the wall time since the start and this process's
 CPU (the command, the Dask scheduler and the nannies; not the workers): the sweep file,
-the points' decision, the cluster's start, the first and last result, assembling the
-table, the recommendation, the Parquet, the report; at the end the CPU of the workers
-(children). Run on a finished folder, it times a rerun whose points are all skipped.
+the points' decision, the cluster's start (in a thread from the end of the sweep file on
+when the output folder is new: "early"; joined when the points are submitted), the first
+and last result, assembling the table, the recommendation, the Parquet, the report and
+its figures (drawn on the workers when there is a local cluster); at the end the CPU of
+the workers (children). Run on a finished folder, it times a rerun whose points are all
+skipped.
 
     python benchmarks/sweep_phases.py -- examples/sweep_vtrack_conditions.toml --out OUT \
         --workers 2 --quiet
@@ -18,6 +21,7 @@ import functools
 import os
 import resource
 import sys
+import threading
 import time
 
 
@@ -58,13 +62,34 @@ def main(argv: list[str]) -> None:
 
     @contextlib.contextmanager
     def client(*a, **k):
-        stamp("> cluster start")
+        early = threading.current_thread().name == "torquemod-dask-start"
+        what = ("cluster start (early, in a thread)" if early else
+                "cluster joined (started early)" if k.get("started") is not None else
+                "cluster start")
+        stamp(f"> {what}")
         with client_of(*a, **k) as c:
-            stamp("< cluster start")
+            stamp(f"< {what}")
             yield c
             stamp("> cluster close (in a thread when the caller passes `closing`)")
         stamp("< cluster close")
     daskutil.dask_client = client
+    try:
+        import torquemod.sweep.finish as finish
+
+        class TimedDrawer(finish.FigureDrawer):
+            def submit(self, jobs):
+                stamp(f"{len(jobs)} figures handed to the workers")
+                return super().submit(jobs)
+
+            def __call__(self, jobs):
+                stamp(f"> {len(jobs)} figures drawn on the workers")
+                try:
+                    return super().__call__(jobs)
+                finally:
+                    stamp("< figures drawn on the workers")
+        finish.draw_on = TimedDrawer
+    except ImportError:  # an older checkout draws them in the command
+        pass
     completed = dd.as_completed
 
     def results(futures):

@@ -25,7 +25,9 @@ each wall time, the CPU of the command and its workers, and the ratio of the med
 ``--rerun`` each finished sweep is run again in its folder (every point skipped: what a
 sweep costs besides its points). ``--report DIR`` draws the report of a finished sweep
 folder in this process and prints the CPU of its parts (imports, point summary,
-figures, PNGs, page). ``--worker`` evaluates ``--points`` points in this process, in a
+figures, PNGs, page); with ``--as-worker`` after importing what a sweep's worker has
+imported (``torquemod.sweep.workerpreload``: a larger heap, as where the figures are now
+drawn). ``--worker`` evaluates ``--points`` points in this process, in a
 worker of Dask's default local cluster and in a worker of torquemod's, and prints the CPU
 of each (what the worker's settings cost a point).
 
@@ -35,7 +37,7 @@ infinitely fast speeds the sweep up by at most 1/(1 - s) (Amdahl).
     python benchmarks/sweep_point.py [--points 6] [--through-files]
                                      [--sweep examples/sweep_vtrack_conditions.toml]
     python benchmarks/sweep_point.py --wall [--src /work/main/src] [--repeat 1] [--rerun]
-    python benchmarks/sweep_point.py --report OUT [--sweep SWEEP]
+    python benchmarks/sweep_point.py --report OUT [--sweep SWEEP] [--as-worker]
     python benchmarks/sweep_point.py --worker [--points 6] [--repeat 1]
 """
 
@@ -115,8 +117,11 @@ def sweep_wall(sweep: str, srcs: dict[str, str], repeat: int, workers: int,
               f"x{med['before'] / med['after']:.2f}")
 
 
-def report_alone(sweep: str, out: Path) -> None:
-    """CPU of drawing a finished sweep's report in this process, by part."""
+def report_alone(sweep: str, out: Path, as_worker: bool = False) -> None:
+    """CPU of drawing a finished sweep's report in this process, by part (``as_worker``:
+    after a sweep worker's imports)."""
+    if as_worker:
+        import torquemod.sweep.workerpreload  # noqa: F401
     c0 = time.process_time()
     marks = []
 
@@ -139,10 +144,16 @@ def report_alone(sweep: str, out: Path) -> None:
                 else {})
     rec = rep.recommend(table, spec, **shared(rep.recommend))
     mark("table, point summary, recommendation")
-    figs = rep.make_figures(table, spec, rec, **shared(rep.make_figures))
-    mark(f"{len(figs)} figures drawn")
-    pngs = [(stem, rep._png(fig), caption) for stem, fig, caption in figs]
-    mark("their PNGs")
+    if hasattr(rep, "figure_jobs"):  # each figure drawn and encoded by its job
+        jobs = rep.figure_jobs(table, spec, rec, **shared(rep.figure_jobs))
+        mark("the figures' jobs")
+        pngs = [(job.stem, rep.draw_png(job), job.caption) for job in jobs]
+        mark(f"{len(pngs)} figures drawn and encoded")
+    else:  # an older checkout (--src): drawn, then encoded
+        figs = rep.make_figures(table, spec, rec, **shared(rep.make_figures))
+        mark(f"{len(figs)} figures drawn")
+        pngs = [(stem, rep._png(fig), caption) for stem, fig, caption in figs]
+        mark("their PNGs")
     rep.render(table, spec, rec, pngs, **shared(rep.render))
     mark("the page")
     load = os.getloadavg()[0]
@@ -208,6 +219,8 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--rerun", action="store_true",
                     help="with --wall: run each finished sweep again (every point skipped)")
+    ap.add_argument("--as-worker", action="store_true",
+                    help="with --report: import what a sweep worker imports first")
     ap.add_argument("--report", type=Path, default=None, metavar="OUT",
                     help="draw the report of the finished sweep folder OUT, timed by part")
     ap.add_argument("--worker", action="store_true",
@@ -218,7 +231,7 @@ def main() -> None:
         worker_cost(args.sweep, args.points, args.repeat)
         return
     if args.report is not None:
-        report_alone(args.sweep, args.report)
+        report_alone(args.sweep, args.report, args.as_worker)
         return
     if args.wall:
         srcs = ({"before": args.src} if args.src else {}) | {"after": str(HERE / "src")}

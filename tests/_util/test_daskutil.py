@@ -12,16 +12,29 @@ SRC = str(Path(__file__).resolve().parents[2] / "src")
 
 _SCRIPT = """
 import os, sys
-from torquemod._util.daskutil import dask_client
+from torquemod._util.daskutil import EarlyCluster, dask_client
 
 def probe():
     import os, sys
     return "colorsys" in sys.modules, os.getppid()
 
-modules = ("colorsys",) if sys.argv[1] == "forked" else None
-with dask_client(n_workers=1, worker_modules=modules) as client:
-    had, ppid = client.submit(probe, pure=False).result()
-print(had, ppid == os.getpid())
+modules = ("colorsys",) if sys.argv[1] != "spawned" else None
+early = EarlyCluster(1, modules) if sys.argv[1] == "early" else None
+if early is not None:
+    unused = EarlyCluster(1, modules)  # started, then not needed: closed before it returns
+    unused.close()
+    closing, links = [], []
+    with dask_client(n_workers=1, started=early, closing=closing,
+                     on_dashboard=links.append) as client:
+        had, ppid = client.submit(probe, pure=False).result()
+    for thread in closing:
+        thread.join()
+    early.close()  # a second close does nothing
+    print(had, ppid == os.getpid(), len(links), client.status)
+else:
+    with dask_client(n_workers=1, worker_modules=modules) as client:
+        had, ppid = client.submit(probe, pure=False).result()
+    print(had, ppid == os.getpid())
 """
 
 
@@ -38,6 +51,13 @@ def test_workers_fork_from_a_server_that_imported_their_modules():
     the worker is spawned by this process and has not imported it."""
     assert _run("forked") == ["True", "False"]
     assert _run("spawned") == ["False", "True"]
+
+
+def test_a_cluster_started_early_is_used_then_closed():
+    """A cluster started in a thread (:class:`EarlyCluster`) is the one the block gets, its
+    workers forked from the server, its dashboard reported; the block closes it (in the
+    thread it hands back); one never used is closed by ``close``."""
+    assert _run("early") == ["True", "False", "1", "closed"]
 
 
 def test_the_command_preloads_what_the_sweep_names():

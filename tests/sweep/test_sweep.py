@@ -243,11 +243,12 @@ def test_the_report_imports_run_beside_the_last_batch(tmp_path, monkeypatch):
     the table is assembled; without a report nothing is started."""
     import threading
 
+    import torquemod.sweep.finish as finish_mod
     import torquemod.sweep.report as report_mod
-    import torquemod.sweep.run as run_mod
     calls = []
-    monkeypatch.setattr(run_mod, "_import_report_modules",
-                        lambda kind: calls.append((kind, threading.current_thread().name)))
+    monkeypatch.setattr(finish_mod, "import_report_modules",
+                        lambda kind, drawing=True: calls.append(
+                            (kind, threading.current_thread().name)))
     monkeypatch.setattr(report_mod, "write_report", lambda *a, **k: calls.append("report"))
     spec = parse_sweep(THEORY.replace("[2.0, 3.0]", "[3.0]"))  # 2 points: 2 batches
     run_sweep(spec, tmp_path / "a", n_workers=2, report=True)
@@ -255,6 +256,50 @@ def test_the_report_imports_run_beside_the_last_batch(tmp_path, monkeypatch):
     calls.clear()
     run_sweep(spec, tmp_path / "b", n_workers=2, report=False)
     assert calls == []
+
+
+def test_the_figures_drawn_on_the_workers_are_those_drawn_here(tmp_path, theory_sweep,
+                                                                monkeypatch):
+    """On a local cluster the report's figures are drawn as tasks on its workers (after
+    the workers imported the drawing code, once their points were done; those drawn from
+    the table alone submitted first): the same PNG files, byte for byte, and the same page
+    but its run time as the in-process sweep's."""
+    import re
+
+    import torquemod.sweep.finish as finish_mod
+    out0, spec, _ = theory_sweep
+    drawn, early, warmed, states = [], [], [], []
+    warm = finish_mod.warm_workers
+
+    class Counted(finish_mod.FigureDrawer):
+        def submit(self, jobs):
+            early.extend(j.stem for j in jobs)
+            return super().submit(jobs)
+
+        def __call__(self, jobs):
+            drawn.extend(j.stem for j in jobs)
+            pngs = super().__call__(jobs)
+            states.extend(f.status for f in warmed)  # the imports: none failed
+            return pngs
+
+    monkeypatch.setattr(finish_mod, "draw_on", Counted)
+    monkeypatch.setattr(finish_mod, "warm_workers",
+                        lambda client: warmed.extend(warm(client)) or list(warmed))
+    out = tmp_path / "dask"
+    res = run_sweep(spec, out, n_workers=2)
+    assert res.count("done") == 4 and res.report is not None
+    assert len(warmed) == 2 and set(states) <= {"pending", "finished"} and states
+    files = sorted(p.name for p in (out0 / "figures").glob("*.png"))
+    assert sorted(f"{s}.png" for s in drawn) == files and len(files) >= 4
+    # those of the table alone were handed out before the summary was worked out
+    assert early[:3] == ["phase_by_condition", "phase_by_frequency", "creep_curves"]
+    for name in files:
+        assert (out / "figures" / name).read_bytes() == (out0 / "figures" / name).read_bytes()
+
+    def page(folder):
+        text = (folder / "report.html").read_text(encoding="utf-8")
+        return re.sub(r"this run took [0-9.]+ s", "", text)
+    assert page(out) == page(out0)
 
 
 def test_failed_points_become_rows_and_the_sweep_goes_on(tmp_path):

@@ -283,10 +283,16 @@ SWEEP_WORKER_MODULES = ("torquemod.sweep.workerpreload",)
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from torquemod._util.daskutil import check_cluster, start_worker_server
+    from torquemod._util.daskutil import (
+        EarlyCluster,
+        check_cluster,
+        forking_available,
+        start_worker_server,
+    )
     out = Path(args.out)
     fresh = not out.exists() or (out.is_dir() and not any(out.iterdir()))
-    if check_cluster(args.scheduler, args.workers, args.connect_timeout) is None and fresh:
+    local = check_cluster(args.scheduler, args.workers, args.connect_timeout) is None
+    if local and fresh:
         # a new output folder: every point runs, on a local cluster whose workers fork from
         # a server that imports what they need meanwhile, on another core while this
         # process imports and reads the sweep (in a folder with finished points the
@@ -295,14 +301,22 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from torquemod.sweep.run import plan_line, run_sweep
     from torquemod.sweep.spec import MAX_POINTS, load_sweep
     spec = load_sweep(args.sweep, max_points=None if args.yes else args.max_points or MAX_POINTS)
-    say = stage_printer(args)
-    res = run_sweep(spec, Path(args.out), scheduler=args.scheduler, on_start=say and (
-                        lambda: say(plan_line(spec, args.out, n_workers=args.workers,
-                                              scheduler=args.scheduler))),
-                    n_workers=args.workers, force=args.force, progress=not args.quiet,
-                    connect_timeout_s=args.connect_timeout,
-                    on_dashboard=lambda link: print(f"dashboard: {link}", file=sys.stderr,
-                                                    flush=True))
+    # the sweep file is sound: the cluster starts in a thread while the output folder and
+    # the points are checked (and waits for the server's imports there, not here)
+    early = (EarlyCluster(args.workers, SWEEP_WORKER_MODULES)
+             if local and fresh and forking_available() else None)
+    try:
+        say = stage_printer(args)
+        res = run_sweep(spec, Path(args.out), scheduler=args.scheduler, on_start=say and (
+                            lambda: say(plan_line(spec, args.out, n_workers=args.workers,
+                                                  scheduler=args.scheduler))),
+                        n_workers=args.workers, force=args.force, progress=not args.quiet,
+                        connect_timeout_s=args.connect_timeout, cluster=early,
+                        on_dashboard=lambda link: print(f"dashboard: {link}",
+                                                        file=sys.stderr, flush=True))
+    finally:
+        if early is not None:  # not used after all (a refused output folder): closed here
+            early.close()
     print(f"{res.status.shape[0]} points: {res.count('done')} run, {res.count('skipped')} "
           f"unchanged (skipped), {res.count('failed')} failed in {res.wall_s:.1f} s")
     for row in res.failures.itertuples():

@@ -15,6 +15,7 @@ files in a temporary folder that is removed at the end.
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import os
 import signal
 import threading
@@ -202,7 +203,8 @@ def _close(client, cluster, scratch) -> None:
 def dask_client(scheduler: str | None = None, n_workers: int | None = None,
                 on_dashboard=None, *, connect_timeout_s: float = CONNECT_TIMEOUT_S,
                 closing: list | None = None,
-                worker_modules: tuple[str, ...] | None = None) -> Iterator[object]:
+                worker_modules: tuple[str, ...] | None = None,
+                started: EarlyCluster | None = None) -> Iterator[object]:
     """A ``dask.distributed.Client`` for the duration of the block.
 
     ``scheduler`` is the address of a running scheduler (``tcp://host:8786``, e.g. started by
@@ -221,8 +223,21 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
     server with these modules imported (:func:`start_worker_server`, started here unless
     the caller started it earlier) instead of spawned; ignored with a scheduler or where
     there is no fork server (Windows).
+
+    ``started``: a local cluster already starting (:class:`EarlyCluster`, of the same
+    workers), used instead of a new one when there is no ``scheduler``; this block then
+    owns it and closes it as its own.
     """
     address = check_cluster(scheduler, n_workers, connect_timeout_s)
+    if started is not None and address is None:
+        client, link = started.take()
+        try:
+            if link and on_dashboard is not None:
+                on_dashboard(link)
+            yield client
+        finally:
+            started.close(closing)
+        return
     import logging
     import tempfile
 
@@ -271,6 +286,75 @@ def dask_client(scheduler: str | None = None, n_workers: int | None = None,
                                           name="torquemod-dask-close")
                 closer.start()
                 closing.append(closer)
+
+
+class EarlyCluster:
+    """A local cluster (:func:`dask_client` with ``worker_modules``) starting in a thread
+    from now on, so that the caller's own work (its imports, reading its inputs) overlaps
+    the wait for the fork server's imports and the workers' start.
+
+    Hand it to :func:`dask_client` (``started=``), which waits for it and then owns it; a
+    caller that ends up not running anything calls :meth:`close`. Only where workers are
+    forked from the fork server (:func:`forking_available`): they ignore Ctrl-C as the
+    server does, which a thread could not arrange for spawned workers.
+
+    Parameters
+    ----------
+    n_workers : int or None
+        Single-threaded worker processes; None: the CPU count.
+    worker_modules : sequence of str
+        What the fork server imports (:func:`start_worker_server`).
+    """
+
+    def __init__(self, n_workers: int | None, worker_modules: tuple[str, ...]) -> None:
+        check_workers(n_workers)
+        self.n_workers = n_workers
+        self._stack = contextlib.ExitStack()
+        self._closing: list = []
+        self._links: list = []
+        self._client = None
+        self._error: BaseException | None = None
+        self._closed = False
+        # the start and the close run in one context (a client entered as a context
+        # manager sets a context variable that must be reset in the context it was set in)
+        self._context = contextvars.copy_context()
+        start_worker_server(worker_modules)
+        self._thread = threading.Thread(target=self._context.run,
+                                        args=(self._start, tuple(worker_modules)),
+                                        name="torquemod-dask-start", daemon=True)
+        self._thread.start()
+
+    def _start(self, worker_modules: tuple[str, ...]) -> None:
+        try:
+            self._client = self._stack.enter_context(dask_client(
+                None, self.n_workers, self._links.append, closing=self._closing,
+                worker_modules=worker_modules))
+        except BaseException as exc:  # raised again by take()
+            self._error = exc
+
+    def take(self) -> tuple[object, str | None]:
+        """Wait for the start: ``(client, dashboard address or None)``; its error raised
+        when it failed."""
+        self._thread.join()
+        if self._error is not None:
+            self.close()
+            raise self._error
+        return self._client, (self._links[0] if self._links else None)
+
+    def close(self, closing: list | None = None) -> None:
+        """Close the cluster (waiting for its start first): in a thread appended to
+        ``closing`` when given (the caller joins it), else before this returns."""
+        if self._closed:
+            return
+        self._closed = True
+        self._thread.join()
+        with _sigint_ignored():
+            self._context.run(self._stack.close)
+        if closing is not None:
+            closing.extend(self._closing)
+        else:
+            for thread in self._closing:
+                thread.join()
 
 
 def _reason(exc: BaseException) -> str:

@@ -132,30 +132,58 @@ def _drawn(axes, ax):
     return axes[0] if axes.size == 1 else axes
 
 
-def _draw_progression(ax, g: pd.DataFrame, color, slot: int = 0) -> None:
-    """One progression (the steps of one point): large-signal theory (line), Eq. (1)
-    (dotted), the chain (markers, 95 % bars) and crosses at the steps where the wheel
-    slipped: at the chain's phase, else on the theory's curve, else (the theory has no
-    periodic state there either) near the top of the axes, in one of four rows by
-    ``slot`` so that the crosses of several curves at one step stay apart."""
-    g = g.sort_values("utilisation")
-    theory = g[~g["slipped"].eq(True)]
-    u = 100 * theory["utilisation"]
-    ax.plot(u, theory["phase_theory_deg"], "-", color=color, lw=1.4)
-    if {"theory_constant", "creep_coefficient"} <= set(theory):
-        ax.plot(u, small_signal_deg(theory), ":", color=color, lw=1.1)
-    slip = slipped_mask(g)
-    live = g[~slip]
-    if live["phase_deg"].notna().any():
-        ax.errorbar(100 * live["utilisation"], live["phase_deg"],
-                    yerr=1.96 * live["phase_se_deg"].fillna(0), fmt="o", ms=3.5,
+#: the columns a progression draws (:func:`_draw_progression`)
+_PROGRESSION_COLUMNS = ("utilisation", "phase_theory_deg", "phase_deg", "phase_se_deg",
+                        "theory_constant", "creep_coefficient")
+
+
+def _progression_columns(table: pd.DataFrame) -> dict:
+    """The columns of ``table`` that progressions draw, as float arrays taken once (a
+    progression then selects its rows by position), with ``theory_slipped`` (the theory's
+    ``slipped``) and ``slipped`` (:func:`slipped_mask`) as bool arrays."""
+    cols = {k: table[k].to_numpy(float) for k in _PROGRESSION_COLUMNS if k in table}
+    cols["theory_slipped"] = table["slipped"].eq(True).to_numpy()
+    cols["slipped"] = slipped_mask(table).to_numpy()
+    return cols
+
+
+def _ascending(values: np.ndarray) -> np.ndarray:
+    """Positions of ``values`` in ascending order, NaN last (as ``DataFrame.sort_values``
+    orders them: quicksort over the numbers)."""
+    nan = np.isnan(values)
+    idx = np.arange(values.size)
+    return np.concatenate([idx[~nan][np.argsort(values[~nan], kind="quicksort")], idx[nan]])
+
+
+def _draw_progression(ax, cols: dict, rows: np.ndarray, color, slot: int = 0) -> None:
+    """One progression (the steps of one point, rows ``rows`` of the arrays ``cols`` of
+    :func:`_progression_columns`): large-signal theory (line), Eq. (1) (dotted), the chain
+    (markers, 95 % bars) and crosses at the steps where the wheel slipped: at the chain's
+    phase, else on the theory's curve, else (the theory has no periodic state there
+    either) near the top of the axes, in one of four rows by ``slot`` so that the crosses
+    of several curves at one step stay apart."""
+    rows = rows[_ascending(cols["utilisation"][rows])]
+    theory = rows[~cols["theory_slipped"][rows]]
+    u = 100 * cols["utilisation"][theory]
+    ax.plot(u, cols["phase_theory_deg"][theory], "-", color=color, lw=1.4)
+    if "theory_constant" in cols and "creep_coefficient" in cols:
+        ax.plot(u, phase_from_constant_deg(cols["theory_constant"][theory],
+                                           cols["creep_coefficient"][theory]),
+                ":", color=color, lw=1.1)
+    slip = cols["slipped"][rows]
+    live = rows[~slip]
+    phase = cols["phase_deg"][live]
+    if (~np.isnan(phase)).any():
+        se = cols["phase_se_deg"][live]
+        ax.errorbar(100 * cols["utilisation"][live], phase,
+                    yerr=1.96 * np.where(np.isnan(se), 0.0, se), fmt="o", ms=3.5,
                     color=color, capsize=2, ls="none")
-    gone = g[slip]
+    gone = rows[slip]
     if len(gone):
-        y = gone["phase_deg"].to_numpy(float)
-        y = np.where(np.isfinite(y), y, gone["phase_theory_deg"].to_numpy(float))
+        y = cols["phase_deg"][gone]
+        y = np.where(np.isfinite(y), y, cols["phase_theory_deg"][gone])
         on = np.isfinite(y)
-        x = 100 * gone["utilisation"].to_numpy(float)
+        x = 100 * cols["utilisation"][gone]
         ax.plot(x[on], y[on], SLIP_MARKER, color=color, ms=8, mew=2)
         if (~on).any():
             ax.plot(x[~on], np.full(int((~on).sum()), 0.96 - 0.04 * (slot % 4)), SLIP_MARKER,
@@ -208,11 +236,14 @@ def phase_panels_figure(table: pd.DataFrame, *, panel: str = CONDITION_COLUMN,
     curves = list(dict.fromkeys(table[curve]))
     fig, axes = _panel_grid(len(values), ax, **({"cols_max": 3, "width": 4.4}
                                                  if len(values) > 4 else {}))
+    cols = _progression_columns(table)
+    # the rows of each (panel, curve, point) by position, the points in table order
+    groups = table.groupby([panel, curve, "point_id"], sort=False).indices
     for a, value in zip(axes, values, strict=False):
-        part = table[table[panel] == value]
         for j, cv in enumerate(curves):
-            for _, g in part[part[curve] == cv].groupby("point_id", sort=False):
-                _draw_progression(a, g, _cmap_colour(j, len(curves)), slot=j)
+            for (p, c, _), rows in groups.items():
+                if p == value and c == cv:
+                    _draw_progression(a, cols, rows, _cmap_colour(j, len(curves)), slot=j)
         a.axvspan(100 * BAND[0], 100 * BAND[1], color="0.9", zorder=0)
         a.set_title(_label_value(panel, value), fontsize=9)
         a.set_xlabel("utilisation CoA/μ [%]")

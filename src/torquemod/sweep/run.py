@@ -22,9 +22,9 @@ wheel slipping at the first step, ...) becomes a row of failures.csv and the swe
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
-import os
 import shutil
 import threading
 import time
@@ -44,13 +44,15 @@ from torquemod._version import __version__
 from torquemod.errors import InputError, OutputError, TorquemodError
 from torquemod.results import resume
 from torquemod.results.writer import write_folder
+from torquemod.sweep import finish
 from torquemod.sweep.evaluate import PointTask, evaluate_point, tasks
-from torquemod.sweep.schedule import point_batches
+from torquemod.sweep.schedule import plan_line, point_batches
 from torquemod.sweep.spec import SweepSpec, load_sweep
 from torquemod.sweep.state import (  # noqa: F401  (fingerprint: the sweep's API, here as before)
     digests,
     fingerprint,
     one_study,
+    partition_path,
     study_key,
     sweep_provenance,
 )
@@ -65,10 +67,6 @@ FAILURE_COLUMNS = ["point_id", "point_index", "seed", "params", "message"]
 #: from a fork server that imported these (:func:`torquemod._util.daskutil.
 #: start_worker_server`; ``torquemod sweep`` starts it before its own imports)
 WORKER_MODULES = ("torquemod.sweep.workerpreload",)
-
-
-def _part(out: Path, point_id: str) -> Path:
-    return out / "points" / f"point={point_id}" / "part-0.parquet"
 
 
 def _write_parquet(df: pd.DataFrame, path: Path, metadata: dict | None = None) -> None:
@@ -116,7 +114,7 @@ def _decision(task: PointTask, out: Path, force: bool):
     record or None)."""
     digest, params_digest, inputs_digest = digests(task)
     old = resume.read_record(out, task.point_id)
-    decision = resume.decide(old, digest, outputs_ok=_part(out, task.point_id).is_file(),
+    decision = resume.decide(old, digest, outputs_ok=partition_path(out, task.point_id).is_file(),
                              force=force, parameters_digest=params_digest,
                              inputs_digest=inputs_digest)
     return (digest, params_digest, inputs_digest), decision, old
@@ -128,6 +126,9 @@ def _unchanged(todo: list[PointTask], out: Path, force: bool) -> tuple[list[dict
     rows, run = [], []
     for task in todo:
         t0 = time.perf_counter()
+        if force or not resume.record_path(out, task.point_id).is_file():
+            run.append(task)  # runs whatever its digests (a new folder: none computed)
+            continue
         try:
             _digests, decision, old = _decision(task, out, force)
         except Exception:  # run_point says what is wrong with the point
@@ -165,7 +166,7 @@ def run_point(task: PointTask, out_dir: str, force: bool = False) -> dict:
     out = Path(out_dir)
     row = {"point_id": task.point_id, "point_index": task.index, "seed": task.seed,
            "status": "failed", "n_rows": 0, "message": ""}
-    part = _part(out, task.point_id)
+    part = partition_path(out, task.point_id)
     try:
         (digest, params_digest, inputs_digest), decision, old = _decision(task, out, force)
         if not decision.redo:
@@ -236,21 +237,31 @@ class SweepResult:
 def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, scheduler,
                   n_workers, force: bool, progress: bool, on_dashboard, begin,
                   connect_timeout_s: float = CONNECT_TIMEOUT_S,
-                  closing: list | None = None, tail=None) -> tuple[list, str]:
-    """Every point's status row (``begin()`` creates the output when the work can start).
+                  closing: list | None = None, tail=None, stack=None,
+                  warm: bool = False, cluster=None,
+                  frames: dict | None = None) -> tuple[list, str, object]:
+    """Every point's status row, the dashboard's address and the local cluster's client
+    (None without one) for drawing the report's figures (``begin()`` creates the output
+    when the work can start).
 
     The points a run would skip are decided here; a local cluster starts only when some
-    point is left to run, and is closed in a thread appended to ``closing`` (joined by the
-    caller) while the caller assembles the table and draws the report. ``tail()`` runs in
-    a thread once fewer batches are left than worker slots (a core the workers no longer
-    use), and is waited for before this returns."""
+    point is left to run. Its client is entered into ``stack`` (a ``contextlib.ExitStack``
+    the caller closes after the report; the cluster then closes in a thread appended to
+    ``closing``, joined by the caller). ``tail()`` runs in a thread once fewer batches are
+    left than worker slots (a core the workers no longer use), and is waited for before
+    this returns; ``warm`` then also gives each worker the drawing code's imports
+    (:func:`~torquemod.sweep.finish.warm_workers`) to run once it has no point left.
+    ``cluster``: the local cluster already starting (:class:`~torquemod._util.daskutil.
+    EarlyCluster`), used when points are left to run. ``frames`` receives the partitions
+    of the points a batch finished, read while the other batches run (for
+    :func:`assemble`)."""
     from tqdm import tqdm
     rows, links = [], []
     if not in_process:
         rows, todo = _unchanged(todo, out, force)
         if not todo:
             begin()
-            return rows, None
+            return rows, None, None
     if in_process:
         begin()
         bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
@@ -258,7 +269,7 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
             rows.append(run_point(task, str(out), force))
             bar.update()
         bar.close()
-        return rows, None
+        return rows, None, None
     from dask.distributed import as_completed
 
     from torquemod._util.daskutil import dask_client
@@ -268,48 +279,39 @@ def _evaluate_all(todo: list[PointTask], out: Path, *, in_process: bool, schedul
         if on_dashboard is not None:
             on_dashboard(link)
 
-    with dask_client(scheduler, n_workers, dashboard, connect_timeout_s=connect_timeout_s,
-                     closing=closing, worker_modules=WORKER_MODULES) as client:
-        begin()  # once the cluster answers
-        bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
-        slots = sum(client.nthreads().values()) or 1
-        since = time.time()
-        futures = {client.submit(run_points, b, str(out), force, pure=False,
-                                 key=f"torquemod-sweep-{b[0].point_id}-{time.time_ns()}"): b
-                   for b in point_batches(todo, slots)}
-        left, helper = len(futures), None
-        try:
-            for fut in as_completed(futures):
-                try:
-                    rows.extend(fut.result())
-                except Exception as exc:  # the worker died (memory, a kill): points failed
-                    rows.extend(_lost(futures[fut], out, _one_line(exc), since, force))
-                bar.update(len(futures[fut]))
-                left -= 1
-                if tail is not None and helper is None and 0 < left < slots:
-                    helper = threading.Thread(target=tail, name="torquemod-sweep-tail",
-                                              daemon=True)
-                    helper.start()
-        finally:
-            if helper is not None:
-                helper.join()
+    client = stack.enter_context(dask_client(
+        scheduler, n_workers, dashboard, connect_timeout_s=connect_timeout_s,
+        closing=closing, worker_modules=WORKER_MODULES, started=cluster))
+    begin()  # once the cluster answers
+    bar = tqdm(total=len(todo), desc="sweep", unit="point", disable=not progress)
+    slots = sum(client.nthreads().values()) or 1
+    since = time.time()
+    futures = {client.submit(run_points, b, str(out), force, pure=False,
+                             key=f"torquemod-sweep-{b[0].point_id}-{time.time_ns()}"): b
+               for b in point_batches(todo, slots)}
+    left, helper = len(futures), None
+    try:
+        for fut in as_completed(futures):
+            try:
+                done = fut.result()
+            except Exception as exc:  # the worker died (memory, a kill): points failed
+                done = _lost(futures[fut], out, _one_line(exc), since, force)
+            rows.extend(done)
+            if frames is not None:
+                finish.read_parts(done, out, frames)
+            bar.update(len(futures[fut]))
+            left -= 1
+            if tail is not None and helper is None and 0 < left < slots:
+                if warm and scheduler is None:  # kept until the figures are drawn
+                    stack.callback(list.clear, finish.warm_workers(client))
+                helper = threading.Thread(target=tail, name="torquemod-sweep-tail",
+                                          daemon=True)
+                helper.start()
+    finally:
+        if helper is not None:
+            helper.join()
     bar.close()
-    return rows, (links[0] if links else None)
-
-
-def _import_report_modules(kind: str) -> None:
-    """Import what the report will draw with (matplotlib, the figures, the twin's theory
-    for the creep curves): run while the last points finish, so that the report does not
-    wait for it after them. A module that fails to import is left to the report."""
-    import importlib
-    names = (("torquemod.sweep.trainreport",) if kind == "train" else
-             ("torquemod.sweep.report", "torquemod.sweep.evaluate",
-              "torquemod.twins.vtrack.theory", "torquemod.analysis.contact.polach"))
-    for name in (*names, "matplotlib.backends.backend_agg"):
-        try:
-            importlib.import_module(name)
-        except Exception:  # the report imports it again and says why
-            return
+    return rows, (links[0] if links else None), (client if scheduler is None else None)
 
 
 def run_points(batch: list[PointTask], out_dir: str, force: bool = False) -> list[dict]:
@@ -351,7 +353,7 @@ def _lost(batch: list[PointTask], out: Path, why: str, since: float = 0.0,
             written = resume.record_path(out, t.point_id).stat().st_mtime
         except OSError:
             written = 0.0
-        if _part(out, t.point_id).is_file() and rec is not None \
+        if partition_path(out, t.point_id).is_file() and rec is not None \
                 and rec.fingerprint == fingerprint(t):
             status = "done" if written >= since else None if force else "skipped"
             if status is not None:
@@ -361,62 +363,8 @@ def _lost(batch: list[PointTask], out: Path, why: str, since: float = 0.0,
     return rows
 
 
-#: rough seconds a point takes on one worker of a 2-core machine under load (theory: docs;
-#: a full rig point of the default procedure and a train point of the default 4 km run are
-#: larger, measured once with ``torquemod sweep``); a resumed sweep uses its own points' times
-POINT_SECONDS = {("rig", "theory"): 0.5, ("rig", "full"): 5.0, ("train", "full"): 120.0}
-
-
-def plan_line(spec: SweepSpec, out: str | Path, *, n_workers: int | None = None,
-              scheduler: str | None = None) -> str:
-    """What the sweep is about to do, said before it starts.
-
-    Parameters
-    ----------
-    spec : SweepSpec
-        The sweep.
-    out : str or pathlib.Path
-        The output folder (points already done there are counted).
-    n_workers : int or None
-        Local workers; None: the CPU count.
-    scheduler : str or None
-        A scheduler's address, when the points run there.
-
-    Returns
-    -------
-    str
-        The points (to run, finished) and a rough time on the workers.
-    """
-    out = Path(out)
-    done, seconds = 0, []
-    for p in spec.points:
-        rec = resume.read_record(out, p.point_id)
-        if rec is None:
-            continue
-        done += _part(out, p.point_id).is_file()
-        if isinstance(rec.extra.get("seconds"), int | float):
-            seconds.append(float(rec.extra["seconds"]))
-    per = (sorted(seconds)[len(seconds) // 2] if seconds
-           else POINT_SECONDS.get((spec.kind, spec.mode), 60.0))
-    workers = n_workers or (None if scheduler else os.cpu_count() or 1)
-    todo = len(spec.points) - done
-    total = todo * per / (workers or 1)
-    where = f"{workers} worker{'s' if workers != 1 else ''}" if workers else "the cluster"
-    when = (f"about {_duration(total)} on {where}" if workers
-            else f"about {_duration(todo * per)} of worker time")
-    return (f"sweep: {len(spec.points)} points ({todo} to run, {done} finished); {when} "
-            f"(~{per:.3g} s a point{'' if seconds else ', a rough guess'})")
-
-
-def _duration(seconds: float) -> str:
-    if seconds < 120:
-        return f"{seconds:.0f} s"
-    if seconds < 7200:
-        return f"{seconds / 60:.0f} min"
-    return f"{seconds / 3600:.1f} h"
-
-
-def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
+def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame,
+             frames: dict | None = None) -> pd.DataFrame:
     """The sweep table from the partitions of the points that are done.
 
     This spec's points only; stale partitions of an earlier spec are left alone.
@@ -429,6 +377,9 @@ def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
         The sweep.
     status : pandas.DataFrame
         The points' status.
+    frames : dict or None
+        Partitions already read (point id -> table, as read here), e.g. while the
+        other points ran. Default None.
 
     Returns
     -------
@@ -437,7 +388,9 @@ def assemble(out: Path, spec: SweepSpec, status: pd.DataFrame) -> pd.DataFrame:
     """
     order = {p.point_id: p.index for p in spec.points}
     ok = status.loc[status["status"].isin(["done", "skipped"]), "point_id"]
-    frames = [pd.read_parquet(_part(out, pid)) for pid in ok]
+    read = frames or {}
+    frames = [read[pid] if pid in read else pd.read_parquet(partition_path(out, pid))
+              for pid in ok]
     if not frames:
         return pd.DataFrame()
     table = pd.concat(frames, ignore_index=True)
@@ -450,7 +403,8 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
               in_process: bool = False, scheduler: str | None = None,
               n_workers: int | None = None, force: bool = False, progress: bool = False,
               report: bool = True, on_dashboard=None,
-              connect_timeout_s: float = CONNECT_TIMEOUT_S, on_start=None) -> SweepResult:
+              connect_timeout_s: float = CONNECT_TIMEOUT_S, on_start=None,
+              cluster=None) -> SweepResult:
     """Run a sweep into a results folder.
 
     Points run as Dask tasks: on the scheduler at ``scheduler``, else on a local cluster of
@@ -483,6 +437,10 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
     on_start : callable or None
         Called once the inputs and the output folder are checked, before the cluster starts
         (:func:`plan_line` says what is about to run).
+    cluster : torquemod._util.daskutil.EarlyCluster or None
+        A local cluster of ``n_workers`` already starting (the command starts it before
+        its own imports when every point will run), used instead of a new one when points
+        are left to run; else left to the caller to close. Default None.
 
     Returns
     -------
@@ -514,14 +472,17 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
             raise InputError(f"the output folder holds the sweep's input {given}", path=out,
                              hint="choose an --out outside the folder of the sweep file and "
                                   "its base")
-    closing: list = []  # the local cluster closing in a thread while the report is drawn
+    closing: list = []  # the local cluster closing in a thread
     try:
-        with output_lock(out):  # one sweep at a time writes OUT (a second one fails at once)
+        # one sweep at a time writes OUT (a second one fails at once); the cluster's client
+        # stays open (``stack``) until the report's figures are drawn on its workers
+        with output_lock(out), contextlib.ExitStack() as stack:
             return _run_locked(spec, out, t0, in_process=in_process, scheduler=scheduler,
                                n_workers=n_workers, force=force, progress=progress,
                                report=report, on_dashboard=on_dashboard,
                                connect_timeout_s=connect_timeout_s, on_start=on_start,
-                               closing=closing)
+                               closing=closing, stack=stack,
+                               cluster=None if in_process or scheduler else cluster)
     finally:
         for thread in closing:
             thread.join()
@@ -529,19 +490,22 @@ def run_sweep(sweep: SweepSpec | str | Path, out_dir: str | Path, *,
 
 def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler, n_workers,
                 force, progress, report, on_dashboard, connect_timeout_s,
-                on_start, closing: list) -> SweepResult:
+                on_start, closing: list, stack, cluster) -> SweepResult:
     todo = tasks(spec)
     begin = one_study(out, spec, todo, force)
     if on_start is not None:
         on_start()
+    parts: dict = {}  # the points' partitions, read as their batches finish
     with removed_if_left_empty(out):
         try:
-            rows, link = _evaluate_all(todo, out, in_process=in_process, scheduler=scheduler,
-                                       n_workers=n_workers, force=force, progress=progress,
-                                       on_dashboard=on_dashboard, begin=begin,
-                                       connect_timeout_s=connect_timeout_s, closing=closing,
-                                       tail=(lambda: _import_report_modules(spec.kind))
-                                       if report else None)
+            rows, link, client = _evaluate_all(
+                todo, out, in_process=in_process, scheduler=scheduler, n_workers=n_workers,
+                force=force, progress=progress, on_dashboard=on_dashboard, begin=begin,
+                connect_timeout_s=connect_timeout_s, closing=closing, stack=stack,
+                tail=(lambda: finish.import_report_modules(spec.kind,
+                                                         drawing=scheduler is not None))
+                if report else None, warm=report and spec.kind == "rig", cluster=cluster,
+                frames=parts)
         finally:  # the twin's experiments, also of points cut short by an interrupt
             shutil.rmtree(out / "_work", ignore_errors=True)
     system = [r["message"] for r in rows if r.pop("system", False)]
@@ -549,7 +513,7 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
         raise OutputError(system[0] if system[0].startswith(str(out)) else
                           f"{out}: {system[0]}")
     status = pd.DataFrame(rows).sort_values("point_index", ignore_index=True)
-    table = assemble(out, spec, status)
+    table = assemble(out, spec, status, frames=parts)
     params = {p.point_id: json.dumps(p.params, sort_keys=True, default=str)
               for p in spec.points}
     failed = status.loc[status["status"] == "failed"]
@@ -565,6 +529,13 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
     # comes back from Parquet as an array, which cannot be grouped; they see it as text
     table_view = _hashable_params(table, spec.swept)
     shared = {}  # the point summary, computed once for the recommendation and the report
+    drawn = {}  # on a local cluster the report's figures are drawn on its workers
+    if report and client is not None and spec.kind == "rig" and not table.empty:
+        # those of the table alone start now, while the summary and the recommendation
+        # are worked out here
+        from torquemod.sweep.figurejobs import table_jobs
+        drawn["draw"] = finish.draw_on(client)
+        drawn["draw"].submit(table_jobs(table_view, spec))
     if spec.kind == "train":
         from torquemod.sweep.trainreport import recommend_train as recommend
         from torquemod.sweep.trainreport import write_train_report as write_report
@@ -593,7 +564,7 @@ def _run_locked(spec: SweepSpec, out: Path, t0: float, *, in_process, scheduler,
                "agreement": agreement(table_view) if not table.empty else None}
         if report and not table.empty:
             write_report(w.path, table_view, spec, rec, status=status, failures=failures,
-                         wall_s=wall, **shared)
+                         wall_s=wall, **shared, **drawn)
             report_path = out / "report.html"
         (w.path / "sweep.json").write_text(dump_json(doc), encoding="utf-8")
     return SweepResult(out, table, status, failures, rec, report_path, link,

@@ -1,10 +1,17 @@
-"""How a sweep's points are cut into Dask tasks (:func:`point_batches`)."""
+"""How a sweep's points are cut into Dask tasks (:func:`point_batches`), and what a sweep
+says it is about to do (:func:`plan_line`)."""
 
 from __future__ import annotations
 
-from torquemod.sweep.evaluate import PointTask
+import os
+from pathlib import Path
 
-__all__ = ["BATCHES_PER_SLOT", "point_batches"]
+from torquemod.results import resume
+from torquemod.sweep.evaluate import PointTask
+from torquemod.sweep.spec import SweepSpec
+from torquemod.sweep.state import partition_path
+
+__all__ = ["BATCHES_PER_SLOT", "POINT_SECONDS", "plan_line", "point_batches"]
 
 #: the share of the points left that the next batch takes is 1/(this x worker slots)
 #: (:func:`point_batches`)
@@ -44,3 +51,58 @@ def point_batches(todo: list[PointTask], slots: int,
         batches.append(order[:size])
         order = order[size:]
     return batches
+
+
+#: rough seconds a point takes on one worker of a 2-core machine under load (theory: docs;
+#: a full rig point of the default procedure and a train point of the default 4 km run are
+#: larger, measured once with ``torquemod sweep``); a resumed sweep uses its own points' times
+POINT_SECONDS = {("rig", "theory"): 0.5, ("rig", "full"): 5.0, ("train", "full"): 120.0}
+
+
+def plan_line(spec: SweepSpec, out: str | Path, *, n_workers: int | None = None,
+              scheduler: str | None = None) -> str:
+    """What the sweep is about to do, said before it starts.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep.
+    out : str or pathlib.Path
+        The output folder (points already done there are counted).
+    n_workers : int or None
+        Local workers; None: the CPU count.
+    scheduler : str or None
+        A scheduler's address, when the points run there.
+
+    Returns
+    -------
+    str
+        The points (to run, finished) and a rough time on the workers.
+    """
+    out = Path(out)
+    done, seconds = 0, []
+    for p in spec.points:
+        rec = resume.read_record(out, p.point_id)
+        if rec is None:
+            continue
+        done += partition_path(out, p.point_id).is_file()
+        if isinstance(rec.extra.get("seconds"), int | float):
+            seconds.append(float(rec.extra["seconds"]))
+    per = (sorted(seconds)[len(seconds) // 2] if seconds
+           else POINT_SECONDS.get((spec.kind, spec.mode), 60.0))
+    workers = n_workers or (None if scheduler else os.cpu_count() or 1)
+    todo = len(spec.points) - done
+    total = todo * per / (workers or 1)
+    where = f"{workers} worker{'s' if workers != 1 else ''}" if workers else "the cluster"
+    when = (f"about {_duration(total)} on {where}" if workers
+            else f"about {_duration(todo * per)} of worker time")
+    return (f"sweep: {len(spec.points)} points ({todo} to run, {done} finished); {when} "
+            f"(~{per:.3g} s a point{'' if seconds else ', a rough guess'})")
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"

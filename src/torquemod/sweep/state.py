@@ -19,8 +19,26 @@ from torquemod.results import resume
 from torquemod.sweep.evaluate import PointTask
 from torquemod.sweep.spec import SweepSpec
 
-__all__ = ["STUDY_FILE", "digests", "fingerprint", "one_study", "study_key",
-           "sweep_provenance"]
+__all__ = ["STUDY_FILE", "digests", "fingerprint", "one_study", "partition_path",
+           "study_key", "sweep_provenance"]
+
+
+def partition_path(out: Path, point_id: str) -> Path:
+    """Where a finished point's rows are: ``out/points/point=<id>/part-0.parquet``.
+
+    Parameters
+    ----------
+    out : pathlib.Path
+        The sweep's output folder.
+    point_id : str
+        The point's id.
+
+    Returns
+    -------
+    pathlib.Path
+        The Parquet file of its rows.
+    """
+    return out / "points" / f"point={point_id}" / "part-0.parquet"
 
 
 def _fingerprint_doc(task: PointTask) -> dict:
