@@ -69,6 +69,10 @@ def test_streamed_json_is_dump_json_text(n, tmp_path):
     assert "".join(iter_json(doc)) == dump_json(plain)
     write_json(tmp_path / "x.json", doc)
     assert (tmp_path / "x.json").read_text(encoding="utf-8") == dump_json(plain) + "\n"
+    # without record columns: the indented encoder's pieces, the same text
+    pieces = list(iter_json(plain))
+    assert "".join(pieces) == dump_json(plain)
+    assert n == 0 or len(pieces) > 1
 
 
 @pytest.mark.parametrize("n", [0, 1, 3])

@@ -35,6 +35,10 @@ def to_jsonable(obj):
     return obj
 
 
+#: the encoder of json.dumps(..., indent=2, allow_nan=False), for its pieces
+_ENCODER = json.JSONEncoder(indent=2, allow_nan=False)
+
+
 def dump_json(obj) -> str:
     """Indented strict JSON text of :func:`to_jsonable` ``(obj)``."""
     return json.dumps(to_jsonable(obj), indent=2, allow_nan=False)
@@ -59,8 +63,8 @@ def iter_json(obj):
     time, so that no JSON-ready copy of them all is made."""
     streamed = ({k: v for k, v in obj.items() if isinstance(v, ColumnarRecords)}
                 if isinstance(obj, dict) else {})
-    if not streamed:
-        yield dump_json(obj)
+    if not streamed:  # the indented encoder's pieces, as json.dump writes them
+        yield from _ENCODER.iterencode(to_jsonable(obj))
         return
     marks = {k: f"\x00torquemod-records-{id(v):x}-{n}\x00"
              for n, (k, v) in enumerate(streamed.items())}
