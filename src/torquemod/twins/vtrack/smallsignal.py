@@ -173,8 +173,27 @@ def predicted_phase_deg(creep_coefficient, params: RigParams, frequency_hz, *,
     float or ndarray
         Phase [deg], positive = lag.
     """
-    h_t, h_w = drive_line_response(creep_coefficient, params, frequency_hz, creepage=creepage)
-    return np.degrees(np.angle(h_t / h_w))
+    return response_phase_deg(*drive_line_response(creep_coefficient, params, frequency_hz,
+                                                   creepage=creepage))
+
+
+def response_phase_deg(h_torque, h_speed):
+    """Phase [deg] of the wheel speed behind the shaft torque from the two responses of
+    :func:`drive_line_response` (positive = lag): what :func:`predicted_phase_deg` returns,
+    for a caller that already has them.
+
+    Parameters
+    ----------
+    h_torque, h_speed : complex or ndarray
+        The measured shaft torque's and the wheel speed's responses, as
+        :func:`drive_line_response` returns them.
+
+    Returns
+    -------
+    float or ndarray
+        Phase [deg], positive = lag.
+    """
+    return np.degrees(np.angle(h_torque / h_speed))
 
 
 def creep_coefficient_from_predicted_phase(phase_deg: float, params: RigParams,

@@ -37,7 +37,11 @@ from scipy.optimize import brentq, minimize_scalar
 from torquemod.analysis.contact.polach import creep_force
 from torquemod.errors import InputError
 from torquemod.twins.vtrack.params import RigParams
-from torquemod.twins.vtrack.smallsignal import drive_line_response, predicted_phase_deg
+from torquemod.twins.vtrack.smallsignal import (
+    drive_line_response,
+    predicted_phase_deg,
+    response_phase_deg,
+)
 from torquemod.twins.vtrack.theory_kernels import (
     _dense_solve,  # noqa: F401 - its old home
     newton_periodic,
@@ -502,7 +506,7 @@ def _large_signal(dc_torque_nm, params, frequency_hz, amplitude_nm, drive, platf
     response = None
     if platform:  # the start's small-signal response gives the small-signal phase too
         response = drive_line_response(op.creep_coefficient, params, f, creepage=op.creepage)
-        small = float(np.degrees(np.angle(response[0] / response[1])))
+        small = float(response_phase_deg(*response))
     else:
         small = float(predicted_phase_deg(op.creep_coefficient, _stiff_platform(params), f,
                                           creepage=op.creepage))
