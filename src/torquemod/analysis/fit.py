@@ -81,9 +81,9 @@ from scipy.optimize import least_squares
 from torquemod.analysis.polachcurve import (
     _mean_slope,
     longitudinal_mean,
-    longitudinal_mean_jacobian,
     polach_coa,
 )
+from torquemod.analysis.polachfitmodel import FitModel
 from torquemod.analysis.polachfitresult import PolachFit
 from torquemod.errors import InputError, ProcessingError
 
@@ -384,6 +384,9 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
     lo = [MU_BOUNDS[0], 0.0, 0.0] + ([0.0, 0.0] if velocity_dependent else [])
     hi = [MU_BOUNDS[1], np.inf, np.inf] + ([1.0, B_MAX_S_M] if velocity_dependent else [])
 
+    # constant friction: the model and its closed-form Jacobian at the points (FitModel);
+    # velocity-dependent: the curve with the last parameters' mean CoA kept
+    fast = None if velocity_dependent else FitModel(xi, swing, lateral)
     last: list = [None, None]  # the last parameters and their longitudinal mean CoA
 
     def mean_at(th):
@@ -395,23 +398,16 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
         return last[1]
 
     def model(th):
+        if fast is not None:
+            return fast.model(th)
         return np.hypot(mean_at(th), lateral)
-
-    def model_jac(th):
-        """d model/d theta (n, 3), constant friction: the closed form of Polach's curve
-        (:func:`torquemod.analysis.polachcurve.longitudinal_mean_jacobian`) through the
-        hypotenuse with the lateral CoA."""
-        f = mean_at(th)
-        m = np.hypot(f, lateral)
-        ratio = np.divide(f, m, out=np.ones_like(f), where=m > 0)
-        return ratio[:, None] * longitudinal_mean_jacobian(xi, th, swing)
 
     def run(sig, starts):
         def resid(th):
             return (model(th) - coa) / sig
 
-        def jac(th):
-            return model_jac(th) / sig[:, None]
+        def jac(th):  # constant friction only (velocity-dependent: finite differences)
+            return fast.jacobian(th, sig)
         results = []
         for x0 in starts:
             x0 = np.clip(x0, lo, np.where(np.isfinite(hi), hi, x0))
@@ -480,7 +476,7 @@ def fit_polach(xi, coa, *, xi_std=None, coa_std=None, velocity_dependent: bool =
         return (model(with_mu(rest, mu_fixed)) - coa) / sigma
 
     def jac_at(rest, mu_fixed):
-        return model_jac(with_mu(rest, mu_fixed))[:, 1:] / sigma[:, None]
+        return fast.jacobian(with_mu(rest, mu_fixed), sigma, full=False)
     profile = _profile_interval(resid_at, theta, lo[1:], hi[1:], chi2_min=chi2,
                                 threshold=scale if np.isfinite(scale) else 1.0,
                                 mu_bounds=MU_BOUNDS, max_nfev=max_nfev,
