@@ -109,6 +109,27 @@ def _fmt_interval(interval) -> str:
     return f"{'open' if lo is None else f'{lo:.4g}'} .. {'open' if hi is None else f'{hi:.4g}'}"
 
 
+try:  # numpy's LAPACK solve without np.linalg.solve's checks (a singular system gives NaN)
+    from numpy.linalg import _umath_linalg
+
+    _SOLVE1 = _umath_linalg.solve1
+except (ImportError, AttributeError):  # pragma: no cover - other numpy versions
+    _SOLVE1 = None
+
+
+def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """``np.linalg.solve(a, b)`` for a square float64 ``a`` and vector ``b`` (the same LAPACK
+    gesv), NaN-filled instead of raising when ``a`` is singular; None where the fallback
+    ``np.linalg.solve`` raises."""
+    if _SOLVE1 is not None:
+        with np.errstate(all="ignore"):
+            return _SOLVE1(a, b, signature="dd->d")
+    try:
+        return np.linalg.solve(a, b)
+    except np.linalg.LinAlgError:
+        return None
+
+
 def _lm_lower_bounded(resid, jac, x0, lo, *args, max_iter: int = 100,
                       rtol: float = 1e-12) -> tuple[np.ndarray, float] | None:
     """Minimise ``0.5*|resid(x, *args)|^2`` subject to ``x >= lo`` by Levenberg-Marquardt
@@ -132,24 +153,26 @@ def _lm_lower_bounded(resid, jac, x0, lo, *args, max_iter: int = 100,
         all_free = bool(free.all())
         Hf = J.T @ J if all_free else (J.T @ J)[np.ix_(free, free)]
         gf = g if all_free else g[free]
-        d = np.diag(Hf).copy()
+        d = Hf.diagonal().copy()
         d[d <= 0.0] = 1.0
+        damping = np.diag(d)
+        minus_gf = -gf
         for _retry in range(12):
-            try:
-                step = np.linalg.solve(Hf + lam * np.diag(d), -gf)
-            except np.linalg.LinAlgError:
-                step = None
-            if step is None or not np.all(np.isfinite(step)):
+            step = _solve(Hf + lam * damping, minus_gf)
+            if step is None or not np.isfinite(step).all():
                 lam *= 10.0
                 continue
             if -(gf @ step) - 0.5 * (step @ Hf @ step) <= rtol * cost:
                 return x, cost  # nothing left to gain (Gauss-Newton's prediction)
-            x_new = x.copy()
-            x_new[free] += step
+            if all_free:
+                x_new = x + step
+            else:
+                x_new = x.copy()
+                x_new[free] += step
             x_new = np.maximum(x_new, lo)
             r_new = resid(x_new, *args)
             cost_new = 0.5 * float(r_new @ r_new)
-            if np.isfinite(cost_new) and cost_new < cost:
+            if cost_new < cost:  # False for NaN
                 lam = max(lam / 3.0, 1e-12)
                 break
             lam *= 4.0

@@ -15,6 +15,7 @@ the solvers ask for next at the same parameters.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from torquemod.analysis.contact.polach import swing_nodes
@@ -22,6 +23,126 @@ from torquemod.analysis.contact.polach import swing_nodes
 __all__ = ["FitModel"]
 
 _TWO_OVER_PI = 2.0 / np.pi
+# IEEE arithmetic as numpy's: no fast-math (no reassociation, no fused multiply-add)
+_EXACT = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
+
+
+@numba.njit(**_EXACT)
+def _pairwise_sum(a, n: int) -> float:
+    """``a[:n].sum()`` for ``n <= 128`` in the order of numpy's pairwise summation along a
+    contiguous axis (eight partial sums; below eight values one after the other)."""
+    if n < 8:
+        res = -0.0
+        for i in range(n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3, r4, r5, r6, r7 = a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]
+    i = 8
+    while i < n - (n % 8):
+        r0 += a[i]
+        r1 += a[i + 1]
+        r2 += a[i + 2]
+        r3 += a[i + 3]
+        r4 += a[i + 4]
+        r5 += a[i + 5]
+        r6 += a[i + 6]
+        r7 += a[i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[i]
+        i += 1
+    return res
+
+
+@numba.njit(**_EXACT)
+def _sign(x: float) -> float:
+    """numpy's sign of a float (0 for both zeros, NaN for NaN)."""
+    if x > 0.0:
+        return 1.0
+    if x < 0.0:
+        return -1.0
+    if x == 0.0:
+        return 0.0
+    return x
+
+
+@numba.njit(**_EXACT)
+def _mean_kernel(eps, at, sgn, a: float, mu: float, average: bool, out):
+    """Signed CoA per point: the static curve (one node) or the mean over the swing's nodes,
+    as numpy's ``mean(sign*mu*(2/pi)*(ke/(1 + ke^2) + arctan(u)), axis=-1)``."""
+    n, m = eps.shape
+    row = np.empty(m)
+    for i in range(n):
+        for k in range(m):
+            ke = a * eps[i, k]
+            den = ke * ke
+            den += 1.0
+            v = ke / den
+            v += at[i, k]
+            v *= _TWO_OVER_PI
+            v *= mu
+            row[k] = v * sgn[i, k] if average else v
+        if average:
+            out[i] = (0.0 + _pairwise_sum(row, m)) / m
+        else:
+            out[i] = row[0]
+
+
+@numba.njit(**_EXACT)
+def _jacobian_kernel(eps, at, sgn, cx, a: float, s: float, full: bool, average: bool,
+                     signed, f, mod, sigma, out):
+    """d model/d theta / sigma per point into ``out`` (n, 3) or (n, 2) without mu's column:
+    the closed form of :func:`torquemod.analysis.polachcurve.polach_coa_jacobian` at each
+    node, averaged over the nodes (numpy's sequential sum over a middle axis) with the sign
+    of the mean, through the hypotenuse with the lateral CoA."""
+    n, m = eps.shape
+    k0 = 1 if full else 0
+    for i in range(n):
+        acc0 = 0.0
+        acc1 = 0.0
+        acc2 = 0.0
+        for k in range(m):
+            e = eps[i, k]
+            ke = a * e
+            den = ke * ke
+            den += 1.0
+            r = 1.0 / den
+            u = s * e
+            h1 = u * u
+            h1 += 1.0
+            h1 = 1.0 / h1
+            g1 = 2.0 * r
+            g1 -= 1.0
+            g1 *= r
+            c1 = cx[i, k] * g1
+            c2 = cx[i, k] * h1
+            c0 = 0.0
+            if full:
+                c0 = ke * r
+                c0 += at[i, k]
+                w = a * g1
+                w += s * h1
+                w *= e
+                c0 -= w
+                c0 *= _TWO_OVER_PI
+            if average:
+                sg = sgn[i, k]
+                acc0 += c0 * sg
+                acc1 += c1 * sg
+                acc2 += c2 * sg
+            else:
+                acc0, acc1, acc2 = c0, c1, c2
+        if average:
+            sm = _sign(signed[i])
+            acc0 = acc0 / m * sm
+            acc1 = acc1 / m * sm
+            acc2 = acc2 / m * sm
+        ratio = f[i] / mod[i] if mod[i] > 0.0 else 1.0
+        if full:
+            out[i, 0] = acc0 * ratio / sigma[i]
+        out[i, k0] = acc1 * ratio / sigma[i]
+        out[i, k0 + 1] = acc2 * ratio / sigma[i]
 
 
 class FitModel:
@@ -49,26 +170,25 @@ class FitModel:
     def __init__(self, xi: np.ndarray, swing: np.ndarray | None, lateral: np.ndarray):
         xi = np.asarray(xi, dtype=float)
         if swing is None:
-            self._sgn = None
-            self._x = np.abs(xi)
+            nodes = xi[:, None]
         else:
-            # node-major (n_nodes, n): the Jacobian's period average is then a reduction over
-            # the leading axis (the nodes added one after the other, as numpy's mean over
-            # the middle axis of the point-major (n, n_nodes, 3) array adds them)
-            nodes = (xi[..., None] + np.abs(np.asarray(swing, dtype=float))[..., None]
-                     * swing_nodes()).T.copy()
-            self._sgn = np.sign(nodes)
-            self._x = np.abs(nodes)
+            nodes = xi[..., None] + np.abs(np.asarray(swing, dtype=float))[..., None] \
+                * swing_nodes()
+        self._average = swing is not None
+        if nodes.shape[-1] > 128:  # pragma: no cover - swing_nodes() gives 32
+            raise ValueError("FitModel sums at most 128 nodes as numpy does")
+        self._sgn = np.ascontiguousarray(np.sign(nodes))
+        self._x = np.ascontiguousarray(np.abs(nodes))
         self._cx = _TWO_OVER_PI * self._x  # (2/pi)*|x|, the factor of two derivatives
-        self._lateral = lateral
+        self._lateral = np.ascontiguousarray(lateral, dtype=float)
         self._mu = None  # the friction of self._eps
         self._eps = None
-        self._key = None  # the parameters of the intermediates below
+        self._key = None  # the parameters of the state below
         self._state: tuple = ()
 
     def _at(self, th) -> tuple:
-        """The curve's intermediates at ``th``: (a, s, |x|/mu, kA*s*|x|/mu, 1 + its
-        square, kS*s*|x|/mu, arctan of it, signed mean CoA, its magnitude, the model)."""
+        """The state at ``th``: (a, s, |x|/mu, arctan(kS*s*|x|/mu), signed mean CoA, its
+        magnitude, the model)."""
         th = np.asarray(th, dtype=float)
         key = th.tobytes()
         if key == self._key:
@@ -79,28 +199,14 @@ class FitModel:
             self._eps = self._x / mu
             self._mu = mu
         eps = self._eps
-        ke = a * eps
-        den = ke * ke
-        den += 1.0
         u = s * eps
-        at = np.arctan(u)
-        v = ke / den
-        v += at
-        v *= _TWO_OVER_PI
-        v *= mu
-        if self._sgn is None:
-            signed = v
-            f = v
-        else:
-            v *= self._sgn
-            # point-major for the mean over the nodes: numpy's pairwise sum along a
-            # contiguous axis, as in swing_average
-            signed = np.add.reduce(v.T.copy(), axis=-1)
-            signed /= v.shape[0]
-            f = np.abs(signed)
+        at = np.arctan(u, out=u)
+        signed = np.empty(eps.shape[0])
+        _mean_kernel(eps, at, self._sgn, a, mu, self._average, signed)
+        f = np.abs(signed) if self._average else signed
         m = np.hypot(f, self._lateral)
         self._key = key
-        self._state = (a, s, eps, ke, den, u, at, signed, f, m)
+        self._state = (a, s, eps, at, signed, f, m)
         return self._state
 
     def model(self, th) -> np.ndarray:
@@ -111,34 +217,8 @@ class FitModel:
     def jacobian(self, th, sigma: np.ndarray, full: bool = True) -> np.ndarray:
         """d model/d theta divided by ``sigma[:, None]``: shape (n, 3), or with ``full``
         False (n, 2) without the column of mu (a new C-ordered array)."""
-        a, s, eps, ke, den, u, at, signed, f, m = self._at(th)
-        r = 1.0 / den
-        with np.errstate(over="ignore"):  # far on the curve u^2 overflows: h1 -> 0
-            h1 = u * u
-        h1 += 1.0
-        h1 = 1.0 / h1
-        g1 = 2.0 * r
-        g1 -= 1.0
-        g1 *= r
-        k = 3 if full else 2
-        out = np.empty((*self._x.shape, k))
-        if full:
-            col0 = ke * r
-            col0 += at
-            w = a * g1
-            w += s * h1
-            w *= eps
-            col0 -= w
-            col0 *= _TWO_OVER_PI
-            out[..., 0] = col0
-        np.multiply(self._cx, g1, out=out[..., k - 2])
-        np.multiply(self._cx, h1, out=out[..., k - 1])
-        if self._sgn is not None:
-            out *= self._sgn[..., None]
-            out = np.add.reduce(out, axis=0)
-            out /= self._sgn.shape[0]
-            out *= np.sign(signed)[:, None]
-        ratio = np.divide(f, m, out=np.ones_like(f), where=m > 0)
-        out *= ratio[:, None]
-        out /= sigma[:, None]
+        a, s, eps, at, signed, f, m = self._at(th)
+        out = np.empty((eps.shape[0], 3 if full else 2))
+        _jacobian_kernel(eps, at, self._sgn, self._cx, a, s, full, self._average, signed, f,
+                         m, np.asarray(sigma, dtype=float), out)
         return out
