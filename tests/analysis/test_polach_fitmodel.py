@@ -24,11 +24,15 @@ def reference(theta, swing, lateral, sigma):
 @pytest.mark.parametrize("swing", [None, SWING])
 @pytest.mark.parametrize("lateral", [np.zeros(XI.size), np.linspace(0.0, 0.05, XI.size)])
 def test_fit_model_equals_reference_bit_for_bit(swing, lateral):
-    """Same operations in the same order: every value identical (array_equal, not close),
-    also when the parameters change between calls and when mu stays (the cached |xi|/mu)."""
+    """Same operations in the same order: every value identical (array_equal, not close:
+    a different summation order over the swing's nodes already fails it), also when the
+    parameters change between calls and when mu stays (the kept |xi|/mu)."""
     model = FitModel(XI, swing, lateral)
     sigma = np.linspace(1e-3, 3e-3, XI.size)
-    for theta in [*THETAS, *[(0.2, a, s) for a, s in [(10.0, 3.0), (90.0, 7.0)]]]:
+    rng = np.random.default_rng(3)
+    rand = np.column_stack([rng.uniform(0.05, 1.0, 40), 10 ** rng.uniform(0, 3.5, (40, 2))])
+    # mu held for a few calls (the kept |xi|/mu), then random parameters
+    for theta in [*THETAS, *[(0.2, a, s) for a, s in [(10.0, 3.0), (90.0, 7.0)]], *rand]:
         th = np.array(theta, float)
         m_ref, j_ref = reference(th, swing, lateral, sigma)
         with np.errstate(over="ignore"):
