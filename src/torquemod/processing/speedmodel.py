@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import get_window
 
-from torquemod.dsp import filters, lstsq, numpyblas, projection
+from torquemod.dsp import blockbasis, filters, lstsq, numpyblas, projection
 
 
 @functools.lru_cache(maxsize=16)
@@ -396,6 +396,58 @@ def _parts_wanted(names: tuple[str, ...], n_slow: int, n_orders: int, n_harmonic
     return bounds, wanted
 
 
+_NOT_YET = object()
+
+#: the smallest squared pivot (diagonal element of the normalised design's Cholesky factor,
+#: 1 at best) at which step 1 takes its basis of [slow, orders] from the slow basis's own;
+#: 100x above the 1e-10 at which LstsqFactor.of refuses the design, so that near that limit
+#: the decision stays LstsqFactor.of's own
+_BLOCK_MIN_PIVOT = 1e-8
+
+#: Q_S' of read-only slow bases (made once per record length and band), by id
+_SLOW_BASES: dict[int, tuple[np.ndarray, np.ndarray | None]] = {}
+
+
+def _slow_basis_t(slow: np.ndarray) -> np.ndarray | None:
+    """``Q_S'`` of an orthonormal basis of the slow basis (CholeskyQR2 from its factor,
+    :func:`~torquemod.dsp.projection.orthonormal_basis_t`), None where its factor's
+    smallest squared pivot is below :data:`_BLOCK_MIN_PIVOT`; kept for read-only bases (the
+    chain's, one per record length and band)."""
+    key = id(slow)
+    hit = _SLOW_BASES.get(key)
+    if hit is not None and hit[0] is slow:
+        return hit[1]
+    fac = filters.LstsqFactor.of(np.ascontiguousarray(slow))
+    qs_t = None
+    if fac is not None and float(np.min(np.diag(fac.factor)) ** 2) >= _BLOCK_MIN_PIVOT:
+        qs_t = projection.orthonormal_basis_t(fac)
+    if qs_t is not None:
+        qs_t.setflags(write=False)
+    if not slow.flags.writeable:
+        if len(_SLOW_BASES) >= 32:
+            _SLOW_BASES.pop(next(iter(_SLOW_BASES)))
+        _SLOW_BASES[key] = (slow, qs_t)
+    return qs_t
+
+
+def _block_removal(y: np.ndarray, slow: np.ndarray, orders: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``Q'``, ``r_y`` and ``Q'r_y`` of :class:`_SlowOrdersRemoval` with Q an orthonormal
+    basis of ``[slow, orders]`` extended from the slow basis's
+    (:func:`~torquemod.dsp.blockbasis.extended_basis_t`); None where a pivot falls below
+    :data:`_BLOCK_MIN_PIVOT` (the design's own factor then decides) or there are no
+    orders or fewer than two slow columns."""
+    if orders.shape[1] == 0 or slow.shape[1] < 2 or y.ndim != 2:
+        return None
+    qs_t = _slow_basis_t(slow)
+    if qs_t is None:
+        return None
+    out = blockbasis.extended_basis_t(qs_t, orders, y)
+    if out is None or not out[3] >= _BLOCK_MIN_PIVOT:
+        return None
+    return out[0], out[1], out[2]
+
+
 class _SlowOrdersRemoval:
     """Records ``y`` (columns) less the slow part and the rotation orders of the
     :class:`SpeedModel` fitted with the modulation at a frequency f: ``y - B c_B`` of the
@@ -415,8 +467,12 @@ class _SlowOrdersRemoval:
         self.start_hz = start_hz  # the search's nominal start [Hz]: its columns cached
         self.slow, self.orders = slow, orders
         self.b = np.hstack([slow, orders])
-        self.fac = filters.LstsqFactor.of(self.b)
+        self._fac = _NOT_YET
         self.qt = None
+        block = _block_removal(y, slow, orders)
+        if block is not None:  # Q from the slow basis's own (dsp.blockbasis)
+            self.qt, self.r_y, self.qy = block
+            return
         if self.fac is not None:
             # an orthonormal basis Q of B (dsp.projection): the residual is y - Q Q'y, and
             # each trial frequency costs one product with Q instead of a solve on B
@@ -427,9 +483,17 @@ class _SlowOrdersRemoval:
             else:
                 self.r_y = y - self.b @ self.fac.solve(y)
 
+    @property
+    def fac(self) -> filters.LstsqFactor | None:
+        """B's least-squares factor (:meth:`~torquemod.dsp.lstsq.LstsqFactor.of`), made when
+        first asked for: where Q comes from the slow basis's own, only the fallbacks use it."""
+        if self._fac is _NOT_YET:
+            self._fac = filters.LstsqFactor.of(self.b)
+        return self._fac
+
     def at(self, modulation_hz: float) -> np.ndarray:
         """``y`` less its slow part and orders with the modulation at ``modulation_hz``."""
-        if self.fac is None:  # (nearly) rank-deficient: the whole model, fitted by the SVD
+        if self.qt is None and self.fac is None:  # (nearly) rank-deficient: the SVD
             model = fit_speed_model({str(i): c for i, c in enumerate(self.y.T)}, self.fs_hz,
                                     modulation_hz, self.slow, self.orders, self.harmonics)
             end = model.design.shape[1] - model.n_harmonic_columns
@@ -501,7 +565,7 @@ class _SlowOrdersRemoval:
         come from one :meth:`explained_many` call (the same numbers as one :meth:`refine`
         per record)."""
         peaks = [float(p) for p in peaks_hz]
-        if self.fac is None:
+        if self.qt is None and self.fac is None:
             return peaks
         duration = self.y.shape[0] / self.fs_hz
         if self.qt is not None:  # the steps of _refine_steps in one compiled call (the

@@ -1,0 +1,145 @@
+"""An orthonormal basis of ``[S, O]`` from one of a fixed block S and a few further columns O.
+
+The chain's step 1 removes, from each cycle, its slow part and rotation orders: it needs an
+orthonormal basis of ``B = [S, O]`` with S the slow basis (the same for every cycle of a
+given length and band, ~20 columns) and O the tracked orders (a few columns, new each
+cycle). Block Gram-Schmidt (Golub & Van Loan, *Matrix Computations*, 4th ed., section
+5.2.8): with ``Q_S`` an orthonormal basis of S, made once per S, the orders' part
+orthogonal to S is ``R = O_n - Q_S Q_S'O_n`` (``O_n`` the orders with unit-norm columns;
+classical Gram-Schmidt applied twice, "twice is enough": Giraud, Langou, Rozloznik and van
+den Eshof 2005, Numer. Math. 101), and ``Q_O`` comes from R by CholeskyQR2 (Fukaya,
+Nakatsukasa, Yanagisawa and Yamamoto 2014, ScalA'14): ``Q = [Q_S, Q_O]`` spans B and is
+orthonormal to rounding. Per cycle this costs a few products with the ``p x n`` rows of
+``Q_S`` instead of a factorisation and CholeskyQR2 of the whole ``n x (p + k)`` design.
+
+The diagonal of R's Cholesky factor holds the residual norms of the normalised order
+columns on S and the orders before them, which are the diagonal elements of the whole
+normalised design's Cholesky factor past S's block: the rank decision of
+:meth:`torquemod.dsp.lstsq.LstsqFactor.of` can be read from it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+
+def extended_basis_t(qs_t: np.ndarray, cols: np.ndarray, y: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float] | None:
+    """``Q'`` of an orthonormal basis of ``[S, cols]`` from ``Q_S'`` of S, and the records
+    ``y`` less their projection on it.
+
+    Parameters
+    ----------
+    qs_t : ndarray
+        ``Q_S'`` (``p x n``, rows orthonormal).
+    cols : ndarray
+        ``(n, k)`` further columns (``k >= 1``), any unit.
+    y : ndarray
+        ``(n, c)`` records, any unit.
+
+    Returns
+    -------
+    qt : ndarray
+        ``(p + k, n)``: ``Q_S'`` and then ``Q_O'``, C order.
+    r_y : ndarray
+        ``y - Q Q'y`` (``n x c``).
+    qy : ndarray
+        ``Q' r_y`` (``(p + k) x c``, ~0).
+    pivot : float
+        The smallest squared diagonal element of the Cholesky factor of ``R'R``, R the
+        normalised columns' part orthogonal to S and to the columns before them (1 at best).
+    None
+        Where a column is zero or not finite or ``R'R`` is not positive definite.
+    """
+    out = _extended_basis_t(np.ascontiguousarray(qs_t, dtype=np.float64),
+                            np.ascontiguousarray(cols, dtype=np.float64),
+                            np.ascontiguousarray(y, dtype=np.float64))
+    qt, r_y, qy, pivot, ok = out
+    if not ok:
+        return None
+    return qt, r_y, qy, float(pivot)
+
+
+@numba.njit(cache=True, nogil=True)
+def _cholesky_upper(g: np.ndarray) -> tuple[np.ndarray, bool]:
+    """The upper Cholesky factor U (``g = U'U``) of a small symmetric matrix (its upper
+    triangle read); False where a pivot is not positive."""
+    k = g.shape[0]
+    u = np.zeros((k, k))
+    for j in range(k):
+        s = g[j, j]
+        for m in range(j):
+            s -= u[m, j] * u[m, j]
+        if not s > 0.0:
+            return u, False
+        d = math.sqrt(s)
+        u[j, j] = d
+        for i in range(j + 1, k):
+            t = g[j, i]
+            for m in range(j):
+                t -= u[m, j] * u[m, i]
+            u[j, i] = t / d
+    return u, True
+
+
+@numba.njit(cache=True, nogil=True)
+def _times_inverse_t(u: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """``U^-T a`` for an upper triangular ``k x k`` U and ``a`` of ``k`` rows: forward
+    substitution, one row of samples at a time."""
+    k, n = a.shape
+    out = np.empty((k, n))
+    for i in range(k):
+        oi = out[i]
+        oi[:] = a[i]
+        for m in range(i):
+            c = u[m, i]
+            om = out[m]
+            for t in range(n):
+                oi[t] -= c * om[t]
+        d = u[i, i]
+        for t in range(n):
+            oi[t] /= d
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _extended_basis_t(qs_t, cols, y):
+    p, n = qs_t.shape
+    k = cols.shape[1]
+    rt = np.empty((k, n))  # the normalised columns, as rows
+    for j in range(k):
+        s = 0.0
+        for t in range(n):
+            s += cols[t, j] * cols[t, j]
+        if not (s > 0.0 and s < np.inf):
+            e = np.empty((0, 0))
+            return e, e, e, 0.0, False
+        inv = 1.0 / math.sqrt(s)
+        for t in range(n):
+            rt[j, t] = cols[t, j] * inv
+    qs = np.ascontiguousarray(qs_t.T)
+    for _ in range(2):  # classical Gram-Schmidt against Q_S, twice
+        c = np.dot(rt, qs)  # (k, p) = R'Q_S
+        rt = rt - np.dot(c, qs_t)
+    u, ok = _cholesky_upper(np.dot(rt, rt.T))
+    if not ok:
+        e = np.empty((0, 0))
+        return e, e, e, 0.0, False
+    pivot = 1.0
+    for j in range(k):
+        pivot = min(pivot, u[j, j] * u[j, j])
+    q1 = _times_inverse_t(u, rt)  # (R U^-1)'
+    u2, ok = _cholesky_upper(np.dot(q1, q1.T))
+    if not ok:
+        e = np.empty((0, 0))
+        return e, e, e, 0.0, False
+    qo = _times_inverse_t(u2, q1)
+    qt = np.empty((p + k, n))
+    qt[:p] = qs_t
+    qt[p:] = qo
+    r_y = y - np.dot(qt.T, np.dot(qt, y))
+    qy = np.dot(qt, r_y)
+    return qt, r_y, qy, pivot, True
