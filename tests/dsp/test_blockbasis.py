@@ -67,8 +67,8 @@ def test_a_column_nearly_in_the_slow_span_leaves_the_decision_to_the_factor():
     slow, orders, y = _design(323, 3, near=-0.3)
     qs_t = projection.orthonormal_basis_t(filters.LstsqFactor.of(slow))
     out = blockbasis.extended_basis_t(qs_t, orders, y)
-    assert out is None or out[3] < speedmodel._BLOCK_MIN_PIVOT
-    assert speedmodel._block_removal(y, slow, orders) is None
+    assert out is None or out[3] < blockbasis.MIN_PIVOT
+    assert blockbasis.removal_basis(y, slow, orders) is None
     removal = speedmodel._SlowOrdersRemoval(y, slow, orders, FS)
     assert removal.qt is None and removal.fac is None
 
@@ -85,7 +85,7 @@ def test_the_removal_takes_the_block_route_and_keeps_the_factor_for_fallbacks():
     slow.setflags(write=False)
     removal = speedmodel._SlowOrdersRemoval(y, slow, orders, FS, (2,))
     assert removal._fac is speedmodel._NOT_YET  # not made: the block route
-    assert speedmodel._slow_basis_t(slow) is speedmodel._slow_basis_t(slow)  # kept
+    assert blockbasis.slow_basis_t(slow) is blockbasis.slow_basis_t(slow)  # kept
     # the removal at a frequency against the least-squares fit of the whole model
     m = speedmodel.modulation_columns(323, FS, 2.01, (2,))
     d = np.hstack([m, slow, orders])

@@ -25,6 +25,84 @@ import math
 import numba
 import numpy as np
 
+from torquemod.dsp.lstsq import LstsqFactor
+from torquemod.dsp.projection import orthonormal_basis_t
+
+#: the smallest squared pivot (diagonal element of the normalised design's Cholesky factor,
+#: 1 at best) at which :func:`removal_basis` extends the slow basis's own; 100x above the
+#: 1e-10 at which :meth:`~torquemod.dsp.lstsq.LstsqFactor.of` refuses a design, so that
+#: near that limit the decision stays LstsqFactor.of's own
+MIN_PIVOT = 1e-8
+
+#: Q_S' and Q_S'S of read-only slow bases S (one per record length and band), by id
+_SLOW_BASES: dict[int, tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]] = {}
+
+
+def slow_basis_t(slow: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``Q_S'`` of an orthonormal basis of a basis S (CholeskyQR2 from its least-squares
+    factor, :func:`~torquemod.dsp.projection.orthonormal_basis_t`) and S's triangular factor
+    ``Q_S'S``.
+
+    Parameters
+    ----------
+    slow : ndarray
+        ``(n, p)`` columns S. A read-only S's result is kept (by identity; the chain's slow
+        bases are made once per record length and band).
+
+    Returns
+    -------
+    tuple of ndarray or None
+        ``(Q_S', Q_S'S)``, read-only; None where S's factor fails or its smallest squared
+        pivot is below :data:`MIN_PIVOT`.
+    """
+    key = id(slow)
+    hit = _SLOW_BASES.get(key)
+    if hit is not None and hit[0] is slow:
+        return hit[1]
+    fac = LstsqFactor.of(np.ascontiguousarray(slow))
+    out = None
+    if fac is not None and float(np.min(np.diag(fac.factor)) ** 2) >= MIN_PIVOT:
+        qs_t = orthonormal_basis_t(fac)
+        if qs_t is not None:
+            out = (qs_t, np.triu(qs_t @ slow))
+            for a in out:
+                a.setflags(write=False)
+    if not slow.flags.writeable:
+        if len(_SLOW_BASES) >= 32:
+            _SLOW_BASES.pop(next(iter(_SLOW_BASES)))
+        _SLOW_BASES[key] = (slow, out)
+    return out
+
+
+def removal_basis(y: np.ndarray, slow: np.ndarray, orders: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``Q'``, ``y - Q Q'y`` and ``Q'(y - Q Q'y)`` for Q an orthonormal basis of
+    ``[slow, orders]`` extended from the slow basis's own (:func:`slow_basis_t`,
+    :func:`extended_basis_t`).
+
+    Parameters
+    ----------
+    y : ndarray
+        ``(n, c)`` records.
+    slow, orders : ndarray
+        ``(n, p)`` and ``(n, k)`` columns.
+
+    Returns
+    -------
+    tuple of ndarray or None
+        None where a pivot falls below :data:`MIN_PIVOT` (the whole design's factor should
+        then decide), or without orders, or with fewer than two slow columns.
+    """
+    if orders.shape[1] == 0 or slow.shape[1] < 2 or y.ndim != 2:
+        return None
+    slow_t = slow_basis_t(slow)
+    if slow_t is None:
+        return None
+    out = extended_basis_t(slow_t[0], orders, y)
+    if out is None or not out[3] >= MIN_PIVOT:
+        return None
+    return out[0], out[1], out[2]
+
 
 def extended_basis_t(qs_t: np.ndarray, cols: np.ndarray, y: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float] | None:

@@ -398,55 +398,6 @@ def _parts_wanted(names: tuple[str, ...], n_slow: int, n_orders: int, n_harmonic
 
 _NOT_YET = object()
 
-#: the smallest squared pivot (diagonal element of the normalised design's Cholesky factor,
-#: 1 at best) at which step 1 takes its basis of [slow, orders] from the slow basis's own;
-#: 100x above the 1e-10 at which LstsqFactor.of refuses the design, so that near that limit
-#: the decision stays LstsqFactor.of's own
-_BLOCK_MIN_PIVOT = 1e-8
-
-#: Q_S' of read-only slow bases (made once per record length and band), by id
-_SLOW_BASES: dict[int, tuple[np.ndarray, np.ndarray | None]] = {}
-
-
-def _slow_basis_t(slow: np.ndarray) -> np.ndarray | None:
-    """``Q_S'`` of an orthonormal basis of the slow basis (CholeskyQR2 from its factor,
-    :func:`~torquemod.dsp.projection.orthonormal_basis_t`), None where its factor's
-    smallest squared pivot is below :data:`_BLOCK_MIN_PIVOT`; kept for read-only bases (the
-    chain's, one per record length and band)."""
-    key = id(slow)
-    hit = _SLOW_BASES.get(key)
-    if hit is not None and hit[0] is slow:
-        return hit[1]
-    fac = filters.LstsqFactor.of(np.ascontiguousarray(slow))
-    qs_t = None
-    if fac is not None and float(np.min(np.diag(fac.factor)) ** 2) >= _BLOCK_MIN_PIVOT:
-        qs_t = projection.orthonormal_basis_t(fac)
-    if qs_t is not None:
-        qs_t.setflags(write=False)
-    if not slow.flags.writeable:
-        if len(_SLOW_BASES) >= 32:
-            _SLOW_BASES.pop(next(iter(_SLOW_BASES)))
-        _SLOW_BASES[key] = (slow, qs_t)
-    return qs_t
-
-
-def _block_removal(y: np.ndarray, slow: np.ndarray, orders: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """``Q'``, ``r_y`` and ``Q'r_y`` of :class:`_SlowOrdersRemoval` with Q an orthonormal
-    basis of ``[slow, orders]`` extended from the slow basis's
-    (:func:`~torquemod.dsp.blockbasis.extended_basis_t`); None where a pivot falls below
-    :data:`_BLOCK_MIN_PIVOT` (the design's own factor then decides) or there are no
-    orders or fewer than two slow columns."""
-    if orders.shape[1] == 0 or slow.shape[1] < 2 or y.ndim != 2:
-        return None
-    qs_t = _slow_basis_t(slow)
-    if qs_t is None:
-        return None
-    out = blockbasis.extended_basis_t(qs_t, orders, y)
-    if out is None or not out[3] >= _BLOCK_MIN_PIVOT:
-        return None
-    return out[0], out[1], out[2]
-
 
 class _SlowOrdersRemoval:
     """Records ``y`` (columns) less the slow part and the rotation orders of the
@@ -469,7 +420,7 @@ class _SlowOrdersRemoval:
         self.b = np.hstack([slow, orders])
         self._fac = _NOT_YET
         self.qt = None
-        block = _block_removal(y, slow, orders)
+        block = blockbasis.removal_basis(y, slow, orders)
         if block is not None:  # Q from the slow basis's own (dsp.blockbasis)
             self.qt, self.r_y, self.qy = block
             return
