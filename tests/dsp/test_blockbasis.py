@@ -96,3 +96,27 @@ def test_the_removal_takes_the_block_route_and_keeps_the_factor_for_fallbacks():
     # measured (the SVD's own share as large, see above); bound 1e-9
     np.testing.assert_allclose(removal.at(2.01), want, rtol=0, atol=1e-9)
     assert removal.fac is not None  # made on demand
+
+
+@pytest.mark.parametrize("seed,wobble", [(0, 0.0), (1, 0.02), (2, 0.1)])
+def test_tracked_orders_by_the_block_route_are_the_factor_routes(seed, wobble, monkeypatch):
+    from torquemod.processing import trackedorders
+    n = 323
+    t = np.arange(n) / FS
+    rng = np.random.default_rng(seed)
+    slow, base, fac = trackedorders._slow_and_base(n, FS, 1.2, 2.0, 2, 5)
+    f_rot = 4.6
+    w = 2 * np.pi * f_rot * (1 + wobble * np.sin(2 * np.pi * 0.3 * t))
+    speed = w * (1 + 1e-3 * np.cos(np.cumsum(w) / FS)) + 1e-3 * np.cos(
+        2 * np.pi * 2.0 * t) + 1e-4 * rng.standard_normal(n)
+    kw = dict(above_hz=1.2, avoid_hz=2.0)
+    got = trackedorders._tracked_orders_block(speed, FS, slow, (1, 2, 3), base, **kw)
+    assert got is not None
+    monkeypatch.setattr(trackedorders, "_tracked_orders_block", lambda *a, **k: None)
+    ref = trackedorders._tracked_orders(speed, FS, slow, (1, 2, 3), base, fac, **kw)
+    # the slow part's mean, its frequency: 0.8-1.5e-15 relative apart measured, bound 1e-13
+    assert got[1] == pytest.approx(ref[1], rel=1e-13)
+    # the orders' columns (the angle, ~180 rad here, from the slow part): 1.3-6.1e-13
+    # apart measured, bound 1e-10
+    assert got[0].shape == ref[0].shape
+    np.testing.assert_allclose(got[0], ref[0], rtol=0, atol=1e-10)

@@ -184,8 +184,10 @@ def _times_inverse_t(u: np.ndarray, a: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True)
-def _extended_basis_t(qs_t, cols, y):
-    p, n = qs_t.shape
+def _extension(qs_t, cols):
+    """``Q_O'`` (``k x n``) of the columns' part orthogonal to ``Q_S``, the smallest squared
+    pivot and whether every step succeeded (see :func:`extended_basis_t`)."""
+    n = qs_t.shape[1]
     k = cols.shape[1]
     rt = np.empty((k, n))  # the normalised columns, as rows
     for j in range(k):
@@ -193,8 +195,7 @@ def _extended_basis_t(qs_t, cols, y):
         for t in range(n):
             s += cols[t, j] * cols[t, j]
         if not (s > 0.0 and s < np.inf):
-            e = np.empty((0, 0))
-            return e, e, e, 0.0, False
+            return rt, 0.0, False
         inv = 1.0 / math.sqrt(s)
         for t in range(n):
             rt[j, t] = cols[t, j] * inv
@@ -204,17 +205,50 @@ def _extended_basis_t(qs_t, cols, y):
         rt = rt - np.dot(c, qs_t)
     u, ok = _cholesky_upper(np.dot(rt, rt.T))
     if not ok:
-        e = np.empty((0, 0))
-        return e, e, e, 0.0, False
+        return rt, 0.0, False
     pivot = 1.0
     for j in range(k):
         pivot = min(pivot, u[j, j] * u[j, j])
     q1 = _times_inverse_t(u, rt)  # (R U^-1)'
     u2, ok = _cholesky_upper(np.dot(q1, q1.T))
     if not ok:
+        return rt, 0.0, False
+    return _times_inverse_t(u2, q1), pivot, True
+
+
+@numba.njit(cache=True, nogil=True)
+def extension_t(qs_t, cols, min_pivot):
+    """For compiled callers: ``(Q_O', ok)``, ``Q_O'`` (``k x n``) an orthonormal basis of
+    the part of ``cols`` (``n x k``, C order) orthogonal to the rows of ``qs_t`` (the steps
+    of :func:`extended_basis_t`); ok False where a column is zero or a squared pivot is
+    below ``min_pivot``."""
+    qo, pivot, ok = _extension(qs_t, cols)
+    return qo, ok and pivot >= min_pivot
+
+
+@numba.njit(cache=True, nogil=True)
+def upper_solve(u: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``U^-1 b`` for the upper triangle of ``u`` (``m x m``) and ``b`` of m rows
+    (back substitution), for compiled callers."""
+    m, c = b.shape
+    x = np.empty((m, c))
+    for i in range(m - 1, -1, -1):
+        for j in range(c):
+            s = b[i, j]
+            for l in range(i + 1, m):
+                s -= u[i, l] * x[l, j]
+            x[i, j] = s / u[i, i]
+    return x
+
+
+@numba.njit(cache=True, nogil=True)
+def _extended_basis_t(qs_t, cols, y):
+    p, n = qs_t.shape
+    k = cols.shape[1]
+    qo, pivot, ok = _extension(qs_t, cols)
+    if not ok:
         e = np.empty((0, 0))
         return e, e, e, 0.0, False
-    qo = _times_inverse_t(u2, q1)
     qt = np.empty((p + k, n))
     qt[:p] = qs_t
     qt[p:] = qo
