@@ -230,6 +230,9 @@ from torquemod.twins.vtrack.simulate import (
 )
 from torquemod.twins.vtrack.theory import operating_point
 
+#: the example sweep whose points ``--with-sensors`` runs
+_SWEEP = Path(__file__).resolve().parents[1] / "examples" / "sweep_vtrack_conditions.toml"
+
 
 def cold_theory() -> None:
     """Forget the theory's remembered creep-curve peaks, operating points, large-signal
@@ -355,6 +358,99 @@ def batch_throughput(configs, repeat: int) -> None:
           f"x{per_core['simulate_batch (all points at once)'] / one:.2f}")
 
 
+def sweep_point_configs(n_points: int, sweep: Path = _SWEEP) -> list[tuple]:
+    """``(config, seed)`` of the first ``n_points`` points of ``sweep`` as its full mode
+    gives them to the twin (:func:`torquemod.sweep.evaluate.evaluate_point`: the point's
+    overrides, DC torques as fractions of its peak, its settling time)."""
+    from torquemod.sweep.evaluate import _theory_steps, point_config, settle_time_s, tasks
+    from torquemod.sweep.spec import load_sweep
+    out = []
+    for task in tasks(load_sweep(sweep))[:n_points]:
+        config, t_peak = point_config(task)
+        settle = settle_time_s(config, _theory_steps(config, t_peak))
+        out.append((replace(config, procedure=replace(config.procedure, settle_s=settle)),
+                    task.seed))
+    return out
+
+
+#: what :func:`with_sensors` charges a sweep point's ``simulate_run`` to (module, function,
+#: label); the rest is the run's set-up and packaging
+_RUN_PHASES = ((_simulate, "integrate_step", "integrator"),
+               (_simulate, "measure", "sensors"),
+               (_simulate, "recorded_step_truth", "truth"),
+               (_simulate, "plan_run", "plan (wobble, start states)"))
+
+
+def with_sensors(n_points: int, repeat: int) -> None:
+    """The twin as a sweep point runs it against the batch twin, in the same run: the first
+    ``n_points`` points of the example sweep through ``simulate_run(workers=1,
+    large_signal=False, statistics=False)`` (recordings with their sensors, the truth the
+    sweep reads; what a full-mode point runs) and through ``simulate_batch(large_signal=False)`` (truth only, no sensors),
+    alternated ``repeat`` times; recorded seconds per CPU-second (x real time per core,
+    best round of each) and the ``simulate_run`` CPU per point split by phase (thread CPU
+    of the calls, best round)."""
+    import inspect
+    import threading
+    # the sweep's call (a checkout without the flag: its whole truth)
+    lean = ({"statistics": False} if "statistics" in inspect.signature(simulate_run).parameters
+            else {})
+    pts = sweep_point_configs(n_points + 1)
+    simulate_run(pts[0][0], seed=pts[0][1], workers=1, large_signal=False, **lean)  # warm-up
+    simulate_batch([pts[0][0]], seed=pts[0][1], large_signal=False)
+    pts = pts[1:]
+    acc: dict[str, float] = {}
+    lock = threading.Lock()
+    saved = {}
+    for mod, name, label in _RUN_PHASES:
+        fn = saved[(mod, name)] = getattr(mod, name)
+
+        def wrapped(*a, _fn=fn, _label=label, **k):
+            c0 = time.thread_time()
+            try:
+                return _fn(*a, **k)
+            finally:
+                with lock:
+                    acc[_label] = acc.get(_label, 0.0) + time.thread_time() - c0
+        setattr(mod, name, wrapped)
+    runs, batch, splits = [], [], []
+    try:
+        for _ in range(repeat):
+            acc.clear()
+            c0 = time.process_time()
+            rec = 0.0
+            for config, seed in pts:
+                run = simulate_run(config, seed=seed, workers=1, large_signal=False, **lean)
+                rec += sum(r.n_samples / r.fs_hz for r in run.recordings)
+                del run
+            runs.append((time.process_time() - c0, rec))
+            splits.append(dict(acc))
+            c0 = time.process_time()
+            for config, seed in pts:  # one point at a time, as a sweep's task
+                simulate_batch([config], seed=seed, large_signal=False)
+            batch.append(time.process_time() - c0)
+    finally:
+        for (mod, name), fn in saved.items():
+            setattr(mod, name, fn)
+    best = min(range(repeat), key=lambda i: runs[i][0])
+    cpu, rec = runs[best]
+    n = len(pts)
+    print(f"with sensors: {n} points of {_SWEEP.name}, {rec / n:.1f} recorded s per point; "
+          f"load {os.getloadavg()[0]:.2f}")
+    print(f"  simulate_run (sensors, truth; workers=1, large_signal=False"
+          f"{', statistics=False' if lean else ''}, as a sweep point): "
+          f"{cpu / n * 1e3:.1f} ms CPU per point -> {rec / cpu:.0f}x real time per core "
+          f"(rounds: {', '.join(f'{c / n * 1e3:.1f}' for c, _ in runs)} ms)")
+    print(f"  simulate_batch (truth only, one point at a time): {min(batch) / n * 1e3:.1f} ms "
+          f"CPU per point -> {rec / min(batch):.0f}x real time per core")
+    print(f"  simulate_run / simulate_batch CPU: x{cpu / min(batch):.2f}")
+    split = splits[best]
+    for label, c in sorted(split.items(), key=lambda kv: -kv[1]):
+        print(f"    {label:>28s}: {c / n * 1e3:6.1f} ms per point ({100 * c / cpu:4.1f} %)")
+    rest = cpu - sum(split.values())
+    print(f"    {'set-up, packaging, rest':>28s}: {rest / n * 1e3:6.1f} ms per point "
+          f"({100 * rest / cpu:4.1f} %)")
+
+
 #: the phases of a step as the twin runs them (module, function name, label); nested calls
 #: are charged to the innermost phase
 _PHASES = ((_simulate, "integrate_step", "integrator"),
@@ -366,7 +462,8 @@ _PHASES = ((_simulate, "integrate_step", "integrator"),
 #: the compiled kernels (numba, nogil=True) and system calls that run without the GIL
 _GIL_FREE = ((_steps, "integrate"), (_truth, "_fit_sums"), (_truth, "_partition_moments"),
              (_truth, "_span_moments"), (_truthphase, "_sine_fit_sums"),
-             (_sensors, "_encoder_kernel"), (_noise, "_add_normal"), (_theory, "newton_periodic"),
+             (_sensors, "_encoder_kernel"), (_sensors, "_measure_kernel"),
+             (_noise, "_add_normal"), (_theory, "newton_periodic"),
              (_simulate, "_sample_times"), (_hdf5.os, "pwrite"))
 
 
@@ -537,6 +634,9 @@ def main() -> None:
     ap.add_argument("--samples-per-step", type=int, default=0,
                     help="batch: this recorded step instead of the configured one, set past "
                          "the step guard (0: as configured)")
+    ap.add_argument("--with-sensors", action="store_true",
+                    help="only the twin as a sweep point runs it (simulate_run with sensors) "
+                         "against simulate_batch (truth only), on the example sweep's points")
     args = ap.parse_args()
     if args.cores > 0:
         os.sched_setaffinity(0, set(sorted(os.sched_getaffinity(0))[:args.cores]))
@@ -547,6 +647,9 @@ def main() -> None:
           f"short first run_simulation {first_run(config):.2f} s -- not counted below")
     print(f"step: {proc.samples_per_step} sample(s) per {proc.substeps} RK4 step(s) at "
           f"{config.sensors.sample_rate_hz:g} Hz")
+    if args.with_sensors:
+        with_sensors(args.points if args.points > 0 else 6, max(args.repeat, 1))
+        return
     if args.batch_only:
         batch_throughput(batch_configs(args.points, args.samples_per_step), args.repeat)
         return
