@@ -385,10 +385,10 @@ def with_sensors(n_points: int, repeat: int) -> None:
     """The twin as a sweep point runs it against the batch twin, in the same run: the first
     ``n_points`` points of the example sweep through ``simulate_run(workers=1,
     large_signal=False, statistics=False)`` (recordings with their sensors, the truth the
-    sweep reads; what a full-mode point runs) and through ``simulate_batch(large_signal=False)`` (truth only, no sensors),
-    alternated ``repeat`` times; recorded seconds per CPU-second (x real time per core,
-    best round of each) and the ``simulate_run`` CPU per point split by phase (thread CPU
-    of the calls, best round)."""
+    sweep reads; what a full-mode point runs) and through
+    ``simulate_batch(large_signal=False)`` (truth only, no sensors), alternated ``repeat``
+    times; recorded seconds per CPU-second (x real time per core, best round of each) and
+    the ``simulate_run`` CPU per point split by phase (thread CPU of the calls, best round)."""
     import inspect
     import threading
     # the sweep's call (a checkout without the flag: its whole truth)

@@ -258,7 +258,12 @@ def test_one_pass_sensors_equal_the_channel_passes():
     a jump and more than 256 samples; the generators' wedge and tail draws, ~1 % of the
     numbers, included), and no channel shares another's stream."""
     from torquemod.twins.vtrack.rig.noise import _ZF, _ZK, _ZW
-    from torquemod.twins.vtrack.rig.sensors import _COLS, _measure_kernel, _measure_passes
+    from torquemod.twins.vtrack.rig.sensors import (
+        _COLS,
+        _SIGN,
+        _measure_kernel,
+        _measure_passes,
+    )
 
     rng = np.random.default_rng(5)
     n = 30_000
@@ -272,7 +277,7 @@ def test_one_pass_sensors_equal_the_channel_passes():
     sd = np.array([0.2, 0.01, 0.002, 3.0, 2.0, 1.0])
     want, got = np.empty((6, n)), np.empty((6, n))
     _measure_passes(raw, states, enc, sd, want)
-    _measure_kernel(raw, _COLS, sd, states, enc, _ZK, _ZW, _ZF, got)
+    _measure_kernel(raw, _COLS, sd, states, enc, _ZK, _ZW, _ZF, _SIGN, got)
     assert got.tobytes() == want.tobytes()
     noise = (got - raw[:, _COLS[:6]].T)[[0, 3, 4, 5]] / sd[[0, 3, 4, 5], None]
     assert np.all(np.abs(np.corrcoef(noise)[np.triu_indices(4, 1)]) < 0.05)

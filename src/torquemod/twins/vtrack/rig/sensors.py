@@ -44,6 +44,8 @@ _ENCODER = {"wheel_speed_rad_s": "wheel_angle_rad", "platform_speed_rad_s": "pla
 #: the columns of ``raw`` the sensors read: the channels of :data:`_NOISY`, then the wheel's
 #: and the platform's angle
 _COLS = np.array([_COL[name] for name in (*_NOISY, *_ENCODER.values())], dtype=np.int64)
+#: the normal number's sign from its word's sign bit (0, 1)
+_SIGN = np.array([1.0, -1.0])
 
 
 def encoder_speed(speed_rad_s: np.ndarray, angle_rad: np.ndarray, *, ecc1_rad: float,
@@ -131,7 +133,7 @@ def _encoder_noise_kernel(speed, angle, e1, e2, ph1, ph2, sigma, state, zk, zw, 
 
 
 @numba.njit(cache=True, nogil=True)
-def _measure_kernel(raw, cols, sd, states, enc, zk, zw, zf, out):
+def _measure_kernel(raw, cols, sd, states, enc, zk, zw, zf, sgn, out):
     """The six channels of :func:`measure`, every one with noise, in one pass over the rows of
     ``raw``: row ``c`` of ``out`` is column ``cols[c]`` of ``raw`` plus ``sd[c]`` times the
     normal numbers of the splitmix64 stream at ``states[c]``, rows 1 and 2 (wheel and
@@ -142,7 +144,9 @@ def _measure_kernel(raw, cols, sd, states, enc, zk, zw, zf, out):
     (tested); each row of ``raw`` is read once and the eight independent chains (six
     generators, two encoder phasors) overlap. The generator's common case is written out
     per channel as in :func:`~torquemod.twins.vtrack.rig.noise.add_normal` (a call per draw
-    costs ~5x here)."""
+    costs ~5x here), its sign ``1 - 2*b`` of the word's bit ``b`` taken from ``sgn =
+    (1.0, -1.0)`` instead of computed (the same product: a multiplication by +-1 is exact,
+    signed zeros included; ~20 % less time a draw)."""
     e1w, e2w, p1w, p2w = enc[0, 0], enc[0, 1], enc[0, 2], enc[0, 3]
     e1p, e2p, p1p, p2p = enc[1, 0], enc[1, 1], enc[1, 2], enc[1, 3]
     cdw, sdw = math.cos(p2w - 2.0 * p1w), math.sin(p2w - 2.0 * p1w)
@@ -165,7 +169,7 @@ def _measure_kernel(raw, cols, sd, states, enc, zk, zw, zf, out):
         i = np.intp(r & _LOW8)
         m = np.int64(r >> _S12)
         if m < zk[i]:
-            z = (1.0 - 2.0 * float(np.int64((r >> _S8) & _ONE))) * (float(m) * zw[i])
+            z = sgn[np.intp((r >> _S8) & _ONE)] * (float(m) * zw[i])
         else:
             s0, z = _normal_rest(s0, r, zk, zw, zf)
         out[0, k] = raw[k, c0] + sd0 * z
@@ -173,7 +177,7 @@ def _measure_kernel(raw, cols, sd, states, enc, zk, zw, zf, out):
         i = np.intp(r & _LOW8)
         m = np.int64(r >> _S12)
         if m < zk[i]:
-            z = (1.0 - 2.0 * float(np.int64((r >> _S8) & _ONE))) * (float(m) * zw[i])
+            z = sgn[np.intp((r >> _S8) & _ONE)] * (float(m) * zw[i])
         else:
             s1, z = _normal_rest(s1, r, zk, zw, zf)
         out[1, k] = vw + sd1 * z
@@ -181,7 +185,7 @@ def _measure_kernel(raw, cols, sd, states, enc, zk, zw, zf, out):
         i = np.intp(r & _LOW8)
         m = np.int64(r >> _S12)
         if m < zk[i]:
-            z = (1.0 - 2.0 * float(np.int64((r >> _S8) & _ONE))) * (float(m) * zw[i])
+            z = sgn[np.intp((r >> _S8) & _ONE)] * (float(m) * zw[i])
         else:
             s2, z = _normal_rest(s2, r, zk, zw, zf)
         out[2, k] = vp + sd2 * z
@@ -189,7 +193,7 @@ def _measure_kernel(raw, cols, sd, states, enc, zk, zw, zf, out):
         i = np.intp(r & _LOW8)
         m = np.int64(r >> _S12)
         if m < zk[i]:
-            z = (1.0 - 2.0 * float(np.int64((r >> _S8) & _ONE))) * (float(m) * zw[i])
+            z = sgn[np.intp((r >> _S8) & _ONE)] * (float(m) * zw[i])
         else:
             s3, z = _normal_rest(s3, r, zk, zw, zf)
         out[3, k] = raw[k, c3] + sd3 * z
@@ -197,7 +201,7 @@ def _measure_kernel(raw, cols, sd, states, enc, zk, zw, zf, out):
         i = np.intp(r & _LOW8)
         m = np.int64(r >> _S12)
         if m < zk[i]:
-            z = (1.0 - 2.0 * float(np.int64((r >> _S8) & _ONE))) * (float(m) * zw[i])
+            z = sgn[np.intp((r >> _S8) & _ONE)] * (float(m) * zw[i])
         else:
             s4, z = _normal_rest(s4, r, zk, zw, zf)
         out[4, k] = raw[k, c4] + sd4 * z
@@ -205,7 +209,7 @@ def _measure_kernel(raw, cols, sd, states, enc, zk, zw, zf, out):
         i = np.intp(r & _LOW8)
         m = np.int64(r >> _S12)
         if m < zk[i]:
-            z = (1.0 - 2.0 * float(np.int64((r >> _S8) & _ONE))) * (float(m) * zw[i])
+            z = sgn[np.intp((r >> _S8) & _ONE)] * (float(m) * zw[i])
         else:
             s5, z = _normal_rest(s5, r, zk, zw, zf)
         out[5, k] = raw[k, c5] + sd5 * z
@@ -259,7 +263,7 @@ def measure(raw: np.ndarray, *, disturbances: DisturbanceParams, sensors: Sensor
     sd = np.array([s.torque_noise_nm, s.wheel_speed_noise_rad_s, s.platform_speed_noise_rad_s,
                    s.force_noise_n, s.force_noise_n, s.force_noise_n], dtype=np.float64)
     if np.all(sd > 0):  # every channel noisy (the default): one pass
-        _measure_kernel(raw, _COLS, sd, states, enc, _ZK, _ZW, _ZF, block)
+        _measure_kernel(raw, _COLS, sd, states, enc, _ZK, _ZW, _ZF, _SIGN, block)
     else:
         _measure_passes(raw, states, enc, sd, block)
     return ch
