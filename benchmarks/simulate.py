@@ -29,6 +29,14 @@ Run: ``python benchmarks/simulate.py [--repeat N] [--cores N] [--points N]``. Pr
 * a fresh process: ``torquemod simulate --format hdf5`` as a user starts it (imports and
   loading the compiled kernels included).
 
+``--with-sensors [--points 6] [--repeat 3]`` instead: the twin as a full-mode sweep point runs
+it (``simulate_run(workers=1, large_signal=False, statistics=False)`` on the example sweep's
+first points, their settling and DC torques as the sweep sets them) against
+``simulate_batch`` (truth only, no sensors) in the same run, as x real time per core, and the
+run's CPU per point split into integrator, sensors, truth, planning and the rest. Run it with
+another checkout's src on ``PYTHONPATH`` for a before/after pair (a checkout without the
+``statistics`` flag runs its whole truth).
+
 ``run_simulation`` and ``simulate_batch`` run the torque steps side by side, one thread per
 CPU and at most one per step (each step starts from the steady state of the torque before,
 rig/steps.py). ``--cores N`` pins the process to N CPUs (Linux ``sched_setaffinity``) to show
@@ -119,7 +127,11 @@ Tried and not kept: offering a step's truth to the pool while its thread writes 
 at once wait for each other's switch interval); submitting the steps by falling DC torque
 (no measurable difference); one fused pass for all six noisy channels (15.2 against 10.8 ms
 a step: the channels' generators interleaved lose more than the shared reads of the
-integrator's rows save); the encoder kernel in blocks of 256 or with a countdown (no gain).
+integrator's rows save -- with each draw a call; written out per channel, as
+``sensors._measure_kernel`` now does, the one pass is ~10-20 % faster than the channel
+passes, docs/performance.md "The twin as a sweep point runs it"); the encoder kernel in
+blocks of 256 or with a countdown (no gain; again later: the small rotations of a block of
+512 computed first in a vector loop, 1.81 against 1.33 ms for 215 000 samples).
 Not done: a shorter settling (4 s a step, 17 ms of the integrator's ~165 ms; it would move
 every recorded value, since the recordings' start times follow it).
 
