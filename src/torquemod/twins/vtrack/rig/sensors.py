@@ -4,10 +4,11 @@ Encoder eccentricity: the measured angle is ``theta + e1*sin(theta+phi1) + e2*si
 so the measured speed is ``w*(1 + e1*cos(theta+phi1) + 2*e2*cos(2*theta+phi2))``: tones at
 once and twice the shaft's rotation frequency, proportional to the speed.
 
-numba caches :func:`_encoder_noise_kernel` under this file's name and time stamp only: the
-generator it compiles in from :mod:`~torquemod.twins.vtrack.rig.noise` (``_splitmix``,
-``_normal_rest``) does not invalidate it, so a change there must come with an edit of this
-file (or a cleared ``__pycache__``) to take effect here.
+numba caches :func:`_measure_kernel` and :func:`_encoder_noise_kernel` under this file's name
+and time stamp only: the generator they compile in from
+:mod:`~torquemod.twins.vtrack.rig.noise` (``_splitmix``, ``_normal_rest``) does not invalidate
+them, so a change there must come with an edit of this file (or a cleared ``__pycache__``)
+to take effect here.
 """
 
 from __future__ import annotations
