@@ -99,9 +99,10 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
     The tables are utilisation-major (:class:`~torquemod.analysis.creeplaws.FamilyTables`
     ``s_t``, ``ds_t``, ``swing_t``; a swing table with no member means no swing): each
     trial P interpolates every member at each point's utilisation, reading one contiguous
-    block per point (the swing rows only when a refit uses them). The first pass's weights
-    do not depend on the pair, so each member's own sums in it are formed once per trial
-    P. Each pair's two members are then copied into contiguous rows, once per trial P, and
+    block per point (the swing rows, on the rising grid ``swing_a``, only up to the largest
+    swing a refit can reach there: a bound from the largest k0 and peak). The first pass's
+    weights do not depend on the pair, so each member's own sums in it are formed once per
+    trial P. Each pair's two members are then copied into contiguous rows, once per trial P, and
     the pairs advance together, point by point, in loops over the pairs that the compiler
     turns into vector instructions (the table lookups that depend on a pair's fit are
     gathered in loops of their own); every pair's arithmetic is the same, in the same
@@ -129,10 +130,18 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
     n_a = swing_a.size
     n_us = sw_t.shape[0]
     a_top = swing_a[n_a - 1]
-    # the widths of the swing grid's cells (the same subtraction as in a lookup)
+    # the widths of the swing grid's cells (the same subtraction as in a lookup); the
+    # largest peak F_pk of the members (for the bound on the swing)
     d_a = np.empty(n_a)
     for j in range(n_a - 1):
         d_a[j] = swing_a[j + 1] - swing_a[j]
+    n_sw = np.zeros(n, np.int64)
+    s_lo = swing_a[0]
+    d_lo = d_a[0]
+    f_top = 0.0
+    for s in range(n_s):
+        if f_peak[s] > f_top:
+            f_top = f_peak[s]
     ks = np.empty(n, np.int64)
     fs = np.empty(n)
     ku = np.empty(n, np.int64)
@@ -215,16 +224,9 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
                     sgy += w0[i] * G[i, s] * y[i]
                 s_gg[s] = sgg
                 s_gy[s] = sgy
-        if has_swing and n_iter > 1:  # the first pass has no swing
-            for i in range(n):
-                if amp[i] > 0.0:
-                    k = ks[i]
-                    f = fs[i]
-                    for s in range(n_s):
-                        if valid[s]:
-                            for j in range(n_a):
-                                SW[i, s * n_a + j] = (sw_t[k, s, j] * (1 - f)
-                                                      + sw_t[k + 1, s, j] * f)
+        # no swing row interpolated yet at this trial P (n_sw: how many of each point's)
+        for i in range(n):
+            n_sw[i] = 0
         # the pairs of valid members, in order
         nv = 0
         for q in range(n_q):
@@ -275,6 +277,11 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
                     SBB[v] = 0.0
                     SAY[v] = 0.0
                     SBY[v] = 0.0
+                # the largest k0 (NaN left out: its swing's cell is the first)
+                k0_top = 0.0
+                for v in range(nv):
+                    if K0[v] > k0_top:
+                        k0_top = K0[v]
                 for i in range(n):
                     gai = GA[i]
                     gbi = GB[i]
@@ -285,23 +292,52 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
                             RB[v] = min(ai * K0[v] * FB[v] / p, a_top)
                             JA[v] = 0
                             JB[v] = 0
-                        # the swing's cell: how many inner grid values lie below it (the
-                        # first cell whose upper end reaches it; 0 for NaN)
+                            S0A[v] = s_lo
+                            S1A[v] = d_lo
+                            S0B[v] = s_lo
+                            S1B[v] = d_lo
+                        # no pair's swing exceeds this bound (the same products and
+                        # quotient of values at least as large, each rounded
+                        # monotonically), so no swing lies above a grid value it does not
+                        # exceed: cells beyond t_top are neither searched nor interpolated
+                        r_top = min(ai * k0_top * f_top / p, a_top)
+                        t_top = 0
                         for t in range(1, n_a - 1):
+                            if r_top > swing_a[t]:
+                                t_top = t
+                        j_end = t_top + 2
+                        # this point's swing rows up to the cell above t_top, interpolated
+                        # as the refits reach them
+                        if n_sw[i] < j_end:
+                            k = ks[i]
+                            f = fs[i]
+                            for s in range(n_s):
+                                if valid[s]:
+                                    for j in range(n_sw[i], j_end):
+                                        SW[i, s * n_a + j] = (sw_t[k, s, j] * (1 - f)
+                                                              + sw_t[k + 1, s, j] * f)
+                            n_sw[i] = j_end
+                        # the swing's cell: the last inner grid value below it (the grid
+                        # rises, so this is how many lie below: the first cell whose upper
+                        # end reaches it; 0 for NaN), with its lower end and width
+                        for t in range(1, t_top + 1):
                             st = swing_a[t]
+                            dt = d_a[t]
                             for v in range(nv):
-                                JA[v] += RA[v] > st
-                                JB[v] += RB[v] > st
+                                if RA[v] > st:
+                                    JA[v] = t
+                                    S0A[v] = st
+                                    S1A[v] = dt
+                                if RB[v] > st:
+                                    JB[v] = t
+                                    S0B[v] = st
+                                    S1B[v] = dt
                         swi = SW[i]
                         for v in range(nv):
                             ja = JA[v]
                             jb = JB[v]
                             ba = A[v] * n_a + ja
                             bb = B[v] * n_a + jb
-                            S0A[v] = swing_a[ja]
-                            S1A[v] = d_a[ja]
-                            S0B[v] = swing_a[jb]
-                            S1B[v] = d_a[jb]
                             W0A[v] = swi[ba]
                             W1A[v] = swi[ba + 1]
                             W0B[v] = swi[bb]
