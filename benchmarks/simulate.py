@@ -29,6 +29,14 @@ Run: ``python benchmarks/simulate.py [--repeat N] [--cores N] [--points N]``. Pr
 * a fresh process: ``torquemod simulate --format hdf5`` as a user starts it (imports and
   loading the compiled kernels included).
 
+``--with-sensors [--points 6] [--repeat 3]`` instead: the twin as a full-mode sweep point runs
+it (``simulate_run(workers=1, large_signal=False, statistics=False)`` on the example sweep's
+first points, their settling and DC torques as the sweep sets them) against
+``simulate_batch`` (truth only, no sensors) in the same run, as x real time per core, and the
+run's CPU per point split into integrator, sensors, truth, planning and the rest. Run it with
+another checkout's src on ``PYTHONPATH`` for a before/after pair (a checkout without the
+``statistics`` flag runs its whole truth).
+
 ``run_simulation`` and ``simulate_batch`` run the torque steps side by side, one thread per
 CPU and at most one per step (each step starts from the steady state of the torque before,
 rig/steps.py). ``--cores N`` pins the process to N CPUs (Linux ``sched_setaffinity``) to show
@@ -119,7 +127,11 @@ Tried and not kept: offering a step's truth to the pool while its thread writes 
 at once wait for each other's switch interval); submitting the steps by falling DC torque
 (no measurable difference); one fused pass for all six noisy channels (15.2 against 10.8 ms
 a step: the channels' generators interleaved lose more than the shared reads of the
-integrator's rows save); the encoder kernel in blocks of 256 or with a countdown (no gain).
+integrator's rows save -- with each draw a call; written out per channel, as
+``sensors._measure_kernel`` now does, the one pass is ~10-20 % faster than the channel
+passes, docs/performance.md "The twin as a sweep point runs it"); the encoder kernel in
+blocks of 256 or with a countdown (no gain; again later: the small rotations of a block of
+512 computed first in a vector loop, 1.81 against 1.33 ms for 215 000 samples).
 Not done: a shorter settling (4 s a step, 17 ms of the integrator's ~165 ms; it would move
 every recorded value, since the recordings' start times follow it).
 
@@ -229,6 +241,9 @@ from torquemod.twins.vtrack.simulate import (
     sine_fit_phase_deg,
 )
 from torquemod.twins.vtrack.theory import operating_point
+
+#: the example sweep whose points ``--with-sensors`` runs
+_SWEEP = Path(__file__).resolve().parents[1] / "examples" / "sweep_vtrack_conditions.toml"
 
 
 def cold_theory() -> None:
@@ -355,6 +370,99 @@ def batch_throughput(configs, repeat: int) -> None:
           f"x{per_core['simulate_batch (all points at once)'] / one:.2f}")
 
 
+def sweep_point_configs(n_points: int, sweep: Path = _SWEEP) -> list[tuple]:
+    """``(config, seed)`` of the first ``n_points`` points of ``sweep`` as its full mode
+    gives them to the twin (:func:`torquemod.sweep.evaluate.evaluate_point`: the point's
+    overrides, DC torques as fractions of its peak, its settling time)."""
+    from torquemod.sweep.evaluate import _theory_steps, point_config, settle_time_s, tasks
+    from torquemod.sweep.spec import load_sweep
+    out = []
+    for task in tasks(load_sweep(sweep))[:n_points]:
+        config, t_peak = point_config(task)
+        settle = settle_time_s(config, _theory_steps(config, t_peak))
+        out.append((replace(config, procedure=replace(config.procedure, settle_s=settle)),
+                    task.seed))
+    return out
+
+
+#: what :func:`with_sensors` charges a sweep point's ``simulate_run`` to (module, function,
+#: label); the rest is the run's set-up and packaging
+_RUN_PHASES = ((_simulate, "integrate_step", "integrator"),
+               (_simulate, "measure", "sensors"),
+               (_simulate, "recorded_step_truth", "truth"),
+               (_simulate, "plan_run", "plan (wobble, start states)"))
+
+
+def with_sensors(n_points: int, repeat: int) -> None:
+    """The twin as a sweep point runs it against the batch twin, in the same run: the first
+    ``n_points`` points of the example sweep through ``simulate_run(workers=1,
+    large_signal=False, statistics=False)`` (recordings with their sensors, the truth the
+    sweep reads; what a full-mode point runs) and through
+    ``simulate_batch(large_signal=False)`` (truth only, no sensors), alternated ``repeat``
+    times; recorded seconds per CPU-second (x real time per core, best round of each) and
+    the ``simulate_run`` CPU per point split by phase (thread CPU of the calls, best round)."""
+    import inspect
+    import threading
+    # the sweep's call (a checkout without the flag: its whole truth)
+    lean = ({"statistics": False} if "statistics" in inspect.signature(simulate_run).parameters
+            else {})
+    pts = sweep_point_configs(n_points + 1)
+    simulate_run(pts[0][0], seed=pts[0][1], workers=1, large_signal=False, **lean)  # warm-up
+    simulate_batch([pts[0][0]], seed=pts[0][1], large_signal=False)
+    pts = pts[1:]
+    acc: dict[str, float] = {}
+    lock = threading.Lock()
+    saved = {}
+    for mod, name, label in _RUN_PHASES:
+        fn = saved[(mod, name)] = getattr(mod, name)
+
+        def wrapped(*a, _fn=fn, _label=label, **k):
+            c0 = time.thread_time()
+            try:
+                return _fn(*a, **k)
+            finally:
+                with lock:
+                    acc[_label] = acc.get(_label, 0.0) + time.thread_time() - c0
+        setattr(mod, name, wrapped)
+    runs, batch, splits = [], [], []
+    try:
+        for _ in range(repeat):
+            acc.clear()
+            c0 = time.process_time()
+            rec = 0.0
+            for config, seed in pts:
+                run = simulate_run(config, seed=seed, workers=1, large_signal=False, **lean)
+                rec += sum(r.n_samples / r.fs_hz for r in run.recordings)
+                del run
+            runs.append((time.process_time() - c0, rec))
+            splits.append(dict(acc))
+            c0 = time.process_time()
+            for config, seed in pts:  # one point at a time, as a sweep's task
+                simulate_batch([config], seed=seed, large_signal=False)
+            batch.append(time.process_time() - c0)
+    finally:
+        for (mod, name), fn in saved.items():
+            setattr(mod, name, fn)
+    best = min(range(repeat), key=lambda i: runs[i][0])
+    cpu, rec = runs[best]
+    n = len(pts)
+    print(f"with sensors: {n} points of {_SWEEP.name}, {rec / n:.1f} recorded s per point; "
+          f"load {os.getloadavg()[0]:.2f}")
+    print(f"  simulate_run (sensors, truth; workers=1, large_signal=False"
+          f"{', statistics=False' if lean else ''}, as a sweep point): "
+          f"{cpu / n * 1e3:.1f} ms CPU per point -> {rec / cpu:.0f}x real time per core "
+          f"(rounds: {', '.join(f'{c / n * 1e3:.1f}' for c, _ in runs)} ms)")
+    print(f"  simulate_batch (truth only, one point at a time): {min(batch) / n * 1e3:.1f} ms "
+          f"CPU per point -> {rec / min(batch):.0f}x real time per core")
+    print(f"  simulate_run / simulate_batch CPU: x{cpu / min(batch):.2f}")
+    split = splits[best]
+    for label, c in sorted(split.items(), key=lambda kv: -kv[1]):
+        print(f"    {label:>28s}: {c / n * 1e3:6.1f} ms per point ({100 * c / cpu:4.1f} %)")
+    rest = cpu - sum(split.values())
+    print(f"    {'set-up, packaging, rest':>28s}: {rest / n * 1e3:6.1f} ms per point "
+          f"({100 * rest / cpu:4.1f} %)")
+
+
 #: the phases of a step as the twin runs them (module, function name, label); nested calls
 #: are charged to the innermost phase
 _PHASES = ((_simulate, "integrate_step", "integrator"),
@@ -366,7 +474,8 @@ _PHASES = ((_simulate, "integrate_step", "integrator"),
 #: the compiled kernels (numba, nogil=True) and system calls that run without the GIL
 _GIL_FREE = ((_steps, "integrate"), (_truth, "_fit_sums"), (_truth, "_partition_moments"),
              (_truth, "_span_moments"), (_truthphase, "_sine_fit_sums"),
-             (_sensors, "_encoder_kernel"), (_noise, "_add_normal"), (_theory, "newton_periodic"),
+             (_sensors, "_encoder_kernel"), (_sensors, "_measure_kernel"),
+             (_noise, "_add_normal"), (_theory, "newton_periodic"),
              (_simulate, "_sample_times"), (_hdf5.os, "pwrite"))
 
 
@@ -537,6 +646,9 @@ def main() -> None:
     ap.add_argument("--samples-per-step", type=int, default=0,
                     help="batch: this recorded step instead of the configured one, set past "
                          "the step guard (0: as configured)")
+    ap.add_argument("--with-sensors", action="store_true",
+                    help="only the twin as a sweep point runs it (simulate_run with sensors) "
+                         "against simulate_batch (truth only), on the example sweep's points")
     args = ap.parse_args()
     if args.cores > 0:
         os.sched_setaffinity(0, set(sorted(os.sched_getaffinity(0))[:args.cores]))
@@ -547,6 +659,9 @@ def main() -> None:
           f"short first run_simulation {first_run(config):.2f} s -- not counted below")
     print(f"step: {proc.samples_per_step} sample(s) per {proc.substeps} RK4 step(s) at "
           f"{config.sensors.sample_rate_hz:g} Hz")
+    if args.with_sensors:
+        with_sensors(args.points if args.points > 0 else 6, max(args.repeat, 1))
+        return
     if args.batch_only:
         batch_throughput(batch_configs(args.points, args.samples_per_step), args.repeat)
         return

@@ -2,16 +2,25 @@
 force: the coarse-to-fine pass against the kernel on every trial P and every pair of the
 family, and the compiled kernel's cells (with a creepage swing, the CoA error and the bound
 on falling friction) against a plain-Python evaluation of one cell written from the model
-(torquemod.analysis.friction's module docstring), on small inputs."""
+(torquemod.analysis.friction's module docstring), and the summary of the grid (each rule
+on the rows it needs) against the rules applied to whole masked grids, on small inputs."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from torquemod.analysis import frictiongrid as fg
 from torquemod.analysis.creeplaws import SWING_A, family_tables, neighbour_pairs
-from torquemod.analysis.friction import _p_grid
-from torquemod.analysis.frictiongrid import CHI2_95, _chi_all, _chi_kernel, _coarse_to_fine
+from torquemod.analysis.friction import CHI2_95_2, _p_grid, _summarise, _vertex
+from torquemod.analysis.frictiongrid import (
+    CHI2_95,
+    _chi_all,
+    _chi_kernel,
+    _coarse_to_fine,
+    new_pairs,
+    reference_chi2,
+)
 
 
 def _inputs(seed: int, n: int = 6):
@@ -123,3 +132,79 @@ def test_kernel_cells_equal_the_model_evaluated_cell_by_cell():
                 assert chi[q, m] == pytest.approx(c, rel=1e-7)
                 assert amps[q, m] == pytest.approx(amp_ref, rel=1e-7)
     assert n_finite >= 10
+
+
+def _summary_on_whole_grids(tabs, pairs, rail, chi, fracs, p_grid, dof, scale_by_chi2):
+    """The summary's rules written on whole (K, m) grids: masked copies, column minima."""
+    prof = chi.min(axis=0)
+    chi_set = np.where(rail[:, None], chi, np.inf)
+    chi_min, rail_only = reference_chi2(float(np.nanmin(prof)), float(np.nanmin(chi_set)))
+    if not rail_only:
+        chi_set = chi
+    prof_set = chi_set.min(axis=0)
+    j = int(np.nanargmin(prof_set))
+    i = int(np.argmin(chi_set[:, j]))
+    scale = max(1.0, chi_min / dof) if scale_by_chi2 else 1.0
+    est_prof = prof_set
+    falling = tabs.falling[pairs[:, 0]] | tabs.falling[pairs[:, 1]]
+    chi_c = np.where(falling[:, None], np.inf, chi_set)
+    prof_c = chi_c.min(axis=0)
+    if np.isfinite(prof_c).any() and float(prof_c.min()) <= chi_min + CHI2_95_2 * scale:
+        j = int(np.argmin(prof_c))
+        i = int(np.argmin(chi_c[:, j]))
+        est_prof = prof_c
+    step = float(p_grid[min(j + 1, p_grid.size - 1)] / p_grid[j])
+    est = float(p_grid[j]) * step ** _vertex(est_prof, j)
+    level = chi_min + CHI2_95 * scale
+    inside = chi <= level
+    idx = np.flatnonzero(inside.any(axis=0))
+    mix = np.nan_to_num(fracs)
+    inv_pk = 1.0 / tabs.f_peak
+    m0 = p_grid[None, :] * ((1.0 - mix) * inv_pk[pairs[:, 0]][:, None]
+                            + mix * inv_pk[pairs[:, 1]][:, None])
+    return {"profile": prof, "chi2": chi_min, "level": level, "pair": i, "column": j,
+            "ends": (int(idx[0]), int(idx[-1])), "mu0_low": float(m0[inside].min()),
+            "mu0_high": float(m0[inside].max()), "mix": float(mix[i, j]), "estimate": est}
+
+
+@pytest.mark.parametrize(("margin", "scale_by_chi2"), [(-np.inf, True), (np.inf, True),
+                                                      (np.inf, False)])
+def test_summary_equals_the_rules_on_whole_grids(monkeypatch, margin, scale_by_chi2):
+    """The fit's profile, chi2, level, interval ends, estimate, best pair (through its k0
+    and parameters) and mu0 range equal the rules applied to whole masked grids, bit for
+    bit, with the level set by the whole family (margin -inf) and by the rail members
+    (+inf), the interval widened by the scatter or not."""
+    monkeypatch.setattr(fg, "NEW_MEMBER_MARGIN", margin)
+    tabs = family_tables(True)
+    pairs = neighbour_pairs()
+    rail = ~new_pairs(tabs, pairs)
+    # flat, then falling beyond a knee: the knee members fit far better than the rail ones
+    # (chi2 37 against 102, at other trial P), so the two margins give different levels,
+    # estimates and best pairs
+    rng = np.random.default_rng(4)
+    coa = np.sort(rng.uniform(0.03, 0.27, 7))
+    u = coa / 0.3
+    y = 40.0 * np.where(u < 0.7, 1.0, np.clip(1.0 - ((u - 0.7) / 0.3) ** 2, 0.02, None))
+    y = y * (1.0 + 0.003 * rng.normal(size=coa.size))
+    se, c_se, amp = 0.003 * y, 0.01 * coa, rng.uniform(2e-4, 2e-3, coa.size)
+    p_grid = _p_grid(float(coa.max()), 20.0)
+    cols, (chi, amps, fracs) = _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp, p_grid,
+                                               2.0, 0.01, 2.0, rail=rail)
+    pg = p_grid[cols]
+    fit = _summarise(tabs, pairs, rail, chi, amps, fracs, pg, coa, y, se, float(coa.max()),
+                     0.01, 0.1, scale_by_chi2, False, c_se, amp, 2.0, 20.0, (0.3, 7.0), True,
+                     None)
+    ref = _summary_on_whole_grids(tabs, pairs, rail, np.array(chi), np.array(fracs), pg,
+                                  coa.size - 3, scale_by_chi2)
+    assert ref["chi2"] == (chi.min() if margin < 0 else chi[rail].min())
+    assert _same(fit.profile, ref["profile"])
+    assert (fit.chi2, fit.level, fit.estimate) == (ref["chi2"], ref["level"], ref["estimate"])
+    lo, hi = ref["ends"]
+    assert fit.low == (float(coa.max()) if lo == 0 else pg[lo - 1])
+    assert _same(np.float64(fit.high), np.float64(np.nan if hi == pg.size - 1 else pg[hi + 1]))
+    assert fit.k0 == amps[ref["pair"], ref["column"]]
+    a, b = pairs[ref["pair"]]
+    f = ref["mix"]
+    assert fit.params == tuple((1.0 - f) * va + f * vb for va, vb in
+                               zip(tabs.members[a].params, tabs.members[b].params, strict=True))
+    assert (fit.mu0_low, fit.mu0_high) == (ref["mu0_low"], ref["mu0_high"])

@@ -211,3 +211,28 @@ def test_steps_after_a_slip_are_not_integrated(monkeypatch, tmp_path):
                            workers=1)
     assert sorted(ran) == [1, 2]
     assert truth["steps"] == point.steps and truth["slip_step"] == 2
+
+
+@pytest.mark.parametrize("wobble", [True, False])
+def test_a_run_without_statistics_keeps_the_phase(wobble):
+    """``statistics=False`` (a sweep's call) leaves only the simulated statistics out: the
+    recordings and every other truth value stay, and each step's phase is the full truth's
+    bit for bit (two revolutions a step, whose edges cut the fit's sums; with the speed
+    loop's wobble fitted out, and without a wobble)."""
+    from torquemod.twins.vtrack.simulate import simulate_run
+    cfg = load_config(overrides={**TWO, "procedure": {**TWO["procedure"], "cycles_per_step": 2},
+                                 "disturbances": {"speed_wobble_enabled": wobble}})
+    full, lean = (simulate_run(cfg, seed=4, large_signal=False, statistics=flag)
+                  for flag in (True, False))
+    assert full.truth["speed_wobble"]["enabled"] is wobble
+    assert len(full.recordings) == len(lean.recordings) == 4
+    for a, b in zip(full.recordings, lean.recordings, strict=True):
+        assert (a.fs_hz, a.t0_s) == (b.fs_hz, b.t0_s)
+        for k, v in a.channels.items():
+            assert v.tobytes() == b.channels[k].tobytes(), k
+    assert {k: v for k, v in full.truth.items() if k != "steps"} == \
+        {k: v for k, v in lean.truth.items() if k != "steps"}
+    for a, b in zip(full.truth["steps"], lean.truth["steps"], strict=True):
+        assert len(a["simulated"]["cycles"]) == 2 and "creepage_mean" in a["simulated"]
+        assert b["simulated"] == {"phase_deg": a["simulated"]["phase_deg"]}
+        assert {**a, "simulated": None} == {**b, "simulated": None}

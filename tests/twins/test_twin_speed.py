@@ -252,6 +252,37 @@ def test_fused_sensor_passes_equal_the_separate_ones():
         add_normal_pair(raw[:, 0], 0.5, 7, pa, raw[:10, 3], 2.0, 1, pb)
 
 
+def test_one_pass_sensors_equal_the_channel_passes():
+    """``measure``'s one-pass kernel for six noisy channels gives the channel-by-channel
+    passes' values bit for bit (rows of a C-ordered integrator output; encoder angles with
+    a jump and more than 256 samples; the generators' wedge and tail draws, ~1 % of the
+    numbers, included), and no channel shares another's stream."""
+    from torquemod.twins.vtrack.rig.noise import _ZF, _ZK, _ZW
+    from torquemod.twins.vtrack.rig.sensors import (
+        _COLS,
+        _SIGN,
+        _measure_kernel,
+        _measure_passes,
+    )
+
+    rng = np.random.default_rng(5)
+    n = 30_000
+    raw = rng.standard_normal((n, 9))
+    raw[:, 1] += 10.0
+    raw[:, 2] += 0.5
+    raw[:, 6] = np.cumsum(np.full(n, 2e-3)) + 0.3 * (np.arange(n) >= n // 3)
+    raw[:, 7] = np.cumsum(np.full(n, 4e-4))
+    states = np.array([7, 2**64 - 3, 123456789, 2**63, 1, 99], dtype=np.uint64)
+    enc = np.array([[0.004, 0.0015, 0.7, 2.1], [0.002, 0.0005, -1.0, 0.4]])
+    sd = np.array([0.2, 0.01, 0.002, 3.0, 2.0, 1.0])
+    want, got = np.empty((6, n)), np.empty((6, n))
+    _measure_passes(raw, states, enc, sd, want)
+    _measure_kernel(raw, _COLS, sd, states, enc, _ZK, _ZW, _ZF, _SIGN, got)
+    assert got.tobytes() == want.tobytes()
+    noise = (got - raw[:, _COLS[:6]].T)[[0, 3, 4, 5]] / sd[[0, 3, 4, 5], None]
+    assert np.all(np.abs(np.corrcoef(noise)[np.triu_indices(4, 1)]) < 0.05)
+
+
 def test_reference_angle_shares_the_band_sines():
     """The step starts' reference angle with the band rows' sines evaluated twice per RK4
     step is, bit for bit, the RK4 that evaluates the whole wobble four times (plain Python

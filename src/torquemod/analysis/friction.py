@@ -412,18 +412,20 @@ def _vertex(profile: np.ndarray, j: int) -> float:
 def _summarise(tabs, pairs, rail, chi, amps, fracs, p_grid, coa, y, se, c_max, model_rel,
                max_rel, scale_by_chi2, probe, c_se, amp, constant, p_span, ratio_bounds,
                other_laws, speed_m_s, knee=True, constant_rel_se=0.0) -> AdhesionFit | None:
-    prof = chi.min(axis=0)
+    # the grids trial-P-major (rows: trial P; C-contiguous as _coarse_to_fine returns them),
+    # each rule on the rows it needs; the values are those of the (K, m) grids
+    chi_t = chi.T
+    prof = chi_t.min(axis=1)
     if not np.isfinite(prof).any():
         return None
     # the widen-only rule (frictiongrid.reference_chi2): unless the members no rail law needs
     # beat the others by NEW_MEMBER_MARGIN, the others alone give the level and the estimate
-    chi_set = np.where(rail[:, None], chi, np.inf)
-    chi_min, rail_only = reference_chi2(float(np.nanmin(prof)), float(np.nanmin(chi_set)))
-    if not rail_only:
-        chi_set = chi
-    prof_set = chi_set.min(axis=0)
+    prof_rail = chi_t[:, rail].min(axis=1) if rail.any() else np.full(prof.size, np.inf)
+    chi_min, rail_only = reference_chi2(float(np.nanmin(prof)), float(np.nanmin(prof_rail)))
+    in_set = rail if rail_only else np.ones(rail.size, bool)
+    prof_set = prof_rail if rail_only else prof
     j = int(np.nanargmin(prof_set))
-    i = int(np.argmin(chi_set[:, j]))
+    i = int(np.argmin(np.where(in_set, chi_t[j], np.inf)))
     dof = max(coa.size - 3, 1)
     scale = max(1.0, chi_min / dof) if scale_by_chi2 else 1.0
     # the estimate: the constant-friction laws are nested in the falling-friction ones (two
@@ -431,17 +433,18 @@ def _summarise(tabs, pairs, rail, chi, amps, fracs, p_grid, coa, y, se, c_max, m
     # of chi2 with two degrees of freedom (the likelihood-ratio test), the best
     # constant-friction fit gives the estimate. The interval is the whole family's.
     falling = tabs.falling[pairs[:, 0]] | tabs.falling[pairs[:, 1]]
-    chi_c = np.where(falling[:, None], np.inf, chi_set)
-    prof_c = chi_c.min(axis=0)
+    keep_c = in_set & ~falling
+    prof_c = (chi_t[:, keep_c].min(axis=1) if keep_c.any()
+              else np.full(prof.size, np.inf))
     if np.isfinite(prof_c).any() and float(prof_c.min()) <= chi_min + CHI2_95_2 * scale:
         j = int(np.argmin(prof_c))
-        i = int(np.argmin(chi_c[:, j]))
+        i = int(np.argmin(np.where(keep_c, chi_t[j], np.inf)))
         est_prof = prof_c
     else:
         est_prof = prof_set
     level = chi_min + CHI2_95 * scale
-    inside_cells = chi <= level
-    inside = inside_cells.any(axis=0)
+    inside_cells = chi_t <= level
+    inside = inside_cells.any(axis=1)
     idx = np.flatnonzero(inside)
     lo_i, hi_i = int(idx[0]), int(idx[-1])
     open_low = lo_i == 0
@@ -458,11 +461,11 @@ def _summarise(tabs, pairs, rail, chi, amps, fracs, p_grid, coa, y, se, c_max, m
     # mu0 over the cells within the level: P/F_pk of each (mixed) member
     inv_pk = 1.0 / tabs.f_peak
     ia, ib = pairs[:, 0], pairs[:, 1]
-    mix = np.nan_to_num(fracs)
-    m0 = p_grid[None, :] * ((1.0 - mix) * inv_pk[ia][:, None] + mix * inv_pk[ib][:, None])
-    m0_in = m0[inside_cells]
+    rows, cells = np.nonzero(inside_cells)
+    mix = np.nan_to_num(fracs.T[rows, cells])
+    m0_in = p_grid[rows] * ((1.0 - mix) * inv_pk[ia[cells]] + mix * inv_pk[ib[cells]])
     mu0_low, mu0_high = float(m0_in.min()), float(m0_in.max())
-    f_ij = float(mix[i, j])
+    f_ij = float(np.nan_to_num(fracs[i, j]))
     mu0 = est * ((1.0 - f_ij) * inv_pk[ia[i]] + f_ij * inv_pk[ib[i]])
     mu0_ok = bool(closed and 0.5 * (mu0_high - mu0_low) <= max_rel * mu0)
     ma, mb = tabs.members[ia[i]], tabs.members[ib[i]]

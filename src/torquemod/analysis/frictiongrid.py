@@ -90,7 +90,8 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
     """For every pair (a, b) of neighbouring members and trial P: the weighted least squares
     ``y ~ alpha*s_a + beta*s_b`` with alpha, beta >= 0 (a mixture of the pair; a single
     member when one is 0). Returns chi2, ``alpha + beta`` (the amplitude: k0 in the units
-    of y) and ``beta/(alpha + beta)``, each (K, M). ``amp``: the creepage swing per point
+    of y) and ``beta/(alpha + beta)``, each (K, M) (transposed views of trial-P-major
+    arrays: a trial P's column is contiguous). ``amp``: the creepage swing per point
     (zeros: none); k0 = ``k_scale*(alpha + beta)`` when k_scale > 0, else ``k0_fixed``.
     With ``bmax_v`` > 0 (B_max*V [-]) a pair whose falling-friction member needs
     ``B = beta_h*k0/(mu0*V)`` above B_max (``beta_h`` = beta/h0 per member) is left out.
@@ -98,19 +99,23 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
     The tables are utilisation-major (:class:`~torquemod.analysis.creeplaws.FamilyTables`
     ``s_t``, ``ds_t``, ``swing_t``; a swing table with no member means no swing): each
     trial P interpolates every member at each point's utilisation, reading one contiguous
-    block per point. The first pass's weights do not depend on the pair, so each member's
-    own sums in it are formed once per trial P. The pairs of a trial P then advance
-    together, point by point, in loops over the pairs that the compiler turns into vector
-    instructions (a pair's values are read into contiguous arrays first); every pair's
-    arithmetic is the same, in the same order, as a pair fitted alone (a pair whose fit
-    stops early is carried along and left out at the end)."""
+    block per point (the swing rows, on the rising grid ``swing_a``, only up to the largest
+    swing a refit can reach there: a bound from the largest k0 and peak). The first pass's
+    weights do not depend on the pair, so each member's own sums in it are formed once per
+    trial P. Each pair's two members are then copied into contiguous rows, once per trial P, and
+    the pairs advance together, point by point, in loops over the pairs that the compiler
+    turns into vector instructions (the table lookups that depend on a pair's fit are
+    gathered in loops of their own); every pair's arithmetic is the same, in the same
+    order, as a pair fitted alone (a pair whose fit stops early is carried along and left
+    out at the end)."""
     n_u, n_s = s_t.shape
     n_q = pairs.shape[0]
     n_m = p_grid.size
     n = coa.size
-    chi = np.full((n_q, n_m), np.inf)
-    amps = np.full((n_q, n_m), np.nan)
-    fracs = np.full((n_q, n_m), np.nan)
+    # trial-P-major: a trial P's cells are written together and returned as one column
+    chi = np.full((n_m, n_q), np.inf)
+    amps = np.full((n_m, n_q), np.nan)
+    fracs = np.full((n_m, n_q), np.nan)
     G = np.empty((n, n_s))
     DG = np.empty((n, n_s))
     valid = np.empty(n_s, np.bool_)
@@ -125,6 +130,18 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
     n_a = swing_a.size
     n_us = sw_t.shape[0]
     a_top = swing_a[n_a - 1]
+    # the widths of the swing grid's cells (the same subtraction as in a lookup); the
+    # largest peak F_pk of the members (for the bound on the swing)
+    d_a = np.empty(n_a)
+    for j in range(n_a - 1):
+        d_a[j] = swing_a[j + 1] - swing_a[j]
+    n_sw = np.zeros(n, np.int64)
+    s_lo = swing_a[0]
+    d_lo = d_a[0]
+    f_top = 0.0
+    for s in range(n_s):
+        if f_peak[s] > f_top:
+            f_top = f_peak[s]
     ks = np.empty(n, np.int64)
     fs = np.empty(n)
     ku = np.empty(n, np.int64)
@@ -135,7 +152,8 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
     # lookup)
     SW = np.empty((n, sw_t.shape[1] * n_a))
     # per pair (compacted to the pairs of valid members of a trial P): the pair, its fit so
-    # far and its sums; GA, GB, W the last pass's curves and weights at each point; the
+    # far and its sums; G0A, G0B, D0A, D0B its members' s and ds/du at each point (copied
+    # once per trial P); GA, GB, W the last pass's curves and weights at each point; the
     # rest scratch rows, one value per pair
     qi = np.empty(n_q, np.int64)
     A = np.empty(n_q, np.int64)
@@ -151,6 +169,11 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
     SBB = np.empty(n_q)
     SAY = np.empty(n_q)
     SBY = np.empty(n_q)
+    # per pair, contiguous: the members' values at each point (gathered once per trial P)
+    G0A = np.empty((n, n_q))
+    G0B = np.empty((n, n_q))
+    D0A = np.empty((n, n_q))
+    D0B = np.empty((n, n_q))
     GA = np.empty((n, n_q))
     GB = np.empty((n, n_q))
     W = np.empty((n, n_q))
@@ -159,10 +182,6 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
     JA = np.empty(n_q, np.int64)
     JB = np.empty(n_q, np.int64)
     C = np.empty(n_q)
-    TA = np.empty(n_q)
-    TB = np.empty(n_q)
-    DA = np.empty(n_q)
-    DB = np.empty(n_q)
     S0A = np.empty(n_q)
     S1A = np.empty(n_q)
     S0B = np.empty(n_q)
@@ -205,15 +224,9 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
                     sgy += w0[i] * G[i, s] * y[i]
                 s_gg[s] = sgg
                 s_gy[s] = sgy
-        if has_swing:
-            for i in range(n):
-                if amp[i] > 0.0:
-                    k = ks[i]
-                    f = fs[i]
-                    for s in range(n_s):
-                        if valid[s]:
-                            for j in range(n_a):
-                                SW[i, s * n_a + j] = sw_t[k, s, j] * (1 - f) + sw_t[k + 1, s, j] * f
+        # no swing row interpolated yet at this trial P (n_sw: how many of each point's)
+        for i in range(n):
+            n_sw[i] = 0
         # the pairs of valid members, in order
         nv = 0
         for q in range(n_q):
@@ -227,7 +240,16 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
                 FB[nv] = f_peak[b]
                 LIVE[nv] = True
                 nv += 1
+        for i in range(n):
+            for v in range(nv):
+                G0A[i, v] = G[i, A[v]]
+                G0B[i, v] = G[i, B[v]]
+            if n_iter > 1:
+                for v in range(nv):
+                    D0A[i, v] = DG[i, A[v]]
+                    D0B[i, v] = DG[i, B[v]]
         for it in range(n_iter):
+            last = it == n_iter - 1
             if it == 0:
                 # fixed weights 1/v0 and no swing: the members' own sums, and the cross sum
                 for v in range(nv):
@@ -239,12 +261,14 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
                 for i in range(n):
                     wi = w0[i]
                     for v in range(nv):
-                        ga = G[i, A[v]]
-                        gb = G[i, B[v]]
-                        GA[i, v] = ga
-                        GB[i, v] = gb
-                        W[i, v] = wi
-                        SAB[v] += wi * ga * gb
+                        SAB[v] += wi * G0A[i, v] * G0B[i, v]
+                if last:
+                    for i in range(n):
+                        wi = w0[i]
+                        for v in range(nv):
+                            GA[i, v] = G0A[i, v]
+                            GB[i, v] = G0B[i, v]
+                            W[i, v] = wi
             else:
                 for v in range(nv):
                     K0[v] = k_scale * (AL[v] + BE[v]) if k_scale > 0.0 else k0_fixed
@@ -253,13 +277,14 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
                     SBB[v] = 0.0
                     SAY[v] = 0.0
                     SBY[v] = 0.0
+                # the largest k0 (NaN left out: its swing's cell is the first)
+                k0_top = 0.0
+                for v in range(nv):
+                    if K0[v] > k0_top:
+                        k0_top = K0[v]
                 for i in range(n):
-                    # the pairs' values at point i, contiguous
-                    for v in range(nv):
-                        TA[v] = G[i, A[v]]
-                        TB[v] = G[i, B[v]]
-                        DA[v] = DG[i, A[v]]
-                        DB[v] = DG[i, B[v]]
+                    gai = GA[i]
+                    gbi = GB[i]
                     if has_swing and amp[i] > 0.0:
                         ai = amp[i]
                         for v in range(nv):
@@ -267,42 +292,81 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
                             RB[v] = min(ai * K0[v] * FB[v] / p, a_top)
                             JA[v] = 0
                             JB[v] = 0
-                        # the swing's cell: how many inner grid values lie below it (the
-                        # first cell whose upper end reaches it; 0 for NaN)
+                            S0A[v] = s_lo
+                            S1A[v] = d_lo
+                            S0B[v] = s_lo
+                            S1B[v] = d_lo
+                        # no pair's swing exceeds this bound (the same products and
+                        # quotient of values at least as large, each rounded
+                        # monotonically), so no swing lies above a grid value it does not
+                        # exceed: cells beyond t_top are neither searched nor interpolated
+                        r_top = min(ai * k0_top * f_top / p, a_top)
+                        t_top = 0
                         for t in range(1, n_a - 1):
+                            if r_top > swing_a[t]:
+                                t_top = t
+                        j_end = t_top + 2
+                        # this point's swing rows up to the cell above t_top, interpolated
+                        # as the refits reach them
+                        if n_sw[i] < j_end:
+                            k = ks[i]
+                            f = fs[i]
+                            for s in range(n_s):
+                                if valid[s]:
+                                    for j in range(n_sw[i], j_end):
+                                        SW[i, s * n_a + j] = (sw_t[k, s, j] * (1 - f)
+                                                              + sw_t[k + 1, s, j] * f)
+                            n_sw[i] = j_end
+                        # the swing's cell: the last inner grid value below it (the grid
+                        # rises, so this is how many lie below: the first cell whose upper
+                        # end reaches it; 0 for NaN), with its lower end and width
+                        for t in range(1, t_top + 1):
                             st = swing_a[t]
+                            dt = d_a[t]
                             for v in range(nv):
-                                JA[v] += RA[v] > st
-                                JB[v] += RB[v] > st
+                                if RA[v] > st:
+                                    JA[v] = t
+                                    S0A[v] = st
+                                    S1A[v] = dt
+                                if RB[v] > st:
+                                    JB[v] = t
+                                    S0B[v] = st
+                                    S1B[v] = dt
+                        swi = SW[i]
                         for v in range(nv):
                             ja = JA[v]
                             jb = JB[v]
                             ba = A[v] * n_a + ja
                             bb = B[v] * n_a + jb
-                            S0A[v] = swing_a[ja]
-                            S1A[v] = swing_a[ja + 1]
-                            S0B[v] = swing_a[jb]
-                            S1B[v] = swing_a[jb + 1]
-                            W0A[v] = SW[i, ba]
-                            W1A[v] = SW[i, ba + 1]
-                            W0B[v] = SW[i, bb]
-                            W1B[v] = SW[i, bb + 1]
+                            W0A[v] = swi[ba]
+                            W1A[v] = swi[ba + 1]
+                            W0B[v] = swi[bb]
+                            W1B[v] = swi[bb + 1]
+                        g0a = G0A[i]
+                        g0b = G0B[i]
                         for v in range(nv):
-                            xa = (RA[v] - S0A[v]) / (S1A[v] - S0A[v])
-                            xb = (RB[v] - S0B[v]) / (S1B[v] - S0B[v])
-                            TA[v] = TA[v] + (W0A[v] * (1 - xa) + W1A[v] * xa)
-                            TB[v] = TB[v] + (W0B[v] * (1 - xb) + W1B[v] * xb)
+                            xa = (RA[v] - S0A[v]) / S1A[v]
+                            xb = (RB[v] - S0B[v]) / S1B[v]
+                            gai[v] = g0a[v] + (W0A[v] * (1 - xa) + W1A[v] * xa)
+                            gbi[v] = g0b[v] + (W0B[v] * (1 - xb) + W1B[v] * xb)
+                    else:
+                        g0a = G0A[i]
+                        g0b = G0B[i]
+                        for v in range(nv):
+                            gai[v] = g0a[v]
+                            gbi[v] = g0b[v]
                     # the weights with the CoA term of the last fit, and the sums
                     v0i = v0[i]
                     ci = coa_se[i]
                     yi = y[i]
+                    d0a = D0A[i]
+                    d0b = D0B[i]
+                    wi_ = W[i]
                     for v in range(nv):
-                        ga = TA[v]
-                        gb = TB[v]
-                        GA[i, v] = ga
-                        GB[i, v] = gb
-                        wv = 1.0 / (v0i + ((AL[v] * DA[v] + BE[v] * DB[v]) / p * ci) ** 2)
-                        W[i, v] = wv
+                        ga = gai[v]
+                        gb = gbi[v]
+                        wv = 1.0 / (v0i + ((AL[v] * d0a[v] + BE[v] * d0b[v]) / p * ci) ** 2)
+                        wi_[v] = wv
                         SAA[v] += wv * ga * ga
                         SAB[v] += wv * ga * gb
                         SBB[v] += wv * gb * gb
@@ -338,9 +402,12 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
             C[v] = 0.0
         for i in range(n):
             yi = y[i]
+            gai = GA[i]
+            gbi = GB[i]
+            wi_ = W[i]
             for v in range(nv):
-                r = yi - AL[v] * GA[i, v] - BE[v] * GB[i, v]
-                C[v] += W[i, v] * r * r
+                r = yi - AL[v] * gai[v] - BE[v] * gbi[v]
+                C[v] += wi_[v] * r * r
         for v in range(nv):
             if not LIVE[v]:
                 continue
@@ -354,10 +421,10 @@ def _chi_kernel(s_t, ds_t, sw_t, swing_a, f_peak, pairs, coa, y, var0, y_rel, co
             c = C[v]
             if math.isfinite(c):
                 q = qi[v]
-                chi[q, m] = c
-                amps[q, m] = al + be
-                fracs[q, m] = be / (al + be)
-    return chi, amps, fracs
+                chi[m, q] = c
+                amps[m, q] = al + be
+                fracs[m, q] = be / (al + be)
+    return chi.T, amps.T, fracs.T
 
 
 def _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_rel, bmax_v=0.0):
@@ -394,22 +461,20 @@ def _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_
     evaluated grid indices (sorted) and chi2, amplitude, mixing fraction there (K, m)."""
     m = p_grid.size
     done = np.unique(np.r_[np.arange(0, m, every), m - 1])
-    # every trial P's columns (column-major: a trial P's column is contiguous), filled as
-    # they are evaluated (a cell is the same whichever call computes it), and the profile
-    # there; ``have`` marks the evaluated ones
-    full: list = []
+    # the evaluated trial P's columns, batch by batch (a cell is the same whichever call
+    # computes it), and the profile there; ``have`` marks the evaluated ones
+    batches: list = []
     prof_all = np.full(m, np.nan)
     prof_rail = np.full(m, np.inf)
     have = np.zeros(m, bool)
+    use_rail = rail is not None and bool(rail.any())
 
     def put(cols, out):
-        if not full:
-            full.extend(np.empty((o.shape[0], m), o.dtype, order="F") for o in out)
-        for f_, o in zip(full, out, strict=True):
-            f_[:, cols] = o
-        prof_all[cols] = out[0].min(axis=0)
-        if rail is not None and rail.any():
-            prof_rail[cols] = out[0][rail].min(axis=0)
+        batches.append((cols, out))
+        chi_t = out[0].T  # trial-P-major: each trial P's row contiguous
+        prof_all[cols] = chi_t.min(axis=1)
+        if use_rail:
+            prof_rail[cols] = chi_t[:, rail].min(axis=1)
         have[cols] = True
 
     put(done, _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[done], constant, model_rel,
@@ -434,5 +499,7 @@ def _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_
         put(new, _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[new], constant,
                           model_rel, bmax_v))
         done = np.flatnonzero(have)
-    outs = [f_[:, done] for f_ in full]
+    cols = np.concatenate([c for c, _ in batches])
+    order = np.argsort(cols, kind="stable")
+    outs = [np.concatenate([o[k].T for _, o in batches])[order].T for k in range(3)]
     return done, outs

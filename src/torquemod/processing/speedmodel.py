@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import get_window
 
-from torquemod.dsp import filters, lstsq, numpyblas, projection
+from torquemod.dsp import blockbasis, filters, lstsq, numpyblas, projection
 
 
 @functools.lru_cache(maxsize=16)
@@ -396,6 +396,9 @@ def _parts_wanted(names: tuple[str, ...], n_slow: int, n_orders: int, n_harmonic
     return bounds, wanted
 
 
+_NOT_YET = object()
+
+
 class _SlowOrdersRemoval:
     """Records ``y`` (columns) less the slow part and the rotation orders of the
     :class:`SpeedModel` fitted with the modulation at a frequency f: ``y - B c_B`` of the
@@ -415,8 +418,12 @@ class _SlowOrdersRemoval:
         self.start_hz = start_hz  # the search's nominal start [Hz]: its columns cached
         self.slow, self.orders = slow, orders
         self.b = np.hstack([slow, orders])
-        self.fac = filters.LstsqFactor.of(self.b)
+        self._fac = _NOT_YET
         self.qt = None
+        block = blockbasis.removal_basis(y, slow, orders)
+        if block is not None:  # Q from the slow basis's own (dsp.blockbasis)
+            self.qt, self.r_y, self.qy = block
+            return
         if self.fac is not None:
             # an orthonormal basis Q of B (dsp.projection): the residual is y - Q Q'y, and
             # each trial frequency costs one product with Q instead of a solve on B
@@ -427,9 +434,17 @@ class _SlowOrdersRemoval:
             else:
                 self.r_y = y - self.b @ self.fac.solve(y)
 
+    @property
+    def fac(self) -> filters.LstsqFactor | None:
+        """B's least-squares factor (:meth:`~torquemod.dsp.lstsq.LstsqFactor.of`), made when
+        first asked for: where Q comes from the slow basis's own, only the fallbacks use it."""
+        if self._fac is _NOT_YET:
+            self._fac = filters.LstsqFactor.of(self.b)
+        return self._fac
+
     def at(self, modulation_hz: float) -> np.ndarray:
         """``y`` less its slow part and orders with the modulation at ``modulation_hz``."""
-        if self.fac is None:  # (nearly) rank-deficient: the whole model, fitted by the SVD
+        if self.qt is None and self.fac is None:  # (nearly) rank-deficient: the SVD
             model = fit_speed_model({str(i): c for i, c in enumerate(self.y.T)}, self.fs_hz,
                                     modulation_hz, self.slow, self.orders, self.harmonics)
             end = model.design.shape[1] - model.n_harmonic_columns
@@ -501,7 +516,7 @@ class _SlowOrdersRemoval:
         come from one :meth:`explained_many` call (the same numbers as one :meth:`refine`
         per record)."""
         peaks = [float(p) for p in peaks_hz]
-        if self.fac is None:
+        if self.qt is None and self.fac is None:
             return peaks
         duration = self.y.shape[0] / self.fs_hz
         if self.qt is not None:  # the steps of _refine_steps in one compiled call (the

@@ -11,7 +11,7 @@ import functools
 import numba
 import numpy as np
 
-from torquemod.dsp import basis, filters, lstsq, numpyblas
+from torquemod.dsp import basis, blockbasis, filters, lstsq, numpyblas
 from torquemod.dsp.lstsq import column_sums_of_squares
 from torquemod.io.config import ProcessingConfig
 
@@ -77,6 +77,10 @@ def _tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
                     avoid_hz: float) -> tuple[np.ndarray, float]:
     """:func:`tracked_orders` with its first design ``base`` given, and that design's
     least-squares factor when already computed (wheel and platform share both)."""
+    block = _tracked_orders_block(speed_rad_s, fs_hz, slow, harmonics, base,
+                                  above_hz=above_hz, avoid_hz=avoid_hz)
+    if block is not None:
+        return block
     blas = numpyblas.addresses()
     if (blas is not None and base_factor is not None and speed_rad_s.ndim == 1
             and speed_rad_s.dtype == np.float64 and speed_rad_s.flags.c_contiguous
@@ -247,3 +251,96 @@ def _slow_and_base(n: int, fs_hz: float, max_hz: float, f_start_hz: float, extra
     if fac is not None:
         fac.factor.setflags(write=False)
     return slow, base, fac
+
+
+def _tracked_orders_block(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
+                          harmonics: tuple[int, ...], base: np.ndarray, *, above_hz: float,
+                          avoid_hz: float) -> tuple[np.ndarray, float] | None:
+    """:func:`_tracked_orders` by an orthonormal basis of its first design ``base`` (made
+    once per read-only design, :func:`~torquemod.dsp.blockbasis.slow_basis_t`), extended
+    by the orders for the refit (Frisch-Waugh-Lovell) instead of factoring ``[base,
+    orders]``: the same least squares to rounding. None where that basis is not made or a
+    pivot falls below :data:`~torquemod.dsp.blockbasis.MIN_PIVOT` (the caller then takes
+    the factor route, whose decision it is)."""
+    if (base.flags.writeable or speed_rad_s.ndim != 1 or speed_rad_s.dtype != np.float64
+            or slow.shape[1] < 1 or speed_rad_s.size < 2):
+        return None
+    basis_t = blockbasis.slow_basis_t(base)
+    if basis_t is None:
+        return None
+    cols, f_rot, status = _tracked_orders_fwl(
+        np.ascontiguousarray(speed_rad_s), float(fs_hz), np.ascontiguousarray(slow),
+        np.array([int(h) for h in harmonics], dtype=np.int64), base, basis_t[0], basis_t[1],
+        float(above_hz), float(avoid_hz), blockbasis.MIN_PIVOT)
+    return (cols, float(f_rot)) if status == 0 else None
+
+
+@numba.njit(cache=True, nogil=True)
+def _tracked_orders_fwl(speed, fs_hz, slow, harmonics, base, qb_t, rb, above_hz, avoid_hz,
+                        min_pivot):
+    """:func:`_tracked_orders`'s steps with its least squares on ``Q_b`` (``qb_t``, ``rb =
+    Q_b'base``) and, for the refit, Q_b extended by the orders: ``(cols, f_rot, status)``,
+    status 1 where a pivot is too small."""
+    n = speed.size
+    n_slow = slow.shape[1]
+    resolution = fs_hz / n
+    qb = np.ascontiguousarray(qb_t.T)
+    y = np.empty((n, 1))
+    y[:, 0] = speed
+    qy = np.dot(qb_t, y)
+    cols = np.empty((n, 0))
+    f_rot = np.nan
+    for it in range(2):
+        if it == 0:
+            coef = blockbasis.upper_solve(rb, qy)
+        else:
+            ext, ok = blockbasis.extension_t(qb_t, cols, min_pivot)
+            if not ok:
+                return cols, f_rot, 1
+            qc = np.dot(ext, cols)  # Q_c'cols, upper triangular
+            c_c = blockbasis.upper_solve(qc, np.dot(ext, y))
+            coef = blockbasis.upper_solve(rb, qy - np.dot(np.dot(qb_t, cols), c_c))
+        w_s = np.dot(slow, np.ascontiguousarray(coef[:n_slow, 0]))
+        mean = w_s.sum() / n
+        f_rot = abs(mean) / (2 * np.pi)
+        n_kept = 0
+        kept = np.empty(harmonics.size, dtype=np.int64)
+        for h in harmonics:
+            if above_hz < h * f_rot < 0.45 * fs_hz and abs(h * f_rot - avoid_hz) > \
+                    2 * resolution:
+                kept[n_kept] = h
+                n_kept += 1
+        if n_kept == 0 or mean == 0:
+            return np.empty((n, 0)), f_rot, 0
+        angle = np.empty(n)  # basis.unwrapped_angle: a trapezoidal cumulative sum
+        angle[0] = 0.0
+        acc = 0.0
+        for i in range(n - 1):
+            step = 0.5 * (w_s[i + 1] + w_s[i]) / fs_hz
+            acc = step if i == 0 else acc + step
+            angle[i + 1] = acc
+        raw = basis.order_columns(angle, kept[:n_kept])
+        cols = np.empty_like(raw)
+        for i in range(n):
+            g = w_s[i] / mean
+            for j in range(raw.shape[1]):
+                cols[i, j] = raw[i, j] * g
+        # _separable_orders: each column's residual on base
+        res = cols - np.dot(qb, np.dot(qb_t, cols))
+        keep = np.zeros(cols.shape[1], dtype=np.bool_)
+        for k in range(cols.shape[1] // 2):
+            fr = np.empty(2)
+            for m in range(2):
+                ss_r = 0.0
+                ss_c = 0.0
+                for i in range(n):
+                    ss_r += res[i, 2 * k + m] * res[i, 2 * k + m]
+                    ss_c += cols[i, 2 * k + m] * cols[i, 2 * k + m]
+                fr[m] = np.sqrt(ss_r / ss_c)
+            keep[2 * k] = keep[2 * k + 1] = fr[0] >= ORDER_MIN_RESIDUAL and \
+                fr[1] >= ORDER_MIN_RESIDUAL
+        if not keep.all():
+            cols = np.ascontiguousarray(cols[:, keep])
+        if not cols.shape[1]:
+            return cols, f_rot, 0
+    return cols, f_rot, 0

@@ -412,8 +412,10 @@ def _full_steps(config, t_peak: float, seed: int, workdir: Path | None,
                                progress=False, workers=1)
     else:
         # the theory columns come from _theory_steps: the truth's large-signal phase is
-        # not needed (it is not part of the rows)
-        run = simulate_run(config, seed=seed, workers=1, large_signal=False)
+        # not needed (it is not part of the rows); of what the twin simulated the rows take
+        # the slip and each step's phase (phase_simulated_deg), not its statistics
+        run = simulate_run(config, seed=seed, workers=1, large_signal=False,
+                           statistics=False)
         truth = run.truth
     if truth["slip_step"] == 1:
         raise ProcessingError(

@@ -156,7 +156,7 @@ class _NoProgress:
 
 def _simulate(config: SimConfig, folder: Path | None, *, seed: int, fmt: str | None,
               progress: bool, files_per_cycle: bool, workers: int | None = None,
-              large_signal: bool = True) -> dict | SimulatedRun:
+              large_signal: bool = True, statistics: bool = True) -> dict | SimulatedRun:
     """The run: each step's recordings written into ``folder`` as soon as the step is
     done (returns the truth), or kept in memory when ``folder`` is None (returns the
     :class:`SimulatedRun`)."""
@@ -201,7 +201,8 @@ def _simulate(config: SimConfig, folder: Path | None, *, seed: int, fmt: str | N
         # 271 against 248 ms a run -- two threads wanting the GIL at once wait for each
         # other's switch interval)
         entry, bounds = recorded_step_truth(plan.index, plan.dc_nm, config, out, n_done,
-                                            plan.t0_s, rp.wobble, rp.n_settle, large_signal)
+                                            plan.t0_s, rp.wobble, rp.n_settle, large_signal,
+                                            statistics)
         noise_rng = np.random.Generator(np.random.SFC64(rp.noise_seeds[plan.index - 1]))
         channels = measure(out[bounds[0]:bounds[-1]], disturbances=config.disturbances,
                            sensors=config.sensors, rng=noise_rng)
@@ -328,7 +329,8 @@ def run_simulation(config: SimConfig, out_dir: Path, *, seed: int = 0, fmt: str 
 
 
 def simulate_run(config: SimConfig, *, seed: int = 0, files_per_cycle: bool = True,
-                 workers: int | None = None, large_signal: bool = True) -> SimulatedRun:
+                 workers: int | None = None, large_signal: bool = True,
+                 statistics: bool = True) -> SimulatedRun:
     """Simulate ``config`` as :func:`run_simulation` does and keep the experiment in memory.
 
     Parameters
@@ -345,6 +347,10 @@ def simulate_run(config: SimConfig, *, seed: int = 0, files_per_cycle: bool = Tr
     large_signal : bool
         False leaves each step's large-signal theory phase out of the truth (None), for a
         caller that solves the theory itself (a sweep's theory columns; ~7 ms a step).
+    statistics : bool
+        False keeps of what each step simulated only its phase (``simulated`` holds
+        ``phase_deg`` alone, the same value): no means, CoA, variations or per-revolution
+        entries, for a caller that reads only the phase (a sweep's rows; ~1 ms a step).
 
     Returns
     -------
@@ -355,5 +361,5 @@ def simulate_run(config: SimConfig, *, seed: int = 0, files_per_cycle: bool = Tr
     """
     return _simulate(config, None, seed=seed, fmt=None, progress=False,
                      files_per_cycle=files_per_cycle, workers=workers,
-                     large_signal=large_signal)
+                     large_signal=large_signal, statistics=statistics)
 

@@ -96,6 +96,36 @@ def _phase_from_sums(gram: np.ndarray, rhs: np.ndarray) -> float:
     return float((np.degrees(ang[0] - ang[1]) + 180.0) % 360.0 - 180.0)
 
 
+def _whole_phase(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.ndarray,
+                 spans: list[tuple[int, int]]) -> float:
+    """``phase_deg`` of :func:`_spans_truth`'s first span (the whole step) alone, the same
+    value bit for bit: the fit's sums over the same windows (the revolutions' edges cut the
+    sums into the same pieces) by :func:`_fit_sums`, which gives :func:`step_sums`' sums
+    exactly, without the moments and the revolutions' own solves."""
+    f, fs = config.modulation.actual_frequency_hz, config.sensors.sample_rate_hz
+    nw = wobble.shape[0]
+    if not nw:
+        a, b = spans[0]
+        seg = raw[a:b]
+        return sine_fit_phase_deg(seg[:, _COL["torque_nm"]], seg[:, _COL["wheel_speed_rad_s"]],
+                                  fs, f)
+    stride = WOBBLE_FIT_STRIDE
+    windows = []
+    for a, b in spans:
+        n = int(np.floor((b - a) / fs * f) * fs / f)  # whole modulation periods
+        windows.append((-(-a // stride), -(-(a + n) // stride)))
+    lo, hi = (np.array(v, dtype=np.int64) for v in zip(*windows, strict=True))
+    m = 3 + 2 * nw
+    gram, rhs = np.empty((len(spans), m, m)), np.empty((len(spans), m, 2))
+    wob = np.ascontiguousarray(wobble, dtype=np.float64)
+    coef = np.column_stack([wob[:, 0] * np.sin(wob[:, 2]),
+                            wob[:, 0] * np.cos(wob[:, 2])]).ravel()
+    ref = np.zeros((raw.shape[0] + stride - 1) // stride)
+    _fit_sums(raw, t0_s, fs, stride, 2.0 * np.pi * f, wob, coef, _FIT_COLS, lo, hi, gram, rhs,
+              ref)
+    return _phase_from_sums(gram[0], rhs[0])
+
+
 def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.ndarray,
                  spans: list[tuple[int, int]]) -> list[dict]:
     """What was simulated over each span ``(a, b)`` of sample indices into ``raw`` (sample 0
@@ -174,13 +204,16 @@ def _large_signal(dc: float, config: SimConfig) -> LargeSignalResult:
 
 def step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None,
                 slipped: bool, t0_s: float = 0.0, wobble: np.ndarray | None = None,
-                bounds: list[int] = (0, 0), large_signal: bool = True) -> dict:
+                bounds: list[int] = (0, 0), large_signal: bool = True,
+                statistics: bool = True) -> dict:
     """Ground truth of one step: the steady state and theory at ``dc`` and, when not
     ``slipped``, what was simulated over the recorded samples ``raw`` (from ``t0_s`` [s]) and
     per platform revolution (``bounds``, indices into the step's output, ``raw`` starting
     at ``bounds[0]``); see :func:`_spans_truth`. ``large_signal = False`` leaves the
     large-signal theory phase out (None; its periodic-state solve is most of the theory's
-    cost).
+    cost); ``statistics = False`` keeps of what was simulated the phase alone
+    (``simulated = {"phase_deg": ...}``, the same value; no means, variations or
+    revolutions).
 
     Parameters
     ----------
@@ -202,6 +235,9 @@ def step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None
         Revolution bounds (indices into the step's output).
     large_signal : bool
         Include the large-signal phase. Default True.
+    statistics : bool
+        Include the simulated means, variations and revolutions besides the phase.
+        Default True.
 
     Returns
     -------
@@ -235,6 +271,9 @@ def step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None
         wob = np.zeros((0, 4)) if wobble is None else wobble
         rel = [(a - bounds[0], b - bounds[0]) for a, b in itertools.pairwise(bounds)]
         spans = [(0, raw.shape[0])] + (rel if len(rel) > 1 else [])
+        if not statistics:
+            entry["simulated"] = {"phase_deg": _whole_phase(raw, t0_s, config, wob, spans)}
+            return entry
         whole, *cycles = _spans_truth(raw, t0_s, config, wob, spans)
         entry["simulated"] = whole
         if cycles:
@@ -244,7 +283,8 @@ def step_truth(i_step: int, dc: float, config: SimConfig, raw: np.ndarray | None
 
 def recorded_step_truth(i_step: int, dc: float, config: SimConfig, out: np.ndarray,
                         n_done: int, t_step: float, wobble: np.ndarray, n_settle: int,
-                        large_signal: bool = True) -> tuple[dict, list[int]]:
+                        large_signal: bool = True,
+                        statistics: bool = True) -> tuple[dict, list[int]]:
     """Truth entry (:func:`step_truth`) of a step that did not slip, integrated into ``out``
     (``n_done`` samples from ``t_step`` [s]) and recorded from sample ``n_settle`` over the
     procedure's platform revolutions; also the revolutions' sample bounds in ``out``.
@@ -269,6 +309,9 @@ def recorded_step_truth(i_step: int, dc: float, config: SimConfig, out: np.ndarr
         First recorded sample [-].
     large_signal : bool
         Include the large-signal phase. Default True.
+    statistics : bool
+        Include the simulated statistics besides the phase (:func:`step_truth`). Default
+        True.
 
     Returns
     -------
@@ -282,4 +325,4 @@ def recorded_step_truth(i_step: int, dc: float, config: SimConfig, out: np.ndarr
     raw = out[bounds[0]:bounds[-1]]
     t0 = t_step + bounds[0] * (1.0 / config.sensors.sample_rate_hz)
     return step_truth(i_step, dc, config, raw, False, t0, wobble, bounds,
-                       large_signal), bounds
+                      large_signal, statistics), bounds
