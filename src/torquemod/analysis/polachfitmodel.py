@@ -19,40 +19,13 @@ import numba
 import numpy as np
 
 from torquemod.analysis.contact.polach import swing_nodes
+from torquemod.dsp import numpyblas
 
 __all__ = ["FitModel"]
 
 _TWO_OVER_PI = 2.0 / np.pi
 # IEEE arithmetic as numpy's: no fast-math (no reassociation, no fused multiply-add)
 _EXACT = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
-
-
-@numba.njit(**_EXACT)
-def _pairwise_sum(a, n: int) -> float:
-    """``a[:n].sum()`` for ``n <= 128`` in the order of numpy's pairwise summation along a
-    contiguous axis (eight partial sums; below eight values one after the other)."""
-    if n < 8:
-        res = -0.0
-        for i in range(n):
-            res += a[i]
-        return res
-    r0, r1, r2, r3, r4, r5, r6, r7 = a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]
-    i = 8
-    while i < n - (n % 8):
-        r0 += a[i]
-        r1 += a[i + 1]
-        r2 += a[i + 2]
-        r3 += a[i + 3]
-        r4 += a[i + 4]
-        r5 += a[i + 5]
-        r6 += a[i + 6]
-        r7 += a[i + 7]
-        i += 8
-    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    while i < n:
-        res += a[i]
-        i += 1
-    return res
 
 
 @numba.njit(**_EXACT)
@@ -84,7 +57,7 @@ def _mean_kernel(eps, at, sgn, a: float, mu: float, average: bool, out):
             v *= mu
             row[k] = v * sgn[i, k] if average else v
         if average:
-            out[i] = (0.0 + _pairwise_sum(row, m)) / m
+            out[i] = (0.0 + numpyblas.pairwise_leaf(row, 0, m)) / m
         else:
             out[i] = row[0]
 

@@ -275,7 +275,7 @@ def matmul_any(a: np.ndarray, b: np.ndarray, gemm: int) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True)
-def _pairwise_leaf(a: np.ndarray, lo: int, n: int) -> float:
+def pairwise_leaf(a: np.ndarray, lo: int, n: int) -> float:
     """numpy's pairwise sum of a block ``a[lo:lo + n]`` of at most 128 elements: in order
     below 8, else in eight interleaved partial sums combined as a tree, then the rest."""
     if n < 8:
@@ -332,7 +332,7 @@ def vector_sum(a: np.ndarray) -> float:
         t = top - 1
         lo, n = los[t], ns[t]
         if n <= 128:
-            vals[nv] = _pairwise_leaf(a, lo, n)
+            vals[nv] = pairwise_leaf(a, lo, n)
             nv += 1
             top -= 1
             continue

@@ -118,6 +118,39 @@ def _tracked_orders(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
 
 
 @numba.njit(cache=True, nogil=True)
+def _speed_scaled_orders(w_s, mean, f_rot, harmonics, fs_hz, above_hz, avoid_hz, resolution):
+    """The order columns ``(w_s/mean)*cos(k*theta)``, ``(w_s/mean)*sin(k*theta)`` of the
+    orders k of ``harmonics`` whose frequency ``k*f_rot`` [Hz] lies above ``above_hz``, below
+    0.45 ``fs_hz`` and more than two ``resolution`` [Hz] from ``avoid_hz``, with ``theta`` the
+    trapezoidal integral of ``w_s`` [rad/s] (as :func:`torquemod.dsp.basis.unwrapped_angle`,
+    in numpy's order); no column when none is kept or ``mean`` is 0."""
+    n = w_s.size
+    n_kept = 0
+    kept = np.empty(harmonics.size, dtype=np.int64)
+    for h in harmonics:
+        if above_hz < h * f_rot < 0.45 * fs_hz and abs(h * f_rot - avoid_hz) > \
+                2 * resolution:
+            kept[n_kept] = h
+            n_kept += 1
+    if n_kept == 0 or mean == 0:
+        return np.empty((n, 0))
+    angle = np.empty(n)
+    angle[0] = 0.0
+    acc = 0.0
+    for i in range(n - 1):
+        step = 0.5 * (w_s[i + 1] + w_s[i]) / fs_hz
+        acc = step if i == 0 else acc + step
+        angle[i + 1] = acc
+    raw = basis.order_columns(angle, kept[:n_kept])
+    cols = np.empty_like(raw)
+    for i in range(n):
+        g = w_s[i] / mean
+        for j in range(raw.shape[1]):
+            cols[i, j] = raw[i, j] * g
+    return cols
+
+
+@numba.njit(cache=True, nogil=True)
 def _tracked_orders_compiled(speed, fs_hz, slow, harmonics, base, dn_b, factor_b, scale_b,
                              above_hz, avoid_hz, syrk, gemm, gemv, potrf, potrs):
     """:func:`_tracked_orders` in one call, step by step as it (the BLAS products numpy's
@@ -144,28 +177,10 @@ def _tracked_orders_compiled(speed, fs_hz, slow, harmonics, base, dn_b, factor_b
         w_s = numpyblas.matvec(slow, coef[:n_slow], gemv)
         mean = numpyblas.vector_sum(w_s) / n
         f_rot = abs(mean) / (2 * np.pi)
-        n_kept = 0
-        kept = np.empty(harmonics.size, dtype=np.int64)
-        for h in harmonics:
-            if above_hz < h * f_rot < 0.45 * fs_hz and abs(h * f_rot - avoid_hz) > \
-                    2 * resolution:
-                kept[n_kept] = h
-                n_kept += 1
-        if n_kept == 0 or mean == 0:
-            return np.empty((n, 0)), f_rot, 0
-        angle = np.empty(n)  # basis.unwrapped_angle: a trapezoidal cumulative sum
-        angle[0] = 0.0
-        acc = 0.0
-        for i in range(n - 1):
-            step = 0.5 * (w_s[i + 1] + w_s[i]) / fs_hz
-            acc = step if i == 0 else acc + step
-            angle[i + 1] = acc
-        raw = basis.order_columns(angle, kept[:n_kept])
-        cols = np.empty_like(raw)
-        for i in range(n):
-            g = w_s[i] / mean
-            for j in range(raw.shape[1]):
-                cols[i, j] = raw[i, j] * g
+        cols = _speed_scaled_orders(w_s, mean, f_rot, harmonics, fs_hz, above_hz, avoid_hz,
+                                    resolution)
+        if cols.shape[1] == 0:
+            return cols, f_rot, 0
         # _separable_orders
         fit = lstsq.solve_compiled(dn_b, factor_b, scale_b, cols, potrs)
         res = cols - numpyblas.matmul_any(base, fit, gemm)
@@ -303,28 +318,10 @@ def _tracked_orders_fwl(speed, fs_hz, slow, harmonics, base, qb_t, rb, above_hz,
         w_s = np.dot(slow, np.ascontiguousarray(coef[:n_slow, 0]))
         mean = w_s.sum() / n
         f_rot = abs(mean) / (2 * np.pi)
-        n_kept = 0
-        kept = np.empty(harmonics.size, dtype=np.int64)
-        for h in harmonics:
-            if above_hz < h * f_rot < 0.45 * fs_hz and abs(h * f_rot - avoid_hz) > \
-                    2 * resolution:
-                kept[n_kept] = h
-                n_kept += 1
-        if n_kept == 0 or mean == 0:
-            return np.empty((n, 0)), f_rot, 0
-        angle = np.empty(n)  # basis.unwrapped_angle: a trapezoidal cumulative sum
-        angle[0] = 0.0
-        acc = 0.0
-        for i in range(n - 1):
-            step = 0.5 * (w_s[i + 1] + w_s[i]) / fs_hz
-            acc = step if i == 0 else acc + step
-            angle[i + 1] = acc
-        raw = basis.order_columns(angle, kept[:n_kept])
-        cols = np.empty_like(raw)
-        for i in range(n):
-            g = w_s[i] / mean
-            for j in range(raw.shape[1]):
-                cols[i, j] = raw[i, j] * g
+        cols = _speed_scaled_orders(w_s, mean, f_rot, harmonics, fs_hz, above_hz, avoid_hz,
+                                    resolution)
+        if cols.shape[1] == 0:
+            return cols, f_rot, 0
         # _separable_orders: each column's residual on base
         res = cols - np.dot(qb, np.dot(qb_t, cols))
         keep = np.zeros(cols.shape[1], dtype=np.bool_)

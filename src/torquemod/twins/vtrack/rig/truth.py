@@ -96,6 +96,24 @@ def _phase_from_sums(gram: np.ndarray, rhs: np.ndarray) -> float:
     return float((np.degrees(ang[0] - ang[1]) + 180.0) % 360.0 - 180.0)
 
 
+def _fit_windows(spans, fs: float, f: float, stride: int, wobble: np.ndarray):
+    """The wobble fit's windows and buffers for :func:`_fit_sums`: per span, the first and
+    past-the-last index of its ``stride``-th samples over its whole modulation periods
+    (``lo``, ``hi``), empty normal equations (``gram`` (S, m, m), ``rhs`` (S, m, 2)), the
+    wobble's rows as float64 and their sine/cosine amplitudes (``coef``)."""
+    windows = []
+    for a, b in spans:
+        n = int(np.floor((b - a) / fs * f) * fs / f)  # whole modulation periods
+        windows.append((-(-a // stride), -(-(a + n) // stride)))
+    lo, hi = (np.array(v, dtype=np.int64) for v in zip(*windows, strict=True))
+    m = 3 + 2 * wobble.shape[0]
+    gram, rhs = np.empty((len(spans), m, m)), np.empty((len(spans), m, 2))
+    wob = np.ascontiguousarray(wobble, dtype=np.float64)
+    coef = np.column_stack([wob[:, 0] * np.sin(wob[:, 2]),
+                            wob[:, 0] * np.cos(wob[:, 2])]).ravel()
+    return lo, hi, gram, rhs, wob, coef
+
+
 def _whole_phase(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.ndarray,
                  spans: list[tuple[int, int]]) -> float:
     """``phase_deg`` of :func:`_spans_truth`'s first span (the whole step) alone, the same
@@ -110,16 +128,7 @@ def _whole_phase(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.nda
         return sine_fit_phase_deg(seg[:, _COL["torque_nm"]], seg[:, _COL["wheel_speed_rad_s"]],
                                   fs, f)
     stride = WOBBLE_FIT_STRIDE
-    windows = []
-    for a, b in spans:
-        n = int(np.floor((b - a) / fs * f) * fs / f)  # whole modulation periods
-        windows.append((-(-a // stride), -(-(a + n) // stride)))
-    lo, hi = (np.array(v, dtype=np.int64) for v in zip(*windows, strict=True))
-    m = 3 + 2 * nw
-    gram, rhs = np.empty((len(spans), m, m)), np.empty((len(spans), m, 2))
-    wob = np.ascontiguousarray(wobble, dtype=np.float64)
-    coef = np.column_stack([wob[:, 0] * np.sin(wob[:, 2]),
-                            wob[:, 0] * np.cos(wob[:, 2])]).ravel()
+    lo, hi, gram, rhs, wob, coef = _fit_windows(spans, fs, f, stride, wobble)
     ref = np.zeros((raw.shape[0] + stride - 1) // stride)
     _fit_sums(raw, t0_s, fs, stride, 2.0 * np.pi * f, wob, coef, _FIT_COLS, lo, hi, gram, rhs,
               ref)
@@ -151,16 +160,7 @@ def _spans_truth(raw: np.ndarray, t0_s: float, config: SimConfig, wobble: np.nda
         means = np.empty((len(spans), _MEAN_COLS.size))
         stds = np.empty((len(spans), _STD_COLS.size))
     if nw:
-        windows = []
-        for a, b in spans:
-            n = int(np.floor((b - a) / fs * f) * fs / f)  # whole modulation periods
-            windows.append((-(-a // stride), -(-(a + n) // stride)))
-        lo, hi = (np.array(v, dtype=np.int64) for v in zip(*windows, strict=True))
-        m = 3 + 2 * nw
-        gram, rhs = np.empty((len(spans), m, m)), np.empty((len(spans), m, 2))
-        wob = np.ascontiguousarray(wobble, dtype=np.float64)
-        coef = np.column_stack([wob[:, 0] * np.sin(wob[:, 2]),
-                                wob[:, 0] * np.cos(wob[:, 2])]).ravel()
+        lo, hi, gram, rhs, wob, coef = _fit_windows(spans, fs, f, stride, wobble)
         args = (raw, t0_s, fs, stride, 2.0 * np.pi * f, wob, coef, _FIT_COLS, lo, hi, gram,
                 rhs, ref)
         if partition:  # the fit's sums and the moments in one sweep
