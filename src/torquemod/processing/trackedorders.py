@@ -151,6 +151,24 @@ def _speed_scaled_orders(w_s, mean, f_rot, harmonics, fs_hz, above_hz, avoid_hz,
 
 
 @numba.njit(cache=True, nogil=True)
+def _separable_kept(cols, res):
+    """:func:`_separable_orders`' decision in compiled code: the order columns ``cols`` (cos,
+    sin per order) whose residuals ``res`` on the first design each keep at least
+    :data:`ORDER_MIN_RESIDUAL` of their norm (sums of squares row by row, as
+    :func:`~torquemod.dsp.lstsq.column_sums_of_squares`); ``cols`` itself when all do."""
+    ss_res = lstsq.sums_of_squares_compiled(res)
+    ss_col = lstsq.sums_of_squares_compiled(cols)
+    keep = np.zeros(cols.shape[1], dtype=np.bool_)
+    for k in range(cols.shape[1] // 2):
+        a = np.sqrt(ss_res[2 * k] / ss_col[2 * k])
+        b = np.sqrt(ss_res[2 * k + 1] / ss_col[2 * k + 1])
+        keep[2 * k] = keep[2 * k + 1] = a >= ORDER_MIN_RESIDUAL and b >= ORDER_MIN_RESIDUAL
+    if keep.all():
+        return cols
+    return np.ascontiguousarray(cols[:, keep])
+
+
+@numba.njit(cache=True, nogil=True)
 def _tracked_orders_compiled(speed, fs_hz, slow, harmonics, base, dn_b, factor_b, scale_b,
                              above_hz, avoid_hz, syrk, gemm, gemv, potrf, potrs):
     """:func:`_tracked_orders` in one call, step by step as it (the BLAS products numpy's
@@ -183,16 +201,7 @@ def _tracked_orders_compiled(speed, fs_hz, slow, harmonics, base, dn_b, factor_b
             return cols, f_rot, 0
         # _separable_orders
         fit = lstsq.solve_compiled(dn_b, factor_b, scale_b, cols, potrs)
-        res = cols - numpyblas.matmul_any(base, fit, gemm)
-        ss_res = lstsq.sums_of_squares_compiled(res)
-        ss_col = lstsq.sums_of_squares_compiled(cols)
-        keep = np.zeros(cols.shape[1], dtype=np.bool_)
-        for k in range(cols.shape[1] // 2):
-            a = np.sqrt(ss_res[2 * k] / ss_col[2 * k])
-            b = np.sqrt(ss_res[2 * k + 1] / ss_col[2 * k + 1])
-            keep[2 * k] = keep[2 * k + 1] = a >= ORDER_MIN_RESIDUAL and b >= ORDER_MIN_RESIDUAL
-        if not keep.all():
-            cols = np.ascontiguousarray(cols[:, keep])
+        cols = _separable_kept(cols, cols - numpyblas.matmul_any(base, fit, gemm))
         if not cols.shape[1]:
             return cols, f_rot, 0
     return cols, f_rot, 0
@@ -323,21 +332,7 @@ def _tracked_orders_fwl(speed, fs_hz, slow, harmonics, base, qb_t, rb, above_hz,
         if cols.shape[1] == 0:
             return cols, f_rot, 0
         # _separable_orders: each column's residual on base
-        res = cols - np.dot(qb, np.dot(qb_t, cols))
-        keep = np.zeros(cols.shape[1], dtype=np.bool_)
-        for k in range(cols.shape[1] // 2):
-            fr = np.empty(2)
-            for m in range(2):
-                ss_r = 0.0
-                ss_c = 0.0
-                for i in range(n):
-                    ss_r += res[i, 2 * k + m] * res[i, 2 * k + m]
-                    ss_c += cols[i, 2 * k + m] * cols[i, 2 * k + m]
-                fr[m] = np.sqrt(ss_r / ss_c)
-            keep[2 * k] = keep[2 * k + 1] = fr[0] >= ORDER_MIN_RESIDUAL and \
-                fr[1] >= ORDER_MIN_RESIDUAL
-        if not keep.all():
-            cols = np.ascontiguousarray(cols[:, keep])
+        cols = _separable_kept(cols, cols - np.dot(qb, np.dot(qb_t, cols)))
         if not cols.shape[1]:
             return cols, f_rot, 0
     return cols, f_rot, 0
