@@ -68,6 +68,7 @@ from torquemod.analysis.frictiongrid import (
     _coarse_to_fine,
     new_pairs,
     reference_chi2,
+    row_minima,
 )
 from torquemod.errors import InputError
 
@@ -420,7 +421,7 @@ def _summarise(tabs, pairs, rail, chi, amps, fracs, p_grid, coa, y, se, c_max, m
         return None
     # the widen-only rule (frictiongrid.reference_chi2): unless the members no rail law needs
     # beat the others by NEW_MEMBER_MARGIN, the others alone give the level and the estimate
-    prof_rail = chi_t[:, rail].min(axis=1) if rail.any() else np.full(prof.size, np.inf)
+    prof_rail = row_minima(chi_t, rail)
     chi_min, rail_only = reference_chi2(float(np.nanmin(prof)), float(np.nanmin(prof_rail)))
     in_set = rail if rail_only else np.ones(rail.size, bool)
     prof_set = prof_rail if rail_only else prof
@@ -434,8 +435,7 @@ def _summarise(tabs, pairs, rail, chi, amps, fracs, p_grid, coa, y, se, c_max, m
     # constant-friction fit gives the estimate. The interval is the whole family's.
     falling = tabs.falling[pairs[:, 0]] | tabs.falling[pairs[:, 1]]
     keep_c = in_set & ~falling
-    prof_c = (chi_t[:, keep_c].min(axis=1) if keep_c.any()
-              else np.full(prof.size, np.inf))
+    prof_c = row_minima(chi_t, keep_c)
     if np.isfinite(prof_c).any() and float(prof_c.min()) <= chi_min + CHI2_95_2 * scale:
         j = int(np.argmin(prof_c))
         i = int(np.argmin(np.where(keep_c, chi_t[j], np.inf)))

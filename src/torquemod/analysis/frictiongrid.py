@@ -15,7 +15,8 @@ from numba import njit
 
 from torquemod.analysis.creeplaws import N_U_SWING, SWING_A
 
-__all__ = ["CHI2_95", "K0_GRID", "NEW_MEMBER_MARGIN", "new_pairs", "reference_chi2"]
+__all__ = ["CHI2_95", "K0_GRID", "NEW_MEMBER_MARGIN", "new_pairs", "reference_chi2",
+           "row_minima"]
 
 #: chi-square quantile of one degree of freedom at 95 %
 CHI2_95 = 3.841458820694124
@@ -82,6 +83,26 @@ def reference_chi2(chi_all: float, chi_rail: float,
     if math.isfinite(chi_rail) and not chi_all < chi_rail - margin:
         return float(chi_rail), True
     return float(chi_all), False
+
+
+def row_minima(chi_t: np.ndarray, pairs_in: np.ndarray) -> np.ndarray:
+    """Each trial P's smallest chi2 over the pairs marked in ``pairs_in``.
+
+    Parameters
+    ----------
+    chi_t : ndarray, shape (M, K)
+        chi2 [-] per trial P (rows) and pair (columns).
+    pairs_in : ndarray of bool, shape (K,)
+        The pairs taken.
+
+    Returns
+    -------
+    ndarray, shape (M,)
+        The minima [-]; inf where no pair is taken.
+    """
+    if not pairs_in.any():
+        return np.full(chi_t.shape[0], np.inf)
+    return chi_t[:, pairs_in].min(axis=1)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -474,7 +495,7 @@ def _coarse_to_fine(tabs, pairs, coa, y, se, c_se, amp, p_grid, constant, model_
         chi_t = out[0].T  # trial-P-major: each trial P's row contiguous
         prof_all[cols] = chi_t.min(axis=1)
         if use_rail:
-            prof_rail[cols] = chi_t[:, rail].min(axis=1)
+            prof_rail[cols] = row_minima(chi_t, rail)
         have[cols] = True
 
     put(done, _chi_all(tabs, pairs, coa, y, se, c_se, amp, p_grid[done], constant, model_rel,
