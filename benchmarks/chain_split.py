@@ -33,12 +33,12 @@ _STEPS = [  # (module, attribute, label): the calls of the chain's steps
     ("torquemod.processing.chain", "sinefit_phase", "sine fit (standard error)"),
     ("torquemod.processing.chain", "peak_valley_phase", "peak/valley phase"),
 ]
-_METHODS = [  # (module, class, method, label)
-    ("torquemod.processing.speedmodel", "_SlowOrdersRemoval", "__init__",
-     "step 1: basis of slow part and orders"),
-    ("torquemod.processing.speedmodel", "_SlowOrdersRemoval", "at", "step 1: removal at f"),
-    ("torquemod.processing.speedmodel", "_SlowOrdersRemoval", "refine_many",
-     "step 1: refinement"),
+_METHODS = [  # (module, class, method, label); the removal's class in either module
+    *((module, "_SlowOrdersRemoval", method, label)
+      for module in ("torquemod.processing.speedmodel", "torquemod.processing.slowremoval")
+      for method, label in (("__init__", "step 1: basis of slow part and orders"),
+                            ("at", "step 1: removal at f"),
+                            ("refine_many", "step 1: refinement"))),
     ("torquemod.processing.speedmodel", "SpeedModel", "noise_depletion", "noise statistic"),
 ]
 _KERNELS = [  # (module, attribute, label): compiled kernels and library routines
@@ -60,6 +60,7 @@ _KERNELS = [  # (module, attribute, label): compiled kernels and library routine
     ("torquemod.dsp.lstsq", "_factor_of", "LstsqFactor.of"),
     ("torquemod.dsp.lstsq", "_solve", "LstsqFactor.solve"),
     ("torquemod.dsp.projection", "_removal_at", "step 1 removal"),
+    ("torquemod.dsp.projection", "_removal_at_tone", "step 1 removal (and its columns)"),
     ("torquemod.dsp.projection", "_powers_in_span", "noise statistic"),
     ("torquemod.dsp.projection", "_cholesky_qr2_t", "noise statistic (CholeskyQR2)"),
     ("torquemod.dsp.basis", "_wide_band_sums", "slow-band decision"),

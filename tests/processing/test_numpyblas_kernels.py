@@ -10,7 +10,7 @@ import pytest
 from torquemod.dsp import numpyblas, projection
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Rig
-from torquemod.processing import chain, speedmodel, trackedorders
+from torquemod.processing import chain, slowremoval, speedmodel, trackedorders
 from torquemod.testing import SyntheticSpec, synthetic_recording
 
 needs_blas = pytest.mark.skipif(numpyblas.addresses() is None,
@@ -37,14 +37,19 @@ def test_cycle_is_the_numpy_routes_bit_for_bit(spec, monkeypatch):
 
     monkeypatch.setattr(trackedorders, "_tracked_orders_fwl", spy)
     removed = []
-    removal_at = projection.removal_at
 
-    def spy_at(*args):
-        out = removal_at(*args)
-        removed.append(out is not None)
-        return out
+    def spy_on(name):
+        routine = getattr(projection, name)
 
-    monkeypatch.setattr(projection, "removal_at", spy_at)
+        def spy_at(*args):
+            out = routine(*args)
+            removed.append((name, out is not None))
+            return out
+
+        monkeypatch.setattr(projection, name, spy_at)
+
+    spy_on("removal_at")  # at the nominal frequency (its columns cached)
+    spy_on("removal_at_tone")  # at the frequency of the first peaks
 
     def run():
         c = chain.process_cycle(rec, rig, cfg, where="t", nominal_hz=2.0)
@@ -52,7 +57,7 @@ def test_cycle_is_the_numpy_routes_bit_for_bit(spec, monkeypatch):
 
     fast, (phase, se, _) = run()
     assert used and all(s == 0 for s in used)  # the kernels ran, and decided
-    assert removed and all(removed)
+    assert sorted(removed) == [("removal_at", True), ("removal_at_tone", True)]
     monkeypatch.setattr(numpyblas, "addresses", lambda: None)
     ref, (phase_ref, se_ref, _) = run()
     assert phase == phase_ref
@@ -75,12 +80,12 @@ def test_removal_is_the_numpy_route(seed, monkeypatch):
     y = np.column_stack([40 + np.cos(2 * np.pi * 2.1 * t) + 0.3 * rng.standard_normal(n),
                          30 + 1e-3 * np.sin(2 * np.pi * 2.1 * t) + 1e-4 * rng.standard_normal(n)])
     harmonics = (2,) if seed else ()
-    fast = speedmodel._SlowOrdersRemoval(y, slow, orders, fs, harmonics)
+    fast = slowremoval._SlowOrdersRemoval(y, slow, orders, fs, harmonics)
     assert projection.removal_at(speedmodel.modulation_columns(n, fs, 2.0, harmonics),
                                  fast.qt, fast.r_y, fast.qy) is not None
     got = [fast.at(f) for f in (2.0, 2.1)]
     monkeypatch.setattr(numpyblas, "addresses", lambda: None)
-    ref = speedmodel._SlowOrdersRemoval(y, slow, orders, fs, harmonics)
+    ref = slowremoval._SlowOrdersRemoval(y, slow, orders, fs, harmonics)
     for a, b in ((fast.qt, ref.qt), (fast.r_y, ref.r_y), (fast.qy, ref.qy)):
         np.testing.assert_array_equal(a, b)
     for g, f in zip(got, (2.0, 2.1), strict=True):

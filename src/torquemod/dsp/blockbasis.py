@@ -37,6 +37,9 @@ MIN_PIVOT = 1e-8
 #: Q_S' and Q_S'S of read-only slow bases S (one per record length and band), by id
 _SLOW_BASES: dict[int, tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]] = {}
 
+#: Q_S (C order) of the read-only Q_S' that :func:`slow_basis_t` keeps, by id
+_SLOW_BASES_Q: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
 
 def slow_basis_t(slow: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """``Q_S'`` of an orthonormal basis of a basis S (CholeskyQR2 from its least-squares
@@ -98,10 +101,20 @@ def removal_basis(y: np.ndarray, slow: np.ndarray, orders: np.ndarray
     slow_t = slow_basis_t(slow)
     if slow_t is None:
         return None
-    out = extended_basis_t(slow_t[0], orders, y)
-    if out is None or not out[3] >= MIN_PIVOT:
+    qs_t = slow_t[0]
+    hit = _SLOW_BASES_Q.get(id(qs_t))
+    if hit is None or hit[0] is not qs_t:  # Q_S itself, kept with a kept Q_S'
+        hit = (qs_t, np.ascontiguousarray(qs_t.T))
+        if not slow.flags.writeable:
+            if len(_SLOW_BASES_Q) >= 32:
+                _SLOW_BASES_Q.pop(next(iter(_SLOW_BASES_Q)))
+            _SLOW_BASES_Q[id(qs_t)] = hit
+    qt, r_y, qy, pivot, ok = _extended_basis_t(
+        qs_t, hit[1], np.ascontiguousarray(orders, dtype=np.float64),
+        np.ascontiguousarray(y, dtype=np.float64))
+    if not ok or not pivot >= MIN_PIVOT:
         return None
-    return out[0], out[1], out[2]
+    return qt, r_y, qy
 
 
 def extended_basis_t(qs_t: np.ndarray, cols: np.ndarray, y: np.ndarray
@@ -132,7 +145,8 @@ def extended_basis_t(qs_t: np.ndarray, cols: np.ndarray, y: np.ndarray
     None
         Where a column is zero or not finite or ``R'R`` is not positive definite.
     """
-    out = _extended_basis_t(np.ascontiguousarray(qs_t, dtype=np.float64),
+    qs_t = np.ascontiguousarray(qs_t, dtype=np.float64)
+    out = _extended_basis_t(qs_t, np.ascontiguousarray(qs_t.T),
                             np.ascontiguousarray(cols, dtype=np.float64),
                             np.ascontiguousarray(y, dtype=np.float64))
     qt, r_y, qy, pivot, ok = out
@@ -187,6 +201,12 @@ def _times_inverse_t(u: np.ndarray, a: np.ndarray) -> np.ndarray:
 def _extension(qs_t, cols):
     """``Q_O'`` (``k x n``) of the columns' part orthogonal to ``Q_S``, the smallest squared
     pivot and whether every step succeeded (see :func:`extended_basis_t`)."""
+    return _extension_q(qs_t, np.ascontiguousarray(qs_t.T), cols)
+
+
+@numba.njit(cache=True, nogil=True)
+def _extension_q(qs_t, qs, cols):
+    """:func:`_extension` given also ``Q_S`` (``n x p``, C order)."""
     n = qs_t.shape[1]
     k = cols.shape[1]
     rt = np.empty((k, n))  # the normalised columns, as rows
@@ -199,7 +219,6 @@ def _extension(qs_t, cols):
         inv = 1.0 / math.sqrt(s)
         for t in range(n):
             rt[j, t] = cols[t, j] * inv
-    qs = np.ascontiguousarray(qs_t.T)
     for _ in range(2):  # classical Gram-Schmidt against Q_S, twice
         c = np.dot(rt, qs)  # (k, p) = R'Q_S
         rt = rt - np.dot(c, qs_t)
@@ -242,10 +261,12 @@ def upper_solve(u: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True)
-def _extended_basis_t(qs_t, cols, y):
+def _extended_basis_t(qs_t, qs, cols, y):
+    """:func:`extended_basis_t` given also ``Q_S`` (``n x p``, C order); ``(qt, r_y, qy,
+    pivot, ok)``."""
     p, n = qs_t.shape
     k = cols.shape[1]
-    qo, pivot, ok = _extension(qs_t, cols)
+    qo, pivot, ok = _extension_q(qs_t, qs, cols)
     if not ok:
         e = np.empty((0, 0))
         return e, e, e, 0.0, False

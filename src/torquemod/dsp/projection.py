@@ -244,6 +244,58 @@ def _removal_at(m, qt, r_y, qy, syrk, gemm, gesv):
     return r_y + numpyblas.matmul_any(qt.T, numpyblas.matmul(c, c_m, gemm), gemm), True
 
 
+def removal_at_tone(fs_hz: float, modulation_hz: float, orders, qt: np.ndarray,
+                    r_y: np.ndarray, qy: np.ndarray) -> np.ndarray | None:
+    """:func:`removal_at` with the tone's columns made in the same compiled call:
+    ``cos(2*pi*k*f*t)`` and ``sin(2*pi*k*f*t)`` for each order k, t from the record's
+    middle, each from libm at its own argument ``(k*w)*t`` (``w = 2*pi*f``) as
+    :func:`torquemod.processing.speedmodel.modulation_columns` forms it with numpy (the
+    same numbers where numpy's ``cos`` and ``sin`` are libm's, as on x86-64 Linux).
+
+    Parameters
+    ----------
+    fs_hz : float
+        Sample rate [Hz].
+    modulation_hz : float
+        The tone's frequency f [Hz].
+    orders : sequence of int
+        The tone's orders (1 and its harmonics).
+    qt, r_y, qy : ndarray
+        As :func:`removal_at` (``r_y`` has the records' n samples).
+
+    Returns
+    -------
+    ndarray or None
+        As :func:`removal_at`.
+    """
+    blas, gesv = numpyblas.addresses(), numpyblas.gesv_address()
+    arrays = (qt, r_y, qy)
+    if (blas is None or gesv is None or any(a.ndim != 2 or a.shape[0] < 2 or a.shape[1] < 2
+                                            or a.dtype != np.float64
+                                            or not a.flags.c_contiguous for a in arrays)):
+        return None
+    out, ok = _removal_at_tone(float(fs_hz), 2 * np.pi * float(modulation_hz),
+                               np.asarray(orders, dtype=np.int64), qt, r_y, qy,
+                               blas[0], blas[1], gesv)
+    return out if ok else None
+
+
+@numba.njit(cache=True, nogil=True)
+def _removal_at_tone(fs_hz, w, orders, qt, r_y, qy, syrk, gemm, gesv):
+    """:func:`removal_at_tone` in one call: the columns (``n x 2*len(orders)``, C order),
+    then :func:`_removal_at`; ``(out, ok)``."""
+    n = r_y.shape[0]
+    half = (n - 1) / 2.0
+    m = np.empty((n, 2 * orders.size))
+    for j in range(orders.size):
+        kw = orders[j] * w
+        for i in range(n):
+            a = kw * ((i - half) / fs_hz)
+            m[i, 2 * j] = math.cos(a)
+            m[i, 2 * j + 1] = math.sin(a)
+    return _removal_at(m, qt, r_y, qy, syrk, gemm, gesv)
+
+
 def tone_columns(n: int, fs_hz: float, frequencies_hz, orders=(1,)) -> np.ndarray:
     """Cosine and sine columns of tones and their harmonics, time from the record's middle.
 
@@ -277,31 +329,53 @@ def tone_columns(n: int, fs_hz: float, frequencies_hz, orders=(1,)) -> np.ndarra
 def _fill_tones_t(out: np.ndarray, fs_hz: float, omegas: np.ndarray, orders: np.ndarray
                   ) -> None:
     """Rows of ``out`` (``2*len(omegas)*len(orders) x n``): for each angular frequency w
-    [rad/s] and order k, ``cos(k*w*t)`` then ``sin(k*w*t)`` over ``t = (i - (n-1)/2)/fs``."""
+    [rad/s] and order k, ``cos(k*w*t)`` then ``sin(k*w*t)`` over ``t = (i - (n-1)/2)/fs``.
+
+    The fundamental's phasor is exact (libm) at every 32nd sample and rotated by one
+    sample's angle between; the blocks of 32 samples are rotated side by side (independent
+    recurrences, so the loop over the blocks runs on SIMD lanes), each sample by the same
+    operations as one block at a time. The harmonics are powers of the fundamental's phasor,
+    ``(c, s) <- (c c1 - s s1, s c1 + c s1)`` from ``(1, 0)``, for all samples at once.
+    """
     n = out.shape[1]
     nk = orders.size
     k_max = 1
     for k in orders:
         k_max = max(k_max, k)
     half = (n - 1) / 2.0
+    nb = (n + 31) // 32
+    cb = np.empty((32, nb))  # cb[j, b]: sample 32*b + j
+    sb = np.empty((32, nb))
+    c1, s1 = np.empty(n), np.empty(n)
+    ck, sk = np.empty(n), np.empty(n)
     for f in range(omegas.size):
         w = omegas[f]
         cd, sd = math.cos(w / fs_hz), math.sin(w / fs_hz)
-        c1 = s1 = 0.0
-        for i in range(n):
-            if i % 32 == 0:  # exact, then rotated by one sample
-                a = w * ((i - half) / fs_hz)
-                c1, s1 = math.cos(a), math.sin(a)
-            else:
-                c1, s1 = c1 * cd - s1 * sd, s1 * cd + c1 * sd
-            c, s = 1.0, 0.0
-            for k in range(1, k_max + 1):
-                c, s = c * c1 - s * s1, s * c1 + c * s1
-                for j in range(nk):
-                    if orders[j] == k:
-                        row = 2 * (f * nk + j)
-                        out[row, i] = c
-                        out[row + 1, i] = s
+        for b in range(nb):  # exact, then rotated by one sample
+            a = w * ((32 * b - half) / fs_hz)
+            cb[0, b] = math.cos(a)
+            sb[0, b] = math.sin(a)
+        for j in range(1, 32):
+            cp, sp, cn, sn = cb[j - 1], sb[j - 1], cb[j], sb[j]
+            for b in range(nb):
+                cn[b] = cp[b] * cd - sp[b] * sd
+                sn[b] = sp[b] * cd + cp[b] * sd
+        for b in range(nb):
+            for j in range(min(32, n - 32 * b)):
+                c1[32 * b + j] = cb[j, b]
+                s1[32 * b + j] = sb[j, b]
+        ck[:] = 1.0
+        sk[:] = 0.0
+        for k in range(1, k_max + 1):
+            for i in range(n):
+                c, s = ck[i], sk[i]
+                ck[i] = c * c1[i] - s * s1[i]
+                sk[i] = s * c1[i] + c * s1[i]
+            for j in range(nk):
+                if orders[j] == k:
+                    row = 2 * (f * nk + j)
+                    out[row] = ck
+                    out[row + 1] = sk
 
 
 def explained_power(qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray, fs_hz: float,

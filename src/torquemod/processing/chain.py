@@ -22,9 +22,9 @@ from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Recording, Rig
 from torquemod.processing.creepage import creepage_and_drift
 from torquemod.processing.cyclechecks import check_operating_point
+from torquemod.processing.slowremoval import _SlowOrdersRemoval
 from torquemod.processing.speedmodel import (
     SpeedModel,
-    _SlowOrdersRemoval,
     fit_speed_model,
     modulation_harmonics,
 )
