@@ -45,6 +45,8 @@ _KERNELS = [  # (module, attribute, label): compiled kernels and library routine
     ("torquemod.processing.trackedorders", "_tracked_orders_compiled", "tracked orders"),
     ("torquemod.processing.trackedorders", "_tracked_orders_fwl", "tracked orders (FWL)"),
     ("torquemod.dsp.blockbasis", "_extended_basis_t", "step 1 basis (block)"),
+    ("torquemod.dsp.blockbasis", "_extended_basis_and_removal",
+     "step 1 basis (block) and removal at the start"),
     ("torquemod.dsp.lstsq", "fit_with_parts", "speed model fit"),
     ("torquemod.dsp.projection", "_refine", "step 1 refinement"),
     ("torquemod.processing.speedmodel.projection", "orthonormal_basis_t",

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from torquemod.dsp import numpyblas, projection
+from torquemod.dsp import blockbasis, numpyblas, projection
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Rig
 from torquemod.processing import chain, slowremoval, speedmodel, trackedorders
@@ -38,18 +38,19 @@ def test_cycle_is_the_numpy_routes_bit_for_bit(spec, monkeypatch):
     monkeypatch.setattr(trackedorders, "_tracked_orders_fwl", spy)
     removed = []
 
-    def spy_on(name):
-        routine = getattr(projection, name)
+    def spy_on(module, name, made):
+        routine = getattr(module, name)
 
         def spy_at(*args):
             out = routine(*args)
-            removed.append((name, out is not None))
+            removed.append((name, made(out)))
             return out
 
-        monkeypatch.setattr(projection, name, spy_at)
+        monkeypatch.setattr(module, name, spy_at)
 
-    spy_on("removal_at")  # at the nominal frequency (its columns cached)
-    spy_on("removal_at_tone")  # at the frequency of the first peaks
+    # at the nominal frequency (with the basis), then at the frequency of the first peaks
+    spy_on(blockbasis, "removal_basis_at", lambda out: out is not None and out[3] is not None)
+    spy_on(projection, "removal_at_tone", lambda out: out is not None)
 
     def run():
         c = chain.process_cycle(rec, rig, cfg, where="t", nominal_hz=2.0)
@@ -57,7 +58,7 @@ def test_cycle_is_the_numpy_routes_bit_for_bit(spec, monkeypatch):
 
     fast, (phase, se, _) = run()
     assert used and all(s == 0 for s in used)  # the kernels ran, and decided
-    assert sorted(removed) == [("removal_at", True), ("removal_at_tone", True)]
+    assert removed == [("removal_basis_at", True), ("removal_at_tone", True)]
     monkeypatch.setattr(numpyblas, "addresses", lambda: None)
     ref, (phase_ref, se_ref, _) = run()
     assert phase == phase_ref
@@ -84,6 +85,13 @@ def test_removal_is_the_numpy_route(seed, monkeypatch):
     assert projection.removal_at(speedmodel.modulation_columns(n, fs, 2.0, harmonics),
                                  fast.qt, fast.r_y, fast.qy) is not None
     got = [fast.at(f) for f in (2.0, 2.1)]
+    # at the start frequency: made with the basis in one compiled call, handed over once,
+    # then by removal_at; the same numbers every time
+    fused = slowremoval._SlowOrdersRemoval(y, slow, orders, fs, harmonics, start_hz=2.0)
+    assert fused._at_start is not None
+    for _ in range(2):
+        np.testing.assert_array_equal(fused.at(2.0), got[0])
+    assert fused._at_start is None
     monkeypatch.setattr(numpyblas, "addresses", lambda: None)
     ref = slowremoval._SlowOrdersRemoval(y, slow, orders, fs, harmonics)
     for a, b in ((fast.qt, ref.qt), (fast.r_y, ref.r_y), (fast.qy, ref.qy)):

@@ -25,8 +25,9 @@ import math
 import numba
 import numpy as np
 
+from torquemod.dsp import numpyblas
 from torquemod.dsp.lstsq import LstsqFactor
-from torquemod.dsp.projection import orthonormal_basis_t
+from torquemod.dsp.projection import _removal_at, orthonormal_basis_t
 
 #: the smallest squared pivot (diagonal element of the normalised design's Cholesky factor,
 #: 1 at best) at which :func:`removal_basis` extends the slow basis's own; 100x above the
@@ -96,6 +97,33 @@ def removal_basis(y: np.ndarray, slow: np.ndarray, orders: np.ndarray
         None where a pivot falls below :data:`MIN_PIVOT` (the whole design's factor should
         then decide), or without orders, or with fewer than two slow columns.
     """
+    out = removal_basis_at(y, slow, orders, None)
+    return None if out is None else out[:3]
+
+
+def removal_basis_at(y: np.ndarray, slow: np.ndarray, orders: np.ndarray,
+                     tone: np.ndarray | None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None] | None:
+    """:func:`removal_basis` and, in the same compiled call, the records less their
+    projection on the basis and a tone's columns
+    (:func:`torquemod.dsp.projection.removal_at`, the same numbers).
+
+    Parameters
+    ----------
+    y : ndarray
+        ``(n, c)`` records.
+    slow, orders : ndarray
+        ``(n, p)`` and ``(n, k)`` columns.
+    tone : ndarray or None
+        ``(n, k2)`` tone columns (C order), or None for the basis alone.
+
+    Returns
+    -------
+    tuple or None
+        ``(Q', y - Q Q'y, Q'(y - Q Q'y), removed)``, ``removed`` None without a tone or
+        where :func:`~torquemod.dsp.projection.removal_at` would return None; None as
+        :func:`removal_basis`.
+    """
     if orders.shape[1] == 0 or slow.shape[1] < 2 or y.ndim != 2:
         return None
     slow_t = slow_basis_t(slow)
@@ -109,12 +137,22 @@ def removal_basis(y: np.ndarray, slow: np.ndarray, orders: np.ndarray
             if len(_SLOW_BASES_Q) >= 32:
                 _SLOW_BASES_Q.pop(next(iter(_SLOW_BASES_Q)))
             _SLOW_BASES_Q[id(qs_t)] = hit
-    qt, r_y, qy, pivot, ok = _extended_basis_t(
-        qs_t, hit[1], np.ascontiguousarray(orders, dtype=np.float64),
-        np.ascontiguousarray(y, dtype=np.float64))
+    cols = np.ascontiguousarray(orders, dtype=np.float64)
+    y = np.ascontiguousarray(y, dtype=np.float64)
+    blas, gesv = numpyblas.addresses(), numpyblas.gesv_address()
+    if (tone is not None and blas is not None and gesv is not None and y.shape[1] >= 2
+            and tone.ndim == 2 and tone.shape[1] >= 2 and tone.dtype == np.float64
+            and tone.flags.c_contiguous):  # (the layouts removal_at's kernel takes)
+        qt, r_y, qy, pivot, ok, removed, removed_ok = _extended_basis_and_removal(
+            qs_t, hit[1], cols, y, tone, blas[0], blas[1], gesv)
+        if not removed_ok:
+            removed = None
+    else:
+        qt, r_y, qy, pivot, ok = _extended_basis_t(qs_t, hit[1], cols, y)
+        removed = None
     if not ok or not pivot >= MIN_PIVOT:
         return None
-    return qt, r_y, qy
+    return qt, r_y, qy, removed
 
 
 def extended_basis_t(qs_t: np.ndarray, cols: np.ndarray, y: np.ndarray
@@ -276,3 +314,14 @@ def _extended_basis_t(qs_t, qs, cols, y):
     r_y = y - np.dot(qt.T, np.dot(qt, y))
     qy = np.dot(qt, r_y)
     return qt, r_y, qy, pivot, True
+
+
+@numba.njit(cache=True, nogil=True)
+def _extended_basis_and_removal(qs_t, qs, cols, y, tone, syrk, gemm, gesv):
+    """:func:`_extended_basis_t` and then :func:`torquemod.dsp.projection._removal_at` on
+    its result with the tone's columns; ``(qt, r_y, qy, pivot, ok, removed, removed_ok)``."""
+    qt, r_y, qy, pivot, ok = _extended_basis_t(qs_t, qs, cols, y)
+    if not ok or not pivot >= MIN_PIVOT:
+        return qt, r_y, qy, pivot, ok, r_y, False
+    removed, removed_ok = _removal_at(tone, qt, r_y, qy, syrk, gemm, gesv)
+    return qt, r_y, qy, pivot, ok, removed, removed_ok

@@ -21,16 +21,18 @@ _NOT_YET = object()
 
 class _SlowOrdersRemoval:
     """Records ``y`` (columns) less the slow part and the rotation orders of the
-    :class:`SpeedModel` fitted with the modulation at a frequency f: ``y - B c_B`` of the
-    least-squares fit ``y ~ M c_M + B c_B`` with ``B = [slow, orders]`` and M the cos and sin
-    at f and at its ``harmonics`` (time from the record's middle; the harmonics stay in the
-    result). By Frisch-Waugh-Lovell, with ``r(z)`` the
-    residual of z fitted on B alone, ``c_M = (r(M)'r(M))^-1 r(M)'r(y)`` and
-    ``y - B c_B = r(y) + (M - r(M)) c_M``: B is factored, an orthonormal basis Q of it formed
-    (:func:`torquemod.dsp.projection.orthonormal_basis_t`) and ``r(y)`` computed once for
+    :class:`~torquemod.processing.speedmodel.SpeedModel` fitted with the modulation at a
+    frequency f: ``y - B c_B`` of the least-squares fit ``y ~ M c_M + B c_B`` with
+    ``B = [slow, orders]`` and M the cos and sin at f and at its ``harmonics`` (time from
+    the record's middle; the harmonics stay in the result). By Frisch-Waugh-Lovell, with
+    ``r(z)`` the residual of z fitted on B alone, ``c_M = (r(M)'r(M))^-1 r(M)'r(y)`` and
+    ``y - B c_B = r(y) + (M - r(M)) c_M``: an orthonormal basis Q of B is formed (from the
+    slow basis's own, :func:`torquemod.dsp.blockbasis.removal_basis_at`, or from B's factor,
+    :func:`torquemod.dsp.projection.orthonormal_basis_t`) and ``r(y)`` computed once for
     every f, and each f costs the product ``Q'M`` (``r(M) = M - Q Q'M``) instead of a new
-    factorisation of the whole design. The same numbers as :func:`fit_speed_model`'s parts
-    to rounding (tests/processing/test_chain_kernels.py)."""
+    factorisation of the whole design. The same numbers as
+    :func:`~torquemod.processing.speedmodel.fit_speed_model`'s parts to rounding
+    (tests/processing/test_chain_kernels.py)."""
 
     def __init__(self, y: np.ndarray, slow: np.ndarray, orders: np.ndarray, fs_hz: float,
                  harmonics: tuple[int, ...] = (), *, start_hz: float | None = None):
@@ -38,10 +40,14 @@ class _SlowOrdersRemoval:
         self.start_hz = start_hz  # the search's nominal start [Hz]: its columns cached
         self.slow, self.orders = slow, orders
         self._b = self._fac = _NOT_YET
-        self.qt = None
-        block = blockbasis.removal_basis(y, slow, orders)
-        if block is not None:  # Q from the slow basis's own (dsp.blockbasis)
-            self.qt, self.r_y, self.qy = block
+        self.qt = self._at_start = None
+        # Q from the slow basis's own (dsp.blockbasis) and, in the same compiled call, the
+        # removal at the nominal frequency that the search asks for first
+        tone = None if start_hz is None else _modulation_columns_cached(
+            y.shape[0], float(fs_hz), float(start_hz), self.harmonics)
+        block = blockbasis.removal_basis_at(y, slow, orders, tone)
+        if block is not None:
+            self.qt, self.r_y, self.qy, self._at_start = block
             return
         if self.fac is not None:
             # an orthonormal basis Q of B (dsp.projection): the residual is y - Q Q'y, and
@@ -77,6 +83,9 @@ class _SlowOrdersRemoval:
             end = model.design.shape[1] - model.n_harmonic_columns
             fit = model.design[:, 2:end] @ model.coef[2:end]
             return self.y - fit
+        if self._at_start is not None and modulation_hz == self.start_hz:
+            out, self._at_start = self._at_start, None  # made with the basis, handed over once
+            return out
         if self.qt is not None and modulation_hz != self.start_hz:
             # the columns (modulation_columns' numbers) and the steps below in one compiled
             # call
