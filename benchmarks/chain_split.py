@@ -49,6 +49,7 @@ _KERNELS = [  # (module, attribute, label): compiled kernels and library routine
      "step 1 basis (block) and removal at the start"),
     ("torquemod.dsp.lstsq", "fit_with_parts", "speed model fit"),
     ("torquemod.dsp.projection", "_refine", "step 1 refinement"),
+    ("torquemod.dsp.tonesearch", "_refine", "step 1 refinement"),
     ("torquemod.processing.speedmodel.projection", "orthonormal_basis_t",
      "orthonormal bases (LAPACK)"),
     ("torquemod.dsp.spectrum", "_peaks_of_spectra", "peaks: bins, Brent"),

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from torquemod.dsp import basis, filters, projection
+from torquemod.dsp import basis, filters, projection, tonesearch
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Rig
 from torquemod.processing import chain, slowremoval, speedmodel, trackedorders
@@ -62,7 +62,7 @@ def test_explained_power_is_the_drop_of_the_residual(n, harmonics):
 
 def test_tone_columns_are_the_modulation_columns():
     for n in (7, 64, 323, 1001):
-        got = projection.tone_columns(n, FS, [1.9, 2.0137], (1, 2, 3))
+        got = tonesearch.tone_columns(n, FS, [1.9, 2.0137], (1, 2, 3))
         ref = np.hstack([speedmodel.modulation_columns(n, FS, f, (2, 3)) for f in (1.9, 2.0137)])
         # exact every 32 samples, rotated by one sample between (31 rotations of ~1 ulp, and
         # powers up to the 3rd); the direct evaluation rounds its own argument k*w*t, up to

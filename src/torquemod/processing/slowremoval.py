@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from torquemod.dsp import blockbasis, filters, projection
+from torquemod.dsp import blockbasis, filters, projection, tonesearch
 from torquemod.processing.speedmodel import (
     _modulation_columns_cached,
     _modulation_columns_many,
@@ -118,11 +118,11 @@ class _SlowOrdersRemoval:
     def explained_many(self, columns, frequencies_hz) -> list[float]:
         """:meth:`explained` of record ``columns[i]`` at ``frequencies_hz[i]`` [Hz] for every
         i, in one compiled call on the orthonormal basis of B
-        (:func:`torquemod.dsp.projection.explained_power`); without that basis, with one
+        (:func:`torquemod.dsp.tonesearch.explained_power`); without that basis, with one
         least-squares solve on B for all the frequencies' columns together."""
         freqs = [float(f) for f in frequencies_hz]
         if self.qt is not None:  # one compiled call (dsp.projection)
-            return [float(v) for v in projection.explained_power(
+            return [float(v) for v in tonesearch.explained_power(
                 self.qt, self.r_y, self.qy, self.fs_hz, freqs, columns, (1, *self.harmonics))]
         m = _modulation_columns_many(self.y.shape[0], self.fs_hz, freqs, self.harmonics)
         r_all = m - self.b @ self.fac.solve(m)
@@ -164,7 +164,7 @@ class _SlowOrdersRemoval:
         duration = self.y.shape[0] / self.fs_hz
         if self.qt is not None:  # the steps of _refine_steps in one compiled call (the
             # same numbers)
-            return projection.refine_peaks(self.qt, self.r_y, self.qy, self.fs_hz, duration,
+            return tonesearch.refine_peaks(self.qt, self.r_y, self.qy, self.fs_hz, duration,
                                            columns, peaks, (1, *self.harmonics), tol_hz=tol_hz)
         return self._refine_steps(columns, peaks, duration, tol_hz)
 
