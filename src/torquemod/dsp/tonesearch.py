@@ -58,7 +58,7 @@ def _fill_tones_t(out: np.ndarray, fs_hz: float, omegas: np.ndarray, orders: np.
     sample's angle between; the blocks of 32 samples are rotated side by side (independent
     recurrences, so the loop over the blocks runs on SIMD lanes), each sample by the same
     operations as one block at a time. The harmonics are powers of the fundamental's phasor,
-    ``(c, s) <- (c c1 - s s1, s c1 + c s1)`` from ``(1, 0)``, for all samples at once.
+    ``(c, s) <- (c c1 - s s1, s c1 + c s1)`` from ``(c1, s1)``, for all samples at once.
     """
     n = out.shape[1]
     nk = orders.size
@@ -87,13 +87,14 @@ def _fill_tones_t(out: np.ndarray, fs_hz: float, omegas: np.ndarray, orders: np.
             for j in range(min(32, n - 32 * b)):
                 c1[32 * b + j] = cb[j, b]
                 s1[32 * b + j] = sb[j, b]
-        ck[:] = 1.0
-        sk[:] = 0.0
+        ck[:] = c1  # the first power, (1*c1 - 0*s1, 0*c1 + 1*s1) but for a zero's sign
+        sk[:] = s1
         for k in range(1, k_max + 1):
-            for i in range(n):
-                c, s = ck[i], sk[i]
-                ck[i] = c * c1[i] - s * s1[i]
-                sk[i] = s * c1[i] + c * s1[i]
+            if k > 1:
+                for i in range(n):
+                    c, s = ck[i], sk[i]
+                    ck[i] = c * c1[i] - s * s1[i]
+                    sk[i] = s * c1[i] + c * s1[i]
             for j in range(nk):
                 if orders[j] == k:
                     row = 2 * (f * nk + j)
