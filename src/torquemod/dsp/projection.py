@@ -247,7 +247,10 @@ def removal_at_tone(fs_hz: float, modulation_hz: float, orders, qt: np.ndarray,
     ``cos(2*pi*k*f*t)`` and ``sin(2*pi*k*f*t)`` for each order k, t from the record's
     middle, each from libm at its own argument ``(k*w)*t`` (``w = 2*pi*f``) as
     :func:`torquemod.processing.speedmodel.modulation_columns` forms it with numpy (the
-    same numbers where numpy's ``cos`` and ``sin`` are libm's, as on x86-64 Linux).
+    same numbers where numpy's ``cos`` and ``sin`` are libm's, as on x86-64 Linux). The
+    samples' times are symmetric about the middle to the bit and libm's cosine is even and
+    its sine odd to the bit (it reduces the argument's magnitude), so the second half of
+    the samples takes the first half's values: half the calls.
 
     Parameters
     ----------
@@ -279,15 +282,22 @@ def removal_at_tone(fs_hz: float, modulation_hz: float, orders, qt: np.ndarray,
 
 @numba.njit(cache=True, nogil=True)
 def _removal_at_tone(fs_hz, w, orders, qt, r_y, qy, syrk, gemm, gesv):
-    """:func:`removal_at_tone` in one call: the columns (``n x 2*len(orders)``, C order),
-    then :func:`_removal_at`; ``(out, ok)``."""
+    """:func:`removal_at_tone` in one call: the columns (``n x 2*len(orders)``, C order;
+    libm for the first half of the samples, the second half their mirror image), then
+    :func:`_removal_at`; ``(out, ok)``."""
     n = r_y.shape[0]
     half = (n - 1) / 2.0
     m = np.empty((n, 2 * orders.size))
     for j in range(orders.size):
         kw = orders[j] * w
-        for i in range(n):
+        for i in range(n // 2):
+            # sample n-1-i is at -t exactly, its argument -a: cos(-a) = cos(a) and
+            # sin(-a) = -sin(a) as libm rounds them (it reduces |a|)
             a = kw * ((i - half) / fs_hz)
-            m[i, 2 * j] = math.cos(a)
-            m[i, 2 * j + 1] = math.sin(a)
+            c, s = math.cos(a), math.sin(a)
+            m[i, 2 * j], m[i, 2 * j + 1] = c, s
+            m[n - 1 - i, 2 * j], m[n - 1 - i, 2 * j + 1] = c, -s
+        if n % 2:  # the middle sample, t = 0
+            a = kw * ((n // 2 - half) / fs_hz)
+            m[n // 2, 2 * j], m[n // 2, 2 * j + 1] = math.cos(a), math.sin(a)
     return _removal_at(m, qt, r_y, qy, syrk, gemm, gesv)
