@@ -15,6 +15,11 @@ v of the bins near the tone and Q an orthonormal basis of the design (for least 
 ``E[r r'] = sigma^2 (I - H)``, Seber and Lee, *Linear Regression Analysis*, 2nd ed., 2003,
 section 3.3), from an orthonormal basis of the slow and further columns and the tone's part
 orthogonal to it (Frisch-Waugh-Lovell; :func:`torquemod.dsp.projection.powers_in_span`).
+The same residuals give the price in variance of fitting the tone beside the other columns:
+with ``G = R'R`` for R the tone's and its harmonics' residuals on that basis, the tone's
+residual on all the other columns has the normal matrix ``G_MM - G_MH G_HH^-1 G_HM``, the
+Schur complement (Frisch-Waugh-Lovell again), a few small products instead of a refined
+least-squares fit on the whole design.
 """
 
 from __future__ import annotations
@@ -79,22 +84,28 @@ def tone_columns(n: int, fs_hz: float, modulation_hz: float, orders: np.ndarray
 
 
 @numba.njit(cache=True, nogil=True)
-def _noise_kept(design: np.ndarray, end: int, qt_b: np.ndarray, v: np.ndarray,
-                v_power: np.ndarray) -> tuple[float, bool]:
-    """The mean over the bins of ``1 - |Q'v|^2/|v|^2`` (``v``'s columns: the real parts of
-    the bins' vectors, then their imaginary parts), Q spanning ``qt_b``'s rows and the
-    design's first two and last columns (from ``end``) by
-    :func:`~torquemod.dsp.projection.powers_in_span`; clipped to [0.05, 1] as
-    Python's ``min(max(x, 0.05), 1.0)`` (NaN kept); ``(fraction, made)``, not made where
-    those columns are (nearly) in the basis's span (the caller then takes another route)."""
+def _tone_rows(design: np.ndarray, end: int) -> np.ndarray:
+    """The design's first two and last columns (from ``end``: the tone and its harmonics)
+    as C-ordered rows."""
     n, m = design.shape
-    k = 2 + m - end
-    mt = np.empty((k, n))
+    mt = np.empty((2 + m - end, n))
     for t in range(n):
         mt[0, t] = design[t, 0]
         mt[1, t] = design[t, 1]
         for j in range(end, m):
             mt[2 + j - end, t] = design[t, j]
+    return mt
+
+
+@numba.njit(cache=True, nogil=True)
+def _noise_kept(mt: np.ndarray, qt_b: np.ndarray, v: np.ndarray, v_power: np.ndarray
+                ) -> tuple[float, bool]:
+    """The mean over the bins of ``1 - |Q'v|^2/|v|^2`` (``v``'s columns: the real parts of
+    the bins' vectors, then their imaginary parts), Q spanning ``qt_b``'s rows and the rows
+    ``mt`` (:func:`_tone_rows`) by :func:`~torquemod.dsp.projection.powers_in_span`; clipped
+    to [0.05, 1] as Python's ``min(max(x, 0.05), 1.0)`` (NaN kept); ``(fraction, made)``,
+    not made where those rows are (nearly) in the basis's span (the caller then takes
+    another route)."""
     qv, ok = _powers_in_span(qt_b, mt, v)
     if not ok:
         return np.nan, False
@@ -106,6 +117,60 @@ def _noise_kept(design: np.ndarray, end: int, qt_b: np.ndarray, v: np.ndarray,
     if mean != mean:
         return mean, True
     return min(max(mean, 0.05), 1.0), True
+
+
+@numba.njit(cache=True, nogil=True)
+def _schur_ratio(design: np.ndarray, mt: np.ndarray, qt_b: np.ndarray, syrk: int) -> float:
+    """``trace((R'R)^-1)/trace((M'M)^-1)`` for M the design's first two columns and R their
+    least-squares residual on all its other columns, from the residuals of the rows ``mt``
+    (:func:`_tone_rows`: M and the harmonics H) on ``qt_b``'s span (one classical
+    Gram-Schmidt pass, as :func:`~torquemod.dsp.projection.powers_in_span`): ``R'R`` is the
+    Schur complement of their normal matrix's H block. ``M'M`` by numpy's ``syrk`` call, as
+    :func:`~torquemod.dsp.lstsq.fit_with_parts`. NaN where a row keeps less than 1e-5 of
+    its norm or a pivot falls below 1e-10 of its diagonal element (the caller then takes
+    the refined fit)."""
+    k, n = mt.shape
+    rt = mt - np.dot(np.dot(mt, qt_b.T), qt_b)
+    g = np.dot(rt, rt.T)
+    for i in range(k):
+        norm2 = 0.0
+        for t in range(n):
+            norm2 += mt[i, t] * mt[i, t]
+        if not g[i, i] > 1e-10 * norm2:
+            return np.nan
+    h = k - 2
+    low = np.zeros((h, h))  # G_HH = L L'
+    for i in range(h):
+        for c in range(i + 1):
+            acc = g[2 + i, 2 + c]
+            for q in range(c):
+                acc -= low[i, q] * low[c, q]
+            if i == c:
+                if not acc > 1e-10 * g[2 + i, 2 + i]:
+                    return np.nan
+                low[i, i] = np.sqrt(acc)
+            else:
+                low[i, c] = acc / low[c, c]
+    x = np.empty((h, 2))  # L^-1 G_HM
+    for col in range(2):
+        for i in range(h):
+            acc = g[2 + i, col]
+            for q in range(i):
+                acc -= low[i, q] * x[q, col]
+            x[i, col] = acc / low[i, i]
+    s = np.empty((2, 2))
+    for a in range(2):
+        for b in range(2):
+            acc = g[a, b]
+            for i in range(h):
+                acc -= x[i, a] * x[i, b]
+            s[a, b] = acc
+    det = s[0, 0] * s[1, 1] - s[0, 1] * s[1, 0]
+    if not det > 0.0:
+        return np.nan
+    mm = numpyblas.gram_t(design[:, :2], syrk)
+    t_m = (mm[0, 0] + mm[1, 1]) / (mm[0, 0] * mm[1, 1] - mm[0, 1] * mm[1, 0])
+    return (s[0, 0] + s[1, 1]) / det / t_m
 
 
 @numba.njit(cache=True, nogil=True)
@@ -131,8 +196,10 @@ def fit_tone_model(y, fs_hz, modulation_hz, tone_orders, slow, further, bounds, 
         The parts of :func:`~torquemod.dsp.lstsq.fit_with_parts` (the first: the slow part,
         whose mean is taken).
     qt_b : ndarray
-        ``(p + q, n)`` C-ordered orthonormal rows spanning ``[slow, further]``, or an empty
-        array: no noise fraction.
+        ``(p + q, n)`` C-ordered orthonormal rows spanning ``[slow, further]`` (the noise
+        fraction and the variance ratio by :func:`_schur_ratio` are made on them), or an
+        empty array: no noise fraction, the ratio by the refined fit of
+        :func:`~torquemod.dsp.lstsq.fit_with_parts`.
     v, v_power : ndarray
         ``(n, 2b)`` Hann-windowed Fourier vectors of b bins (real parts, then imaginary) and
         their ``(b,)`` squared norms.
@@ -145,7 +212,8 @@ def fit_tone_model(y, fs_hz, modulation_hz, tone_orders, slow, further, bounds, 
     design : ndarray
         The ``(n, m)`` design.
     dn, scale, gram, factor, coef, parts, ratio, status
-        As :func:`~torquemod.dsp.lstsq.fit_with_parts`.
+        As :func:`~torquemod.dsp.lstsq.fit_with_parts` (``ratio`` by :func:`_schur_ratio`
+        with ``qt_b``, where it is made).
     means : ndarray
         ``(k,)`` means of each record's slow part (numpy's pairwise sum over n) [its unit].
     noise_kept : float
@@ -169,8 +237,10 @@ def fit_tone_model(y, fs_hz, modulation_hz, tone_orders, slow, further, bounds, 
             design[t, 2 + n_s + j] = further[t, j]
         for j in range(n_h):
             design[t, end + j] = tones[t, 2 + j]
-    dn, scale, gram, factor, coef, parts, ratio, status = lstsq.fit_with_parts(
-        design, y, bounds, wanted, syrk, gemm, gemv, potrf, potrs)
+    # with the basis, the variance ratio from the tone's residuals on it (_schur_ratio)
+    use_basis = n_s + n_f > 0 and qt_b.shape[0] == n_s + n_f and qt_b.shape[1] == n
+    dn, scale, gram, factor, coef, parts, ratio, status = lstsq.fit_with_parts_and_ratio(
+        design, y, bounds, wanted, syrk, gemm, gemv, potrf, potrs, not use_basis)
     means = np.full(k, np.nan)
     noise, made = np.nan, False
     if status != 0:
@@ -179,6 +249,12 @@ def fit_tone_model(y, fs_hz, modulation_hz, tone_orders, slow, further, bounds, 
     for j in range(k):
         if wanted[0, j]:
             means[j] = numpyblas.vector_sum(parts[0, j]) / n
-    if qt_b.shape[0] == n_s + n_f and qt_b.shape[1] == n and v_power.size >= 2:
-        noise, made = _noise_kept(design, end, qt_b, v, v_power)
+    if use_basis:
+        mt = _tone_rows(design, end)
+        ratio = _schur_ratio(design, mt, qt_b, syrk)
+        if ratio != ratio and design.shape[1] > 3:
+            ratio = lstsq.leading_variance_ratio(design, gram, dn, scale, potrf, potrs, syrk,
+                                                 gemm)
+        if v_power.size >= 2:
+            noise, made = _noise_kept(mt, qt_b, v, v_power)
     return design, dn, scale, gram, factor, coef, parts, ratio, status, means, noise, made
