@@ -11,6 +11,8 @@ import numpy as np
 from torquemod.dsp import blockbasis, filters, projection
 from torquemod.processing.jointmodel import (  # noqa: F401  (re-exported)
     SpeedModel,
+    _centred_time,
+    _hann,
     _hann_fourier,
     _modulation_columns_cached,
     _modulation_columns_many,
