@@ -95,3 +95,22 @@ def test_a_basis_of_another_shape_is_not_used():
         assert "noise_kept" not in model._parts
         assert model.noise_depletion(basis_t=qt) == \
             jointmodel.fit_speed_model(ch, FS, 2.013, slow, orders).noise_depletion()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_residual_powers_are_powers_in_span_bit_for_bit(seed):
+    from torquemod.dsp import jointfit, projection
+    rng = np.random.default_rng(seed)
+    n, p, k, j = 200 + seed, 12, 2 + 2 * seed % 6, 10
+    qt_b = np.linalg.qr(rng.standard_normal((n, p)))[0].T.copy()
+    mt = rng.standard_normal((k, n))
+    v = rng.standard_normal((n, j))
+    got, made, g = jointfit._residual_powers(qt_b, mt, v)
+    assert made
+    np.testing.assert_array_equal(got, projection.powers_in_span(qt_b, mt.T, v))
+    r = mt - (mt @ qt_b.T) @ qt_b
+    np.testing.assert_allclose(g, r @ r.T, rtol=1e-13)
+    # rows in the basis's span: declined, as powers_in_span
+    inside = (qt_b.T @ rng.standard_normal((p, k))).T.copy()
+    assert not jointfit._residual_powers(qt_b, inside, v)[1]
+    assert projection.powers_in_span(qt_b, inside.T, v) is None

@@ -24,11 +24,12 @@ least-squares fit on the whole design.
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
 from torquemod.dsp import lstsq, numpyblas
-from torquemod.dsp.projection import _powers_in_span
 
 
 @numba.njit(cache=True, nogil=True)
@@ -98,40 +99,81 @@ def _tone_rows(design: np.ndarray, end: int) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True)
-def _noise_kept(mt: np.ndarray, qt_b: np.ndarray, v: np.ndarray, v_power: np.ndarray
-                ) -> tuple[float, bool]:
-    """The mean over the bins of ``1 - |Q'v|^2/|v|^2`` (``v``'s columns: the real parts of
-    the bins' vectors, then their imaginary parts), Q spanning ``qt_b``'s rows and the rows
-    ``mt`` (:func:`_tone_rows`) by :func:`~torquemod.dsp.projection.powers_in_span`; clipped
-    to [0.05, 1] as Python's ``min(max(x, 0.05), 1.0)`` (NaN kept); ``(fraction, made)``,
-    not made where those rows are (nearly) in the basis's span (the caller then takes
-    another route)."""
-    qv, ok = _powers_in_span(qt_b, mt, v)
-    if not ok:
-        return np.nan, False
+def _residual_powers(qt_b: np.ndarray, mt: np.ndarray, v: np.ndarray
+                     ) -> tuple[np.ndarray, bool, np.ndarray]:
+    """:func:`~torquemod.dsp.projection.powers_in_span` of ``v`` for the basis ``qt_b`` and
+    the rows ``mt``, with its operations in its order (the same numbers), and the normal
+    matrix ``G = R'R`` of the rows' residuals ``R = M - Q_B Q_B'M`` it forms:
+    ``(powers, made, G)``, not made where ``v`` has no columns (or not ``mt``'s length),
+    a row keeps less than 1e-5 of its norm or a pivot of G's Cholesky factorisation falls
+    below 1e-10 of its diagonal element."""
+    k, j = mt.shape[0], v.shape[1]
+    rt = mt - np.dot(np.dot(mt, qt_b.T), qt_b)
+    gram = np.dot(rt, rt.T)
+    if j == 0 or v.shape[0] != mt.shape[1]:
+        return np.empty(0), False, gram
+    for i in range(k):
+        norm2 = 0.0
+        for t in range(mt.shape[1]):
+            norm2 += mt[i, t] * mt[i, t]
+        if not gram[i, i] > 1e-10 * norm2:
+            return np.empty(0), False, gram
+    low = np.zeros((k, k))  # gram = L L'
+    for i in range(k):
+        for c in range(i + 1):
+            acc = gram[i, c]
+            for q in range(c):
+                acc -= low[i, q] * low[c, q]
+            if i == c:
+                if not acc > 1e-10 * gram[i, i]:  # (and NaN)
+                    return np.empty(0), False, gram
+                low[i, i] = math.sqrt(acc)
+            else:
+                low[i, c] = acc / low[c, c]
+    pb = np.dot(qt_b, v)
+    b = np.dot(rt, v)
+    powers = np.zeros(j)
+    y = np.empty(k)
+    for col in range(j):
+        for i in range(k):  # L y = b, then |y|^2 = b'(L L')^-1 b
+            acc = b[i, col]
+            for q in range(i):
+                acc -= low[i, q] * y[q]
+            y[i] = acc / low[i, i]
+        acc = 0.0
+        for i in range(pb.shape[0]):
+            acc += pb[i, col] * pb[i, col]
+        for i in range(k):
+            acc += y[i] * y[i]
+        powers[col] = acc
+    return powers, True, gram
+
+
+@numba.njit(cache=True, nogil=True)
+def _noise_kept(qv: np.ndarray, v_power: np.ndarray) -> float:
+    """The mean over the bins of ``1 - |Q'v|^2/|v|^2`` from the powers ``qv``
+    (:func:`_residual_powers`: the real parts of the bins' vectors, then their imaginary
+    parts), clipped to [0.05, 1] as Python's ``min(max(x, 0.05), 1.0)`` (NaN kept)."""
     nb = v_power.size
     kept = np.empty(nb)
     for b in range(nb):
         kept[b] = 1.0 - (qv[b] + qv[nb + b]) / v_power[b]
     mean = numpyblas.vector_sum(kept) / nb
     if mean != mean:
-        return mean, True
-    return min(max(mean, 0.05), 1.0), True
+        return mean
+    return min(max(mean, 0.05), 1.0)
 
 
 @numba.njit(cache=True, nogil=True)
-def _schur_ratio(design: np.ndarray, mt: np.ndarray, qt_b: np.ndarray, syrk: int) -> float:
+def _schur_ratio(design: np.ndarray, mt: np.ndarray, g: np.ndarray, syrk: int) -> float:
     """``trace((R'R)^-1)/trace((M'M)^-1)`` for M the design's first two columns and R their
-    least-squares residual on all its other columns, from the residuals of the rows ``mt``
-    (:func:`_tone_rows`: M and the harmonics H) on ``qt_b``'s span (one classical
-    Gram-Schmidt pass, as :func:`~torquemod.dsp.projection.powers_in_span`): ``R'R`` is the
-    Schur complement of their normal matrix's H block. ``M'M`` by numpy's ``syrk`` call, as
-    :func:`~torquemod.dsp.lstsq.fit_with_parts`. NaN where a row keeps less than 1e-5 of
-    its norm or a pivot falls below 1e-10 of its diagonal element (the caller then takes
-    the refined fit)."""
+    least-squares residual on all its other columns, from the normal matrix ``g`` of the
+    residuals of the rows ``mt`` (:func:`_tone_rows`: M and the harmonics H) on the basis
+    (:func:`_residual_powers`): ``R'R`` is the Schur complement of its H block. ``M'M`` by
+    numpy's ``syrk`` call, as :func:`~torquemod.dsp.lstsq.fit_with_parts`. NaN where a row
+    keeps less than 1e-5 of its norm or a pivot falls below 1e-10 of its diagonal element
+    (the caller then takes the refined fit)."""
     k, n = mt.shape
-    rt = mt - np.dot(np.dot(mt, qt_b.T), qt_b)
-    g = np.dot(rt, rt.T)
     for i in range(k):
         norm2 = 0.0
         for t in range(n):
@@ -220,7 +262,7 @@ def fit_tone_model(y, fs_hz, modulation_hz, tone_orders, slow, further, bounds, 
         The residual's fraction of white noise near the tone (:func:`_noise_kept`).
     noise_made : bool
         Whether ``noise_kept`` was made: not when not asked for (an empty ``qt_b`` or fewer
-        than two bins) or where :func:`_noise_kept` declines.
+        than two bins) or where :func:`_residual_powers` declines.
     """
     n, k = y.shape
     n_s, n_f = slow.shape[1], further.shape[1]
@@ -251,10 +293,12 @@ def fit_tone_model(y, fs_hz, modulation_hz, tone_orders, slow, further, bounds, 
             means[j] = numpyblas.vector_sum(parts[0, j]) / n
     if use_basis:
         mt = _tone_rows(design, end)
-        ratio = _schur_ratio(design, mt, qt_b, syrk)
+        qv, made, g = _residual_powers(qt_b, mt, v)
+        made = made and v_power.size >= 2
+        if made:
+            noise = _noise_kept(qv, v_power)
+        ratio = _schur_ratio(design, mt, g, syrk)
         if ratio != ratio and design.shape[1] > 3:
             ratio = lstsq.leading_variance_ratio(design, gram, dn, scale, potrf, potrs, syrk,
                                                  gemm)
-        if v_power.size >= 2:
-            noise, made = _noise_kept(mt, qt_b, v, v_power)
     return design, dn, scale, gram, factor, coef, parts, ratio, status, means, noise, made
