@@ -114,3 +114,20 @@ def test_residual_powers_are_powers_in_span_bit_for_bit(seed):
     inside = (qt_b.T @ rng.standard_normal((p, k))).T.copy()
     assert not jointfit._residual_powers(qt_b, inside, v)[1]
     assert projection.powers_in_span(qt_b, inside.T, v) is None
+
+
+def test_a_basis_spanning_a_harmonic_falls_back_to_the_refined_ratio():
+    # a basis that holds a harmonic's column: its residual on it is ~0, the Schur route and
+    # the noise statistic decline, and the ratio is the refined fit's (bit for bit)
+    n = 323
+    slow = filters.slow_basis(n, FS, 1.2)
+    orders = filters.order_design(2 * np.pi * 4.6 * np.arange(n) / FS, [1, 2])
+    ch = _channels(n, 9)
+    harm = jointmodel.modulation_columns(n, FS, 2.013, (2,))[:, 2:3]
+    other = np.column_stack([slow, orders[:, :-1], harm])
+    qt = np.ascontiguousarray(np.linalg.qr(other)[0].T)
+    with one_blas_thread():
+        model = jointmodel.fit_speed_model(ch, FS, 2.013, slow, orders, (2,), basis_t=qt)
+        plain = jointmodel.fit_speed_model(ch, FS, 2.013, slow, orders, (2,))
+    assert "noise_kept" not in model._parts
+    assert model.variance_factor() == plain.variance_factor()
