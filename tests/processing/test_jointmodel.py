@@ -10,7 +10,7 @@ import pytest
 
 from torquemod._util.blas import one_blas_thread
 from torquemod.dsp import filters
-from torquemod.processing import jointmodel, speedmodel
+from torquemod.processing import chain, jointmodel
 
 FS = 53.344
 
@@ -48,7 +48,7 @@ def test_fit_with_the_step1_basis_has_the_numbers_of_the_methods(n):
     ch = _channels(n, n)
     harmonics = (2, 3)
     with one_blas_thread():
-        removal = speedmodel._SlowOrdersRemoval(
+        removal = chain._SlowOrdersRemoval(
             np.column_stack([ch["torque_nm"], ch["wheel_speed_rad_s"]]), slow, orders, FS,
             harmonics)
         assert removal.qt is not None
@@ -89,7 +89,7 @@ def test_a_basis_of_another_shape_is_not_used():
     orders = filters.order_design(2 * np.pi * 4.6 * np.arange(n) / FS, [1, 2])
     ch = _channels(n, 5)
     with one_blas_thread():
-        qt = speedmodel._SlowOrdersRemoval(ch["torque_nm"][:, None], slow, orders[:, :2],
+        qt = chain._SlowOrdersRemoval(ch["torque_nm"][:, None], slow, orders[:, :2],
                                            FS).qt
         model = jointmodel.fit_speed_model(ch, FS, 2.013, slow, orders, basis_t=qt)
         assert "noise_kept" not in model._parts
