@@ -33,21 +33,23 @@ _STEPS = [  # (module, attribute, label): the calls of the chain's steps
     ("torquemod.processing.chain", "sinefit_phase", "sine fit (standard error)"),
     ("torquemod.processing.chain", "peak_valley_phase", "peak/valley phase"),
 ]
-_METHODS = [  # (module, class, method, label); the removal's class in either module
-    *((module, "_SlowOrdersRemoval", method, label)
-      for module in ("torquemod.processing.speedmodel", "torquemod.processing.slowremoval")
-      for method, label in (("__init__", "step 1: basis of slow part and orders"),
-                            ("at", "step 1: removal at f"),
-                            ("refine_many", "step 1: refinement"))),
+_METHODS = [  # (module, class, method, label)
+    ("torquemod.processing.speedmodel", "_SlowOrdersRemoval", "__init__",
+     "step 1: basis of slow part and orders"),
+    ("torquemod.processing.speedmodel", "_SlowOrdersRemoval", "at", "step 1: removal at f"),
+    ("torquemod.processing.speedmodel", "_SlowOrdersRemoval", "refine_many",
+     "step 1: refinement"),
     ("torquemod.processing.speedmodel", "SpeedModel", "noise_depletion", "noise statistic"),
 ]
 _KERNELS = [  # (module, attribute, label): compiled kernels and library routines
     ("torquemod.processing.trackedorders", "_tracked_orders_compiled", "tracked orders"),
     ("torquemod.processing.trackedorders", "_tracked_orders_fwl", "tracked orders (FWL)"),
+    ("torquemod.processing.trackedorders", "_both_orders_fwl", "tracked orders (FWL)"),
     ("torquemod.dsp.blockbasis", "_extended_basis_t", "step 1 basis (block)"),
     ("torquemod.dsp.blockbasis", "_extended_basis_and_removal",
      "step 1 basis (block) and removal at the start"),
     ("torquemod.dsp.lstsq", "fit_with_parts", "speed model fit"),
+    ("torquemod.dsp.jointfit", "fit_tone_model", "speed model fit"),
     ("torquemod.dsp.projection", "_refine", "step 1 refinement"),
     ("torquemod.dsp.tonesearch", "_refine", "step 1 refinement"),
     ("torquemod.processing.speedmodel.projection", "orthonormal_basis_t",

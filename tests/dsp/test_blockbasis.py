@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from torquemod.dsp import blockbasis, filters, projection
-from torquemod.processing import slowremoval, speedmodel
+from torquemod.processing import speedmodel
 
 FS = 53.344
 
@@ -69,7 +69,7 @@ def test_a_column_nearly_in_the_slow_span_leaves_the_decision_to_the_factor():
     out = blockbasis.extended_basis_t(qs_t, orders, y)
     assert out is None or out[3] < blockbasis.MIN_PIVOT
     assert blockbasis.removal_basis(y, slow, orders) is None
-    removal = slowremoval._SlowOrdersRemoval(y, slow, orders, FS)
+    removal = speedmodel._SlowOrdersRemoval(y, slow, orders, FS)
     assert removal.qt is None and removal.fac is None
 
 
@@ -83,9 +83,9 @@ def test_a_zero_column_is_refused():
 def test_the_removal_takes_the_block_route_and_keeps_the_factor_for_fallbacks():
     slow, orders, y = _design(323, 5)
     slow.setflags(write=False)
-    removal = slowremoval._SlowOrdersRemoval(y, slow, orders, FS, (2,))
-    assert removal._fac is slowremoval._NOT_YET  # not made: the block route
-    assert removal._b is slowremoval._NOT_YET  # (nor the design B)
+    removal = speedmodel._SlowOrdersRemoval(y, slow, orders, FS, (2,))
+    assert removal._fac is speedmodel._NOT_YET  # not made: the block route
+    assert removal._b is speedmodel._NOT_YET  # (nor the design B)
     assert blockbasis.slow_basis_t(slow) is blockbasis.slow_basis_t(slow)  # kept
     # the removal at a frequency against the least-squares fit of the whole model
     m = speedmodel.modulation_columns(323, FS, 2.01, (2,))

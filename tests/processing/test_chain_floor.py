@@ -12,7 +12,7 @@ import pytest
 from torquemod.dsp import basis, filters, projection, tonesearch
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Rig
-from torquemod.processing import chain, slowremoval, speedmodel, trackedorders
+from torquemod.processing import chain, speedmodel, trackedorders
 from torquemod.testing import SyntheticSpec, synthetic_recording
 
 FS = 53.344
@@ -48,7 +48,7 @@ def _explained_reference(y: np.ndarray, b: np.ndarray, m: np.ndarray) -> float:
 @pytest.mark.parametrize("n,harmonics", [(323, ()), (323, (2, 3)), (690, (2,))])
 def test_explained_power_is_the_drop_of_the_residual(n, harmonics):
     y, slow, orders = _records(n, n)
-    removal = slowremoval._SlowOrdersRemoval(y, slow, orders, FS, harmonics)
+    removal = speedmodel._SlowOrdersRemoval(y, slow, orders, FS, harmonics)
     assert removal.qt is not None
     freqs = [1.97, 2.0, 2.013, 2.05]
     got = removal.explained_many([0, 1, 0, 1], freqs)
@@ -108,10 +108,10 @@ def _old_explained_many(self, columns, frequencies_hz):
 
 def test_refine_many_is_refine_per_record_and_the_solve_route():
     y, slow, orders = _records(323, 9)
-    removal = slowremoval._SlowOrdersRemoval(y, slow, orders, FS, (2,))
+    removal = speedmodel._SlowOrdersRemoval(y, slow, orders, FS, (2,))
     both = removal.refine_many([0, 1], [2.009, 2.02], tol_hz=1e-6)
     assert both == [removal.refine(0, 2.009), removal.refine(1, 2.02)]
-    old = slowremoval._SlowOrdersRemoval(y, slow, orders, FS, (2,))
+    old = speedmodel._SlowOrdersRemoval(y, slow, orders, FS, (2,))
     old.explained_many = _old_explained_many.__get__(old)
     ref = old.refine_many([0, 1], [2.009, 2.02], tol_hz=1e-6)
     # the same search; the explained powers agree to ~1e-12 relative, which moves the last
@@ -171,7 +171,7 @@ def test_cycle_phase_is_the_solve_routes(spec, method, monkeypatch):
         return c, chain.cycle_phase(c, cfg, center_index=c.torque_filtered.size / 2)
 
     fast, (phase, se, _) = run()
-    monkeypatch.setattr(slowremoval._SlowOrdersRemoval, "explained_many", _old_explained_many)
+    monkeypatch.setattr(speedmodel._SlowOrdersRemoval, "explained_many", _old_explained_many)
     ref, (phase_ref, se_ref, _) = run()
     # the bound: the phase within 1e-9 deg of the solve route (measured <= 2.3e-10)
     assert abs(phase - phase_ref) < 1e-9

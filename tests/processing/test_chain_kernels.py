@@ -12,7 +12,7 @@ from scipy import optimize, signal
 
 from torquemod._util.blas import one_blas_thread
 from torquemod.dsp import filters, phase, resampling, spectrum, tonemodel
-from torquemod.processing import slowremoval, speedmodel
+from torquemod.processing import speedmodel
 
 FS = 53.344
 
@@ -193,7 +193,7 @@ def test_slow_orders_removal_is_the_speed_models_parts():
                          30 * (1 + 0.002 * np.sin(2 * np.pi * 0.3 * t)) + 0.05 * np.cos(
                              2 * np.pi * 4.6 * t) + 2e-3 * np.cos(2 * np.pi * 2.01 * t - 0.1)
                          + 2e-3 * rng.standard_normal(n)])
-    removal = slowremoval._SlowOrdersRemoval(y, slow, orders, FS)
+    removal = speedmodel._SlowOrdersRemoval(y, slow, orders, FS)
     for f in (1.95, 2.0, 2.0137):
         model = speedmodel.fit_speed_model({"a": y[:, 0], "b": y[:, 1]}, FS, f, slow, orders)
         ref = np.column_stack([y[:, j] - model.part(k, "slow") - model.part(k, "orders")

@@ -74,7 +74,7 @@ class FrequencyParams:
     detrend: str = checked("linear", one_of("linear", "constant"))
     zero_pad: int = checked(8, POSITIVE)
     #: ours: each peak refined to the least-squares frequency of the speed model
-    #: (torquemod.processing.slowremoval._SlowOrdersRemoval.refine) to ``tolerance_hz`` [Hz]
+    #: (torquemod.processing.speedmodel._SlowOrdersRemoval.refine) to ``tolerance_hz`` [Hz]
     refine: bool = True
     tolerance_hz: float = checked(1e-6, POSITIVE)
     #: the common modulation frequency: the "torque"'s peak (ours, the excitation's), or

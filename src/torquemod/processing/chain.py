@@ -22,9 +22,9 @@ from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Recording, Rig
 from torquemod.processing.creepage import creepage_and_drift
 from torquemod.processing.cyclechecks import check_operating_point
-from torquemod.processing.slowremoval import _SlowOrdersRemoval
 from torquemod.processing.speedmodel import (
     SpeedModel,
+    _SlowOrdersRemoval,
     fit_speed_model,
     modulation_harmonics,
 )
@@ -313,7 +313,7 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
         f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
     if fp.common == "torque":
         f_mod = peaks["torque_nm"]
-    model = fit_speed_model(sig, fs_r, f_mod, slow, orders, mod_harmonics)
+    model = fit_speed_model(sig, fs_r, f_mod, slow, orders, mod_harmonics, basis_t=cleaner.qt)
     f_t, f_w = peaks["torque_nm"], peaks["wheel_speed_rad_s"]
     f_wheel = abs(model.mean("wheel_speed_rad_s")) / (2 * np.pi)
     f_plat = abs(model.mean("platform_speed_rad_s")) / (2 * np.pi) if pl is not None \

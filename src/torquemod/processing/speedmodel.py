@@ -1,396 +1,199 @@
-"""The joint least-squares speed model of one cycle (ours): the modulation, the slow speed
-variation, the rotation orders and the modulation's harmonics fitted together
-(:class:`SpeedModel`, :func:`fit_speed_model`); the removal of its slow part and orders
-for the search of the modulation frequency is :mod:`torquemod.processing.slowremoval`'s.
-Used by the per-cycle steps of :mod:`torquemod.processing.chain`.
+"""The joint least-squares speed model of one cycle (ours, :mod:`.jointmodel`:
+:class:`SpeedModel`, :func:`fit_speed_model`) and the removal of its slow part and orders
+for the search of the modulation frequency (:class:`_SlowOrdersRemoval`). Used by the
+per-cycle steps of :mod:`torquemod.processing.chain`.
 """
 
 from __future__ import annotations
 
-import functools
-from dataclasses import dataclass, field
-
 import numpy as np
-from scipy.signal import get_window
 
-from torquemod.dsp import filters, lstsq, numpyblas, projection
+from torquemod.dsp import blockbasis, filters, projection, tonesearch
+from torquemod.processing.jointmodel import (  # noqa: F401  (re-exported)
+    SpeedModel,
+    _centred_time,
+    _hann,
+    _hann_fourier,
+    _modulation_columns_cached,
+    _modulation_columns_many,
+    fit_speed_model,
+    modulation_columns,
+    modulation_columns_reference,
+    modulation_harmonics,
+)
 
-
-@functools.lru_cache(maxsize=16)
-def _hann(n: int) -> np.ndarray:
-    """``get_window("hann", n)`` (periodic), cached read-only: one per record length."""
-    w = get_window("hann", n)
-    w.setflags(write=False)
-    return w
-
-
-@functools.lru_cache(maxsize=16)
-def _hann_fourier(n: int, bins: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """The Hann-windowed Fourier vectors ``w[t]*exp(-2j*pi*t*k/n)`` of the DFT bins ``k`` of an
-    ``n``-sample record and their squared norms, cached read-only (the bins near the
-    modulation are the same for most cycles of a given length). Real columns: the real
-    parts of all bins, then their imaginary parts (real products with the design)."""
-    v = _hann(n)[:, None] * np.exp(-2j * np.pi * np.outer(np.arange(n), np.array(bins)) / n)
-    power = np.sum(np.abs(v) ** 2, axis=0)
-    v = np.hstack([v.real, v.imag])
-    v.setflags(write=False)
-    power.setflags(write=False)
-    return v, power
+_NOT_YET = object()
 
 
-@dataclass(frozen=True)
-class SpeedModel:
-    """The joint least-squares model of one cycle's speeds and torque.
+class _SlowOrdersRemoval:
+    """Records ``y`` (columns) less the slow part and the rotation orders of the
+    :class:`~torquemod.processing.speedmodel.SpeedModel` fitted with the modulation at a
+    frequency f: ``y - B c_B`` of the least-squares fit ``y ~ M c_M + B c_B`` with
+    ``B = [slow, orders]`` and M the cos and sin at f and at its ``harmonics`` (time from
+    the record's middle; the harmonics stay in the result). By Frisch-Waugh-Lovell, with
+    ``r(z)`` the residual of z fitted on B alone, ``c_M = (r(M)'r(M))^-1 r(M)'r(y)`` and
+    ``y - B c_B = r(y) + (M - r(M)) c_M``: an orthonormal basis Q of B is formed (from the
+    slow basis's own, :func:`torquemod.dsp.blockbasis.removal_basis_at`, or from B's factor,
+    :func:`torquemod.dsp.projection.orthonormal_basis_t`) and ``r(y)`` computed once for
+    every f, and each f costs the product ``Q'M`` (``r(M) = M - Q Q'M``) instead of a new
+    factorisation of the whole design. The same numbers as
+    :func:`~torquemod.processing.speedmodel.fit_speed_model`'s parts to rounding
+    (tests/processing/test_chain_kernels.py)."""
 
-    For every channel ``x = modulation + slow + orders + harmonics + residual`` with the
-    modulation ``c*cos + s*sin`` at ``modulation_hz``, the slow part in
-    :func:`~torquemod.dsp.basis.slow_basis`, the rotation orders in
-    :func:`~torquemod.dsp.basis.order_design` and the modulation's own harmonics (the creep
-    curve's bend distorts the wheel's answer; :func:`modulation_harmonics`). One design
-    serves every channel, so any linear functional of it (the step-8 mean) treats a speed
-    variation that wheel and platform share alike, and it cancels in the creepage of Eq. (3)
-    of the V-Track paper.
+    def __init__(self, y: np.ndarray, slow: np.ndarray, orders: np.ndarray, fs_hz: float,
+                 harmonics: tuple[int, ...] = (), *, start_hz: float | None = None):
+        self.y, self.fs_hz, self.harmonics = y, fs_hz, tuple(harmonics)
+        self.start_hz = start_hz  # the search's nominal start [Hz]: its columns cached
+        self.slow, self.orders = slow, orders
+        self._b = self._fac = _NOT_YET
+        self.qt = self._at_start = None
+        # Q from the slow basis's own (dsp.blockbasis) and, in the same compiled call, the
+        # removal at the nominal frequency that the search asks for first
+        tone = None if start_hz is None else _modulation_columns_cached(
+            y.shape[0], float(fs_hz), float(start_hz), self.harmonics)
+        block = blockbasis.removal_basis_at(y, slow, orders, tone)
+        if block is not None:
+            self.qt, self.r_y, self.qy, self._at_start = block
+            return
+        if self.fac is not None:
+            # an orthonormal basis Q of B (dsp.projection): the residual is y - Q Q'y, and
+            # each trial frequency costs one product with Q instead of a solve on B
+            self.qt = projection.orthonormal_basis_t(self.fac)
+            if self.qt is not None:
+                self.r_y = y - self.qt.T @ (self.qt @ y)
+                self.qy = self.qt @ self.r_y  # ~0: kept for the rounding's sake
+            else:
+                self.r_y = y - self.b @ self.fac.solve(y)
 
-    Attributes
-    ----------
-    modulation_hz : float
-        Modulation frequency [Hz].
-    fs_hz : float
-        Sample rate [Hz].
-    design : ndarray
-        (n, m) design matrix: modulation columns, slow basis, orders, harmonics.
-    n_slow : int
-        Columns of the slow basis.
-    coef : ndarray
-        (m, channels) fitted coefficients, in each channel's unit.
-    names : tuple of str
-        The channels, in the order of ``coef``'s columns.
-    factor : LstsqFactor or None
-        The design's factorisation, for further solves.
-    n_harmonic_columns : int
-        Columns of the modulation's harmonics (the last ones). Default 0.
-    """
+    @property
+    def b(self) -> np.ndarray:
+        """The design ``B = [slow, orders]``, made when first asked for (only the routes
+        without the slow basis's own Q use it)."""
+        if self._b is _NOT_YET:
+            self._b = np.hstack([self.slow, self.orders])
+        return self._b
 
-    modulation_hz: float
-    fs_hz: float
-    design: np.ndarray  # (n, 2 + n_slow + n_orders + n_harmonics)
-    n_slow: int
-    coef: np.ndarray  # (columns, channels)
-    names: tuple[str, ...]
-    #: the design's least-squares factor (None when lstsq fell back to the SVD)
-    factor: filters.LstsqFactor | None = field(default=None, repr=False, compare=False)
-    #: columns of the modulation's harmonics, the design's last ones
-    n_harmonic_columns: int = 0
-    _parts: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+    @property
+    def fac(self) -> filters.LstsqFactor | None:
+        """B's least-squares factor (:meth:`~torquemod.dsp.lstsq.LstsqFactor.of`), made when
+        first asked for: where Q comes from the slow basis's own, only the fallbacks use it."""
+        if self._fac is _NOT_YET:
+            self._fac = filters.LstsqFactor.of(self.b)
+        return self._fac
 
-    def part(self, name: str, which: str) -> np.ndarray:
-        """``"modulation"``, ``"slow"``, ``"orders"`` or ``"harmonics"`` part of channel
-        ``name`` (computed once, read-only)."""
-        key = (name, which)
-        if key not in self._parts:
-            j = self.names.index(name)
-            end = self.design.shape[1] - self.n_harmonic_columns
-            sl = {"modulation": slice(0, 2), "slow": slice(2, 2 + self.n_slow),
-                  "orders": slice(2 + self.n_slow, end), "harmonics": slice(end, None)}[which]
-            y = self.design[:, sl] @ self.coef[sl, j]
-            y.setflags(write=False)
-            self._parts[key] = y
-        return self._parts[key]
+    def at(self, modulation_hz: float) -> np.ndarray:
+        """``y`` less its slow part and orders with the modulation at ``modulation_hz``."""
+        if self.qt is None and self.fac is None:  # (nearly) rank-deficient: the SVD
+            model = fit_speed_model({str(i): c for i, c in enumerate(self.y.T)}, self.fs_hz,
+                                    modulation_hz, self.slow, self.orders, self.harmonics)
+            end = model.design.shape[1] - model.n_harmonic_columns
+            fit = model.design[:, 2:end] @ model.coef[2:end]
+            return self.y - fit
+        if self._at_start is not None and modulation_hz == self.start_hz:
+            out, self._at_start = self._at_start, None  # made with the basis, handed over once
+            return out
+        if self.qt is not None and modulation_hz != self.start_hz:
+            # the columns (modulation_columns' numbers) and the steps below in one compiled
+            # call
+            out = projection.removal_at_tone(self.fs_hz, modulation_hz, (1, *self.harmonics),
+                                             self.qt, self.r_y, self.qy)
+            if out is not None:
+                return out
+        m = _modulation_columns_cached(self.y.shape[0], float(self.fs_hz),
+                                       float(modulation_hz), self.harmonics) \
+            if modulation_hz == self.start_hz else \
+            modulation_columns(self.y.shape[0], self.fs_hz, modulation_hz, self.harmonics)
+        if self.qt is not None:  # the steps below in one compiled call (the same numbers)
+            out = projection.removal_at(m, self.qt, self.r_y, self.qy)
+            if out is not None:
+                return out
+        if self.qt is not None:  # y - B c_B = r_y + Q Q'M c_M, r_M'r_M = M'M - (Q'M)'(Q'M)
+            c = self.qt @ m
+            c_m = np.linalg.solve(m.T @ m - c.T @ c, m.T @ self.r_y - c.T @ self.qy)
+            return self.r_y + self.qt.T @ (c @ c_m)
+        r_m = m - self.b @ self.fac.solve(m)
+        c_m = np.linalg.solve(r_m.T @ r_m, r_m.T @ self.r_y)
+        return self.r_y + (m - r_m) @ c_m
 
-    def amplitude(self, name: str) -> float:
-        """Amplitude of the fitted modulation of channel ``name`` [its unit]."""
-        c, s = self.coef[:2, self.names.index(name)]
-        return float(np.hypot(c, s))
+    def explained(self, column: int, modulation_hz: float) -> float:
+        """Power of record ``column`` that the modulation (and its harmonics) at
+        ``modulation_hz`` [Hz] explains beyond the slow part and the orders:
+        ``r_y' r_M (r_M' r_M)^-1 r_M' r_y`` (Frisch-Waugh-Lovell, as :meth:`at`)."""
+        return self.explained_many([column], [modulation_hz])[0]
 
-    def variance_factor(self) -> float:
-        """Variance of the modulation's coefficients in this joint model over their variance
-        with the modulation fitted alone (>= 1): the price in phase noise of separating the
-        modulation from the slow part and the orders, at the Cramér-Rao bound of the joint
-        model (white noise)."""
-        d = self.design
-        ratio = self._parts.get("variance_ratio", float("nan"))
-        if ratio == ratio:  # computed by the fit's compiled call with the numbers of the
-            return float(max(1.0, ratio))  # steps below (NaN: not, or it failed)
-        m = d[:, :2]
-        # (D'D)^-1 restricted to the modulation is (M'(I - P_B)M)^-1, P_B the projection on
-        # the other columns (the Schur complement), by a refined least-squares fit on them.
-        # Not the block of the inverse of the fit's normal matrix: that squares the design's
-        # condition number (~1e6 here) and came out 6e-5 relative off the SVD's (this route:
-        # 1e-11, measured). The fit's normal matrix gives the other columns' factor.
-        other = d[:, 2:]
-        sub = self.factor.trailing(2) if self.factor is not None else None
-        if other.shape[1]:
-            c_o = sub.solve(m) if sub is not None else filters.lstsq(other, m)[0]
-            m_res = m - other @ c_o
-        else:
-            m_res = m
-        return float(max(1.0, _trace_of_inverse_2x2(m_res.T @ m_res)
-                         / _trace_of_inverse_2x2(m.T @ m)))
+    def explained_many(self, columns, frequencies_hz) -> list[float]:
+        """:meth:`explained` of record ``columns[i]`` at ``frequencies_hz[i]`` [Hz] for every
+        i, in one compiled call on the orthonormal basis of B
+        (:func:`torquemod.dsp.tonesearch.explained_power`); without that basis, with one
+        least-squares solve on B for all the frequencies' columns together."""
+        freqs = [float(f) for f in frequencies_hz]
+        if self.qt is not None:  # one compiled call (dsp.tonesearch)
+            return [float(v) for v in tonesearch.explained_power(
+                self.qt, self.r_y, self.qy, self.fs_hz, freqs, columns, (1, *self.harmonics))]
+        m = _modulation_columns_many(self.y.shape[0], self.fs_hz, freqs, self.harmonics)
+        r_all = m - self.b @ self.fac.solve(m)
+        k = m.shape[1] // len(freqs)
+        out = []
+        for i, col in enumerate(columns):
+            r_m = np.ascontiguousarray(r_all[:, i * k:(i + 1) * k])
+            b = r_m.T @ self.r_y[:, col]
+            out.append(float(b @ np.linalg.solve(r_m.T @ r_m, b)))
+        return out
 
-    def noise_depletion(self, *, half_width_hz: float = 0.75,
-                        basis_t: np.ndarray | None = None) -> float:
-        """Fraction (<= 1) of white noise's power near the modulation that the model's
-        residual keeps, averaged over the bins :func:`~torquemod.dsp.phase.local_noise_psd`
-        reads: ``1 - |Q^H v_f|^2/|v_f|^2`` for the Hann-windowed Fourier vector ``v_f`` of each
-        bin and Q an orthonormal basis of the design. The slow basis overlaps the modulation's
-        neighbourhood, so its residual understates the noise density there; dividing by this
-        restores it (E[r r^T] = sigma^2 (I - H) for least squares).
+    def refine(self, column: int, peak_hz: float, *, tol_hz: float = 1e-6) -> float:
+        """The frequency [Hz] near ``peak_hz`` at which the model explains most of record
+        ``column``: the least-squares (for white noise, maximum-likelihood) frequency of the
+        modulation beside the slow part and the orders (variable projection, Golub and
+        Pereyra 1973). A plain spectral peak of the record less a slow part fitted at another
+        frequency is pulled towards that frequency (by up to 0.9 mHz at 1 Hz on a 6.5 s
+        record) and carries the window's own bias from the modulation's negative-frequency
+        image; this maximum has neither: on a noise-free record it is the modulation's
+        frequency.
 
-        ``basis_t``, ``Q_B'`` (``p x n``) of an orthonormal basis of the design's slow and
-        order columns (the chain's step-1 search has one), spares the basis of the whole
-        design (:func:`~torquemod.dsp.projection.powers_in_span`: the same span, another
-        rounding, ~1e-12 relative here)."""
-        d = self.design
-        n = d.shape[0]
-        sel = _bins_near(n, self.fs_hz, self.modulation_hz, half_width_hz)
-        if len(sel) < 2:
-            return 1.0
-        v, v_power = _hann_fourier(n, sel)
-        if basis_t is not None and basis_t.shape == (d.shape[1] - 2 - self.n_harmonic_columns,
-                                                     n):
-            end = d.shape[1] - self.n_harmonic_columns
-            qv = projection.powers_in_span(basis_t, np.hstack([d[:, :2], d[:, end:]]), v)
-            if qv is not None:
-                kept = 1.0 - qv.reshape(2, -1).sum(axis=0) / v_power
-                return min(max(float(kept.sum()) / kept.size, 0.05), 1.0)
-        fac = self.factor if self.factor is not None else filters.LstsqFactor.of(d)
-        qt = projection.orthonormal_basis_t(fac, compiled=True) if fac is not None else None
-        if qt is None:
-            # a design rank deficient to rounding (the fit fell back to the SVD): Q from
-            # the SVD, over its numerical rank
-            u, sv, _ = np.linalg.svd(d / np.sqrt(np.einsum("ij,ij->j", d, d)),
-                                     full_matrices=False)
-            qt = u[:, sv > sv[0] * 1e-10].T
-        # Q orthonormal to rounding (CholeskyQR2 from the fit's own factor, the compiled
-        # route of dsp.projection; the fraction depends on Q's span alone, so on the route
-        # by ~1e-12 relative): the fraction agrees with an SVD of the design to ~1e-12
-        # relative and moves by about as little when the inputs move by rounding
-        # (tests/processing/test_chain_floor.py). Q = D L^-T from the normal equations alone
-        # (the condition number, ~1e6 here, squared) was off by 2-6e-5 relative and moved
-        # by as much with any rounding-level change of the design.
-        qv = qt @ v  # v: the real parts, then the imaginary parts
-        kept = 1.0 - (qv * qv).sum(axis=0).reshape(2, -1).sum(axis=0) / v_power
-        # np.clip(np.mean(kept), 0.05, 1.0)'s numbers (NaN stays NaN) on Python floats
-        return min(max(float(kept.sum()) / kept.size, 0.05), 1.0)
+        Parabolic steps through three values of the explained power, 0.05/T, 0.005/T and
+        0.0005/T apart (T the record's duration), each from the previous vertex, until a step
+        is below ``tol_hz``: near its maximum the explained power is a parabola to
+        (pi*h*T)^2/3 relative, so each step leaves ~2 % of the previous offset at the first
+        spacing and 0.03 % at the next. A smooth function of the record (unlike a bracketing
+        search, whose stopping point moves within its tolerance with rounding-level changes
+        of the input). ``peak_hz`` itself when the design is (nearly) rank deficient."""
+        return self.refine_many([column], [peak_hz], tol_hz=tol_hz)[0]
 
-    def mean(self, name: str) -> float:
-        """Step-8 mean: the record's mean less the fitted modulation and rotation orders (the
-        mean of the slow part; the residual has zero mean since the constant is fitted)."""
-        key = (name, "mean")
-        if key not in self._parts:
-            slow = self.part(name, "slow")
-            self._parts[key] = float(slow.sum()) / slow.size  # np.mean's numbers, cheaper
-        return self._parts[key]
+    def refine_many(self, columns, peaks_hz, *, tol_hz: float = 1e-6) -> list[float]:
+        """:meth:`refine` of record ``columns[i]`` from ``peaks_hz[i]`` [Hz] for every i,
+        the searches advancing in step so that each step's explained powers of all records
+        come from one :meth:`explained_many` call (the same numbers as one :meth:`refine`
+        per record)."""
+        peaks = [float(p) for p in peaks_hz]
+        if self.qt is None and self.fac is None:
+            return peaks
+        duration = self.y.shape[0] / self.fs_hz
+        if self.qt is not None:  # the steps of _refine_steps in one compiled call (the
+            # same numbers)
+            return tonesearch.refine_peaks(self.qt, self.r_y, self.qy, self.fs_hz, duration,
+                                           columns, peaks, (1, *self.harmonics), tol_hz=tol_hz)
+        return self._refine_steps(columns, peaks, duration, tol_hz)
 
-
-def _bins_near(n: int, fs_hz: float, f_hz: float, half_width_hz: float) -> tuple[int, ...]:
-    """The DFT bins k (of ``n // 2 + 1``) with ``1.5*df < |k*df - f_hz| <= half_width_hz``,
-    ``df = fs_hz/n`` [Hz]: the same float operations as on numpy's arrays, over the
-    candidates near ``f_hz`` only."""
-    df = fs_hz / n
-    lo = max(0, int((f_hz - half_width_hz) / df) - 2)
-    hi = min(n // 2, int((f_hz + half_width_hz) / df) + 2)
-    return tuple(k for k in range(lo, hi + 1)
-                 if 1.5 * df < abs(k * df - f_hz) <= half_width_hz)
-
-
-def _trace_of_inverse_2x2(a: np.ndarray) -> float:
-    """``trace(inv(a))`` of a 2x2 matrix: ``(a00 + a11)/det(a)``."""
-    a00, a01, a10, a11 = (float(v) for v in a.ravel())
-    return (a00 + a11) / (a00 * a11 - a01 * a10)
-
-
-@functools.lru_cache(maxsize=16)
-def _centred_time(n: int, fs_hz: float) -> np.ndarray:
-    """``(arange(n) - (n - 1)/2)/fs_hz`` [s], cached read-only (one per record length)."""
-    t = (np.arange(n) - (n - 1) / 2) / fs_hz
-    t.setflags(write=False)
-    return t
-
-
-def modulation_columns(n: int, fs_hz: float, modulation_hz: float,
-                       harmonics: tuple[int, ...] = ()) -> np.ndarray:
-    """``cos`` and ``sin`` of ``2*pi*k*f*t`` for k = 1 and each of the harmonics.
-
-    t is taken from the record's middle, so a fitted phase is decoupled from a small error of
-    the frequency.
-
-    Parameters
-    ----------
-    n : int
-        Samples [-].
-    fs_hz : float
-        Sample rate [Hz].
-    modulation_hz : float
-        Modulation frequency f [Hz].
-    harmonics : tuple of int
-        Further harmonics k, in order. Default ().
-
-    Returns
-    -------
-    ndarray
-        (n, 2*(1 + len(harmonics))) columns [-].
-    """
-    t = _centred_time(int(n), float(fs_hz))
-    w = 2 * np.pi * modulation_hz
-    out = np.empty((n, 2 + 2 * len(harmonics)))
-    for i, k in enumerate((1, *harmonics)):
-        out[:, 2 * i] = np.cos(k * w * t)
-        out[:, 2 * i + 1] = np.sin(k * w * t)
-    return out
-
-
-@functools.lru_cache(maxsize=8)
-def _modulation_columns_cached(n: int, fs_hz: float, modulation_hz: float,
-                               harmonics: tuple[int, ...]) -> np.ndarray:
-    """:func:`modulation_columns`, cached read-only: step 1 starts every cycle of a step at
-    the same nominal frequency (:class:`_SlowOrdersRemoval` looks up that one only)."""
-    out = modulation_columns(n, fs_hz, modulation_hz, harmonics)
-    out.setflags(write=False)
-    return out
-
-
-def _modulation_columns_many(n: int, fs_hz: float, frequencies_hz, harmonics: tuple[int, ...] = ()
-                            ) -> np.ndarray:
-    """:func:`modulation_columns` at each of ``frequencies_hz`` [Hz], side by side (the same
-    numbers: each element is the same product and the same ``cos`` or ``sin``), in one
-    vectorised evaluation."""
-    t = (np.arange(n) - (n - 1) / 2) / fs_hz
-    ks = (1, *harmonics)
-    # k*w per (frequency, order) as modulation_columns forms it: (k*w)*t, w = 2*pi*f
-    kw = np.array([k * (2 * np.pi * f) for f in frequencies_hz for k in ks])
-    arg = t[:, None] * kw[None, :]
-    out = np.empty((n, 2 * kw.size))
-    out[:, 0::2] = np.cos(arg)
-    out[:, 1::2] = np.sin(arg)
-    return out
-
-
-def modulation_harmonics(modulation_hz: float, fs_hz: float, n_samples: int,
-                         highest: int, *, above_hz: float, avoid_hz=()) -> tuple[int, ...]:
-    """Harmonics of the modulation fitted beside it.
-
-    k = 2..``highest``: those below 0.45 x the sample rate, above the slow band and more than
-    two frequency resolutions away from every frequency in ``avoid_hz`` (the fitted rotation
-    orders, which would alias them). The wheel's answer to the modulation is not a pure
-    sinusoid: where the creep curve bends, the creepage swing meets a changing slope and the
-    wheel speed and the shaft torque carry 2nd and 3rd harmonics (1-3 % of the fundamental
-    at 1 Hz on the V-Track twin at 60-90 % utilisation). Over a record holding a fractional
-    number of periods they are not orthogonal to the slow basis, and, left out of the edge
-    padding, they step at the record's ends, where the narrow band-pass rings: together up to
-    0.3 deg at 1 Hz.
-
-    Parameters
-    ----------
-    modulation_hz : float
-        Modulation frequency [Hz].
-    fs_hz : float
-        Sample rate [Hz].
-    n_samples : int
-        Record length [-] (the resolution fs/n).
-    highest : int
-        Highest harmonic [-].
-    above_hz : float
-        Top of the slow band [Hz].
-    avoid_hz : sequence of float
-        Frequencies to keep clear of [Hz]. Default ().
-
-    Returns
-    -------
-    tuple of int
-        The harmonics k.
-
-    Examples
-    --------
-    >>> modulation_harmonics(2.0, 53.344, 320, 3, above_hz=1.2)
-    (2, 3)
-    """
-    resolution = fs_hz / n_samples
-    return tuple(k for k in range(2, int(highest) + 1)
-                 if above_hz < k * modulation_hz < 0.45 * fs_hz
-                 and all(abs(k * modulation_hz - g) > 2 * resolution for g in avoid_hz))
-
-
-#: the records whose orders and harmonics the chain removes (steps 3-5), computed with the
-#: fit; the other parts on demand (:meth:`SpeedModel.part`, the same numbers)
-_FILTERED = ("wheel_speed_rad_s", "torque_nm")
-
-
-def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz: float,
-                    slow: np.ndarray, orders: np.ndarray, harmonics: tuple[int, ...] = ()
-                    ) -> SpeedModel:
-    """Least-squares fit of :class:`SpeedModel` to every channel at once.
-
-    Time is referenced to the record's middle so the modulation's phase is decoupled from its
-    frequency; the modulation's harmonics are the last columns.
-
-    Parameters
-    ----------
-    channels : dict of str to ndarray
-        The channels (SI units), of equal length.
-    fs_hz : float
-        Sample rate [Hz].
-    modulation_hz : float
-        Modulation frequency [Hz].
-    slow : ndarray
-        The slow basis (:func:`~torquemod.dsp.basis.slow_basis`).
-    orders : ndarray
-        The rotation-order columns.
-    harmonics : tuple of int
-        The modulation's harmonics (:func:`modulation_harmonics`). Default ().
-
-    Returns
-    -------
-    SpeedModel
-        The fitted model.
-    """
-    names = tuple(channels)
-    n = slow.shape[0]
-    mod = modulation_columns(n, fs_hz, modulation_hz, harmonics)
-    n_s, n_o = slow.shape[1], orders.shape[1]
-    # [cos, sin, slow, orders, harmonics]
-    design = np.empty((n, 2 + n_s + n_o + 2 * len(harmonics)))
-    design[:, :2] = mod[:, :2]
-    design[:, 2:2 + n_s] = slow
-    design[:, 2 + n_s:2 + n_s + n_o] = orders
-    design[:, 2 + n_s + n_o:] = mod[:, 2:]
-    y = np.column_stack([channels[k] for k in names])
-    blas = numpyblas.addresses()
-    if blas is not None and n > 1 and y.dtype == np.float64:
-        # the factor, the coefficients and every channel's parts in one compiled call, with
-        # the numbers of the route below and of SpeedModel.part (numpy's BLAS calls)
-        bounds, wanted = _parts_wanted(names, n_s, n_o, 2 * len(harmonics))
-        dn, scale, gram, factor, coef, parts, ratio, status = lstsq.fit_with_parts(
-            design, y, bounds, wanted, *blas, *lstsq.lapack_addresses())
-        if status == 0:
-            for a in (dn, scale, gram, factor, coef, parts):
-                a.setflags(write=False)
-            model = SpeedModel(modulation_hz, fs_hz, design, n_s, coef, names,
-                               lstsq.LstsqFactor(dn, scale, factor, gram), 2 * len(harmonics))
-            for j, name in enumerate(names):
-                for i, which in enumerate(("slow", "orders", "harmonics")):
-                    if wanted[i, j]:
-                        model._parts[(name, which)] = parts[i, j]
-            model._parts["variance_ratio"] = float(ratio)  # (variance_factor's)
-            return model
-    fac = filters.LstsqFactor.of(design, keep_gram=True)  # the model's statistics reuse it
-    coef = fac.solve(y) if fac is not None else filters.lstsq(design, y)[0]
-    return SpeedModel(modulation_hz, fs_hz, design, slow.shape[1], coef, names, fac,
-                      2 * len(harmonics))
-
-
-@functools.lru_cache(maxsize=16)
-def _parts_wanted(names: tuple[str, ...], n_slow: int, n_orders: int, n_harmonic: int
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`fit_speed_model`'s column bounds of the slow part, the orders and the
-    harmonics, and which parts of which channel its compiled fit forms: every channel's
-    slow part (its step-8 mean), the orders and harmonics of the records the chain filters
-    (:data:`_FILTERED`); cached read-only (the same for every cycle of a recording)."""
-    end = 2 + n_slow + n_orders
-    bounds = np.array([[2, 2 + n_slow], [2 + n_slow, end], [end, end + n_harmonic]])
-    wanted = np.zeros((3, len(names)), dtype=bool)
-    wanted[0] = True
-    wanted[1:, [j for j, k in enumerate(names) if k in _FILTERED]] = True
-    for a in (bounds, wanted):
-        a.setflags(write=False)
-    return bounds, wanted
+    def _refine_steps(self, columns, peaks: list[float], duration: float, tol_hz: float
+                      ) -> list[float]:
+        """:meth:`refine_many`'s steps, one :meth:`explained_many` call each."""
+        f = list(peaks)
+        active = list(range(len(peaks)))
+        for h in (0.05 / duration, 0.005 / duration, 0.0005 / duration):
+            if not active:
+                break
+            e = self.explained_many([columns[i] for i in active for _ in range(3)],
+                                    [f[i] + k * h for i in active for k in (-1.0, 0.0, 1.0)])
+            still = []
+            for j, i in enumerate(active):
+                e_lo, e_0, e_hi = e[3 * j:3 * j + 3]
+                curvature = e_lo - 2.0 * e_0 + e_hi
+                if not curvature < 0:  # not near a maximum: keep the spectral peak's value
+                    f[i] = peaks[i]
+                    continue
+                step = min(max(0.5 * h * (e_lo - e_hi) / curvature, -2.0 * h), 2.0 * h)
+                f[i] += step
+                if not abs(step) < tol_hz:
+                    still.append(i)
+            active = still
+        return f
