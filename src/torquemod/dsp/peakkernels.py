@@ -154,19 +154,23 @@ def _bin_checks(mag: np.ndarray, k_lo: int, freqs: np.ndarray, band: tuple[int, 
 @numba.njit(cache=True, nogil=True)
 def _peaks_of_records(x: np.ndarray, xtol_hz: float, min_ratio: float, maxfun: int,
                       dn: np.ndarray, factor: np.ndarray, scale: np.ndarray,
-                      design: np.ndarray, w: np.ndarray, cw: np.ndarray, sw: np.ndarray,
-                      k_lo: int, freqs: np.ndarray, band: tuple[int, int],
-                      wide: tuple[int, int], lobe: float, fs_hz: float, gemv: int, potrs: int
+                      design: np.ndarray, w: np.ndarray, trig: np.ndarray, freqs: np.ndarray,
+                      bins: np.ndarray, lobe: float, fs_hz: float
                       ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`~torquemod.dsp.spectrum.peak_frequency` of each column of ``x`` (``(n, k)``)
     in one call: the column less its least-squares fit on ``design`` (the compiled solve of
     :meth:`~torquemod.dsp.lstsq.LstsqFactor.solve` of a contiguous record, the fit by
     numpy's ``dgemv``: numpy's numbers), times the window ``w``; the magnitudes of the
-    bins the checks read (:func:`_goertzel_magnitudes`, from ``k_lo``), the checks
-    (:func:`_bin_checks`) and Brent's refinement of the windowed record
-    (:func:`_dtft_peak`). The frequencies [Hz] and whether each column passed the checks
-    (NaN where not)."""
+    bins the checks read (:func:`_goertzel_magnitudes` with the rows of ``trig``, ``cos``
+    and ``sin`` of the bins from ``k_lo``), the checks (:func:`_bin_checks`) and Brent's
+    refinement of the windowed record (:func:`_dtft_peak`). ``bins`` holds ``k_lo``, the
+    band's first and last bin, the floor's first and last bin and the addresses of numpy's
+    ``dgemv`` and LAPACK's ``dpotrs``. The frequencies [Hz] and whether each column passed
+    the checks (NaN where not)."""
     n, cols = x.shape
+    k_lo, band, wide = bins[0], (bins[1], bins[2]), (bins[3], bins[4])
+    gemv, potrs = bins[5], bins[6]
+    cw, sw = trig[0], trig[1]
     out = np.full(cols, np.nan)
     ok = np.zeros(cols, dtype=np.bool_)
     df = freqs[1] - freqs[0]

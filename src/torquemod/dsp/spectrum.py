@@ -260,11 +260,13 @@ def _batch_plan(n: int, fs_hz: float, lo: float, hi: float, window: str, line: b
     cw, sw = _goertzel_coefficients(nfft, k_lo, k_hi)
     wide_bins = np.flatnonzero(wide)
     factor = np.asfortranarray(fac.factor)
-    for a in (factor, cw, sw):
+    trig = np.vstack([cw, sw])
+    bins = np.array([k_lo, idx[0], idx[-1], wide_bins[0], wide_bins[-1], blas[2], _DPOTRS],
+                    dtype=np.int64)
+    for a in (factor, trig, bins):
         a.setflags(write=False)
-    return (fac.dn, factor, fac.scale, design, _window(window, n), cw, sw, k_lo, freqs,
-            (int(idx[0]), int(idx[-1])), (int(wide_bins[0]), int(wide_bins[-1])),
-            2.0 * fs_hz / n, float(fs_hz), blas[2], _DPOTRS)
+    return (fac.dn, factor, fac.scale, design, _window(window, n), trig, freqs, bins,
+            2.0 * fs_hz / n, float(fs_hz))
 
 
 @functools.lru_cache(maxsize=32)
