@@ -158,7 +158,7 @@ def _peaks_of_records(x: np.ndarray, xtol_hz: float, min_ratio: float, maxfun: i
                       dn: np.ndarray, factor: np.ndarray, scale: np.ndarray,
                       design: np.ndarray, w: np.ndarray, trig: np.ndarray, freqs: np.ndarray,
                       bins: np.ndarray, lobe: float, fs_hz: float
-                      ) -> tuple[np.ndarray, np.ndarray]:
+                      ) -> tuple[list[float], bool]:
     """:func:`~torquemod.dsp.spectrum.peak_frequency` of each column of ``x`` (``(n, k)``)
     in one call: the column less its least-squares fit on ``design`` (the compiled solve of
     :meth:`~torquemod.dsp.lstsq.LstsqFactor.solve` of a contiguous record, the fit by
@@ -167,14 +167,14 @@ def _peaks_of_records(x: np.ndarray, xtol_hz: float, min_ratio: float, maxfun: i
     and ``sin`` of the bins from ``k_lo``), the checks (:func:`_bin_checks`) and Brent's
     refinement of the windowed record (:func:`_dtft_peak`). ``bins`` holds ``k_lo``, the
     band's first and last bin, the floor's first and last bin and the addresses of numpy's
-    ``dgemv`` and LAPACK's ``dpotrs``. The frequencies [Hz] and whether each column passed
-    the checks (NaN where not)."""
+    ``dgemv`` and LAPACK's ``dpotrs``. The frequencies [Hz] (NaN where a column failed the
+    checks) and whether every column passed them."""
     n, cols = x.shape
     k_lo, band, wide = bins[0], (bins[1], bins[2]), (bins[3], bins[4])
     gemv, potrs = bins[5], bins[6]
     cw, sw = trig[0], trig[1]
-    out = np.full(cols, np.nan)
-    ok = np.zeros(cols, dtype=np.bool_)
+    out = [np.nan] * cols
+    passed = 0
     df = freqs[1] - freqs[0]
     mag = np.empty(cw.size)
     wx = np.empty(n)
@@ -191,8 +191,8 @@ def _peaks_of_records(x: np.ndarray, xtol_hz: float, min_ratio: float, maxfun: i
         if floor > 0 and pk ** 2 < min_ratio * floor:
             continue
         out[r] = _dtft_peak(wx, fs_hz, freqs[k] - df, freqs[k] + df, xtol_hz, maxfun)
-        ok[r] = True
-    return out, ok
+        passed += 1
+    return out, passed == cols
 
 
 @numba.njit(cache=True, nogil=True)

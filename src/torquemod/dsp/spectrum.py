@@ -227,8 +227,8 @@ def peak_frequencies(records: np.ndarray, fs_hz: float, *,
     if plan is not None:
         peaks, ok = _peaks_of_records(x, float(xtol_hz), float(min_peak_to_floor), 500,
                                       *plan)
-        if ok.all():
-            return peaks.tolist()
+        if ok:
+            return peaks
     kw = dict(band_hz=band_hz, window=window, detrend=detrend, zero_pad=zero_pad,
               xtol_hz=xtol_hz, min_peak_to_floor=min_peak_to_floor)
     return [peak_frequency(np.ascontiguousarray(x[:, i]), fs_hz, **kw)
