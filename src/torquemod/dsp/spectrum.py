@@ -192,13 +192,17 @@ def peak_frequencies(records: np.ndarray, fs_hz: float, *,
                      min_peak_to_floor: float = 20.0) -> list[float]:
     """:func:`peak_frequency` of each column of ``records``, the search in one call for all.
 
-    Each column detrended and windowed, one FFT of all columns, then the bin search and the
-    refinement by Brent's search of ``|X_w(f)|`` for all columns in one compiled call: the
-    steps and parameters of :func:`peak_frequency`. A column is detrended as a contiguous
-    record (:meth:`~torquemod.dsp.lstsq.LstsqFactor.solve`'s compiled route), so the
-    frequencies equal :func:`peak_frequency`'s on each column as a contiguous array
-    (tests/dsp/test_spectrum_batch.py). A column whose checks fail, and other windows or
-    detrending designs, go through :func:`peak_frequency` itself, which raises its error.
+    The steps and parameters of :func:`peak_frequency` for all columns in one compiled call
+    (:func:`~torquemod.dsp.peakkernels._peaks_of_records`): each column detrended as a
+    contiguous record (:meth:`~torquemod.dsp.lstsq.LstsqFactor.solve`'s compiled route)
+    and windowed, the magnitudes of only the FFT bins the checks read by Goertzel's
+    recurrence (the FFT's to rounding: the same bins chosen), the checks, and the refinement
+    by Brent's search of ``|X_w(f)|``; what depends only on the records' length, the rate
+    and the settings is made once (:func:`_batch_plan`). The frequencies equal
+    :func:`peak_frequency`'s on each column as a contiguous array
+    (tests/dsp/test_spectrum_batch.py). A column whose checks fail, other windows than a
+    name, and numpy builds whose BLAS the kernels cannot reach go through
+    :func:`peak_frequency` itself, which raises its error.
 
     Parameters
     ----------
