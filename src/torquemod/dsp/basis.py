@@ -288,10 +288,10 @@ def _wide_band_statistics(wheel: np.ndarray, platform: np.ndarray, fs_hz: float,
         # both fits from the designs' orthonormal bases and the modulation's rows of their
         # pseudo-inverses (made once per record length), of the records less their means
         # (both designs hold the constant: the same fits), and the statistics, in one call
-        maps_rows, maps_cols, p_q, f_critical = cached
+        maps_t, wheel_mod, p_q, f_critical = cached
         if wheel.dtype != np.float64 or platform.dtype != np.float64:
             wheel, platform = wheel.astype(np.float64), platform.astype(np.float64)
-        valid, f_stat, risk = _wide_band_test(maps_rows, maps_cols, p_q, wheel, platform)
+        valid, f_stat, risk = _wide_band_test(maps_t, wheel_mod, p_q, wheel, platform)
         return (f_stat, f_critical, risk) if valid else None
     y = np.column_stack([wheel, platform])
     fits = []
@@ -316,20 +316,20 @@ def _wide_band_statistics(wheel: np.ndarray, platform: np.ndarray, fs_hz: float,
 
 
 @numba.njit(cache=True, nogil=True)
-def _wide_band_test(maps: np.ndarray, maps_t: np.ndarray, p_q: int, wheel: np.ndarray,
+def _wide_band_test(maps_t: np.ndarray, wheel_mod: np.ndarray, p_q: int, wheel: np.ndarray,
                     platform: np.ndarray) -> tuple[bool, float, float]:
     """:func:`_wide_band_statistics` from :func:`_wide_band_maps`' arrays in one call:
     whether the test can be made, the F statistic [-] and the risk [rad].
 
-    ``maps`` holds ``[Q_q'; Q_w'; W_q; W_w]`` as rows and ``maps_t`` is its transpose (both
-    C order); ``p_q`` is the quiet basis' width. The platform's and the wheel's residual
-    sums of squares and modulation coefficients are those of the records less their means
-    (the products' sums run over the samples, and over the columns, in ascending order, as
-    plain loops take them), the mean speeds of the ratios numpy's pairwise sums
-    (:func:`_numpy_sum`)."""
-    n = platform.size
-    rows = maps.shape[0]
-    p_w = rows - p_q - 4
+    ``maps_t`` holds ``[Q_q Q_w W_q' W_w']`` (C order, a row a sample), ``wheel_mod`` is
+    ``W_w`` (C order) and ``p_q`` the quiet basis' width. The platform's and the wheel's
+    residual sums of squares and modulation coefficients are those of the records less
+    their means (each product summed over the samples, and over the columns, in ascending
+    order, as plain loops take them: the projections advance together sample by sample,
+    and the fits read the same rows while they are in cache), the mean speeds of the
+    ratios numpy's pairwise sums (:func:`_numpy_sum`)."""
+    n, cols = maps_t.shape
+    p_w = cols - p_q - 4
     p_sum = 0.0
     w_sum = 0.0
     for t in range(n):
@@ -340,30 +340,26 @@ def _wide_band_test(maps: np.ndarray, maps_t: np.ndarray, p_q: int, wheel: np.nd
     pl = np.empty(n)
     for t in range(n):
         pl[t] = platform[t] - p_c
-    proj = np.zeros(rows)  # maps @ pl, the samples' products summed in order
+    proj = np.zeros(cols)  # [Q_q Q_w W_q' W_w']' pl
     for t in range(n):
         v = pl[t]
-        for i in range(rows):
+        for i in range(cols):
             proj[i] += maps_t[t, i] * v
-    fit_q = np.zeros(n)  # Q_q (Q_q' pl), Q_w (Q_w' pl), the columns' terms summed in order
-    fit_w = np.zeros(n)
-    for i in range(p_q):
-        c = proj[i]
-        for t in range(n):
-            fit_q[t] += maps[i, t] * c
-    for i in range(p_w):
-        c = proj[p_q + i]
-        for t in range(n):
-            fit_w[t] += maps[p_q + i, t] * c
     rss_q = 0.0
     rss_w = 0.0
     c0 = 0.0
     c1 = 0.0
     for t in range(n):
-        rss_q += (pl[t] - fit_q[t]) ** 2
-        rss_w += (pl[t] - fit_w[t]) ** 2
-        c0 += maps[rows - 2, t] * (wheel[t] - w_c)
-        c1 += maps[rows - 1, t] * (wheel[t] - w_c)
+        fit_q = 0.0  # Q_q (Q_q' pl) and Q_w (Q_w' pl) at sample t
+        for i in range(p_q):
+            fit_q += maps_t[t, i] * proj[i]
+        fit_w = 0.0
+        for i in range(p_q, p_q + p_w):
+            fit_w += maps_t[t, i] * proj[i]
+        rss_q += (pl[t] - fit_q) ** 2
+        rss_w += (pl[t] - fit_w) ** 2
+        c0 += wheel_mod[0, t] * (wheel[t] - w_c)
+        c1 += wheel_mod[1, t] * (wheel[t] - w_c)
     dfn, dfd = p_w - p_q, n - p_w
     w_mean = _numpy_sum(wheel, 0, n) / n
     p_mean = _numpy_sum(platform, 0, n) / n
@@ -444,9 +440,9 @@ def _wide_band_maps(n: int, fs_hz: float, modulation_hz: float, degree: int, qui
                     wide_hz: float, extra: int
                     ) -> tuple[np.ndarray, np.ndarray, int, float] | None:
     """For the two designs of :func:`needs_wide_band` (quiet band without extra sequences,
-    wide band with ``extra``): ``[Q_q'; Q_w'; W_q; W_w]`` (``(p_q + p_w + 4, n)``), its
-    transpose (both C order), ``p_q`` and the F test's critical value (NaN without degrees
-    of freedom). Q is an orthonormal basis of a design D (CholeskyQR2 from its factor,
+    wide band with ``extra``): ``[Q_q Q_w W_q' W_w']`` (``(n, p_q + p_w + 4)``), ``W_w``
+    (both C order), ``p_q`` and the F test's critical value (NaN without degrees of
+    freedom). Q is an orthonormal basis of a design D (CholeskyQR2 from its factor,
     :func:`~torquemod.dsp.projection.orthonormal_basis_t`) and W the modulation's two rows
     of D's pseudo-inverse ``(Q'D)^-1 Q'``: ``W x`` is the modulation's least-squares
     coefficients of a record x, ``x - Q Q'x`` its residual. None when either design has no
@@ -462,13 +458,14 @@ def _wide_band_maps(n: int, fs_hz: float, modulation_hz: float, degree: int, qui
         # the first two rows of (Q'D)^-1 Q': (Q'D)' z_i = e_i, W = [z_0 z_1]' Q'
         z = np.linalg.solve((qt @ design).T, np.eye(design.shape[1], 2))
         ws.append(z.T @ qt)
-    maps = np.ascontiguousarray(np.vstack([*qs, *ws]))
-    maps_t = np.ascontiguousarray(maps.T)
-    for a in (maps, maps_t):
+    maps_t = np.ascontiguousarray(np.vstack([*qs, *ws]).T)
+    wheel_mod = np.ascontiguousarray(ws[1])
+    for a in (maps_t, wheel_mod):
         a.setflags(write=False)
     p_q, p_w = qs[0].shape[0], qs[1].shape[0]
     dfn, dfd = p_w - p_q, n - p_w
-    return maps, maps_t, p_q, _f_critical(dfn, dfd) if dfn > 0 and dfd > 0 else float("nan")
+    return maps_t, wheel_mod, p_q, \
+        _f_critical(dfn, dfd) if dfn > 0 and dfd > 0 else float("nan")
 
 
 @functools.lru_cache(maxsize=32)
