@@ -64,6 +64,7 @@ _KERNELS = [  # (module, attribute, label): compiled kernels and library routine
     ("torquemod.dsp.projection", "_powers_in_span", "noise statistic"),
     ("torquemod.dsp.projection", "_cholesky_qr2_t", "noise statistic (CholeskyQR2)"),
     ("torquemod.dsp.basis", "_wide_band_sums", "slow-band decision"),
+    ("torquemod.dsp.basis", "_wide_band_test", "slow-band decision"),
     ("torquemod.dsp.filters", "_settling_kernel", "filters' settling"),
     ("torquemod.dsp.filters", "_butter_bandpass", "band-pass design"),
     ("torquemod.dsp.extrema", "_paired_extrema", "peak/valley extrema"),
