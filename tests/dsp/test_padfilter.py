@@ -56,3 +56,42 @@ def test_a_filter_of_another_kind_takes_the_reference_route():
                                                   [scaled, common[1]])
     for g, r in zip(got, ref, strict=True):
         np.testing.assert_array_equal(g, r)
+
+
+def _old_route(wheel, torque, f_mod, notches_hz, q, hp_cfg, bp, offsets):
+    """The chain's former steps 3-5: designs and settling in Python, then the compiled
+    padding and filtering, then the cut."""
+    hp = filters.design_highpass(*hp_cfg, FS)
+    notches = [filters.design_notch(f0, q, FS) for f0 in notches_hz]
+    pad = max(filters.settling_samples(ba) for ba in [hp, bp, *notches])
+    n = wheel.size
+    p1, l1, p2, l2, both = padfilter.padded_and_filtered(
+        wheel, torque, FS, [f_mod, *notches_hz], pad, notches, [hp, bp])
+    return (p1[pad:pad + n] + l1 + offsets[0], p2[pad:pad + n] + l2 + offsets[1],
+            both[:, pad:pad + n], pad)
+
+
+@pytest.mark.parametrize("n,seed,notches_hz", [(323, 5, [4.6, 9.2]), (410, 6, [4.6]),
+                                               (323, 7, [])])
+def test_chain_filtered_is_the_former_route_bit_for_bit(n, seed, notches_hz):
+    wheel, torque, *_ = _case(n, seed)
+    bp = filters.design_bandpass(2.01, 0.36, 2, FS)
+    args = (2.01, notches_hz, 3.0, (0.1, 2), bp, (30.0, -4.0))
+    got = padfilter.chain_filtered(wheel, torque, FS, *args)
+    old = _old_route(wheel, torque, *args)
+    ref = padfilter.chain_filtered_reference(wheel, torque, FS, *args)
+    assert got[3] == old[3] == ref[3]  # the padding: the filters' longest settling
+    for g, o, r in zip(got[:3], old[:3], ref[:3], strict=True):
+        np.testing.assert_array_equal(g, o)
+        # numpy's padding product against the compiled one: a few ulp of the padding
+        np.testing.assert_allclose(g, r, rtol=0, atol=1e-12 * np.abs(r).max())
+
+
+def test_chain_filtered_takes_the_reference_route_where_the_fit_needs_the_svd():
+    wheel, torque, *_ = _case(3, 8)  # 3 samples, 4 columns: potrf fails, lstsq's SVD
+    bp = filters.design_bandpass(2.01, 0.36, 2, FS)
+    args = (2.01, [4.6, 9.2], 3.0, (0.1, 2), bp, (0.0, 0.0))
+    got = padfilter.chain_filtered(wheel, torque, FS, *args)
+    ref = padfilter.chain_filtered_reference(wheel, torque, FS, *args)
+    for g, r in zip(got, ref, strict=True):
+        np.testing.assert_array_equal(g, r)

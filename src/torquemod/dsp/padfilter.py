@@ -7,13 +7,26 @@ high- and band-pass) (:func:`torquemod.dsp.filters.zero_phase_cascade`).
 
 from __future__ import annotations
 
+import functools
+import math
+
 import numba
 import numpy as np
 
-from torquemod.dsp import filters, tonemodel
-from torquemod.dsp.filters import _filtfilt_rows, _steady_state_solve
-from torquemod.dsp.lstsq import _DPOTRS, LstsqFactor, _solve
+from torquemod.dsp import filters, numpyblas, tonemodel
+from torquemod.dsp.filters import (
+    _filtfilt_rows,
+    _settling_kernel,
+    _steady_state,
+    _steady_state_solve,
+)
+from torquemod.dsp.lstsq import _DPOTRF, _DPOTRS, LstsqFactor, _factor_of, _solve
 from torquemod.dsp.tonemodel import _fill_cos_sin, _line_and_tones_design
+
+#: :func:`~torquemod.dsp.filters.settling_samples`' defaults: the share of the impulse
+#: response's peak [-] and the longest response searched [samples].
+_SETTLING_TOL = 1e-6
+_SETTLING_MAX = 1_000_000
 
 
 def padded_and_filtered(first: np.ndarray, second: np.ndarray, fs_hz: float,
@@ -162,3 +175,229 @@ def _pad_and_filter(rows: np.ndarray, dn: np.ndarray, factor: np.ndarray, scale:
     if n_first == lengths.size:
         both = padded.copy()
     return padded, levels, both
+
+
+def chain_filtered(first: np.ndarray, second: np.ndarray, fs_hz: float, f_mod_hz: float,
+                   notches_hz: list[float], notch_q: float,
+                   highpass: tuple[float, int], bandpass: tuple[np.ndarray, np.ndarray],
+                   offsets: tuple[float, float]
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Steps 3-5 of the V-Track chain [1]_ on two records, designs and padding included.
+
+    The notches at ``notches_hz`` (:func:`~torquemod.dsp.filters.design_notch`), the
+    padding as the longest settling of any filter
+    (:func:`~torquemod.dsp.filters.settling_samples`), then :func:`padded_and_filtered` with
+    the tones ``[f_mod_hz, *notches_hz]``, the notches on the first record and the
+    high- and band-pass on both; the records cut back to their own samples, the notched
+    ones with their line's level and ``offsets`` added back. One compiled call
+    (:func:`_chain_filtered_kernel`) with the same arithmetic as those steps one after the
+    other (:func:`chain_filtered_reference`, tests/dsp/test_padfilter.py); that route where
+    the compiled one cannot follow it (a least-squares design :meth:`LstsqFactor.of
+    <torquemod.dsp.lstsq.LstsqFactor.of>` leaves to the SVD, numpy's BLAS not found).
+
+    Parameters
+    ----------
+    first, second : ndarray
+        Records of equal length (the wheel speed and the torque less their slow part and
+        orders), any unit each.
+    fs_hz : float
+        Sample rate [Hz].
+    f_mod_hz : float
+        Modulation frequency [Hz], a tone of the padding model.
+    notches_hz : list of float
+        Frequencies of the first record's notches [Hz], each also a tone of the padding.
+    notch_q : float
+        The notches' quality factor [-].
+    highpass : tuple of (float, int)
+        The high-pass's cut-off [Hz] and order [-]
+        (:func:`~torquemod.dsp.filters.design_highpass`).
+    bandpass : tuple of ndarray
+        (b, a) of the band-pass.
+    offsets : tuple of float
+        Added to each notched record [its unit].
+
+    Returns
+    -------
+    first_notched, second_notched : ndarray
+        The records after their own filters, plus their line's level and offset.
+    filtered : ndarray
+        ``(2, n)``: both through the high- and band-pass.
+    pad : int
+        The padding used at each end [samples].
+
+    References
+    ----------
+    .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
+       Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.4.
+    """
+    first = np.ascontiguousarray(first, dtype=np.float64)
+    second = np.ascontiguousarray(second, dtype=np.float64)
+    hp = _highpass_parts(float(highpass[0]), int(highpass[1]), float(fs_hz))
+    bp_b, bp_a = (np.ascontiguousarray(v, dtype=np.float64) for v in bandpass)
+    blas = numpyblas.addresses()
+    if hp is not None and blas is not None and first.size == second.size >= 2 \
+            and bp_b.ndim == 1 and bp_b.size == bp_a.size >= 2 and bp_a[0] == 1.0:
+        status, pad, notched, filtered = _chain_filtered_kernel(
+            first, second, float(fs_hz), float(f_mod_hz),
+            np.array(notches_hz, dtype=np.float64), float(notch_q), *hp, bp_b, bp_a,
+            float(offsets[0]), float(offsets[1]), blas[0], _DPOTRF, _DPOTRS)
+        if status == 0:
+            return notched[0], notched[1], filtered, int(pad)
+    return chain_filtered_reference(first, second, fs_hz, f_mod_hz, notches_hz, notch_q,
+                                    highpass, bandpass, offsets)
+
+
+def chain_filtered_reference(first: np.ndarray, second: np.ndarray, fs_hz: float,
+                             f_mod_hz: float, notches_hz: list[float], notch_q: float,
+                             highpass: tuple[float, int],
+                             bandpass: tuple[np.ndarray, np.ndarray],
+                             offsets: tuple[float, float]
+                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """:func:`chain_filtered` by the designs, :func:`~torquemod.dsp.filters.settling_samples`
+    and :func:`padded_and_filtered_reference`, one after the other.
+
+    Parameters
+    ----------
+    first, second : ndarray
+        Records of equal length, any unit each.
+    fs_hz : float
+        Sample rate [Hz].
+    f_mod_hz : float
+        Modulation frequency [Hz].
+    notches_hz : list of float
+        The first record's notches [Hz].
+    notch_q : float
+        Their quality factor [-].
+    highpass : tuple of (float, int)
+        Cut-off [Hz] and order [-] of the high-pass.
+    bandpass : tuple of ndarray
+        (b, a) of the band-pass.
+    offsets : tuple of float
+        Added to each notched record [its unit].
+
+    Returns
+    -------
+    first_notched, second_notched, filtered, pad
+        As :func:`chain_filtered`.
+    """
+    hp = filters.design_highpass(highpass[0], highpass[1], fs_hz)
+    notches = [filters.design_notch(f0, notch_q, fs_hz) for f0 in notches_hz]
+    pad = max(filters.settling_samples(ba) for ba in [hp, bandpass, *notches])
+    n = len(first)
+    p1, level1, p2, level2, both = padded_and_filtered_reference(
+        first, second, fs_hz, [f_mod_hz, *notches_hz], pad, notches, [hp, bandpass])
+    return (p1[pad:pad + n] + level1 + offsets[0], p2[pad:pad + n] + level2 + offsets[1],
+            np.ascontiguousarray(both[:, pad:pad + n]), pad)
+
+
+@functools.lru_cache(maxsize=16)
+def _highpass_parts(cutoff_hz: float, order: int, fs_hz: float
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
+    """The high-pass's ``b``, ``a``, steady state (``lfilter_zi``'s numbers) and settling
+    [samples], cached (configuration, not measurements); None where the design is not of
+    the compiled kind (``a[0] = 1``, ``b`` and ``a`` of one length)."""
+    b, a = filters.design_highpass(cutoff_hz, order, fs_hz)
+    if not (b.ndim == 1 and b.size == a.size >= 2 and a[0] == 1.0):
+        return None
+    b, a = np.array(b, dtype=np.float64), np.array(a, dtype=np.float64)
+    zi = _steady_state(b, a)
+    settle = int(_settling_kernel(b, a, _SETTLING_TOL, _SETTLING_MAX))
+    return b, a, zi, settle
+
+
+@numba.njit(cache=True, nogil=True)
+def _notch_design(f0_hz: float, q: float, fs_hz: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    """:func:`~torquemod.dsp.filters.design_notch`'s arithmetic (Orfanidis's second-order
+    notch) in compiled code: ``(b, a, ok)``, ``ok`` False outside ``0 <= w0 <= 1``."""
+    w0 = 2 * f0_hz / fs_hz
+    if w0 > 1.0 or w0 < 0.0 or not fs_hz > 0:
+        return np.zeros(3), np.zeros(3), False
+    bw = w0 / q * math.pi
+    w0 = w0 * math.pi
+    gain = 1.0 / (1.0 + math.tan(bw / 2.0))
+    b = np.array([gain * 1.0, gain * (-2.0 * math.cos(w0)), gain * 1.0])
+    a = np.array([1.0, -2.0 * gain * math.cos(w0), 2.0 * gain - 1.0])
+    return b, a, True
+
+
+@numba.njit(cache=True, nogil=True)
+def _chain_filtered_kernel(first: np.ndarray, second: np.ndarray, fs_hz: float,
+                           f_mod_hz: float, notches_hz: np.ndarray, q: float,
+                           hp_b: np.ndarray, hp_a: np.ndarray, hp_zi: np.ndarray,
+                           hp_settle: int, bp_b: np.ndarray, bp_a: np.ndarray,
+                           offset_first: float, offset_second: float, syrk: int, potrf: int,
+                           potrs: int) -> tuple[int, int, np.ndarray, np.ndarray]:
+    """:func:`chain_filtered` in one call: ``(status, pad, notched, filtered)``, status 0,
+    or not 0 where the reference route must run. The notches by :func:`_notch_design`, the
+    settling of each filter by :func:`~torquemod.dsp.filters._settling_kernel`, the
+    line-and-tones design of :func:`~torquemod.dsp.tonemodel._line_and_tones_design` and
+    its factor as :meth:`LstsqFactor.of <torquemod.dsp.lstsq.LstsqFactor.of>`
+    (:func:`~torquemod.dsp.lstsq._factor_of`), then :func:`_pad_and_filter`'s steps."""
+    n = first.size
+    k_notch = notches_hz.size
+    nb = np.empty((k_notch, 3))
+    na = np.empty((k_notch, 3))
+    pad = hp_settle
+    for j in range(k_notch):
+        b, a, ok = _notch_design(notches_hz[j], q, fs_hz)
+        if not ok:
+            return 1, 0, np.empty((0, 0)), np.empty((0, 0))
+        nb[j] = b
+        na[j] = a
+        pad = max(pad, _settling_kernel(b, a, 1e-6, 1_000_000))
+    pad = max(pad, _settling_kernel(bp_b, bp_a, 1e-6, 1_000_000))
+    # the tones kept (_line_and_tones_design): below Nyquist, one frequency resolution
+    # from those kept before
+    res = fs_hz / n
+    tones = np.empty(1 + k_notch)
+    tones[0] = f_mod_hz
+    tones[1:] = notches_hz
+    kept = np.empty(tones.size)
+    k = 0
+    for f in tones:
+        if 0 < f < fs_hz / 2:
+            far = True
+            for g in kept[:k]:
+                if not abs(f - g) > res:
+                    far = False
+            if far:
+                kept[k] = f
+                k += 1
+    omegas = np.empty(k)
+    for m in range(k):
+        omegas[m] = 2 * np.pi * kept[m] / fs_hz
+    design = np.empty((n, 2 + 2 * k))
+    for i in range(n):
+        design[i, 0] = 1.0
+        design[i, 1] = (i - (n - 1) / 2) / fs_hz  # t - mean t
+    _fill_cos_sin(design, 2, omegas, 0)
+    dn, scale, _, factor, status = _factor_of(design, syrk, potrf)
+    if status != 0:
+        return 2, 0, np.empty((0, 0)), np.empty((0, 0))
+    total = n + 2 * pad
+    trig = np.empty((total, 2 * k))
+    _fill_cos_sin(trig, 0, omegas, -pad)
+    padded = np.zeros((2, total))
+    levels = np.empty(2)
+    for r in range(2):
+        x = first if r == 0 else second
+        coef = _solve(dn, factor, scale, x, potrs)
+        if k:
+            padded[r] = np.dot(trig, np.ascontiguousarray(coef[2:]))
+        for i in range(n):
+            padded[r, pad + i] = x[i] - coef[0] - coef[1] * design[i, 1]
+        levels[r] = coef[0]
+    notched = np.empty((2, n))
+    filtered = np.empty((2, n))
+    for j in range(k_notch):  # the first record through its notches
+        b = nb[j].copy()
+        a = na[j].copy()
+        _filtfilt_rows(b, a, _steady_state_solve(b, a), padded[:1])
+    offsets = (offset_first, offset_second)
+    for r in range(2):
+        for i in range(n):
+            notched[r, i] = padded[r, pad + i] + levels[r] + offsets[r]
+    _filtfilt_rows(hp_b, hp_a, hp_zi, padded)  # then both through the high- and band-pass
+    _filtfilt_rows(bp_b, bp_a, _steady_state_solve(bp_b, bp_a), padded)
+    filtered[:, :] = padded[:, pad:pad + n]
+    return 0, pad, notched, filtered

@@ -14,7 +14,7 @@ import numpy as np
 from torquemod.dsp import filters, resampling
 from torquemod.dsp.align import alignment_lag
 from torquemod.dsp.basis import needs_wide_band
-from torquemod.dsp.padfilter import padded_and_filtered
+from torquemod.dsp.padfilter import chain_filtered
 from torquemod.dsp.phase import SineFitResult, local_noise_psd, peak_valley_phase, sinefit_phase
 from torquemod.dsp.spectrum import peak_frequencies, peak_frequency
 from torquemod.errors import InputError, ProcessingError
@@ -326,22 +326,17 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     notes = [f"{where}: wheel-speed notch at {f0:.3f} Hz lies within {nq.warn_within_hz} Hz "
              f"of the modulation frequency {f_mod:.3f} Hz; it also attenuates the modulation"
              for f0 in wheel_notches if abs(f0 - f_mod) < nq.warn_within_hz]
-    hp = filters.design_highpass(cfg.highpass.cutoff_hz, cfg.highpass.order, fs_r)
     bp = filters.design_bandpass(f_mod, cfg.bandpass.width_hz, cfg.bandpass.order, fs_r)
-    notch_ba = {f0: filters.design_notch(f0, nq.q, fs_r) for f0 in wheel_notches}
-    pad = max(filters.settling_samples(ba) for ba in [hp, bp, *notch_ba.values()])
-    tones = [f_mod, *wheel_notches]
-
-    # the records less their slow part, orders and harmonics, padded by their tone model;
-    # the wheel speed through its notches, then both records through the high-pass and the
-    # band-pass (one compiled call)
-    wh_p, wh_level, tq_p, tq_level, both_f = padded_and_filtered(
+    # the records less their slow part, orders and harmonics, padded by their tone model
+    # (the modulation and the notches' tones) over the filters' longest settling; the wheel
+    # speed through its notches, then both records through the high-pass and the band-pass
+    # (one compiled call)
+    wh_n, tq_n, both_f, _ = chain_filtered(
         *[sig[k] - model.part(k, "slow") - model.part(k, "orders") - model.part(k, "harmonics")
-          for k in ("wheel_speed_rad_s", "torque_nm")], fs_r, tones, pad,
-        [notch_ba[f0] for f0 in wheel_notches], [hp, bp])
-    wh_n = wh_p[pad:pad + n] + wh_level + model.mean("wheel_speed_rad_s")
-    tq_n = tq_p[pad:pad + n] + tq_level + model.mean("torque_nm")
-    wh_f, tq_f = both_f[0, pad:pad + n], both_f[1, pad:pad + n]
+          for k in ("wheel_speed_rad_s", "torque_nm")], fs_r, f_mod, wheel_notches, nq.q,
+        (cfg.highpass.cutoff_hz, cfg.highpass.order), bp,
+        (model.mean("wheel_speed_rad_s"), model.mean("torque_nm")))
+    wh_f, tq_f = both_f[0], both_f[1]
     # Step 8: creepage and CoA from means, each the mean of the channel less its fitted
     # modulation and rotation orders (SpeedModel.mean): the value the notched signal averages
     # to, free of the partial modulation period a cycle holds and of edge transients, and
