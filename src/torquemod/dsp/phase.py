@@ -216,16 +216,28 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
     n = stop - start
     resolution = fs_hz / n
     keep = tuple(f for f in nuisance_hz if abs(f - f_mod_hz) > resolution)
-    design = _design(n, fs_hz, f_mod_hz, keep, trend)
     records = [torque, wheel]
     if noise_from is not None:  # the four records in one solve
         records += [np.asarray(noise_from[0]), np.asarray(noise_from[1])]
-    y = np.column_stack([r[start:stop] for r in records])
-    status, coef, psds = (5, None, None) if n < 8 or y.dtype != np.float64 else \
-        _sine_fit(np.ascontiguousarray(design), y, float(fs_hz), float(f_mod_hz),
-                  *_dft_table(n), *lapack_addresses())
+    status, compiled = 5, False
+    if n >= 8 and all(r.dtype == np.float64 and r.ndim == 1 and r.size >= stop
+                      for r in records):  # the design, the records' window and the fit in
+        # one call (the arrays of the route below, the same numbers)
+        fixed = _fixed_columns(n, float(fs_hz), float(f_mod_hz), bool(trend))
+        compiled = True
+        status, coef, psds = _sine_fit_records(
+            fixed, np.array(keep, dtype=np.float64), *records[:2], *records[-2:],
+            len(records), start, float(fs_hz), float(f_mod_hz), *_dft_table(n),
+            *lapack_addresses())
     if status != 0:  # numpy's route: a design that needs the SVD, or too short a window
-        coef, psds = _sine_fit_numpy(design, y, fs_hz, f_mod_hz)
+        design = _design(n, fs_hz, f_mod_hz, keep, trend)
+        y = np.column_stack([r[start:stop] for r in records])
+        if not compiled and n >= 8 and y.dtype == np.float64:
+            status, coef, psds = _sine_fit(np.ascontiguousarray(design), y, float(fs_hz),
+                                           float(f_mod_hz), *_dft_table(n),
+                                           *lapack_addresses())
+        if status != 0:
+            coef, psds = _sine_fit_numpy(design, y, fs_hz, f_mod_hz)
     t_win = n / fs_hz
     phases, amps, var_phi = [], [], 0.0
     for ch in range(2):
@@ -237,9 +249,9 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
         # (Rife and Boorstyn 1974)
         var_phi += psds[ch] / (a2 * t_win)
         phases.append(float(np.arctan2(-s, c)))
-        amps.append(float(np.sqrt(a2)))
+        amps.append(math.sqrt(a2))  # (sqrt is correctly rounded: numpy's numbers)
     lag = np.angle(np.exp(1j * (phases[0] - phases[1])))
-    return SineFitResult(float(np.degrees(lag)), float(np.degrees(np.sqrt(var_phi))), amps[0],
+    return SineFitResult(float(np.degrees(lag)), float(np.degrees(math.sqrt(var_phi))), amps[0],
                          amps[1], phases[0], phases[1], n, (start / fs_hz, stop / fs_hz))
 
 
@@ -269,6 +281,29 @@ def _dft_table(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     for a in out:
         a.setflags(write=False)
     return (*out, ss)
+
+
+@njit(cache=True, nogil=True)
+def _sine_fit_records(fixed: np.ndarray, tones_hz: np.ndarray, r0: np.ndarray, r1: np.ndarray,
+                      r2: np.ndarray, r3: np.ndarray, n_records: int, start: int,
+                      fs_hz: float, f_hz: float, cos_t: np.ndarray, sin_t: np.ndarray,
+                      w: np.ndarray, ss: float, potrf: int, potrs: int
+                      ) -> tuple[int, np.ndarray, np.ndarray]:
+    """:func:`_sine_fit` of the window ``start:start + n`` of the records ``r0 .. r3`` (the
+    first ``n_records`` of them; ``n`` the rows of ``fixed``) on the design of
+    :func:`_design` (its columns ``fixed`` from :func:`_fixed_columns`, then the tones
+    ``tones_hz`` by :func:`_fill_tones`), both built here in C order with the same values."""
+    n, n_fixed = fixed.shape
+    design = np.empty((n, n_fixed + 2 * tones_hz.size))
+    design[:, :n_fixed] = fixed
+    if tones_hz.size:
+        _fill_tones(design, n_fixed, fs_hz, tones_hz)
+    y = np.empty((n, n_records))
+    for j in range(n_records):
+        r = r0 if j == 0 else r1 if j == 1 else r2 if j == 2 else r3
+        for i in range(n):
+            y[i, j] = r[start + i]
+    return _sine_fit(design, y, fs_hz, f_hz, cos_t, sin_t, w, ss, potrf, potrs)
 
 
 @njit(cache=True, nogil=True)
