@@ -143,10 +143,36 @@ def design_bandpass(center_hz: float, width_hz: float, order: int, fs_hz: float
     ValueError
         The band does not fit in 0..fs/2.
     """
+    lo, hi = bandpass_edges(center_hz, width_hz, fs_hz)
+    return _butter_bandpass(order, lo, hi)
+
+
+def bandpass_edges(center_hz: float, width_hz: float, fs_hz: float) -> tuple[float, float]:
+    """The band edges of :func:`design_bandpass` [cycles per sample].
+
+    Parameters
+    ----------
+    center_hz : float
+        Centre frequency [Hz].
+    width_hz : float
+        Band width [Hz].
+    fs_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    lo, hi : float
+        ``(center -+ width/2)/fs`` [-].
+
+    Raises
+    ------
+    ValueError
+        The band does not fit in 0..fs/2.
+    """
     lo, hi = center_hz - width_hz / 2, center_hz + width_hz / 2
     if lo <= 0 or hi >= fs_hz / 2:
         raise ValueError(f"band-pass {lo:.3f}-{hi:.3f} Hz does not fit in 0..{fs_hz / 2} Hz")
-    return _butter_bandpass(order, lo / fs_hz, hi / fs_hz)
+    return lo / fs_hz, hi / fs_hz
 
 
 def _butter_bandpass(order: int, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:

@@ -7,6 +7,7 @@ high- and band-pass) (:func:`torquemod.dsp.filters.zero_phase_cascade`).
 
 from __future__ import annotations
 
+import cmath
 import functools
 import math
 
@@ -179,12 +180,13 @@ def _pad_and_filter(rows: np.ndarray, dn: np.ndarray, factor: np.ndarray, scale:
 
 def chain_filtered(first: np.ndarray, second: np.ndarray, fs_hz: float, f_mod_hz: float,
                    notches_hz: list[float], notch_q: float,
-                   highpass: tuple[float, int], bandpass: tuple[np.ndarray, np.ndarray],
+                   highpass: tuple[float, int], bandpass: tuple[float, int],
                    offsets: tuple[float, float]
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Steps 3-5 of the V-Track chain [1]_ on two records, designs and padding included.
 
-    The notches at ``notches_hz`` (:func:`~torquemod.dsp.filters.design_notch`), the
+    The notches at ``notches_hz`` (:func:`~torquemod.dsp.filters.design_notch`) and the
+    band-pass around ``f_mod_hz`` (:func:`~torquemod.dsp.filters.design_bandpass`), the
     padding as the longest settling of any filter
     (:func:`~torquemod.dsp.filters.settling_samples`), then :func:`padded_and_filtered` with
     the tones ``[f_mod_hz, *notches_hz]``, the notches on the first record and the
@@ -211,8 +213,8 @@ def chain_filtered(first: np.ndarray, second: np.ndarray, fs_hz: float, f_mod_hz
     highpass : tuple of (float, int)
         The high-pass's cut-off [Hz] and order [-]
         (:func:`~torquemod.dsp.filters.design_highpass`).
-    bandpass : tuple of ndarray
-        (b, a) of the band-pass.
+    bandpass : tuple of (float, int)
+        The band-pass's width [Hz] and prototype order [-], centred on ``f_mod_hz``.
     offsets : tuple of float
         Added to each notched record [its unit].
 
@@ -233,14 +235,15 @@ def chain_filtered(first: np.ndarray, second: np.ndarray, fs_hz: float, f_mod_hz
     first = np.ascontiguousarray(first, dtype=np.float64)
     second = np.ascontiguousarray(second, dtype=np.float64)
     hp = _highpass_parts(float(highpass[0]), int(highpass[1]), float(fs_hz))
-    bp_b, bp_a = (np.ascontiguousarray(v, dtype=np.float64) for v in bandpass)
+    order = int(bandpass[1])
+    lo, hi = filters.bandpass_edges(f_mod_hz, bandpass[0], fs_hz)  # (its ValueError)
     blas = numpyblas.addresses()
-    if hp is not None and blas is not None and first.size == second.size >= 2 \
-            and bp_b.ndim == 1 and bp_b.size == bp_a.size >= 2 and bp_a[0] == 1.0:
+    if hp is not None and blas is not None and first.size == second.size >= 2 and order >= 1:
         status, pad, notched, filtered = _chain_filtered_kernel(
             first, second, float(fs_hz), float(f_mod_hz),
-            np.array(notches_hz, dtype=np.float64), float(notch_q), *hp, bp_b, bp_a,
-            float(offsets[0]), float(offsets[1]), blas[0], _DPOTRF, _DPOTRS)
+            np.array(notches_hz, dtype=np.float64), float(notch_q), *hp, order, lo, hi,
+            bandpass_gain(order, lo, hi), float(offsets[0]), float(offsets[1]),
+            blas[0], _DPOTRF, _DPOTRS)
         if status == 0:
             return notched[0], notched[1], filtered, int(pad)
     return chain_filtered_reference(first, second, fs_hz, f_mod_hz, notches_hz, notch_q,
@@ -249,8 +252,7 @@ def chain_filtered(first: np.ndarray, second: np.ndarray, fs_hz: float, f_mod_hz
 
 def chain_filtered_reference(first: np.ndarray, second: np.ndarray, fs_hz: float,
                              f_mod_hz: float, notches_hz: list[float], notch_q: float,
-                             highpass: tuple[float, int],
-                             bandpass: tuple[np.ndarray, np.ndarray],
+                             highpass: tuple[float, int], bandpass: tuple[float, int],
                              offsets: tuple[float, float]
                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """:func:`chain_filtered` by the designs, :func:`~torquemod.dsp.filters.settling_samples`
@@ -270,8 +272,8 @@ def chain_filtered_reference(first: np.ndarray, second: np.ndarray, fs_hz: float
         Their quality factor [-].
     highpass : tuple of (float, int)
         Cut-off [Hz] and order [-] of the high-pass.
-    bandpass : tuple of ndarray
-        (b, a) of the band-pass.
+    bandpass : tuple of (float, int)
+        Width [Hz] and prototype order [-] of the band-pass around ``f_mod_hz``.
     offsets : tuple of float
         Added to each notched record [its unit].
 
@@ -281,11 +283,12 @@ def chain_filtered_reference(first: np.ndarray, second: np.ndarray, fs_hz: float
         As :func:`chain_filtered`.
     """
     hp = filters.design_highpass(highpass[0], highpass[1], fs_hz)
+    bp = filters.design_bandpass(f_mod_hz, bandpass[0], bandpass[1], fs_hz)
     notches = [filters.design_notch(f0, notch_q, fs_hz) for f0 in notches_hz]
-    pad = max(filters.settling_samples(ba) for ba in [hp, bandpass, *notches])
+    pad = max(filters.settling_samples(ba) for ba in [hp, bp, *notches])
     n = len(first)
     p1, level1, p2, level2, both = padded_and_filtered_reference(
-        first, second, fs_hz, [f_mod_hz, *notches_hz], pad, notches, [hp, bandpass])
+        first, second, fs_hz, [f_mod_hz, *notches_hz], pad, notches, [hp, bp])
     return (p1[pad:pad + n] + level1 + offsets[0], p2[pad:pad + n] + level2 + offsets[1],
             np.ascontiguousarray(both[:, pad:pad + n]), pad)
 
@@ -303,6 +306,51 @@ def _highpass_parts(cutoff_hz: float, order: int, fs_hz: float
     zi = _steady_state(b, a)
     settle = int(_settling_kernel(b, a, _SETTLING_TOL, _SETTLING_MAX))
     return b, a, zi, settle
+
+
+def bandpass_gain(order: int, lo: float, hi: float) -> float:
+    """The gain ``bw**order`` of :func:`~torquemod.dsp.filters.design_bandpass`'s route
+    (``bw`` the pre-warped band width, band edges ``lo``, ``hi`` in cycles per sample) by
+    its arithmetic, for :func:`_butter_bandpass_compiled`: Python's power, which compiled
+    code forms otherwise for a whole exponent (another last bit)."""
+    return (4.0 * math.tan(math.pi * hi) - 4.0 * math.tan(math.pi * lo)) ** order
+
+
+@numba.njit(cache=True, nogil=True)
+def _butter_bandpass_compiled(order: int, lo: float, hi: float, gain: float
+                              ) -> tuple[np.ndarray, np.ndarray]:
+    """``filters._butter_bandpass`` (Butterworth prototype poles, low-pass to band-pass,
+    bilinear transform with pre-warped edges, polynomial expansion) in compiled code with
+    the same complex arithmetic: numba's complex products, quotients, ``exp`` and ``sqrt``
+    follow CPython's, the same bits over 1e5 random designs of orders 1-4
+    (tests/dsp/test_padfilter.py); ``gain`` from :func:`bandpass_gain`."""
+    w1, w2 = 4.0 * math.tan(math.pi * lo), 4.0 * math.tan(math.pi * hi)
+    bw, wo2 = w2 - w1, w1 * w2
+    poles = np.empty(2 * order, dtype=np.complex128)
+    i = 0
+    for m in range(-order + 1, order, 2):
+        p = -cmath.exp(1j * math.pi * m / (2 * order)) * bw / 2
+        root = cmath.sqrt(p * p - wo2)
+        poles[i] = p + root
+        poles[i + 1] = p - root
+        i += 2
+    den = 1.0 + 0j
+    a = np.zeros(2 * order + 1, dtype=np.complex128)
+    a[0] = 1.0
+    for length in range(1, 2 * order + 1):  # a[:length] holds the product so far
+        p = poles[length - 1]
+        den *= 4.0 - p
+        z = (4.0 + p) / (4.0 - p)
+        for j in range(length, 0, -1):  # a <- [*a, 0] - z*[0, *a], from the top down
+            a[j] = (a[j] if j < length else 0j) - z * a[j - 1]
+        a[0] = a[0] - z * 0j
+    k = gain * (4.0 ** order / den).real
+    b = np.zeros(2 * order + 1)
+    comb = 1
+    for j in range(order + 1):
+        b[2 * j] = k * comb * (-1) ** j
+        comb = comb * (order - j) // (j + 1)
+    return b, a.real.copy()
 
 
 @numba.njit(cache=True, nogil=True)
@@ -324,14 +372,16 @@ def _notch_design(f0_hz: float, q: float, fs_hz: float) -> tuple[np.ndarray, np.
 def _chain_filtered_kernel(first: np.ndarray, second: np.ndarray, fs_hz: float,
                            f_mod_hz: float, notches_hz: np.ndarray, q: float,
                            hp_b: np.ndarray, hp_a: np.ndarray, hp_zi: np.ndarray,
-                           hp_settle: int, bp_b: np.ndarray, bp_a: np.ndarray,
-                           offset_first: float, offset_second: float, syrk: int, potrf: int,
-                           potrs: int) -> tuple[int, int, np.ndarray, np.ndarray]:
+                           hp_settle: int, bp_order: int, bp_lo: float, bp_hi: float,
+                           bp_gain: float, offset_first: float, offset_second: float,
+                           syrk: int, potrf: int, potrs: int
+                           ) -> tuple[int, int, np.ndarray, np.ndarray]:
     """:func:`chain_filtered` in one call: ``(status, pad, notched, filtered)``, status 0,
     or not 0 where the reference route must run. The notches by :func:`_notch_design`, the
-    settling of each filter by :func:`~torquemod.dsp.filters._settling_kernel`, the
-    line-and-tones design of :func:`~torquemod.dsp.tonemodel._line_and_tones_design` and
-    its factor as :meth:`LstsqFactor.of <torquemod.dsp.lstsq.LstsqFactor.of>`
+    band-pass by :func:`_butter_bandpass_compiled`, the settling of
+    each filter by :func:`~torquemod.dsp.filters._settling_kernel`, the line-and-tones
+    design of :func:`~torquemod.dsp.tonemodel._line_and_tones_design` and its factor as
+    :meth:`LstsqFactor.of <torquemod.dsp.lstsq.LstsqFactor.of>`
     (:func:`~torquemod.dsp.lstsq._factor_of`), then :func:`_pad_and_filter`'s steps."""
     n = first.size
     k_notch = notches_hz.size
@@ -345,6 +395,7 @@ def _chain_filtered_kernel(first: np.ndarray, second: np.ndarray, fs_hz: float,
         nb[j] = b
         na[j] = a
         pad = max(pad, _settling_kernel(b, a, 1e-6, 1_000_000))
+    bp_b, bp_a = _butter_bandpass_compiled(bp_order, bp_lo, bp_hi, bp_gain)
     pad = max(pad, _settling_kernel(bp_b, bp_a, 1e-6, 1_000_000))
     # the tones kept (_line_and_tones_design): below Nyquist, one frequency resolution
     # from those kept before

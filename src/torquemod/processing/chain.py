@@ -326,7 +326,6 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     notes = [f"{where}: wheel-speed notch at {f0:.3f} Hz lies within {nq.warn_within_hz} Hz "
              f"of the modulation frequency {f_mod:.3f} Hz; it also attenuates the modulation"
              for f0 in wheel_notches if abs(f0 - f_mod) < nq.warn_within_hz]
-    bp = filters.design_bandpass(f_mod, cfg.bandpass.width_hz, cfg.bandpass.order, fs_r)
     # the records less their slow part, orders and harmonics, padded by their tone model
     # (the modulation and the notches' tones) over the filters' longest settling; the wheel
     # speed through its notches, then both records through the high-pass and the band-pass
@@ -334,7 +333,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     wh_n, tq_n, both_f, _ = chain_filtered(
         *[sig[k] - model.part(k, "slow") - model.part(k, "orders") - model.part(k, "harmonics")
           for k in ("wheel_speed_rad_s", "torque_nm")], fs_r, f_mod, wheel_notches, nq.q,
-        (cfg.highpass.cutoff_hz, cfg.highpass.order), bp,
+        (cfg.highpass.cutoff_hz, cfg.highpass.order),
+        (cfg.bandpass.width_hz, cfg.bandpass.order),
         (model.mean("wheel_speed_rad_s"), model.mean("torque_nm")))
     wh_f, tq_f = both_f[0], both_f[1]
     # Step 8: creepage and CoA from means, each the mean of the channel less its fitted
