@@ -240,14 +240,15 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
             coef, psds = _sine_fit_numpy(design, y, fs_hz, f_mod_hz)
     t_win = n / fs_hz
     phases, amps, var_phi = [], [], 0.0
-    for ch in range(2):
-        c, s = coef[0, ch], coef[1, ch]
+    (c_t, c_w), (s_t, s_w) = coef[:2, :2].tolist()  # Python floats: the same arithmetic
+    psds = [float(p) for p in psds]
+    for c, s, psd in ((c_t, s_t, psds[0]), (c_w, s_w, psds[1])):
         a2 = c * c + s * s
         if a2 == 0:
             raise ProcessingError("zero amplitude at the modulation frequency")
         # var(phi_i) = S_i/(A_i^2 T) with S_i the one-sided noise density at f_mod
         # (Rife and Boorstyn 1974)
-        var_phi += psds[ch] / (a2 * t_win)
+        var_phi += psd / (a2 * t_win)
         phases.append(float(np.arctan2(-s, c)))
         amps.append(math.sqrt(a2))  # (sqrt is correctly rounded: numpy's numbers)
     lag = np.angle(np.exp(1j * (phases[0] - phases[1])))

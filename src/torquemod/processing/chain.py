@@ -472,7 +472,7 @@ def cycle_phase(c: CycleSignals, cfg: ProcessingConfig, *, center_index: float
     """
     n = c.torque_filtered.size
     period_n = c.fs_hz / c.modulation_hz
-    nuisance = tuple(c.notches_hz["wheel"]) + tuple(c.notches_hz["platform"])
+    nuisance = (*c.notches_hz["wheel"], *c.notches_hz["platform"])
     if cfg.phase.sinefit_input == "model" and "speed_model" in c.extra:
         fit = model_phase(c.extra["speed_model"], c.torque_resampled, c.wheel_resampled,
                           c.fs_hz)
@@ -485,14 +485,15 @@ def cycle_phase(c: CycleSignals, cfg: ProcessingConfig, *, center_index: float
                             nuisance_hz=nuisance, trend=cfg.phase.sinefit_trend)
     # the speed model's removal costs the modulation this much variance, and its fitted
     # columns leave the residual's noise density near the modulation too small (SpeedModel)
-    se_fit = fit.phase_stderr_deg * np.sqrt(c.extra.get("variance_factor", 1.0)
-                                            / c.extra.get("noise_kept", 1.0))
+    # (sqrt is correctly rounded: math's is numpy's number)
+    se_fit = fit.phase_stderr_deg * math.sqrt(c.extra.get("variance_factor", 1.0)
+                                              / c.extra.get("noise_kept", 1.0))
     if cfg.phase.method == "sinefit":
         return fit.phase_deg, float(se_fit), fit.window_s
     n_periods = cfg.phase.n_periods
     if cfg.phase.paper_window == "cycle":  # every whole period between the trimmed edges
-        n_periods = max(n_periods, int(np.floor(n / period_n + 1e-9
-                                                - 2 * cfg.phase.edge_trim_periods)))
+        n_periods = max(n_periods, math.floor(n / period_n + 1e-9
+                                              - 2 * cfg.phase.edge_trim_periods))
     half = (n_periods / 2 + cfg.phase.edge_trim_periods) * period_n
     center = min(max(center_index, half), n - half)
     res = peak_valley_phase(c.torque_filtered, c.wheel_filtered, c.fs_hz, c.modulation_hz,
