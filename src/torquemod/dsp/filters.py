@@ -552,6 +552,7 @@ def _settling_kernel(b: np.ndarray, a: np.ndarray, tol: float, max_samples: int)
     z = np.zeros(m)
     h = np.empty(min(max_samples, 4096))  # grown when the search goes further
     done = 0
+    peak = 0.0
     n = 256
     while n <= max_samples:
         if n > h.size:
@@ -559,14 +560,12 @@ def _settling_kernel(b: np.ndarray, a: np.ndarray, tol: float, max_samples: int)
             grown[:done] = h[:done]
             h = grown
         _response_samples(b, a, z, h, done, n)  # the response's first n samples
-        done = n
-        peak = 0.0
-        for k in range(n):
+        for k in range(done, n):  # the peak of the first n: the earlier ones' and the new
             peak = max(peak, abs(h[k]))
-        last = -1
-        for k in range(n):
-            if abs(h[k]) > tol * peak:
-                last = k
+        done = n
+        last = n - 1  # the last sample above the share of the peak, from the end
+        while last >= 0 and not abs(h[last]) > tol * peak:
+            last -= 1
         if last < n - n // 4:
             return last + 1
         n *= 2

@@ -21,7 +21,7 @@ from torquemod.errors import InputError, ProcessingError
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Recording, Rig
 from torquemod.processing.creepage import creepage_and_drift
-from torquemod.processing.cyclechecks import check_operating_point
+from torquemod.processing.cyclechecks import check_operating_point, record_std
 from torquemod.processing.speedmodel import (
     SpeedModel,
     _SlowOrdersRemoval,
@@ -168,13 +168,6 @@ def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
     accel = (w_slow[-1] - w_slow[0]) / (w_slow.size / fs_hz)
     torque = model.mean("torque_nm") - (inertia_kg_m2 or 0.0) * accel
     return float(torque / (normal_load_n * wheel_radius_m))
-
-
-def _std(x: np.ndarray) -> float:
-    """``np.std(x)`` of a 1-D float64 record by numpy's own steps (mean, squared deviations,
-    their sum over the count, square root): the same number without its Python wrappers."""
-    d = x - float(x.sum()) / x.size
-    return math.sqrt(float((d * d).sum()) / x.size)
 
 
 #: The slow band's top stays at least this many frequency resolutions (1/T, T the cycle's
@@ -343,7 +336,7 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # taken through one model for every channel.
     means = {k: model.mean(k) for k in names}
     means["torque_nm"] = float(full_means[names.index("torque_nm")])  # the raw record's
-    check_operating_point(means, _std(pl) if pl is not None else 0.0, where=where)
+    check_operating_point(means, record_std(pl) if pl is not None else 0.0, where=where)
     has_forces = all(k in sig for k in ("fx_n", "fz_n"))
     inertia = rig.extra.get("wheel_inertia_kg_m2") if isinstance(rig.extra, dict) else None
     coa_t = _coa_from_torque(model, fs_r, wheel_radius_m=rig.wheel_radius_m,
