@@ -59,6 +59,7 @@ _KERNELS = [  # (module, attribute, label): compiled kernels and library routine
     ("torquemod.processing.speedmodel", "modulation_columns", "modulation columns (libm)"),
     ("torquemod.processing.creepage", "_creepage_fit", "creepage fit"),
     ("torquemod.dsp.phase", "_sine_fit", "sine fit"),
+    ("torquemod.dsp.phase", "_sine_fit_records", "sine fit (with its design)"),
     ("torquemod.dsp.lstsq", "_factor_of", "LstsqFactor.of"),
     ("torquemod.dsp.lstsq", "_solve", "LstsqFactor.solve"),
     ("torquemod.dsp.projection", "_removal_at", "step 1 removal"),
