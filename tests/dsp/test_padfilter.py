@@ -120,3 +120,14 @@ def test_compiled_bandpass_design_is_the_python_one_bit_for_bit():
     b_sp, a_sp = signal.butter(order, [lo, hi], "bandpass", fs=1.0)
     np.testing.assert_allclose(a, a_sp, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(b, b_sp, rtol=1e-9, atol=1e-15)
+
+
+@pytest.mark.parametrize("k,start", [(1, 0), (3, -1008), (4, 5), (6, -77)])
+def test_tones_filled_together_are_the_tone_models_bit_for_bit(k, start):
+    from torquemod.dsp import tonemodel
+    omegas = 2 * np.pi * np.linspace(0.13, 9.7, k) / FS
+    want = np.empty((2339, 2 * k + 2))
+    got = np.empty((2339, 2 * k + 2))
+    tonemodel._fill_cos_sin(want, 2, omegas, start)
+    padfilter._fill_cos_sin_together(got, 2, omegas, start)
+    np.testing.assert_array_equal(got[:, 2:], want[:, 2:])
