@@ -78,3 +78,13 @@ def test_sine_fit_of_the_records_window_is_the_stacked_fit_bit_for_bit(n_records
     assert got[0] == want[0] == 0
     np.testing.assert_array_equal(got[1], want[1])
     np.testing.assert_array_equal(got[2], want[2])
+
+
+@pytest.mark.parametrize("n,k", [(320, 4), (321, 1), (690, 6), (64, 3)])
+def test_tones_filled_together_are_fill_tones_bit_for_bit(n, k):
+    tones = np.linspace(0.15, 9.2, k)
+    want = np.zeros((n, 4 + 2 * k))
+    got = np.zeros((n, 4 + 2 * k))
+    phase._fill_tones(want, 4, FS, tones)
+    phase._fill_tones_together(got, 4, FS, tones)
+    np.testing.assert_array_equal(got, want)
