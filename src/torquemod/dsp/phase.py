@@ -101,7 +101,7 @@ def whole_period_window(n_samples: int, fs_hz: float, f_hz: float, center_s: flo
     (25, 1025)
     """
     duration = n_samples / fs_hz
-    n_per = int(np.floor(duration * f_hz + 1e-9))
+    n_per = math.floor(duration * f_hz + 1e-9)
     if n_per < 1:
         raise ProcessingError("record shorter than one modulation period")
     length = round(n_per * fs_hz / f_hz)
@@ -286,21 +286,46 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
         if status != 0:
             coef, psds = _sine_fit_numpy(design, y, fs_hz, f_mod_hz)
     t_win = n / fs_hz
-    phases, amps, var_phi = [], [], 0.0
     (c_t, c_w), (s_t, s_w) = coef[:2, :2].tolist()  # Python floats: the same arithmetic
-    psds = [float(p) for p in psds]
-    for c, s, psd in ((c_t, s_t, psds[0]), (c_w, s_w, psds[1])):
+    var_phi, amps = 0.0, []
+    for c, s, psd in ((c_t, s_t, float(psds[0])), (c_w, s_w, float(psds[1]))):
         a2 = c * c + s * s
         if a2 == 0:
             raise ProcessingError("zero amplitude at the modulation frequency")
         # var(phi_i) = S_i/(A_i^2 T) with S_i the one-sided noise density at f_mod
         # (Rife and Boorstyn 1974)
         var_phi += psd / (a2 * t_win)
-        phases.append(float(np.arctan2(-s, c)))
         amps.append(math.sqrt(a2))  # (sqrt is correctly rounded: numpy's numbers)
-    lag = np.angle(np.exp(1j * (phases[0] - phases[1])))
-    return SineFitResult(float(np.degrees(lag)), float(np.degrees(math.sqrt(var_phi))), amps[0],
-                         amps[1], phases[0], phases[1], n, (start / fs_hz, stop / fs_hz))
+    # both phases atan2(-s, c) in one call (numpy's arctan2 element by element)
+    ph_t, ph_w = np.arctan2(np.array([-s_t, -s_w]), np.array([c_t, c_w])).tolist()
+    lag_deg, se_deg = np.degrees(np.array([wrapped_angle(ph_t - ph_w),
+                                           math.sqrt(var_phi)])).tolist()
+    return SineFitResult(lag_deg, se_deg, amps[0], amps[1], ph_t, ph_w, n,
+                         (start / fs_hz, stop / fs_hz))
+
+
+def wrapped_angle(angle_rad: float) -> float:
+    """An angle wrapped to (-pi, pi] [rad]: ``np.angle(np.exp(1j*angle_rad))``, the angle
+    of ``(cos, sin)`` by numpy's ``arctan2``, with one ufunc call instead of three.
+
+    Parameters
+    ----------
+    angle_rad : float
+        Any angle [rad].
+
+    Returns
+    -------
+    float
+        The same direction in (-pi, pi] [rad] (numpy's number: ``exp(1j*a)`` is
+        ``(cos a, sin a)`` exactly, ``exp(0) = 1``).
+
+    Examples
+    --------
+    >>> round(wrapped_angle(3 * 3.141592653589793 / 2), 12)
+    -1.570796326795
+    """
+    a = float(angle_rad)
+    return float(np.arctan2(math.sin(a), math.cos(a)))
 
 
 def _sine_fit_numpy(design: np.ndarray, y: np.ndarray, fs_hz: float, f_mod_hz: float

@@ -15,7 +15,13 @@ from torquemod.dsp import filters, resampling
 from torquemod.dsp.align import alignment_lag
 from torquemod.dsp.basis import needs_wide_band
 from torquemod.dsp.padfilter import chain_filtered
-from torquemod.dsp.phase import SineFitResult, local_noise_psd, peak_valley_phase, sinefit_phase
+from torquemod.dsp.phase import (
+    SineFitResult,
+    local_noise_psd,
+    peak_valley_phase,
+    sinefit_phase,
+    wrapped_angle,
+)
 from torquemod.dsp.spectrum import peak_frequencies, peak_frequency
 from torquemod.errors import InputError, ProcessingError
 from torquemod.io.config import ProcessingConfig
@@ -428,7 +434,7 @@ def model_phase(model: SpeedModel, torque: np.ndarray, wheel: np.ndarray, fs_hz:
         var += local_noise_psd(resid, fs_hz, model.modulation_hz) / ((c * c + s * s) * n / fs_hz)
         phases.append(float(np.arctan2(-s, c)))
         amps.append(float(np.hypot(c, s)))
-    lag = float(np.degrees(np.angle(np.exp(1j * (phases[0] - phases[1])))))
+    lag = float(np.degrees(wrapped_angle(phases[0] - phases[1])))
     return SineFitResult(lag, float(np.degrees(np.sqrt(var))), amps[0], amps[1], phases[0],
                          phases[1], n, (0.0, n / fs_hz))
 
