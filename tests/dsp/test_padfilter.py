@@ -131,3 +131,24 @@ def test_tones_filled_together_are_the_tone_models_bit_for_bit(k, start):
     tonemodel._fill_cos_sin(want, 2, omegas, start)
     padfilter._fill_cos_sin_together(got, 2, omegas, start)
     np.testing.assert_array_equal(got[:, 2:], want[:, 2:])
+
+
+@pytest.mark.parametrize("read_only", [True, False])
+def test_chain_filtered_takes_the_parts_off_as_numpy_does(read_only):
+    wheel, torque, *_ = _case(323, 12)
+    rng = np.random.default_rng(12)
+    parts = [30.0 + rng.standard_normal(323) for _ in range(3)]
+    for p in parts:
+        p.setflags(write=not read_only)
+    args = (2.01, [4.6, 9.2], 3.0, (0.1, 2), (0.36, 2), (30.0, -4.0))
+    want = padfilter.chain_filtered(wheel - parts[0] - parts[1] - parts[2],
+                                    torque - parts[2], FS, *args)
+    got = padfilter.chain_filtered(wheel, torque, FS, *args, first_less=tuple(parts),
+                                   second_less=(parts[2],))
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_array_equal(g, w)
+    mixed = padfilter.chain_filtered(wheel, torque, FS, *args,  # parts of two kinds
+                                     first_less=(parts[0], parts[1].copy(), parts[2]),
+                                     second_less=(parts[2],))
+    for g, w in zip(mixed, want, strict=True):
+        np.testing.assert_array_equal(g, w)

@@ -181,7 +181,8 @@ def _pad_and_filter(rows: np.ndarray, dn: np.ndarray, factor: np.ndarray, scale:
 def chain_filtered(first: np.ndarray, second: np.ndarray, fs_hz: float, f_mod_hz: float,
                    notches_hz: list[float], notch_q: float,
                    highpass: tuple[float, int], bandpass: tuple[float, int],
-                   offsets: tuple[float, float]
+                   offsets: tuple[float, float], *, first_less: tuple = (),
+                   second_less: tuple = ()
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Steps 3-5 of the V-Track chain [1]_ on two records, designs and padding included.
 
@@ -200,8 +201,7 @@ def chain_filtered(first: np.ndarray, second: np.ndarray, fs_hz: float, f_mod_hz
     Parameters
     ----------
     first, second : ndarray
-        Records of equal length (the wheel speed and the torque less their slow part and
-        orders), any unit each.
+        Records of equal length (the wheel speed and the torque), any unit each.
     fs_hz : float
         Sample rate [Hz].
     f_mod_hz : float
@@ -217,6 +217,9 @@ def chain_filtered(first: np.ndarray, second: np.ndarray, fs_hz: float, f_mod_hz
         The band-pass's width [Hz] and prototype order [-], centred on ``f_mod_hz``.
     offsets : tuple of float
         Added to each notched record [its unit].
+    first_less, second_less : tuple of ndarray
+        Records subtracted from each first, in order (the speed model's slow part, orders
+        and harmonics): ``first - p1 - p2 - ...``, numpy's numbers. Default none.
 
     Returns
     -------
@@ -232,28 +235,30 @@ def chain_filtered(first: np.ndarray, second: np.ndarray, fs_hz: float, f_mod_hz
     .. [1] "Experimental Validation of the Torque-Modulation-Based Method for Train-Borne
        Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.4.
     """
-    first = np.ascontiguousarray(first, dtype=np.float64)
-    second = np.ascontiguousarray(second, dtype=np.float64)
+    first, first_less = _with_parts(first, first_less)
+    second, second_less = _with_parts(second, second_less)
     hp = _highpass_parts(float(highpass[0]), int(highpass[1]), float(fs_hz))
     order = int(bandpass[1])
     lo, hi = filters.bandpass_edges(f_mod_hz, bandpass[0], fs_hz)  # (its ValueError)
     blas = numpyblas.addresses()
     if hp is not None and blas is not None and first.size == second.size >= 2 and order >= 1:
         status, pad, notched, filtered = _chain_filtered_kernel(
-            first, second, float(fs_hz), float(f_mod_hz),
+            first, first_less, second, second_less, float(fs_hz), float(f_mod_hz),
             np.array(notches_hz, dtype=np.float64), float(notch_q), *hp, order, lo, hi,
             bandpass_gain(order, lo, hi), float(offsets[0]), float(offsets[1]),
             blas[0], _DPOTRF, _DPOTRS)
         if status == 0:
             return notched[0], notched[1], filtered, int(pad)
     return chain_filtered_reference(first, second, fs_hz, f_mod_hz, notches_hz, notch_q,
-                                    highpass, bandpass, offsets)
+                                    highpass, bandpass, offsets, first_less=first_less,
+                                    second_less=second_less)
 
 
 def chain_filtered_reference(first: np.ndarray, second: np.ndarray, fs_hz: float,
                              f_mod_hz: float, notches_hz: list[float], notch_q: float,
                              highpass: tuple[float, int], bandpass: tuple[float, int],
-                             offsets: tuple[float, float]
+                             offsets: tuple[float, float], *, first_less: tuple = (),
+                             second_less: tuple = ()
                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """:func:`chain_filtered` by the designs, :func:`~torquemod.dsp.filters.settling_samples`
     and :func:`padded_and_filtered_reference`, one after the other.
@@ -276,12 +281,18 @@ def chain_filtered_reference(first: np.ndarray, second: np.ndarray, fs_hz: float
         Width [Hz] and prototype order [-] of the band-pass around ``f_mod_hz``.
     offsets : tuple of float
         Added to each notched record [its unit].
+    first_less, second_less : tuple of ndarray
+        Records subtracted from each first, in order. Default none.
 
     Returns
     -------
     first_notched, second_notched, filtered, pad
         As :func:`chain_filtered`.
     """
+    for p in first_less:
+        first = first - p
+    for p in second_less:
+        second = second - p
     hp = filters.design_highpass(highpass[0], highpass[1], fs_hz)
     bp = filters.design_bandpass(f_mod_hz, bandpass[0], bandpass[1], fs_hz)
     notches = [filters.design_notch(f0, notch_q, fs_hz) for f0 in notches_hz]
@@ -291,6 +302,34 @@ def chain_filtered_reference(first: np.ndarray, second: np.ndarray, fs_hz: float
         first, second, fs_hz, [f_mod_hz, *notches_hz], pad, notches, [hp, bp])
     return (p1[pad:pad + n] + level1 + offsets[0], p2[pad:pad + n] + level2 + offsets[1],
             np.ascontiguousarray(both[:, pad:pad + n]), pad)
+
+
+def _with_parts(record: np.ndarray, less: tuple) -> tuple[np.ndarray, tuple]:
+    """A record and the parts subtracted from it as the compiled call takes them: float64
+    and contiguous, the parts a tuple of arrays of one kind (all read-only or all not) and
+    the record's length; otherwise the record less its parts by numpy, and one part of
+    zeros (subtracting 0.0 changes no number)."""
+    record = np.ascontiguousarray(record, dtype=np.float64)
+    parts = tuple(np.ascontiguousarray(p, dtype=np.float64) for p in less)
+    if parts and all(p.shape == record.shape for p in parts) \
+            and len({p.flags.writeable for p in parts}) == 1:
+        return record, parts
+    for p in parts:
+        record = record - p
+    return record, (np.zeros(record.shape),)
+
+
+@numba.njit(cache=True, nogil=True)
+def _less(record: np.ndarray, parts: tuple) -> np.ndarray:
+    """``record - parts[0] - parts[1] - ...`` element by element in that order (numpy's
+    numbers for the same subtractions one array after another)."""
+    out = np.empty(record.size)
+    for i in range(record.size):
+        v = record[i]
+        for p in parts:
+            v = v - p[i]
+        out[i] = v
+    return out
 
 
 @functools.lru_cache(maxsize=16)
@@ -416,7 +455,8 @@ def _fill_cos_sin_together(out: np.ndarray, col0: int, omegas: np.ndarray, start
 
 
 @numba.njit(cache=True, nogil=True)
-def _chain_filtered_kernel(first: np.ndarray, second: np.ndarray, fs_hz: float,
+def _chain_filtered_kernel(first_record: np.ndarray, first_less: tuple,
+                           second_record: np.ndarray, second_less: tuple, fs_hz: float,
                            f_mod_hz: float, notches_hz: np.ndarray, q: float,
                            hp_b: np.ndarray, hp_a: np.ndarray, hp_zi: np.ndarray,
                            hp_settle: int, bp_order: int, bp_lo: float, bp_hi: float,
@@ -430,7 +470,10 @@ def _chain_filtered_kernel(first: np.ndarray, second: np.ndarray, fs_hz: float,
     design of :func:`~torquemod.dsp.tonemodel._line_and_tones_design` (its tones by
     :func:`_fill_cos_sin_together`) and its factor as
     :meth:`LstsqFactor.of <torquemod.dsp.lstsq.LstsqFactor.of>`
-    (:func:`~torquemod.dsp.lstsq._factor_of`), then :func:`_pad_and_filter`'s steps."""
+    (:func:`~torquemod.dsp.lstsq._factor_of`), then :func:`_pad_and_filter`'s steps; each
+    record less its parts first (:func:`_less`)."""
+    first = _less(first_record, first_less)
+    second = _less(second_record, second_less)
     n = first.size
     k_notch = notches_hz.size
     nb = np.empty((k_notch, 3))

@@ -162,6 +162,13 @@ def creepage_coa(wheel_speed_rad_s: float, platform_speed_rad_s: float, fx_n: fl
 _RESAMPLED = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", "fy_n", "fz_n")
 
 
+def _cleaned_parts(model: SpeedModel, name: str) -> tuple[np.ndarray, ...]:
+    """The parts of channel ``name`` that steps 3-5 take off its record: the speed model's
+    slow part, rotation orders and modulation harmonics (:meth:`SpeedModel.part`)."""
+    return (model.part(name, "slow"), model.part(name, "orders"),
+            model.part(name, "harmonics"))
+
+
 def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
                      normal_load_n: float | None, inertia_kg_m2: float | None) -> float:
     """The adhesion the drive uses, ``(T_dc - J*dw/dt)/(N*Rw)`` [-]: the mean torque less
@@ -330,11 +337,11 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # speed through its notches, then both records through the high-pass and the band-pass
     # (one compiled call)
     wh_n, tq_n, both_f, _ = chain_filtered(
-        *[sig[k] - model.part(k, "slow") - model.part(k, "orders") - model.part(k, "harmonics")
-          for k in ("wheel_speed_rad_s", "torque_nm")], fs_r, f_mod, wheel_notches, nq.q,
-        (cfg.highpass.cutoff_hz, cfg.highpass.order),
+        wh, tq, fs_r, f_mod, wheel_notches, nq.q, (cfg.highpass.cutoff_hz, cfg.highpass.order),
         (cfg.bandpass.width_hz, cfg.bandpass.order),
-        (model.mean("wheel_speed_rad_s"), model.mean("torque_nm")))
+        (model.mean("wheel_speed_rad_s"), model.mean("torque_nm")),
+        first_less=_cleaned_parts(model, "wheel_speed_rad_s"),
+        second_less=_cleaned_parts(model, "torque_nm"))
     wh_f, tq_f = both_f[0], both_f[1]
     # Step 8: creepage and CoA from means, each the mean of the channel less its fitted
     # modulation and rotation orders (SpeedModel.mean): the value the notched signal averages
