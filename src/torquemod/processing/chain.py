@@ -350,7 +350,7 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     means = {k: model.mean(k) for k in names}
     means["torque_nm"] = float(full_means[names.index("torque_nm")])  # the raw record's
     check_operating_point(means, record_std(pl) if pl is not None else 0.0, where=where)
-    has_forces = all(k in sig for k in ("fx_n", "fz_n"))
+    has_forces = "fx_n" in sig and "fz_n" in sig
     inertia = rig.extra.get("wheel_inertia_kg_m2") if isinstance(rig.extra, dict) else None
     coa_t = _coa_from_torque(model, fs_r, wheel_radius_m=rig.wheel_radius_m,
                              normal_load_n=normal_load_n, inertia_kg_m2=inertia)
