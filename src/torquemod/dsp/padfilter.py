@@ -349,9 +349,22 @@ def _highpass_parts(cutoff_hz: float, order: int, fs_hz: float
 
 def bandpass_gain(order: int, lo: float, hi: float) -> float:
     """The gain ``bw**order`` of :func:`~torquemod.dsp.filters.design_bandpass`'s route
-    (``bw`` the pre-warped band width, band edges ``lo``, ``hi`` in cycles per sample) by
-    its arithmetic, for :func:`_butter_bandpass_compiled`: Python's power, which compiled
-    code forms otherwise for a whole exponent (another last bit)."""
+    by its arithmetic, for :func:`_butter_bandpass_compiled`: Python's power, which
+    compiled code forms otherwise for a whole exponent (another last bit).
+
+    Parameters
+    ----------
+    order : int
+        The prototype's order [-].
+    lo, hi : float
+        Band edges [cycles per sample] (:func:`~torquemod.dsp.filters.bandpass_edges`).
+
+    Returns
+    -------
+    float
+        ``bw**order``, ``bw = 4*tan(pi*hi) - 4*tan(pi*lo)`` the band width pre-warped for
+        the bilinear transform at fs = 2 [-].
+    """
     return (4.0 * math.tan(math.pi * hi) - 4.0 * math.tan(math.pi * lo)) ** order
 
 
