@@ -45,8 +45,10 @@ _METHODS = [  # (module, class, method, label)
 _KERNELS = [  # (module, attribute, label): compiled kernels and library routines
     ("torquemod.processing.trackedorders", "_tracked_orders_compiled", "tracked orders"),
     ("torquemod.processing.trackedorders", "_tracked_orders_fwl", "tracked orders (FWL)"),
+    ("torquemod.processing.trackedorders", "_both_orders_fwl", "tracked orders (FWL)"),
     ("torquemod.dsp.blockbasis", "_extended_basis_t", "step 1 basis (block)"),
     ("torquemod.dsp.lstsq", "fit_with_parts", "speed model fit"),
+    ("torquemod.dsp.jointfit", "fit_tone_model", "speed model fit"),
     ("torquemod.dsp.projection", "_refine", "step 1 refinement"),
     ("torquemod.processing.speedmodel.projection", "orthonormal_basis_t",
      "orthonormal bases (LAPACK)"),

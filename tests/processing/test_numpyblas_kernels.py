@@ -27,15 +27,15 @@ def test_cycle_is_the_numpy_routes_bit_for_bit(spec, monkeypatch):
     rec, rig = synthetic_recording(spec), Rig(0.0675, 2.0)
     cfg = ProcessingConfig().with_phase_method("sinefit")
     used = []
-    kernel = trackedorders._tracked_orders_fwl  # (the tracked orders by the slow design's
+    kernel = trackedorders._both_orders_fwl  # (the tracked orders by the slow design's
     # orthonormal basis: no numpy BLAS of its own, the same numbers either way)
 
     def spy(*args):
         out = kernel(*args)
-        used.append(out[2])
+        used.append(out[3])
         return out
 
-    monkeypatch.setattr(trackedorders, "_tracked_orders_fwl", spy)
+    monkeypatch.setattr(trackedorders, "_both_orders_fwl", spy)
     removed = []
     removal_at = projection.removal_at
 
@@ -56,7 +56,11 @@ def test_cycle_is_the_numpy_routes_bit_for_bit(spec, monkeypatch):
     monkeypatch.setattr(numpyblas, "addresses", lambda: None)
     ref, (phase_ref, se_ref, _) = run()
     assert phase == phase_ref
-    assert se == se_ref
+    # the variance factor under the standard error: with step 1's basis, from a Schur
+    # complement of the modulation's residuals on it (dsp.jointfit), not the refined fit of
+    # the numpy route; variance factors <= 5e-12 relative apart on benchmarks/
+    # chain_numbers.py's cycles, the standard error (its square root) half that
+    assert se == pytest.approx(se_ref, rel=1e-11)
     assert fast.modulation_hz == ref.modulation_hz
     m, m_ref = fast.extra["speed_model"], ref.extra["speed_model"]
     np.testing.assert_array_equal(m.design, m_ref.design)

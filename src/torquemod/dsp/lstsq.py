@@ -424,6 +424,15 @@ def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, wanted
         As :func:`lstsq_compiled`; where it is not 0 nothing else is meaningful and the
         caller fits by :func:`lstsq`.
     """
+    return fit_with_parts_and_ratio(design, y, bounds, wanted, syrk, gemm, gemv, potrf, potrs,
+                                    True)
+
+
+@numba.njit(cache=True, nogil=True)
+def fit_with_parts_and_ratio(design, y, bounds, wanted, syrk, gemm, gemv, potrf, potrs,
+                             with_ratio):
+    """:func:`fit_with_parts`, its variance ratio made only ``with_ratio`` (NaN otherwise:
+    for callers that have it another way)."""
     dn, scale, gram, factor, status = _factor_of(design, syrk, potrf)
     n, k = y.shape
     if status != 0:
@@ -438,7 +447,7 @@ def fit_with_parts(design: np.ndarray, y: np.ndarray, bounds: np.ndarray, wanted
             if wanted[p, j]:
                 parts[p, j] = numpyblas.matvec(design[:, b0:b1], coef[b0:b1, j], gemv)
     ratio = np.nan
-    if design.shape[1] > 3:
+    if with_ratio and design.shape[1] > 3:
         ratio = _leading_variance_ratio(design, gram, dn, scale, potrf, potrs, syrk, gemm)
     return dn, scale, gram, factor, coef, parts, ratio, status
 
@@ -473,3 +482,5 @@ factor_compiled = _factor_of
 solve_compiled = _solve
 #: :func:`column_sums_of_squares`'s compiled route (two or more columns), for other kernels
 sums_of_squares_compiled = _sums_of_squares
+#: :func:`fit_with_parts`' variance ratio (:func:`_leading_variance_ratio`), for other kernels
+leading_variance_ratio = _leading_variance_ratio

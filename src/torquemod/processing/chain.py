@@ -319,7 +319,7 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
         f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
     if fp.common == "torque":
         f_mod = peaks["torque_nm"]
-    model = fit_speed_model(sig, fs_r, f_mod, slow, orders, mod_harmonics)
+    model = fit_speed_model(sig, fs_r, f_mod, slow, orders, mod_harmonics, basis_t=cleaner.qt)
     f_t, f_w = peaks["torque_nm"], peaks["wheel_speed_rad_s"]
     f_wheel = abs(model.mean("wheel_speed_rad_s")) / (2 * np.pi)
     f_plat = abs(model.mean("platform_speed_rad_s")) / (2 * np.pi) if pl is not None \

@@ -252,6 +252,11 @@ def _slow_and_orders(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: floa
     slow, base, base_factor = _slow_and_base(int(n), float(fs_hz), float(max(max_hz, 0.0)),
                                              float(f_start_hz), int(cfg.slow.extra_sequences),
                                              int(cfg.slow.polynomial_degree))
+    both = _both_by_block(wheel, platform, float(fs_hz), slow, base,
+                          tuple(nq.wheel_harmonics), tuple(nq.platform_harmonics),
+                          above_hz=float(max_hz), avoid_hz=float(f_start_hz))
+    if both is not None:  # both speeds in one compiled call (the same numbers as below)
+        return slow, *both
     cols, rotation_hz = [], []
     for speed, harmonics in ((wheel, nq.wheel_harmonics), (platform, nq.platform_harmonics)):
         if speed is not None:
@@ -277,6 +282,88 @@ def _slow_and_base(n: int, fs_hz: float, max_hz: float, f_start_hz: float, extra
     return slow, base, fac
 
 
+_BLOCK_INPUTS: dict[int, tuple] = {}
+
+
+def _block_inputs(base: np.ndarray, slow: np.ndarray) -> tuple[np.ndarray, ...] | None:
+    """:func:`_tracked_orders_fwl`'s arguments that depend on the read-only first design
+    ``base`` and its slow basis alone: ``Q_b'``, ``Q_b'base``
+    (:func:`~torquemod.dsp.blockbasis.slow_basis_t`), ``Q_b`` and ``slow`` in C order;
+    kept by the design's identity (one per record length and band). None where that
+    basis is not made."""
+    hit = _BLOCK_INPUTS.get(id(base))
+    if hit is not None and hit[0] is base and hit[1] is slow:
+        return hit[2]
+    basis_t = blockbasis.slow_basis_t(base)
+    if basis_t is None:
+        return None
+    out = (basis_t[0], basis_t[1], np.ascontiguousarray(basis_t[0].T),
+           np.ascontiguousarray(slow))
+    for a in out[2:]:
+        a.setflags(write=False)
+    if len(_BLOCK_INPUTS) >= 32:
+        _BLOCK_INPUTS.clear()
+    _BLOCK_INPUTS[id(base)] = (base, slow, out)
+    return out
+
+
+@functools.lru_cache(maxsize=16)
+def _orders_array(harmonics: tuple[int, ...]) -> np.ndarray:
+    """The rotation orders as a read-only int64 array (cached)."""
+    out = np.array([int(h) for h in harmonics], dtype=np.int64)
+    out.setflags(write=False)
+    return out
+
+
+def _both_by_block(wheel: np.ndarray, platform: np.ndarray | None, fs_hz: float,
+                   slow: np.ndarray, base: np.ndarray, wheel_harmonics: tuple[int, ...],
+                   platform_harmonics: tuple[int, ...], *, above_hz: float, avoid_hz: float
+                   ) -> tuple[np.ndarray, list[float]] | None:
+    """:func:`_slow_and_orders`' orders of both speeds (the platform's: None for none) by
+    :func:`_tracked_orders_block` in one compiled call (:func:`_both_orders_fwl`): the
+    orders' columns side by side and their frequencies [Hz]; None where that route does
+    not serve both (the caller takes each speed's own)."""
+    speeds = (wheel,) if platform is None else (wheel, platform)
+    if (base.flags.writeable or slow.shape[1] < 1
+            or any(s.ndim != 1 or s.dtype != np.float64 or s.size < 2 or not
+                   s.flags.c_contiguous or s.size != wheel.size for s in speeds)):
+        return None
+    inputs = _block_inputs(base, slow)
+    if inputs is None:
+        return None
+    qb_t, rb, qb, slow_c = inputs
+    cols, f_w, f_p, status = _both_orders_fwl(
+        wheel, wheel if platform is None else platform, platform is not None, fs_hz, slow_c,
+        _orders_array(wheel_harmonics), _orders_array(platform_harmonics), qb_t, rb, qb,
+        above_hz, avoid_hz, blockbasis.MIN_PIVOT)
+    if status != 0:
+        return None
+    rotation_hz = [h * float(f_w) for h in wheel_harmonics]
+    if platform is not None:
+        rotation_hz += [h * float(f_p) for h in platform_harmonics]
+    return cols, rotation_hz
+
+
+@numba.njit(cache=True, nogil=True)
+def _both_orders_fwl(wheel, platform, has_platform, fs_hz, slow, wheel_harmonics,
+                     platform_harmonics, qb_t, rb, qb, above_hz, avoid_hz, min_pivot):
+    """:func:`_tracked_orders_fwl` of the wheel's speed and, ``has_platform``, the
+    platform's: ``(columns, f_wheel, f_platform, status)``, the columns side by side
+    (``np.column_stack``'s), status 1 where either speed's pivot is too small."""
+    n = wheel.size
+    c_w, f_w, s_w = _tracked_orders_fwl(wheel, fs_hz, slow, wheel_harmonics, qb_t, rb, qb,
+                                        above_hz, avoid_hz, min_pivot)
+    c_p, f_p, s_p = np.empty((n, 0)), np.nan, 0
+    if has_platform:
+        c_p, f_p, s_p = _tracked_orders_fwl(platform, fs_hz, slow, platform_harmonics, qb_t,
+                                            rb, qb, above_hz, avoid_hz, min_pivot)
+    k_w = c_w.shape[1]
+    cols = np.empty((n, k_w + c_p.shape[1]))
+    cols[:, :k_w] = c_w
+    cols[:, k_w:] = c_p
+    return cols, f_w, f_p, max(s_w, s_p)
+
+
 def _tracked_orders_block(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarray,
                           harmonics: tuple[int, ...], base: np.ndarray, *, above_hz: float,
                           avoid_hz: float) -> tuple[np.ndarray, float] | None:
@@ -289,26 +376,25 @@ def _tracked_orders_block(speed_rad_s: np.ndarray, fs_hz: float, slow: np.ndarra
     if (base.flags.writeable or speed_rad_s.ndim != 1 or speed_rad_s.dtype != np.float64
             or slow.shape[1] < 1 or speed_rad_s.size < 2):
         return None
-    basis_t = blockbasis.slow_basis_t(base)
-    if basis_t is None:
+    inputs = _block_inputs(base, slow)
+    if inputs is None:
         return None
+    qb_t, rb, qb, slow_c = inputs
     cols, f_rot, status = _tracked_orders_fwl(
-        np.ascontiguousarray(speed_rad_s), float(fs_hz), np.ascontiguousarray(slow),
-        np.array([int(h) for h in harmonics], dtype=np.int64), base, basis_t[0], basis_t[1],
-        float(above_hz), float(avoid_hz), blockbasis.MIN_PIVOT)
+        np.ascontiguousarray(speed_rad_s), float(fs_hz), slow_c, _orders_array(tuple(harmonics)),
+        qb_t, rb, qb, float(above_hz), float(avoid_hz), blockbasis.MIN_PIVOT)
     return (cols, float(f_rot)) if status == 0 else None
 
 
 @numba.njit(cache=True, nogil=True)
-def _tracked_orders_fwl(speed, fs_hz, slow, harmonics, base, qb_t, rb, above_hz, avoid_hz,
+def _tracked_orders_fwl(speed, fs_hz, slow, harmonics, qb_t, rb, qb, above_hz, avoid_hz,
                         min_pivot):
     """:func:`_tracked_orders`'s steps with its least squares on ``Q_b`` (``qb_t``, ``rb =
-    Q_b'base``) and, for the refit, Q_b extended by the orders: ``(cols, f_rot, status)``,
-    status 1 where a pivot is too small."""
+    Q_b'base``, ``qb`` its transpose in C order) and, for the refit, Q_b extended by the
+    orders: ``(cols, f_rot, status)``, status 1 where a pivot is too small."""
     n = speed.size
     n_slow = slow.shape[1]
     resolution = fs_hz / n
-    qb = np.ascontiguousarray(qb_t.T)
     y = np.empty((n, 1))
     y[:, 0] = speed
     qy = np.dot(qb_t, y)
