@@ -34,6 +34,10 @@ from torquemod.dsp.lstsq import LstsqFactor, lapack_addresses, lstsq, lstsq_comp
 from torquemod.dsp.tonemodel import tone_design
 from torquemod.errors import ProcessingError
 
+#: Degrees per radian, ``180/pi``: numpy's ``degrees`` multiplies by this double, so a
+#: product with it is ``np.degrees``'s number (tests/dsp/test_phase.py).
+DEG_PER_RAD = 180.0 / math.pi
+
 
 @dataclass(frozen=True)
 class SineFitResult:
@@ -298,9 +302,8 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
         amps.append(math.sqrt(a2))  # (sqrt is correctly rounded: numpy's numbers)
     # both phases atan2(-s, c) in one call (numpy's arctan2 element by element)
     ph_t, ph_w = np.arctan2(np.array([-s_t, -s_w]), np.array([c_t, c_w])).tolist()
-    lag_deg, se_deg = np.degrees(np.array([wrapped_angle(ph_t - ph_w),
-                                           math.sqrt(var_phi)])).tolist()
-    return SineFitResult(lag_deg, se_deg, amps[0], amps[1], ph_t, ph_w, n,
+    return SineFitResult(wrapped_angle(ph_t - ph_w) * DEG_PER_RAD,
+                         math.sqrt(var_phi) * DEG_PER_RAD, amps[0], amps[1], ph_t, ph_w, n,
                          (start / fs_hz, stop / fs_hz))
 
 
