@@ -85,3 +85,36 @@ def test_band_magnitudes_are_the_ffts():
         _, idx, wide = spectrum._grid(nfft, fs, 1.5, 2.5, n)
         assert k_lo <= min(idx[0], np.flatnonzero(wide)[0])
         assert k_hi >= max(idx[-1], np.flatnonzero(wide)[-1])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_bin_checks_are_the_line_search_of_the_full_spectrum(seed):
+    # the checks on the bins read only (zeros elsewhere) against _line_search on the
+    # whole FFT spectrum: the same bins and the same floor, bit for bit
+    from torquemod.dsp import peakkernels, spectrum
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(150, 700))
+    nfft = 1 << (8 * n - 1).bit_length()
+    lo, hi = 1.5, float(rng.uniform(2.0, 3.0))
+    freqs, idx, wide = spectrum._grid(nfft, FS, lo, hi, n)
+    k_lo, k_hi = spectrum._bins_read(nfft, FS, lo, hi, n)
+    x = _records(n, seed)[:, seed % 3] * np.hanning(n)
+    spec = np.abs(np.fft.rfft(x, nfft))
+    if seed % 2:
+        spec = np.round(spec, 1)  # ties: the first maximum wins in both
+    read = np.zeros_like(spec)
+    read[k_lo:k_hi + 1] = spec[k_lo:k_hi + 1]
+    wide_bins = np.flatnonzero(wide)
+    got = peakkernels._bin_checks(spec[k_lo:k_hi + 1].copy(), k_lo, freqs,
+                                  (int(idx[0]), int(idx[-1])),
+                                  (int(wide_bins[0]), int(wide_bins[-1])), 2.0 * FS / n)
+    ref = spectrum._line_search(read, freqs, idx, wide, 2.0 * FS / n)
+    assert got[:2] == ref[:2] and got[2] == ref[2]
+
+
+def test_median_is_numpys():
+    from torquemod.dsp import peakkernels
+    rng = np.random.default_rng(3)
+    for m in [1, 2, 3, 4, 7, 8, 100, 229, 230]:
+        for v in (rng.standard_normal(m), np.round(rng.standard_normal(m), 0)):  # ties
+            assert peakkernels._median(v.copy()) == np.median(v)

@@ -34,3 +34,12 @@ def test_maps_give_the_refined_fits_statistics(seed, wobble):
     decide = basis.needs_wide_band(*args, extra=2, degree=5)
     assert decide == (ref[0] > ref[1] and ref[2] > basis.WIDE_BAND_RISK_RAD)
     assert decide == (wobble > 0)  # the 1 Hz wobble above the quiet band needs the wide one
+
+
+def test_the_compiled_sum_is_numpys():
+    # the ratios' mean speeds are numpy's sums (pairwise), bit for bit, at every length
+    # the chain meets and beyond the pairwise split (128)
+    rng = np.random.default_rng(4)
+    for n in [*range(1, 300), 323, 1000, 4099]:
+        a = 30.0 + rng.standard_normal(n) * 10.0 ** rng.uniform(-4, 1)
+        assert basis._numpy_sum(a, 0, n) == a.sum()

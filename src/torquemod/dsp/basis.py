@@ -287,27 +287,22 @@ def _wide_band_statistics(wheel: np.ndarray, platform: np.ndarray, fs_hz: float,
     if cached is not None:
         # both fits from the designs' orthonormal bases and the modulation's rows of their
         # pseudo-inverses (made once per record length), of the records less their means
-        # (both designs hold the constant: the same fits): one product gives Q'p of both
-        # bases and the platform's modulation in both fits, two more the residuals
-        maps, q_q, q_w, wheel_mod = cached
-        p_q, p_w = q_q.shape[1], q_w.shape[1]
-        sums = _wide_band_sums(maps, q_q, q_w, wheel_mod,
-                               np.ascontiguousarray(wheel, dtype=np.float64),
-                               np.ascontiguousarray(platform, dtype=np.float64))
-        rss_q, rss_w = float(sums[0]), float(sums[1])
-        rank_q, rank_w = p_q, p_w
-        plat_q, plat_w, coef_w0 = sums[2:4], sums[4:6], sums[6:8]
-    else:
-        y = np.column_stack([wheel, platform])
-        fits = []
-        for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
-            design, fac = _wide_band_design(*key[:3], float(band), int(ext), int(degree))
-            coef, rank = (fac.solve(y), design.shape[1]) if fac is not None \
-                else lstsq(design, y)
-            resid = platform - design @ coef[:, 1]
-            fits.append((float(resid @ resid), rank, coef[:2]))
-        (rss_q, rank_q, coef_q), (rss_w, rank_w, coef_w) = fits
-        plat_q, plat_w, coef_w0 = coef_q[:, 1], coef_w[:, 1], coef_w[:, 0]
+        # (both designs hold the constant: the same fits), and the statistics, in one call
+        maps_t, wheel_mod, p_q, f_critical = cached
+        if wheel.dtype != np.float64 or platform.dtype != np.float64:
+            wheel, platform = wheel.astype(np.float64), platform.astype(np.float64)
+        valid, f_stat, risk = _wide_band_test(maps_t, wheel_mod, p_q, wheel, platform)
+        return (f_stat, f_critical, risk) if valid else None
+    y = np.column_stack([wheel, platform])
+    fits = []
+    for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
+        design, fac = _wide_band_design(*key[:3], float(band), int(ext), int(degree))
+        coef, rank = (fac.solve(y), design.shape[1]) if fac is not None \
+            else lstsq(design, y)
+        resid = platform - design @ coef[:, 1]
+        fits.append((float(resid @ resid), rank, coef[:2]))
+    (rss_q, rank_q, coef_q), (rss_w, rank_w, coef_w) = fits
+    plat_q, plat_w, coef_w0 = coef_q[:, 1], coef_w[:, 1], coef_w[:, 0]
     dfn, dfd = rank_w - rank_q, n - rank_w
     w_mean = float(wheel.sum()) / wheel.size  # np.mean's numbers, cheaper
     p_mean = float(platform.sum()) / platform.size
@@ -321,42 +316,116 @@ def _wide_band_statistics(wheel: np.ndarray, platform: np.ndarray, fs_hz: float,
 
 
 @numba.njit(cache=True, nogil=True)
-def _wide_band_sums(maps: np.ndarray, q_q: np.ndarray, q_w: np.ndarray, wheel_mod: np.ndarray,
-                    wheel: np.ndarray, platform: np.ndarray) -> np.ndarray:
-    """:func:`_wide_band_statistics`' fits from :func:`_wide_band_maps`' arrays in one call:
-    ``[rss_q, rss_w, c_q (2), c_w (2), wheel's c_w (2)]``, the platform's residual sums of
-    squares and modulation coefficients in both fits and the wheel's in the wide one, all
-    of the records less their means (plain loops)."""
-    n = platform.size
-    p_q, p_w = q_q.shape[1], q_w.shape[1]
-    p_mean = 0.0
-    w_mean = 0.0
+def _wide_band_test(maps_t: np.ndarray, wheel_mod: np.ndarray, p_q: int, wheel: np.ndarray,
+                    platform: np.ndarray) -> tuple[bool, float, float]:
+    """:func:`_wide_band_statistics` from :func:`_wide_band_maps`' arrays in one call:
+    whether the test can be made, the F statistic [-] and the risk [rad].
+
+    ``maps_t`` holds ``[Q_q Q_w W_q' W_w']`` (C order, a row a sample), ``wheel_mod`` is
+    ``W_w`` (C order) and ``p_q`` the quiet basis' width. The platform's and the wheel's
+    residual sums of squares and modulation coefficients are those of the records less
+    their means (each product summed over the samples, and over the columns, in ascending
+    order, as plain loops take them: the projections advance together sample by sample,
+    and the fits read the same rows while they are in cache), the mean speeds of the
+    ratios numpy's pairwise sums (:func:`_numpy_sum`)."""
+    n, cols = maps_t.shape
+    p_w = cols - p_q - 4
+    p_sum = 0.0
+    w_sum = 0.0
     for t in range(n):
-        p_mean += platform[t]
-        w_mean += wheel[t]
-    p_mean /= n
-    w_mean /= n
-    pl = platform - p_mean
-    proj = np.zeros(maps.shape[0])
-    for i in range(maps.shape[0]):
-        acc = 0.0
-        for t in range(n):
-            acc += maps[i, t] * pl[t]
-        proj[i] = acc
-    out = np.zeros(8)
+        p_sum += platform[t]
+        w_sum += wheel[t]
+    p_c = p_sum / n
+    w_c = w_sum / n
+    pl = np.empty(n)
     for t in range(n):
-        fit_q = 0.0
+        pl[t] = platform[t] - p_c
+    proj = np.zeros(cols)  # [Q_q Q_w W_q' W_w']' pl
+    for t in range(n):
+        v = pl[t]
+        for i in range(cols):
+            proj[i] += maps_t[t, i] * v
+    rss_q = 0.0
+    rss_w = 0.0
+    c0 = 0.0
+    c1 = 0.0
+    for t in range(n):
+        fit_q = 0.0  # Q_q (Q_q' pl) and Q_w (Q_w' pl) at sample t
         for i in range(p_q):
-            fit_q += q_q[t, i] * proj[i]
+            fit_q += maps_t[t, i] * proj[i]
         fit_w = 0.0
-        for i in range(p_w):
-            fit_w += q_w[t, i] * proj[p_q + i]
-        out[0] += (pl[t] - fit_q) ** 2
-        out[1] += (pl[t] - fit_w) ** 2
-        out[6] += wheel_mod[0, t] * (wheel[t] - w_mean)
-        out[7] += wheel_mod[1, t] * (wheel[t] - w_mean)
-    out[2:6] = proj[p_q + p_w:p_q + p_w + 4]
-    return out
+        for i in range(p_q, p_q + p_w):
+            fit_w += maps_t[t, i] * proj[i]
+        rss_q += (pl[t] - fit_q) ** 2
+        rss_w += (pl[t] - fit_w) ** 2
+        c0 += wheel_mod[0, t] * (wheel[t] - w_c)
+        c1 += wheel_mod[1, t] * (wheel[t] - w_c)
+    dfn, dfd = p_w - p_q, n - p_w
+    w_mean = _numpy_sum(wheel, 0, n) / n
+    p_mean = _numpy_sum(platform, 0, n) / n
+    wheel_rel = math.hypot(c0, c1) / abs(w_mean) if w_mean != 0 else 0.0
+    if dfn <= 0 or dfd <= 0 or p_mean == 0 or not wheel_rel > 0:
+        return False, np.nan, np.nan
+    f_stat = (rss_q - rss_w) / dfn / max(rss_w / dfd, 1e-300)
+    k = p_q + p_w
+    risk = math.hypot(proj[k] - proj[k + 2], proj[k + 1] - proj[k + 3]) / abs(p_mean) \
+        / wheel_rel
+    return True, f_stat, risk
+
+
+@numba.njit(cache=True, nogil=True)
+def _numpy_sum(a: np.ndarray, start: int, n: int) -> float:
+    """``a[start:start + n].sum()`` as numpy adds a contiguous float64 array: in order below
+    8 values, with eight running sums up to 128, and above that the sum of the sums of two
+    parts split at half the length rounded down to a multiple of 8 (pairwise summation,
+    N. J. Higham, "The accuracy of floating point summation", SIAM J. Sci. Comput. 14(4),
+    1993). Without recursion (a cached kernel must not call itself): the parts on a
+    stack."""
+    starts = np.empty(64, dtype=np.int64)  # the parts still to add or to combine
+    sizes = np.empty(64, dtype=np.int64)
+    split = np.zeros(64, dtype=np.bool_)  # the part's two halves are summed: combine them
+    sums = np.empty(64)
+    top, m = 0, 0
+    starts[0], sizes[0] = start, n
+    while top >= 0:
+        s0, size = starts[top], sizes[top]
+        if size > 128 and not split[top]:
+            half = size // 2
+            half -= half % 8
+            split[top] = True
+            starts[top + 1], sizes[top + 1], split[top + 1] = s0 + half, size - half, False
+            starts[top + 2], sizes[top + 2], split[top + 2] = s0, half, False
+            top += 2  # the first half on top: summed first
+            continue
+        top -= 1
+        if size > 128:
+            sums[m - 2] = sums[m - 2] + sums[m - 1]  # first half + second half
+            m -= 1
+            continue
+        sums[m] = _block_sum(a, s0, size)
+        m += 1
+    return sums[0]
+
+
+@numba.njit(cache=True, nogil=True)
+def _block_sum(a: np.ndarray, start: int, n: int) -> float:
+    """numpy's sum of ``a[start:start + n]`` for ``n <= 128`` (:func:`_numpy_sum`)."""
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += a[start + i]
+        return res
+    r = a[start:start + 8].copy()
+    i = 8
+    while i < n - n % 8:
+        for j in range(8):
+            r[j] += a[start + i + j]
+        i += 8
+    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < n:
+        res += a[start + i]
+        i += 1
+    return res
 
 
 @functools.lru_cache(maxsize=64)
@@ -369,15 +438,16 @@ def _f_critical(dfn: int, dfd: int) -> float:
 @functools.lru_cache(maxsize=16)
 def _wide_band_maps(n: int, fs_hz: float, modulation_hz: float, degree: int, quiet_hz: float,
                     wide_hz: float, extra: int
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+                    ) -> tuple[np.ndarray, np.ndarray, int, float] | None:
     """For the two designs of :func:`needs_wide_band` (quiet band without extra sequences,
-    wide band with ``extra``): ``[Q_q'; Q_w'; W_q; W_w]`` (``(p_q + p_w + 4, n)``), ``Q_q``
-    and ``Q_w`` (C order) and ``W_w`` again. Q is an orthonormal basis of a design D
-    (CholeskyQR2 from its factor, :func:`~torquemod.dsp.projection.orthonormal_basis_t`)
-    and W the modulation's two rows of D's pseudo-inverse ``(Q'D)^-1 Q'``: ``W x`` is the
-    modulation's least-squares coefficients of a record x, ``x - Q Q'x`` its residual.
-    None when either design has no factor or basis (the refined solves' route). Cached,
-    read-only: the designs depend on the record's length and the configuration only."""
+    wide band with ``extra``): ``[Q_q Q_w W_q' W_w']`` (``(n, p_q + p_w + 4)``), ``W_w``
+    (both C order), ``p_q`` and the F test's critical value (NaN without degrees of
+    freedom). Q is an orthonormal basis of a design D (CholeskyQR2 from its factor,
+    :func:`~torquemod.dsp.projection.orthonormal_basis_t`) and W the modulation's two rows
+    of D's pseudo-inverse ``(Q'D)^-1 Q'``: ``W x`` is the modulation's least-squares
+    coefficients of a record x, ``x - Q Q'x`` its residual. None when either design has no
+    factor or basis (the refined solves' route). Cached, read-only: the designs depend on
+    the record's length and the configuration only."""
     qs, ws = [], []
     for band, ext in ((quiet_hz, 0), (wide_hz, extra)):
         design, fac = _wide_band_design(n, fs_hz, modulation_hz, band, ext, degree)
@@ -388,12 +458,14 @@ def _wide_band_maps(n: int, fs_hz: float, modulation_hz: float, degree: int, qui
         # the first two rows of (Q'D)^-1 Q': (Q'D)' z_i = e_i, W = [z_0 z_1]' Q'
         z = np.linalg.solve((qt @ design).T, np.eye(design.shape[1], 2))
         ws.append(z.T @ qt)
-    maps = np.ascontiguousarray(np.vstack([*qs, *ws]))
-    q_q, q_w = (np.ascontiguousarray(qt.T) for qt in qs)
+    maps_t = np.ascontiguousarray(np.vstack([*qs, *ws]).T)
     wheel_mod = np.ascontiguousarray(ws[1])
-    for a in (maps, q_q, q_w, wheel_mod):
+    for a in (maps_t, wheel_mod):
         a.setflags(write=False)
-    return maps, q_q, q_w, wheel_mod
+    p_q, p_w = qs[0].shape[0], qs[1].shape[0]
+    dfn, dfd = p_w - p_q, n - p_w
+    return maps_t, wheel_mod, p_q, \
+        _f_critical(dfn, dfd) if dfn > 0 and dfd > 0 else float("nan")
 
 
 @functools.lru_cache(maxsize=32)

@@ -10,14 +10,20 @@ maximiser of ``|X_w(f)|`` to ``xtol_hz``.
 from __future__ import annotations
 
 import functools
-import math
 
-import numba
 import numpy as np
 from scipy import signal
 
 from torquemod.dsp import numpyblas
-from torquemod.dsp.lstsq import _DPOTRS, LstsqFactor, _solve, lstsq
+from torquemod.dsp.lstsq import _DPOTRS, LstsqFactor, lstsq
+from torquemod.dsp.peakkernels import (  # the first two as spectrum's names: tests use them
+    _band_magnitudes,  # noqa: F401
+    _dtft_magnitude,  # noqa: F401
+    _dtft_peak,
+    _goertzel_coefficients,
+    _line_search,
+    _peaks_of_records,
+)
 from torquemod.dsp.tonemodel import tone_design
 from torquemod.errors import ProcessingError
 
@@ -186,13 +192,17 @@ def peak_frequencies(records: np.ndarray, fs_hz: float, *,
                      min_peak_to_floor: float = 20.0) -> list[float]:
     """:func:`peak_frequency` of each column of ``records``, the search in one call for all.
 
-    Each column detrended and windowed, one FFT of all columns, then the bin search and the
-    refinement by Brent's search of ``|X_w(f)|`` for all columns in one compiled call: the
-    steps and parameters of :func:`peak_frequency`. A column is detrended as a contiguous
-    record (:meth:`~torquemod.dsp.lstsq.LstsqFactor.solve`'s compiled route), so the
-    frequencies equal :func:`peak_frequency`'s on each column as a contiguous array
-    (tests/dsp/test_spectrum_batch.py). A column whose checks fail, and other windows or
-    detrending designs, go through :func:`peak_frequency` itself, which raises its error.
+    The steps and parameters of :func:`peak_frequency` for all columns in one compiled call
+    (:func:`~torquemod.dsp.peakkernels._peaks_of_records`): each column detrended as a
+    contiguous record (:meth:`~torquemod.dsp.lstsq.LstsqFactor.solve`'s compiled route)
+    and windowed, the magnitudes of only the FFT bins the checks read by Goertzel's
+    recurrence (the FFT's to rounding: the same bins chosen), the checks, and the refinement
+    by Brent's search of ``|X_w(f)|``; what depends only on the records' length, the rate
+    and the settings is made once (:func:`_batch_plan`). The frequencies equal
+    :func:`peak_frequency`'s on each column as a contiguous array
+    (tests/dsp/test_spectrum_batch.py). A column whose checks fail, other windows than a
+    name, and numpy builds whose BLAS the kernels cannot reach go through
+    :func:`peak_frequency` itself, which raises its error.
 
     Parameters
     ----------
@@ -216,60 +226,51 @@ def peak_frequencies(records: np.ndarray, fs_hz: float, *,
     x = np.asarray(records, dtype=np.float64)
     if x.ndim != 2:
         raise ValueError(f"records must be (n, k), not of shape {x.shape}")
-    n = x.shape[0]
-    lo, hi = band_hz
+    plan = _batch_plan(x.shape[0], fs_hz, *band_hz, window, detrend == "linear", zero_pad) \
+        if isinstance(window, str) and type(zero_pad) is int else None
+    if plan is not None:
+        peaks, ok = _peaks_of_records(x, float(xtol_hz), float(min_peak_to_floor), 500,
+                                      *plan)
+        if ok:
+            return peaks
     kw = dict(band_hz=band_hz, window=window, detrend=detrend, zero_pad=zero_pad,
               xtol_hz=xtol_hz, min_peak_to_floor=min_peak_to_floor)
-    design, fac = _trend_design(n, fs_hz, detrend == "linear") if n >= 3 else (None, None)
-    if fac is None or not fac.dn.flags.c_contiguous or not isinstance(window, str) \
-            or not isinstance(zero_pad, int) or zero_pad < 1 or not 0 <= lo < hi <= fs_hz / 2:
-        return [peak_frequency(np.ascontiguousarray(x[:, i]), fs_hz, **kw)
-                for i in range(x.shape[1])]
-    w = _window(window, n)
-    m = zero_pad * n
-    nfft = 1 << (m - 1).bit_length()
-    blas = numpyblas.addresses()
-    if blas is not None and design.flags.c_contiguous:
-        # detrended and windowed in one compiled call: the solve below and numpy's dgemv
-        # for the trend (numpyblas.matvec), the same numbers
-        wx = _detrended_windowed(x, fac.dn, np.asfortranarray(fac.factor), fac.scale, design,
-                                 w, blas[2], _DPOTRS)
-    else:
-        wx = np.empty((x.shape[1], n))
-        for i in range(x.shape[1]):  # detrended and windowed (the compiled solve of a
-            col = np.ascontiguousarray(x[:, i])  # contiguous record)
-            np.multiply(col - design @ fac.solve(col), w, out=wx[i])
-    freqs, idx, wide = _grid(nfft, fs_hz, lo, hi, n)
-    if idx.size >= 3:
-        # the magnitudes of only the bins the checks read, by Goertzel's recurrence in the
-        # same compiled call (the FFT's values to rounding: the same bins chosen; the
-        # frequency itself is Brent's, from the record)
-        k_lo, k_hi = _bins_read(nfft, fs_hz, lo, hi, n)
-        peaks, ok = _peaks_of_records(wx, nfft, k_lo, k_hi, freqs, idx, wide,
-                                      2.0 * fs_hz / n, float(fs_hz), float(xtol_hz),
-                                      float(min_peak_to_floor), 500)
-        if ok.all():
-            return peaks.tolist()
     return [peak_frequency(np.ascontiguousarray(x[:, i]), fs_hz, **kw)
             for i in range(x.shape[1])]
 
 
-@numba.njit(cache=True, nogil=True)
-def _detrended_windowed(x: np.ndarray, dn: np.ndarray, factor: np.ndarray, scale: np.ndarray,
-                        design: np.ndarray, w: np.ndarray, gemv: int, potrs: int
-                        ) -> np.ndarray:
-    """Each column of ``x`` less its least-squares fit on ``design`` (the compiled solve of
-    :meth:`~torquemod.dsp.lstsq.LstsqFactor.solve` of a contiguous record; the fit by
-    numpy's ``dgemv``, :func:`~torquemod.dsp.numpyblas.matvec`), times the window ``w``:
-    ``(k, n)`` rows, numpy's numbers."""
-    n, k = x.shape
-    out = np.empty((k, n))
-    for i in range(k):
-        col = np.ascontiguousarray(x[:, i])
-        fit = numpyblas.matvec(design, _solve(dn, factor, scale, col, potrs), gemv)
-        for t in range(n):
-            out[i, t] = (col[t] - fit[t]) * w[t]
-    return out
+@functools.lru_cache(maxsize=32)
+def _batch_plan(n: int, fs_hz: float, lo: float, hi: float, window: str, line: bool,
+                zero_pad: int) -> tuple | None:
+    """What :func:`peak_frequencies`' compiled search needs besides the records, for records
+    of ``n`` samples at ``fs_hz`` [Hz], the band ``lo..hi`` [Hz], a window, a detrending
+    design (``line``: constant and line, else the constant) and a zero-padding factor:
+    the design's factor, the window, the bins' Goertzel constants, the grid and the ranges
+    of bins the checks read. None where :func:`peak_frequency` goes another way (no factor
+    of the design, a band outside 0..fs/2, too short a record for the band, numpy's BLAS
+    not reachable): then each column goes through it. Cached, read-only: the same for every
+    cycle of a given length."""
+    blas = numpyblas.addresses()
+    if n < 3 or zero_pad < 1 or not 0 <= lo < hi <= fs_hz / 2 or blas is None:
+        return None
+    design, fac = _trend_design(n, fs_hz, line)
+    if fac is None or not fac.dn.flags.c_contiguous or not design.flags.c_contiguous:
+        return None
+    nfft = 1 << (zero_pad * n - 1).bit_length()
+    freqs, idx, wide = _grid(nfft, fs_hz, lo, hi, n)
+    if idx.size < 3:
+        return None
+    k_lo, k_hi = _bins_read(nfft, fs_hz, lo, hi, n)
+    cw, sw = _goertzel_coefficients(nfft, k_lo, k_hi)
+    wide_bins = np.flatnonzero(wide)
+    factor = np.asfortranarray(fac.factor)
+    trig = np.vstack([cw, sw])
+    bins = np.array([k_lo, idx[0], idx[-1], wide_bins[0], wide_bins[-1], blas[2], _DPOTRS],
+                    dtype=np.int64)
+    for a in (factor, trig, bins):
+        a.setflags(write=False)
+    return (fac.dn, factor, fac.scale, design, _window(window, n), trig, freqs, bins,
+            2.0 * fs_hz / n, float(fs_hz))
 
 
 @functools.lru_cache(maxsize=32)
@@ -282,198 +283,3 @@ def _bins_read(nfft: int, fs_hz: float, lo: float, hi: float, n: int) -> tuple[i
     near = np.flatnonzero((freqs >= freqs[idx[0]] - reach) & (freqs <= freqs[idx[-1]] + reach))
     read = np.concatenate([near, np.flatnonzero(wide), idx])
     return int(read.min()), int(read.max())
-
-
-@numba.njit(cache=True, nogil=True)
-def _band_magnitudes(x: np.ndarray, nfft: int, k_lo: int, k_hi: int, out: np.ndarray) -> None:
-    """``|X[k]|`` of the ``nfft``-point DFT of the zero-padded record ``x`` for the bins
-    ``k_lo..k_hi`` into ``out[k]``, by Goertzel's recurrence (``s_t = x_t + 2 cos(w) s_(t-1)
-    - s_(t-2)``, ``|X| = |s_(n-1) - exp(-iw) s_(n-2)|``, w = 2*pi*k/nfft), all bins advancing
-    together over the samples (they vectorise)."""
-    m = k_hi - k_lo + 1
-    coef = np.empty(m)
-    cw = np.empty(m)
-    sw = np.empty(m)
-    for b in range(m):
-        w = 2.0 * math.pi * (k_lo + b) / nfft
-        cw[b] = math.cos(w)
-        sw[b] = math.sin(w)
-        coef[b] = 2.0 * cw[b]
-    s1 = np.zeros(m)
-    s2 = np.zeros(m)
-    for t in range(x.size):
-        xt = x[t]
-        for b in range(m):
-            s0 = xt + coef[b] * s1[b] - s2[b]
-            s2[b] = s1[b]
-            s1[b] = s0
-    for b in range(m):
-        re = s1[b] - cw[b] * s2[b]
-        im = sw[b] * s2[b]
-        out[k_lo + b] = math.sqrt(re * re + im * im)
-
-
-@numba.njit(cache=True, nogil=True)
-def _peaks_of_records(wx: np.ndarray, nfft: int, k_lo: int, k_hi: int, freqs: np.ndarray,
-                      idx: np.ndarray, wide: np.ndarray, lobe: float, fs_hz: float,
-                      xtol_hz: float, min_ratio: float, maxfun: int
-                      ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`peak_frequency`'s checks (:func:`_line_search` on the magnitudes of each
-    row's ``nfft``-point spectrum, by :func:`_band_magnitudes` over the bins the checks
-    read: zeros elsewhere, never read) and its refinement (:func:`_dtft_peak` of the
-    windowed record) for each row of ``wx``: the frequencies [Hz] and whether each row
-    passed the checks (NaN where not)."""
-    rows = wx.shape[0]
-    out = np.full(rows, np.nan)
-    ok = np.zeros(rows, dtype=np.bool_)
-    df = freqs[1] - freqs[0]
-    for r in range(rows):
-        mag = np.zeros(nfft // 2 + 1)
-        _band_magnitudes(wx[r], nfft, k_lo, k_hi, mag)
-        k, j, floor = _line_search(mag, freqs, idx, wide, lobe)
-        if k == idx[0] or k == idx[-1] or not mag[k] > 0 or mag[j] > mag[k]:
-            continue
-        if floor > 0 and mag[k] ** 2 < min_ratio * floor:
-            continue
-        out[r] = _dtft_peak(wx[r], fs_hz, freqs[k] - df, freqs[k] + df, xtol_hz, maxfun)
-        ok[r] = True
-    return out, ok
-
-
-@numba.njit(cache=True, nogil=True)
-def _line_search(spec: np.ndarray, freqs: np.ndarray, idx: np.ndarray, wide: np.ndarray,
-                 lobe: float) -> tuple[int, int, float]:
-    """The FFT bins :func:`peak_frequency` judges, in one pass: ``k``, the largest of
-    ``spec`` among the band's bins ``idx`` (the first on a tie, as ``np.argmax``); ``j``,
-    the largest within ``2*lobe`` [Hz] of it; and the floor, the median of ``spec**2`` over
-    the bins of ``wide`` farther than ``lobe`` from it (NaN when there are none), the
-    median as ``np.median`` takes it (the middle value, or the mean of the two middle
-    ones; the same numbers, tests/processing/test_chain_kernels.py)."""
-    k = idx[0]
-    for i in idx:
-        if spec[i] > spec[k]:
-            k = i
-    j = -1
-    sel = np.empty(spec.size)
-    m = 0
-    for i in range(spec.size):
-        off = abs(freqs[i] - freqs[k])
-        if off <= 2 * lobe and (j < 0 or spec[i] > spec[j]):
-            j = i
-        if wide[i] and off > lobe:
-            sel[m] = spec[i] ** 2
-            m += 1
-    if m == 0:
-        return k, j, np.nan
-    vals = np.sort(sel[:m])
-    if m % 2:
-        return k, j, vals[m // 2]
-    return k, j, (vals[m // 2 - 1] + vals[m // 2]) / 2
-
-
-@numba.njit(cache=True, nogil=True)
-def _dtft_magnitude(wx: np.ndarray, step_rad: float) -> float:
-    """``|sum_n wx[n] exp(-1j*step_rad*n)|``: the phasors by the angle-addition formulas
-    over blocks of 32 samples (about n/16 + 64 sines and cosines instead of n complex
-    exponentials; a few units in the last place from the direct evaluation), summed in
-    order. 10x faster than numpy's complex ``exp`` and ``dot`` on a cycle's ~330 samples."""
-    n = wx.size
-    block = 32
-    cb = np.empty(block)
-    sb = np.empty(block)
-    for i in range(block):
-        cb[i] = math.cos(step_rad * i)
-        sb[i] = math.sin(step_rad * i)
-    re = 0.0
-    im = 0.0
-    for start in range(0, n, block):
-        c0 = math.cos(step_rad * start)
-        s0 = math.sin(step_rad * start)
-        for i in range(min(block, n - start)):
-            v = wx[start + i]
-            re += v * (c0 * cb[i] - s0 * sb[i])
-            im -= v * (s0 * cb[i] + c0 * sb[i])
-    return math.hypot(re, im)
-
-
-@numba.njit(cache=True, nogil=True)
-def _dtft_peak(wx: np.ndarray, fs_hz: float, lo: float, hi: float, xatol: float,
-               maxfun: int) -> float:
-    """The frequency [Hz] in ``[lo, hi]`` that maximises ``|X_w(f)|``
-    (:func:`_dtft_magnitude` of the windowed record ``wx`` at ``2*pi*f/fs_hz`` rad per
-    sample), by Brent's bounded search (Brent 1973, ch. 5: golden-section steps with
-    parabolic interpolation) with the same steps and the same arithmetic as
-    ``scipy.optimize.fminbound(lambda f: -|X_w(f)|, lo, hi, xtol=xatol, maxfun=maxfun)``,
-    so the same result bit for bit (tests/processing/test_chain_kernels.py), in one compiled
-    call."""
-    sqrt_eps = 1.4832396974191326e-08  # math.sqrt(2.2e-16), as scipy's
-    golden = 0.3819660112501051  # 0.5*(3 - sqrt(5))
-    two_pi = 2.0 * math.pi
-    a, b = lo, hi
-    fulc = a + golden * (b - a)
-    nfc = xf = fulc
-    rat = e = 0.0
-    fx = -_dtft_magnitude(wx, two_pi * xf / fs_hz)
-    num = 1
-    ffulc = fnfc = fx
-    xm = 0.5 * (a + b)
-    tol1 = sqrt_eps * abs(xf) + xatol / 3.0
-    tol2 = 2.0 * tol1
-    while abs(xf - xm) > (tol2 - 0.5 * (b - a)):
-        use_golden = True
-        if abs(e) > tol1:  # try a parabolic step
-            use_golden = False
-            r = (xf - nfc) * (fx - ffulc)
-            q = (xf - fulc) * (fx - fnfc)
-            p = (xf - fulc) * q - (xf - nfc) * r
-            q = 2.0 * (q - r)
-            if q > 0.0:
-                p = -p
-            q = abs(q)
-            r = e
-            e = rat
-            if abs(p) < abs(0.5 * q * r) and q * (a - xf) < p < q * (b - xf):
-                rat = (p + 0.0) / q
-                x = xf + rat
-                if (x - a) < tol2 or (b - x) < tol2:
-                    rat = tol1 * (_sign(xm - xf) + (1.0 if xm - xf == 0 else 0.0))
-            else:
-                use_golden = True
-        if use_golden:
-            e = (a - xf) if xf >= xm else (b - xf)
-            rat = golden * e
-        step = abs(rat)
-        x = xf + (_sign(rat) + (1.0 if rat == 0 else 0.0)) * (
-            step if (step >= tol1 or step != step) else tol1)
-        fu = -_dtft_magnitude(wx, two_pi * x / fs_hz)
-        num += 1
-        if fu <= fx:
-            if x >= xf:
-                a = xf
-            else:
-                b = xf
-            fulc, ffulc = nfc, fnfc
-            nfc, fnfc = xf, fx
-            xf, fx = x, fu
-        else:
-            if x < xf:
-                a = x
-            else:
-                b = x
-            if fu <= fnfc or nfc == xf:
-                fulc, ffulc = nfc, fnfc
-                nfc, fnfc = x, fu
-            elif fu <= ffulc or fulc == xf or fulc == nfc:
-                fulc, ffulc = x, fu
-        xm = 0.5 * (a + b)
-        tol1 = sqrt_eps * abs(xf) + xatol / 3.0
-        tol2 = 2.0 * tol1
-        if num >= maxfun:
-            break
-    return xf
-
-
-@numba.njit(cache=True, nogil=True)
-def _sign(v: float) -> float:
-    """``numpy.sign`` of a float (NaN stays NaN)."""
-    return 1.0 if v > 0 else -1.0 if v < 0 else v * 0.0 if v != v else 0.0

@@ -204,7 +204,8 @@ def _modulation_peaks(cleaned: np.ndarray, fs_hz: float, cfg: ProcessingConfig, 
     fp = cfg.frequency
     kw = dict(band_hz=fp.band_hz, window=fp.window, detrend=fp.detrend, zero_pad=fp.zero_pad)
     try:
-        return dict(zip(_PEAK_CHANNELS, peak_frequencies(cleaned, fs_hz, **kw), strict=True))
+        f_torque, f_wheel = peak_frequencies(cleaned, fs_hz, **kw)
+        return {"torque_nm": f_torque, "wheel_speed_rad_s": f_wheel}
     except ProcessingError:
         pass
     for i, name in enumerate(_PEAK_CHANNELS):  # which channel: the column on its own
