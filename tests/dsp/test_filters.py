@@ -299,3 +299,9 @@ def test_tone_free_mean_equals_the_true_dc(revolutions):
     if revolutions == 0.95:
         assert abs(np.mean(x) - dc) > 1e-3 * dc  # the plain mean fails here
     assert tonemodel.tone_free_mean(x, FS, []) == pytest.approx(np.mean(x), rel=1e-15)
+
+
+def test_bandpass_edges_refuse_a_band_beyond_nyquist():
+    assert filters.bandpass_edges(2.0, 0.5, 50.0) == (1.75 / 50.0, 2.25 / 50.0)
+    with pytest.raises(ValueError, match="does not fit"):
+        filters.bandpass_edges(24.9, 0.5, 50.0)

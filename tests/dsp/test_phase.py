@@ -262,3 +262,19 @@ def test_sine_fit_design_matches_direct_trigonometry():
         assert got.shape == ref.shape
         assert np.array_equal(got[:, :fixed], ref[:, :fixed])
         np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)
+
+
+def test_wrapped_angle_is_the_angle_of_exp_bit_for_bit():
+    from torquemod.dsp.phase import wrapped_angle
+    rng = np.random.default_rng(4)
+    for a in [*rng.uniform(-7.0, 7.0, 2000), *(rng.standard_normal(500) * 1e-6), 0.0, -0.0,
+              np.pi, -np.pi, 2 * np.pi]:
+        assert wrapped_angle(a) == float(np.angle(np.exp(1j * a)))
+
+
+def test_deg_per_rad_gives_np_degrees_bit_for_bit():
+    from torquemod.dsp.phase import DEG_PER_RAD
+    rng = np.random.default_rng(5)
+    x = np.concatenate([rng.uniform(-7.0, 7.0, 20000), rng.standard_normal(2000) * 1e-6])
+    np.testing.assert_array_equal(x * DEG_PER_RAD, np.degrees(x))
+    assert all(v * DEG_PER_RAD == float(np.degrees(v)) for v in x[:500].tolist())

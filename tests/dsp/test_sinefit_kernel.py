@@ -59,3 +59,32 @@ def test_sinefit_compiled_against_numpy_route(seed, noise):
     # a condition number ~10 here: the two routes agree to ~1e-14; bounds 1e-11 deg, 1e-11
     assert got.phase_deg == pytest.approx(ref_phase, abs=1e-11)
     assert got.phase_stderr_deg == pytest.approx(ref_se, rel=1e-11)
+
+
+@pytest.mark.parametrize("n_records,tones", [(2, (4.6,)), (4, (4.6, 9.2, 0.15)), (4, ())])
+def test_sine_fit_of_the_records_window_is_the_stacked_fit_bit_for_bit(n_records, tones):
+    rng = np.random.default_rng(n_records + len(tones))
+    n, f = 323, 2.01
+    t = np.arange(n) / FS
+    recs = [30 + 8 * np.cos(2 * np.pi * f * t + k) + rng.standard_normal(n) for k in range(4)]
+    start, stop = phase.whole_period_window(n, FS, f, center_s=3.1)
+    m = stop - start
+    design = np.ascontiguousarray(phase._design(m, FS, f, tones, True))
+    y = np.column_stack([r[start:stop] for r in recs[:n_records]])
+    want = phase._sine_fit(design, y, FS, f, *phase._dft_table(m), *phase.lapack_addresses())
+    got = phase._sine_fit_records(phase._fixed_columns(m, FS, f, True),
+                                  np.array(tones, dtype=np.float64), *recs, n_records, start,
+                                  FS, f, *phase._dft_table(m), *phase.lapack_addresses())
+    assert got[0] == want[0] == 0
+    np.testing.assert_array_equal(got[1], want[1])
+    np.testing.assert_array_equal(got[2], want[2])
+
+
+@pytest.mark.parametrize("n,k", [(320, 4), (321, 1), (690, 6), (64, 3)])
+def test_tones_filled_together_are_fill_tones_bit_for_bit(n, k):
+    tones = np.linspace(0.15, 9.2, k)
+    want = np.zeros((n, 4 + 2 * k))
+    got = np.zeros((n, 4 + 2 * k))
+    phase._fill_tones(want, 4, FS, tones)
+    phase._fill_tones_together(got, 4, FS, tones)
+    np.testing.assert_array_equal(got, want)

@@ -283,3 +283,12 @@ def test_lstsq_factor_refuses_what_lstsq_leaves_to_the_svd():
     coef, rank = filters.lstsq(np.column_stack([good, good[:, 1] * 2]), np.cos(3 * t))
     assert rank == 3 and np.allclose(np.column_stack([good, good[:, 1] * 2]) @ coef,
                                      np.cos(3 * t))
+
+
+def test_record_std_is_numpys_bit_for_bit():
+    from torquemod.processing.cyclechecks import record_std
+    rng = np.random.default_rng(21)
+    for n in [1, 2, 7, 8, 9, 127, 128, 129, 323, 1000, 4099]:
+        x = 30.0 + rng.standard_normal(n) * 10.0 ** rng.uniform(-4, 1)
+        assert record_std(x) == float(np.std(x))
+    assert record_std(np.arange(5)) == float(np.std(np.arange(5)))  # numpy's route

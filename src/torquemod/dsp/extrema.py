@@ -6,6 +6,7 @@ three samples, paired between torque and wheel speed and averaged
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -191,11 +192,11 @@ def peak_valley_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod
     wheel = np.ascontiguousarray(wheel, dtype=np.float64)
     if torque.ndim == 1 and wheel.ndim == 1 and min(torque.size, wheel.size) >= 3 \
             and n_periods >= 1:
-        status, pair, t_sel, w_sel = _paired_extrema(torque, wheel, float(fs_hz),
-                                                     float(f_mod_hz), float(center_s),
-                                                     int(n_periods))
+        status, pair, t_sel, w_sel, mean = _paired_extrema(torque, wheel, float(fs_hz),
+                                                           float(f_mod_hz), float(center_s),
+                                                           int(n_periods))
         if status == 0:
-            return PeakValleyResult(float(pair.mean()), pair, t_sel, w_sel)
+            return PeakValleyResult(mean, pair, t_sel, w_sel)
     return peak_valley_phase_reference(torque, wheel, fs_hz, f_mod_hz, center_s=center_s,
                                        n_periods=n_periods)
 
@@ -254,20 +255,21 @@ def peak_valley_phase_reference(torque: np.ndarray, wheel: np.ndarray, fs_hz: fl
 @njit(cache=True, nogil=True)
 def _paired_extrema(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz: float,
                     center_s: float, n_periods: int
-                    ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+                    ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, float]:
     """:func:`peak_valley_phase_reference`'s pairs in one call: ``(status, pair_deg,
-    torque_times_s, wheel_times_s)`` with status 0, or 1 where that route must decide (a
+    torque_times_s, wheel_times_s, mean_deg)`` with status 0, or 1 where that route must decide (a
     plateau; too few extrema; a tie in distance at the cut of the ``n_periods`` nearest,
     where ``np.argsort``'s order of ties would choose; no wheel extremum within half a
     period). The extrema by :func:`_strict_extrema_times`; each torque extremum's nearest
-    wheel extremum, the first on a tie (``argmin``); the pairs as ``360*f*(t_w - t_T)``."""
+    wheel extremum, the first on a tie (``argmin``); the pairs as ``360*f*(t_w - t_T)``, and
+    their mean as ``np.mean`` forms it (:func:`_numpy_sum`)."""
     empty = np.empty(0)
     t_pk, t_vl, flat = _strict_extrema_times(torque, fs_hz)
     if flat:
-        return 1, empty, empty, empty
+        return 1, empty, empty, empty, math.nan
     w_pk, w_vl, flat = _strict_extrema_times(wheel, fs_hz)
     if flat:
-        return 1, empty, empty, empty
+        return 1, empty, empty, empty, math.nan
     half_period = (1.0 / f_mod_hz) / 2
     t_sel = np.empty(2 * n_periods)
     w_sel = np.empty(2 * n_periods)
@@ -275,11 +277,11 @@ def _paired_extrema(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_h
         t_all = t_pk if kind == 0 else t_vl
         w_all = w_pk if kind == 0 else w_vl
         if t_all.size < n_periods or w_all.size == 0:
-            return 1, empty, empty, empty
+            return 1, empty, empty, empty, math.nan
         dist = np.abs(t_all - center_s)
         order = np.argsort(dist)
         if t_all.size > n_periods and dist[order[n_periods - 1]] == dist[order[n_periods]]:
-            return 1, empty, empty, empty
+            return 1, empty, empty, empty, math.nan
         ts = np.sort(t_all[order[:n_periods]])
         for i in range(n_periods):
             best = 0
@@ -289,10 +291,11 @@ def _paired_extrema(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_h
                 if g < gap:
                     best, gap = j, g
             if gap > half_period:
-                return 1, empty, empty, empty
+                return 1, empty, empty, empty, math.nan
             t_sel[kind * n_periods + i] = ts[i]
             w_sel[kind * n_periods + i] = w_all[best]
-    return 0, (360.0 * f_mod_hz) * (w_sel - t_sel), t_sel, w_sel
+    pair = (360.0 * f_mod_hz) * (w_sel - t_sel)
+    return 0, pair, t_sel, w_sel, _numpy_sum(pair, 0, pair.size) / pair.size
 
 
 @njit(cache=True, nogil=True)

@@ -143,10 +143,36 @@ def design_bandpass(center_hz: float, width_hz: float, order: int, fs_hz: float
     ValueError
         The band does not fit in 0..fs/2.
     """
+    lo, hi = bandpass_edges(center_hz, width_hz, fs_hz)
+    return _butter_bandpass(order, lo, hi)
+
+
+def bandpass_edges(center_hz: float, width_hz: float, fs_hz: float) -> tuple[float, float]:
+    """The band edges of :func:`design_bandpass` [cycles per sample].
+
+    Parameters
+    ----------
+    center_hz : float
+        Centre frequency [Hz].
+    width_hz : float
+        Band width [Hz].
+    fs_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    lo, hi : float
+        ``(center -+ width/2)/fs`` [-].
+
+    Raises
+    ------
+    ValueError
+        The band does not fit in 0..fs/2.
+    """
     lo, hi = center_hz - width_hz / 2, center_hz + width_hz / 2
     if lo <= 0 or hi >= fs_hz / 2:
         raise ValueError(f"band-pass {lo:.3f}-{hi:.3f} Hz does not fit in 0..{fs_hz / 2} Hz")
-    return _butter_bandpass(order, lo / fs_hz, hi / fs_hz)
+    return lo / fs_hz, hi / fs_hz
 
 
 def _butter_bandpass(order: int, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
@@ -526,6 +552,7 @@ def _settling_kernel(b: np.ndarray, a: np.ndarray, tol: float, max_samples: int)
     z = np.zeros(m)
     h = np.empty(min(max_samples, 4096))  # grown when the search goes further
     done = 0
+    peak = 0.0
     n = 256
     while n <= max_samples:
         if n > h.size:
@@ -533,14 +560,12 @@ def _settling_kernel(b: np.ndarray, a: np.ndarray, tol: float, max_samples: int)
             grown[:done] = h[:done]
             h = grown
         _response_samples(b, a, z, h, done, n)  # the response's first n samples
-        done = n
-        peak = 0.0
-        for k in range(n):
+        for k in range(done, n):  # the peak of the first n: the earlier ones' and the new
             peak = max(peak, abs(h[k]))
-        last = -1
-        for k in range(n):
-            if abs(h[k]) > tol * peak:
-                last = k
+        done = n
+        last = n - 1  # the last sample above the share of the peak, from the end
+        while last >= 0 and not abs(h[last]) > tol * peak:
+            last -= 1
         if last < n - n // 4:
             return last + 1
         n *= 2

@@ -34,6 +34,10 @@ from torquemod.dsp.lstsq import LstsqFactor, lapack_addresses, lstsq, lstsq_comp
 from torquemod.dsp.tonemodel import tone_design
 from torquemod.errors import ProcessingError
 
+#: Degrees per radian, ``180/pi``: numpy's ``degrees`` multiplies by this double, so a
+#: product with it is ``np.degrees``'s number (tests/dsp/test_phase.py).
+DEG_PER_RAD = 180.0 / math.pi
+
 
 @dataclass(frozen=True)
 class SineFitResult:
@@ -101,7 +105,7 @@ def whole_period_window(n_samples: int, fs_hz: float, f_hz: float, center_s: flo
     (25, 1025)
     """
     duration = n_samples / fs_hz
-    n_per = int(np.floor(duration * f_hz + 1e-9))
+    n_per = math.floor(duration * f_hz + 1e-9)
     if n_per < 1:
         raise ProcessingError("record shorter than one modulation period")
     length = round(n_per * fs_hz / f_hz)
@@ -139,6 +143,53 @@ def _fill_tones(out: np.ndarray, col0: int, fs_hz: float, tones_hz: np.ndarray) 
                 out[i, col0 + 2 * m] = c
                 out[i, col0 + 2 * m + 1] = s
                 c, s = c * cd - s * sd, s * cd + c * sd
+
+
+@njit(cache=True, nogil=True)
+def _fill_tones_together(out: np.ndarray, col0: int, fs_hz: float, tones_hz: np.ndarray
+                         ) -> None:
+    """:func:`_fill_tones` with up to four tones advancing together: each tone's values by
+    the same operations (so the same bits), their rotations independent chains the
+    processor overlaps instead of one tone's whole window after another's."""
+    n = out.shape[0]
+    k = tones_hz.size
+    for g in range(0, k, 4):
+        cnt = min(4, k - g)
+        om0 = 2.0 * math.pi * tones_hz[g]
+        om1 = 2.0 * math.pi * tones_hz[g + 1] if cnt > 1 else 0.0
+        om2 = 2.0 * math.pi * tones_hz[g + 2] if cnt > 2 else 0.0
+        om3 = 2.0 * math.pi * tones_hz[g + 3] if cnt > 3 else 0.0
+        cd0, sd0 = math.cos(om0 / fs_hz), math.sin(om0 / fs_hz)
+        cd1, sd1 = math.cos(om1 / fs_hz), math.sin(om1 / fs_hz)
+        cd2, sd2 = math.cos(om2 / fs_hz), math.sin(om2 / fs_hz)
+        cd3, sd3 = math.cos(om3 / fs_hz), math.sin(om3 / fs_hz)
+        j0 = col0 + 2 * g
+        for b in range(0, n, 64):
+            tb = (b - (n - 1) / 2) / fs_hz
+            c0, s0 = math.cos(om0 * tb), math.sin(om0 * tb)
+            c1 = s1 = c2 = s2 = c3 = s3 = 0.0  # (the slots beyond the tones: not stored)
+            if cnt > 1:
+                c1, s1 = math.cos(om1 * tb), math.sin(om1 * tb)
+            if cnt > 2:
+                c2, s2 = math.cos(om2 * tb), math.sin(om2 * tb)
+            if cnt > 3:
+                c3, s3 = math.cos(om3 * tb), math.sin(om3 * tb)
+            for i in range(b, min(n, b + 64)):
+                out[i, j0] = c0
+                out[i, j0 + 1] = s0
+                if cnt > 1:
+                    out[i, j0 + 2] = c1
+                    out[i, j0 + 3] = s1
+                if cnt > 2:
+                    out[i, j0 + 4] = c2
+                    out[i, j0 + 5] = s2
+                if cnt > 3:
+                    out[i, j0 + 6] = c3
+                    out[i, j0 + 7] = s3
+                c0, s0 = c0 * cd0 - s0 * sd0, s0 * cd0 + c0 * sd0
+                c1, s1 = c1 * cd1 - s1 * sd1, s1 * cd1 + c1 * sd1
+                c2, s2 = c2 * cd2 - s2 * sd2, s2 * cd2 + c2 * sd2
+                c3, s3 = c3 * cd3 - s3 * sd3, s3 * cd3 + c3 * sd3
 
 
 def _design(n: int, fs_hz: float, f_hz: float, nuisance_hz: tuple[float, ...], trend: bool
@@ -216,31 +267,68 @@ def sinefit_phase(torque: np.ndarray, wheel: np.ndarray, fs_hz: float, f_mod_hz:
     n = stop - start
     resolution = fs_hz / n
     keep = tuple(f for f in nuisance_hz if abs(f - f_mod_hz) > resolution)
-    design = _design(n, fs_hz, f_mod_hz, keep, trend)
     records = [torque, wheel]
     if noise_from is not None:  # the four records in one solve
         records += [np.asarray(noise_from[0]), np.asarray(noise_from[1])]
-    y = np.column_stack([r[start:stop] for r in records])
-    status, coef, psds = (5, None, None) if n < 8 or y.dtype != np.float64 else \
-        _sine_fit(np.ascontiguousarray(design), y, float(fs_hz), float(f_mod_hz),
-                  *_dft_table(n), *lapack_addresses())
+    status, compiled = 5, False
+    if n >= 8 and all(r.dtype == np.float64 and r.ndim == 1 and r.size >= stop
+                      for r in records):  # the design, the records' window and the fit in
+        # one call (the arrays of the route below, the same numbers)
+        fixed = _fixed_columns(n, float(fs_hz), float(f_mod_hz), bool(trend))
+        compiled = True
+        status, coef, psds = _sine_fit_records(
+            fixed, np.array(keep, dtype=np.float64), *records[:2], *records[-2:],
+            len(records), start, float(fs_hz), float(f_mod_hz), *_dft_table(n),
+            *lapack_addresses())
     if status != 0:  # numpy's route: a design that needs the SVD, or too short a window
-        coef, psds = _sine_fit_numpy(design, y, fs_hz, f_mod_hz)
+        design = _design(n, fs_hz, f_mod_hz, keep, trend)
+        y = np.column_stack([r[start:stop] for r in records])
+        if not compiled and n >= 8 and y.dtype == np.float64:
+            status, coef, psds = _sine_fit(np.ascontiguousarray(design), y, float(fs_hz),
+                                           float(f_mod_hz), *_dft_table(n),
+                                           *lapack_addresses())
+        if status != 0:
+            coef, psds = _sine_fit_numpy(design, y, fs_hz, f_mod_hz)
     t_win = n / fs_hz
-    phases, amps, var_phi = [], [], 0.0
-    for ch in range(2):
-        c, s = coef[0, ch], coef[1, ch]
+    (c_t, c_w), (s_t, s_w) = coef[:2, :2].tolist()  # Python floats: the same arithmetic
+    var_phi, amps = 0.0, []
+    for c, s, psd in ((c_t, s_t, float(psds[0])), (c_w, s_w, float(psds[1]))):
         a2 = c * c + s * s
         if a2 == 0:
             raise ProcessingError("zero amplitude at the modulation frequency")
         # var(phi_i) = S_i/(A_i^2 T) with S_i the one-sided noise density at f_mod
         # (Rife and Boorstyn 1974)
-        var_phi += psds[ch] / (a2 * t_win)
-        phases.append(float(np.arctan2(-s, c)))
-        amps.append(float(np.sqrt(a2)))
-    lag = np.angle(np.exp(1j * (phases[0] - phases[1])))
-    return SineFitResult(float(np.degrees(lag)), float(np.degrees(np.sqrt(var_phi))), amps[0],
-                         amps[1], phases[0], phases[1], n, (start / fs_hz, stop / fs_hz))
+        var_phi += psd / (a2 * t_win)
+        amps.append(math.sqrt(a2))  # (sqrt is correctly rounded: numpy's numbers)
+    # both phases atan2(-s, c) in one call (numpy's arctan2 element by element)
+    ph_t, ph_w = np.arctan2(np.array([-s_t, -s_w]), np.array([c_t, c_w])).tolist()
+    return SineFitResult(wrapped_angle(ph_t - ph_w) * DEG_PER_RAD,
+                         math.sqrt(var_phi) * DEG_PER_RAD, amps[0], amps[1], ph_t, ph_w, n,
+                         (start / fs_hz, stop / fs_hz))
+
+
+def wrapped_angle(angle_rad: float) -> float:
+    """An angle wrapped to (-pi, pi] [rad]: ``np.angle(np.exp(1j*angle_rad))``, the angle
+    of ``(cos, sin)`` by numpy's ``arctan2``, with one ufunc call instead of three.
+
+    Parameters
+    ----------
+    angle_rad : float
+        Any angle [rad].
+
+    Returns
+    -------
+    float
+        The same direction in (-pi, pi] [rad] (numpy's number: ``exp(1j*a)`` is
+        ``(cos a, sin a)`` exactly, ``exp(0) = 1``).
+
+    Examples
+    --------
+    >>> round(wrapped_angle(3 * 3.141592653589793 / 2), 12)
+    -1.570796326795
+    """
+    a = float(angle_rad)
+    return float(np.arctan2(math.sin(a), math.cos(a)))
 
 
 def _sine_fit_numpy(design: np.ndarray, y: np.ndarray, fs_hz: float, f_mod_hz: float
@@ -269,6 +357,30 @@ def _dft_table(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     for a in out:
         a.setflags(write=False)
     return (*out, ss)
+
+
+@njit(cache=True, nogil=True)
+def _sine_fit_records(fixed: np.ndarray, tones_hz: np.ndarray, r0: np.ndarray, r1: np.ndarray,
+                      r2: np.ndarray, r3: np.ndarray, n_records: int, start: int,
+                      fs_hz: float, f_hz: float, cos_t: np.ndarray, sin_t: np.ndarray,
+                      w: np.ndarray, ss: float, potrf: int, potrs: int
+                      ) -> tuple[int, np.ndarray, np.ndarray]:
+    """:func:`_sine_fit` of the window ``start:start + n`` of the records ``r0 .. r3`` (the
+    first ``n_records`` of them; ``n`` the rows of ``fixed``) on the design of
+    :func:`_design` (its columns ``fixed`` from :func:`_fixed_columns`, then the tones
+    ``tones_hz`` by :func:`_fill_tones_together`), both built here in C order with the same
+    values."""
+    n, n_fixed = fixed.shape
+    design = np.empty((n, n_fixed + 2 * tones_hz.size))
+    design[:, :n_fixed] = fixed
+    if tones_hz.size:
+        _fill_tones_together(design, n_fixed, fs_hz, tones_hz)
+    y = np.empty((n, n_records))
+    for j in range(n_records):
+        r = r0 if j == 0 else r1 if j == 1 else r2 if j == 2 else r3
+        for i in range(n):
+            y[i, j] = r[start + i]
+    return _sine_fit(design, y, fs_hz, f_hz, cos_t, sin_t, w, ss, potrf, potrs)
 
 
 @njit(cache=True, nogil=True)

@@ -211,5 +211,5 @@ def resampler_edge_samples(up: int, down: int) -> int:
     >>> resampler_edge_samples(2, 625)
     11
     """
-    half_taps = 10 * max(up, down)
-    return int(np.ceil(half_taps / down)) + 1
+    half_taps = 10 * max(int(up), int(down))
+    return -(-half_taps // int(down)) + 1  # (the ceiling in integers)

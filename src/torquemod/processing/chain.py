@@ -14,14 +14,20 @@ import numpy as np
 from torquemod.dsp import filters, resampling
 from torquemod.dsp.align import alignment_lag
 from torquemod.dsp.basis import needs_wide_band
-from torquemod.dsp.padfilter import padded_and_filtered
-from torquemod.dsp.phase import SineFitResult, local_noise_psd, peak_valley_phase, sinefit_phase
+from torquemod.dsp.padfilter import chain_filtered
+from torquemod.dsp.phase import (
+    SineFitResult,
+    local_noise_psd,
+    peak_valley_phase,
+    sinefit_phase,
+    wrapped_angle,
+)
 from torquemod.dsp.spectrum import peak_frequencies, peak_frequency
 from torquemod.errors import InputError, ProcessingError
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Recording, Rig
 from torquemod.processing.creepage import creepage_and_drift
-from torquemod.processing.cyclechecks import check_operating_point
+from torquemod.processing.cyclechecks import check_operating_point, record_std
 from torquemod.processing.speedmodel import (
     SpeedModel,
     _SlowOrdersRemoval,
@@ -156,6 +162,13 @@ def creepage_coa(wheel_speed_rad_s: float, platform_speed_rad_s: float, fx_n: fl
 _RESAMPLED = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", "fy_n", "fz_n")
 
 
+def _cleaned_parts(model: SpeedModel, name: str) -> tuple[np.ndarray, ...]:
+    """The parts of channel ``name`` that steps 3-5 take off its record: the speed model's
+    slow part, rotation orders and modulation harmonics (:meth:`SpeedModel.part`)."""
+    return (model.part(name, "slow"), model.part(name, "orders"),
+            model.part(name, "harmonics"))
+
+
 def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
                      normal_load_n: float | None, inertia_kg_m2: float | None) -> float:
     """The adhesion the drive uses, ``(T_dc - J*dw/dt)/(N*Rw)`` [-]: the mean torque less
@@ -168,13 +181,6 @@ def _coa_from_torque(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,
     accel = (w_slow[-1] - w_slow[0]) / (w_slow.size / fs_hz)
     torque = model.mean("torque_nm") - (inertia_kg_m2 or 0.0) * accel
     return float(torque / (normal_load_n * wheel_radius_m))
-
-
-def _std(x: np.ndarray) -> float:
-    """``np.std(x)`` of a 1-D float64 record by numpy's own steps (mean, squared deviations,
-    their sum over the count, square root): the same number without its Python wrappers."""
-    d = x - float(x.sum()) / x.size
-    return math.sqrt(float((d * d).sum()) / x.size)
 
 
 #: The slow band's top stays at least this many frequency resolutions (1/T, T the cycle's
@@ -327,30 +333,25 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     notes = [f"{where}: wheel-speed notch at {f0:.3f} Hz lies within {nq.warn_within_hz} Hz "
              f"of the modulation frequency {f_mod:.3f} Hz; it also attenuates the modulation"
              for f0 in wheel_notches if abs(f0 - f_mod) < nq.warn_within_hz]
-    hp = filters.design_highpass(cfg.highpass.cutoff_hz, cfg.highpass.order, fs_r)
-    bp = filters.design_bandpass(f_mod, cfg.bandpass.width_hz, cfg.bandpass.order, fs_r)
-    notch_ba = {f0: filters.design_notch(f0, nq.q, fs_r) for f0 in wheel_notches}
-    pad = max(filters.settling_samples(ba) for ba in [hp, bp, *notch_ba.values()])
-    tones = [f_mod, *wheel_notches]
-
-    # the records less their slow part, orders and harmonics, padded by their tone model;
-    # the wheel speed through its notches, then both records through the high-pass and the
-    # band-pass (one compiled call)
-    wh_p, wh_level, tq_p, tq_level, both_f = padded_and_filtered(
-        *[sig[k] - model.part(k, "slow") - model.part(k, "orders") - model.part(k, "harmonics")
-          for k in ("wheel_speed_rad_s", "torque_nm")], fs_r, tones, pad,
-        [notch_ba[f0] for f0 in wheel_notches], [hp, bp])
-    wh_n = wh_p[pad:pad + n] + wh_level + model.mean("wheel_speed_rad_s")
-    tq_n = tq_p[pad:pad + n] + tq_level + model.mean("torque_nm")
-    wh_f, tq_f = both_f[0, pad:pad + n], both_f[1, pad:pad + n]
+    # the records less their slow part, orders and harmonics, padded by their tone model
+    # (the modulation and the notches' tones) over the filters' longest settling; the wheel
+    # speed through its notches, then both records through the high-pass and the band-pass
+    # (one compiled call)
+    wh_n, tq_n, both_f, _ = chain_filtered(
+        wh, tq, fs_r, f_mod, wheel_notches, nq.q, (cfg.highpass.cutoff_hz, cfg.highpass.order),
+        (cfg.bandpass.width_hz, cfg.bandpass.order),
+        (model.mean("wheel_speed_rad_s"), model.mean("torque_nm")),
+        first_less=_cleaned_parts(model, "wheel_speed_rad_s"),
+        second_less=_cleaned_parts(model, "torque_nm"))
+    wh_f, tq_f = both_f[0], both_f[1]
     # Step 8: creepage and CoA from means, each the mean of the channel less its fitted
     # modulation and rotation orders (SpeedModel.mean): the value the notched signal averages
     # to, free of the partial modulation period a cycle holds and of edge transients, and
     # taken through one model for every channel.
     means = {k: model.mean(k) for k in names}
     means["torque_nm"] = float(full_means[names.index("torque_nm")])  # the raw record's
-    check_operating_point(means, _std(pl) if pl is not None else 0.0, where=where)
-    has_forces = all(k in sig for k in ("fx_n", "fz_n"))
+    check_operating_point(means, record_std(pl) if pl is not None else 0.0, where=where)
+    has_forces = "fx_n" in sig and "fz_n" in sig
     inertia = rig.extra.get("wheel_inertia_kg_m2") if isinstance(rig.extra, dict) else None
     coa_t = _coa_from_torque(model, fs_r, wheel_radius_m=rig.wheel_radius_m,
                              normal_load_n=normal_load_n, inertia_kg_m2=inertia)
@@ -441,7 +442,7 @@ def model_phase(model: SpeedModel, torque: np.ndarray, wheel: np.ndarray, fs_hz:
         var += local_noise_psd(resid, fs_hz, model.modulation_hz) / ((c * c + s * s) * n / fs_hz)
         phases.append(float(np.arctan2(-s, c)))
         amps.append(float(np.hypot(c, s)))
-    lag = float(np.degrees(np.angle(np.exp(1j * (phases[0] - phases[1])))))
+    lag = float(np.degrees(wrapped_angle(phases[0] - phases[1])))
     return SineFitResult(lag, float(np.degrees(np.sqrt(var))), amps[0], amps[1], phases[0],
                          phases[1], n, (0.0, n / fs_hz))
 
@@ -478,7 +479,7 @@ def cycle_phase(c: CycleSignals, cfg: ProcessingConfig, *, center_index: float
     """
     n = c.torque_filtered.size
     period_n = c.fs_hz / c.modulation_hz
-    nuisance = tuple(c.notches_hz["wheel"]) + tuple(c.notches_hz["platform"])
+    nuisance = (*c.notches_hz["wheel"], *c.notches_hz["platform"])
     if cfg.phase.sinefit_input == "model" and "speed_model" in c.extra:
         fit = model_phase(c.extra["speed_model"], c.torque_resampled, c.wheel_resampled,
                           c.fs_hz)
@@ -491,14 +492,15 @@ def cycle_phase(c: CycleSignals, cfg: ProcessingConfig, *, center_index: float
                             nuisance_hz=nuisance, trend=cfg.phase.sinefit_trend)
     # the speed model's removal costs the modulation this much variance, and its fitted
     # columns leave the residual's noise density near the modulation too small (SpeedModel)
-    se_fit = fit.phase_stderr_deg * np.sqrt(c.extra.get("variance_factor", 1.0)
-                                            / c.extra.get("noise_kept", 1.0))
+    # (sqrt is correctly rounded: math's is numpy's number)
+    se_fit = fit.phase_stderr_deg * math.sqrt(c.extra.get("variance_factor", 1.0)
+                                              / c.extra.get("noise_kept", 1.0))
     if cfg.phase.method == "sinefit":
         return fit.phase_deg, float(se_fit), fit.window_s
     n_periods = cfg.phase.n_periods
     if cfg.phase.paper_window == "cycle":  # every whole period between the trimmed edges
-        n_periods = max(n_periods, int(np.floor(n / period_n + 1e-9
-                                                - 2 * cfg.phase.edge_trim_periods)))
+        n_periods = max(n_periods, math.floor(n / period_n + 1e-9
+                                              - 2 * cfg.phase.edge_trim_periods))
     half = (n_periods / 2 + cfg.phase.edge_trim_periods) * period_n
     center = min(max(center_index, half), n - half)
     res = peak_valley_phase(c.torque_filtered, c.wheel_filtered, c.fs_hz, c.modulation_hz,

@@ -5,6 +5,7 @@ platform to wheel speed fitted with a line and the platform's revolution orders
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numba
@@ -60,8 +61,8 @@ def creepage_and_drift(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float
     """
     w = model.part("wheel_speed_rad_s", "slow")
     p = model.part("platform_speed_rad_s", "slow")
-    harmonics = np.array([int(k) for k in platform_harmonics], dtype=np.int64)
-    if w.size >= 2 and harmonics.size and harmonics.min() > 0 \
+    harmonics, positive = _harmonics_array(tuple(platform_harmonics))
+    if w.size >= 2 and positive \
             and w.flags.c_contiguous and p.flags.c_contiguous:
         xi, drift, status = _creepage_fit(w, p, float(fs_hz), float(wheel_radius_m),
                                           float(platform_radius_m), harmonics,
@@ -71,6 +72,15 @@ def creepage_and_drift(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float
     return creepage_and_drift_reference(model, fs_hz, wheel_radius_m=wheel_radius_m,
                                         platform_radius_m=platform_radius_m,
                                         platform_harmonics=platform_harmonics)
+
+
+@functools.lru_cache(maxsize=16)
+def _harmonics_array(platform_harmonics: tuple[int, ...]) -> tuple[np.ndarray, bool]:
+    """The harmonics as a read-only int64 array and whether there are some, all positive
+    (the compiled fit's condition); configuration, so cached."""
+    out = np.array([int(k) for k in platform_harmonics], dtype=np.int64)
+    out.setflags(write=False)
+    return out, bool(out.size and out.min() > 0)
 
 
 def creepage_and_drift_reference(model: SpeedModel, fs_hz: float, *, wheel_radius_m: float,

@@ -4,6 +4,12 @@ that its mean operating point makes the creepage and creep-force equations meani
 
 from __future__ import annotations
 
+import math
+
+import numba
+import numpy as np
+
+from torquemod.dsp.numpyblas import vector_sum
 from torquemod.errors import InputError
 from torquemod.io.config import ProcessingConfig
 
@@ -83,3 +89,33 @@ def check_operating_point(means: dict[str, float], platform_std_rad_s: float, *,
         raise InputError(f"mean normal force is {fz:.4g} N; it must be positive (compression)",
                          path=where, channel="fz_n",
                          hint="check the channel mapping, its unit and the load cell's sign")
+
+
+def record_std(x: np.ndarray) -> float:
+    """The standard deviation ``np.std(x)`` of a record (the platform speed's scatter that
+    :func:`check_operating_point` takes), by numpy's own steps: the mean, the squared
+    deviations, their sum over the count, the square root.
+
+    Parameters
+    ----------
+    x : ndarray
+        1-D record [any unit].
+
+    Returns
+    -------
+    float
+        Its standard deviation [unit]: numpy's number, from one compiled call for a
+        contiguous float64 record (:func:`~torquemod.dsp.numpyblas.vector_sum`, numpy's
+        pairwise sums).
+    """
+    x = np.asarray(x)
+    if x.dtype == np.float64 and x.ndim == 1 and x.size and x.flags.c_contiguous:
+        return _std_compiled(x)
+    return float(np.std(x))
+
+
+@numba.njit(cache=True, nogil=True)
+def _std_compiled(x: np.ndarray) -> float:
+    """:func:`record_std` of a contiguous float64 record."""
+    d = x - vector_sum(x) / x.size
+    return math.sqrt(vector_sum(d * d) / x.size)
