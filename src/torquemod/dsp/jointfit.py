@@ -24,12 +24,11 @@ least-squares fit on the whole design.
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
 from torquemod.dsp import lstsq, numpyblas
+from torquemod.dsp.projection import _powers_in_span
 
 
 @numba.njit(cache=True, nogil=True)
@@ -102,51 +101,15 @@ def _tone_rows(design: np.ndarray, end: int) -> np.ndarray:
 def _residual_powers(qt_b: np.ndarray, mt: np.ndarray, v: np.ndarray
                      ) -> tuple[np.ndarray, bool, np.ndarray]:
     """:func:`~torquemod.dsp.projection.powers_in_span` of ``v`` for the basis ``qt_b`` and
-    the rows ``mt``, with its operations in its order (the same numbers), and the normal
-    matrix ``G = R'R`` of the rows' residuals ``R = M - Q_B Q_B'M`` it forms:
-    ``(powers, made, G)``, not made where ``v`` has no columns (or not ``mt``'s length),
-    a row keeps less than 1e-5 of its norm or a pivot of G's Cholesky factorisation falls
-    below 1e-10 of its diagonal element."""
-    k, j = mt.shape[0], v.shape[1]
-    rt = mt - np.dot(np.dot(mt, qt_b.T), qt_b)
-    gram = np.dot(rt, rt.T)
-    if j == 0 or v.shape[0] != mt.shape[1]:
-        return np.empty(0), False, gram
-    for i in range(k):
-        norm2 = 0.0
-        for t in range(mt.shape[1]):
-            norm2 += mt[i, t] * mt[i, t]
-        if not gram[i, i] > 1e-10 * norm2:
-            return np.empty(0), False, gram
-    low = np.zeros((k, k))  # gram = L L'
-    for i in range(k):
-        for c in range(i + 1):
-            acc = gram[i, c]
-            for q in range(c):
-                acc -= low[i, q] * low[c, q]
-            if i == c:
-                if not acc > 1e-10 * gram[i, i]:  # (and NaN)
-                    return np.empty(0), False, gram
-                low[i, i] = math.sqrt(acc)
-            else:
-                low[i, c] = acc / low[c, c]
-    pb = np.dot(qt_b, v)
-    b = np.dot(rt, v)
-    powers = np.zeros(j)
-    y = np.empty(k)
-    for col in range(j):
-        for i in range(k):  # L y = b, then |y|^2 = b'(L L')^-1 b
-            acc = b[i, col]
-            for q in range(i):
-                acc -= low[i, q] * y[q]
-            y[i] = acc / low[i, i]
-        acc = 0.0
-        for i in range(pb.shape[0]):
-            acc += pb[i, col] * pb[i, col]
-        for i in range(k):
-            acc += y[i] * y[i]
-        powers[col] = acc
-    return powers, True, gram
+    the rows ``mt`` (its kernel, so the same numbers), and the normal matrix ``G = R'R`` of
+    the rows' residuals ``R = M - Q_B Q_B'M`` it forms: ``(powers, made, G)``, not made
+    where ``v`` has no columns (or not ``mt``'s length), a row keeps less than 1e-5 of its
+    norm or a pivot of G's Cholesky factorisation falls below 1e-10 of its diagonal
+    element."""
+    if v.shape[1] == 0 or v.shape[0] != mt.shape[1]:
+        rt = mt - np.dot(np.dot(mt, qt_b.T), qt_b)
+        return np.empty(0), False, np.dot(rt, rt.T)
+    return _powers_in_span(qt_b, mt, v)
 
 
 @numba.njit(cache=True, nogil=True)

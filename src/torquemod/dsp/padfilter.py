@@ -423,48 +423,9 @@ def _notch_design(f0_hz: float, q: float, fs_hz: float) -> tuple[np.ndarray, np.
 @numba.njit(cache=True, nogil=True)
 def _fill_cos_sin_together(out: np.ndarray, col0: int, omegas: np.ndarray, start: int) -> None:
     """:func:`~torquemod.dsp.tonemodel._fill_cos_sin` with up to four tones advancing
-    together: each tone's values by the same operations (the exact ``cos`` and ``sin`` of
-    ``omegas[m]*(start + i)`` every 64 samples, a rotation by one sample between), so the
-    same bits, but their rotations are independent chains the processor overlaps instead of
-    one tone's whole record after another's."""
-    n = out.shape[0]
-    k = omegas.size
-    for g in range(0, k, 4):
-        cnt = min(4, k - g)
-        om0 = omegas[g]
-        om1 = omegas[g + 1] if cnt > 1 else 0.0
-        om2 = omegas[g + 2] if cnt > 2 else 0.0
-        om3 = omegas[g + 3] if cnt > 3 else 0.0
-        cd0, sd0 = math.cos(om0), math.sin(om0)
-        cd1, sd1 = math.cos(om1), math.sin(om1)
-        cd2, sd2 = math.cos(om2), math.sin(om2)
-        cd3, sd3 = math.cos(om3), math.sin(om3)
-        j0 = col0 + 2 * g
-        for blk in range(0, n, 64):
-            c0, s0 = math.cos(om0 * (start + blk)), math.sin(om0 * (start + blk))
-            c1 = s1 = c2 = s2 = c3 = s3 = 0.0  # (the slots beyond the tones: not stored)
-            if cnt > 1:
-                c1, s1 = math.cos(om1 * (start + blk)), math.sin(om1 * (start + blk))
-            if cnt > 2:
-                c2, s2 = math.cos(om2 * (start + blk)), math.sin(om2 * (start + blk))
-            if cnt > 3:
-                c3, s3 = math.cos(om3 * (start + blk)), math.sin(om3 * (start + blk))
-            for i in range(blk, min(n, blk + 64)):
-                out[i, j0] = c0
-                out[i, j0 + 1] = s0
-                if cnt > 1:
-                    out[i, j0 + 2] = c1
-                    out[i, j0 + 3] = s1
-                if cnt > 2:
-                    out[i, j0 + 4] = c2
-                    out[i, j0 + 5] = s2
-                if cnt > 3:
-                    out[i, j0 + 6] = c3
-                    out[i, j0 + 7] = s3
-                c0, s0 = c0 * cd0 - s0 * sd0, s0 * cd0 + c0 * sd0
-                c1, s1 = c1 * cd1 - s1 * sd1, s1 * cd1 + c1 * sd1
-                c2, s2 = c2 * cd2 - s2 * sd2, s2 * cd2 + c2 * sd2
-                c3, s3 = c3 * cd3 - s3 * sd3, s3 * cd3 + c3 * sd3
+    together (:func:`~torquemod.dsp.tonemodel.fill_tones_together`, the same bits): the
+    cos and sin of ``omegas[m]*(start + i)`` [rad per sample]."""
+    tonemodel.fill_tones_together(out, col0, omegas, float(start), 1.0)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -31,7 +31,7 @@ from torquemod.dsp.extrema import (  # noqa: F401  (re-exported: the paper's est
     peak_valley_phase,
 )
 from torquemod.dsp.lstsq import LstsqFactor, lapack_addresses, lstsq, lstsq_compiled
-from torquemod.dsp.tonemodel import tone_design
+from torquemod.dsp.tonemodel import fill_tones_together, tone_design
 from torquemod.errors import ProcessingError
 
 #: Degrees per radian, ``180/pi``: numpy's ``degrees`` multiplies by this double, so a
@@ -148,48 +148,10 @@ def _fill_tones(out: np.ndarray, col0: int, fs_hz: float, tones_hz: np.ndarray) 
 @njit(cache=True, nogil=True)
 def _fill_tones_together(out: np.ndarray, col0: int, fs_hz: float, tones_hz: np.ndarray
                          ) -> None:
-    """:func:`_fill_tones` with up to four tones advancing together: each tone's values by
-    the same operations (so the same bits), their rotations independent chains the
-    processor overlaps instead of one tone's whole window after another's."""
-    n = out.shape[0]
-    k = tones_hz.size
-    for g in range(0, k, 4):
-        cnt = min(4, k - g)
-        om0 = 2.0 * math.pi * tones_hz[g]
-        om1 = 2.0 * math.pi * tones_hz[g + 1] if cnt > 1 else 0.0
-        om2 = 2.0 * math.pi * tones_hz[g + 2] if cnt > 2 else 0.0
-        om3 = 2.0 * math.pi * tones_hz[g + 3] if cnt > 3 else 0.0
-        cd0, sd0 = math.cos(om0 / fs_hz), math.sin(om0 / fs_hz)
-        cd1, sd1 = math.cos(om1 / fs_hz), math.sin(om1 / fs_hz)
-        cd2, sd2 = math.cos(om2 / fs_hz), math.sin(om2 / fs_hz)
-        cd3, sd3 = math.cos(om3 / fs_hz), math.sin(om3 / fs_hz)
-        j0 = col0 + 2 * g
-        for b in range(0, n, 64):
-            tb = (b - (n - 1) / 2) / fs_hz
-            c0, s0 = math.cos(om0 * tb), math.sin(om0 * tb)
-            c1 = s1 = c2 = s2 = c3 = s3 = 0.0  # (the slots beyond the tones: not stored)
-            if cnt > 1:
-                c1, s1 = math.cos(om1 * tb), math.sin(om1 * tb)
-            if cnt > 2:
-                c2, s2 = math.cos(om2 * tb), math.sin(om2 * tb)
-            if cnt > 3:
-                c3, s3 = math.cos(om3 * tb), math.sin(om3 * tb)
-            for i in range(b, min(n, b + 64)):
-                out[i, j0] = c0
-                out[i, j0 + 1] = s0
-                if cnt > 1:
-                    out[i, j0 + 2] = c1
-                    out[i, j0 + 3] = s1
-                if cnt > 2:
-                    out[i, j0 + 4] = c2
-                    out[i, j0 + 5] = s2
-                if cnt > 3:
-                    out[i, j0 + 6] = c3
-                    out[i, j0 + 7] = s3
-                c0, s0 = c0 * cd0 - s0 * sd0, s0 * cd0 + c0 * sd0
-                c1, s1 = c1 * cd1 - s1 * sd1, s1 * cd1 + c1 * sd1
-                c2, s2 = c2 * cd2 - s2 * sd2, s2 * cd2 + c2 * sd2
-                c3, s3 = c3 * cd3 - s3 * sd3, s3 * cd3 + c3 * sd3
+    """:func:`_fill_tones` with up to four tones advancing together
+    (:func:`~torquemod.dsp.tonemodel.fill_tones_together`, the same bits): t [s] from the
+    window's centre."""
+    fill_tones_together(out, col0, 2.0 * math.pi * tones_hz, -((out.shape[0] - 1) / 2), fs_hz)
 
 
 def _design(n: int, fs_hz: float, f_hz: float, nuisance_hz: tuple[float, ...], trend: bool

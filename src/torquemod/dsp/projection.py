@@ -132,7 +132,7 @@ def powers_in_span(qt_b: np.ndarray, m: np.ndarray, v: np.ndarray) -> np.ndarray
         norm, or a pivot of ``R'R``'s Cholesky factorisation falls below 1e-10 of its
         diagonal element).
     """
-    powers, ok = _powers_in_span(np.ascontiguousarray(qt_b, dtype=np.float64),
+    powers, ok, _ = _powers_in_span(np.ascontiguousarray(qt_b, dtype=np.float64),
                                  np.ascontiguousarray(m.T, dtype=np.float64),
                                  np.ascontiguousarray(v, dtype=np.float64))
     return powers if ok else None
@@ -140,10 +140,11 @@ def powers_in_span(qt_b: np.ndarray, m: np.ndarray, v: np.ndarray) -> np.ndarray
 
 @numba.njit(cache=True, nogil=True)
 def _powers_in_span(qt_b: np.ndarray, mt: np.ndarray, v: np.ndarray
-                    ) -> tuple[np.ndarray, bool]:
+                    ) -> tuple[np.ndarray, bool, np.ndarray]:
     """:func:`powers_in_span` with M given transposed (``k x n``), in one call: the products
     by BLAS (``np.dot``), ``R'R``'s Cholesky factor and its two triangular solves by hand
-    (k is a few columns); ``(powers, ok)``."""
+    (k is a few columns); ``(powers, ok, G)`` with ``G = R'R``, the normal matrix of M's
+    residuals on B, also where the powers are not made."""
     k, j = mt.shape[0], v.shape[1]
     rt = mt - np.dot(np.dot(mt, qt_b.T), qt_b)
     gram = np.dot(rt, rt.T)
@@ -152,7 +153,7 @@ def _powers_in_span(qt_b: np.ndarray, mt: np.ndarray, v: np.ndarray
         for t in range(mt.shape[1]):
             norm2 += mt[i, t] * mt[i, t]
         if not gram[i, i] > 1e-10 * norm2:
-            return np.empty(0), False
+            return np.empty(0), False, gram
     low = np.zeros((k, k))  # gram = L L'
     for i in range(k):
         for c in range(i + 1):
@@ -161,7 +162,7 @@ def _powers_in_span(qt_b: np.ndarray, mt: np.ndarray, v: np.ndarray
                 acc -= low[i, q] * low[c, q]
             if i == c:
                 if not acc > 1e-10 * gram[i, i]:  # (and NaN)
-                    return np.empty(0), False
+                    return np.empty(0), False, gram
                 low[i, i] = math.sqrt(acc)
             else:
                 low[i, c] = acc / low[c, c]
@@ -181,7 +182,7 @@ def _powers_in_span(qt_b: np.ndarray, mt: np.ndarray, v: np.ndarray
         for i in range(k):
             acc += y[i] * y[i]
         powers[col] = acc
-    return powers, True
+    return powers, True, gram
 
 
 def removal_at(m: np.ndarray, qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray

@@ -214,3 +214,58 @@ def tone_free_mean(x: np.ndarray, fs_hz: float, tones_hz: list[float]) -> float:
     m = x.mean()
     coef, _ = lstsq(tone_design(np.arange(x.size) / fs_hz, tones), x - m)
     return float(coef[0] + m)
+
+
+@numba.njit(cache=True, nogil=True)
+def fill_tones_together(out: np.ndarray, col0: int, omegas: np.ndarray, origin: float,
+                        scale: float) -> None:
+    """Columns ``cos`` and ``sin`` of up to four tones at a time, advancing together, into
+    ``out[:, col0:col0 + 2*len(omegas)]``: sample ``i`` of tone ``m`` at the angle
+    ``omegas[m] * ((i + origin) / scale)`` [rad], exact (libm) every 64 samples and rotated
+    by one sample's angle ``omegas[m] / scale`` between (the angle-addition recurrence,
+    e.g. Oppenheim and Schafer, Discrete-Time Signal Processing, 3rd ed., Sec. 6.7). Each
+    tone's values come from the same operations as it alone would, so the same bits; the
+    tones' rotations are independent chains the processor overlaps.
+
+    ``omegas`` are per sample with ``scale = 1`` (and ``origin`` the first sample's index),
+    or in rad/s with ``scale`` the sample rate [Hz] (and ``origin`` the time origin in
+    samples)."""
+    n = out.shape[0]
+    k = omegas.size
+    for g in range(0, k, 4):
+        cnt = min(4, k - g)
+        om0 = omegas[g]
+        om1 = omegas[g + 1] if cnt > 1 else 0.0
+        om2 = omegas[g + 2] if cnt > 2 else 0.0
+        om3 = omegas[g + 3] if cnt > 3 else 0.0
+        cd0, sd0 = math.cos(om0 / scale), math.sin(om0 / scale)
+        cd1, sd1 = math.cos(om1 / scale), math.sin(om1 / scale)
+        cd2, sd2 = math.cos(om2 / scale), math.sin(om2 / scale)
+        cd3, sd3 = math.cos(om3 / scale), math.sin(om3 / scale)
+        j0 = col0 + 2 * g
+        for blk in range(0, n, 64):
+            tb = (blk + origin) / scale
+            c0, s0 = math.cos(om0 * tb), math.sin(om0 * tb)
+            c1 = s1 = c2 = s2 = c3 = s3 = 0.0  # (the slots beyond the tones: not stored)
+            if cnt > 1:
+                c1, s1 = math.cos(om1 * tb), math.sin(om1 * tb)
+            if cnt > 2:
+                c2, s2 = math.cos(om2 * tb), math.sin(om2 * tb)
+            if cnt > 3:
+                c3, s3 = math.cos(om3 * tb), math.sin(om3 * tb)
+            for i in range(blk, min(n, blk + 64)):
+                out[i, j0] = c0
+                out[i, j0 + 1] = s0
+                if cnt > 1:
+                    out[i, j0 + 2] = c1
+                    out[i, j0 + 3] = s1
+                if cnt > 2:
+                    out[i, j0 + 4] = c2
+                    out[i, j0 + 5] = s2
+                if cnt > 3:
+                    out[i, j0 + 6] = c3
+                    out[i, j0 + 7] = s3
+                c0, s0 = c0 * cd0 - s0 * sd0, s0 * cd0 + c0 * sd0
+                c1, s1 = c1 * cd1 - s1 * sd1, s1 * cd1 + c1 * sd1
+                c2, s2 = c2 * cd2 - s2 * sd2, s2 * cd2 + c2 * sd2
+                c3, s3 = c3 * cd3 - s3 * sd3, s3 * cd3 + c3 * sd3
