@@ -104,7 +104,7 @@ class SpeedModel:
 
     def amplitude(self, name: str) -> float:
         """Amplitude of the fitted modulation of channel ``name`` [its unit]."""
-        c, s = self.coef[:2, self.names.index(name)]
+        c, s = self.coef[:2, self.names.index(name)].tolist()  # (the same float64s)
         return float(np.hypot(c, s))
 
     def variance_factor(self) -> float:
@@ -199,8 +199,11 @@ def _bins_near(n: int, fs_hz: float, f_hz: float, half_width_hz: float) -> tuple
     df = fs_hz / n
     lo = max(0, int((f_hz - half_width_hz) / df) - 2)
     hi = min(n // 2, int((f_hz + half_width_hz) / df) + 2)
-    return tuple(k for k in range(lo, hi + 1)
-                 if 1.5 * df < abs(k * df - f_hz) <= half_width_hz)
+    near = []
+    for k in range(lo, hi + 1):
+        if 1.5 * df < abs(k * df - f_hz) <= half_width_hz:
+            near.append(k)
+    return tuple(near)
 
 
 def _trace_of_inverse_2x2(a: np.ndarray) -> float:
@@ -352,9 +355,16 @@ def modulation_harmonics(modulation_hz: float, fs_hz: float, n_samples: int,
     (2, 3)
     """
     resolution = fs_hz / n_samples
-    return tuple(k for k in range(2, int(highest) + 1)
-                 if above_hz < k * modulation_hz < 0.45 * fs_hz
-                 and all(abs(k * modulation_hz - g) > 2 * resolution for g in avoid_hz))
+    kept = []
+    for k in range(2, int(highest) + 1):
+        f = k * modulation_hz
+        if above_hz < f < 0.45 * fs_hz:
+            for g in avoid_hz:
+                if not abs(f - g) > 2 * resolution:
+                    break
+            else:
+                kept.append(k)
+    return tuple(kept)
 
 
 #: the records whose orders and harmonics the chain removes (steps 3-5), computed with the
@@ -397,13 +407,15 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     names = tuple(channels)
     n = slow.shape[0]
     n_s, n_o, n_h = slow.shape[1], orders.shape[1], 2 * len(harmonics)
-    y = np.column_stack([channels[k] for k in names])
+    y = np.empty((n, len(names)), dtype=np.result_type(*(channels[k] for k in names)))
+    for j, k in enumerate(names):  # np.column_stack's array, without its per-call work
+        y[:, j] = channels[k]
     blas = numpyblas.addresses()
     if blas is not None and n > 1 and y.dtype == np.float64:
         # the modulation's columns, the design, its factor, the coefficients, the parts, the
         # slow parts' means and the noise statistics in one compiled call, with the numbers
         # of the route below and of SpeedModel's methods (numpy's BLAS calls)
-        bounds, wanted = _parts_wanted(names, n_s, n_o, n_h)
+        bounds, wanted, slots = _parts_wanted(names, n_s, n_o, n_h)
         qt, v, v_power = _noise_inputs(n, float(fs_hz), float(modulation_hz), n_s + n_o,
                                        basis_t)
         (design, dn, scale, gram, factor, coef, parts, ratio, status, means, noise,
@@ -416,12 +428,10 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
             model = SpeedModel(modulation_hz, fs_hz, design, n_s, coef, names,
                                lstsq.LstsqFactor(dn, scale, factor, gram), n_h)
             got = model._parts
-            for j, name in enumerate(names):
-                for i, which in enumerate(("slow", "orders", "harmonics")):
-                    if wanted[i, j]:
-                        got[(name, which)] = parts[i, j]
-                if wanted[0, j]:
-                    got[(name, "mean")] = float(means[j])  # (mean's numbers)
+            for i, j, key in slots:
+                got[key] = parts[i, j]
+            for name, m in zip(names, means.tolist(), strict=True):  # every mean
+                got[(name, "mean")] = m  # (mean's numbers)
             got["variance_ratio"] = float(ratio)  # (variance_factor's)
             if made:  # (noise_depletion's, for this basis_t)
                 got["noise_kept"] = (basis_t, float(noise))
@@ -460,11 +470,12 @@ def _noise_inputs(n: int, fs_hz: float, modulation_hz: float, n_basis: int,
 
 @functools.lru_cache(maxsize=16)
 def _parts_wanted(names: tuple[str, ...], n_slow: int, n_orders: int, n_harmonic: int
-                  ) -> tuple[np.ndarray, np.ndarray]:
+                  ) -> tuple[np.ndarray, np.ndarray, tuple[tuple[int, int, tuple], ...]]:
     """:func:`fit_speed_model`'s column bounds of the slow part, the orders and the
     harmonics, and which parts of which channel its compiled fit forms: every channel's
     slow part (its step-8 mean), the orders and harmonics of the records the chain filters
-    (:data:`_FILTERED`); cached read-only (the same for every cycle of a recording)."""
+    (:data:`_FILTERED`); and the same as ``(i, j, (name, part))`` slots of the model's
+    parts. Cached read-only (the same for every cycle of a recording)."""
     end = 2 + n_slow + n_orders
     bounds = np.array([[2, 2 + n_slow], [2 + n_slow, end], [end, end + n_harmonic]])
     wanted = np.zeros((3, len(names)), dtype=bool)
@@ -472,4 +483,6 @@ def _parts_wanted(names: tuple[str, ...], n_slow: int, n_orders: int, n_harmonic
     wanted[1:, [j for j, k in enumerate(names) if k in _FILTERED]] = True
     for a in (bounds, wanted):
         a.setflags(write=False)
-    return bounds, wanted
+    slots = tuple((i, j, (name, which)) for j, name in enumerate(names)
+                  for i, which in enumerate(("slow", "orders", "harmonics")) if wanted[i, j])
+    return bounds, wanted, slots
