@@ -310,7 +310,7 @@ def _with_parts(record: np.ndarray, less: tuple) -> tuple[np.ndarray, tuple]:
     the record's length; otherwise the record less its parts by numpy, and one part of
     zeros (subtracting 0.0 changes no number)."""
     record = np.ascontiguousarray(record, dtype=np.float64)
-    parts = tuple(np.ascontiguousarray(p, dtype=np.float64) for p in less)
+    parts = tuple([np.ascontiguousarray(p, dtype=np.float64) for p in less])
     if parts and all(p.shape == record.shape for p in parts) \
             and len({p.flags.writeable for p in parts}) == 1:
         return record, parts

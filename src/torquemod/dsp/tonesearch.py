@@ -173,7 +173,7 @@ def refine_peaks(qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray, fs_hz: float,
                   float(duration_s), np.asarray(columns, dtype=np.int64),
                   np.asarray(peaks_hz, dtype=np.float64), np.asarray(orders, dtype=np.int64),
                   float(tol_hz))
-    return [float(v) for v in out]
+    return out.tolist()  # (Python floats, the same numbers)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -43,6 +43,7 @@ class _SlowOrdersRemoval:
     def __init__(self, y: np.ndarray, slow: np.ndarray, orders: np.ndarray, fs_hz: float,
                  harmonics: tuple[int, ...] = (), *, start_hz: float | None = None):
         self.y, self.fs_hz, self.harmonics = y, fs_hz, tuple(harmonics)
+        self._orders = np.array((1, *self.harmonics), dtype=np.int64)  # the tone's orders
         self.start_hz = start_hz  # the search's nominal start [Hz]: its columns cached
         self.slow, self.orders = slow, orders
         self._b = self._fac = _NOT_YET
@@ -95,7 +96,7 @@ class _SlowOrdersRemoval:
         if self.qt is not None and modulation_hz != self.start_hz:
             # the columns (modulation_columns' numbers) and the steps below in one compiled
             # call
-            out = projection.removal_at_tone(self.fs_hz, modulation_hz, (1, *self.harmonics),
+            out = projection.removal_at_tone(self.fs_hz, modulation_hz, self._orders,
                                              self.qt, self.r_y, self.qy)
             if out is not None:
                 return out
@@ -171,7 +172,7 @@ class _SlowOrdersRemoval:
         if self.qt is not None:  # the steps of _refine_steps in one compiled call (the
             # same numbers)
             return tonesearch.refine_peaks(self.qt, self.r_y, self.qy, self.fs_hz, duration,
-                                           columns, peaks, (1, *self.harmonics), tol_hz=tol_hz)
+                                           columns, peaks, self._orders, tol_hz=tol_hz)
         return self._refine_steps(columns, peaks, duration, tol_hz)
 
     def _refine_steps(self, columns, peaks: list[float], duration: float, tol_hz: float
