@@ -407,9 +407,10 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     names = tuple(channels)
     n = slow.shape[0]
     n_s, n_o, n_h = slow.shape[1], orders.shape[1], 2 * len(harmonics)
-    y = np.empty((n, len(names)), dtype=np.result_type(*(channels[k] for k in names)))
-    for j, k in enumerate(names):  # np.column_stack's array, without its per-call work
-        y[:, j] = channels[k]
+    rows = [channels[k] for k in names]
+    y = np.empty((n, len(rows)), dtype=np.result_type(*rows))
+    for j, r in enumerate(rows):  # np.column_stack's array, without its per-call work
+        y[:, j] = r
     blas = numpyblas.addresses()
     if blas is not None and n > 1 and y.dtype == np.float64:
         # the modulation's columns, the design, its factor, the coefficients, the parts, the
