@@ -117,12 +117,27 @@ def whole_period_window(n_samples: int, fs_hz: float, f_hz: float, center_s: flo
 
 
 @functools.lru_cache(maxsize=32)
+def _window_times(n: int, fs_hz: float, trend: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The window's sample times t [s] from its centre and the columns that depend on them
+    alone (ones, and the line when ``trend``), read-only: the same for every cycle of a
+    given length, whatever its modulation frequency."""
+    t = (np.arange(n) - (n - 1) / 2) / fs_hz
+    rest = tone_design(t, (), line=trend)
+    for a in (t, rest):
+        a.setflags(write=False)
+    return t, rest
+
+
+@functools.lru_cache(maxsize=32)
 def _fixed_columns(n: int, fs_hz: float, f_hz: float, trend: bool) -> np.ndarray:
     """The design's columns that depend only on the window: cos and sin at ``f_hz``, ones,
     and the line when ``trend`` (read-only; t from the window centre)."""
-    t = (np.arange(n) - (n - 1) / 2) / fs_hz
-    cols = np.column_stack([np.cos(2 * np.pi * f_hz * t), np.sin(2 * np.pi * f_hz * t),
-                            tone_design(t, (), line=trend)])
+    t, rest = _window_times(n, fs_hz, trend)
+    wt = 2 * np.pi * f_hz * t
+    cols = np.empty((n, 2 + rest.shape[1]))
+    cols[:, 0] = np.cos(wt)  # (each on its own contiguous array, as numpy's column_stack
+    cols[:, 1] = np.sin(wt)  # of them had it)
+    cols[:, 2:] = rest
     cols.setflags(write=False)
     return cols
 
