@@ -117,6 +117,12 @@ slow-band decision and the noise statistic from bases made once per length or by
 (docs/performance.md, "The rest near its floor"). 1.5x is not reached: of the rest (~1.8
 ms in benchmarks/chain_split.py) 1.2 ms is compiled code and library routines, ~1.0 ms of
 it the fits whose rounding is the phase.
+
+Ninth round (2fdee9f then fe156fc, alternated three times, load 0.9): each step after the
+decimation one compiled call with the same arithmetic; one cycle 2.41-2.60x -> 2.04-2.13x,
+the rest 1.375-1.380 -> 0.899-0.988 ms; the second figure (24 different cycles in turn,
+:func:`distinct_cycles_vs_decimator`) 2.23-2.47x -> 1.95-1.97x (docs/performance.md, "The
+rest in one compiled call per step").
 """
 
 from __future__ import annotations

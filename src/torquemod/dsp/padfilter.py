@@ -344,6 +344,8 @@ def _highpass_parts(cutoff_hz: float, order: int, fs_hz: float
     b, a = np.array(b, dtype=np.float64), np.array(a, dtype=np.float64)
     zi = _steady_state(b, a)
     settle = int(_settling_kernel(b, a, _SETTLING_TOL, _SETTLING_MAX))
+    for arr in (b, a, zi):  # shared by every later call (and thread): read only
+        arr.setflags(write=False)
     return b, a, zi, settle
 
 
