@@ -88,3 +88,18 @@ def test_tones_filled_together_are_fill_tones_bit_for_bit(n, k):
     phase._fill_tones(want, 4, FS, tones)
     phase._fill_tones_together(got, 4, FS, tones)
     np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("n", [17, 321, 690])
+@pytest.mark.parametrize("trend", [True, False])
+def test_fixed_columns_are_the_window_formula_bit_for_bit(n, trend):
+    # the cached times and ones/line columns with fresh cos/sin give the arrays the whole
+    # formula gives (t from the window centre), for frequencies never asked before
+    t = (np.arange(n) - (n - 1) / 2) / FS
+    for f_hz in (0.5 + n * 1e-7, 2.0137 + n * 1e-7):
+        want = np.column_stack([np.cos(2 * np.pi * f_hz * t), np.sin(2 * np.pi * f_hz * t),
+                                phase.tone_design(t, (), line=trend)])
+        got = phase._fixed_columns(n, FS, f_hz, trend)
+        assert got.shape == want.shape and got.flags.c_contiguous
+        assert np.array_equal(got, want)
+        assert not got.flags.writeable

@@ -131,3 +131,22 @@ def test_a_basis_spanning_a_harmonic_falls_back_to_the_refined_ratio():
         plain = jointmodel.fit_speed_model(ch, FS, 2.013, slow, orders, (2,))
     assert "noise_kept" not in model._parts
     assert model.variance_factor() == plain.variance_factor()
+
+
+def test_modulation_harmonics_and_bins_near_by_their_conditions():
+    # every harmonic k kept iff above the slow band, below 0.45 fs and clear of each
+    # avoided frequency by more than two resolutions; every bin kept iff off the centre
+    # by more than 1.5 bins and within the half-width (brute force over all k)
+    fs, n = 53.344, 320
+    res = fs / n
+    for f_mod, above, avoid in ((2.0, 1.2, ()), (2.0, 1.2, (4.0 + res, 6.3)),
+                                (0.9, 1.2, (2.7,)), (7.0, 0.2, (14.0,))):
+        want = tuple(k for k in range(2, 6) if above < k * f_mod < 0.45 * fs
+                     and all(abs(k * f_mod - g) > 2 * res for g in avoid))
+        got = jointmodel.modulation_harmonics(f_mod, fs, n, 5, above_hz=above,
+                                              avoid_hz=avoid)
+        assert got == want
+    for f_hz in (0.3, 2.0, 2.0137, 26.0):
+        df = fs / n
+        want = tuple(k for k in range(n // 2 + 1) if 1.5 * df < abs(k * df - f_hz) <= 0.5)
+        assert jointmodel._bins_near(n, fs, f_hz, 0.5) == want
