@@ -22,7 +22,11 @@ from torquemod.dsp.filters import (
     _steady_state_solve,
 )
 from torquemod.dsp.lstsq import _DPOTRF, _DPOTRS, LstsqFactor, _factor_of, _solve
-from torquemod.dsp.tonemodel import _fill_cos_sin, _line_and_tones_design
+from torquemod.dsp.tonemodel import (
+    _fill_cos_sin,
+    _line_and_tones_design,
+    line_and_tones_design_compiled,
+)
 
 #: :func:`~torquemod.dsp.filters.settling_samples`' defaults: the share of the impulse
 #: response's peak [-] and the longest response searched [samples].
@@ -158,13 +162,8 @@ def _pad_and_filter(rows: np.ndarray, dn: np.ndarray, factor: np.ndarray, scale:
     padded = np.zeros((n_rows, total))
     levels = np.empty(n_rows)
     for r in range(n_rows):
-        x = np.ascontiguousarray(rows[r])
-        coef = _solve(dn, factor, scale, x, potrs)
-        if k:
-            padded[r] = np.dot(trig, np.ascontiguousarray(coef[2:]))
-        for i in range(n):
-            padded[r, pad + i] = x[i] - coef[0] - coef[1] * line[i]
-        levels[r] = coef[0]
+        levels[r] = _pad_record(np.ascontiguousarray(rows[r]), dn, factor, scale, trig, line,
+                                pad, potrs, padded[r])
     both = padded  # (the first row's own filters act on it before the copy below)
     for f in range(lengths.size):
         m = lengths[f]
@@ -176,6 +175,22 @@ def _pad_and_filter(rows: np.ndarray, dn: np.ndarray, factor: np.ndarray, scale:
     if n_first == lengths.size:
         both = padded.copy()
     return padded, levels, both
+
+
+@numba.njit(cache=True, nogil=True)
+def _pad_record(x: np.ndarray, dn: np.ndarray, factor: np.ndarray, scale: np.ndarray,
+                trig: np.ndarray, line: np.ndarray, pad: int, potrs: int, out: np.ndarray
+                ) -> float:
+    """Record ``x`` less its fitted line, padded by ``pad`` samples at each end with its
+    fitted tones, into ``out`` (``n + 2 pad``): the line and tones by the compiled solve
+    (:func:`~torquemod.dsp.lstsq._solve`), the tones over the padded times from ``trig``;
+    returns the line's level (its mean) [x's unit]."""
+    coef = _solve(dn, factor, scale, x, potrs)
+    if trig.shape[1]:
+        out[:] = np.dot(trig, np.ascontiguousarray(coef[2:]))
+    for i in range(x.size):
+        out[pad + i] = x[i] - coef[0] - coef[1] * line[i]
+    return coef[0]
 
 
 def chain_filtered(first: np.ndarray, second: np.ndarray, fs_hz: float, f_mod_hz: float,
@@ -443,8 +458,8 @@ def _chain_filtered_kernel(first_record: np.ndarray, first_less: tuple,
     or not 0 where the reference route must run. The notches by :func:`_notch_design`, the
     band-pass by :func:`_butter_bandpass_compiled`, the settling of
     each filter by :func:`~torquemod.dsp.filters._settling_kernel`, the line-and-tones
-    design of :func:`~torquemod.dsp.tonemodel._line_and_tones_design` (its tones by
-    :func:`_fill_cos_sin_together`) and its factor as
+    design of :func:`~torquemod.dsp.tonemodel.line_and_tones_design_compiled` and its
+    factor as
     :meth:`LstsqFactor.of <torquemod.dsp.lstsq.LstsqFactor.of>`
     (:func:`~torquemod.dsp.lstsq._factor_of`), then :func:`_pad_and_filter`'s steps; each
     record less its parts first (:func:`_less`)."""
@@ -464,31 +479,11 @@ def _chain_filtered_kernel(first_record: np.ndarray, first_less: tuple,
         pad = max(pad, _settling_kernel(b, a, 1e-6, 1_000_000))
     bp_b, bp_a = _butter_bandpass_compiled(bp_order, bp_lo, bp_hi, bp_gain)
     pad = max(pad, _settling_kernel(bp_b, bp_a, 1e-6, 1_000_000))
-    # the tones kept (_line_and_tones_design): below Nyquist, one frequency resolution
-    # from those kept before
-    res = fs_hz / n
     tones = np.empty(1 + k_notch)
     tones[0] = f_mod_hz
     tones[1:] = notches_hz
-    kept = np.empty(tones.size)
-    k = 0
-    for f in tones:
-        if 0 < f < fs_hz / 2:
-            far = True
-            for g in kept[:k]:
-                if not abs(f - g) > res:
-                    far = False
-            if far:
-                kept[k] = f
-                k += 1
-    omegas = np.empty(k)
-    for m in range(k):
-        omegas[m] = 2 * np.pi * kept[m] / fs_hz
-    design = np.empty((n, 2 + 2 * k))
-    for i in range(n):
-        design[i, 0] = 1.0
-        design[i, 1] = (i - (n - 1) / 2) / fs_hz  # t - mean t
-    _fill_cos_sin_together(design, 2, omegas, 0)
+    design, _, omegas = line_and_tones_design_compiled(n, fs_hz, tones)
+    k = omegas.size
     dn, scale, _, factor, status = _factor_of(design, syrk, potrf)
     if status != 0:
         return 2, 0, np.empty((0, 0)), np.empty((0, 0))
@@ -497,14 +492,10 @@ def _chain_filtered_kernel(first_record: np.ndarray, first_less: tuple,
     _fill_cos_sin_together(trig, 0, omegas, -pad)
     padded = np.zeros((2, total))
     levels = np.empty(2)
+    line = np.ascontiguousarray(design[:, 1])
     for r in range(2):
-        x = first if r == 0 else second
-        coef = _solve(dn, factor, scale, x, potrs)
-        if k:
-            padded[r] = np.dot(trig, np.ascontiguousarray(coef[2:]))
-        for i in range(n):
-            padded[r, pad + i] = x[i] - coef[0] - coef[1] * design[i, 1]
-        levels[r] = coef[0]
+        levels[r] = _pad_record(first if r == 0 else second, dn, factor, scale, trig, line,
+                                pad, potrs, padded[r])
     notched = np.empty((2, n))
     filtered = np.empty((2, n))
     for j in range(k_notch):  # the first record through its notches

@@ -66,17 +66,42 @@ def fit_line_and_tones(x: np.ndarray, fs_hz: float, tones_hz: list[float]
 
 def _line_and_tones_design(n: int, fs_hz: float, tones_hz: list[float]
                            ) -> tuple[np.ndarray, list[float]]:
-    """The design of :func:`fit_line_and_tones` for ``n`` samples and the tones it keeps."""
+    """The design of :func:`fit_line_and_tones` for ``n`` samples and the tones it keeps
+    (:func:`line_and_tones_design_compiled`)."""
+    design, kept, _ = line_and_tones_design_compiled(
+        int(n), float(fs_hz), np.asarray(tones_hz, dtype=np.float64).reshape(-1))
+    return design, kept.tolist()
+
+
+@numba.njit(cache=True, nogil=True)
+def line_and_tones_design_compiled(n: int, fs_hz: float, tones_hz: np.ndarray
+                                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The design of :func:`fit_line_and_tones`: ones, ``t - mean(t)`` [s], then cos and sin
+    of each tone kept (below Nyquist, more than one frequency resolution ``fs/n`` from
+    every tone kept before it, in order), their columns by :func:`fill_tones_together`.
+    ``(design, kept [Hz], omegas [rad per sample])``."""
     res = fs_hz / n
-    kept: list[float] = []
+    kept = np.empty(tones_hz.size)
+    k = 0
     for f in tones_hz:
-        if 0 < f < fs_hz / 2 and all(abs(f - g) > res for g in kept):
-            kept.append(f)
-    design = np.empty((n, 2 + 2 * len(kept)))
-    design[:, 0] = 1.0
-    design[:, 1] = (np.arange(n) - (n - 1) / 2) / fs_hz  # t - mean t
-    _fill_cos_sin(design, 2, 2 * np.pi * np.array(kept, dtype=np.float64) / fs_hz, 0)
-    return design, kept
+        if 0 < f < fs_hz / 2:
+            far = True
+            for g in kept[:k]:
+                if not abs(f - g) > res:
+                    far = False
+            if far:
+                kept[k] = f
+                k += 1
+    kept = kept[:k].copy()
+    omegas = np.empty(k)
+    for m in range(k):
+        omegas[m] = 2 * np.pi * kept[m] / fs_hz
+    design = np.empty((n, 2 + 2 * k))
+    for i in range(n):
+        design[i, 0] = 1.0
+        design[i, 1] = (i - (n - 1) / 2) / fs_hz  # t - mean t
+    fill_tones_together(design, 2, omegas, 0.0, 1.0)
+    return design, kept, omegas
 
 
 def model_padded(x: np.ndarray, fs_hz: float, tones_hz: list[float], pad: int
