@@ -1,0 +1,63 @@
+"""Kernels loaded from numba's cache hold no parsed linking module
+(torquemod._util.jitlink.lean_cached_kernels), and a kernel compiled later still links them
+in: their module is parsed again from the kept bitcode when it is asked for.
+
+Each case runs in a fresh interpreter: the change is process-wide, and a kernel must come
+from the cache, which a first interpreter fills."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+
+KERNELS = '''
+import numba
+import numpy as np
+
+@numba.njit(cache=True)
+def inner(x):
+    return np.sum(x * x) + 1.0
+'''
+
+FILL = "import kernels, numpy as np; print(kernels.inner(np.arange(4.0)))"
+
+USE = textwrap.dedent('''
+    import json, sys
+    import numba
+    import numpy as np
+    from torquemod._util.jitlink import lean_cached_kernels
+    installed = lean_cached_kernels()
+    import kernels
+    x = np.arange(4.0)
+    first = kernels.inner(x)
+    (cres,) = kernels.inner.overloads.values()
+    lib = cres.library
+    from_cache = kernels.inner.stats.cache_hits
+    held_after_load = lib._shared_module is not None
+
+    @numba.njit
+    def outer(y):  # compiled now: links the cached kernel's library in
+        return 2.0 * kernels.inner(y)
+
+    print(json.dumps({"installed": installed, "hits": sum(from_cache.values()),
+                      "held_after_load": held_after_load, "first": first,
+                      "outer": outer(x), "held_after_link": lib._shared_module is not None}))
+''')
+
+
+def test_cached_kernel_drops_its_module_and_still_links(tmp_path):
+    (tmp_path / "kernels.py").write_text(KERNELS)
+    head = f"import sys; sys.path.insert(0, {str(tmp_path)!r})\n"
+    for code in (FILL, USE):  # the first fills the cache beside kernels.py
+        run = subprocess.run([sys.executable, "-c", head + code], capture_output=True,
+                             text=True)
+        assert run.returncode == 0, run.stderr
+    got = json.loads(run.stdout)
+    assert got["installed"] is True
+    assert got["hits"] == 1  # the kernel came from the cache, not the compiler
+    assert got["held_after_load"] is False  # no parsed module held after the load
+    assert got["first"] == 15.0  # 0 + 1 + 4 + 9, + 1
+    assert got["outer"] == 30.0  # linked through the module parsed again from the bitcode
+    assert got["held_after_link"] is True
