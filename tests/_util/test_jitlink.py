@@ -1,6 +1,7 @@
 """Kernels loaded from numba's cache hold no parsed linking module
 (torquemod._util.jitlink.lean_cached_kernels), and a kernel compiled later still links them
-in: their module is parsed again from the kept bitcode when it is asked for.
+in: their module is parsed again from the kept bitcode when it is asked for. LLVM's pages
+released from the resident set (release_compiler_pages) come back when LLVM runs again.
 
 Each case runs in a fresh interpreter: the change is process-wide, and a kernel must come
 from the cache, which a first interpreter fills."""
@@ -11,6 +12,8 @@ import json
 import subprocess
 import sys
 import textwrap
+
+import pytest
 
 KERNELS = '''
 import numba
@@ -61,3 +64,48 @@ def test_cached_kernel_drops_its_module_and_still_links(tmp_path):
     assert got["first"] == 15.0  # 0 + 1 + 4 + 9, + 1
     assert got["outer"] == 30.0  # linked through the module parsed again from the bitcode
     assert got["held_after_link"] is True
+
+
+RELEASE = textwrap.dedent('''
+    import json, os
+    import numba
+    from torquemod._util.jitlink import release_compiler_pages
+
+    def llvm_rss_kib():
+        total, mine = 0, False
+        with open("/proc/self/smaps") as fh:
+            for line in fh:
+                head = line.split()
+                if "-" in head[0] and not head[0].endswith(":"):
+                    mine = len(head) > 5 and os.path.basename(head[5]).startswith("libllvmlite")
+                elif mine and head[0] == "Rss:":
+                    total += int(head[1])
+        return total
+
+    @numba.njit
+    def first(x):  # compiled here: LLVM's optimiser runs
+        return x * 3.0 + 1.0
+
+    assert first(2.0) == 7.0
+    before = llvm_rss_kib()
+    released = release_compiler_pages()
+    after = llvm_rss_kib()
+
+    @numba.njit
+    def second(x):  # the pages come back from the page cache as LLVM runs again
+        return first(x) - 1.0
+
+    print(json.dumps({"before": before, "after": after, "released": released,
+                      "second": second(2.0), "first": first(5.0)}))
+''')
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc and madvise: Linux")
+def test_release_compiler_pages_leaves_llvm_working():
+    run = subprocess.run([sys.executable, "-c", RELEASE], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    got = json.loads(run.stdout)
+    assert got["released"] > 0
+    assert got["before"] > 20_000  # KiB: compiling touched tens of MiB of LLVM's library
+    assert got["after"] < got["before"] / 4  # read-only pages out of the resident set
+    assert got["second"] == 6.0 and got["first"] == 16.0  # LLVM and the kernels still work

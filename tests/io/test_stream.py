@@ -213,3 +213,28 @@ def test_last_revolution_completed_within_the_last_sample_interval(tmp_path):
         got = [r for _, _, r in stream.revolutions(chunk_rows=1234)]
         assert stream.tail_samples == 0
     assert got == bounds
+
+
+def test_hdf5_stream_caches_one_chunk_per_dataset(tmp_path):
+    """A streamed HDF5 dataset is opened with a chunk cache of one of its chunks (HDF5 2.0's
+    default of 8 MiB a dataset held 48 MiB for a recording's 6 channels), and reads the
+    same values; a contiguous dataset keeps the default access."""
+    import h5py
+
+    from torquemod.io._stream_tables import _H5Table
+    x = np.arange(50_000, dtype=np.float32) * 0.5
+    path = tmp_path / "c.h5"
+    with h5py.File(path, "w") as fh:
+        fh.create_dataset("chunked", data=x, chunks=(3_000,))
+        fh.create_dataset("plain", data=x.astype(np.float64))
+        default = h5py.h5p.create(h5py.h5p.DATASET_ACCESS).get_chunk_cache()[1]
+    table = _H5Table(path, None, mat=False)
+    try:
+        chunked, plain = table._dataset("chunked"), table._dataset("plain")
+        assert chunked.id.get_access_plist().get_chunk_cache()[1] == 3_000 * 4
+        assert plain.id.get_access_plist().get_chunk_cache()[1] == default
+        got = table.read(["chunked", "plain"], 2_500, 9_100)  # ends inside chunks
+        np.testing.assert_array_equal(got["chunked"], x[2_500:9_100])
+        np.testing.assert_array_equal(got["plain"], x[2_500:9_100])
+    finally:
+        table.close()

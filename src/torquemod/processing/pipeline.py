@@ -24,7 +24,7 @@ import pandas as pd
 
 from torquemod._util.blas import single_blas
 from torquemod._util.fsutil import sha256_file
-from torquemod._util.jitlink import lean_cached_kernels
+from torquemod._util.jitlink import lean_cached_kernels, release_compiler_pages
 from torquemod._util.progress import WarmupBar
 from torquemod._util.records import ColumnarRecords
 from torquemod._version import __version__
@@ -288,6 +288,18 @@ def release_freed_memory() -> None:
 #: A streamed file's freed memory is handed back every this-many revolutions.
 TRIM_EVERY = 32
 
+#: Whether the next cycle processed releases LLVM's pages (set by process_experiment: the
+#: first cycle of a run loads the chain's kernels, the rest run without LLVM).
+_COMPILER_PAGES_DUE = [True]
+
+
+def _kernels_loaded() -> None:
+    """After a run's first cycle: the chain's kernels are loaded; LLVM's pages are released
+    (:func:`~torquemod._util.jitlink.release_compiler_pages`) once per run."""
+    if _COMPILER_PAGES_DUE[0]:
+        _COMPILER_PAGES_DUE[0] = False
+        release_compiler_pages()
+
 
 def _streamed_cycles(stream, where: str, notes: list[str]):
     """(cycle, segment, (start, stop)) of every whole revolution of a stream, each checked
@@ -393,6 +405,7 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
             actions.append(f"{cwhere}: dropped (NaN/inf samples)")
             continue
         item = _cycle_item(entry, exp, cfg, where, cyc, seg)
+        _kernels_loaded()
         notes += item[1].notes
         kept = item if reduce is None else reduce(item)
         if kept is not None:  # None: the reducer keeps what it needs itself
@@ -509,6 +522,7 @@ def process_experiment(experiment: Experiment | str | Path, *,
     """
     workers = workers if workers is not None else min(4, os.cpu_count() or 1)
     lean_cached_kernels()  # the kernels load without their linking IR held (~59 MiB)
+    _COMPILER_PAGES_DUE[0] = True
     exp = experiment if isinstance(experiment, Experiment) else read_experiment(experiment)
     cfg = resolve_config(exp, config)
     created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
@@ -577,6 +591,7 @@ def process_experiment(experiment: Experiment | str | Path, *,
     timing = {"wall_s": time.perf_counter() - t_start, "read_thread_s": t_read,
               "compute_thread_s": t_compute, "workers": workers}
     release_freed_memory()  # what the cycles used, before the fit and the report
+    release_compiler_pages()  # and LLVM's pages, touched again if a step loaded kernels
     return ProcessResult(exp, cfg, cycles, steps, details, traces, notes + nan_actions,
                          timing, nan_actions, hashes, created)
 
