@@ -33,7 +33,11 @@ that does not fit is skipped with a line saying so. One unmeasured run on a 1-mi
 first fills numba's kernel cache of the source tree measured.
 
     python benchmarks/memory.py --command 10 60 180 600 [--dtype f4] [--workdir DIR]
-                                [--src OTHER_CHECKOUT/src]
+                                [--src OTHER_CHECKOUT/src] [--sample 0.01]
+
+``--sample SECONDS`` also reads the child's ``VmRSS`` from ``/proc`` that often and prints
+when the peak was reached and the largest resident size in each tenth of the run (the
+kernels load at the start, the report is written at the end).
 
 ``--train HOURS...`` (issues 10 and 11) measures a train run through the on-board estimator
 (``torquemod.ontrain.run.estimate_axle``, which reads through ``RunStream`` 30 s at a time):
@@ -201,13 +205,39 @@ def generate_long(folder: Path, minutes: float, dtype: str = "f8",
             "duration_s": n_total / FS_HZ}
 
 
-def run_measured(cmd: list[str], env: dict | None = None) -> dict:
-    """Run ``cmd``; its peak RSS [bytes] (``os.wait4``: this child alone), CPU and wall [s]."""
+def _sample_rss(pid: int, t0: float, every_s: float, out: list) -> None:
+    """Append (seconds since ``t0``, VmRSS [bytes]) of process ``pid`` every ``every_s``
+    until it ends (Linux ``/proc``)."""
+    path = f"/proc/{pid}/status"
+    while True:
+        try:
+            with open(path) as fh:
+                rss = next(int(x.split()[1]) * 1024 for x in fh if x.startswith("VmRSS"))
+        except (OSError, StopIteration, ValueError):
+            return
+        out.append((time.perf_counter() - t0, rss))
+        time.sleep(every_s)
+
+
+def run_measured(cmd: list[str], env: dict | None = None, sample_s: float | None = None
+                 ) -> dict:
+    """Run ``cmd``; its peak RSS [bytes] (``os.wait4``: this child alone), CPU and wall [s];
+    with ``sample_s``, also its resident size sampled from outside that often
+    (``samples``: (s, bytes) pairs)."""
     import os
+    import threading
 
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
+    samples: list = []
+    sampler = None
+    if sample_s:
+        sampler = threading.Thread(target=_sample_rss, args=(proc.pid, t0, sample_s, samples),
+                                   daemon=True)
+        sampler.start()
     _, status, usage = os.wait4(proc.pid, 0)
+    if sampler is not None:
+        sampler.join()
     proc.returncode = os.waitstatus_to_exitcode(status)
     err = proc.stderr.read().decode(errors="replace")
     proc.stderr.close()
@@ -215,11 +245,23 @@ def run_measured(cmd: list[str], env: dict | None = None) -> dict:
         raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{err}")
     peak = usage.ru_maxrss if sys.platform == "darwin" else usage.ru_maxrss * 1024
     return {"peak_rss": peak, "cpu_s": usage.ru_utime + usage.ru_stime,
-            "wall_s": time.perf_counter() - t0}
+            "wall_s": time.perf_counter() - t0, "samples": samples}
+
+
+def _timeline(samples: list, wall_s: float, parts: int = 10) -> str:
+    """Where the sampled peak fell and the largest resident size in each tenth of the run
+    [MiB]: a peak early is the loading, in the middle the streaming, late the report."""
+    if not samples:
+        return "no samples"
+    t_pk, pk = max(samples, key=lambda x: x[1])
+    tenths = [max((r for t, r in samples if k * wall_s / parts <= t < (k + 1) * wall_s / parts),
+                  default=0) / 2**20 for k in range(parts)]
+    return (f"sampled peak {pk / 2**20:.0f} MiB at {t_pk:.1f} of {wall_s:.1f} s; max by "
+            f"tenth of the run: " + " ".join(f"{x:.0f}" for x in tenths))
 
 
 def command(minutes_list: list[float], workdir: str | None, dtype: str,
-            src: str | None = None) -> None:
+            src: str | None = None, sample_s: float | None = None) -> None:
     """Peak RSS of ``torquemod process`` on recordings of these lengths (see module doc)."""
     import os
     import shutil
@@ -260,12 +302,14 @@ def command(minutes_list: list[float], workdir: str | None, dtype: str,
             size = (folder / "long.h5").stat().st_size
             m = run_measured([sys.executable, "-m", "torquemod.cli", "process",
                               str(folder / "experiment.toml"), "--out", str(tmp / "results"),
-                              "--force", "--quiet"], env=env)
+                              "--force", "--quiet"], env=env, sample_s=sample_s)
             first = first or m["peak_rss"]
             print(f"{minutes:6.0f}min {size / mib:9.0f} {gen['revolutions']:6d} "
                   f"{m['peak_rss'] / mib:13.0f} {100 * (m['peak_rss'] / first - 1):8.1f}% "
                   f"{m['cpu_s']:8.1f} {m['wall_s']:8.1f} "
                   f"{gen['duration_s'] / m['cpu_s']:11.0f}", flush=True)
+            if sample_s:
+                print(f"{'':8s} {_timeline(m['samples'], m['wall_s'])}", flush=True)
             shutil.rmtree(folder)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -516,6 +560,9 @@ def main() -> None:
                          "lengths [min]")
     ap.add_argument("--dtype", choices=["f8", "f4"], default="f8",
                     help="with --command: sample type stored in the HDF5 file")
+    ap.add_argument("--sample", type=float, default=None, metavar="SECONDS",
+                    help="with --command: also sample the child's VmRSS this often and "
+                    "print where its peak falls (e.g. 0.01)")
     ap.add_argument("--src", default=None,
                     help="with --command: the torquemod sources to run (default: this "
                          "checkout's src; another checkout's for a before/after pair)")
@@ -541,7 +588,7 @@ def main() -> None:
         train(args.train, args.workdir)
         return
     if args.command:
-        command(args.command, args.workdir, args.dtype, args.src)
+        command(args.command, args.workdir, args.dtype, args.src, args.sample)
         return
     if args.reading:
         reading(args.reading, args.workdir, args.keep, args.chain)
