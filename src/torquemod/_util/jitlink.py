@@ -97,6 +97,8 @@ def _clean_file_mappings(match) -> list[tuple[int, int]]:
     with open("/proc/self/smaps") as fh:
         for line in fh:
             head = line.split(None, 5)
+            if not head:
+                continue
             if "-" in head[0] and not head[0].endswith(":"):
                 start, stop = (int(x, 16) for x in head[0].split("-"))
                 perm = head[1]
@@ -140,7 +142,7 @@ def release_compiler_pages() -> int:
             if not _LLVM_RANGES:
                 _LLVM_RANGES.extend(_clean_file_mappings(
                     lambda p: os.path.basename(p).startswith("libllvmlite")))
-    except (OSError, AttributeError, ValueError):
+    except (OSError, AttributeError, ValueError, IndexError):
         return 0
     done = 0
     for start, stop in _LLVM_RANGES:
