@@ -19,9 +19,11 @@ $(STAMP): $(BIN)/python pyproject.toml
 demo: $(STAMP)
 	$(BIN)/torquemod demo --out $(DEMO_OUT) --force
 
+# The suite on every core (at most 4), a test file's tests on one worker (its module
+# fixtures built once). `$(BIN)/python -m pytest` runs it in one process.
 test: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto --maxprocesses 4 --dist loadfile
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks

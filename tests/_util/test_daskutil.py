@@ -69,3 +69,42 @@ def test_the_command_preloads_what_the_sweep_names():
     import importlib
     for name in WORKER_MODULES:
         assert importlib.util.find_spec(name) is not None
+
+
+_SOCKET_SCRIPT = """
+from multiprocessing import forkserver
+from torquemod._util.daskutil import forking_available
+predicted = forking_available()
+try:
+    forkserver.ensure_running()
+    started = True
+except OSError:
+    started = False
+print(predicted, started)
+"""
+
+
+def test_forking_is_predicted_to_fail_exactly_when_the_servers_socket_path_is_too_long():
+    """The fork server's socket lives in the temporary folder; one byte past the longest
+    folder :func:`forking_available` accepts, multiprocessing itself fails to start the
+    server ("AF_UNIX path too long", as under a test runner's long TMPDIR), so the workers
+    are spawned instead. Checked against the real server at both lengths."""
+    import tempfile
+
+    from torquemod._util.daskutil import _SERVER_SOCKET_SUFFIX, _UNIX_SOCKET_PATH_MAX
+    longest = _UNIX_SOCKET_PATH_MAX - len(_SERVER_SOCKET_SUFFIX)
+    base = tempfile.mkdtemp(prefix="tm-", dir="/tmp")
+    try:
+        seen = []
+        for length in (longest, longest + 1):
+            folder = base + "/" + "d" * (length - len(base) - 1)
+            os.makedirs(folder)
+            assert len(folder) == length
+            env = {**os.environ, "PYTHONPATH": SRC, "TMPDIR": folder}
+            done = subprocess.run([sys.executable, "-c", _SOCKET_SCRIPT], env=env, text=True,
+                                  capture_output=True, timeout=60, check=True)
+            seen.append(done.stdout.split())
+        assert seen == [["True", "True"], ["False", "False"]]
+    finally:
+        import shutil
+        shutil.rmtree(base, ignore_errors=True)

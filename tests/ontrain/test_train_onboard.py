@@ -318,3 +318,21 @@ def test_onboard_bad_input_exits_2(tmp_path):
     assert cp.returncode == 2
     assert "Traceback" not in cp.stderr and "run manifest not found" in cp.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_twin_run_without_asammdf_names_its_hdf5_copy(tmp_path, monkeypatch):
+    """A plain install has no asammdf (the ``mdf`` extra): the train twin then writes no MDF4
+    copy and ``run.toml`` names the HDF5 one, which reads as ``run_h5.toml`` does."""
+    import json
+    import tomllib
+
+    from torquemod.testing import write_short_train_run
+    monkeypatch.setitem(sys.modules, "asammdf", None)  # `import asammdf` raises ImportError
+    run = write_short_train_run(tmp_path / "run", length_m=120.0, seed=3)
+    assert not (run / "run.mf4").exists()
+    manifest = tomllib.loads((run / "run.toml").read_text())
+    assert manifest == tomllib.loads((run / "run_h5.toml").read_text())
+    assert manifest["recording"][0]["file"] == "run.h5"
+    assert json.loads((run / "simulation.json").read_text())["recording"] == "run.h5"
+    rec = read_run(run / "run.toml").recordings[0]
+    assert rec.path.name == "run.h5"

@@ -73,8 +73,12 @@ def cmd_simulate_train(args: argparse.Namespace, config) -> int:
                                        force=args.force)
     except ProcessingError as exc:  # the twin could not run this configuration: name it
         raise InputError(str(exc), path=args.config or "the default train config") from None
-    print(f"train run written to {args.out}/run.toml (MDF4) and run_h5.toml (HDF5), truth in "
-          "truth.parquet")
+    if summary["recording"] == "run.mf4":
+        print(f"train run written to {args.out}/run.toml (MDF4) and run_h5.toml (HDF5), truth "
+              "in truth.parquet")
+    else:
+        print(f"train run written to {args.out}/run.toml (HDF5; no MDF4 copy: install "
+              "torquemod[mdf] for it), truth in truth.parquet")
     print(f"  {summary['length_m']:.0f} m in {summary['duration_s']:.1f} s")
     for seg in summary["segments"]:
         print(f"  {seg['condition']:>18} {seg['start_m']:7.0f}-{seg['end_m']:7.0f} m: friction "

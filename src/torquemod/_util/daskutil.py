@@ -96,10 +96,28 @@ def start_worker_server(modules: tuple[str, ...] | list[str]) -> None:
 _SERVER_STOP_REGISTERED = False
 
 
+#: The longest path an AF_UNIX socket takes on Linux [bytes]: ``sun_path`` holds 108 with its
+#: terminating NUL (unix(7)).
+_UNIX_SOCKET_PATH_MAX = 107
+
+#: What multiprocessing adds to the temporary folder for the fork server's socket:
+#: ``/pymp-XXXXXXXX/listener-XXXXXXXX`` (eight random characters each).
+_SERVER_SOCKET_SUFFIX = "/pymp-12345678/listener-12345678"
+
+
 def forking_available() -> bool:
-    """Whether this platform has multiprocessing's fork server (not on Windows)."""
+    """Whether the local cluster's workers can be forked from multiprocessing's fork server:
+    the platform has one (not Windows), and the temporary folder (``TMPDIR``) is short enough
+    for the server's socket, whose path multiprocessing makes inside it. With a longer
+    folder the server would fail to start ("AF_UNIX path too long"), so the workers are
+    spawned instead: slower to start, the same results."""
     import multiprocessing
-    return "forkserver" in multiprocessing.get_all_start_methods()
+    import tempfile
+
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return False
+    socket_path = os.fsencode(tempfile.gettempdir()) + _SERVER_SOCKET_SUFFIX.encode()
+    return len(socket_path) <= _UNIX_SOCKET_PATH_MAX
 
 
 def stop_worker_server() -> None:

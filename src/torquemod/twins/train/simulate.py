@@ -294,8 +294,13 @@ def run_manifest(cfg: TrainConfig, file: str, fmt: str) -> dict:
     }
 
 
-def _write_mdf(path: Path, ch: dict) -> None:
-    from asammdf import MDF, Signal
+def _write_mdf(path: Path, ch: dict) -> bool:
+    """Write the MDF4 copy of the run; False, and nothing written, when the optional
+    package asammdf (``torquemod[mdf]``) is not installed."""
+    try:
+        from asammdf import MDF, Signal
+    except ImportError:
+        return False
     t = ch["time_s"]
     mdf = MDF(version="4.10")
     fast = [Signal(ch["torque_nm"] / 1e3, t, name=MDF_NAMES["torque"][0], unit="kN*m"),
@@ -309,6 +314,7 @@ def _write_mdf(path: Path, ch: dict) -> None:
     mdf.append(slow, comment="radar and odometer")
     mdf.save(str(path), overwrite=True)
     mdf.close()
+    return True
 
 
 def _write_h5(path: Path, ch: dict) -> None:
@@ -325,6 +331,9 @@ def run_train_simulation(cfg: TrainConfig, out_dir: str | Path, *, seed: int = 0
     """Simulate ``cfg`` and write the run folder ``out_dir`` (atomically): ``run.toml`` with
     ``run.mf4``, ``run_h5.toml`` with ``run.h5``, ``truth.parquet`` and ``simulation.json``.
     Returns a summary dict (per-segment truth).
+
+    Without the optional package asammdf (``torquemod[mdf]``) no MDF4 copy is written and
+    ``run.toml`` names ``run.h5``; the summary's ``"recording"`` says which file it names.
 
     Parameters
     ----------
@@ -359,9 +368,10 @@ def run_train_simulation(cfg: TrainConfig, out_dir: str | Path, *, seed: int = 0
                "samples": int(raw.shape[0]), "segments": segment_summary(truth),
                "antislip_share": float(truth["antislip"].mean())}
     with atomic_dir(Path(out_dir), force=force, kind="train run") as tmp:
-        _write_mdf(tmp / "run.mf4", ch)
+        main = ("run.mf4", "mdf") if _write_mdf(tmp / "run.mf4", ch) else ("run.h5", "hdf5")
+        summary["recording"] = main[0]
         _write_h5(tmp / "run.h5", ch)
-        (tmp / "run.toml").write_text(tomli_w.dumps(run_manifest(cfg, "run.mf4", "mdf")))
+        (tmp / "run.toml").write_text(tomli_w.dumps(run_manifest(cfg, *main)))
         (tmp / "run_h5.toml").write_text(tomli_w.dumps(run_manifest(cfg, "run.h5", "hdf5")))
         truth.to_parquet(tmp / "truth.parquet", index=False)
         (tmp / "simulation.json").write_text(dump_json(dict(summary,
