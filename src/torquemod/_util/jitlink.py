@@ -62,9 +62,13 @@ def _install() -> bool:
     @functools.wraps(unserialize)
     def _unserialize(cls, codegen, state):
         lib = unserialize(cls, codegen, state)
-        _name, kind, data = state
-        if kind == "object" and getattr(lib, "_shared_module", None) is not None:
-            setattr(lib, _BITCODE, data[1])
+        try:  # a state of another shape (another numba) keeps numba's own behaviour
+            _name, kind, data = state
+            bitcode = data[1] if kind == "object" else None
+        except (TypeError, ValueError, IndexError):
+            bitcode = None
+        if isinstance(bitcode, bytes) and getattr(lib, "_shared_module", None) is not None:
+            setattr(lib, _BITCODE, bitcode)
             lib._shared_module = None  # parsed again if a later kernel links this one in
         if not _LOADED:  # the first load also compiled numba's runtime: LLVM's optimiser
             _LOADED.append(True)
