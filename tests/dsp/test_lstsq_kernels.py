@@ -1,0 +1,33 @@
+"""The least-squares helpers' compiled kernels against plain Python, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from torquemod.dsp import lstsq
+
+
+def _column_sums_of_squares(d):
+    """Each column's squares summed over the rows in order, one Python float at a time."""
+    out = []
+    for j in range(d.shape[1]):
+        s = 0.0
+        for v in d[:, j].tolist():
+            s += v * v
+        out.append(s)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("m", [1, 2, 3, 4, 5, 7, 8, 9, 12, 13, 23])
+def test_sums_of_squares_are_the_row_order_sums(m):
+    rng = np.random.default_rng(m)
+    d = rng.standard_normal((97, m)) * rng.uniform(1e-3, 1e3, m)
+    want = _column_sums_of_squares(d)
+    assert np.array_equal(lstsq._sums_of_squares(d), want)
+    # a strided view takes the same route and gives the same numbers
+    wide = np.empty((97, 2 * m))
+    wide[:, ::2] = d
+    assert np.array_equal(lstsq._sums_of_squares(wide[:, ::2]), want)
+    if m >= 2:  # einsum's order for two or more columns, which the kernel stands for
+        assert np.array_equal(lstsq.column_sums_of_squares(d), np.einsum("ij,ij->j", d, d))
