@@ -31,3 +31,11 @@ def test_sums_of_squares_are_the_row_order_sums(m):
     assert np.array_equal(lstsq._sums_of_squares(wide[:, ::2]), want)
     if m >= 2:  # einsum's order for two or more columns, which the kernel stands for
         assert np.array_equal(lstsq.column_sums_of_squares(d), np.einsum("ij,ij->j", d, d))
+
+
+@pytest.mark.parametrize("k", [1, 3, 4, 6, 9])
+def test_row_sums_of_squares_are_the_sums_one_row_at_a_time(k):
+    rng = np.random.default_rng(10 + k)
+    a = rng.standard_normal((k, 83)) * rng.uniform(1e-3, 1e3, (k, 1))
+    want = _column_sums_of_squares(np.ascontiguousarray(a.T))  # row i's, in sample order
+    assert np.array_equal(lstsq._row_sums_of_squares(a), want)
