@@ -39,3 +39,20 @@ def test_row_sums_of_squares_are_the_sums_one_row_at_a_time(k):
     a = rng.standard_normal((k, 83)) * rng.uniform(1e-3, 1e3, (k, 1))
     want = _column_sums_of_squares(np.ascontiguousarray(a.T))  # row i's, in sample order
     assert np.array_equal(lstsq._row_sums_of_squares(a), want)
+
+
+@pytest.mark.parametrize("shape", [(323, 23), (323, 8), (97, 5), (3, 200), (1, 1), (0, 4)])
+def test_normalised_design_is_numpys_division(shape):
+    rng = np.random.default_rng(shape[0] + shape[1])
+    d = rng.standard_normal(shape) * rng.uniform(1e-3, 1e3, shape[1])
+    dn, scale = lstsq._normalised(d)
+    if shape[0] == 0:  # no rows: zero norms, no design
+        assert dn.shape == (0, shape[1])
+        return
+    assert np.array_equal(scale, np.sqrt(_column_sums_of_squares(d)))
+    assert np.array_equal(dn, d / scale)  # numpy's division, element by element
+    # a strided design gives the same numbers
+    wide = np.empty((shape[0], 2 * shape[1]))
+    wide[:, ::2] = d
+    dn2, scale2 = lstsq._normalised(wide[:, ::2])
+    assert np.array_equal(dn2, dn) and np.array_equal(scale2, scale)
