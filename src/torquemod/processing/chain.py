@@ -231,6 +231,33 @@ def _modulation_peaks(cleaned: np.ndarray, fs_hz: float, cfg: ProcessingConfig, 
     raise AssertionError("peak_frequencies failed where peak_frequency did not")
 
 
+def _step1_peaks(cleaner: _SlowOrdersRemoval, f_start: float, fs_hz: float,
+                 cfg: ProcessingConfig, where: str) -> tuple[dict[str, float], float]:
+    """Step 1's peaks of the torque and the wheel speed [Hz] and their mean [Hz]: the
+    spectral peaks of the records less the speed model's slow part and orders fitted with
+    the modulation at ``f_start``, again with it at the first peaks' mean, then (with
+    ``frequency.refine``) each refined (:meth:`_SlowOrdersRemoval.refine_many`). In one
+    compiled call where it applies (:meth:`_SlowOrdersRemoval.search`, the same numbers),
+    else step by step."""
+    fp = cfg.frequency
+    found = cleaner.search(band_hz=fp.band_hz, window=fp.window, detrend=fp.detrend,
+                           zero_pad=fp.zero_pad, refine=fp.refine, tol_hz=fp.tolerance_hz)
+    if found is not None:
+        f_t, f_w = found[2]
+        return {"torque_nm": f_t, "wheel_speed_rad_s": f_w}, 0.5 * (f_t + f_w)
+    f_mod = f_start
+    peaks: dict[str, float] = {}
+    for _ in range(2):
+        cleaned = cleaner.at(f_mod)
+        peaks.update(_modulation_peaks(cleaned, fs_hz, cfg, where))
+        f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
+    if fp.refine:
+        peaks["torque_nm"], peaks["wheel_speed_rad_s"] = cleaner.refine_many(
+            [0, 1], [peaks["torque_nm"], peaks["wheel_speed_rad_s"]], tol_hz=fp.tolerance_hz)
+        f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
+    return peaks, f_mod
+
+
 def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str,
                   nominal_hz: float | None = None, normal_load_n: float | None = None
                   ) -> CycleSignals:
@@ -317,19 +344,10 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # Each peak is then refined to the frequency at which the speed model explains most of
     # the channel (_SlowOrdersRemoval.refine): the slow basis absorbs part of a mismatched
     # modulation and pulls the plain peak towards the frequency assumed.
-    f_mod = f_start
-    peaks: dict[str, float] = {}
     # np.column_stack([tq, wh]) (float64 rows; the first two, _RESAMPLED's order) in one copy
     both = np.ascontiguousarray(resampled[:2].T)
     cleaner = _SlowOrdersRemoval(both, slow, orders, fs_r, mod_harmonics, start_hz=f_start)
-    for _ in range(2):
-        cleaned = cleaner.at(f_mod)
-        peaks.update(_modulation_peaks(cleaned, fs_r, cfg, where))
-        f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
-    if fp.refine:
-        peaks["torque_nm"], peaks["wheel_speed_rad_s"] = cleaner.refine_many(
-            [0, 1], [peaks["torque_nm"], peaks["wheel_speed_rad_s"]], tol_hz=fp.tolerance_hz)
-        f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
+    peaks, f_mod = _step1_peaks(cleaner, f_start, fs_r, cfg, where)
     if fp.common == "torque":
         f_mod = peaks["torque_nm"]
     model = fit_speed_model(sig, fs_r, f_mod, slow, orders, mod_harmonics, basis_t=cleaner.qt,
