@@ -32,32 +32,36 @@ _XTOL_HZ, _MIN_RATIO, _MAXFUN = 1e-6, 20.0, 500
 def _search_kernel(first, start_hz, qt, r_y, qy, fs_hz, duration_s, orders, refine, tol_hz,
                    syrk, gemm, gesv, xtol_hz, min_ratio, maxfun, dn, factor, scale, design,
                    window, trig, freqs, bins, lobe, fs_plan):
-    """:func:`search_modulation` in one call: ``(status, first_peaks, second_peaks,
-    refined)``, status 0 when every step went the compiled way; otherwise the step that
-    did not (1: the first peaks, 2: the first peaks' mean is the start frequency, 3: the
-    removal, 4: the second peaks) and empty arrays after it."""
-    none = np.empty(0)
+    """:func:`search_modulation` in one call: ``(status, peaks)``, ``peaks`` (3, 2) the
+    first peaks, the second and the refined ones (one array: one boxed for Python), status
+    0 when every step went the compiled way; otherwise the step that did not (1: the first
+    peaks, 2: the first peaks' mean is the start frequency, 3: the removal, 4: the second
+    peaks)."""
+    out = np.full((3, 2), np.nan)
     p1, ok = _peaks_of_records(first, xtol_hz, min_ratio, maxfun, dn, factor, scale, design,
                                window, trig, freqs, bins, lobe, fs_plan)
     if not ok:
-        return 1, none, none, none
-    got1 = np.array([p1[0], p1[1]])
+        return 1, out
+    out[0, 0], out[0, 1] = p1[0], p1[1]
     f_mod = 0.5 * (p1[0] + p1[1])
     if f_mod == start_hz:
-        return 2, got1, none, none
+        return 2, out
     cleaned, ok = _removal_at_tone(fs_hz, 2 * np.pi * f_mod, orders, qt, r_y, qy, syrk, gemm,
                                    gesv)
     if not ok:
-        return 3, got1, none, none
+        return 3, out
     p2, ok = _peaks_of_records(cleaned, xtol_hz, min_ratio, maxfun, dn, factor, scale,
                                design, window, trig, freqs, bins, lobe, fs_plan)
     if not ok:
-        return 4, got1, none, none
-    got2 = np.array([p2[0], p2[1]])
-    if not refine:
-        return 0, got1, got2, got2.copy()
-    refined = _refine(qt, r_y, qy, fs_hz, duration_s, np.array([0, 1]), got2, orders, tol_hz)
-    return 0, got1, got2, refined
+        return 4, out
+    out[1, 0], out[1, 1] = p2[0], p2[1]
+    if refine:
+        refined = _refine(qt, r_y, qy, fs_hz, duration_s, np.array([0, 1]), out[1].copy(),
+                          orders, tol_hz)
+        out[2, 0], out[2, 1] = refined[0], refined[1]
+    else:
+        out[2, 0], out[2, 1] = p2[0], p2[1]
+    return 0, out
 
 
 def search_modulation(first: np.ndarray, start_hz: float, qt: np.ndarray, r_y: np.ndarray,
@@ -114,10 +118,11 @@ def search_modulation(first: np.ndarray, start_hz: float, qt: np.ndarray, r_y: n
     plan = _batch_plan(n, fs_hz, *band_hz, window, detrend == "linear", zero_pad)
     if plan is None or r_y.shape != (n, 2):
         return None
-    status, p1, p2, refined = _search_kernel(
+    status, peaks = _search_kernel(
         first, float(start_hz), qt, r_y, qy, float(fs_hz), n / fs_hz,
         np.asarray(orders, dtype=np.int64), bool(refine), float(tol_hz), blas[0], blas[1],
         gesv, _XTOL_HZ, _MIN_RATIO, _MAXFUN, *plan)
     if status != 0:
         return None
-    return p1.tolist(), p2.tolist(), refined.tolist()
+    p1, p2, refined = peaks.tolist()  # (Python floats, the same numbers)
+    return p1, p2, refined
