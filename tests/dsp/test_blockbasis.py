@@ -4,6 +4,9 @@ whole design (LstsqFactor.of and CholeskyQR2)."""
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 import pytest
 
@@ -121,3 +124,53 @@ def test_tracked_orders_by_the_block_route_are_the_factor_routes(seed, wobble, m
     # apart measured, bound 1e-10
     assert got[0].shape == ref[0].shape
     np.testing.assert_allclose(got[0], ref[0], rtol=0, atol=1e-10)
+
+
+
+@numba.njit(cache=False)
+def _extension_q_column_by_column(qs_t, qs, cols):
+    """:func:`blockbasis._extension_q` as it was with each column's norm summed alone over
+    the samples (the former kernel, compiled the same way)."""
+    n = qs_t.shape[1]
+    k = cols.shape[1]
+    rt = np.empty((k, n))
+    for j in range(k):
+        s = 0.0
+        for t in range(n):
+            s += cols[t, j] * cols[t, j]
+        if not (s > 0.0 and s < np.inf):
+            return rt, 0.0, False
+        inv = 1.0 / math.sqrt(s)
+        for t in range(n):
+            rt[j, t] = cols[t, j] * inv
+    for _ in range(2):
+        c = np.dot(rt, qs)
+        rt = rt - np.dot(c, qs_t)
+    u, ok = blockbasis._cholesky_upper(np.dot(rt, rt.T))
+    if not ok:
+        return rt, 0.0, False
+    pivot = 1.0
+    for j in range(k):
+        pivot = min(pivot, u[j, j] * u[j, j])
+    q1 = blockbasis._times_inverse_t(u, rt)
+    u2, ok = blockbasis._cholesky_upper(np.dot(q1, q1.T))
+    if not ok:
+        return rt, 0.0, False
+    return blockbasis._times_inverse_t(u2, q1), pivot, True
+
+
+@pytest.mark.parametrize("k", [2, 5, 13])
+def test_extension_is_the_former_kernel_bit_for_bit(k):
+    """The extension with the columns' norms summed four columns at a time
+    (``lstsq._sums_of_squares``): the numbers of the former kernel, one column at a time."""
+    rng = np.random.default_rng(k)
+    n = 61
+    t = np.linspace(-1.0, 1.0, n)
+    qs_t = np.linalg.qr(np.column_stack([t ** j for j in range(4)]))[0].T.copy()
+    qs = np.ascontiguousarray(qs_t.T)
+    cols = rng.standard_normal((n, k)) * rng.uniform(0.01, 100.0, k)
+    got = blockbasis._extension_q(qs_t, qs, cols)
+    want = _extension_q_column_by_column(qs_t, qs, cols)
+    assert got[2] and want[2]
+    np.testing.assert_array_equal(got[0], want[0])
+    assert got[1] == want[1]

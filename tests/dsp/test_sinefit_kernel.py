@@ -103,3 +103,30 @@ def test_fixed_columns_are_the_window_formula_bit_for_bit(n, trend):
         assert got.shape == want.shape and got.flags.c_contiguous
         assert np.array_equal(got, want)
         assert not got.flags.writeable
+
+
+@pytest.mark.parametrize("n,f_hz,width", [(321, 2.0, 0.75), (322, 2.37, 1.5), (200, 1.0, 1.2),
+                                          (690, 2.0, 3.0)])
+def test_band_density_is_the_bins_one_at_a_time_bit_for_bit(n, f_hz, width):
+    """The bins' DFT sums four at a time: the numbers of one bin at a time in plain Python
+    (the sums over the samples in order, the same table entries)."""
+    x = np.random.default_rng(n).standard_normal(n) + 0.3 * np.cos(0.7 * np.arange(n))
+    cos_t, sin_t, w, ss = phase._dft_table(n)
+    got = phase._band_density(x, FS, f_hz, cos_t, sin_t, w, ss, width)
+    mean = phase._numpy_sum(x, 0, n) / n
+    xw = ((x - mean) * w).tolist()
+    val = 1.0 / (n * (1.0 / FS))
+    vals = []
+    for k in range(n // 2 + 1):
+        off = abs(k * val - f_hz)
+        if off <= width and off > 1.5 * (val - 0.0):
+            re = im = 0.0
+            j = 0
+            for t in range(n):
+                re += xw[t] * float(cos_t[j])
+                im -= xw[t] * float(sin_t[j])
+                j = (j + k) % n
+            p = (re * re + im * im) / (FS * ss)
+            vals.append(2.0 * p if 1 <= k < n // 2 + (n % 2) else p)
+    assert len(vals) >= 2
+    assert got == phase._numpy_sum(np.array(vals), 0, len(vals)) / len(vals)

@@ -68,3 +68,40 @@ def test_removal_at_tone_is_removal_at_with_the_modulation_columns(n, harmonics)
     # libm's cos and sin in both (numpy's are libm's on x86-64 Linux), the second half of
     # the samples mirrored from the first: the same numbers
     np.testing.assert_array_equal(got, want)
+
+
+def _job_sums_in_order(rows, k2):
+    """:func:`tonesearch._explained`'s products of one frequency in plain Python: for each
+    tone row a, its product with the residual (the last row), then with rows 0..a, each
+    summed over the samples in order."""
+    y = rows[k2].tolist()
+    out = []
+    for a in range(k2):
+        xa = rows[a].tolist()
+        for other in [y] + [rows[d].tolist() for d in range(a + 1)]:
+            s = 0.0
+            for u, v in zip(xa, other, strict=True):
+                s += u * v
+            out.append(s)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("k2", [2, 4, 6])
+def test_tone_dots_are_the_sums_in_sample_order(k2):
+    rng = np.random.default_rng(k2)
+    rows = rng.standard_normal((k2 + 1, 97)) * rng.uniform(0.1, 10.0, (k2 + 1, 1))
+    n_jobs = k2 + k2 * (k2 + 1) // 2
+    got = np.full(n_jobs, np.nan)
+    tonesearch._tone_dots(rows, 0, k2, k2, got)
+    want = _job_sums_in_order(rows, k2)
+    assert np.array_equal(got, want)  # bit for bit: the same operations in the same order
+    # and the eight-at-a-time route the other tone sizes take gives the same numbers
+    job_a = np.array([a for a in range(k2) for _ in range(a + 2)], dtype=np.int64)
+    job_d = np.array([d for a in range(k2) for d in [k2, *range(a + 1)]], dtype=np.int64)
+    old = np.full(n_jobs, np.nan)
+    for start in range(0, n_jobs, 8):
+        if n_jobs - start > 4:
+            tonesearch._dots8(rows, job_a, job_d, start, min(start + 8, n_jobs), old)
+        else:
+            tonesearch._dots4(rows, job_a, job_d, start, n_jobs, old)
+    assert np.array_equal(got, old)

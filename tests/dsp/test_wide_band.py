@@ -43,3 +43,21 @@ def test_the_compiled_sum_is_numpys():
     for n in [*range(1, 300), 323, 1000, 4099]:
         a = 30.0 + rng.standard_normal(n) * 10.0 ** rng.uniform(-4, 1)
         assert basis._numpy_sum(a, 0, n) == a.sum()
+
+
+@pytest.mark.parametrize("n", [3, 8, 97])
+def test_two_fits_are_the_sums_of_one_sample_at_a_time(n):
+    """The wide-band test's fits at each sample, four samples advancing together: each sum
+    the products in ascending column order, as one sample at a time in plain Python."""
+    rng = np.random.default_rng(n)
+    p_q, p_w = 5, 9
+    maps_t = rng.standard_normal((n, p_q + p_w + 4))
+    proj = rng.standard_normal(p_q + p_w + 4) * 10.0
+    got = basis._two_fits(maps_t, proj, p_q, p_w)
+    for t in range(n):
+        row = maps_t[t].tolist()
+        for k, cols in enumerate((range(p_q), range(p_q, p_q + p_w))):
+            s = 0.0
+            for i in cols:
+                s += row[i] * float(proj[i])
+            assert got[k, t] == s

@@ -345,17 +345,14 @@ def _wide_band_test(maps_t: np.ndarray, wheel_mod: np.ndarray, p_q: int, wheel: 
         v = pl[t]
         for i in range(cols):
             proj[i] += maps_t[t, i] * v
+    fits = _two_fits(maps_t, proj, p_q, p_w)
     rss_q = 0.0
     rss_w = 0.0
     c0 = 0.0
     c1 = 0.0
     for t in range(n):
-        fit_q = 0.0  # Q_q (Q_q' pl) and Q_w (Q_w' pl) at sample t
-        for i in range(p_q):
-            fit_q += maps_t[t, i] * proj[i]
-        fit_w = 0.0
-        for i in range(p_q, p_q + p_w):
-            fit_w += maps_t[t, i] * proj[i]
+        fit_q = fits[0, t]  # Q_q (Q_q' pl) and Q_w (Q_w' pl) at sample t
+        fit_w = fits[1, t]
         rss_q += (pl[t] - fit_q) ** 2
         rss_w += (pl[t] - fit_w) ** 2
         c0 += wheel_mod[0, t] * (wheel[t] - w_c)
@@ -371,6 +368,46 @@ def _wide_band_test(maps_t: np.ndarray, wheel_mod: np.ndarray, p_q: int, wheel: 
     risk = math.hypot(proj[k] - proj[k + 2], proj[k + 1] - proj[k + 3]) / abs(p_mean) \
         / wheel_rel
     return True, f_stat, risk
+
+
+@numba.njit(cache=True, nogil=True)
+def _two_fits(maps_t: np.ndarray, proj: np.ndarray, p_q: int, p_w: int) -> np.ndarray:
+    """``(2, n)``: at each sample t, ``sum_i maps_t[t, i] proj[i]`` over the columns
+    ``0..p_q-1``, then over ``p_q..p_q+p_w-1``, each summed in ascending order. Four samples
+    at a time (eight independent sums, each with the additions of one sample at a time: the
+    same numbers), so that the processor overlaps their additions instead of waiting on
+    each in turn."""
+    n = maps_t.shape[0]
+    fits = np.empty((2, n))
+    t = 0
+    while t + 4 <= n:
+        r0, r1, r2, r3 = maps_t[t], maps_t[t + 1], maps_t[t + 2], maps_t[t + 3]
+        q0 = q1 = q2 = q3 = 0.0
+        for i in range(p_q):
+            v = proj[i]
+            q0 += r0[i] * v
+            q1 += r1[i] * v
+            q2 += r2[i] * v
+            q3 += r3[i] * v
+        w0 = w1 = w2 = w3 = 0.0
+        for i in range(p_q, p_q + p_w):
+            v = proj[i]
+            w0 += r0[i] * v
+            w1 += r1[i] * v
+            w2 += r2[i] * v
+            w3 += r3[i] * v
+        fits[0, t], fits[0, t + 1], fits[0, t + 2], fits[0, t + 3] = q0, q1, q2, q3
+        fits[1, t], fits[1, t + 1], fits[1, t + 2], fits[1, t + 3] = w0, w1, w2, w3
+        t += 4
+    for u in range(t, n):
+        q = 0.0
+        for i in range(p_q):
+            q += maps_t[u, i] * proj[i]
+        w = 0.0
+        for i in range(p_q, p_q + p_w):
+            w += maps_t[u, i] * proj[i]
+        fits[0, u], fits[1, u] = q, w
+    return fits
 
 
 @numba.njit(cache=True, nogil=True)

@@ -26,7 +26,7 @@ import numba
 import numpy as np
 
 from torquemod.dsp import numpyblas
-from torquemod.dsp.lstsq import LstsqFactor
+from torquemod.dsp.lstsq import LstsqFactor, _sums_of_squares
 from torquemod.dsp.projection import _removal_at, orthonormal_basis_t
 
 #: the smallest squared pivot (diagonal element of the normalised design's Cholesky factor,
@@ -248,10 +248,9 @@ def _extension_q(qs_t, qs, cols):
     n = qs_t.shape[1]
     k = cols.shape[1]
     rt = np.empty((k, n))  # the normalised columns, as rows
+    sums = _sums_of_squares(cols)  # (each column's, over the samples in order)
     for j in range(k):
-        s = 0.0
-        for t in range(n):
-            s += cols[t, j] * cols[t, j]
+        s = sums[j]
         if not (s > 0.0 and s < np.inf):
             return rt, 0.0, False
         inv = 1.0 / math.sqrt(s)

@@ -136,11 +136,10 @@ def _schur_ratio(design: np.ndarray, mt: np.ndarray, g: np.ndarray, syrk: int) -
     numpy's ``syrk`` call, as :func:`~torquemod.dsp.lstsq.fit_with_parts`. NaN where a row
     keeps less than 1e-5 of its norm or a pivot falls below 1e-10 of its diagonal element
     (the caller then takes the refined fit)."""
-    k, n = mt.shape
+    k = mt.shape[0]
+    norms2 = lstsq._row_sums_of_squares(mt)
     for i in range(k):
-        norm2 = 0.0
-        for t in range(n):
-            norm2 += mt[i, t] * mt[i, t]
+        norm2 = norms2[i]
         if not g[i, i] > 1e-10 * norm2:
             return np.nan
     h = k - 2

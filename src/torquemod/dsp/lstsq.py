@@ -259,13 +259,60 @@ def column_sums_of_squares(a: np.ndarray) -> np.ndarray:
 @numba.njit(cache=True, nogil=True)
 def _sums_of_squares(d: np.ndarray) -> np.ndarray:
     """Each column's sum of squares, summed row by row (``einsum("ij,ij->j")``'s order for
-    two or more columns)."""
+    two or more columns). Up to 12 columns, four at a time with their sums in registers
+    (:func:`_sums_of_squares_4`; each sum's additions in the same order, so the same
+    numbers), instead of a row's sums loaded and stored at every row."""
     n, m = d.shape
     acc = np.zeros(m)
+    if m <= 12:
+        for j0 in range(0, m, 4):
+            _sums_of_squares_4(d, j0, min(m - j0, 4), acc)
+        return acc
     for i in range(n):
         for j in range(m):
             acc[j] += d[i, j] * d[i, j]
     return acc
+
+
+@numba.njit(cache=True, nogil=True)
+def _sums_of_squares_4(d: np.ndarray, j0: int, width: int, acc: np.ndarray) -> None:
+    """The sums of squares of columns ``j0 .. j0 + width - 1`` (``width`` 1 to 4) of ``d``
+    over its rows in order into ``acc``: four running sums, the unused ones left out of
+    ``acc``."""
+    s0 = s1 = s2 = s3 = 0.0
+    last = j0 + width - 1
+    c1, c2, c3 = min(j0 + 1, last), min(j0 + 2, last), min(j0 + 3, last)
+    for i in range(d.shape[0]):
+        v0, v1, v2, v3 = d[i, j0], d[i, c1], d[i, c2], d[i, c3]
+        s0 += v0 * v0
+        s1 += v1 * v1
+        s2 += v2 * v2
+        s3 += v3 * v3
+    sums = (s0, s1, s2, s3)
+    for q in range(width):
+        acc[j0 + q] = sums[q]
+
+
+@numba.njit(cache=True, nogil=True)
+def _row_sums_of_squares(a: np.ndarray) -> np.ndarray:
+    """Each row's sum of squares over its elements in order (``s += a[i, t]**2`` as
+    ``a[i, t] * a[i, t]``, t ascending), four rows at a time: independent running sums, so
+    the processor overlaps their additions; the numbers of one row at a time."""
+    k, n = a.shape
+    out = np.empty(k)
+    for i0 in range(0, k, 4):
+        last = min(i0 + 3, k - 1)
+        r0, r1, r2, r3 = a[i0], a[min(i0 + 1, last)], a[min(i0 + 2, last)], a[last]
+        s0 = s1 = s2 = s3 = 0.0
+        for t in range(n):
+            s0 += r0[t] * r0[t]
+            s1 += r1[t] * r1[t]
+            s2 += r2[t] * r2[t]
+            s3 += r3[t] * r3[t]
+        sums = (s0, s1, s2, s3)
+        for q in range(last - i0 + 1):
+            out[i0 + q] = sums[q]
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
@@ -277,7 +324,37 @@ def _normalised(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     for j in range(m):
         if not scale[j] > 0.0:  # (NaN too)
             return np.empty((0, m)), scale
-    return d / scale, scale  # (an array expression: vectorised, numpy's numbers)
+    return _divided_by_columns(np.ascontiguousarray(d), scale), scale
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _divided_by_columns(d: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """``d / scale`` for a C-ordered ``d`` (``n x m``): each element by one division, as
+    numpy divides. The rows in runs against the scale repeated over a run (one flat loop
+    of a few hundred elements, which vectorises: numpy's error model leaves out the
+    zero-divisor check of each element, the caller having checked the scale)."""
+    n, m = d.shape
+    out = np.empty((n, m))
+    if n == 0 or m == 0:
+        return out
+    flat_out = out.reshape(n * m)
+    flat_d = d.reshape(n * m)
+    rows = max(1, 256 // m)
+    rep = np.empty(rows * m)
+    for r in range(rows):
+        for j in range(m):
+            rep[r * m + j] = scale[j]
+    width = rows * m
+    i = 0
+    while i + rows <= n:
+        base = i * m
+        for q in range(width):
+            flat_out[base + q] = flat_d[base + q] / rep[q]
+        i += rows
+    base = i * m
+    for q in range((n - i) * m):
+        flat_out[base + q] = flat_d[base + q] / rep[q]
+    return out
 
 
 @numba.njit(cache=True, nogil=True)

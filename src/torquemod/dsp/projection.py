@@ -22,7 +22,13 @@ import numpy as np
 from scipy import linalg
 
 from torquemod.dsp import numpyblas
-from torquemod.dsp.lstsq import _DPOTRF, LstsqFactor, _cholesky, _fortran_call
+from torquemod.dsp.lstsq import (
+    _DPOTRF,
+    LstsqFactor,
+    _cholesky,
+    _fortran_call,
+    _row_sums_of_squares,
+)
 
 _TRTRS, _POTRF = linalg.get_lapack_funcs(("trtrs", "potrf"), (np.zeros((1, 1)),))
 
@@ -148,10 +154,9 @@ def _powers_in_span(qt_b: np.ndarray, mt: np.ndarray, v: np.ndarray
     k, j = mt.shape[0], v.shape[1]
     rt = mt - np.dot(np.dot(mt, qt_b.T), qt_b)
     gram = np.dot(rt, rt.T)
+    norms2 = _row_sums_of_squares(mt)
     for i in range(k):  # a column left with less than 1e-5 of its norm: (nearly) in B
-        norm2 = 0.0
-        for t in range(mt.shape[1]):
-            norm2 += mt[i, t] * mt[i, t]
+        norm2 = norms2[i]
         if not gram[i, i] > 1e-10 * norm2:
             return np.empty(0), False, gram
     low = np.zeros((k, k))  # gram = L L'

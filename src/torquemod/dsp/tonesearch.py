@@ -251,11 +251,14 @@ def _explained(qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray, fs_hz: float,
                 job_a[q] = o + a
                 job_d[q] = o + d
                 q += 1
-        for start in range(0, n_jobs, 8):
-            if n_jobs - start > 4:
-                _dots8(rows, job_a, job_d, start, min(start + 8, n_jobs), sums)
-            else:  # (the last few: four running sums, not eight)
-                _dots4(rows, job_a, job_d, start, n_jobs, sums)
+        if k2 == 2 or k2 == 4 or k2 == 6:  # the tone's rows read once for all products
+            _tone_dots(rows, o, n_tone_rows + col, k2, sums)
+        else:
+            for start in range(0, n_jobs, 8):
+                if n_jobs - start > 4:
+                    _dots8(rows, job_a, job_d, start, min(start + 8, n_jobs), sums)
+                else:  # (the last few: four running sums, not eight)
+                    _dots4(rows, job_a, job_d, start, n_jobs, sums)
         q = 0
         for a in range(k2):
             s = sums[q]
@@ -347,3 +350,82 @@ def _dots4(rows: np.ndarray, job_a: np.ndarray, job_d: np.ndarray, start: int, s
     acc = (s0, s1, s2, s3)
     for q in range(stop - start):
         sums[start + q] = acc[q]
+
+
+@numba.njit(cache=True, nogil=True)
+def _tone_dots(rows: np.ndarray, o: int, yr: int, k2: int, sums: np.ndarray) -> None:
+    """:func:`_explained`'s products of one frequency for a tone of 2, 4 or 6 rows
+    (``rows[o:o + k2]``, the record's residual ``rows[yr]``): for each row a, its product
+    with the residual, then with rows 0..a, into ``sums`` in that order. The same sums as
+    :func:`_dots8` (each over the samples in order, a product and an addition a sample),
+    but each row read once a sample for all the products that use it (:func:`_dots_a01`,
+    :func:`_dots_a23`, :func:`_dots_a45`) instead of twice a product."""
+    y = rows[yr]
+    x0, x1 = rows[o], rows[o + 1]
+    if k2 == 2:
+        _dots_a01(x0, x1, y, sums)
+        return
+    x2, x3 = rows[o + 2], rows[o + 3]
+    _dots_a01(x0, x1, y, sums)
+    _dots_a23(x0, x1, x2, x3, y, sums)
+    if k2 == 6:
+        _dots_a45(x0, x1, x2, x3, rows[o + 4], rows[o + 5], y, sums)
+
+
+@numba.njit(cache=True, nogil=True)
+def _dots_a01(x0: np.ndarray, x1: np.ndarray, y: np.ndarray, sums: np.ndarray) -> None:
+    """:func:`_tone_dots`' products of rows 0 and 1: ``sums[0:5]``."""
+    s0 = s1 = s2 = s3 = s4 = 0.0
+    for i in range(y.size):
+        a0, a1, b = x0[i], x1[i], y[i]
+        s0 += a0 * b
+        s1 += a0 * a0
+        s2 += a1 * b
+        s3 += a1 * a0
+        s4 += a1 * a1
+    sums[0], sums[1], sums[2], sums[3], sums[4] = s0, s1, s2, s3, s4
+
+
+@numba.njit(cache=True, nogil=True)
+def _dots_a23(x0: np.ndarray, x1: np.ndarray, x2: np.ndarray, x3: np.ndarray, y: np.ndarray,
+              sums: np.ndarray) -> None:
+    """:func:`_tone_dots`' products of rows 2 and 3: ``sums[5:14]``."""
+    s5 = s6 = s7 = s8 = s9 = s10 = s11 = s12 = s13 = 0.0
+    for i in range(y.size):
+        a0, a1, a2, a3, b = x0[i], x1[i], x2[i], x3[i], y[i]
+        s5 += a2 * b
+        s6 += a2 * a0
+        s7 += a2 * a1
+        s8 += a2 * a2
+        s9 += a3 * b
+        s10 += a3 * a0
+        s11 += a3 * a1
+        s12 += a3 * a2
+        s13 += a3 * a3
+    sums[5], sums[6], sums[7], sums[8], sums[9] = s5, s6, s7, s8, s9
+    sums[10], sums[11], sums[12], sums[13] = s10, s11, s12, s13
+
+
+@numba.njit(cache=True, nogil=True)
+def _dots_a45(x0: np.ndarray, x1: np.ndarray, x2: np.ndarray, x3: np.ndarray, x4: np.ndarray,
+              x5: np.ndarray, y: np.ndarray, sums: np.ndarray) -> None:
+    """:func:`_tone_dots`' products of rows 4 and 5: ``sums[14:27]``."""
+    s14 = s15 = s16 = s17 = s18 = s19 = s20 = s21 = s22 = s23 = s24 = s25 = s26 = 0.0
+    for i in range(y.size):
+        a0, a1, a2, a3, a4, a5, b = x0[i], x1[i], x2[i], x3[i], x4[i], x5[i], y[i]
+        s14 += a4 * b
+        s15 += a4 * a0
+        s16 += a4 * a1
+        s17 += a4 * a2
+        s18 += a4 * a3
+        s19 += a4 * a4
+        s20 += a5 * b
+        s21 += a5 * a0
+        s22 += a5 * a1
+        s23 += a5 * a2
+        s24 += a5 * a3
+        s25 += a5 * a4
+        s26 += a5 * a5
+    sums[14], sums[15], sums[16], sums[17], sums[18] = s14, s15, s16, s17, s18
+    sums[19], sums[20], sums[21], sums[22], sums[23] = s19, s20, s21, s22, s23
+    sums[24], sums[25], sums[26] = s24, s25, s26
