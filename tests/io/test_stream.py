@@ -215,10 +215,12 @@ def test_last_revolution_completed_within_the_last_sample_interval(tmp_path):
     assert got == bounds
 
 
-def test_hdf5_stream_caches_one_chunk_per_dataset(tmp_path):
-    """A streamed HDF5 dataset is opened with a chunk cache of one of its chunks (HDF5 2.0's
-    default of 8 MiB a dataset held 48 MiB for a recording's 6 channels), and reads the
-    same values; a contiguous dataset keeps the default access."""
+def test_hdf5_stream_chunk_cache_by_storage(tmp_path):
+    """A streamed HDF5 dataset of unfiltered chunks is opened with no chunk cache (its rows
+    are read straight from the file, whatever the chunk size: a cache of one chunk held
+    6 x 32 MiB for chunks of 2**22 float64 samples), one of compressed chunks with a cache
+    of one chunk (each is decompressed once); a contiguous dataset keeps the default access.
+    Every layout reads the same values, also for blocks ending inside chunks."""
     import h5py
 
     from torquemod.io._stream_tables import _H5Table
@@ -226,15 +228,19 @@ def test_hdf5_stream_caches_one_chunk_per_dataset(tmp_path):
     path = tmp_path / "c.h5"
     with h5py.File(path, "w") as fh:
         fh.create_dataset("chunked", data=x, chunks=(3_000,))
+        fh.create_dataset("big", data=x.astype(np.float64), chunks=(40_000,))
+        fh.create_dataset("gzip", data=x, chunks=(3_000,), compression="gzip", shuffle=True)
         fh.create_dataset("plain", data=x.astype(np.float64))
         default = h5py.h5p.create(h5py.h5p.DATASET_ACCESS).get_chunk_cache()[1]
     table = _H5Table(path, None, mat=False)
+    names = ["chunked", "big", "gzip", "plain"]
     try:
-        chunked, plain = table._dataset("chunked"), table._dataset("plain")
-        assert chunked.id.get_access_plist().get_chunk_cache()[1] == 3_000 * 4
-        assert plain.id.get_access_plist().get_chunk_cache()[1] == default
-        got = table.read(["chunked", "plain"], 2_500, 9_100)  # ends inside chunks
-        np.testing.assert_array_equal(got["chunked"], x[2_500:9_100])
-        np.testing.assert_array_equal(got["plain"], x[2_500:9_100])
+        cache = {n: table._dataset(n).id.get_access_plist().get_chunk_cache()[1]
+                 for n in names}
+        assert cache == {"chunked": 0, "big": 0, "gzip": 3_000 * 4, "plain": default}
+        for a, b in ((0, 2_500), (2_500, 9_100), (9_100, 45_000), (45_000, 50_000)):
+            got = table.read(names, a, b)
+            for n in names:
+                np.testing.assert_array_equal(got[n], x[a:b])
     finally:
         table.close()

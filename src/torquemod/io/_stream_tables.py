@@ -60,15 +60,19 @@ class _Table:
 
 
 def _one_chunk_cache(group, key: str):
-    """The HDF5 dataset ``key`` below ``group``, opened with a chunk cache of one chunk.
+    """The HDF5 dataset ``key`` below ``group``, opened with the chunk cache a stream needs.
 
-    A stream reads each chunk of a dataset once, in order, so a cache that holds the chunk
-    being read (a block of rows may end inside it) is all it uses. HDF5 2.0's default cache
-    is 8 MiB per dataset: reading a long recording's 6 channels filled 48 MiB that stayed
-    allocated until the file was closed. HDF5 sets a dataset's cache when the dataset is
-    first opened, so it is opened here, not through ``group[key]``. Contiguous datasets get
-    the default access (no chunk cache is used), and so does any dataset the cache cannot
-    be set on.
+    A stream reads each chunk of a dataset once, in order, a block of rows at a time (a
+    block may end inside a chunk). Chunks stored without filters are read straight from the
+    file into the block (HDF5 does so for a chunk larger than the cache): the cache is set
+    to 0 bytes, whatever the chunk size. HDF5 2.0's default cache of 8 MiB a dataset held
+    48 MiB for a recording's 6 channels, and a cache of one chunk held the chunks whole:
+    6 x 32 MiB for chunks of 2**22 float64 samples, and the rows went through it a second
+    time. A compressed (filtered) chunk can only be decompressed whole, so its cache holds
+    one chunk (each chunk is decompressed once). HDF5 sets a dataset's cache when the
+    dataset is first opened, so it is opened here, not through ``group[key]``. Contiguous
+    datasets get the default access (no chunk cache is used), and so does any dataset the
+    cache cannot be set on.
     """
     import h5py
     ds = None
@@ -78,9 +82,11 @@ def _one_chunk_cache(group, key: str):
         del probe
         chunks = layout.get_chunk() if layout.get_layout() == h5py.h5d.CHUNKED else None
         if chunks:
+            filtered = layout.get_nfilters() > 0
             dapl = h5py.h5p.create(h5py.h5p.DATASET_ACCESS)
             nslots, _, w0 = dapl.get_chunk_cache()
-            dapl.set_chunk_cache(nslots, int(np.prod(chunks)) * itemsize, w0)
+            dapl.set_chunk_cache(nslots, int(np.prod(chunks)) * itemsize if filtered else 0,
+                                 w0)
             ds = h5py.Dataset(h5py.h5d.open(group.id, key.encode(), dapl=dapl))
     except Exception:  # an HDF5 or h5py without per-dataset access lists
         ds = None
