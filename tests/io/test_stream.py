@@ -244,3 +244,29 @@ def test_hdf5_stream_chunk_cache_by_storage(tmp_path):
                 np.testing.assert_array_equal(got[n], x[a:b])
     finally:
         table.close()
+
+
+def test_mdf_stream_reads_record_ranges_not_whole_channels(columns, tmp_path, write_columns,
+                                                           monkeypatch):
+    """The MDF stream opens the file through a file object, so that asammdf reads a record
+    range from the data blocks that hold it. By file name, asammdf 8 reads a channel's whole
+    data (``get_channel_raw_bytes_complete``) for every range once the channel group holds
+    200 MiB (``validate_blocks``), once per block and channel. That size is faked here and
+    the whole-channel read made to fail: the stream does not take it, and its chunks are
+    the whole-file values."""
+    pytest.importorskip("asammdf")
+    from asammdf.blocks import mdf_v4
+
+    def whole_channel(*args, **kwargs):
+        raise AssertionError("a record range read the channel's whole data")
+
+    path = write_columns("mdf", tmp_path / "r.mf4", dict(columns), fs_hz=FS_HZ, t0_s=T0_S)
+    rec = read_recording(path)  # by name: its whole-channel reads are the fast path
+    monkeypatch.setattr(mdf_v4, "validate_blocks", lambda blocks, record_size: True)
+    monkeypatch.setattr(mdf_v4, "get_channel_raw_bytes_complete", whole_channel)
+    with open_stream(path) as stream:
+        got = _joined(stream.chunks(chunk_rows=CHUNK))
+        part = stream.read_rows(2_000, 2_100)
+    for c, x in rec.channels.items():
+        np.testing.assert_array_equal(got[c], x, err_msg=c)
+        np.testing.assert_array_equal(part.channels[c], x[2_000:2_100], err_msg=c)
