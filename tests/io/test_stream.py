@@ -270,3 +270,28 @@ def test_mdf_stream_reads_record_ranges_not_whole_channels(columns, tmp_path, wr
     for c, x in rec.channels.items():
         np.testing.assert_array_equal(got[c], x, err_msg=c)
         np.testing.assert_array_equal(part.channels[c], x[2_000:2_100], err_msg=c)
+
+
+@pytest.mark.parametrize("fmt", ["hdf5", "mat73"])
+def test_matrix_mapped_as_a_channel_is_refused_unread(fmt, columns, tmp_path, write_columns,
+                                                      monkeypatch):
+    """A 2-D dataset (all channels in one matrix) mapped as a channel is refused from its
+    shape, before its values are read: read whole first, a long recording's matrix would
+    have filled the memory only to be refused."""
+    import h5py
+    path = write_columns(fmt, tmp_path / f"r{SUFFIX[fmt]}", dict(columns), fs_hz=FS_HZ,
+                         t0_s=T0_S)
+    with h5py.File(path, "a") as fh:
+        fh.create_dataset("block", data=np.zeros((N, 3)))
+
+    real = h5py.Dataset.__getitem__
+
+    def no_read(self, *args, **kwargs):
+        if sum(d > 1 for d in self.shape) > 1:
+            raise AssertionError("the matrix was read")
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(h5py.Dataset, "__getitem__", no_read)
+    with pytest.raises(InputError, match=r"'block': expected a 1-D signal, got shape") as e:
+        read_recording(path, channel_map={"torque": "block"})
+    assert "cannot read" not in str(e.value)
