@@ -66,6 +66,41 @@ LAYOUTS = (*HDF5_LAYOUTS, *OTHER_LAYOUTS)
 Blocks = Iterator[tuple[int, int, np.ndarray, dict]]
 
 
+def rig_blocks(n_total: int, fs_hz: float, block_s: float = 60.0) -> Blocks:
+    """``(a, b, t, x)`` for rows ``a:b`` of the long recording: times [s] and the six
+    channels (float64, SI units), ``block_s`` at a time: the platform and wheel at the
+    default synthetic speeds with 1x/2x encoder eccentricity, a 2 Hz torque modulation
+    answered 20 deg later by the wheel speed, constant forces, white noise (levels of
+    :class:`torquemod.testing.SyntheticSpec`; ``benchmarks/memory.py --command``)."""
+    from torquemod.testing import SyntheticSpec
+
+    sp = SyntheticSpec(fs_hz=fs_hz)
+    rng = np.random.default_rng(5)
+    wp, ww = sp.platform_speed_rad_s, sp.wheel_speed_rad_s
+    w_mod = 2 * np.pi * sp.modulation_hz
+    lag = np.deg2rad(sp.phase_lag_deg)
+    step = round(block_s * fs_hz)
+    for a in range(0, n_total, step):
+        b = min(n_total, a + step)
+        t = np.arange(a, b) / fs_hz
+        m = b - a
+        ecc_p = 1 + 5e-3 * np.cos(wp * t) + 2e-3 * np.cos(2 * wp * t + 1.0)
+        ecc_w = 1 + 7e-3 * np.cos(ww * t) + 3e-3 * np.cos(2 * ww * t + 0.5)
+        x = {"platform_speed_rad_s": wp * ecc_p
+             + sp.platform_noise_rad_s * rng.standard_normal(m),
+             "wheel_speed_rad_s": (ww + sp.wheel_mod_amplitude_rad_s
+                                   * np.sin(w_mod * t + sp.modulation_phase_rad - lag))
+             * ecc_w + sp.wheel_noise_rad_s * rng.standard_normal(m),
+             "torque_nm": sp.dc_torque_nm + sp.modulation_amplitude_nm
+             * np.sin(w_mod * t + sp.modulation_phase_rad)
+             + sp.torque_noise_nm * rng.standard_normal(m),
+             "fx_n": sp.dc_torque_nm / sp.wheel_radius_m
+             + sp.force_noise_n * rng.standard_normal(m),
+             "fy_n": sp.lateral_force_n + sp.force_noise_n * rng.standard_normal(m),
+             "fz_n": sp.normal_load_n + sp.force_noise_n * rng.standard_normal(m)}
+        yield a, b, t, x
+
+
 def write(layout: str, folder: Path, n_total: int, fs_hz: float, dtype: str,
           blocks: Blocks) -> tuple[str, dict]:
     """Write the recording in ``layout``; (file name, [channels] table or {})."""

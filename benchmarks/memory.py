@@ -159,40 +159,6 @@ def measure(folder: Path, workers: int, trace: bool, out_dir: Path) -> dict:
             "n_cycles": len(res.cycles)}
 
 
-def _long_blocks(n_total: int, block_s: float = 60.0):
-    """``(a, b, t, x)`` for rows ``a:b`` of the long recording: times [s] and the six
-    channels (float64, SI units); see :func:`generate_long`."""
-    import numpy as np
-
-    from torquemod.testing import SyntheticSpec
-
-    sp = SyntheticSpec(fs_hz=FS_HZ)
-    rng = np.random.default_rng(5)
-    wp, ww = sp.platform_speed_rad_s, sp.wheel_speed_rad_s
-    w_mod = 2 * np.pi * sp.modulation_hz
-    lag = np.deg2rad(sp.phase_lag_deg)
-    step = round(block_s * FS_HZ)
-    for a in range(0, n_total, step):
-        b = min(n_total, a + step)
-        t = np.arange(a, b) / FS_HZ
-        m = b - a
-        ecc_p = 1 + 5e-3 * np.cos(wp * t) + 2e-3 * np.cos(2 * wp * t + 1.0)
-        ecc_w = 1 + 7e-3 * np.cos(ww * t) + 3e-3 * np.cos(2 * ww * t + 0.5)
-        x = {"platform_speed_rad_s": wp * ecc_p
-             + sp.platform_noise_rad_s * rng.standard_normal(m),
-             "wheel_speed_rad_s": (ww + sp.wheel_mod_amplitude_rad_s
-                                   * np.sin(w_mod * t + sp.modulation_phase_rad - lag))
-             * ecc_w + sp.wheel_noise_rad_s * rng.standard_normal(m),
-             "torque_nm": sp.dc_torque_nm + sp.modulation_amplitude_nm
-             * np.sin(w_mod * t + sp.modulation_phase_rad)
-             + sp.torque_noise_nm * rng.standard_normal(m),
-             "fx_n": sp.dc_torque_nm / sp.wheel_radius_m
-             + sp.force_noise_n * rng.standard_normal(m),
-             "fy_n": sp.lateral_force_n + sp.force_noise_n * rng.standard_normal(m),
-             "fz_n": sp.normal_load_n + sp.force_noise_n * rng.standard_normal(m)}
-        yield a, b, t, x
-
-
 def generate_long(folder: Path, minutes: float, dtype: str = "f8",
                   block_s: float = 60.0, layout: str = "chunk64k") -> dict:
     """One recording of ``minutes`` of continuous rig signals, written block by block: the
@@ -213,7 +179,7 @@ def generate_long(folder: Path, minutes: float, dtype: str = "f8",
     sp = SyntheticSpec(fs_hz=FS_HZ)
     n_total = round(minutes * 60 * FS_HZ)
     name, extra = _layouts.write(layout, folder, n_total, FS_HZ, dtype,
-                                 _long_blocks(n_total, block_s))
+                                 _layouts.rig_blocks(n_total, FS_HZ, block_s))
     write_manifest(folder / "experiment.toml",
                    rig={"wheel_radius_m": sp.wheel_radius_m,
                         "platform_radius_m": sp.platform_radius_m},
