@@ -295,3 +295,27 @@ def test_matrix_mapped_as_a_channel_is_refused_unread(fmt, columns, tmp_path, wr
     with pytest.raises(InputError, match=r"'block': expected a 1-D signal, got shape") as e:
         read_recording(path, channel_map={"torque": "block"})
     assert "cannot read" not in str(e.value)
+
+
+def test_parquet_stream_holds_one_row_group_at_a_time(columns, tmp_path):
+    """The Parquet stream reads without pyarrow's pre-buffering, which held the column
+    chunks of every row group read so far until the iteration ended (the whole file by
+    the end of a long recording). Counted by pyarrow's allocator: while 20 row groups are
+    streamed, the live allocations stay under 3 row groups' bytes (without the fix they
+    reach the whole file's)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    rows = 25_000
+    rng = np.random.default_rng(4)
+    table = pa.table({c: np.repeat(x, 100) + rng.standard_normal(100 * N)
+                      for c, x in columns.items() if c in CHANNELS[:6]})
+    table = table.slice(0, 20 * rows).replace_schema_metadata({"sample_rate_hz": "1000.0"})
+    path = tmp_path / "groups.parquet"
+    pq.write_table(table, path, row_group_size=rows, compression="none")
+    group_bytes = rows * 6 * 8
+    base = pa.total_allocated_bytes()
+    peak = 0
+    with open_stream(path) as stream:
+        for _chunk in stream.chunks(chunk_rows=4_096):
+            peak = max(peak, pa.total_allocated_bytes() - base)
+    assert 0 < peak < 3 * group_bytes

@@ -193,7 +193,11 @@ class _ParquetTable(_Table):
                              path=path, hint="remove 'group' from the recording's entry")
         self.path = path
         try:
-            self.pf = pq.ParquetFile(path)
+            # pre_buffer (pyarrow's default) reads ahead the column chunks of every row group
+            # an iteration covers and holds them until it ends: iter_batches over a 10-min
+            # float32 recording held the whole file (220 MiB) by the end; without it, one
+            # row group is held at a time (36 MiB there)
+            self.pf = pq.ParquetFile(path, pre_buffer=False)
             self.schema = self.pf.schema_arrow
         except Exception as exc:  # ArrowInvalid/OSError on damaged files
             raise library_error(exc, path=path, what="cannot open as Parquet",
