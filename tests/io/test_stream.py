@@ -319,3 +319,23 @@ def test_parquet_stream_holds_one_row_group_at_a_time(columns, tmp_path):
         for _chunk in stream.chunks(chunk_rows=4_096):
             peak = max(peak, pa.total_allocated_bytes() - base)
     assert 0 < peak < 3 * group_bytes
+
+
+def test_csv_stream_parses_small_text_blocks(columns, tmp_path, write_columns, monkeypatch):
+    """pyarrow's streaming CSV reader keeps about 35 blocks of parsed values alive, so the
+    stream asks for blocks of at most 1 MiB of text (4 MiB blocks held ~140 MiB)."""
+    from pyarrow import csv as pa_csv
+
+    from torquemod.io import _stream_tables
+    t = T0_S + np.arange(N) / FS_HZ
+    path = write_columns("csv", tmp_path / "r.csv", {"time_s": t, **columns})
+    sizes = []
+    real = pa_csv.open_csv
+
+    def spy(*args, **kwargs):
+        sizes.append(kwargs["read_options"].block_size)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pa_csv, "open_csv", spy)
+    _same(path)
+    assert sizes and all(s == _stream_tables.CSV_BLOCK_BYTES <= 1 << 20 for s in sizes)
