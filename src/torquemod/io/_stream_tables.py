@@ -62,7 +62,7 @@ class _Table:
         pass
 
 
-def _one_chunk_cache(group, key: str):
+def _dataset_for_stream(group, key: str):
     """The HDF5 dataset ``key`` below ``group``, opened with the chunk cache a stream needs.
 
     A stream reads each chunk of a dataset once, in order, a block of rows at a time (a
@@ -70,12 +70,11 @@ def _one_chunk_cache(group, key: str):
     file into the block (HDF5 does so for a chunk larger than the cache): the cache is set
     to 0 bytes, whatever the chunk size. HDF5 2.0's default cache of 8 MiB a dataset held
     48 MiB for a recording's 6 channels, and a cache of one chunk held the chunks whole:
-    6 x 32 MiB for chunks of 2**22 float64 samples, and the rows went through it a second
-    time. A compressed (filtered) chunk can only be decompressed whole, so its cache holds
-    one chunk (each chunk is decompressed once). HDF5 sets a dataset's cache when the
-    dataset is first opened, so it is opened here, not through ``group[key]``. Contiguous
-    datasets get the default access (no chunk cache is used), and so does any dataset the
-    cache cannot be set on.
+    6 x 32 MiB for chunks of 2**22 float64 samples. A compressed (filtered) chunk can only
+    be decompressed whole, so its cache holds one chunk (each chunk is decompressed once).
+    HDF5 sets a dataset's cache when the dataset is first opened, so it is opened here, not
+    through ``group[key]``. Contiguous datasets get the default access (no chunk cache is
+    used), and so does any dataset the cache cannot be set on.
     """
     import h5py
     ds = None
@@ -131,7 +130,7 @@ class _H5Table(_Table):
             key = "/".join(p for p in name.replace(".", "/").split("/") if p) if self.mat \
                 else name
             kind = self.g.get(key, getclass=True) if key else None
-            self._ds[name] = _one_chunk_cache(self.g, key) if kind is h5py.Dataset else None
+            self._ds[name] = _dataset_for_stream(self.g, key) if kind is h5py.Dataset else None
         return self._ds[name]
 
     def has(self, name: str) -> bool:
@@ -388,10 +387,10 @@ def _mdf_on_file_object(asammdf, path: Path):
     ``(None, None)`` when that fails.
 
     Given a file name, asammdf (8.x) memory-maps the file and answers ``get`` with a record
-    range by reading the channel's and the master's whole data and slicing them: a stream
-    of 65 536-row blocks then read the whole file once per block and channel (a 10-min
-    recording: 143 CPU-s and 1.4 GiB resident). Given a file object it reads only the data
-    blocks that hold the range.
+    range by reading the channel's and the master's whole data and slicing them (for channel
+    groups of 200 MiB or more): a stream of 65 536-row blocks then read the whole file once
+    per block and channel (``process`` on a 10-min recording: 143 CPU-s, 1.4 GiB resident).
+    Given a file object it reads only the data blocks that hold the range.
     """
     from torquemod.io import mdf as mdf_io
     try:
