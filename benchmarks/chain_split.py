@@ -40,6 +40,8 @@ _METHODS = [  # (module, class, method, label)
     ("torquemod.processing.speedmodel", "_SlowOrdersRemoval", "at", "step 1: removal at f"),
     ("torquemod.processing.speedmodel", "_SlowOrdersRemoval", "refine_many",
      "step 1: refinement"),
+    ("torquemod.processing.speedmodel", "_SlowOrdersRemoval", "search",
+     "step 1: peaks (2 passes), removal, refinement"),
     ("torquemod.processing.speedmodel", "SpeedModel", "noise_depletion", "noise statistic"),
 ]
 _KERNELS = [  # (module, attribute, label): compiled kernels and library routines
@@ -53,6 +55,7 @@ _KERNELS = [  # (module, attribute, label): compiled kernels and library routine
     ("torquemod.dsp.jointfit", "fit_tone_model", "speed model fit"),
     ("torquemod.dsp.projection", "_refine", "step 1 refinement"),
     ("torquemod.dsp.tonesearch", "_refine", "step 1 refinement"),
+    ("torquemod.dsp.modsearch", "_search_kernel", "step 1 peaks, removal, refinement"),
     ("torquemod.processing.speedmodel.projection", "orthonormal_basis_t",
      "orthonormal bases (LAPACK)"),
     ("torquemod.dsp.spectrum", "_peaks_of_spectra", "peaks: bins, Brent"),

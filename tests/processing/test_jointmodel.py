@@ -150,3 +150,37 @@ def test_modulation_harmonics_and_bins_near_by_their_conditions():
         df = fs / n
         want = tuple(k for k in range(n // 2 + 1) if 1.5 * df < abs(k * df - f_hz) <= 0.5)
         assert jointmodel._bins_near(n, fs, f_hz, 0.5) == want
+
+
+def test_hypot_is_numpys_bit_for_bit():
+    # the C library's hypot behind np.hypot on float64, over magnitudes that over- and
+    # underflow the plain formula and near-equal arguments
+    rng = np.random.default_rng(7)
+    x = rng.standard_normal(4000) * 10.0 ** rng.uniform(-200, 200, 4000)
+    y = rng.standard_normal(4000) * 10.0 ** rng.uniform(-200, 200, 4000)
+    y[::4] = x[::4] * rng.uniform(0.99, 1.01, 1000)
+    for a, b in zip(x.tolist(), y.tolist(), strict=True):
+        got = jointmodel.hypot(a, b)
+        assert type(got) is float and got == float(np.hypot(a, b))
+    assert jointmodel.hypot(0.0, 0.0) == 0.0
+    assert jointmodel.hypot(float("inf"), float("nan")) == np.hypot(np.inf, np.nan)
+
+
+def test_fit_given_stacked_columns_is_the_fit_of_the_dict():
+    n = 327
+    slow = filters.slow_basis(n, FS, 1.2)
+    orders = filters.order_design(2 * np.pi * 4.6 * np.arange(n) / FS, [1, 2])
+    ch = _channels(n, 5)
+    with one_blas_thread():
+        plain = jointmodel.fit_speed_model(ch, FS, 2.013, slow, orders, (2, 3))
+        stacked = jointmodel.fit_speed_model(ch, FS, 2.013, slow, orders, (2, 3),
+                                             columns=np.column_stack(list(ch.values())))
+        # a stack of another shape is not taken: the dict decides
+        wrong = jointmodel.fit_speed_model(ch, FS, 2.013, slow, orders, (2, 3),
+                                           columns=np.zeros((n, 2)))
+    for model in (stacked, wrong):
+        np.testing.assert_array_equal(model.coef, plain.coef)
+        for name in ch:
+            assert model.mean(name) == plain.mean(name)
+            c, s = plain.coef[:2, plain.names.index(name)]
+            assert model.amplitude(name) == float(np.hypot(c, s))

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from torquemod.dsp import blockbasis, numpyblas, projection
+from torquemod.dsp import blockbasis, modsearch, numpyblas, projection
 from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Rig
 from torquemod.processing import chain, speedmodel, trackedorders
@@ -48,9 +48,12 @@ def test_cycle_is_the_numpy_routes_bit_for_bit(spec, monkeypatch):
 
         monkeypatch.setattr(module, name, spy_at)
 
-    # at the nominal frequency (with the basis), then at the frequency of the first peaks
+    # at the nominal frequency (with the basis), then at the frequency of the first peaks:
+    # within step 1's search in one compiled call (dsp.modsearch; removal_at_tone called
+    # from Python only where that search hands over)
     spy_on(blockbasis, "removal_basis_at", lambda out: out is not None and out[3] is not None)
     spy_on(projection, "removal_at_tone", lambda out: out is not None)
+    spy_on(modsearch, "_search_kernel", lambda out: out[0] == 0)
 
     def run():
         c = chain.process_cycle(rec, rig, cfg, where="t", nominal_hz=2.0)
@@ -58,7 +61,7 @@ def test_cycle_is_the_numpy_routes_bit_for_bit(spec, monkeypatch):
 
     fast, (phase, se, _) = run()
     assert used and all(s == 0 for s in used)  # the kernels ran, and decided
-    assert removed == [("removal_basis_at", True), ("removal_at_tone", True)]
+    assert removed == [("removal_basis_at", True), ("_search_kernel", True)]
     monkeypatch.setattr(numpyblas, "addresses", lambda: None)
     ref, (phase_ref, se_ref, _) = run()
     assert phase == phase_ref

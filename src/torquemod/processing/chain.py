@@ -6,6 +6,7 @@ Pure functions over one cycle's samples; the orchestration over an experiment is
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -28,6 +29,7 @@ from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Recording, Rig
 from torquemod.processing.creepage import creepage_and_drift
 from torquemod.processing.cyclechecks import check_operating_point, record_std
+from torquemod.processing.jointmodel import hypot
 from torquemod.processing.speedmodel import (
     SpeedModel,
     _SlowOrdersRemoval,
@@ -158,6 +160,17 @@ def creepage_coa(wheel_speed_rad_s: float, platform_speed_rad_s: float, fx_n: fl
     return float(xi), float(coa)
 
 
+@functools.lru_cache(maxsize=16)
+def _resample_plan(fs_hz: float, target_hz: float, max_denominator: int
+                   ) -> tuple[int, int, float, int]:
+    """Step 2's ``(up, down)`` (:func:`~torquemod.dsp.resampling.resample_ratio`), the
+    resampled rate ``fs*up/down`` [Hz] and the output samples cut at each end
+    (:func:`~torquemod.dsp.resampling.resampler_edge_samples`), cached: the same for every
+    cycle of a recording."""
+    up, down = resampling.resample_ratio(fs_hz, target_hz, max_denominator=max_denominator)
+    return up, down, fs_hz * up / down, resampling.resampler_edge_samples(up, down)
+
+
 #: Channels resampled in step 2 when present (the forces for their step-8 means).
 _RESAMPLED = ("torque_nm", "wheel_speed_rad_s", "platform_speed_rad_s", "fx_n", "fy_n", "fz_n")
 
@@ -218,6 +231,33 @@ def _modulation_peaks(cleaned: np.ndarray, fs_hz: float, cfg: ProcessingConfig, 
     raise AssertionError("peak_frequencies failed where peak_frequency did not")
 
 
+def _step1_peaks(cleaner: _SlowOrdersRemoval, f_start: float, fs_hz: float,
+                 cfg: ProcessingConfig, where: str) -> tuple[dict[str, float], float]:
+    """Step 1's peaks of the torque and the wheel speed [Hz] and their mean [Hz]: the
+    spectral peaks of the records less the speed model's slow part and orders fitted with
+    the modulation at ``f_start``, again with it at the first peaks' mean, then (with
+    ``frequency.refine``) each refined (:meth:`_SlowOrdersRemoval.refine_many`). In one
+    compiled call where it applies (:meth:`_SlowOrdersRemoval.search`, the same numbers),
+    else step by step."""
+    fp = cfg.frequency
+    found = cleaner.search(band_hz=fp.band_hz, window=fp.window, detrend=fp.detrend,
+                           zero_pad=fp.zero_pad, refine=fp.refine, tol_hz=fp.tolerance_hz)
+    if found is not None:
+        f_t, f_w = found[2]
+        return {"torque_nm": f_t, "wheel_speed_rad_s": f_w}, 0.5 * (f_t + f_w)
+    f_mod = f_start
+    peaks: dict[str, float] = {}
+    for _ in range(2):
+        cleaned = cleaner.at(f_mod)
+        peaks.update(_modulation_peaks(cleaned, fs_hz, cfg, where))
+        f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
+    if fp.refine:
+        peaks["torque_nm"], peaks["wheel_speed_rad_s"] = cleaner.refine_many(
+            [0, 1], [peaks["torque_nm"], peaks["wheel_speed_rad_s"]], tol_hz=fp.tolerance_hz)
+        f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
+    return peaks, f_mod
+
+
 def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str,
                   nominal_hz: float | None = None, normal_load_n: float | None = None
                   ) -> CycleSignals:
@@ -260,9 +300,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
        Coefficient of Friction Measurement" (TU Delft, V-Track rig), Section 2.4.
     """
     fs = rec.fs_hz
-    up, down = resampling.resample_ratio(fs, cfg.resample.target_hz,
-                                      max_denominator=cfg.resample.max_denominator)
-    fs_r = fs * up / down
+    up, down, fs_r, edge = _resample_plan(float(fs), float(cfg.resample.target_hz),
+                                          int(cfg.resample.max_denominator))
     if fs < cfg.resample.target_hz:
         raise InputError(f"sample rate {fs:.6g} Hz is below the chain's resampling rate "
                          f"{cfg.resample.target_hz} Hz", path=where, channel="time_s",
@@ -272,7 +311,6 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # Step 2 (done first: step 1's spectral peak is the same on the resampled record, whose
     # anti-alias filter is flat across the search band, and costs 300x less there). The
     # output samples the FIR's zero padding touches are cut off.
-    edge = resampling.resampler_edge_samples(up, down)
     resampled, full_means = resampling.resample_rows([ch[k] for k in names], up, down,
                                                   kaiser_beta=cfg.resample.kaiser_beta,
                                                   method=cfg.resample.method,
@@ -306,22 +344,14 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     # Each peak is then refined to the frequency at which the speed model explains most of
     # the channel (_SlowOrdersRemoval.refine): the slow basis absorbs part of a mismatched
     # modulation and pulls the plain peak towards the frequency assumed.
-    f_mod = f_start
-    peaks: dict[str, float] = {}
-    both = np.empty((n, 2))  # np.column_stack([tq, wh]) (float64 rows), less per-call work
-    both[:, 0], both[:, 1] = tq, wh
+    # np.column_stack([tq, wh]) (float64 rows; the first two, _RESAMPLED's order) in one copy
+    both = np.ascontiguousarray(resampled[:2].T)
     cleaner = _SlowOrdersRemoval(both, slow, orders, fs_r, mod_harmonics, start_hz=f_start)
-    for _ in range(2):
-        cleaned = cleaner.at(f_mod)
-        peaks.update(_modulation_peaks(cleaned, fs_r, cfg, where))
-        f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
-    if fp.refine:
-        peaks["torque_nm"], peaks["wheel_speed_rad_s"] = cleaner.refine_many(
-            [0, 1], [peaks["torque_nm"], peaks["wheel_speed_rad_s"]], tol_hz=fp.tolerance_hz)
-        f_mod = 0.5 * (peaks["torque_nm"] + peaks["wheel_speed_rad_s"])
+    peaks, f_mod = _step1_peaks(cleaner, f_start, fs_r, cfg, where)
     if fp.common == "torque":
         f_mod = peaks["torque_nm"]
-    model = fit_speed_model(sig, fs_r, f_mod, slow, orders, mod_harmonics, basis_t=cleaner.qt)
+    model = fit_speed_model(sig, fs_r, f_mod, slow, orders, mod_harmonics, basis_t=cleaner.qt,
+                            columns=np.ascontiguousarray(resampled.T))
     f_t, f_w = peaks["torque_nm"], peaks["wheel_speed_rad_s"]
     f_wheel = abs(model.mean("wheel_speed_rad_s")) / (2 * np.pi)
     f_plat = abs(model.mean("platform_speed_rad_s")) / (2 * np.pi) if pl is not None \
@@ -364,8 +394,8 @@ def process_cycle(rec: Recording, rig: Rig, cfg: ProcessingConfig, *, where: str
     else:
         xi, drift = float("nan"), float("nan")
         speed = abs(means["wheel_speed_rad_s"]) * rig.wheel_radius_m
-    coa = float(np.hypot(means["fx_n"], means.get("fy_n", 0.0)) / means["fz_n"]) \
-        if has_forces else coa_t
+    coa = hypot(means["fx_n"], means.get("fy_n", 0.0)) / means["fz_n"] \
+        if has_forces else coa_t  # (np.hypot's number)
     wheel_amp = model.amplitude("wheel_speed_rad_s")
     out = CycleSignals(fs_r, edge / fs_r, f_t, f_w, f_mod, f_wheel, f_plat, tq, wh,
                        tq_n, wh_n, tq_f, wh_f, xi, coa, means,

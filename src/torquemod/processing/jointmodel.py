@@ -8,8 +8,10 @@ Used by the per-cycle steps of :mod:`torquemod.processing.chain` through
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 from scipy.signal import get_window
 
@@ -19,6 +21,14 @@ from torquemod.dsp import filters, jointfit, lstsq, numpyblas, projection
 #: (:meth:`SpeedModel.noise_depletion`; the bins :func:`~torquemod.dsp.phase.local_noise_psd`
 #: reads)
 NOISE_HALF_WIDTH_HZ = 0.75
+
+
+@numba.njit(cache=True, nogil=True)
+def hypot(x: float, y: float) -> float:
+    """``sqrt(x*x + y*y)`` [their unit] by the C library's ``hypot``, the function behind
+    ``np.hypot`` on float64 (the same numbers; Python's ``math.hypot`` rounds its own way),
+    at a compiled call's cost instead of a ufunc's on two scalars (~0.2 against ~1.5 us)."""
+    return math.hypot(x, y)
 
 
 @functools.lru_cache(maxsize=16)
@@ -105,7 +115,7 @@ class SpeedModel:
     def amplitude(self, name: str) -> float:
         """Amplitude of the fitted modulation of channel ``name`` [its unit]."""
         c, s = self.coef[:2, self.names.index(name)].tolist()  # (the same float64s)
-        return float(np.hypot(c, s))
+        return hypot(c, s)  # (np.hypot's number)
 
     def variance_factor(self) -> float:
         """Variance of the modulation's coefficients in this joint model over their variance
@@ -374,7 +384,8 @@ _FILTERED = ("wheel_speed_rad_s", "torque_nm")
 
 def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz: float,
                     slow: np.ndarray, orders: np.ndarray, harmonics: tuple[int, ...] = (), *,
-                    basis_t: np.ndarray | None = None) -> SpeedModel:
+                    basis_t: np.ndarray | None = None, columns: np.ndarray | None = None
+                    ) -> SpeedModel:
     """Least-squares fit of :class:`SpeedModel` to every channel at once.
 
     Time is referenced to the record's middle so the modulation's phase is decoupled from its
@@ -398,6 +409,10 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
         ``Q_B'`` of an orthonormal basis of ``[slow, orders]`` (``p x n``): the noise
         statistic :meth:`SpeedModel.noise_depletion` with this ``basis_t`` is made with the
         fit. Default None.
+    columns : ndarray or None
+        The channels already side by side, ``(n, len(channels))`` in the order of
+        ``channels`` (the same numbers; a caller that holds them stacked spares the copy
+        column by column). Default None.
 
     Returns
     -------
@@ -407,10 +422,14 @@ def fit_speed_model(channels: dict[str, np.ndarray], fs_hz: float, modulation_hz
     names = tuple(channels)
     n = slow.shape[0]
     n_s, n_o, n_h = slow.shape[1], orders.shape[1], 2 * len(harmonics)
-    rows = [channels[k] for k in names]
-    y = np.empty((n, len(rows)), dtype=np.result_type(*rows))
-    for j, r in enumerate(rows):  # np.column_stack's array, without its per-call work
-        y[:, j] = r
+    if columns is not None and columns.shape == (n, len(names)) \
+            and columns.flags.c_contiguous:
+        y = columns
+    else:
+        rows = [channels[k] for k in names]
+        y = np.empty((n, len(rows)), dtype=np.result_type(*rows))
+        for j, r in enumerate(rows):  # np.column_stack's array, without its per-call work
+            y[:, j] = r
     blas = numpyblas.addresses()
     if blas is not None and n > 1 and y.dtype == np.float64:
         # the modulation's columns, the design, its factor, the coefficients, the parts, the

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from torquemod.dsp import blockbasis, filters, projection, tonesearch
+from torquemod.dsp import blockbasis, filters, modsearch, projection, tonesearch
 from torquemod.processing.jointmodel import (  # noqa: F401  (re-exported)
     SpeedModel,
     _centred_time,
@@ -65,6 +65,41 @@ class _SlowOrdersRemoval:
                 self.qy = self.qt @ self.r_y  # ~0: kept for the rounding's sake
             else:
                 self.r_y = y - self.b @ self.fac.solve(y)
+
+    def search(self, *, band_hz: tuple[float, float], window: str, detrend: str,
+               zero_pad: int, refine: bool, tol_hz: float
+               ) -> tuple[list[float], list[float], list[float]] | None:
+        """The chain's search of the modulation frequency on two records in one compiled
+        call (:func:`torquemod.dsp.modsearch.search_modulation`): the spectral peaks of
+        :meth:`at` the start frequency, the peaks of :meth:`at` their mean, and those
+        refined by :meth:`refine_many` (with ``refine``), the numbers of these calls one
+        after the other. None where that route does not apply (no removal made with the
+        basis at the start, or a step that would go another way): then call them.
+
+        Parameters
+        ----------
+        band_hz, window, detrend, zero_pad
+            As :func:`~torquemod.dsp.spectrum.peak_frequencies` (band [Hz]).
+        refine : bool
+            Whether to refine the second peaks.
+        tol_hz : float
+            As :meth:`refine_many` [Hz].
+
+        Returns
+        -------
+        tuple of list of float or None
+            Each record's first peaks, second peaks and refined ones [Hz].
+        """
+        if self._at_start is None or self.qt is None or self.start_hz is None \
+                or self.y.shape[1] != 2:
+            return None
+        out = modsearch.search_modulation(
+            self._at_start, float(self.start_hz), self.qt, self.r_y, self.qy,
+            float(self.fs_hz), self._orders, band_hz=band_hz, window=window, detrend=detrend,
+            zero_pad=zero_pad, refine=refine, tol_hz=tol_hz)
+        if out is not None:
+            self._at_start = None  # used, as at() hands it over once
+        return out
 
     @property
     def b(self) -> np.ndarray:
