@@ -35,6 +35,13 @@ first fills numba's kernel cache of the source tree measured.
     python benchmarks/memory.py --command 10 60 180 600 [--dtype f4] [--workdir DIR]
                                 [--src OTHER_CHECKOUT/src] [--sample 0.01]
 
+``--layout L1 L2 ...`` writes the recording in each of these ways (``benchmarks/_layouts.py``:
+HDF5 contiguous, with a ``time_s`` dataset, h5py's automatic or resizable chunks, chunks of
+2**20 or 2**22 samples, gzip with shuffle; MATLAB v7.3, TDMS, MDF4, Parquet, CSV), measures
+each length in each, and says whether the results (``cycles.csv``, ``steps.csv``) are those of
+the first layout. Each recording is written by a separate Python process: a child's
+``ru_maxrss`` includes its parent's peak at the time it was started.
+
 ``--sample SECONDS`` also reads the child's ``VmRSS`` from ``/proc`` that often and prints
 when the peak was reached and the largest resident size in each tenth of the run (the
 kernels load at the start, the report is written at the end).
@@ -153,56 +160,36 @@ def measure(folder: Path, workers: int, trace: bool, out_dir: Path) -> dict:
 
 
 def generate_long(folder: Path, minutes: float, dtype: str = "f8",
-                  block_s: float = 60.0) -> dict:
-    """One HDF5 file of ``minutes`` of continuous rig signals, written block by block: the
+                  block_s: float = 60.0, layout: str = "chunk64k") -> dict:
+    """One recording of ``minutes`` of continuous rig signals, written block by block: the
     platform and wheel at the default synthetic speeds with 1x/2x encoder eccentricity, a
     2 Hz torque modulation answered 20 deg later by the wheel speed, constant forces, white
-    noise (levels of :class:`torquemod.testing.SyntheticSpec`)."""
-    import h5py
+    noise (levels of :class:`torquemod.testing.SyntheticSpec`). ``layout`` is how the file
+    is written (``benchmarks/_layouts.py``; default: HDF5 with chunks of 65 536 samples);
+    the samples are the same in every layout of the same ``dtype``."""
     import numpy as np
 
-    from torquemod.io.experiment import CHANNEL_UNITS
+    from torquemod.io import write_manifest
     from torquemod.testing import SyntheticSpec
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import _layouts
 
     folder.mkdir(parents=True, exist_ok=True)
     sp = SyntheticSpec(fs_hz=FS_HZ)
     n_total = round(minutes * 60 * FS_HZ)
-    rng = np.random.default_rng(5)
-    wp, ww = sp.platform_speed_rad_s, sp.wheel_speed_rad_s
-    w_mod = 2 * np.pi * sp.modulation_hz
-    lag = np.deg2rad(sp.phase_lag_deg)
-    with h5py.File(folder / "long.h5", "w") as fh:
-        fh.attrs["torquemod_layout"] = 1
-        fh.attrs["sample_rate_hz"] = FS_HZ
-        fh.attrs["t0_s"] = 0.0
-        ds = {}
-        for c in RIG_CHANNELS:
-            ds[c] = fh.create_dataset(c, shape=(n_total,), dtype=dtype, chunks=(1 << 16,))
-            ds[c].attrs["unit"] = CHANNEL_UNITS[c]
-        step = round(block_s * FS_HZ)
-        for a in range(0, n_total, step):
-            b = min(n_total, a + step)
-            t = np.arange(a, b) / FS_HZ
-            m = b - a
-            ecc_p = 1 + 5e-3 * np.cos(wp * t) + 2e-3 * np.cos(2 * wp * t + 1.0)
-            ecc_w = 1 + 7e-3 * np.cos(ww * t) + 3e-3 * np.cos(2 * ww * t + 0.5)
-            x = {"platform_speed_rad_s": wp * ecc_p
-                 + sp.platform_noise_rad_s * rng.standard_normal(m),
-                 "wheel_speed_rad_s": (ww + sp.wheel_mod_amplitude_rad_s
-                                       * np.sin(w_mod * t + sp.modulation_phase_rad - lag))
-                 * ecc_w + sp.wheel_noise_rad_s * rng.standard_normal(m),
-                 "torque_nm": sp.dc_torque_nm + sp.modulation_amplitude_nm
-                 * np.sin(w_mod * t + sp.modulation_phase_rad)
-                 + sp.torque_noise_nm * rng.standard_normal(m),
-                 "fx_n": sp.dc_torque_nm / sp.wheel_radius_m
-                 + sp.force_noise_n * rng.standard_normal(m),
-                 "fy_n": sp.lateral_force_n + sp.force_noise_n * rng.standard_normal(m),
-                 "fz_n": sp.normal_load_n + sp.force_noise_n * rng.standard_normal(m)}
-            for c in RIG_CHANNELS:
-                ds[c][a:b] = x[c]
-    _write_long_manifest(folder, sp)
+    name, extra = _layouts.write(layout, folder, n_total, FS_HZ, dtype,
+                                 _layouts.rig_blocks(n_total, FS_HZ, block_s))
+    write_manifest(folder / "experiment.toml",
+                   rig={"wheel_radius_m": sp.wheel_radius_m,
+                        "platform_radius_m": sp.platform_radius_m},
+                   test={"normal_load_n": sp.normal_load_n, "modulation_frequency_hz": 2.0,
+                         "modulation_amplitude_nm": sp.modulation_amplitude_nm},
+                   recordings=[{"step": 1, "dc_torque_nm": sp.dc_torque_nm, "file": name}],
+                   extra=extra or None)
+    wp = sp.platform_speed_rad_s
     return {"n_samples": n_total, "revolutions": int(n_total / FS_HZ * wp / (2 * np.pi)),
-            "duration_s": n_total / FS_HZ}
+            "duration_s": n_total / FS_HZ, "file": name}
 
 
 def _sample_rss(pid: int, t0: float, every_s: float, out: list) -> None:
@@ -260,21 +247,64 @@ def _timeline(samples: list, wall_s: float, parts: int = 10) -> str:
             f"tenth of the run: " + " ".join(f"{x:.0f}" for x in tenths))
 
 
+def _compare_results(a: Path, b: Path) -> str:
+    """Whether two results folders hold the same numbers: ``cycles.csv`` and ``steps.csv``
+    byte for byte, else the largest relative difference of their numeric cells (plain
+    Python: the measuring process stays small, see :func:`_generate_apart`)."""
+    import csv
+    import math
+
+    worst = 0.0
+    for name in ("cycles.csv", "steps.csv"):
+        if (a / name).read_bytes() == (b / name).read_bytes():
+            continue
+        with open(a / name) as fa, open(b / name) as fb:
+            x, y = list(csv.reader(fa)), list(csv.reader(fb))
+        if len(x) != len(y) or x[:1] != y[:1]:
+            return f"{name}: other columns or rows"
+        for row_x, row_y in zip(x[1:], y[1:], strict=True):
+            for u, v in zip(row_x, row_y, strict=True):
+                try:
+                    u, v = float(u), float(v)
+                except ValueError:
+                    if u != v:
+                        return f"{name}: {u!r} against {v!r}"
+                    continue
+                if u != v and not (math.isnan(u) and math.isnan(v)):
+                    worst = max(worst, abs(u - v) / max(abs(u), 1e-300))
+    return "identical" if worst == 0 else f"differ (max rel {worst:.1e})"
+
+
+def _generate_apart(folder: Path, minutes: float, dtype: str, layout: str) -> dict:
+    """:func:`generate_long` in a fresh Python process. A child's ``ru_maxrss`` includes
+    the peak its parent had reached when it was started (Linux counts the address space
+    that ``exec`` replaces, here the parent's), so the process that measures must not itself
+    hold a generator's blocks: writing a 60-s block with gzip had lifted a 317 MiB run of
+    ``torquemod process`` to 379 MiB."""
+    out = subprocess.run([sys.executable, __file__, "--_long", str(folder), "--minutes",
+                          str(minutes), "--dtype", dtype, "--layout", layout],
+                         check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
 def command(minutes_list: list[float], workdir: str | None, dtype: str,
-            src: str | None = None, sample_s: float | None = None) -> None:
-    """Peak RSS of ``torquemod process`` on recordings of these lengths (see module doc)."""
+            src: str | None = None, sample_s: float | None = None,
+            layouts: list[str] | None = None) -> None:
+    """Peak RSS of ``torquemod process`` on recordings of these lengths and layouts (see
+    module doc)."""
     import os
     import shutil
 
+    layouts = layouts or ["chunk64k"]
     mib = 2**20
     itemsize = 4 if dtype == "f4" else 8
     tmp = Path(tempfile.mkdtemp(dir=workdir))
-    print(f"torquemod process on one HDF5 recording ({len(RIG_CHANNELS)} channels {dtype}, "
+    print(f"torquemod process on one recording ({len(RIG_CHANNELS)} channels {dtype}, "
           f"{FS_HZ:.0f} Hz, one step split into revolutions while read); load "
           f"{os.getloadavg()[0]:.2f}")
-    print(f"{'length':>8s} {'file MiB':>9s} {'revs':>6s} {'peak RSS MiB':>13s} "
-          f"{'vs first':>9s} {'CPU s':>8s} {'wall s':>8s} {'x real time':>11s}")
-    first = None
+    print(f"{'layout':>15s} {'length':>8s} {'file MiB':>9s} {'revs':>6s} "
+          f"{'peak RSS MiB':>13s} {'vs first':>9s} {'CPU s':>8s} {'wall s':>8s} "
+          f"{'x real time':>11s}  results vs {layouts[0]}")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         [src or str(Path(__file__).resolve().parents[1] / "src"),
          os.environ.get("PYTHONPATH", "")])}
@@ -283,34 +313,45 @@ def command(minutes_list: list[float], workdir: str | None, dtype: str,
         # compiled would charge the compiler's memory (hundreds of MiB) to the first length
         # only. One unmeasured run on a one-minute recording first fills the cache.
         warm = tmp / "exp_warm"
-        generate_long(warm, 1.0, dtype)
+        _generate_apart(warm, 1.0, dtype, "chunk64k")
         w = run_measured([sys.executable, "-m", "torquemod.cli", "process",
                           str(warm / "experiment.toml"), "--out", str(tmp / "results"),
                           "--force", "--quiet"], env=env)
         shutil.rmtree(warm)
         print(f"  (kernel cache warmed first on a 1-min recording: {w['cpu_s']:.1f} CPU-s, "
               f"peak {w['peak_rss'] / mib:.0f} MiB; not counted)", flush=True)
-        for minutes in minutes_list:
-            need = minutes * 60 * FS_HZ * len(RIG_CHANNELS) * itemsize
-            free = shutil.disk_usage(tmp).free
-            if need > 0.7 * free:
-                print(f"{minutes:6.0f}min {need / mib:9.0f} skipped: needs more than 70 % of "
-                      f"the {free / 2**30:.0f} GiB free in {tmp}", flush=True)
-                continue
-            folder = tmp / f"exp_{minutes:g}"
-            gen = generate_long(folder, minutes, dtype)
-            size = (folder / "long.h5").stat().st_size
-            m = run_measured([sys.executable, "-m", "torquemod.cli", "process",
-                              str(folder / "experiment.toml"), "--out", str(tmp / "results"),
-                              "--force", "--quiet"], env=env, sample_s=sample_s)
-            first = first or m["peak_rss"]
-            print(f"{minutes:6.0f}min {size / mib:9.0f} {gen['revolutions']:6d} "
-                  f"{m['peak_rss'] / mib:13.0f} {100 * (m['peak_rss'] / first - 1):8.1f}% "
-                  f"{m['cpu_s']:8.1f} {m['wall_s']:8.1f} "
-                  f"{gen['duration_s'] / m['cpu_s']:11.0f}", flush=True)
-            if sample_s:
-                print(f"{'':8s} {_timeline(m['samples'], m['wall_s'])}", flush=True)
-            shutil.rmtree(folder)
+        for layout in layouts:
+            first = None
+            for minutes in minutes_list:
+                need = minutes * 60 * FS_HZ * len(RIG_CHANNELS) * itemsize
+                free = shutil.disk_usage(tmp).free
+                if need > 0.7 * free:
+                    print(f"{layout:>15s} {minutes:6.0f}min {need / mib:9.0f} skipped: needs "
+                          f"more than 70 % of the {free / 2**30:.0f} GiB free in {tmp}",
+                          flush=True)
+                    continue
+                folder = tmp / f"exp_{minutes:g}"
+                gen = _generate_apart(folder, minutes, dtype, layout)
+                size = (folder / gen["file"]).stat().st_size
+                out = tmp / f"results_{layout}_{minutes:g}"
+                m = run_measured([sys.executable, "-m", "torquemod.cli", "process",
+                                  str(folder / "experiment.toml"), "--out", str(out),
+                                  "--force", "--quiet"], env=env, sample_s=sample_s)
+                first = first or m["peak_rss"]
+                ref = tmp / f"results_{layouts[0]}_{minutes:g}"
+                same = "" if layout == layouts[0] else _compare_results(ref, out)
+                print(f"{layout:>15s} {minutes:6.0f}min {size / mib:9.0f} "
+                      f"{gen['revolutions']:6d} {m['peak_rss'] / mib:13.0f} "
+                      f"{100 * (m['peak_rss'] / first - 1):8.1f}% {m['cpu_s']:8.1f} "
+                      f"{m['wall_s']:8.1f} {gen['duration_s'] / m['cpu_s']:11.0f}  {same}",
+                      flush=True)
+                if sample_s:
+                    print(f"{'':8s} {_timeline(m['samples'], m['wall_s'])}", flush=True)
+                shutil.rmtree(folder)
+                if layout != layouts[0]:
+                    shutil.rmtree(out)
+        print(f"  (this process's own peak: {_rss_peak_bytes() / mib:.0f} MiB, the floor of "
+              "every figure above)")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
@@ -563,10 +604,17 @@ def main() -> None:
     ap.add_argument("--sample", type=float, default=None, metavar="SECONDS",
                     help="with --command: also sample the child's VmRSS this often and "
                     "print where its peak falls (e.g. 0.01)")
+    ap.add_argument("--layout", nargs="+", default=None, metavar="LAYOUT",
+                    help="with --command: how the recording is written, one run per layout "
+                         "and length (benchmarks/_layouts.py: chunk64k (default), contiguous, "
+                         "contiguous-time, auto, resizable, chunk1m, chunk4m, gzip, gzip1m, "
+                         "gzip4m, mat73, tdms, mdf4, parquet, csv); the results of each are "
+                         "compared with the first layout's")
     ap.add_argument("--src", default=None,
                     help="with --command: the torquemod sources to run (default: this "
                          "checkout's src; another checkout's for a before/after pair)")
     ap.add_argument("--_train", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--_long", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--_read", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--_mode", default="whole", help=argparse.SUPPRESS)
     ap.add_argument("--minutes", type=float, default=15.0)
@@ -584,11 +632,15 @@ def main() -> None:
     if args._train:
         print(json.dumps(measure_train(Path(args._train), args._mode)))
         return
+    if args._long:
+        print(json.dumps(generate_long(Path(args._long), args.minutes, args.dtype,
+                                       layout=(args.layout or ["chunk64k"])[0])))
+        return
     if args.train:
         train(args.train, args.workdir)
         return
     if args.command:
-        command(args.command, args.workdir, args.dtype, args.src, args.sample)
+        command(args.command, args.workdir, args.dtype, args.src, args.sample, args.layout)
         return
     if args.reading:
         reading(args.reading, args.workdir, args.keep, args.chain)

@@ -215,10 +215,12 @@ def test_last_revolution_completed_within_the_last_sample_interval(tmp_path):
     assert got == bounds
 
 
-def test_hdf5_stream_caches_one_chunk_per_dataset(tmp_path):
-    """A streamed HDF5 dataset is opened with a chunk cache of one of its chunks (HDF5 2.0's
-    default of 8 MiB a dataset held 48 MiB for a recording's 6 channels), and reads the
-    same values; a contiguous dataset keeps the default access."""
+def test_hdf5_stream_chunk_cache_by_storage(tmp_path):
+    """A streamed HDF5 dataset of unfiltered chunks is opened with no chunk cache (its rows
+    are read straight from the file, whatever the chunk size: a cache of one chunk held
+    6 x 32 MiB for chunks of 2**22 float64 samples), one of compressed chunks with a cache
+    of one chunk (each is decompressed once); a contiguous dataset keeps the default access.
+    Every layout reads the same values, also for blocks ending inside chunks."""
     import h5py
 
     from torquemod.io._stream_tables import _H5Table
@@ -226,15 +228,114 @@ def test_hdf5_stream_caches_one_chunk_per_dataset(tmp_path):
     path = tmp_path / "c.h5"
     with h5py.File(path, "w") as fh:
         fh.create_dataset("chunked", data=x, chunks=(3_000,))
+        fh.create_dataset("big", data=x.astype(np.float64), chunks=(40_000,))
+        fh.create_dataset("gzip", data=x, chunks=(3_000,), compression="gzip", shuffle=True)
         fh.create_dataset("plain", data=x.astype(np.float64))
         default = h5py.h5p.create(h5py.h5p.DATASET_ACCESS).get_chunk_cache()[1]
     table = _H5Table(path, None, mat=False)
+    names = ["chunked", "big", "gzip", "plain"]
     try:
-        chunked, plain = table._dataset("chunked"), table._dataset("plain")
-        assert chunked.id.get_access_plist().get_chunk_cache()[1] == 3_000 * 4
-        assert plain.id.get_access_plist().get_chunk_cache()[1] == default
-        got = table.read(["chunked", "plain"], 2_500, 9_100)  # ends inside chunks
-        np.testing.assert_array_equal(got["chunked"], x[2_500:9_100])
-        np.testing.assert_array_equal(got["plain"], x[2_500:9_100])
+        cache = {n: table._dataset(n).id.get_access_plist().get_chunk_cache()[1]
+                 for n in names}
+        assert cache == {"chunked": 0, "big": 0, "gzip": 3_000 * 4, "plain": default}
+        for a, b in ((0, 2_500), (2_500, 9_100), (9_100, 45_000), (45_000, 50_000)):
+            got = table.read(names, a, b)
+            for n in names:
+                np.testing.assert_array_equal(got[n], x[a:b])
     finally:
         table.close()
+
+
+def test_mdf_stream_reads_record_ranges_not_whole_channels(columns, tmp_path, write_columns,
+                                                           monkeypatch):
+    """The MDF stream opens the file through a file object, so that asammdf reads a record
+    range from the data blocks that hold it. By file name, asammdf 8 reads a channel's whole
+    data (``get_channel_raw_bytes_complete``) for every range once the channel group holds
+    200 MiB (``validate_blocks``), once per block and channel. That size is faked here and
+    the whole-channel read made to fail: the stream does not take it, and its chunks are
+    the whole-file values."""
+    pytest.importorskip("asammdf")
+    from asammdf.blocks import mdf_v4
+
+    def whole_channel(*args, **kwargs):
+        raise AssertionError("a record range read the channel's whole data")
+
+    path = write_columns("mdf", tmp_path / "r.mf4", dict(columns), fs_hz=FS_HZ, t0_s=T0_S)
+    rec = read_recording(path)  # by name: its whole-channel reads are the fast path
+    monkeypatch.setattr(mdf_v4, "validate_blocks", lambda blocks, record_size: True)
+    monkeypatch.setattr(mdf_v4, "get_channel_raw_bytes_complete", whole_channel)
+    with open_stream(path) as stream:
+        got = _joined(stream.chunks(chunk_rows=CHUNK))
+        part = stream.read_rows(2_000, 2_100)
+    for c, x in rec.channels.items():
+        np.testing.assert_array_equal(got[c], x, err_msg=c)
+        np.testing.assert_array_equal(part.channels[c], x[2_000:2_100], err_msg=c)
+
+
+@pytest.mark.parametrize("fmt", ["hdf5", "mat73"])
+def test_matrix_mapped_as_a_channel_is_refused_unread(fmt, columns, tmp_path, write_columns,
+                                                      monkeypatch):
+    """A 2-D dataset (all channels in one matrix) mapped as a channel is refused from its
+    shape, before its values are read: read whole first, a long recording's matrix would
+    have filled the memory only to be refused."""
+    import h5py
+    path = write_columns(fmt, tmp_path / f"r{SUFFIX[fmt]}", dict(columns), fs_hz=FS_HZ,
+                         t0_s=T0_S)
+    with h5py.File(path, "a") as fh:
+        fh.create_dataset("block", data=np.zeros((N, 3)))
+
+    real = h5py.Dataset.__getitem__
+
+    def no_read(self, *args, **kwargs):
+        if sum(d > 1 for d in self.shape) > 1:
+            raise AssertionError("the matrix was read")
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(h5py.Dataset, "__getitem__", no_read)
+    with pytest.raises(InputError, match=r"'block': expected a 1-D signal, got shape") as e:
+        read_recording(path, channel_map={"torque": "block"})
+    assert "cannot read" not in str(e.value)
+
+
+def test_parquet_stream_holds_one_row_group_at_a_time(columns, tmp_path):
+    """The Parquet stream reads without pyarrow's pre-buffering, which held the column
+    chunks of every row group read so far until the iteration ended (the whole file by
+    the end of a long recording). Counted by pyarrow's allocator: while 20 row groups are
+    streamed, the live allocations stay under 3 row groups' bytes (without the fix they
+    reach the whole file's)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    rows = 25_000
+    rng = np.random.default_rng(4)
+    table = pa.table({c: np.repeat(x, 100) + rng.standard_normal(100 * N)
+                      for c, x in columns.items() if c in CHANNELS[:6]})
+    table = table.slice(0, 20 * rows).replace_schema_metadata({"sample_rate_hz": "1000.0"})
+    path = tmp_path / "groups.parquet"
+    pq.write_table(table, path, row_group_size=rows, compression="none")
+    group_bytes = rows * 6 * 8
+    base = pa.total_allocated_bytes()
+    peak = 0
+    with open_stream(path) as stream:
+        for _chunk in stream.chunks(chunk_rows=4_096):
+            peak = max(peak, pa.total_allocated_bytes() - base)
+    assert 0 < peak < 3 * group_bytes
+
+
+def test_csv_stream_parses_small_text_blocks(columns, tmp_path, write_columns, monkeypatch):
+    """pyarrow's streaming CSV reader keeps about 35 blocks of parsed values alive, so the
+    stream asks for blocks of at most 1 MiB of text (4 MiB blocks held ~140 MiB)."""
+    from pyarrow import csv as pa_csv
+
+    from torquemod.io import _stream_tables
+    t = T0_S + np.arange(N) / FS_HZ
+    path = write_columns("csv", tmp_path / "r.csv", {"time_s": t, **columns})
+    sizes = []
+    real = pa_csv.open_csv
+
+    def spy(*args, **kwargs):
+        sizes.append(kwargs["read_options"].block_size)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pa_csv, "open_csv", spy)
+    _same(path)
+    assert sizes and all(s == _stream_tables.CSV_BLOCK_BYTES <= 1 << 20 for s in sizes)

@@ -109,6 +109,46 @@ def test_binary_file_streamed_by_its_decoded_size(tmp_path, monkeypatch):
     assert len(streamed) == 1
 
 
+@pytest.mark.parametrize("fmt", ["tdms", "mdf"])
+def test_tdms_and_mdf_streamed_by_their_decoded_size(tmp_path, monkeypatch, write_columns,
+                                                     fmt):
+    """TDMS and MDF4 files, whose sample counts are in their metadata, are streamed by
+    their decoded size as HDF5 is (a 10-min float32 TDMS recording, 229 MiB on disk, was
+    read whole), with the numbers of the same file read whole: bit for bit from TDMS's
+    waveform rate; from MDF4's master the stream fits the time stamps summed by block, which
+    gives the sample rate to 1e-12 relative (tests/io/test_stream.py), the cycles to 1e-9."""
+    pytest.importorskip("nptdms" if fmt == "tdms" else "asammdf")
+    from torquemod.io import read_recording
+    write_synthetic_experiment(tmp_path, n_steps=1, n_cycles=2, files_per_cycle=False,
+                               fmt="hdf5", seed=5)
+    manifest = tmp_path / "experiment.toml"
+    (h5,) = tmp_path.glob("*.h5")
+    rec = read_recording(h5)
+    path = write_columns(fmt, h5.with_suffix(".tdms" if fmt == "tdms" else ".mf4"),
+                         dict(rec.channels), fs_hz=rec.fs_hz, t0_s=rec.t0_s)
+    manifest.write_text(manifest.read_text().replace(h5.name, path.name))
+    h5.unlink()
+    exp = read_experiment(manifest)
+    with pl.open_stream(exp.recordings[0], experiment=exp) as s:
+        decoded = 8 * s.info.n_samples * (len(s.info.channels) + 1)
+    streamed = []
+    real = pl._streamed_cycles
+    monkeypatch.setattr(pl, "_streamed_cycles",
+                        lambda *a, **k: streamed.append(a) or real(*a, **k))
+    monkeypatch.setattr(pl, "STREAM_MIN_BYTES", path.stat().st_size + 1)
+    monkeypatch.setattr(pl, "STREAM_MIN_DECODED_BYTES", decoded)
+    same = pl.process_experiment(manifest, workers=1)
+    assert len(streamed) == 1
+    monkeypatch.setattr(pl, "STREAM_MIN_DECODED_BYTES", decoded + 1)  # read whole
+    whole = pl.process_experiment(manifest, workers=1)
+    assert len(streamed) == 1
+    if fmt == "tdms":
+        pd.testing.assert_frame_equal(same.cycles, whole.cycles, check_exact=True)
+    else:
+        pd.testing.assert_frame_equal(same.cycles, whole.cycles, check_exact=False,
+                                      rtol=1e-9)
+
+
 def test_files_written_from_columnar_details_equal_those_from_dicts(tmp_path):
     """result.json, provenance.json and report.html are written one cycle's details at a
     time from the columns; the text must be that of the same details as a list of dicts."""

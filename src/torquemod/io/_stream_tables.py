@@ -12,7 +12,10 @@ from torquemod.errors import InputError
 from torquemod.io.channels import library_error
 
 DEFAULT_CHUNK_ROWS = 1 << 18  # 262 144 rows: 15.7 s at 16.67 kHz, 2 MiB per channel
-CSV_BLOCK_BYTES = 1 << 22  # text parsed per step by pyarrow's streaming CSV reader
+#: Text parsed per step by pyarrow's streaming CSV reader [bytes]. The reader keeps about
+#: 35 blocks of parsed values alive: 4 MiB blocks held ~140 MiB (a 10-min recording's
+#: `process` peaked at 483 MiB), 1 MiB blocks ~35 MiB for +0.3 CPU-s per 10 min of the rig.
+CSV_BLOCK_BYTES = 1 << 20
 
 
 class _Table:
@@ -59,16 +62,19 @@ class _Table:
         pass
 
 
-def _one_chunk_cache(group, key: str):
-    """The HDF5 dataset ``key`` below ``group``, opened with a chunk cache of one chunk.
+def _dataset_for_stream(group, key: str):
+    """The HDF5 dataset ``key`` below ``group``, opened with the chunk cache a stream needs.
 
-    A stream reads each chunk of a dataset once, in order, so a cache that holds the chunk
-    being read (a block of rows may end inside it) is all it uses. HDF5 2.0's default cache
-    is 8 MiB per dataset: reading a long recording's 6 channels filled 48 MiB that stayed
-    allocated until the file was closed. HDF5 sets a dataset's cache when the dataset is
-    first opened, so it is opened here, not through ``group[key]``. Contiguous datasets get
-    the default access (no chunk cache is used), and so does any dataset the cache cannot
-    be set on.
+    A stream reads each chunk of a dataset once, in order, a block of rows at a time (a
+    block may end inside a chunk). Chunks stored without filters are read straight from the
+    file into the block (HDF5 does so for a chunk larger than the cache): the cache is set
+    to 0 bytes, whatever the chunk size. HDF5 2.0's default cache of 8 MiB a dataset held
+    48 MiB for a recording's 6 channels, and a cache of one chunk held the chunks whole:
+    6 x 32 MiB for chunks of 2**22 float64 samples. A compressed (filtered) chunk can only
+    be decompressed whole, so its cache holds one chunk (each chunk is decompressed once).
+    HDF5 sets a dataset's cache when the dataset is first opened, so it is opened here, not
+    through ``group[key]``. Contiguous datasets get the default access (no chunk cache is
+    used), and so does any dataset the cache cannot be set on.
     """
     import h5py
     ds = None
@@ -78,9 +84,11 @@ def _one_chunk_cache(group, key: str):
         del probe
         chunks = layout.get_chunk() if layout.get_layout() == h5py.h5d.CHUNKED else None
         if chunks:
+            filtered = layout.get_nfilters() > 0
             dapl = h5py.h5p.create(h5py.h5p.DATASET_ACCESS)
             nslots, _, w0 = dapl.get_chunk_cache()
-            dapl.set_chunk_cache(nslots, int(np.prod(chunks)) * itemsize, w0)
+            dapl.set_chunk_cache(nslots, int(np.prod(chunks)) * itemsize if filtered else 0,
+                                 w0)
             ds = h5py.Dataset(h5py.h5d.open(group.id, key.encode(), dapl=dapl))
     except Exception:  # an HDF5 or h5py without per-dataset access lists
         ds = None
@@ -122,7 +130,7 @@ class _H5Table(_Table):
             key = "/".join(p for p in name.replace(".", "/").split("/") if p) if self.mat \
                 else name
             kind = self.g.get(key, getclass=True) if key else None
-            self._ds[name] = _one_chunk_cache(self.g, key) if kind is h5py.Dataset else None
+            self._ds[name] = _dataset_for_stream(self.g, key) if kind is h5py.Dataset else None
         return self._ds[name]
 
     def has(self, name: str) -> bool:
@@ -187,7 +195,11 @@ class _ParquetTable(_Table):
                              path=path, hint="remove 'group' from the recording's entry")
         self.path = path
         try:
-            self.pf = pq.ParquetFile(path)
+            # pre_buffer (pyarrow's default) reads ahead the column chunks of every row group
+            # an iteration covers and holds them until it ends: iter_batches over a 10-min
+            # float32 recording held the whole file (220 MiB) by the end; without it, one
+            # row group is held at a time (36 MiB there)
+            self.pf = pq.ParquetFile(path, pre_buffer=False)
             self.schema = self.pf.schema_arrow
         except Exception as exc:  # ArrowInvalid/OSError on damaged files
             raise library_error(exc, path=path, what="cannot open as Parquet",
@@ -308,13 +320,15 @@ class _MdfTable(_Table):
         from torquemod.io import mdf as mdf_io
         asammdf = mdf_io._import_asammdf(path)
         self.path = path
-        self.mdf, error = mdf_io._open(asammdf, path)
-        if error is not None:
-            raise error
+        self.fh, self.mdf = _mdf_on_file_object(asammdf, path)
+        if self.mdf is None:  # a file asammdf reads only by name (or a damaged one)
+            self.mdf, error = mdf_io._open(asammdf, path)
+            if error is not None:
+                raise error
         try:
             self.index = mdf_io._Index(self.mdf, path, group)
         except Exception:
-            self.mdf.close()
+            self.close()
             raise
 
     def _where(self, name: str) -> tuple[int, int] | None:
@@ -364,6 +378,30 @@ class _MdfTable(_Table):
             self.mdf.close()
         except Exception:  # closing a damaged file
             pass
+        if self.fh is not None:
+            self.fh.close()
+
+
+def _mdf_on_file_object(asammdf, path: Path):
+    """``(file, MDF)`` of ``path`` opened by asammdf from an open file object, or
+    ``(None, None)`` when that fails.
+
+    Given a file name, asammdf (8.x) memory-maps the file and answers ``get`` with a record
+    range by reading the channel's and the master's whole data and slicing them (for channel
+    groups of 200 MiB or more): a stream of 65 536-row blocks then read the whole file once
+    per block and channel (``process`` on a 10-min recording: 143 CPU-s, 1.4 GiB resident).
+    Given a file object it reads only the data blocks that hold the range.
+    """
+    from torquemod.io import mdf as mdf_io
+    try:
+        fh = open(path, "rb")
+    except OSError:
+        return None, None
+    mdf, error = mdf_io._open(asammdf, fh)  # hides a half-built MDF's finalizer errors
+    if error is None:
+        return fh, mdf
+    fh.close()  # the caller opens it by name and reports what is wrong
+    return None, None
 
 
 def _open_table(path: Path, group: str | None) -> _Table:

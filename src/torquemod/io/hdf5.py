@@ -71,6 +71,10 @@ def _dataset(g: h5py.Group, name: str, path: Path, *, unit_attr: str = "unit"
         if not isinstance(obj, h5py.Dataset):
             raise InputError(f"'{name}' is a group, not a dataset", path=path,
                              hint="map a dataset in [channels]")
+        if sum(d > 1 for d in obj.shape) > 1:  # refused before its values are read
+            raise InputError(f"dataset '{name}': expected a 1-D signal, got shape "
+                             f"{obj.shape}", path=path,
+                             hint="map a vector (one value per sample)")
         values = np.asarray(obj[()])
         unit = _attr_text(obj.attrs.get(unit_attr)) if unit_attr in obj.attrs else None
         scale = [_attr_number(obj, key, name, path) for key in ("scale_factor", "add_offset")]

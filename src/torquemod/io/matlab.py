@@ -264,7 +264,10 @@ def _matlab_class(obj: h5py.HLObject) -> str | None:
     return value if isinstance(value, str) else None
 
 
-def _read_dataset(node: h5py.Group, name: str, path: Path) -> np.ndarray | None:
+def _read_dataset(node: h5py.Group, name: str, path: Path, *, vector: bool = False
+                  ) -> np.ndarray | None:
+    """The variable ``name`` below ``node``, None if absent; ``vector``: a matrix is refused
+    before its values are read."""
     try:
         obj = node.get("/".join(_parts(name)) or ".")
         if obj is None:
@@ -278,6 +281,9 @@ def _read_dataset(node: h5py.Group, name: str, path: Path) -> np.ndarray | None:
                              hint="map a numeric variable")
         if obj.attrs.get("MATLAB_empty"):
             return np.zeros(0)
+        if vector and sum(d > 1 for d in obj.shape) > 1:
+            raise InputError(f"'{name}': expected a 1-D signal, got shape {obj.shape}",
+                             path=path, hint="map a vector (one value per sample)")
         return np.asarray(obj[()])
     except InputError:
         raise
@@ -316,7 +322,7 @@ def _read_v73(path: Path, group: str | None, cmap: ChannelMap) -> Recording:
             root = node
 
         def lookup(name: str) -> RawChannel | None:
-            values = _read_dataset(root, name, path)
+            values = _read_dataset(root, name, path, vector=True)
             return None if values is None else RawChannel(values)
 
         native = _native_rate(lambda n: _read_dataset(root, n, path), path)
