@@ -123,6 +123,14 @@ decimation one compiled call with the same arithmetic; one cycle 2.41-2.60x -> 2
 the rest 1.375-1.380 -> 0.899-0.988 ms; the second figure (24 different cycles in turn,
 :func:`distinct_cycles_vs_decimator`) 2.23-2.47x -> 1.95-1.97x (docs/performance.md, "The
 rest in one compiled call per step").
+
+Tenth round (5cb9eab then 3bab7d3, alternated three times, load 1.1): step 1's two peak
+passes, the removal between them and the refinement in one compiled call, less glue, and
+kernels whose independent sums run side by side, every number the same bits; one cycle
+2.08/2.36/2.23x -> 1.87/2.05/2.04x, 24 different cycles 2.03/2.01/1.98x -> 1.85/1.83/1.96x.
+``benchmarks/chain_kernels.py`` puts the compiled kernels alone, caches warm, at 0.54 ms a
+cycle: with no Python around them at all the chain would be ~1.58x (docs/performance.md,
+"The rest at its floor, kernel by kernel").
 """
 
 from __future__ import annotations
