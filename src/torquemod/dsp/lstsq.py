@@ -296,23 +296,9 @@ def _sums_of_squares_4(d: np.ndarray, j0: int, width: int, acc: np.ndarray) -> N
 @numba.njit(cache=True, nogil=True)
 def _row_sums_of_squares(a: np.ndarray) -> np.ndarray:
     """Each row's sum of squares over its elements in order (``s += a[i, t]**2`` as
-    ``a[i, t] * a[i, t]``, t ascending), four rows at a time: independent running sums, so
-    the processor overlaps their additions; the numbers of one row at a time."""
-    k, n = a.shape
-    out = np.empty(k)
-    for i0 in range(0, k, 4):
-        last = min(i0 + 3, k - 1)
-        r0, r1, r2, r3 = a[i0], a[min(i0 + 1, last)], a[min(i0 + 2, last)], a[last]
-        s0 = s1 = s2 = s3 = 0.0
-        for t in range(n):
-            s0 += r0[t] * r0[t]
-            s1 += r1[t] * r1[t]
-            s2 += r2[t] * r2[t]
-            s3 += r3[t] * r3[t]
-        sums = (s0, s1, s2, s3)
-        for q in range(last - i0 + 1):
-            out[i0 + q] = sums[q]
-    return out
+    ``a[i, t] * a[i, t]``, t ascending): :func:`_sums_of_squares` of the transpose, whose
+    columns are these rows (four at a time, the numbers of one row at a time)."""
+    return _sums_of_squares(a.T)
 
 
 @numba.njit(cache=True, nogil=True)

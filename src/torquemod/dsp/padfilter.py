@@ -22,7 +22,6 @@ from torquemod.dsp.filters import (
     _steady_state_solve,
 )
 from torquemod.dsp.lstsq import _DPOTRF, _DPOTRS, LstsqFactor, _factor_of, _solve
-from torquemod.dsp.settling import longest_settling
 from torquemod.dsp.tonemodel import (
     _fill_cos_sin,
     _line_and_tones_design,
@@ -458,8 +457,7 @@ def _chain_filtered_kernel(first_record: np.ndarray, first_less: tuple,
     """:func:`chain_filtered` in one call: ``(status, pad, notched, filtered)``, status 0,
     or not 0 where the reference route must run. The notches by :func:`_notch_design`, the
     band-pass by :func:`_butter_bandpass_compiled`, the settling of
-    each filter (the notches and band-pass together) by
-    :func:`~torquemod.dsp.settling.longest_settling`, the line-and-tones
+    each filter by :func:`~torquemod.dsp.filters._settling_kernel`, the line-and-tones
     design of :func:`~torquemod.dsp.tonemodel.line_and_tones_design_compiled` and its
     factor as
     :meth:`LstsqFactor.of <torquemod.dsp.lstsq.LstsqFactor.of>`
@@ -471,23 +469,16 @@ def _chain_filtered_kernel(first_record: np.ndarray, first_less: tuple,
     k_notch = notches_hz.size
     nb = np.empty((k_notch, 3))
     na = np.empty((k_notch, 3))
+    pad = hp_settle
     for j in range(k_notch):
         b, a, ok = _notch_design(notches_hz[j], q, fs_hz)
         if not ok:
             return 1, 0, np.empty((0, 0)), np.empty((0, 0))
         nb[j] = b
         na[j] = a
+        pad = max(pad, _settling_kernel(b, a, 1e-6, 1_000_000))
     bp_b, bp_a = _butter_bandpass_compiled(bp_order, bp_lo, bp_hi, bp_gain)
-    width = max(3, bp_b.size)  # the notches' and the band-pass' settling, searched together
-    all_b = np.zeros((k_notch + 1, width))
-    all_a = np.zeros((k_notch + 1, width))
-    sizes = np.full(k_notch + 1, 3, dtype=np.int64)
-    all_b[:k_notch, :3] = nb
-    all_a[:k_notch, :3] = na
-    all_b[k_notch, :bp_b.size] = bp_b
-    all_a[k_notch, :bp_a.size] = bp_a
-    sizes[k_notch] = bp_b.size
-    pad = max(hp_settle, longest_settling(all_b, all_a, sizes, 1e-6, 1_000_000))
+    pad = max(pad, _settling_kernel(bp_b, bp_a, 1e-6, 1_000_000))
     tones = np.empty(1 + k_notch)
     tones[0] = f_mod_hz
     tones[1:] = notches_hz

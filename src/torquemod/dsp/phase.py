@@ -417,7 +417,6 @@ def _band_density(x: np.ndarray, fs_hz: float, f_hz: float, cos_t: np.ndarray,
     return _numpy_sum(vals, 0, count) / count
 
 
-
 @njit(cache=True, nogil=True)
 def _dft_bins(xw: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray, ks: np.ndarray, lo: int,
               hi: int, res: np.ndarray, ims: np.ndarray) -> None:

@@ -242,18 +242,18 @@ def _explained(qt: np.ndarray, r_y: np.ndarray, qy: np.ndarray, fs_hz: float,
     for f in range(omegas.size):
         o = f * k2
         col = columns[f]
-        q = 0
-        for a in range(k2):
-            job_a[q] = o + a
-            job_d[q] = n_tone_rows + col  # the record's residual, a row after the tones
-            q += 1
-            for d in range(a + 1):
-                job_a[q] = o + a
-                job_d[q] = o + d
-                q += 1
         if k2 == 2 or k2 == 4 or k2 == 6:  # the tone's rows read once for all products
             _tone_dots(rows, o, n_tone_rows + col, k2, sums)
         else:
+            q = 0
+            for a in range(k2):
+                job_a[q] = o + a
+                job_d[q] = n_tone_rows + col  # the record's residual, a row after the tones
+                q += 1
+                for d in range(a + 1):
+                    job_a[q] = o + a
+                    job_d[q] = o + d
+                    q += 1
             for start in range(0, n_jobs, 8):
                 if n_jobs - start > 4:
                     _dots8(rows, job_a, job_d, start, min(start + 8, n_jobs), sums)
