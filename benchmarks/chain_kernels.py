@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import dataclasses
 import sys
 import time
 
@@ -68,21 +67,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=100)
     args = ap.parse_args()
+    from _cycle import benchmark_cycle
+
     from torquemod._util.blas import one_blas_thread
-    from torquemod.io.config import ProcessingConfig
-    from torquemod.io.experiment import Rig
-    from torquemod.processing import chain
-    from torquemod.testing import SyntheticSpec, synthetic_recording
 
-    cfg = ProcessingConfig()
-    cfg = dataclasses.replace(cfg, resample=dataclasses.replace(cfg.resample,
-                                                                method="two_stage"))
-    rig, rec = Rig(0.0675, 2.0), synthetic_recording(SyntheticSpec(seed=3))
-
-    def run() -> None:
-        sig = chain.process_cycle(rec, rig, cfg, where="bench")
-        chain.cycle_phase(sig, cfg, center_index=sig.torque_filtered.size / 2)
-
+    _, _, _, run = benchmark_cycle()
     with one_blas_thread():
         run()  # compiled (or loaded) before the wrappers
         calls: list = []

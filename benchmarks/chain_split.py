@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import dataclasses
 import importlib
 import time
 
@@ -110,21 +109,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cycles", type=int, default=300)
     args = ap.parse_args()
-    from torquemod._util.blas import one_blas_thread
-    from torquemod.io.config import ProcessingConfig
-    from torquemod.io.experiment import Rig
-    from torquemod.processing import chain
-    from torquemod.testing import SyntheticSpec, synthetic_recording
+    from _cycle import benchmark_cycle
 
-    cfg = ProcessingConfig()
-    cfg = dataclasses.replace(cfg, resample=dataclasses.replace(cfg.resample,
-                                                                method="two_stage"))
-    rig, rec = Rig(0.0675, 2.0), synthetic_recording(SyntheticSpec(seed=3))
+    from torquemod._util.blas import one_blas_thread
+    from torquemod.processing import chain
+
+    _, _, _, cycle = benchmark_cycle()
     # one cycle before the wrappers: a kernel compiled afresh (no cache yet) would otherwise
     # see a wrapped kernel it calls as a Python function and fail to compile
     with one_blas_thread():
-        chain.cycle_phase(chain.process_cycle(rec, rig, cfg, where="bench"), cfg,
-                          center_index=100.0)
+        cycle()
     steps, steps_n = collections.defaultdict(float), collections.defaultdict(int)
     kern, kern_n = collections.defaultdict(float), collections.defaultdict(int)
     d_steps, d_kern = [0], [0]
@@ -147,8 +141,7 @@ def main() -> None:
 
     def run() -> None:
         t0 = time.process_time()
-        sig = chain.process_cycle(rec, rig, cfg, where="bench")
-        chain.cycle_phase(sig, cfg, center_index=sig.torque_filtered.size / 2)
+        cycle()
         total[0] += time.process_time() - t0
 
     with one_blas_thread():

@@ -267,20 +267,16 @@ def chain_vs_decimator(repeat: int = 21, per_sample: int = 5) -> dict[str, float
     (``time.process_time``) of ``per_sample`` calls per sample, the two interleaved sample by
     sample, ``repeat`` samples each: medians, and the ratio of the medians. Also the cost of
     the slow-band decision (``needs_wide_band``) on the cycle's resampled speeds."""
+    from _cycle import benchmark_cycle
+
     from torquemod._util.blas import one_blas_thread
-    rig = Rig(0.0675, 2.0)
-    cfg = _with_resample(ProcessingConfig(), "two_stage")
-    rec = synthetic_recording(SyntheticSpec(seed=3))
+    rig, cfg, rec, run = benchmark_cycle()
     names = [k for k in chain._RESAMPLED if k in rec.channels]
     rows = [rec.channels[k] for k in names]
     up, down = resampling.resample_ratio(rec.fs_hz, cfg.resample.target_hz)
 
     def decimate() -> None:
         resampling.resample_rows(rows, up, down, method="two_stage", padtype="constant")
-
-    def run() -> None:
-        sig = chain.process_cycle(rec, rig, cfg, where="bench")
-        chain.cycle_phase(sig, cfg, center_index=sig.torque_filtered.size / 2)
 
     def cpu(fn) -> float:
         c0 = time.process_time()
