@@ -14,6 +14,15 @@ difference (absolute [deg] for the phase, relative otherwise). Run ``dump`` once
     PYTHONPATH=<old>/src python benchmarks/chain_numbers.py dump old.json
     PYTHONPATH=src python benchmarks/chain_numbers.py dump new.json
     python benchmarks/chain_numbers.py compare old.json new.json
+
+``spread`` measures how far the same code's numbers move with the BLAS kernels alone: it
+runs ``dump`` in a fresh process per OpenBLAS kernel set (``OPENBLAS_CORETYPE``: the one
+OpenBLAS picks for this CPU, Haswell's (what AMD Zen and older Intel CPUs get) and the
+generic x86-64 one) and compares each with the first. This is the reproducibility of
+today's numbers across the CPUs users run, the scale against which "the same numbers"
+is judged:
+
+    python benchmarks/chain_numbers.py spread
 """
 
 from __future__ import annotations
@@ -21,6 +30,10 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
+import subprocess
+import sys
+import tempfile
 
 import numpy as np
 
@@ -89,7 +102,7 @@ def compare(path_a: str, path_b: str) -> None:
     with open(path_b) as fh:
         b = json.load(fh)
     worst: dict[str, tuple[float, str]] = {}
-    same = total = 0
+    same = total = beyond = 0
     for key, row in a.items():
         for q, va in row.items():
             vb = b[key][q]
@@ -101,10 +114,40 @@ def compare(path_a: str, path_b: str) -> None:
                 d = abs(va - vb) if q == "phase" else abs(va - vb) / max(abs(va), 1e-300)
             if d >= worst.get(q, (-1.0, ""))[0]:
                 worst[q] = (d, key)
-    print(f"{same} of {total} values identical ({len(a)} configurations)")
+            beyond += q == "phase" and d > 1e-9
+    print(f"{same} of {total} values identical ({len(a)} configurations); "
+          f"the phase more than 1e-9 deg apart in {beyond}")
     for q, (d, key) in sorted(worst.items()):
         unit = "deg" if q == "phase" else "rel"
         print(f"  {q:36s} largest difference {d:.3g} {unit}" + (f"  ({key})" if d else ""))
+
+
+#: OpenBLAS kernel sets compared by ``spread``: this CPU's own (no override), Haswell's
+#: (chosen on AMD Zen and pre-AVX-512 Intel CPUs) and the generic x86-64 one.
+_CORETYPES = ("", "Haswell", "Prescott")
+
+
+def spread() -> None:
+    """The same code's numbers under each OpenBLAS kernel set, against this CPU's own."""
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = []
+        for core in _CORETYPES:
+            env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
+            env.pop("OPENBLAS_CORETYPE", None)
+            if core:
+                env["OPENBLAS_CORETYPE"] = core
+            path = os.path.join(tmp, f"{core or 'native'}.json")
+            probe = ("import numpy, threadpoolctl; print(sorted({d['architecture'] for d in "
+                     "threadpoolctl.threadpool_info() if d['internal_api'] == 'openblas'}))")
+            arch = subprocess.run([sys.executable, "-c", probe], env=env, check=True,
+                                  capture_output=True, text=True).stdout.strip()
+            subprocess.run([sys.executable, __file__, "dump", path], env=env, check=True,
+                           capture_output=True)
+            paths.append(path)
+            print(f"OPENBLAS_CORETYPE={core or '(unset)'}: OpenBLAS kernels {arch}")
+        for core, path in zip(_CORETYPES[1:], paths[1:], strict=True):
+            print(f"\n{core} against this CPU's own kernels:")
+            compare(paths[0], path)
 
 
 def main() -> None:
@@ -114,9 +157,12 @@ def main() -> None:
     c = sub.add_parser("compare")
     c.add_argument("a")
     c.add_argument("b")
+    sub.add_parser("spread")
     args = ap.parse_args()
     if args.command == "dump":
         dump(args.out)
+    elif args.command == "spread":
+        spread()
     else:
         compare(args.a, args.b)
 
