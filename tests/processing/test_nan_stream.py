@@ -238,3 +238,66 @@ def test_streamed_policy_memory_is_that_of_raise(damaged, tmp_path, monkeypatch)
     whole = peak(folder, "interpolate", False)
     assert nan < ref + 0.05 * decoded, (nan, ref, decoded)
     assert whole > nan + 0.5 * decoded, (whole, nan, decoded)
+
+
+# ------------------------------------------------------------------- the fleet's groups
+@pytest.mark.parametrize("mode", ["whole", "stream"])
+@pytest.mark.parametrize("policy", ["interpolate", "drop-cycle"])
+def test_groups_of_revolutions_merge_to_load_and_process(damaged, monkeypatch, mode, policy):
+    """torquemod.processing.revtasks: each group fills its rows from the plan's runs and
+    drops what drop-cycle drops; merged, the groups are load_and_process's result (cycles,
+    NaN actions, notes) in both of its ways of reading the file."""
+    from torquemod.processing.revtasks import (
+        merge_revolutions,
+        plan_revolutions,
+        process_revolutions,
+        scan_revolutions,
+    )
+    folder, _ = damaged
+    if mode == "stream":
+        monkeypatch.setattr(pl, "STREAM_MIN_BYTES", 0)
+    ref = _load(folder, policy, monkeypatch, streamed=mode == "stream")
+    exp = read_experiment(folder / "experiment.toml")
+    cfg = pl.resolve_config(exp, nan_policy=policy)
+    entry = exp.recordings[0]
+    for per_task in (1, 3):
+        plan = plan_revolutions(entry, exp, cfg, revolutions_per_task=per_task)
+        assert plan.mode == mode and plan.runs is not None
+        parts = [process_revolutions(entry, exp, cfg, plan, a, b)
+                 for a, b in plan.groups(per_task)]
+        _same(merge_revolutions(plan, parts), ref)
+    if mode == "whole":  # the scan's own first group, from the record it has read
+        plan, first = scan_revolutions(entry, exp, cfg, revolutions_per_task=3)
+        rest = process_revolutions(entry, exp, cfg, plan, 3, 4)
+        _same(merge_revolutions(plan, [first, rest]), ref)
+
+
+def test_fleet_run_split_with_a_nan_policy(damaged, tmp_path, monkeypatch):
+    """process_run (the fleet's tasks in this process), one revolution per task, under the
+    manifest's nan_policy = "drop-cycle": the partitions hold `process_experiment`'s
+    tables."""
+    import pandas as pd
+
+    from torquemod.fleet.run import process_run
+    from torquemod.processing import revtasks
+    groups = []
+    real = revtasks.process_revolutions
+    monkeypatch.setattr(revtasks, "process_revolutions",
+                        lambda *a, **k: groups.append(a[4:6]) or real(*a, **k))
+    folder = tmp_path / "exp"
+    shutil.copytree(damaged[0], folder)
+    manifest = folder / "experiment.toml"
+    assert "[processing]" not in manifest.read_text()
+    with manifest.open("a") as fh:
+        fh.write('\n[processing]\nnan_policy = "drop-cycle"\n')
+    row = process_run(str(manifest), str(tmp_path / "out"), "r", revolutions_per_task=1)
+    assert row["status"] == "processed" and row["n_cycles"] == 1
+    # split into 4 tasks, the first computed by the scan from the record it read whole
+    assert sorted(groups) == [(1, 2), (2, 3), (3, 4)]
+    alone = pl.process_experiment(manifest, workers=1)
+    assert len(alone.nan_actions) == 9
+    for table, ref in (("cycles", alone.cycles), ("steps", alone.steps)):
+        got = pd.read_parquet(tmp_path / "out" / table).drop(columns=["run", "vehicle",
+                                                                      "date"])
+        pd.testing.assert_frame_equal(got, ref.reset_index(drop=True), check_dtype=False,
+                                      rtol=0, atol=0)
