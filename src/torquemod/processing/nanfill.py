@@ -140,7 +140,7 @@ def stream_policy(stream, policy: str, where: str, chunk_rows: int
     return notes, runs, (runs.touches if policy == "drop-cycle" else None)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ChannelRuns:
     """The runs of non-finite samples of one channel, in order.
 
@@ -165,7 +165,7 @@ class ChannelRuns:
         return int((self.stop - self.start).sum())
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class NonFiniteRuns:
     """The non-finite samples of a recording, by channel (:func:`scan_nonfinite`).
 
