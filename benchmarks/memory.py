@@ -42,6 +42,11 @@ each length in each, and says whether the results (``cycles.csv``, ``steps.csv``
 the first layout. Each recording is written by a separate Python process: a child's
 ``ru_maxrss`` includes its parent's peak at the time it was started.
 
+``--nan POLICY`` damages every recording with a few runs of NaN/inf samples
+(:data:`NAN_RUNS`: at the start and the end of a channel, single samples, runs in the
+platform speed; HDF5 layouts only) and runs ``torquemod process --nan-policy POLICY``
+(``interpolate`` or ``drop-cycle``).
+
 ``--sample SECONDS`` also reads the child's ``VmRSS`` from ``/proc`` that often and prints
 when the peak was reached and the largest resident size in each tenth of the run (the
 kernels load at the start, the report is written at the end).
@@ -192,6 +197,32 @@ def generate_long(folder: Path, minutes: float, dtype: str = "f8",
             "duration_s": n_total / FS_HZ, "file": name}
 
 
+#: The runs ``--nan`` writes: (channel, first row as a fraction of the file, rows, value); a
+#: negative fraction counts from the end.
+NAN_RUNS = (("torque_nm", 0.0, 200, float("nan")),  # the channel's start
+            ("torque_nm", 0.5, 1, float("nan")),
+            ("wheel_speed_rad_s", 0.7, 50, float("inf")),
+            ("platform_speed_rad_s", 0.3, 500, float("nan")),  # cuts the revolutions
+            ("platform_speed_rad_s", 0.61, 1, float("nan")),
+            ("fx_n", 0.25, 3000, float("nan")),
+            ("fz_n", -300, 300, float("nan")))  # the channel's end
+
+
+def damage(path: Path) -> int:
+    """Write :data:`NAN_RUNS` into an HDF5 recording of 1-D channels; NaN/inf samples."""
+    import h5py
+    import numpy as np
+
+    total = 0
+    with h5py.File(path, "r+") as fh:
+        for c, where, rows, value in NAN_RUNS:
+            n = fh[c].shape[0]
+            a = n + int(where) if where < 0 else int(where * n)
+            fh[c][a:a + rows] = np.full(min(rows, n - a), value)
+            total += min(rows, n - a)
+    return total
+
+
 def _sample_rss(pid: int, t0: float, every_s: float, out: list) -> None:
     """Append (seconds since ``t0``, VmRSS [bytes]) of process ``pid`` every ``every_s``
     until it ends (Linux ``/proc``)."""
@@ -275,21 +306,24 @@ def _compare_results(a: Path, b: Path) -> str:
     return "identical" if worst == 0 else f"differ (max rel {worst:.1e})"
 
 
-def _generate_apart(folder: Path, minutes: float, dtype: str, layout: str) -> dict:
+def _generate_apart(folder: Path, minutes: float, dtype: str, layout: str,
+                    nan: bool = False) -> dict:
     """:func:`generate_long` in a fresh Python process. A child's ``ru_maxrss`` includes
     the peak its parent had reached when it was started (Linux counts the address space
     that ``exec`` replaces, here the parent's), so the process that measures must not itself
     hold a generator's blocks: writing a 60-s block with gzip had lifted a 317 MiB run of
     ``torquemod process`` to 379 MiB."""
     out = subprocess.run([sys.executable, __file__, "--_long", str(folder), "--minutes",
-                          str(minutes), "--dtype", dtype, "--layout", layout],
+                          str(minutes), "--dtype", dtype, "--layout", layout,
+                          *(["--_damage"] if nan else [])],
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out)
 
 
 def command(minutes_list: list[float], workdir: str | None, dtype: str,
             src: str | None = None, sample_s: float | None = None,
-            layouts: list[str] | None = None) -> None:
+            layouts: list[str] | None = None, nan: str | None = None,
+            keep_results: str | None = None) -> None:
     """Peak RSS of ``torquemod process`` on recordings of these lengths and layouts (see
     module doc)."""
     import os
@@ -301,7 +335,9 @@ def command(minutes_list: list[float], workdir: str | None, dtype: str,
     tmp = Path(tempfile.mkdtemp(dir=workdir))
     print(f"torquemod process on one recording ({len(RIG_CHANNELS)} channels {dtype}, "
           f"{FS_HZ:.0f} Hz, one step split into revolutions while read); load "
-          f"{os.getloadavg()[0]:.2f}")
+          f"{os.getloadavg()[0]:.2f}"
+          + (f"; {len(NAN_RUNS)} runs of NaN/inf, --nan-policy {nan}" if nan else ""))
+    policy = ["--nan-policy", nan] if nan else []
     print(f"{'layout':>15s} {'length':>8s} {'file MiB':>9s} {'revs':>6s} "
           f"{'peak RSS MiB':>13s} {'vs first':>9s} {'CPU s':>8s} {'wall s':>8s} "
           f"{'x real time':>11s}  results vs {layouts[0]}")
@@ -331,12 +367,13 @@ def command(minutes_list: list[float], workdir: str | None, dtype: str,
                           flush=True)
                     continue
                 folder = tmp / f"exp_{minutes:g}"
-                gen = _generate_apart(folder, minutes, dtype, layout)
+                gen = _generate_apart(folder, minutes, dtype, layout, nan=bool(nan))
                 size = (folder / gen["file"]).stat().st_size
                 out = tmp / f"results_{layout}_{minutes:g}"
                 m = run_measured([sys.executable, "-m", "torquemod.cli", "process",
                                   str(folder / "experiment.toml"), "--out", str(out),
-                                  "--force", "--quiet"], env=env, sample_s=sample_s)
+                                  "--force", "--quiet", *policy], env=env,
+                                 sample_s=sample_s)
                 first = first or m["peak_rss"]
                 ref = tmp / f"results_{layouts[0]}_{minutes:g}"
                 same = "" if layout == layouts[0] else _compare_results(ref, out)
@@ -348,6 +385,8 @@ def command(minutes_list: list[float], workdir: str | None, dtype: str,
                 if sample_s:
                     print(f"{'':8s} {_timeline(m['samples'], m['wall_s'])}", flush=True)
                 shutil.rmtree(folder)
+                if keep_results:
+                    shutil.copytree(out, Path(keep_results) / out.name, dirs_exist_ok=True)
                 if layout != layouts[0]:
                     shutil.rmtree(out)
         print(f"  (this process's own peak: {_rss_peak_bytes() / mib:.0f} MiB, the floor of "
@@ -610,11 +649,17 @@ def main() -> None:
                          "contiguous-time, auto, resizable, chunk1m, chunk4m, gzip, gzip1m, "
                          "gzip4m, mat73, tdms, mdf4, parquet, csv); the results of each are "
                          "compared with the first layout's")
+    ap.add_argument("--nan", choices=["interpolate", "drop-cycle"], default=None,
+                    help="with --command: write a few runs of NaN/inf into each recording "
+                         "(NAN_RUNS, HDF5 layouts) and process it with this --nan-policy")
+    ap.add_argument("--keep-results", default=None, metavar="DIR",
+                    help="with --command: copy each results folder into DIR")
     ap.add_argument("--src", default=None,
                     help="with --command: the torquemod sources to run (default: this "
                          "checkout's src; another checkout's for a before/after pair)")
     ap.add_argument("--_train", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--_long", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--_damage", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--_read", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--_mode", default="whole", help=argparse.SUPPRESS)
     ap.add_argument("--minutes", type=float, default=15.0)
@@ -633,14 +678,18 @@ def main() -> None:
         print(json.dumps(measure_train(Path(args._train), args._mode)))
         return
     if args._long:
-        print(json.dumps(generate_long(Path(args._long), args.minutes, args.dtype,
-                                       layout=(args.layout or ["chunk64k"])[0])))
+        gen = generate_long(Path(args._long), args.minutes, args.dtype,
+                            layout=(args.layout or ["chunk64k"])[0])
+        if args._damage:
+            gen["nonfinite"] = damage(Path(args._long) / gen["file"])
+        print(json.dumps(gen))
         return
     if args.train:
         train(args.train, args.workdir)
         return
     if args.command:
-        command(args.command, args.workdir, args.dtype, args.src, args.sample, args.layout)
+        command(args.command, args.workdir, args.dtype, args.src, args.sample, args.layout,
+                args.nan, args.keep_results)
         return
     if args.reading:
         reading(args.reading, args.workdir, args.keep, args.chain)

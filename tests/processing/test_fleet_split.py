@@ -132,8 +132,8 @@ def test_stays_one_task(long_exp, monkeypatch):
     entry = exp.recordings[0]
     assert plan_revolutions(entry, exp, cfg) is None  # 26 s: shorter than 1.5 tasks
     assert plan_revolutions(entry, exp, cfg, revolutions_per_task=4) is None  # one group
-    other = dataclasses.replace(cfg, nan_policy="interpolate")
-    assert plan_revolutions(entry, exp, other, revolutions_per_task=1) is None
+    other = dataclasses.replace(cfg, nan_policy="interpolate")  # split as well (its runs
+    assert plan_revolutions(entry, exp, other, revolutions_per_task=1).runs is None  # none)
     named = dataclasses.replace(entry, cycle=1)
     assert plan_revolutions(named, exp, cfg, revolutions_per_task=1) is None
 

@@ -60,9 +60,9 @@ def _axle_api():
 def may_split(plan, index: int) -> bool:
     """Whether a recording may be cut into several tasks (then :func:`scan_item` decides).
 
-    A rig recording without a manifest cycle and NaN policy ``raise`` (groups of
-    revolutions); a train axle file of :data:`AXLE_SCAN_MIN_BYTES` or more (chunks of
-    ``axle_chunk_s``, default :data:`AXLE_TASK_S`).
+    A rig recording without a manifest cycle (groups of revolutions, under any NaN policy);
+    a train axle file of :data:`AXLE_SCAN_MIN_BYTES` or more (chunks of ``axle_chunk_s``,
+    default :data:`AXLE_TASK_S`).
 
     Parameters
     ----------
@@ -87,7 +87,7 @@ def may_split(plan, index: int) -> bool:
             return False
         return size >= AXLE_SCAN_MIN_BYTES
     entry = plan.prep.source.recordings[index]
-    return entry.cycle is None and plan.prep.settings.nan_policy == "raise"
+    return entry.cycle is None
 
 
 @single_blas

@@ -28,7 +28,7 @@ the input digest costs no separate pass after reading.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,6 +48,9 @@ from torquemod.io.channels import (
 )
 from torquemod.io.experiment import CHANNELS, OPTIONAL_CHANNELS, Recording, RecordingEntry
 from torquemod.io.validate import fit_time_grid_blocks
+
+#: ``fill(first row, chunk) -> chunk`` of :meth:`RecordingStream.chunks`.
+_Fill = Callable[[int, dict[str, np.ndarray]], dict[str, np.ndarray]]
 
 _REFUSE_HINT = ("read the file whole (torquemod.io.read_recording) or convert it to one "
                 "time base first (torquemod convert)")
@@ -214,9 +217,12 @@ class RecordingStream:
 
     # -- the chunks
     def chunks(self, channels: list[str] | tuple[str, ...] | None = None,
-               chunk_rows: int = DEFAULT_CHUNK_ROWS) -> Iterator[dict[str, np.ndarray]]:
+               chunk_rows: int = DEFAULT_CHUNK_ROWS, *, fill: _Fill | None = None
+               ) -> Iterator[dict[str, np.ndarray]]:
         """Chunks of ``chunk_rows`` rows (the last one shorter) of ``channels`` (default all
-        the file has), each a dict of float64 arrays in SI units."""
+        the file has), each a dict of float64 arrays in SI units; ``fill(first row, chunk)``,
+        if given, maps each chunk to what is delivered (e.g. its NaN/inf samples filled,
+        :meth:`torquemod.processing.nanfill.NonFiniteRuns.fill`)."""
         if chunk_rows < 1:
             raise ValueError("chunk_rows must be positive")
         want = list(self.info.channels if channels is None else channels)
@@ -227,19 +233,23 @@ class RecordingStream:
         names = {c: self.info.file_names[c] for c in want}
         file_cols = list(dict.fromkeys(names.values()))
         pending: list[dict[str, np.ndarray]] = []
-        held = 0
+        held = pos = 0
         for block in self.table.blocks(file_cols, chunk_rows):
             pending.append(block)
             held += next(iter(block.values())).size
             while held >= chunk_rows:
                 chunk, pending, held = _take(pending, chunk_rows, held)
-                yield self._convert(chunk, names)
+                yield self._convert(chunk, names) if fill is None else fill(
+                    pos, self._convert(chunk, names))
+                pos += chunk_rows
         if held:
             chunk, pending, held = _take(pending, held, held)
-            yield self._convert(chunk, names)
+            yield self._convert(chunk, names) if fill is None else fill(
+                pos, self._convert(chunk, names))
 
     def revolutions(self, chunk_rows: int = DEFAULT_CHUNK_ROWS,
-                    channels: tuple[str, ...] | list[str] | None = None
+                    channels: tuple[str, ...] | list[str] | None = None, *,
+                    fill: _Fill | None = None
                     ) -> Iterator[tuple[int, Recording, tuple[int, int]]]:
         """``(k, recording of revolution k, (start, stop))`` for every whole platform
         revolution, k = 1, 2, ..., read in one pass holding at most a revolution and a
@@ -248,7 +258,8 @@ class RecordingStream:
         order, so bit for bit the same) and the same samples as ``Recording.slice``. After
         the last one, ``self.tail_samples`` holds the samples of the partial revolution
         left at the end. ``channels`` (default all) limits what is read and delivered; it
-        must hold ``platform_speed_rad_s`` (only that one finds the ranges cheaply)."""
+        must hold ``platform_speed_rad_s`` (only that one finds the ranges cheaply). ``fill``
+        maps the chunks as in :meth:`chunks` before the revolutions are cut from them."""
         info = self.info
         if channels is not None and "platform_speed_rad_s" not in channels:
             raise ValueError("channels must include platform_speed_rad_s")
@@ -270,7 +281,7 @@ class RecordingStream:
             ch = {c: v[a - held_start:b - held_start].copy() for c, v in held.items()}
             return Recording(ch, fs, info.t0_s + a / fs, info.source, [])
 
-        for chunk in self.chunks(channels, chunk_rows):
+        for chunk in self.chunks(channels, chunk_rows, fill=fill):
             w = chunk["platform_speed_rad_s"]
             if pos == 0:
                 ang = np.cumsum(np.concatenate(([0.0], dx * (w[1:] + w[:-1]) / 2.0)))

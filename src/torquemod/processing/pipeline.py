@@ -34,7 +34,7 @@ from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Experiment, Recording, RecordingEntry
 from torquemod.io.stream import hash_file_async, open_stream
 from torquemod.io.validate import check_finite, clipping_notes
-from torquemod.processing import chain, cyclechecks
+from torquemod.processing import chain, cyclechecks, nanfill
 from torquemod.processing.cycles import revolution_bounds
 from torquemod.processing.stepmeasure import (
     InOrderStep,
@@ -181,24 +181,6 @@ def resolve_config(experiment: Experiment, config: ProcessingConfig | None = Non
     return cfg
 
 
-def _fill_nan(rec: Recording, where: str) -> list[str]:
-    """Linear interpolation over NaN/inf samples, channel by channel (in place on copies)."""
-    notes = []
-    for name, x in rec.channels.items():
-        bad = ~np.isfinite(x)
-        if bad.any():
-            if bad.all():
-                raise InputError("channel holds no finite value", path=where, channel=name,
-                                 hint="nothing to interpolate from; repair or remove the file")
-            good = np.flatnonzero(~bad)
-            y = x.copy()
-            y[bad] = np.interp(np.flatnonzero(bad), good, x[good])
-            rec.channels[name] = y
-            notes.append(f"{where}: channel '{name}': interpolated {int(bad.sum())} NaN/inf "
-                         "samples")
-    return notes
-
-
 def _cycles_of(entry: RecordingEntry, rec: Recording, where: str, notes: list[str]
                ) -> list[tuple[int, Recording, tuple[int, int]]]:
     """(cycle number, samples, index range) of a recording: the whole file when the manifest
@@ -250,9 +232,9 @@ _DECODED_SIZE_SUFFIXES = (".h5", ".hdf5", ".mat", ".parquet", ".pq", ".tdms", ".
 
 def _open_stream(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig):
     """A stream of a long multi-revolution file, or None for the whole-file path (short
-    files, a manifest cycle, a NaN policy other than 'raise', or a file streaming cannot
-    align: channels on their own time bases, .mat v5)."""
-    if entry.cycle is not None or cfg.nan_policy != "raise":
+    files, a manifest cycle, or a file streaming cannot align: channels on their own time
+    bases, .mat v5)."""
+    if entry.cycle is not None:
         return None
     try:
         size = entry.path.stat().st_size
@@ -303,14 +285,18 @@ def _kernels_loaded() -> None:
         release_compiler_pages()
 
 
-def _streamed_cycles(stream, where: str, notes: list[str]):
+def _streamed_cycles(stream, where: str, notes: list[str], runs=None):
     """(cycle, segment, (start, stop)) of every whole revolution of a stream, each checked
-    for NaN/inf and clipping as it comes; the stream is closed at the end."""
+    for NaN/inf and clipping as it comes (with ``runs``, a
+    :class:`~torquemod.processing.nanfill.NonFiniteRuns`, filled first); the stream is closed
+    at the end."""
     seen: set[str] = set()
     with stream:
         revs = []
-        for k, seg, ab in stream.revolutions(chunk_rows=STREAM_CHUNK_ROWS):
-            check_finite(seg, path=where)
+        for k, seg, ab in stream.revolutions(chunk_rows=STREAM_CHUNK_ROWS,
+                                             fill=None if runs is None else runs.fill):
+            if runs is None:
+                check_finite(seg, path=where)
             for note in clipping_notes(seg, path=where):
                 key = note.split(" sits at ")[0]
                 if key not in seen:  # once per channel, not per revolution
@@ -374,10 +360,14 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
     stream = _open_stream(entry, exp, cfg) if recording is None else None
     actions: list[str] = []
     notes: list[str] = []
-    bad = None
+    drop = None  # (start, stop) -> whether --nan-policy drop-cycle drops those rows
     if stream is not None:  # a long file: revolution by revolution while it is read
+        runs = None
+        if cfg.nan_policy != "raise":  # a first pass finds the NaN/inf runs
+            actions, runs, drop = nanfill.stream_policy(stream, cfg.nan_policy, where,
+                                                        STREAM_CHUNK_ROWS)
         t1 = time.perf_counter()
-        segments = _streamed_cycles(stream, where, notes)
+        segments = _streamed_cycles(stream, where, notes, runs)
     else:
         rec = read_entry(exp, entry) if recording is None else recording
         t1 = time.perf_counter()
@@ -386,24 +376,20 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
         notes += clipping_notes(rec, path=where)
         if cfg.nan_policy == "raise":
             check_finite(rec, path=where)
+        elif cfg.nan_policy == "drop-cycle" and entry.cycle is not None and not all(
+                np.isfinite(x).all() for x in rec.channels.values()):
+            actions.append(f"{where}: dropped step {entry.step} cycle {entry.cycle} "
+                           "(NaN/inf samples)")
+            return (t1 - t0, time.perf_counter() - t1, digest_future.result(), actions,
+                    notes, [])
         else:
-            bad = np.zeros(rec.n_samples, dtype=bool)
-            for x in rec.channels.values():
-                bad |= ~np.isfinite(x)
-            if not bad.any():
-                bad = None
-            elif cfg.nan_policy == "drop-cycle" and entry.cycle is not None:
-                actions.append(f"{where}: dropped step {entry.step} cycle {entry.cycle} "
-                               "(NaN/inf samples)")
-                return (t1 - t0, time.perf_counter() - t1, digest_future.result(), actions,
-                        notes, [])
-            else:  # interpolate; drop-cycle also fills so that the file can be split
-                actions += _fill_nan(rec, where)
+            filled, drop = nanfill.record_policy(rec, cfg.nan_policy, where)
+            actions += filled
         segments = _cycles_of(entry, rec, where, notes)
     out = []
     for cyc, seg, (a, b) in segments:
         cwhere = f"{where} (step {entry.step} cycle {cyc})"
-        if cfg.nan_policy == "drop-cycle" and bad is not None and bad[a:b].any():
+        if drop is not None and drop(a, b):
             actions.append(f"{cwhere}: dropped (NaN/inf samples)")
             continue
         item = _cycle_item(entry, exp, cfg, where, cyc, seg)

@@ -33,8 +33,14 @@ task. Here the same work is cut in three:
   task 0.82 s; plan 0.52 s + 4 groups of 0.14 s), so splitting it gained nothing on 2
   workers and cost ~20 % on one.
 
+With ``--nan-policy interpolate|drop-cycle`` the plan also finds the file's runs of NaN/inf
+samples (:func:`torquemod.processing.nanfill.scan_nonfinite`: a pass over every channel in
+stream mode, the record read whole in whole mode); each group fills its rows from them
+(:meth:`~torquemod.processing.nanfill.NonFiniteRuns.fill`, the values of the whole file
+filled) and drop-cycle drops the revolutions they touch, as ``load_and_process`` does.
+
 A recording stays one task (:func:`plan_revolutions` returns None) when the manifest names
-its cycle, the NaN policy is not ``raise``, the file cannot be streamed (channels on their
+its cycle, the file cannot be streamed (channels on their
 own time bases, .mat v5) or only in order (Parquet, CSV: each group would read every row
 before its own), it has no platform speed, or it is short (one group). Each group opens the
 file's stream, which finds its time base again (for a file with a time column, a pass over
@@ -54,6 +60,8 @@ from torquemod.io.config import ProcessingConfig
 from torquemod.io.experiment import Experiment, Recording, RecordingEntry
 from torquemod.io.stream import hash_file_async, open_stream
 from torquemod.io.validate import check_finite, clipping_notes
+from torquemod.processing import nanfill
+from torquemod.processing.nanfill import NonFiniteRuns
 
 #: Seconds of recording a group of revolutions aims at when ``revolutions_per_task`` is not
 #: given: tasks of about a minute, never an hour (a lost task costs little to redo).
@@ -80,6 +88,13 @@ class RevolutionPlan:
         The whole-file reader's channel order (whole mode).
     read_s : float
         The plan's reading time [s].
+    runs : NonFiniteRuns or None
+        The file's runs of NaN/inf samples under a NaN policy other than ``raise`` (None:
+        the policy raises, or every sample is finite).
+    nan_notes : tuple of str
+        The NaN actions noted before the cycles (the channels filled).
+    drop : bool
+        Whether revolutions holding NaN/inf samples are dropped (``drop-cycle``).
     """
 
     mode: str
@@ -89,6 +104,13 @@ class RevolutionPlan:
     tail_notes: tuple[str, ...]
     channel_order: tuple[str, ...]
     read_s: float
+    runs: NonFiniteRuns | None = None
+    nan_notes: tuple[str, ...] = ()
+    drop: bool = False
+
+    def dropped(self, k: int) -> bool:
+        """Whether revolution ``k`` (index into :attr:`bounds`) is dropped."""
+        return self.drop and self.runs is not None and self.runs.touches(*self.bounds[k])
 
     def groups(self, revolutions_per_task: int | None = None) -> list[tuple[int, int]]:
         """Consecutive groups ``[first, stop)`` of revolution indices: ``revolutions_per_task``
@@ -178,12 +200,13 @@ def scan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
         recording stays one task.
     """
     from torquemod.processing.pipeline import (
+        STREAM_CHUNK_ROWS,
         STREAM_MIN_BYTES,
         _cycle_item,
         _cycles_of,
         _open_stream,
     )
-    if entry.cycle is not None or cfg.nan_policy != "raise":
+    if entry.cycle is not None:
         return None
     where = _where(entry)
     t0 = time.perf_counter()
@@ -197,16 +220,22 @@ def scan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
     if revolutions_per_task is None and info.n_samples / info.fs_hz < 1.5 * TASK_SECONDS:
         return None  # one group: not worth a plan
     stream = _open_stream(entry, exp, cfg)  # the choice load_and_process makes
+    runs, nan_notes, drop = None, [], cfg.nan_policy == "drop-cycle"
     if stream is not None:
+        if cfg.nan_policy != "raise":
+            nan_notes, runs, _ = nanfill.stream_policy(stream, cfg.nan_policy, where,
+                                                       STREAM_CHUNK_ROWS)
         with stream:
-            bounds = [ab for _, _, ab in stream.revolutions(channels=("platform_speed_rad_s",))]
+            bounds = [ab for _, _, ab in stream.revolutions(
+                channels=("platform_speed_rad_s",), fill=None if runs is None else runs.fill)]
             tail = stream.tail_samples
         if not bounds:
             return None  # the one task names it
         plan = RevolutionPlan("stream", tuple(bounds), info.fs_hz, (),
                               tuple(_tail_note(where, tail, [b - a for a, b in bounds],
                                                info.fs_hz)),
-                              info.channels, time.perf_counter() - t0)
+                              info.channels, time.perf_counter() - t0, runs,
+                              tuple(nan_notes), drop)
         first = None
     else:
         if entry.path.stat().st_size >= STREAM_MIN_BYTES or revolutions_per_task is None:
@@ -220,19 +249,32 @@ def scan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
             return None  # the stream would not give the whole-file reader's samples
         notes = [f"{where}: {n}" for n in getattr(rec, "notes", [])]
         notes += clipping_notes(rec, path=where)
-        check_finite(rec, path=where)
+        if cfg.nan_policy == "raise":
+            check_finite(rec, path=where)
+        else:  # the runs fill the record as fill_record would, and the other groups' rows
+            runs = nanfill.scan_nonfinite([rec.channels])
+            nan_notes = runs.notes(where)
+            runs = runs if runs.channels else None
+            if runs is not None:
+                rec.channels.update(runs.fill(0, rec.channels))
         cycles = _cycles_of(entry, rec, where, notes)  # notes the dropped tail
         plan = RevolutionPlan("whole", tuple(ab for _, _, ab in cycles), rec.fs_hz,
-                              tuple(notes), (), tuple(rec.channels), time.perf_counter() - t0)
+                              tuple(notes), (), tuple(rec.channels), time.perf_counter() - t0,
+                              runs, tuple(nan_notes), drop)
         groups = plan.groups(revolutions_per_task)
         first = None
         if first_group and len(groups) > 1:  # the same segments load_and_process cuts
             t1 = time.perf_counter()
-            out = [_cycle_item(entry, exp, cfg, where, cyc, seg)
-                   for cyc, seg, _ in cycles[:groups[0][1]]]
+            out, actions = [], []
+            for k, (cyc, seg, _) in enumerate(cycles[:groups[0][1]]):
+                if plan.dropped(k):
+                    actions.append(_drop_action(where, entry, cyc))
+                else:
+                    out.append(_cycle_item(entry, exp, cfg, where, cyc, seg))
             first = RevolutionPart(0.0, time.perf_counter() - t1,
                                    tuple((None, n) for c in out for n in c[1].notes), out,
-                                   sha256 if digest is None else digest.result())
+                                   sha256 if digest is None else digest.result(),
+                                   tuple(actions))
     if len(plan.groups(revolutions_per_task)) < 2:
         return None
     return plan, first
@@ -255,6 +297,8 @@ class RevolutionPart:
         The cycles as ``load_and_process`` lists them.
     sha256 : str or None
         The file's SHA-256 (the first group's only).
+    actions : tuple of str
+        The revolutions dropped by ``--nan-policy drop-cycle``, as NaN actions.
     """
 
     read_s: float
@@ -262,6 +306,11 @@ class RevolutionPart:
     notes: tuple[tuple[str | None, str], ...]
     cycles: list
     sha256: str | None = None
+    actions: tuple[str, ...] = ()
+
+
+def _drop_action(where: str, entry: RecordingEntry, cyc: int) -> str:
+    return f"{where} (step {entry.step} cycle {cyc}): dropped (NaN/inf samples)"
 
 
 def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig,
@@ -305,19 +354,25 @@ def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingC
     digest = hash_file_async(entry.path) if first == 0 and sha256 is None else None
     read_s = compute_s = 0.0
     notes: list[tuple[str | None, str]] = []
-    out = []
+    out, actions = [], []
     with open_stream(entry, experiment=exp) as stream:
         for k in range(first, stop):
             a, b = plan.bounds[k]
             t0 = time.perf_counter()
             seg = stream.read_rows(a, b)
+            ch = seg.channels if plan.runs is None else plan.runs.fill(a, seg.channels)
             if plan.mode == "whole":  # the whole-file reader's channel order
-                seg = Recording({c: seg.channels[c] for c in plan.channel_order}, seg.fs_hz,
-                                seg.t0_s, seg.source, [])
+                ch = {c: ch[c] for c in plan.channel_order}
+            seg = Recording(ch, seg.fs_hz, seg.t0_s, seg.source, [])
             t1 = time.perf_counter()
             if plan.mode == "stream":
-                check_finite(seg, path=where)
+                if plan.runs is None:
+                    check_finite(seg, path=where)
                 notes += [(n.split(" sits at ")[0], n) for n in clipping_notes(seg, path=where)]
+            if plan.dropped(k):
+                actions.append(_drop_action(where, entry, k + 1))
+                read_s += t1 - t0
+                continue
             item = _cycle_item(entry, exp, cfg, where, k + 1, seg)
             notes += [(None, n) for n in item[1].notes]
             out.append(item)
@@ -325,7 +380,7 @@ def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingC
             compute_s += time.perf_counter() - t1
     return RevolutionPart(read_s, compute_s, tuple(notes), out,
                           (sha256 if first == 0 else None) if digest is None
-                          else digest.result())
+                          else digest.result(), tuple(actions))
 
 
 def merge_revolutions(plan: RevolutionPlan, parts: list[RevolutionPart]) -> tuple:
@@ -359,10 +414,11 @@ def merge_revolutions(plan: RevolutionPlan, parts: list[RevolutionPart]) -> tupl
             notes.append(text)
     notes += plan.tail_notes
     cycles = [c for part in parts for c in part.cycles]
+    actions = [a for part in parts for a in part.actions]  # one per dropped revolution
     if parts[0].sha256 is None:
         raise ValueError("the first group (which hashes the file) is missing")
-    if len(cycles) != len(plan.bounds):
+    if len(cycles) + len(actions) != len(plan.bounds):
         raise ValueError(f"{len(cycles)} cycles merged for {len(plan.bounds)} revolutions")
     read_s = plan.read_s + math.fsum(p.read_s for p in parts)
     compute_s = math.fsum(p.compute_s for p in parts)
-    return read_s, compute_s, parts[0].sha256, [], notes, cycles
+    return read_s, compute_s, parts[0].sha256, [*plan.nan_notes, *actions], notes, cycles
