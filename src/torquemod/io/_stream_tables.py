@@ -71,7 +71,9 @@ def _dataset_for_stream(group, key: str):
     to 0 bytes, whatever the chunk size. HDF5 2.0's default cache of 8 MiB a dataset held
     48 MiB for a recording's 6 channels, and a cache of one chunk held the chunks whole:
     6 x 32 MiB for chunks of 2**22 float64 samples. A compressed (filtered) chunk can only
-    be decompressed whole, so its cache holds one chunk (each chunk is decompressed once).
+    be decompressed whole by HDF5, so its cache holds one chunk (each chunk is decompressed
+    once); a pass in order over large deflate-compressed chunks does not use it
+    (:meth:`_H5Table.blocks`, :mod:`torquemod.io._h5planes`).
     HDF5 sets a dataset's cache when the dataset is first opened, so it is opened here, not
     through ``group[key]``. Contiguous datasets get the default access (no chunk cache is
     used), and so does any dataset the cache cannot be set on.
