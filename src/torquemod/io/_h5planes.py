@@ -6,7 +6,7 @@ the chunk a block of rows at a time must keep it (a chunk cache of one chunk a d
 decompress it again for every block. With chunks of 2**22 float64 samples, the rig's six
 channels kept 6 x 32 MiB, and each new chunk took HDF5's filter buffers on top (the deflate
 output grown by doubling, the shuffle output, the compressed chunk): ``torquemod process``
-peaked at 600-630 MiB instead of ~330 MiB (docs/performance.md).
+peaked at 600-670 MiB instead of ~330-380 MiB (docs/performance.md).
 
 Two filters are simple enough to undo as the rows are wanted. Deflate (HDF5 filter 1) stores
 each chunk as one zlib stream (RFC 1950/1951), which :mod:`zlib` decompresses in order and
