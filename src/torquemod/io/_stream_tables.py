@@ -71,7 +71,9 @@ def _dataset_for_stream(group, key: str):
     to 0 bytes, whatever the chunk size. HDF5 2.0's default cache of 8 MiB a dataset held
     48 MiB for a recording's 6 channels, and a cache of one chunk held the chunks whole:
     6 x 32 MiB for chunks of 2**22 float64 samples. A compressed (filtered) chunk can only
-    be decompressed whole, so its cache holds one chunk (each chunk is decompressed once).
+    be decompressed whole by HDF5, so its cache holds one chunk (each chunk is decompressed
+    once); a pass in order over large deflate-compressed chunks does not use it
+    (:meth:`_H5Table.blocks`, :mod:`torquemod.io._h5planes`).
     HDF5 sets a dataset's cache when the dataset is first opened, so it is opened here, not
     through ``group[key]``. Contiguous datasets get the default access (no chunk cache is
     used), and so does any dataset the cache cannot be set on.
@@ -117,6 +119,7 @@ class _H5Table(_Table):
                              hint="check the 'group' entry in the manifest")
         self.g = g
         self._ds: dict[str, object] = {}
+        self._layouts: dict[str, object] = {}  # name -> _h5planes.PlaneLayout or None
         if mat:
             def scalar(n: str):
                 return matlab_io._read_dataset(g, n, path)
@@ -150,7 +153,6 @@ class _H5Table(_Table):
                          channel=name, hint="map a vector (one value per sample)")
 
     def read(self, names: list[str], a: int, b: int) -> dict[str, np.ndarray]:
-        from torquemod.io import hdf5 as hdf5_io
         out = {}
         for name in names:
             ds = self._dataset(name)
@@ -161,23 +163,54 @@ class _H5Table(_Table):
                     values = ds[0, a:b]
                 else:
                     values = ds[a:b, 0]
-                values = np.asarray(values)
-                if not self.mat:  # CF scale/offset as the whole-file reader applies them
-                    scale = [hdf5_io._attr_number(ds, k, name, self.path)
-                             for k in ("scale_factor", "add_offset")]
-                    if scale != [None, None] and values.dtype.kind in "biuf":
-                        values = values.astype(np.float64)
-                        if scale[0] is not None:
-                            values *= scale[0]
-                        if scale[1] is not None:
-                            values += scale[1]
-            except InputError:
-                raise
             except Exception as exc:  # h5py on damaged chunks
                 raise library_error(exc, path=self.path, what=f"cannot read '{name}'",
                                     hint="is the file complete?") from None
-            out[name] = values
+            out[name] = self._scaled(name, ds, np.asarray(values))
         return out
+
+    def _scaled(self, name: str, ds, values: np.ndarray) -> np.ndarray:
+        """``values`` with the CF scale/offset the whole-file reader applies (HDF5)."""
+        from torquemod.io import hdf5 as hdf5_io
+        if not self.mat:
+            scale = [hdf5_io._attr_number(ds, k, name, self.path)
+                     for k in ("scale_factor", "add_offset")]
+            if scale != [None, None] and values.dtype.kind in "biuf":
+                values = values.astype(np.float64)
+                if scale[0] is not None:
+                    values *= scale[0]
+                if scale[1] is not None:
+                    values += scale[1]
+        return values
+
+    def blocks(self, names: list[str], chunk_rows: int) -> Iterator[dict[str, np.ndarray]]:
+        """As :meth:`_Table.blocks`; datasets in large deflate-compressed chunks are decoded
+        by planes as the rows are read (:mod:`torquemod.io._h5planes`), the others read
+        through HDF5."""
+        from torquemod.io import _h5planes
+        for name in names:
+            if name not in self._layouts:
+                ds = self._dataset(name)
+                self._layouts[name] = _h5planes.plane_layout(ds) if ds is not None else None
+        planes = [name for name in names if self._layouts[name] is not None]
+        if not planes:
+            yield from super().blocks(names, chunk_rows)
+            return
+        rest = [name for name in names if name not in planes]
+        n = self.length()
+        with open(self.path, "rb") as raw:  # this pass's own handle: passes may interleave
+            readers = {name: _h5planes.PlaneReader(self._layouts[name], raw) for name in planes}
+            for a in range(0, n, chunk_rows):
+                b = min(n, a + chunk_rows)
+                out = self.read(rest, a, b)
+                for name, reader in readers.items():
+                    try:
+                        values = reader.rows(a, b)
+                    except Exception as exc:  # zlib, a chunk ending early, the file
+                        raise library_error(exc, path=self.path, what=f"cannot read '{name}'",
+                                            hint="is the file complete?") from None
+                    out[name] = self._scaled(name, self._dataset(name), values)
+                yield {name: out[name] for name in names}
 
     def close(self) -> None:
         self.fh.close()
