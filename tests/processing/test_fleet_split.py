@@ -15,6 +15,7 @@ import h5py
 import numpy as np
 import pytest
 
+from load_compare import same_items
 from torquemod.errors import InputError
 from torquemod.io import read_experiment
 from torquemod.io.stream import open_stream
@@ -48,21 +49,6 @@ def long_exp(tmp_path_factory):
     return root
 
 
-def _same_items(got, ref) -> None:
-    """The tuples of load_and_process, equal in everything but the timings."""
-    assert got[2] == ref[2] and got[3] == ref[3] and got[4] == ref[4]
-    assert len(got[5]) == len(ref[5])
-    for (c1, s1, i1, r1), (c2, s2, i2, r2) in zip(got[5], ref[5], strict=True):
-        assert c1 == c2 and i1 == i2
-        assert r1.keys() == r2.keys() and all(np.array_equal(r1[k], r2[k]) for k in r1)
-        for f in dataclasses.fields(s1):
-            a, b = getattr(s1, f.name), getattr(s2, f.name)
-            if isinstance(a, np.ndarray):
-                assert np.array_equal(a, b, equal_nan=True), f.name
-            else:
-                assert repr(a) == repr(b), f.name  # dicts of floats, NaN-safe
-
-
 def _split(entry, exp, cfg, per_task):
     plan = plan_revolutions(entry, exp, cfg, revolutions_per_task=per_task)
     assert plan is not None
@@ -86,15 +72,15 @@ def test_groups_merge_to_load_and_process(long_exp, monkeypatch, mode):
     assert plan.mode == mode and plan.groups(1) == [(0, 1), (1, 2), (2, 3), (3, 4)]
     assert plan.groups(3) == [(0, 3), (3, 4)]
     assert got[2] == hashlib.sha256(entry.path.read_bytes()).hexdigest()
-    _same_items(got, ref)
-    _same_items(_split(entry, exp, cfg, 3)[1], ref)
+    same_items(got, ref)
+    same_items(_split(entry, exp, cfg, 3)[1], ref)
     # the scan computes the first group itself when it has read the file whole
     plan, first = scan_revolutions(entry, exp, cfg, revolutions_per_task=3)
     assert (first is None) == (mode == "stream")
     if first is not None:
         assert first.sha256 == got[2] and len(first.cycles) == 3
         rest = [process_revolutions(entry, exp, cfg, plan, a, b) for a, b in plan.groups(3)[1:]]
-        _same_items(merge_revolutions(plan, [first, *rest]), ref)
+        same_items(merge_revolutions(plan, [first, *rest]), ref)
 
 
 def test_nan_in_a_later_revolution(long_exp, tmp_path, monkeypatch):

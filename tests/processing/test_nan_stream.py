@@ -6,7 +6,6 @@ cycles, NaN actions and notes must be equal bit for bit, for any chunk size."""
 
 from __future__ import annotations
 
-import dataclasses
 import shutil
 import tracemalloc
 
@@ -15,6 +14,7 @@ import numpy as np
 import pytest
 
 import torquemod.processing.pipeline as pl
+from load_compare import same_items
 from torquemod.errors import InputError
 from torquemod.io import read_experiment
 from torquemod.io.experiment import Recording
@@ -141,21 +141,6 @@ def damaged(tmp_path_factory):
     return root, bounds
 
 
-def _same(got, ref) -> None:
-    """Two results of load_and_process, equal in everything but the timings."""
-    assert got[2:5] == ref[2:5]  # digest, NaN actions, notes
-    assert len(got[5]) == len(ref[5])
-    for (c1, s1, i1, r1), (c2, s2, i2, r2) in zip(got[5], ref[5], strict=True):
-        assert c1 == c2 and i1 == i2
-        assert r1.keys() == r2.keys() and all(np.array_equal(r1[k], r2[k]) for k in r1)
-        for f in dataclasses.fields(s1):
-            a, b = getattr(s1, f.name), getattr(s2, f.name)
-            if isinstance(a, np.ndarray):
-                assert np.array_equal(a, b, equal_nan=True), f.name
-            else:
-                assert repr(a) == repr(b), f.name
-
-
 def _load(folder, policy, monkeypatch, *, streamed, chunk_rows=None):
     exp = read_experiment(folder / "experiment.toml")
     cfg = pl.resolve_config(exp, nan_policy=policy)
@@ -180,7 +165,7 @@ def test_streamed_policy_equals_the_whole_file(damaged, monkeypatch, policy):
     assert len(whole[3]) == 6 + (3 if policy == "drop-cycle" else 0)  # 6 channels filled
     assert len(whole[5]) == (4 if policy == "interpolate" else 1)  # drop-cycle keeps rev 3
     for rows in (5000, 4999, None):
-        _same(_load(folder, policy, monkeypatch, streamed=True, chunk_rows=rows), whole)
+        same_items(_load(folder, policy, monkeypatch, streamed=True, chunk_rows=rows), whole)
 
 
 def test_streamed_experiment_equals_the_whole_file(damaged, monkeypatch):
@@ -265,11 +250,11 @@ def test_groups_of_revolutions_merge_to_load_and_process(damaged, monkeypatch, m
         assert plan.mode == mode and plan.runs is not None
         parts = [process_revolutions(entry, exp, cfg, plan, a, b)
                  for a, b in plan.groups(per_task)]
-        _same(merge_revolutions(plan, parts), ref)
+        same_items(merge_revolutions(plan, parts), ref)
     if mode == "whole":  # the scan's own first group, from the record it has read
         plan, first = scan_revolutions(entry, exp, cfg, revolutions_per_task=3)
         rest = process_revolutions(entry, exp, cfg, plan, 3, 4)
-        _same(merge_revolutions(plan, [first, rest]), ref)
+        same_items(merge_revolutions(plan, [first, rest]), ref)
 
 
 def test_fleet_run_split_with_a_nan_policy(damaged, tmp_path, monkeypatch):
