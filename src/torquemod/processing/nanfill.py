@@ -32,6 +32,24 @@ def _fill_note(where: str, name: str, count: int) -> str:
     return f"{where}: channel '{name}': interpolated {count} NaN/inf samples"
 
 
+def drop_action(where: str, step: int, cycle: int) -> str:
+    """The NaN action noted for a cycle that ``drop-cycle`` drops.
+
+    Parameters
+    ----------
+    where : str
+        The file.
+    step, cycle : int
+        The cycle's step and number [-].
+
+    Returns
+    -------
+    str
+        The action, as the results' NaN actions list it.
+    """
+    return f"{where} (step {step} cycle {cycle}): dropped (NaN/inf samples)"
+
+
 def fill_record(rec: Recording, where: str) -> list[str]:
     """Fill the NaN/inf samples of a whole record, channel by channel (each filled channel
     replaced by a filled copy).

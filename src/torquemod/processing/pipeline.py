@@ -388,9 +388,8 @@ def _load_and_process(entry: RecordingEntry, exp: Experiment, cfg: ProcessingCon
         segments = _cycles_of(entry, rec, where, notes)
     out = []
     for cyc, seg, (a, b) in segments:
-        cwhere = f"{where} (step {entry.step} cycle {cyc})"
         if drop is not None and drop(a, b):
-            actions.append(f"{cwhere}: dropped (NaN/inf samples)")
+            actions.append(nanfill.drop_action(where, entry.step, cyc))
             continue
         item = _cycle_item(entry, exp, cfg, where, cyc, seg)
         _kernels_loaded()

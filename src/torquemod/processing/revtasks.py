@@ -268,7 +268,7 @@ def scan_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConf
             out, actions = [], []
             for k, (cyc, seg, _) in enumerate(cycles[:groups[0][1]]):
                 if plan.dropped(k):
-                    actions.append(_drop_action(where, entry, cyc))
+                    actions.append(nanfill.drop_action(where, entry.step, cyc))
                 else:
                     out.append(_cycle_item(entry, exp, cfg, where, cyc, seg))
             first = RevolutionPart(0.0, time.perf_counter() - t1,
@@ -307,10 +307,6 @@ class RevolutionPart:
     cycles: list
     sha256: str | None = None
     actions: tuple[str, ...] = ()
-
-
-def _drop_action(where: str, entry: RecordingEntry, cyc: int) -> str:
-    return f"{where} (step {entry.step} cycle {cyc}): dropped (NaN/inf samples)"
 
 
 def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingConfig,
@@ -370,7 +366,7 @@ def process_revolutions(entry: RecordingEntry, exp: Experiment, cfg: ProcessingC
                     check_finite(seg, path=where)
                 notes += [(n.split(" sits at ")[0], n) for n in clipping_notes(seg, path=where)]
             if plan.dropped(k):
-                actions.append(_drop_action(where, entry, k + 1))
+                actions.append(nanfill.drop_action(where, entry.step, k + 1))
                 read_s += t1 - t0
                 continue
             item = _cycle_item(entry, exp, cfg, where, k + 1, seg)
