@@ -232,6 +232,11 @@ class RecordingStream:
                              path=self.path, channel=missing[0])
         names = {c: self.info.file_names[c] for c in want}
         file_cols = list(dict.fromkeys(names.values()))
+
+        def delivered(chunk: dict[str, np.ndarray], first_row: int) -> dict[str, np.ndarray]:
+            values = self._convert(chunk, names)
+            return values if fill is None else fill(first_row, values)
+
         pending: list[dict[str, np.ndarray]] = []
         held = pos = 0
         for block in self.table.blocks(file_cols, chunk_rows):
@@ -239,13 +244,11 @@ class RecordingStream:
             held += next(iter(block.values())).size
             while held >= chunk_rows:
                 chunk, pending, held = _take(pending, chunk_rows, held)
-                yield self._convert(chunk, names) if fill is None else fill(
-                    pos, self._convert(chunk, names))
+                yield delivered(chunk, pos)
                 pos += chunk_rows
         if held:
             chunk, pending, held = _take(pending, held, held)
-            yield self._convert(chunk, names) if fill is None else fill(
-                pos, self._convert(chunk, names))
+            yield delivered(chunk, pos)
 
     def revolutions(self, chunk_rows: int = DEFAULT_CHUNK_ROWS,
                     channels: tuple[str, ...] | list[str] | None = None, *,
